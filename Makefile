@@ -1,0 +1,81 @@
+# wavetomo — top-level build.  `make` installs missing Debian packages (as root), builds
+# build/libwavetomo.a and bin/wavetomo.  `make test`, `make demo`, `make bench`, `make debug`.
+
+DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
+                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo check
+
+CC      ?= gcc
+PKGS    := openblas lapacke hdf5-serial fftw3 libconfig plplot
+OPT     ?= -O3 -march=native -fno-math-errno
+WARN    := -Wall -Wextra -Werror -Wno-unknown-pragmas
+CFLAGS  += -std=c11 -D_DEFAULT_SOURCE $(OPT) $(WARN) -fopenmp -I. -I/usr/include/suitesparse
+LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
+
+BUILD   ?= build
+BIN     ?= bin
+
+CORE_SRC  := $(sort $(wildcard core/*/*.c))
+CLI_SRC   := $(sort $(wildcard cli/*.c builder/*.c runtime/*.c compare/*.c))
+TEST_SRC  := $(sort $(wildcard tests/test_*.c))
+CORE_OBJ  := $(CORE_SRC:%.c=$(BUILD)/%.o)
+CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
+TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
+LIB       := $(BUILD)/libwavetomo.a
+
+.PHONY: all deps test demo bench debug clean
+all: deps
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo
+
+# Install what is missing, and nothing when everything is there (dpkg-query is the check).
+deps:
+	@missing=""; for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing missing Debian packages:$$missing"; \
+	  if [ "$$(id -u)" != 0 ]; then echo "error: need root to apt-get install:$$missing" >&2; exit 1; fi; \
+	  export DEBIAN_FRONTEND=noninteractive; \
+	  apt-get update -qq && apt-get install -y -qq --no-install-recommends $$missing >/dev/null || exit 1; \
+	fi
+
+PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS))
+PKG_LIBS   = $(shell pkg-config --libs $(PKGS))
+
+$(BUILD)/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $(PKG_CFLAGS) -MMD -MP -c $< -o $@
+
+$(LIB): $(CORE_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
+$(BIN)/wavetomo: $(CLI_OBJ) $(LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -o $@ $(CLI_OBJ) $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+$(BUILD)/tests/%: tests/%.c tests/testutil.h $(LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $(PKG_CFLAGS) $(shell pkg-config --cflags check) -o $@ $< $(LIB) \
+	    $(PKG_LIBS) $(shell pkg-config --libs check) $(LDLIBS)
+
+test: deps
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
+	@BUILD=$(BUILD) BIN=$(BIN) bash tests/run.sh $(TEST_BIN)
+
+demo: all
+	$(BIN)/wavetomo info data/presets/demo.cfg
+
+bench: all
+	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg
+
+# Sanitizer build in build-debug/ and bin-debug/: make debug && make test BUILD=build-debug BIN=bin-debug OPT=...
+debug: deps
+	@$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug \
+	    OPT="-O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined" \
+	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" \
+	    bin-debug/wavetomo
+
+clean:
+	rm -rf build build-debug bin bin-debug
+
+-include $(CORE_OBJ:.o=.d) $(CLI_OBJ:.o=.d)

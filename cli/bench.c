@@ -1,0 +1,247 @@
+/* cli/bench.c: `wavetomo bench`: reconstructor kernel timings with flop/byte counts, against the
+ * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). */
+#include <cblas.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "cli.h"
+#include "core/base/rng.h"
+#include "core/model/fitting.h"
+#include "core/model/system.h"
+#include "core/model/tomography.h"
+
+static void help(void)
+{
+    printf("usage: wavetomo bench [CONFIG] [--reps N] [--threads N] [--set key=value]...\n"
+           "\n"
+           "Times, on CONFIG (default data/presets/eelt-mcao.cfg): one application of the normal operator M\n"
+           "for pcg3 and cg9, one PCG iteration, and a whole pcg3 frame (right-hand side + the configured\n"
+           "iterations), plus the cg9 fitting operator. Reports medians and the 10th-90th percentiles of\n"
+           "--reps runs (default 50), the flops and bytes per call, and the rates they imply, next to the\n"
+           "machine's memory bandwidth (triad) and DGEMM rate measured in the same run.\n");
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+typedef struct {
+    double med, p10, p90;
+} stats;
+
+static stats summarise(double *t, int n)
+{
+    qsort(t, (size_t)n, sizeof *t, cmp_double);
+    stats s = {t[n / 2], t[n / 10], t[(9 * n) / 10]};
+    return s;
+}
+
+static void report(const char *what, stats s, double flops, double bytes)
+{
+    printf("%-34s %9.3f ms  [%7.3f, %7.3f]  %7.2f Mflop %7.1f MB  %6.2f GFlop/s %6.2f GB/s\n", what, s.med * 1e3,
+           s.p10 * 1e3, s.p90 * 1e3, flops / 1e6, bytes / 1e6, flops / s.med / 1e9, bytes / s.med / 1e9);
+}
+
+/* STREAM triad a = b + s c over arrays far larger than the caches: 24 bytes per element. */
+static double triad_bandwidth(int reps)
+{
+    const size_t n = 1 << 25; /* 3 x 256 MB */
+    double *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *c = malloc(n * sizeof *c);
+    if (!a || !b || !c) {
+        free(a), free(b), free(c);
+        return 0.0;
+    }
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < n; i++) a[i] = 0.0, b[i] = 1.0, c[i] = 2.0;
+    double best = 1e30;
+    for (int r = 0; r < reps; r++) {
+        double t0 = wt_time_now();
+#pragma omp parallel for schedule(static)
+        for (size_t i = 0; i < n; i++) a[i] = b[i] + 0.5 * c[i];
+        double t = wt_time_now() - t0;
+        if (t < best) best = t;
+    }
+    double bw = 24.0 * n / best;
+    free(a), free(b), free(c);
+    return bw;
+}
+
+static double dgemm_rate(void)
+{
+    const int n = 2048;
+    double *a = malloc((size_t)n * n * sizeof *a), *b = malloc((size_t)n * n * sizeof *b),
+           *c = calloc((size_t)n * n, sizeof *c);
+    if (!a || !b || !c) {
+        free(a), free(b), free(c);
+        return 0.0;
+    }
+    for (size_t i = 0; i < (size_t)n * n; i++) a[i] = 1.0 / (1.0 + (double)(i % 97)), b[i] = 1.0 / (1.0 + (double)(i % 89));
+    double best = 1e30;
+    for (int r = 0; r < 3; r++) {
+        double t0 = wt_time_now();
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, n, n, 1.0, a, n, b, n, 0.0, c, n);
+        double t = wt_time_now() - t0;
+        if (t < best) best = t;
+    }
+    free(a), free(b), free(c);
+    return 2.0 * n * (double)n * n / best;
+}
+
+static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name, int reps)
+{
+    wt_tomography *t = NULL;
+    double t0 = wt_time_now();
+    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &t);
+    if (st < 0) return st;
+    double setup = wt_time_now() - t0;
+    int64_t n = wt_tomography_nunknowns(t);
+    double *c = malloc((size_t)n * sizeof *c), *y = malloc((size_t)n * sizeof *y);
+    double *s = malloc((size_t)sys->nslopes * sizeof *s), *times = malloc((size_t)reps * sizeof *times);
+    if (!c || !y || !s || !times) {
+        st = wt_error_set(cli->ctx, WT_ERR_NOMEM, __FILE__, __LINE__, "bench: out of memory");
+        goto out;
+    }
+    wt_rng rng;
+    wt_rng_init(&rng, 7, 0);
+    for (int64_t i = 0; i < n; i++) c[i] = wt_rng_normal(&rng) * 1e-7;
+    for (int64_t i = 0; i < sys->nslopes; i++) s[i] = wt_rng_normal(&rng) * 1e-6;
+    double flops, bytes;
+    wt_tomography_cost(t, &flops, &bytes);
+    printf("\n%s: %lld unknowns in %d layers, %d sensors, %lld slopes (set-up %.2f s%s)\n", name, (long long)n,
+           v->nlayers, sys->nsensors, (long long)sys->nslopes, setup, v->jacobi ? ", incl. the exact Jacobi diagonal" : "");
+
+    wt_tomography_apply(t, c, y); /* warm caches and pages */
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        wt_tomography_apply(t, c, y);
+        times[r] = wt_time_now() - a;
+    }
+    char label[64];
+    snprintf(label, sizeof label, "%s: apply M", name);
+    report(label, summarise(times, reps), flops, bytes);
+
+    double it_flops = flops + wt_pcg_flops_per_iteration(n, v->jacobi);
+    double it_bytes = bytes + 8.0 * n * (v->jacobi ? 12.0 : 11.0);
+    for (int r = 0; r < reps; r++) {
+        memset(c, 0, (size_t)n * sizeof *c);
+        double a = wt_time_now();
+        wt_tomography_solve(t, s, c, 1, 0.0, NULL, NULL);
+        double one = wt_time_now() - a;
+        memset(c, 0, (size_t)n * sizeof *c);
+        a = wt_time_now();
+        wt_tomography_solve(t, s, c, 2, 0.0, NULL, NULL);
+        times[r] = (wt_time_now() - a) - one; /* the second iteration alone */
+    }
+    snprintf(label, sizeof label, "%s: one %s iteration", name, v->jacobi ? "PCG" : "CG");
+    report(label, summarise(times, reps), it_flops, it_bytes);
+
+    /* a whole frame: right-hand side, the initial residual and the configured iterations, warm-started */
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        wt_tomography_solve(t, s, c, v->iterations, 0.0, NULL, NULL);
+        times[r] = wt_time_now() - a;
+    }
+    snprintf(label, sizeof label, "%s: frame (%d iterations)", name, v->iterations);
+    stats fs = summarise(times, reps);
+    /* rhs ≈ half an apply; initial residual = one apply */
+    report(label, fs, flops * 1.5 + it_flops * v->iterations, bytes * 1.5 + it_bytes * v->iterations);
+    if (!strcmp(name, "pcg3"))
+        printf("  real-time goal: a %d-iteration pcg3 frame in 2 ms (500 Hz): measured %.2f ms = %.1fx the budget\n",
+               v->iterations, fs.med * 1e3, fs.med / 2e-3);
+
+    if (v->fit_iterations > 0) {
+        wt_grid grids[WT_MAX_LAYERS];
+        double alts[WT_MAX_LAYERS];
+        for (int l = 0; l < v->nlayers; l++) {
+            grids[l] = *wt_tomography_layer_grid(t, l);
+            alts[l] = wt_tomography_layer_altitude(t, l);
+        }
+        wt_fitting *f = NULL;
+        st = wt_fitting_alloc(cli->ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &f);
+        if (st < 0) goto out;
+        double *a = calloc((size_t)sys->nact, sizeof *a), *phi = malloc((size_t)n * sizeof *phi);
+        if (a && phi) {
+            wt_tomography_layers(t, c, phi);
+            for (int r = 0; r < reps; r++) {
+                double a0 = wt_time_now();
+                wt_fitting_solve(f, phi, a, v->fit_iterations, 0.0, NULL, NULL);
+                times[r] = wt_time_now() - a0;
+            }
+            snprintf(label, sizeof label, "%s: fitting (%d CG iterations)", name, v->fit_iterations);
+            stats s2 = summarise(times, reps);
+            printf("%-34s %9.3f ms  [%7.3f, %7.3f]\n", label, s2.med * 1e3, s2.p10 * 1e3, s2.p90 * 1e3);
+        }
+        free(a);
+        free(phi);
+        wt_fitting_free(f);
+    }
+out:
+    free(c);
+    free(y);
+    free(s);
+    free(times);
+    wt_tomography_free(t);
+    return st;
+}
+
+int wt_cmd_bench(int argc, char **argv)
+{
+    wt_cli cli;
+    if (wt_cli_init(&cli, "wavetomo bench")) return 1;
+    const char *path = NULL;
+    int reps = 50, rc = 0;
+    for (int i = 1; i < argc; i++) {
+        int h = wt_cli_common_option(&cli, argc, argv, &i);
+        if (h < 0) {
+            wt_cli_done(&cli);
+            return 2;
+        }
+        if (h) continue;
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            help();
+            wt_cli_done(&cli);
+            return 0;
+        }
+        if (!strcmp(argv[i], "--reps") && i + 1 < argc) {
+            reps = atoi(argv[++i]);
+            if (reps < 3) {
+                rc = wt_cli_usage_error(&cli, "--reps must be at least 3, got '%s'", argv[i]);
+                wt_cli_done(&cli);
+                return rc;
+            }
+        } else if (argv[i][0] == '-') {
+            rc = wt_cli_usage_error(&cli, "unknown option '%s'", argv[i]);
+            wt_cli_done(&cli);
+            return rc;
+        } else
+            path = argv[i];
+    }
+    if (!path && !cli.config_path) path = "data/presets/eelt-mcao.cfg";
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    int st = wt_cli_read_config(&cli, path, &cfg);
+    if (st < 0) goto out;
+    st = wt_system_alloc(cli.ctx, cfg, &sys);
+    if (st < 0) goto out;
+    int threads = wt_context_threads(cli.ctx);
+    printf("wavetomo bench: %s, %d OpenMP threads, %d OpenBLAS threads, %d repetitions\n", cfg->path, threads,
+           openblas_get_num_threads(), reps);
+    double bw = triad_bandwidth(5), gf = dgemm_rate();
+    printf("machine: triad bandwidth %.1f GB/s, DGEMM %.1f GFlop/s (n = 2048, OpenBLAS)\n", bw / 1e9, gf / 1e9);
+    printf("%-34s %9s     %s\n", "kernel", "median", "[p10, p90] ms, work per call, implied rates");
+    st = bench_variant(&cli, sys, &cfg->pcg3, "pcg3", reps);
+    if (st < 0) goto out;
+    st = bench_variant(&cli, sys, &cfg->cg9, "cg9", reps < 20 ? reps : 20);
+out:
+    if (st < 0) rc = wt_cli_fail(&cli, st);
+    wt_system_free(sys);
+    wt_config_free(cli.ctx, cfg);
+    wt_cli_done(&cli);
+    return rc;
+}

@@ -1,0 +1,144 @@
+/* cli/cli.c: shared driver plumbing: options, error reporting, progress. */
+#include "cli.h"
+
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+static void log_to_stderr(void *user, int level, const char *msg)
+{
+    (void)user;
+    static const char *names[] = {"error", "warning", "info", "debug"};
+    fprintf(stderr, "wavetomo: %s: %s\n", names[level < 0 ? 0 : (level > 3 ? 3 : level)], msg);
+}
+
+int wt_cli_init(wt_cli *cli, const char *prog)
+{
+    memset(cli, 0, sizeof *cli);
+    cli->prog = prog;
+    cli->ctx = wt_context_alloc();
+    if (!cli->ctx) {
+        fprintf(stderr, "%s: error: out of memory\n", prog);
+        return WT_ERR_NOMEM;
+    }
+    wt_context_set_log_hook(cli->ctx, log_to_stderr, NULL, WT_LOG_WARN);
+    return WT_OK;
+}
+
+void wt_cli_done(wt_cli *cli) { wt_context_free(cli->ctx); }
+
+int wt_cli_usage_error(wt_cli *cli, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "%s: error: ", cli->prog);
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, "\n(see '%s --help')\n", cli->prog);
+    va_end(ap);
+    return 2;
+}
+
+int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
+{
+    const char *a = argv[*i];
+    const char *val = NULL;
+    char name[32] = {0};
+    const char *eq = strchr(a, '=');
+    /* accept both "--opt value" and "--opt=value" */
+    if (strncmp(a, "--", 2) == 0 && eq && (size_t)(eq - a) < sizeof name) {
+        memcpy(name, a, (size_t)(eq - a));
+        val = eq + 1;
+    } else {
+        snprintf(name, sizeof name, "%s", a);
+    }
+    int takes_value = !strcmp(name, "--config") || !strcmp(name, "--set") || !strcmp(name, "--threads");
+    if (!takes_value) {
+        if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) {
+            cli->quiet = 1;
+            wt_context_set_log_hook(cli->ctx, log_to_stderr, NULL, WT_LOG_ERROR);
+            return 1;
+        }
+        return 0;
+    }
+    if (!val) {
+        if (*i + 1 >= argc) {
+            wt_cli_usage_error(cli, "option %s needs a value", name);
+            return -1;
+        }
+        val = argv[++*i];
+    }
+    if (!strcmp(name, "--config")) cli->config_path = val;
+    else if (!strcmp(name, "--set")) {
+        if (!strchr(val, '=')) {
+            wt_cli_usage_error(cli, "--set expects key=value, got '%s'", val);
+            return -1;
+        }
+        if (cli->nset == WT_CLI_MAX_SET) {
+            wt_cli_usage_error(cli, "too many --set options (at most %d)", WT_CLI_MAX_SET);
+            return -1;
+        }
+        cli->set[cli->nset++] = val;
+    } else {
+        char *end = NULL;
+        long t = strtol(val, &end, 10);
+        if (!end || *end || t < 0 || t > 1024) {
+            wt_cli_usage_error(cli, "--threads expects a non-negative integer, got '%s'", val);
+            return -1;
+        }
+        cli->threads = (int)t;
+        wt_context_set_threads(cli->ctx, (int)t);
+#ifdef _OPENMP
+        if (t > 0) omp_set_num_threads((int)t);
+#endif
+    }
+    return 1;
+}
+
+int wt_cli_fail(wt_cli *cli, int status)
+{
+    const char *msg = wt_error_message(cli->ctx);
+    fprintf(stderr, "%s: error: %s\n", cli->prog, msg && *msg ? msg : wt_strerror(status));
+    return 1;
+}
+
+int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
+{
+    if (!path) path = cli->config_path;
+    if (!path) {
+        wt_error_set(cli->ctx, WT_ERR_INVALID, __FILE__, __LINE__, "no configuration given (use --config FILE)");
+        return WT_ERR_INVALID;
+    }
+    return wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
+}
+
+void wt_progress_start(wt_progress *p, const char *label, const char *unit, long total)
+{
+    p->enabled = isatty(STDERR_FILENO);
+    p->label = label;
+    p->unit = unit;
+    p->total = total;
+    p->start = p->last = wt_time_now();
+}
+
+void wt_progress_update(wt_progress *p, long done, const char *extra)
+{
+    if (!p->enabled) return;
+    double now = wt_time_now();
+    if (done < p->total && now - p->last < 0.2) return;
+    p->last = now;
+    double el = now - p->start, rate = el > 0 ? done / el : 0.0;
+    double eta = rate > 0 ? (p->total - done) / rate : 0.0;
+    fprintf(stderr, "\r%s %ld/%ld %s  %.2f %s/s  ETA %02d:%02d%s%s\033[K", p->label, done, p->total, p->unit, rate,
+            p->unit, (int)(eta / 60), (int)eta % 60, extra ? "  " : "", extra ? extra : "");
+    fflush(stderr);
+}
+
+void wt_progress_end(wt_progress *p)
+{
+    if (!p->enabled) return;
+    fprintf(stderr, "\n");
+}

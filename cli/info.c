@@ -1,0 +1,171 @@
+/* cli/info.c: `wavetomo info`: the derived sizes of a configured system. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "core/model/fitting.h"
+#include "core/model/system.h"
+#include "core/model/tomography.h"
+#include "core/op/noise.h"
+
+static void help(void)
+{
+    printf("usage: wavetomo info CONFIG [--set key=value]... [--no-nnz] [--threads N]\n"
+           "       wavetomo info --keys\n"
+           "\n"
+           "Prints the derived sizes of the system described by CONFIG: valid subapertures and slopes\n"
+           "per sensor, active actuators per DM, reconstruction unknowns per layer of each\n"
+           "reconstructor (pcg3, cg9), non-zeros of the sparse operators (Γ, P, ΓP, Ã = ΓPW⁻¹, C̃⁻¹,\n"
+           "D), and the size of the MVM control matrix.\n"
+           "\n"
+           "  --keys        print every configuration key with its type, range and unit\n"
+           "  --no-nnz      skip the (few-second) symbolic count of the non-zeros of Ã\n"
+           "  --set k=v     override a configuration key (repeatable)\n");
+}
+
+static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name,
+                          int count_nnz, int *st_out)
+{
+    wt_tomography *t = NULL;
+    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &t);
+    if (st < 0) {
+        *st_out = st;
+        return;
+    }
+    printf("\nreconstructor %s: %d layers, %s, %d iterations%s\n", name, v->nlayers,
+           v->jacobi ? "modified Jacobi PCG" : "CG", v->iterations,
+           v->fit_iterations > 0 ? " + fitting" : "");
+    printf("  %-5s %10s %12s %9s %10s\n", "layer", "altitude_m", "grid", "spacing_m", "unknowns");
+    for (int l = 0; l < v->nlayers; l++) {
+        const wt_grid *g = wt_tomography_layer_grid(t, l);
+        char gs[32];
+        snprintf(gs, sizeof gs, "%dx%d", g->nx, g->ny);
+        printf("  %-5d %10.0f %12s %9.3g %10lld   (Cn2 fraction %.4f)\n", l + 1, wt_tomography_layer_altitude(t, l),
+               gs, g->dx, (long long)wt_grid_size(g), wt_tomography_layer_fraction(t, l));
+    }
+    long long n = (long long)wt_tomography_nunknowns(t);
+    printf("  total unknowns: %lld; prior D: %lld non-zeros (diagonal)\n", n, n);
+    if (count_nnz) {
+        int64_t gp[2 * WT_MAX_GS], a[2 * WT_MAX_GS];
+        st = wt_tomography_count_nnz(t, gp, a);
+        if (st < 0) {
+            *st_out = st;
+            wt_tomography_free(t);
+            return;
+        }
+        long long tg = 0, ta = 0;
+        printf("  %-6s %14s %16s\n", "sensor", "nnz(Gamma P)", "nnz(A~=GammaPW^-1)");
+        for (int m = 0; m < sys->nsensors; m++) {
+            printf("  %-6s %14lld %16lld\n", sys->sensors[m].name, (long long)gp[m], (long long)a[m]);
+            tg += gp[m];
+            ta += a[m];
+        }
+        printf("  %-6s %14lld %16lld  (%.2f GB as CSC with 64-bit indices)\n", "total", tg, ta, ta * 16.0 / 1e9);
+    }
+    if (v->fit_iterations > 0) {
+        wt_grid grids[WT_MAX_LAYERS];
+        double alts[WT_MAX_LAYERS];
+        for (int l = 0; l < v->nlayers; l++) {
+            grids[l] = *wt_tomography_layer_grid(t, l);
+            alts[l] = wt_tomography_layer_altitude(t, l);
+        }
+        wt_fitting *f = NULL;
+        st = wt_fitting_alloc(cli->ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &f);
+        if (st < 0) {
+            *st_out = st;
+            wt_tomography_free(t);
+            return;
+        }
+        printf("  fitting over %d directions, Tikhonov epsilon %.3g (relative %g)\n", sys->neval,
+               wt_fitting_epsilon(f), v->fit_regularization);
+        wt_fitting_free(f);
+    }
+    wt_tomography_free(t);
+}
+
+int wt_cmd_info(int argc, char **argv)
+{
+    wt_cli cli;
+    if (wt_cli_init(&cli, "wavetomo info")) return 1;
+    const char *path = NULL;
+    int count_nnz = 1, rc = 0;
+    for (int i = 1; i < argc; i++) {
+        int h = wt_cli_common_option(&cli, argc, argv, &i);
+        if (h < 0) {
+            wt_cli_done(&cli);
+            return 2;
+        }
+        if (h) continue;
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            help();
+            wt_cli_done(&cli);
+            return 0;
+        }
+        if (!strcmp(argv[i], "--keys")) {
+            wt_config_print_reference(stdout);
+            wt_cli_done(&cli);
+            return 0;
+        }
+        if (!strcmp(argv[i], "--no-nnz")) count_nnz = 0;
+        else if (argv[i][0] == '-') {
+            rc = wt_cli_usage_error(&cli, "unknown option '%s'", argv[i]);
+            wt_cli_done(&cli);
+            return rc;
+        } else if (!path) path = argv[i];
+        else {
+            rc = wt_cli_usage_error(&cli, "more than one CONFIG given ('%s' and '%s')", path, argv[i]);
+            wt_cli_done(&cli);
+            return rc;
+        }
+    }
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    int st = wt_cli_read_config(&cli, path, &cfg);
+    if (st < 0) goto out;
+    st = wt_system_alloc(cli.ctx, cfg, &sys);
+    if (st < 0) goto out;
+
+    printf("system: %s\n", cfg->path);
+    printf("telescope: D = %g m, obstruction %g; Shack-Hartmann sampling %dx%d, d = %g m\n", cfg->diameter,
+           cfg->obstruction, sys->n, sys->n, sys->d);
+    printf("\n%-6s %8s %8s %10s %9s %12s %12s\n", "sensor", "x_arcsec", "y_arcsec", "subaps", "valid", "slopes",
+           "sigma_mas");
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        char sub[16];
+        snprintf(sub, sizeof sub, "%dx%d", s->subapertures, s->subapertures);
+        printf("%-6s %8.1f %8.1f %10s %9d %12d %12.1f\n", s->name, s->theta_x / WT_ARCSEC, s->theta_y / WT_ARCSEC, sub,
+               s->nsub, s->nslopes, sqrt(s->sigma2) / WT_ARCSEC * 1e3);
+    }
+    printf("total slopes: %lld (Fried corner points used: %lld)\n", (long long)sys->nslopes, (long long)sys->ncorners);
+
+    printf("\n%-4s %10s %8s %10s %8s\n", "DM", "altitude_m", "pitch_m", "grid", "active");
+    for (int k = 0; k < sys->ndms; k++) {
+        char g[16];
+        snprintf(g, sizeof g, "%dx%d", sys->dm_grid[k].nx, sys->dm_grid[k].ny);
+        printf("%-4d %10.0f %8.3g %10s %8d\n", k + 1, sys->dm_altitude[k], sys->dm_grid[k].dx, g, sys->dm_nactive[k]);
+    }
+    printf("total active actuators: %lld\n", (long long)sys->nact);
+    printf("evaluation: %d directions (%dx%d, %.1f arcsec spacing) at %.0f nm\n", sys->neval, cfg->eval_grid,
+           cfg->eval_grid, cfg->eval_spacing / WT_ARCSEC, cfg->eval_wavelength * 1e9);
+
+    int64_t nnz_c = 0;
+    for (int m = 0; m < sys->nsensors; m++) nnz_c += 4LL * sys->sensors[m].nsub;
+    printf("noise weight C~^-1: %lld non-zeros (2x2 blocks)\n", (long long)nnz_c);
+
+    double r_bytes = 4.0 * (double)sys->nact * (double)sys->nslopes;
+    double ra_bytes = 4.0 * (double)sys->nact * (double)sys->nact;
+    printf("MVM control matrix R: %lld x %lld float32 = %.3g GB; R*A^ (POLC): %lld x %lld = %.3g GB\n",
+           (long long)sys->nact, (long long)sys->nslopes, r_bytes / 1e9, (long long)sys->nact, (long long)sys->nact,
+           ra_bytes / 1e9);
+
+    print_variant(&cli, sys, &cfg->pcg3, "pcg3", count_nnz, &st);
+    if (st < 0) goto out;
+    print_variant(&cli, sys, &cfg->cg9, "cg9", count_nnz, &st);
+out:
+    if (st < 0) rc = wt_cli_fail(&cli, st);
+    wt_system_free(sys);
+    wt_config_free(cli.ctx, cfg);
+    wt_cli_done(&cli);
+    return rc;
+}

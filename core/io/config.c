@@ -1,0 +1,845 @@
+/* core/io/config.c: libconfig text -> wt_config, driven by one schema table.
+ *
+ * Implements the system description of SPEC §1 (every key of the presets) and the canonical text
+ * that the MVM builder hashes (SPEC §9). One static table lists every key with its type, range,
+ * unit, description and destination; reading, override, validation, the canonical text and the
+ * printed reference all walk that table, so a key cannot be documented one way and read another.
+ * Order of work: syntax -> unknown keys -> --set overrides -> typed keys in schema order ->
+ * cross-key consistency -> canonical text.
+ */
+#include "config.h"
+
+#include <errno.h>
+#include <libconfig.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS };
+enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32 };
+
+typedef struct key_spec {
+    const char *path;    /* dotted libconfig path */
+    int type;            /* K_* */
+    int flags;           /* F_* */
+    double lo, hi;       /* accepted range in file units (of each element for lists) */
+    const char *unit;    /* unit of the file value, "" if none */
+    double scale;        /* file unit -> internal unit (arcsec -> rad, nm -> m, ...) */
+    size_t off;          /* destination in wt_config */
+    size_t count_off;    /* lists: int element count in wt_config; lists sharing it have equal lengths */
+    int minlen, maxlen;  /* lists: accepted lengths */
+    const char *choices; /* enums: "a|b|c"; the stored int is the index */
+    double def;          /* optional keys: value stored when absent */
+    const char *desc;
+} key_spec;
+
+#define CF(f) offsetof(wt_config, f)
+#define NOCOUNT ((size_t)-1)
+#define INF HUGE_VAL
+#define ARCSEC WT_ARCSEC
+#define DEG (M_PI / 180.0)
+#define MAS (1e-3 * WT_ARCSEC)
+#define GT0 F_LO_OPEN, 0.0, INF /* > 0 */
+#define GE0 0, 0.0, INF         /* >= 0 */
+#define ANYANGLE 0, -360.0, 360.0
+
+/* the wrappers expand GT0/GE0/ANYANGLE into their three arguments before the real macro sees them */
+#define KF(...) KF_(__VA_ARGS__)
+#define KI(...) KI_(__VA_ARGS__)
+#define KFL(...) KFL_(__VA_ARGS__)
+#define KIL(...) KIL_(__VA_ARGS__)
+#define KF_(p, fl, lo, hi, u, sc, dst, d) {p, K_FLOAT, fl, lo, hi, u, sc, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
+#define KI_(p, fl, lo, hi, dst, d) {p, K_INT, fl, lo, hi, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
+#define KB(p, dst, d) {p, K_BOOL, 0, 0, 1, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
+#define KE(p, ch, dst, d) {p, K_ENUM, 0, 0, 0, "", 1, CF(dst), NOCOUNT, 0, 0, ch, 0, d}
+#define KFL_(p, fl, lo, hi, u, sc, dst, cnt, mn, mx, d) {p, K_FLOATS, fl, lo, hi, u, sc, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
+#define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
+
+#define SENSOR(pre, w)                                                                                     \
+    KF(pre ".photons", GT0, "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
+    KF(pre ".read_noise_e", GE0, "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
+    KF(pre ".spot_fwhm_arcsec", GT0, "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
+    KF(pre ".pixel_arcsec", GT0, "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
+    KI(pre ".pixels", 0, 1, INF, w.pixels, "pixels across a subaperture (Ns)"),                            \
+    {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, INF, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
+     "noise-equivalent angle per axis (rms); when given it replaces the photon/read-noise model"}
+
+#define VARIANT(pre, v)                                                                                    \
+    KFL(pre ".layer_altitudes_m", F_INCR, 0.0, INF, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
+        "reconstruction layer altitudes, strictly increasing"),                                            \
+    KFL(pre ".layer_spacing_m", GT0, "m", 1, v.spacing, v.nlayers, 1, WT_MAX_LAYERS,                       \
+        "grid spacing of each reconstruction layer"),                                                      \
+    KIL(pre ".layer_size", F_POW2, 4, 1 << 30, v.size, v.nlayers, 1, WT_MAX_LAYERS,                        \
+        "grid points per side of each layer; >= 2^recon.wavelet_levels"),                                  \
+    KI(pre ".iterations", 0, 1, INF, v.iterations, "(P)CG iterations per frame"),                          \
+    KF(pre ".tolerance", GE0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
+    KE(pre ".preconditioner", "none|jacobi", v.jacobi, "jacobi = modified Jacobi PCG, none = plain CG")
+
+static const key_spec keys[] = {
+    KF("telescope.diameter_m", GT0, "m", 1, diameter, "pupil diameter D"),
+    KF("telescope.obstruction", F_HI_OPEN, 0.0, 1.0, "", 1, obstruction, "central obstruction, fraction of D"),
+
+    KF("atmosphere.r0_m", GT0, "m", 1, r0, "Fried parameter r0 at 500 nm"),
+    KF("atmosphere.L0_m", GT0, "m", 1, L0, "von Karman outer scale L0"),
+    KFL("atmosphere.altitudes_m", F_INCR, 0.0, INF, "m", 1, layer_altitude, nlayers, 1, WT_MAX_LAYERS,
+        "altitude of each layer, strictly increasing"),
+    KFL("atmosphere.cn2_fractions", 0, 0.0, 1.0, "", 1, layer_fraction, nlayers, 1, WT_MAX_LAYERS,
+        "Cn2 fraction of each layer; the sum must be 1 within 1 % (then normalised to 1)"),
+    KFL("atmosphere.wind_speed_mps", GE0, "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
+    KFL("atmosphere.wind_direction_deg", ANYANGLE, "deg", DEG, wind_direction, nlayers, 1, WT_MAX_LAYERS,
+        "direction each layer moves towards, from +x towards +y"),
+
+    KI("lgs.count", 0, 0, WT_MAX_GS, nlgs, "number of laser guide stars, evenly spaced in azimuth"),
+    KF("lgs.radius_arcsec", GE0, "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
+    KF("lgs.azimuth0_deg", ANYANGLE, "deg", DEG, lgs_azimuth0, "azimuth of the first LGS; the others follow every 360/count deg"),
+    KF("lgs.altitude_m", GT0, "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
+    KF("lgs.sodium_fwhm_m", GE0, "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation"),
+    KF("lgs.launch_radius_m", GE0, "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
+    KF("lgs.tt_jitter_arcsec", GE0, "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
+    KI("lgs.wfs.subapertures", 0, 1, INF, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
+    KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
+       "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
+    SENSOR("lgs.wfs", lgs_wfs),
+
+    KF("ngs.radius_arcsec", GE0, "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
+    KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
+    KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
+        "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
+    SENSOR("ngs.wfs", ngs_wfs),
+
+    KFL("dm.altitudes_m", GE0, "m", 1, dm_altitude, ndms, 1, WT_MAX_DMS, "conjugation altitude of each DM"),
+    KFL("dm.pitch_m", GT0, "m", 1, dm_pitch, ndms, 1, WT_MAX_DMS, "actuator pitch of each DM"),
+    KIL("dm.actuators", 0, 2, INF, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
+    KF("dm.field_radius_arcsec", GE0, "arcsec", ARCSEC, dm_field_radius,
+       "theta_c: an actuator is active within D/2 + h tan(theta_c) of the centre"),
+
+    KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
+    KF("evaluation.spacing_arcsec", GE0, "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
+    KF("evaluation.wavelength_nm", GT0, "nm", 1e-9, eval_wavelength, "wavelength of the Strehl ratios"),
+    KI("evaluation.settle_frames", 0, 0, INF, settle_frames, "frames left out of the long-exposure averages; < loop.frames"),
+
+    KF("loop.rate_hz", GT0, "Hz", 1, rate, "frame rate"),
+    KI("loop.frames", 0, 1, INF, frames, "frames to run"),
+    KI("loop.delay_frames", 0, 1, 2, delay, "frames between measurement and application"),
+    KF("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, "integrator gain g"),
+
+    KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
+    {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
+     "seed of the turbulence and noise generators"},
+    KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
+
+    KF("recon.alpha", GT0, "", 1, alpha, "prior weight alpha"),
+    KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
+    KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
+    KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
+    KE("recon.prior", "paper|exact", exact_prior, "prior diagonal: paper = scale-only D of the paper, exact = diag(W C W^T)"),
+    KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
+    VARIANT("recon.pcg3", pcg3),
+    VARIANT("recon.cg9", cg9),
+    KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),
+    KF("recon.cg9.fit_regularization", GE0, "", 1, cg9.fit_regularization,
+       "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
+};
+#define NKEYS ((int)(sizeof keys / sizeof keys[0]))
+
+/* ---------------------------------------------------------------- text helpers */
+
+/* Shortest %g text that reads back as the same double. */
+static const char *fmt_num(double v, char *buf, size_t n)
+{
+    for (int p = 15; p <= 17; p++) {
+        snprintf(buf, n, "%.*g", p, v);
+        if (strtod(buf, NULL) == v) break;
+    }
+    return buf;
+}
+
+static int is_list_type(int t) { return t == K_FLOATS || t == K_INTS; }
+static int is_int_type(int t) { return t == K_INT || t == K_INT64 || t == K_INTS; }
+
+/* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
+static void range_core(const key_spec *ks, char *buf, size_t n)
+{
+    char a[40], b[40];
+    int lo = isfinite(ks->lo), hi = isfinite(ks->hi) && !(ks->flags & F_POW2);
+    fmt_num(ks->lo, a, sizeof a);
+    fmt_num(ks->hi, b, sizeof b);
+    if (ks->type == K_BOOL) snprintf(buf, n, "true|false");
+    else if (ks->type == K_ENUM) snprintf(buf, n, "%s", ks->choices);
+    else if (lo && hi)
+        snprintf(buf, n, "in %c%s, %s%c", ks->flags & F_LO_OPEN ? '(' : '[', a, b, ks->flags & F_HI_OPEN ? ')' : ']');
+    else if (lo) snprintf(buf, n, "%s %s", ks->flags & F_LO_OPEN ? ">" : ">=", a);
+    else if (hi) snprintf(buf, n, "%s %s", ks->flags & F_HI_OPEN ? "<" : "<=", b);
+    else snprintf(buf, n, "any");
+}
+
+/* "a number", "an integer", "an odd integer", "a power of two" */
+static const char *noun(const key_spec *ks)
+{
+    return ks->flags & F_POW2 ? "a power of two"
+           : ks->flags & F_ODD ? "an odd integer"
+           : is_int_type(ks->type) ? "an integer"
+                                   : "a number";
+}
+
+/* What a (scalar or element) value must be: "a number > 0 [m]", "one of \"paper\", \"exact\"". */
+static void expected_text(const key_spec *ks, char *buf, size_t n)
+{
+    char r[96];
+    if (ks->type == K_BOOL) {
+        snprintf(buf, n, "a boolean (true or false)");
+        return;
+    }
+    if (ks->type == K_ENUM) {
+        size_t len = (size_t)snprintf(buf, n, "one of");
+        const char *c = ks->choices;
+        while (*c && len < n) {
+            size_t w = strcspn(c, "|");
+            len += (size_t)snprintf(buf + len, n - len, "%s \"%.*s\"", c == ks->choices ? "" : ",", (int)w, c);
+            c += w + (c[w] == '|');
+        }
+        return;
+    }
+    range_core(ks, r, sizeof r);
+    snprintf(buf, n, "%s%s%s%s%s%s", noun(ks), strcmp(r, "any") ? " " : "",
+             strcmp(r, "any") ? r : "", *ks->unit ? " [" : "", ks->unit, *ks->unit ? "]" : "");
+}
+
+static double num(const config_setting_t *s)
+{
+    int t = config_setting_type(s);
+    return t == CONFIG_TYPE_FLOAT   ? config_setting_get_float(s)
+           : t == CONFIG_TYPE_INT64 ? (double)config_setting_get_int64(s)
+                                    : (double)config_setting_get_int(s);
+}
+
+static int is_int_setting(const config_setting_t *s)
+{
+    return config_setting_type(s) == CONFIG_TYPE_INT || config_setting_type(s) == CONFIG_TYPE_INT64;
+}
+
+/* "an integer 3", "a string \"abc\"", "a group", ... */
+static void describe(const config_setting_t *s, char *buf, size_t n)
+{
+    char v[40];
+    switch (config_setting_type(s)) {
+    case CONFIG_TYPE_INT:
+    case CONFIG_TYPE_INT64: snprintf(buf, n, "an integer %lld", config_setting_get_int64(s)); break;
+    case CONFIG_TYPE_FLOAT: snprintf(buf, n, "a number %s", fmt_num(num(s), v, sizeof v)); break;
+    case CONFIG_TYPE_STRING: snprintf(buf, n, "a string \"%s\"", config_setting_get_string(s)); break;
+    case CONFIG_TYPE_BOOL: snprintf(buf, n, "a boolean %s", config_setting_get_bool(s) ? "true" : "false"); break;
+    case CONFIG_TYPE_GROUP: snprintf(buf, n, "a group { ... }"); break;
+    default: snprintf(buf, n, "a list of %d elements", config_setting_length(s)); break;
+    }
+}
+
+/* libconfig's message, plus what to do about its least obvious one */
+static const char *syntax_hint(const char *e)
+{
+    return e && strstr(e, "mismatched element type")
+               ? " (the elements of [ ... ] share one type: write 1.0, not 1, among numbers, or use ( ... ))"
+               : "";
+}
+
+/* ---------------------------------------------------------------- names and suggestions */
+
+static int find_key(const char *path)
+{
+    for (int k = 0; k < NKEYS; k++)
+        if (!strcmp(keys[k].path, path)) return k;
+    return -1;
+}
+
+/* A group path is a proper prefix of some key up to a dot. */
+static int is_group_path(const char *path)
+{
+    size_t n = strlen(path);
+    for (int k = 0; k < NKEYS; k++)
+        if (!strncmp(keys[k].path, path, n) && keys[k].path[n] == '.') return 1;
+    return 0;
+}
+
+static int edit_distance(const char *a, size_t na, const char *b, size_t nb)
+{
+    int row[128];
+    if (na > 127 || nb > 127) return INT_MAX;
+    for (size_t j = 0; j <= nb; j++) row[j] = (int)j;
+    for (size_t i = 1; i <= na; i++) {
+        int diag = row[0];
+        row[0] = (int)i;
+        for (size_t j = 1; j <= nb; j++) {
+            int up = row[j], best = diag + (a[i - 1] != b[j - 1]);
+            if (up + 1 < best) best = up + 1;
+            if (row[j - 1] + 1 < best) best = row[j - 1] + 1;
+            diag = up;
+            row[j] = best;
+        }
+    }
+    return row[nb];
+}
+
+/* " (did you mean 'x'?)" or "": the nearest key or group by edit distance; else a key that only adds
+ * the unit suffix (loop.rate -> loop.rate_hz); else a key of the same name in another group. */
+static void suggest(const char *path, char *buf, size_t n)
+{
+    size_t np = strlen(path);
+    const char *best = NULL, *leaf = strrchr(path, '.');
+    size_t bestlen = 0;
+    int bestd = INT_MAX;
+    leaf = leaf ? leaf + 1 : path;
+    for (int k = 0; k < NKEYS; k++) {
+        const char *p = keys[k].path;
+        for (size_t len = 0;; len++) { /* the key itself and each of its group prefixes */
+            if (p[len] == '.' || p[len] == '\0') {
+                int d = edit_distance(path, np, p, len);
+                if (d < bestd) bestd = d, best = p, bestlen = len;
+            }
+            if (p[len] == '\0') break;
+        }
+    }
+    if (bestd > 2) {
+        int alt = 0;
+        for (int k = 0; k < NKEYS && !alt; k++)
+            if (!strncmp(keys[k].path, path, np) && keys[k].path[np] == '_')
+                alt = 1, best = keys[k].path, bestlen = strlen(best);
+        if (!alt && (size_t)bestd > np / 4) {
+            best = NULL;
+            for (int k = 0; k < NKEYS && !best; k++) {
+                const char *l = strrchr(keys[k].path, '.');
+                if (l && !strcmp(l + 1, leaf)) best = keys[k].path, bestlen = strlen(best);
+            }
+        }
+    }
+    if (best) snprintf(buf, n, " (did you mean '%.*s'?)", (int)bestlen, best);
+    else snprintf(buf, n, "; `wavetomo info --keys` lists the accepted keys");
+}
+
+/* ---------------------------------------------------------------- parse state and messages */
+
+typedef struct pstate {
+    wt_context *ctx;
+    const char *name;
+    config_t *cf;
+    const char *const *ov;
+    int ovidx[NKEYS];                 /* override that set key k last, or -1 */
+    const config_setting_t *set[NKEYS];
+} pstate;
+
+static int fail_at(pstate *ps, const char *loc, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static int fail_at(pstate *ps, const char *loc, const char *fmt, ...)
+{
+    char msg[1536];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return WT_ERROR(ps->ctx, WT_ERR_CONFIG, "%s: %s", loc, msg);
+}
+
+/* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent. */
+static const char *where(const pstate *ps, int k, const config_setting_t *s, char *buf, size_t n)
+{
+    if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
+    else if (s && config_setting_source_line(s) > 0)
+        snprintf(buf, n, "%s:%u", config_setting_source_file(s) ? config_setting_source_file(s) : ps->name,
+                 (unsigned)config_setting_source_line(s));
+    else snprintf(buf, n, "%s", ps->name);
+    return buf;
+}
+
+#define FAIL(ps, k, s, ...) fail_at((ps), where((ps), (k), (s), loc, sizeof loc), __VA_ARGS__)
+
+/* ---------------------------------------------------------------- unknown keys */
+
+static int check_unknown(pstate *ps, const config_setting_t *g, const char *prefix)
+{
+    char loc[512], path[256], sg[160], got[160];
+    for (int i = 0; i < config_setting_length(g); i++) {
+        const config_setting_t *m = config_setting_get_elem(g, (unsigned)i);
+        snprintf(path, sizeof path, "%s%s%s", prefix, *prefix ? "." : "", config_setting_name(m));
+        if (find_key(path) >= 0) continue;
+        if (is_group_path(path)) {
+            if (!config_setting_is_group(m)) {
+                describe(m, got, sizeof got);
+                return FAIL(ps, -1, m, "'%s' is a group of settings; expected %s = { ... }, got %s", path, path, got);
+            }
+            int st = check_unknown(ps, m, path);
+            if (st < 0) return st;
+            continue;
+        }
+        suggest(path, sg, sizeof sg);
+        return FAIL(ps, -1, m, "unknown %s '%s'%s", config_setting_is_group(m) ? "group" : "key", path, sg);
+    }
+    return WT_OK;
+}
+
+/* ---------------------------------------------------------------- overrides */
+
+static config_setting_t *copy_setting(config_setting_t *parent, const char *name, const config_setting_t *src)
+{
+    int t = config_setting_type(src);
+    config_setting_t *d = config_setting_add(parent, config_setting_is_group(parent) ? name : NULL, t);
+    if (!d) return NULL;
+    switch (t) {
+    case CONFIG_TYPE_INT: config_setting_set_int(d, config_setting_get_int(src)); break;
+    case CONFIG_TYPE_INT64: config_setting_set_int64(d, config_setting_get_int64(src)); break;
+    case CONFIG_TYPE_FLOAT: config_setting_set_float(d, config_setting_get_float(src)); break;
+    case CONFIG_TYPE_BOOL: config_setting_set_bool(d, config_setting_get_bool(src)); break;
+    case CONFIG_TYPE_STRING: config_setting_set_string(d, config_setting_get_string(src)); break;
+    default:
+        for (int i = 0; i < config_setting_length(src); i++) {
+            const config_setting_t *e = config_setting_get_elem(src, (unsigned)i);
+            if (!copy_setting(d, config_setting_name(e), e)) return NULL;
+        }
+    }
+    return d;
+}
+
+/* Creates the groups along path in cf (all but the last component); returns the parent group. */
+static config_setting_t *ensure_parent(config_t *cf, const char *path, const char **leaf)
+{
+    char part[128];
+    config_setting_t *g = config_root_setting(cf);
+    const char *p = path, *dot;
+    while ((dot = strchr(p, '.'))) {
+        size_t w = (size_t)(dot - p) < sizeof part ? (size_t)(dot - p) : sizeof part - 1;
+        memcpy(part, p, w);
+        part[w] = '\0';
+        config_setting_t *m = config_setting_get_member(g, part);
+        if (!m) m = config_setting_add(g, part, CONFIG_TYPE_GROUP);
+        if (!m || !config_setting_is_group(m)) return NULL;
+        g = m;
+        p = dot + 1;
+    }
+    *leaf = p;
+    return g;
+}
+
+static int apply_override(pstate *ps, int i)
+{
+    char loc[512], key[128], sg[160];
+    const char *o = ps->ov[i], *eq = o ? strchr(o, '=') : NULL;
+    snprintf(loc, sizeof loc, "--set %s", o ? o : "(null)");
+    if (!eq) return fail_at(ps, loc, "expected key=value, e.g. --set atmosphere.r0_m=0.15");
+    while (*o == ' ' || *o == '\t') o++;
+    size_t kl = (size_t)(eq - o);
+    while (kl > 0 && (o[kl - 1] == ' ' || o[kl - 1] == '\t')) kl--;
+    if (kl >= sizeof key) kl = sizeof key - 1;
+    memcpy(key, o, kl);
+    key[kl] = '\0';
+    int k = find_key(key);
+    if (k < 0 && is_group_path(key))
+        return fail_at(ps, loc, "'%s' is a group; set its keys one at a time (e.g. %s.<key>=<value>)", key, key);
+    if (k < 0) {
+        suggest(key, sg, sizeof sg);
+        return fail_at(ps, loc, "unknown key '%s'%s", key, sg);
+    }
+
+    const char *v = eq + 1;
+    while (*v == ' ' || *v == '\t') v++;
+    size_t vl = strlen(v);
+    while (vl > 0 && (v[vl - 1] == ' ' || v[vl - 1] == '\t' || v[vl - 1] == ';')) vl--;
+    size_t cap = vl + 16;
+    char *text = wt_malloc(ps->ctx, cap, 1);
+    if (!text) return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "out of memory parsing --set %s", ps->ov[i]);
+    config_t tmp;
+    int st = WT_OK;
+    for (int quoted = 0; quoted < 2; quoted++) {
+        snprintf(text, cap, quoted ? "v = \"%.*s\";" : "v = %.*s;", (int)vl, v);
+        config_init(&tmp);
+        if (config_read_string(&tmp, text)) break;
+        /* a bare word is taken as a string for string keys (recon.prior=exact) */
+        if (quoted || keys[k].type != K_ENUM || memchr(v, '"', vl)) {
+            st = fail_at(ps, loc, "cannot read the value: %s%s (numbers 0.5, lists [1.0, 2.0], strings \"text\", "
+                         "booleans true/false)", config_error_text(&tmp), syntax_hint(config_error_text(&tmp)));
+            config_destroy(&tmp);
+            wt_free(ps->ctx, text);
+            return st;
+        }
+        config_destroy(&tmp);
+    }
+    wt_free(ps->ctx, text);
+    const char *leaf;
+    config_setting_t *parent = ensure_parent(ps->cf, key, &leaf);
+    if (parent && config_setting_get_member(parent, leaf)) config_setting_remove(parent, leaf);
+    if (!parent || !copy_setting(parent, leaf, config_lookup(&tmp, "v")))
+        st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the setting", loc);
+    config_destroy(&tmp);
+    ps->ovidx[k] = i;
+    return st;
+}
+
+/* ---------------------------------------------------------------- typed keys */
+
+static int in_range(const key_spec *ks, double v)
+{
+    if (!isfinite(v)) return 0;
+    if ((ks->flags & F_LO_OPEN) ? v <= ks->lo : v < ks->lo) return 0;
+    if ((ks->flags & F_HI_OPEN) ? v >= ks->hi : v > ks->hi) return 0;
+    if ((ks->type == K_INT || ks->type == K_INTS) && (v > INT_MAX || v < INT_MIN)) return 0;
+    return 1;
+}
+
+/* One scalar (or list element, elem >= 0): type and range in file units; value returned in *out. */
+static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, double *out)
+{
+    const key_spec *ks = &keys[k];
+    char loc[512], want[160], got[200], v[40], ix[32] = "";
+    if (elem >= 0) snprintf(ix, sizeof ix, ", element [%d]", elem);
+    int ok = is_int_type(ks->type) ? is_int_setting(s) : config_setting_is_number(s);
+    expected_text(ks, want, sizeof want);
+    if (!ok) {
+        describe(s, got, sizeof got);
+        return FAIL(ps, k, s, "key '%s'%s: expected %s, got %s", ks->path, ix, is_int_type(ks->type) ? "an integer" : "a number", got);
+    }
+    double x = num(s);
+    if (is_int_setting(s)) snprintf(v, sizeof v, "%lld", config_setting_get_int64(s));
+    else fmt_num(x, v, sizeof v);
+    if (!in_range(ks, x))
+        return FAIL(ps, k, s, "key '%s'%s: value %s is out of range; expected %s", ks->path, ix, v, want);
+    long long iv = is_int_setting(s) ? config_setting_get_int64(s) : 0;
+    if ((ks->flags & F_POW2) && (iv & (iv - 1)))
+        return FAIL(ps, k, s, "key '%s'%s: value %s is not a power of two; expected %s", ks->path, ix, v, want);
+    if ((ks->flags & F_ODD) && !(iv & 1))
+        return FAIL(ps, k, s, "key '%s'%s: value %s is even; expected %s", ks->path, ix, v, want);
+    *out = x;
+    return WT_OK;
+}
+
+static int load_key(pstate *ps, wt_config *cfg, int k)
+{
+    const key_spec *ks = &keys[k];
+    char loc[512], want[160], got[200], a[40], b[40];
+    char *dst = (char *)cfg + ks->off;
+    const config_setting_t *s = config_lookup(ps->cf, ks->path);
+    ps->set[k] = s;
+    expected_text(ks, want, sizeof want);
+    if (!s) {
+        if (ks->flags & F_OPT) {
+            *(double *)dst = ks->def;
+            return WT_OK;
+        }
+        if (is_list_type(ks->type)) {
+            return FAIL(ps, k, NULL, "missing key '%s' (a list of %d..%d elements, each %s: %s)", ks->path, ks->minlen,
+                        ks->maxlen, want, ks->desc);
+        }
+        return FAIL(ps, k, NULL, "missing key '%s' (%s: %s)", ks->path, want, ks->desc);
+    }
+    double x;
+    int st;
+    switch (ks->type) {
+    case K_BOOL:
+        if (config_setting_type(s) != CONFIG_TYPE_BOOL) {
+            describe(s, got, sizeof got);
+            return FAIL(ps, k, s, "key '%s': expected %s, got %s", ks->path, want, got);
+        }
+        *(int *)dst = config_setting_get_bool(s);
+        return WT_OK;
+    case K_ENUM: {
+        const char *str = config_setting_type(s) == CONFIG_TYPE_STRING ? config_setting_get_string(s) : NULL;
+        if (!str) {
+            describe(s, got, sizeof got);
+            return FAIL(ps, k, s, "key '%s': expected %s, got %s", ks->path, want, got);
+        }
+        const char *c = ks->choices;
+        for (int idx = 0; *c; idx++) {
+            size_t w = strcspn(c, "|");
+            if (strlen(str) == w && !strncmp(str, c, w)) {
+                *(int *)dst = idx;
+                return WT_OK;
+            }
+            c += w + (c[w] == '|');
+        }
+        return FAIL(ps, k, s, "key '%s': value \"%s\" is not accepted; expected %s", ks->path, str, want);
+    }
+    case K_INT:
+    case K_INT64:
+    case K_FLOAT:
+        if ((st = read_scalar(ps, k, s, -1, &x)) < 0) return st;
+        if (ks->type == K_INT) *(int *)dst = (int)x;
+        else if (ks->type == K_INT64) *(uint64_t *)dst = (uint64_t)config_setting_get_int64(s);
+        else *(double *)dst = x * ks->scale;
+        return WT_OK;
+    default: break;
+    }
+
+    /* lists: [a, b] arrays (one element type) or (a, b) lists */
+    if (!config_setting_is_array(s) && !config_setting_is_list(s)) {
+        describe(s, got, sizeof got);
+        return FAIL(ps, k, s, "key '%s': expected a list [ ... ] of %d..%d elements, each %s, got %s", ks->path,
+                    ks->minlen, ks->maxlen, want, got);
+    }
+    int n = config_setting_length(s);
+    if (n < ks->minlen || n > ks->maxlen)
+        return FAIL(ps, k, s, "key '%s': has %d elements; expected %d..%d", ks->path, n, ks->minlen, ks->maxlen);
+    for (int i = 0; i < n; i++) {
+        const config_setting_t *e = config_setting_get_elem(s, (unsigned)i);
+        if ((st = read_scalar(ps, k, e, i, &x)) < 0) return st;
+        if ((ks->flags & F_INCR) && i > 0 && !(x > num(config_setting_get_elem(s, (unsigned)i - 1))))
+            return FAIL(ps, k, e, "key '%s', element [%d]: value %s is not above the previous element %s; the list "
+                        "must be strictly increasing", ks->path, i, fmt_num(x, a, sizeof a),
+                        fmt_num(num(config_setting_get_elem(s, (unsigned)i - 1)), b, sizeof b));
+        if (ks->type == K_INTS) ((int *)dst)[i] = (int)x;
+        else ((double *)dst)[i] = x * ks->scale;
+    }
+    int first = k;
+    while (first > 0 && keys[first - 1].count_off == ks->count_off) first--;
+    int *count = (int *)((char *)cfg + ks->count_off);
+    if (first == k) *count = n;
+    else if (*count != n)
+        return FAIL(ps, k, s, "key '%s' has %d elements but '%s' has %d; they must have the same length", ks->path, n,
+                    keys[first].path, *count);
+    return WT_OK;
+}
+
+/* ---------------------------------------------------------------- cross-key checks */
+
+/* Key k's list element i (or the scalar, i < 0): location text for the second key in a message. */
+static const char *where_elem(const pstate *ps, int k, int i, char *buf, size_t n)
+{
+    const config_setting_t *s = ps->set[k];
+    if (s && i >= 0 && config_setting_length(s) > i) s = config_setting_get_elem(s, (unsigned)i);
+    return where(ps, k, s, buf, n);
+}
+
+static int check_below_lgs(pstate *ps, const wt_config *cfg, const char *path, const double *alt, int n)
+{
+    char loc[512], oth[512], a[40], b[40];
+    int kl = find_key("lgs.altitude_m"), kk = find_key(path);
+    for (int i = 0; i < n; i++)
+        if (!(alt[i] < cfg->lgs_altitude))
+            return FAIL(ps, kl, ps->set[kl], "key 'lgs.altitude_m': value %s is not above '%s' element [%d] = %s "
+                        "(%s): an LGS below a layer; the sodium layer must be above every atmosphere, DM and "
+                        "reconstruction layer", fmt_num(cfg->lgs_altitude, a, sizeof a), path, i,
+                        fmt_num(alt[i], b, sizeof b), where_elem(ps, kk, i, oth, sizeof oth));
+    return WT_OK;
+}
+
+static int check_sizes(pstate *ps, const wt_config *cfg, const char *path, const wt_recon_variant_config *v)
+{
+    char loc[512], oth[512];
+    int k = find_key(path), kj = find_key("recon.wavelet_levels");
+    long long need = 1LL << cfg->wavelet_levels;
+    for (int i = 0; i < v->nlayers; i++)
+        if (v->size[i] < need)
+            return FAIL(ps, k, config_setting_get_elem(ps->set[k], (unsigned)i),
+                        "key '%s', element [%d]: value %d is smaller than 2^recon.wavelet_levels = 2^%d = %lld (%s); "
+                        "a layer grid needs at least 2^J points per side", path, i, v->size[i], cfg->wavelet_levels,
+                        need, where(ps, kj, ps->set[kj], oth, sizeof oth));
+    return WT_OK;
+}
+
+static int check_consistency(pstate *ps, wt_config *cfg)
+{
+    char loc[512], oth[512];
+    int st, k;
+    double sum = 0.0;
+    for (int i = 0; i < cfg->nlayers; i++) sum += cfg->layer_fraction[i];
+    k = find_key("atmosphere.cn2_fractions");
+    if (!(fabs(sum - 1.0) <= 0.01))
+        return FAIL(ps, k, ps->set[k], "key 'atmosphere.cn2_fractions': the fractions sum to %.6g; expected 1 within 1 %% "
+                    "(they are then normalised to sum exactly 1)", sum);
+    for (int i = 0; i < cfg->nlayers; i++) cfg->layer_fraction[i] /= sum;
+
+    k = find_key("evaluation.settle_frames");
+    if (cfg->settle_frames >= cfg->frames)
+        return FAIL(ps, k, ps->set[k], "key 'evaluation.settle_frames': value %d is not below 'loop.frames' = %d (%s); "
+                    "no frame would be left to average", cfg->settle_frames, cfg->frames,
+                    where_elem(ps, find_key("loop.frames"), -1, oth, sizeof oth));
+
+    if (cfg->nlgs + cfg->nngs == 0)
+        return fail_at(ps, ps->name, "'lgs.count' is 0 and 'ngs.azimuths_deg' is empty: the system has no guide star");
+
+    if (cfg->nlgs > 0) {
+        if ((st = check_below_lgs(ps, cfg, "atmosphere.altitudes_m", cfg->layer_altitude, cfg->nlayers)) < 0 ||
+            (st = check_below_lgs(ps, cfg, "dm.altitudes_m", cfg->dm_altitude, cfg->ndms)) < 0 ||
+            (st = check_below_lgs(ps, cfg, "recon.pcg3.layer_altitudes_m", cfg->pcg3.altitudes, cfg->pcg3.nlayers)) < 0 ||
+            (st = check_below_lgs(ps, cfg, "recon.cg9.layer_altitudes_m", cfg->cg9.altitudes, cfg->cg9.nlayers)) < 0)
+            return st;
+    }
+    if ((st = check_sizes(ps, cfg, "recon.pcg3.layer_size", &cfg->pcg3)) < 0 ||
+        (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
+        return st;
+
+    /* the NGS sensors have no keys of their own for these */
+    cfg->ngs_wfs.valid_fraction = cfg->lgs_wfs.valid_fraction;
+    cfg->ngs_wfs.subapertures = 0;
+    return WT_OK;
+}
+
+/* ---------------------------------------------------------------- canonical text */
+
+/* The effective settings in schema order with one type per key (floats as floats, lists as arrays),
+ * so comments, layout, key order, 42 vs 42.0 and [..] vs (..) do not change the text. Floats are
+ * written by libconfig with 15 significant digits. */
+static int build_canonical(pstate *ps, wt_config *cfg)
+{
+    config_t out;
+    char *buf = NULL;
+    size_t len = 0;
+    int st = WT_OK;
+    config_init(&out);
+    config_set_options(&out, CONFIG_OPTION_SEMICOLON_SEPARATORS);
+    config_set_tab_width(&out, 2);
+    for (int k = 0; k < NKEYS && st == WT_OK; k++) {
+        const key_spec *ks = &keys[k];
+        const config_setting_t *s = ps->set[k];
+        if (!s) continue;
+        const char *leaf;
+        config_setting_t *g = ensure_parent(&out, ks->path, &leaf), *d = NULL;
+        static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
+                                    CONFIG_TYPE_STRING, CONFIG_TYPE_ARRAY, CONFIG_TYPE_ARRAY};
+        if (g) d = config_setting_add(g, leaf, ctype[ks->type]);
+        if (!d) {
+            st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "libconfig could not add '%s' to the canonical text", ks->path);
+            break;
+        }
+        switch (ks->type) {
+        case K_INT: config_setting_set_int(d, (int)config_setting_get_int64(s)); break;
+        case K_INT64: config_setting_set_int64(d, config_setting_get_int64(s)); break;
+        case K_FLOAT: config_setting_set_float(d, num(s)); break;
+        case K_BOOL: config_setting_set_bool(d, config_setting_get_bool(s)); break;
+        case K_ENUM: config_setting_set_string(d, config_setting_get_string(s)); break;
+        default:
+            for (int i = 0; i < config_setting_length(s); i++) {
+                const config_setting_t *e = config_setting_get_elem(s, (unsigned)i);
+                if (!(ks->type == K_INTS ? config_setting_set_int_elem(d, -1, (int)config_setting_get_int64(e))
+                                         : config_setting_set_float_elem(d, -1, num(e))))
+                    st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "libconfig could not add '%s' to the canonical text", ks->path);
+            }
+        }
+    }
+    FILE *f = st == WT_OK ? open_memstream(&buf, &len) : NULL;
+    if (st == WT_OK && !f) st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "open_memstream failed for the canonical text");
+    if (f) {
+        config_write(&out, f);
+        if (fclose(f) != 0 || !buf) st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "writing the canonical text failed");
+    }
+    config_destroy(&out);
+    if (st == WT_OK) {
+        cfg->canonical = wt_malloc(ps->ctx, len + 1, 1);
+        if (!cfg->canonical) st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "out of memory for the canonical text (%zu bytes)", len + 1);
+        else memcpy(cfg->canonical, buf, len + 1);
+    }
+    free(buf); /* open_memstream's buffer comes from malloc, not from the context's allocator */
+    return st;
+}
+
+/* ---------------------------------------------------------------- public */
+
+static int parse_text(wt_context *ctx, const char *text, const char *name, const char *incdir, int noverrides,
+                      const char *const *overrides, wt_config **out)
+{
+    int st = WT_OK;
+    wt_config *cfg = NULL;
+    config_t cf;
+    pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides};
+    *out = NULL;
+    for (int k = 0; k < NKEYS; k++) ps.ovidx[k] = -1;
+    config_init(&cf);
+    if (incdir) config_set_include_dir(&cf, incdir);
+    if (!text) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: no configuration text", ps.name);
+        goto fail;
+    }
+    if (noverrides > 0 && !overrides) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: %d overrides but no override array", ps.name, noverrides);
+        goto fail;
+    }
+    if (!config_read_string(&cf, text)) {
+        const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: syntax error: %s%s",
+                      config_error_file(&cf) ? config_error_file(&cf) : ps.name, config_error_line(&cf), e, syntax_hint(e));
+        goto fail;
+    }
+    WT_TRY(check_unknown(&ps, config_root_setting(&cf), ""));
+    for (int i = 0; i < noverrides; i++) WT_TRY(apply_override(&ps, i));
+    WT_ALLOC(ctx, cfg, 1, "the configuration");
+    snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
+    for (int k = 0; k < NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
+    WT_TRY(check_consistency(&ps, cfg));
+    WT_TRY(build_canonical(&ps, cfg));
+    config_destroy(&cf);
+    *out = cfg;
+    return WT_OK;
+fail:
+    config_destroy(&cf);
+    wt_config_free(ctx, cfg);
+    return st;
+}
+
+int wt_config_parse(wt_context *ctx, const char *text, const char *name, int noverrides,
+                    const char *const *overrides, wt_config **out)
+{
+    return parse_text(ctx, text, name, NULL, noverrides, overrides, out);
+}
+
+int wt_config_read(wt_context *ctx, const char *path, int noverrides, const char *const *overrides,
+                   wt_config **out)
+{
+    int st = WT_OK;
+    char *text = NULL, *dir = NULL;
+    size_t n = 0, cap = 1 << 16;
+    *out = NULL;
+    FILE *f = path ? fopen(path, "rb") : NULL;
+    if (!f) return WT_ERROR(ctx, WT_ERR_IO, "cannot open configuration '%s': %s", path ? path : "(null)", strerror(errno));
+    WT_ALLOC(ctx, text, cap, "the configuration text");
+    for (;;) {
+        n += fread(text + n, 1, cap - 1 - n, f);
+        if (ferror(f)) {
+            st = WT_ERROR(ctx, WT_ERR_IO, "cannot read configuration '%s': %s", path, strerror(errno));
+            goto fail;
+        }
+        if (feof(f)) break;
+        char *t = wt_malloc(ctx, 2 * cap, 1);
+        if (!t) {
+            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory reading '%s'", path);
+            goto fail;
+        }
+        memcpy(t, text, n);
+        wt_free(ctx, text);
+        text = t;
+        cap *= 2;
+    }
+    text[n] = '\0';
+    /* @include "x" resolves relative to the file's directory */
+    const char *slash = strrchr(path, '/');
+    if (slash) {
+        WT_ALLOC(ctx, dir, (size_t)(slash - path) + 2, "the include directory");
+        memcpy(dir, path, (size_t)(slash - path) + 1);
+    }
+    st = parse_text(ctx, text, path, dir, noverrides, overrides, out);
+fail:
+    fclose(f);
+    wt_free(ctx, text);
+    wt_free(ctx, dir);
+    return st;
+}
+
+void wt_config_free(wt_context *ctx, wt_config *cfg)
+{
+    if (!cfg) return;
+    wt_free(ctx, cfg->canonical);
+    wt_free(ctx, cfg);
+}
+
+void wt_config_print_reference(FILE *f)
+{
+    static const char *tname[] = {"int", "int", "float", "bool", "string", "float[]", "int[]"};
+    char rng[128], unit[32];
+    for (int k = 0; k < NKEYS; k++) {
+        const key_spec *ks = &keys[k];
+        char core[96];
+        range_core(ks, core, sizeof core);
+        snprintf(rng, sizeof rng, "%s%s", ks->flags & F_POW2 ? "pow2, " : ks->flags & F_ODD ? "odd, " : "", core);
+        if (is_list_type(ks->type)) {
+            size_t l = strlen(rng);
+            snprintf(rng + l, sizeof rng - l, "; %d..%d values", ks->minlen, ks->maxlen);
+        }
+        snprintf(unit, sizeof unit, *ks->unit ? "[%s]" : "-", ks->unit);
+        fprintf(f, "%-36s %-8s %-38s %-10s %s%s\n", ks->path, tname[ks->type], rng, unit, ks->desc,
+                ks->flags & F_OPT ? " (optional)" : "");
+    }
+}

@@ -1,0 +1,127 @@
+/* core/io/config.h: the system description of SPEC §1 as typed values, read from a libconfig file.
+ *
+ * wt_config_read parses the file, applies `--set key=value` overrides, validates every key
+ * (type, range, consistency) and fills a wt_config. Any failure stops with a message that names the
+ * file, the line, the key, the value found and what is accepted. Units: each field says its own; the
+ * file keys carry the unit in their name (…_m, …_arcsec, …_deg, …_nm, …_hz).
+ * Angles are converted to radians and lengths to metres on reading.
+ */
+#ifndef WT_CONFIG_H
+#define WT_CONFIG_H
+
+#include "../base/base.h"
+
+#include <math.h>
+#include <stdio.h>
+
+#define WT_MAX_LAYERS 32
+#define WT_MAX_GS 16
+#define WT_MAX_DMS 8
+#define WT_MAX_EVAL 225 /* 15 x 15 evaluation directions */
+#define WT_ARCSEC (M_PI / (180.0 * 3600.0)) /* radians per arcsecond */
+
+typedef struct wt_sensor_config {
+    int subapertures;        /* subapertures across the pupil (LGS: per side; NGS: per side, 1 or 2 typ.) */
+    double valid_fraction;   /* a subaperture is valid when at least this fraction is illuminated */
+    double photons;          /* detected photons per subaperture per frame */
+    double read_noise_e;     /* read noise [e- rms per pixel] */
+    double spot_fwhm;        /* non-elongated spot FWHM [rad] */
+    double pixel;            /* pixel scale [rad] */
+    int pixels;              /* pixels across a subaperture (Ns) */
+    double nea;              /* noise-equivalent angle per axis [rad]; < 0: use the photon/read model */
+} wt_sensor_config;
+
+typedef struct wt_recon_variant_config {
+    int nlayers;
+    double altitudes[WT_MAX_LAYERS]; /* reconstruction layer altitudes [m] */
+    double spacing[WT_MAX_LAYERS];   /* layer grid spacing [m] */
+    int size[WT_MAX_LAYERS];         /* layer grid points per side, a power of two */
+    int iterations;                  /* (P)CG iterations per frame */
+    double tolerance;                /* relative residual to stop at; 0: always run `iterations` */
+    int jacobi;                      /* 1: modified Jacobi preconditioner (PCG), 0: plain CG */
+    int fit_iterations;              /* fitting CG iterations (cg9 only; 0 for pcg3) */
+    double fit_regularization;       /* fitting Tikhonov weight, relative to the mean diagonal of H^T H */
+} wt_recon_variant_config;
+
+typedef struct wt_config {
+    char path[1024];                 /* file it was read from */
+    char *canonical;                 /* the effective configuration as libconfig text (owned) */
+
+    /* telescope */
+    double diameter;                 /* pupil diameter D [m] */
+    double obstruction;              /* central obstruction, fraction of D */
+
+    /* atmosphere (simulation truth) */
+    double r0;                       /* Fried parameter at 500 nm [m] */
+    double L0;                       /* outer scale [m] */
+    int nlayers;
+    double layer_altitude[WT_MAX_LAYERS]; /* [m] */
+    double layer_fraction[WT_MAX_LAYERS]; /* Cn2 fractions, normalised to sum 1 */
+    double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
+    double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
+
+    /* laser guide stars */
+    int nlgs;
+    double lgs_radius;               /* asterism radius [rad] */
+    double lgs_azimuth0;             /* azimuth of the first LGS [rad]; the others follow every 2π/nlgs */
+    double lgs_altitude;             /* sodium layer altitude H [m] */
+    double sodium_fwhm;              /* sodium layer thickness Δh_Na [m]; 0 = no elongation */
+    double launch_radius;            /* side-launch radius [m], at the azimuth of its LGS */
+    double lgs_tt_jitter;            /* random LGS tip-tilt per axis per frame [rad rms] */
+    wt_sensor_config lgs_wfs;
+
+    /* natural guide stars */
+    int nngs;
+    double ngs_radius;               /* asterism radius [rad] */
+    double ngs_azimuth[WT_MAX_GS];   /* [rad] */
+    int ngs_subapertures[WT_MAX_GS]; /* 2 = 2x2 sensor, 1 = tip-tilt sensor */
+    wt_sensor_config ngs_wfs;        /* subapertures unused (see ngs_subapertures) */
+
+    /* deformable mirrors */
+    int ndms;
+    double dm_altitude[WT_MAX_DMS];  /* [m] */
+    double dm_pitch[WT_MAX_DMS];     /* [m] */
+    int dm_actuators[WT_MAX_DMS];    /* actuators per side */
+    double dm_field_radius;          /* θc: actuator active within D/2 + h tan(θc) of the centre [rad] */
+
+    /* evaluation */
+    int eval_grid;                   /* directions per side of the square grid */
+    double eval_spacing;             /* [rad] */
+    double eval_wavelength;          /* [m] */
+    int settle_frames;               /* frames left out of the long-exposure averages */
+
+    /* loop */
+    double rate;                     /* frame rate [Hz] */
+    int frames;
+    int delay;                       /* frames between measurement and application (2 in the paper) */
+    double gain;                     /* integrator gain g */
+
+    /* simulation */
+    int points_per_subaperture;      /* simulation grid points per LGS subaperture side */
+    uint64_t seed;
+    int noise;                       /* 0: noise-free sensors (the truth adds no noise) */
+
+    /* reconstructor */
+    double alpha;                    /* prior weight α */
+    double tau;                      /* elongation weight τ of the reconstructor's noise model */
+    int wavelet_order;               /* Daubechies order N (2N taps) */
+    int wavelet_levels;              /* J */
+    int exact_prior;                 /* 0: paper's diagonal D, 1: exact diag(W C Wᵀ) */
+    int warm_start;
+    wt_recon_variant_config pcg3;    /* layers at the DM altitudes, no fitting */
+    wt_recon_variant_config cg9;     /* layers at the atmosphere altitudes, fitting over the evaluation directions */
+} wt_config;
+
+/* Read, override and validate. overrides: n strings "key=value" (key = dotted libconfig path).
+ * On error returns WT_ERR_CONFIG (or WT_ERR_IO for an unreadable file) with the message in ctx. */
+int wt_config_read(wt_context *ctx, const char *path, int noverrides, const char *const *overrides,
+                   wt_config **out);
+/* Parse from a string (tests; `name` stands for the file name in messages). */
+int wt_config_parse(wt_context *ctx, const char *text, const char *name, int noverrides,
+                    const char *const *overrides, wt_config **out);
+void wt_config_free(wt_context *ctx, wt_config *cfg);
+
+/* Print every key with its type, range and unit (the config reference), one per line. */
+void wt_config_print_reference(FILE *f);
+
+#endif

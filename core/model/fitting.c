@@ -1,0 +1,234 @@
+/* core/model/fitting.c: DM fitting over the evaluation directions by CG (paper eq. fit_step_min). */
+#include "fitting.h"
+
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "../op/projection.h"
+
+struct wt_fitting {
+    wt_context *ctx;
+    const wt_system *sys;
+    int ndir, L;
+    wt_projection **dm;     /* ndir: H_j (all DM grids, concatenated) */
+    wt_projection **layer;  /* ndir: P_j (all layers, concatenated) */
+    int64_t nlayer_pts, ndm_pts, ncg;
+    double eps;
+    int nthreads;
+    double *grids;          /* ndm_pts: expanded commands */
+    double *ygrid;          /* ndm_pts: Σ Hᵀ H on the grids */
+    double *acc;            /* nthreads x ndm_pts */
+    double *pupil;          /* ndir x ncg */
+    double *b;              /* nact */
+    wt_pcg *pcg;
+};
+
+int64_t wt_dm_grid_points(const wt_system *sys)
+{
+    int64_t n = 0;
+    for (int k = 0; k < sys->ndms; k++) n += wt_grid_size(&sys->dm_grid[k]);
+    return n;
+}
+
+void wt_dm_expand(const wt_system *sys, const double *a, double *grids)
+{
+    int64_t p = 0, q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        int64_t np = wt_grid_size(&sys->dm_grid[k]);
+        for (int64_t i = 0; i < np; i++) grids[p + i] = sys->dm_active[k][i] ? a[q++] : 0.0;
+        p += np;
+    }
+}
+
+void wt_dm_restrict(const wt_system *sys, const double *grids, double *a)
+{
+    int64_t p = 0, q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        int64_t np = wt_grid_size(&sys->dm_grid[k]);
+        for (int64_t i = 0; i < np; i++)
+            if (sys->dm_active[k][i]) a[q++] = grids[p + i];
+        p += np;
+    }
+}
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+/* y = Σ H_jᵀ H_j a  on the full grids (without ε) */
+static void normal_grids(wt_fitting *f, const double *grids, double *out)
+{
+    const int64_t nd = f->ndm_pts;
+#pragma omp parallel num_threads(f->nthreads)
+    {
+        double *acc = f->acc + (size_t)thread_id() * nd;
+        memset(acc, 0, (size_t)nd * sizeof *acc);
+#pragma omp for schedule(dynamic, 1)
+        for (int j = 0; j < f->ndir; j++) {
+            double *pu = f->pupil + (size_t)j * f->ncg;
+            memset(pu, 0, (size_t)f->ncg * sizeof *pu);
+            wt_projection_apply(f->dm[j], 1.0, grids, pu);
+            wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+        }
+#pragma omp for schedule(static)
+        for (int64_t i = 0; i < nd; i++) {
+            double v = 0.0;
+            for (int k = 0; k < f->nthreads; k++) v += f->acc[(size_t)k * nd + i];
+            out[i] = v;
+        }
+    }
+}
+
+void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
+{
+    wt_dm_expand(f->sys, a, f->grids);
+    normal_grids(f, f->grids, f->ygrid);
+    wt_dm_restrict(f->sys, f->ygrid, y);
+    for (int64_t i = 0; i < f->sys->nact; i++) y[i] += f->eps * a[i];
+}
+
+void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
+{
+    const int64_t nd = f->ndm_pts;
+#pragma omp parallel num_threads(f->nthreads)
+    {
+        double *acc = f->acc + (size_t)thread_id() * nd;
+        memset(acc, 0, (size_t)nd * sizeof *acc);
+#pragma omp for schedule(dynamic, 1)
+        for (int j = 0; j < f->ndir; j++) {
+            double *pu = f->pupil + (size_t)j * f->ncg;
+            memset(pu, 0, (size_t)f->ncg * sizeof *pu);
+            wt_projection_apply(f->layer[j], 1.0, phi, pu);
+            wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+        }
+#pragma omp for schedule(static)
+        for (int64_t i = 0; i < nd; i++) {
+            double v = 0.0;
+            for (int k = 0; k < f->nthreads; k++) v += f->acc[(size_t)k * nd + i];
+            f->grids[i] = v;
+        }
+    }
+    wt_dm_restrict(f->sys, f->grids, b);
+}
+
+static void apply_cb(void *user, const double *x, double *y) { wt_fitting_apply((wt_fitting *)user, x, y); }
+
+int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
+                     wt_pcg_result *res)
+{
+    wt_fitting_rhs(f, phi, f->b);
+    return wt_pcg_solve(f->pcg, apply_cb, f, NULL, f->b, a, max_iter, rtol, history, res);
+}
+
+double wt_fitting_epsilon(const wt_fitting *f) { return f->eps; }
+
+int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
+                     const double *altitudes, double regularization, wt_fitting **out)
+{
+    int st = WT_OK;
+    wt_fitting *f = NULL;
+    *out = NULL;
+    WT_ALLOC(ctx, f, 1, "fitting");
+    f->ctx = ctx;
+    f->sys = sys;
+    f->ndir = sys->neval;
+    f->L = nlayers;
+    f->ncg = wt_grid_size(&sys->corner_grid);
+    f->ndm_pts = wt_dm_grid_points(sys);
+    for (int l = 0; l < nlayers; l++) f->nlayer_pts += wt_grid_size(&layers[l]);
+    f->nthreads = wt_context_threads(ctx);
+    WT_ALLOC(ctx, f->dm, f->ndir, "fitting DM projections");
+    WT_ALLOC(ctx, f->layer, f->ndir, "fitting layer projections");
+    for (int j = 0; j < f->ndir; j++) {
+        /* DMs may be seen beyond their actuator grid at the field corners: zero influence there */
+        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j],
+                                   sys->eval_y[j], &sys->corner_grid, sys->corner_mask, 1, &f->dm[j]));
+        st = wt_projection_alloc(ctx, nlayers, layers, altitudes, 0.0, sys->eval_x[j], sys->eval_y[j],
+                                 &sys->corner_grid, sys->corner_mask, 0, &f->layer[j]);
+        if (st < 0) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                          "%s: the cg9 reconstruction layers do not cover evaluation direction %d (%.1f\", %.1f\"): %s",
+                          sys->cfg->path, j + 1, sys->eval_x[j] / WT_ARCSEC, sys->eval_y[j] / WT_ARCSEC,
+                          wt_error_message(ctx));
+            goto fail;
+        }
+    }
+    WT_ALLOC(ctx, f->grids, f->ndm_pts, "fitting grids");
+    WT_ALLOC(ctx, f->ygrid, f->ndm_pts, "fitting grids");
+    WT_ALLOC(ctx, f->acc, (size_t)f->nthreads * f->ndm_pts, "fitting accumulators");
+    WT_ALLOC(ctx, f->pupil, (size_t)f->ndir * f->ncg, "fitting pupil workspace");
+    WT_ALLOC(ctx, f->b, sys->nact, "fitting right-hand side");
+    WT_TRY(wt_pcg_alloc(ctx, sys->nact, &f->pcg));
+
+    /* ε relative to the mean diagonal of Σ H_jᵀ H_j: probe the diagonal with unit actuators spread
+     * far enough apart that their influence functions never overlap in the pupil (stride 3 > 2). */
+    {
+        double *a = NULL, *y = NULL, *diag_grid = NULL;
+        WT_ALLOC(ctx, a, sys->nact, "fitting probe");
+        y = wt_calloc(ctx, (size_t)f->ndm_pts, sizeof *y);
+        diag_grid = wt_calloc(ctx, (size_t)f->ndm_pts, sizeof *diag_grid);
+        if (!y || !diag_grid) {
+            wt_free(ctx, a);
+            wt_free(ctx, y);
+            wt_free(ctx, diag_grid);
+            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory probing the fitting diagonal");
+            goto fail;
+        }
+        /* exact diagonal Σ_j Σ_points w² by probing one DM at a time on a stride-3 lattice: two probes
+         * on the same DM never share a pupil point; different DMs are probed separately */
+        double sum = 0.0;
+        int64_t p0 = 0;
+        for (int k = 0; k < sys->ndms; k++) {
+            const wt_grid *g = &sys->dm_grid[k];
+            for (int oy = 0; oy < 3; oy++)
+                for (int ox = 0; ox < 3; ox++) {
+                    memset(f->grids, 0, (size_t)f->ndm_pts * sizeof *f->grids);
+                    for (int iy = oy; iy < g->ny; iy += 3)
+                        for (int ix = ox; ix < g->nx; ix += 3)
+                            if (sys->dm_active[k][ix + (int64_t)g->nx * iy]) f->grids[p0 + ix + (int64_t)g->nx * iy] = 1.0;
+                    /* ⟨e_i, Hᵀ H e_i⟩ = ‖H e_i‖²; with non-overlapping probes Hᵀ H (Σ e_i) at i gives it */
+                    normal_grids(f, f->grids, y);
+                    for (int64_t i = 0; i < wt_grid_size(g); i++)
+                        if (f->grids[p0 + i] != 0.0) diag_grid[p0 + i] = y[p0 + i];
+                }
+            p0 += wt_grid_size(g);
+        }
+        wt_dm_restrict(sys, diag_grid, a);
+        for (int64_t i = 0; i < sys->nact; i++) sum += a[i];
+        f->eps = regularization * sum / (double)sys->nact;
+        wt_free(ctx, a);
+        wt_free(ctx, y);
+        wt_free(ctx, diag_grid);
+    }
+    *out = f;
+    return WT_OK;
+fail:
+    wt_fitting_free(f);
+    return st;
+}
+
+void wt_fitting_free(wt_fitting *f)
+{
+    if (!f) return;
+    wt_context *ctx = f->ctx;
+    for (int j = 0; j < f->ndir; j++) {
+        if (f->dm) wt_projection_free(f->dm[j]);
+        if (f->layer) wt_projection_free(f->layer[j]);
+    }
+    wt_free(ctx, f->dm);
+    wt_free(ctx, f->layer);
+    wt_free(ctx, f->grids);
+    wt_free(ctx, f->ygrid);
+    wt_free(ctx, f->acc);
+    wt_free(ctx, f->pupil);
+    wt_free(ctx, f->b);
+    wt_pcg_free(f->pcg);
+    wt_free(ctx, f);
+}

@@ -1,0 +1,161 @@
+/* core/model/system.c: geometry of the MCAO system from its configuration (SPEC §1, §4, §5, §8). */
+#include "system.h"
+
+#include <math.h>
+#include <stdio.h>
+
+#include "../op/noise.h"
+#include "../op/pupil.h"
+
+static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index, double tx, double ty, int m)
+{
+    wt_context *ctx = sys->ctx;
+    int st = WT_OK;
+    wt_sensor *s = &sys->sensors[sys->nsensors];
+    s->kind = kind;
+    s->index = index;
+    s->theta_x = tx;
+    s->theta_y = ty;
+    snprintf(s->name, sizeof s->name, "%s%d", kind == WT_SENSOR_LGS ? "LGS" : "NGS", index + 1);
+    const wt_sensor_config *w = kind == WT_SENSOR_LGS ? &cfg->lgs_wfs : &cfg->ngs_wfs;
+    s->spot_fwhm = w->spot_fwhm;
+    s->sigma2 = wt_noise_variance(w->photons, w->read_noise_e, w->spot_fwhm, w->pixel, w->pixels, w->nea);
+    if (kind == WT_SENSOR_LGS) {
+        s->altitude = cfg->lgs_altitude;
+        s->subapertures = sys->n;
+        double az = atan2(ty, tx);
+        s->launch_x = cfg->launch_radius * cos(az);
+        s->launch_y = cfg->launch_radius * sin(az);
+        WT_TRY(wt_shack_hartmann_alloc(ctx, sys->n, sys->d, sys->valid, &s->sh));
+    } else {
+        s->altitude = 0.0;
+        s->subapertures = m;
+        if (sys->n % m != 0)
+            return WT_ERROR(ctx, WT_ERR_CONFIG,
+                            "%s: ngs.subapertures = %d does not divide lgs.wfs.subapertures = %d (the NGS sensor "
+                            "averages the fine Fried cells)",
+                            cfg->path, m, sys->n);
+        WT_TRY(wt_shack_hartmann_alloc_averaged(ctx, sys->n, sys->d, sys->valid, m, &s->sh));
+    }
+    s->nsub = wt_shack_hartmann_nsub(s->sh);
+    s->nslopes = wt_shack_hartmann_nslopes(s->sh);
+    s->offset = sys->nslopes;
+    sys->nslopes += s->nslopes;
+    sys->nsensors++;
+    if (kind == WT_SENSOR_LGS && cfg->sodium_fwhm > 0.0) {
+        double *cx = NULL, *cy = NULL;
+        WT_ALLOC(ctx, s->beta, 2 * s->nsub, "elongation vectors");
+        WT_ALLOC(ctx, cx, s->nsub, "subaperture centres");
+        cy = wt_calloc(ctx, (size_t)s->nsub, sizeof *cy);
+        if (!cy) {
+            wt_free(ctx, cx);
+            return WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for subaperture centres");
+        }
+        for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cy[k]);
+        wt_noise_elongation(s->nsub, cx, cy, s->launch_x, s->launch_y, cfg->sodium_fwhm, cfg->lgs_altitude, s->beta);
+        wt_free(ctx, cx);
+        wt_free(ctx, cy);
+    }
+    return WT_OK;
+fail:
+    return st;
+}
+
+int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
+{
+    int st = WT_OK;
+    wt_system *sys = NULL;
+    *out = NULL;
+    WT_ALLOC(ctx, sys, 1, "system");
+    sys->ctx = ctx;
+    sys->cfg = cfg;
+
+    /* Fine Shack–Hartmann sampling: the LGS sensor's; a config without LGS still needs a grid for the
+     * NGS averaging, and uses lgs.wfs.subapertures for it. */
+    sys->n = cfg->lgs_wfs.subapertures;
+    sys->d = cfg->diameter / sys->n;
+    WT_ALLOC(ctx, sys->valid, (size_t)sys->n * sys->n, "valid-subaperture mask");
+    sys->nvalid = wt_pupil_valid_subapertures(cfg->diameter, cfg->obstruction, sys->n, cfg->lgs_wfs.valid_fraction,
+                                              sys->valid);
+    if (sys->nvalid == 0) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: no valid subaperture (lgs.wfs.subapertures = %d, valid_fraction = %g)",
+                      cfg->path, sys->n, cfg->lgs_wfs.valid_fraction);
+        goto fail;
+    }
+    sys->corner_grid = wt_grid_centred(sys->n + 1, sys->d);
+    WT_ALLOC(ctx, sys->corner_mask, (size_t)(sys->n + 1) * (sys->n + 1), "corner mask");
+    wt_pupil_corner_mask(sys->n, sys->valid, sys->corner_mask);
+    for (int64_t i = 0; i < wt_grid_size(&sys->corner_grid); i++) sys->ncorners += sys->corner_mask[i];
+
+    for (int k = 0; k < cfg->nlgs; k++) {
+        double az = cfg->lgs_azimuth0 + 2.0 * M_PI * k / cfg->nlgs;
+        WT_TRY(add_sensor(sys, cfg, WT_SENSOR_LGS, k, cfg->lgs_radius * cos(az), cfg->lgs_radius * sin(az), 0));
+        sys->nlgs++;
+    }
+    for (int k = 0; k < cfg->nngs; k++) {
+        double az = cfg->ngs_azimuth[k];
+        WT_TRY(add_sensor(sys, cfg, WT_SENSOR_NGS, k, cfg->ngs_radius * cos(az), cfg->ngs_radius * sin(az),
+                          cfg->ngs_subapertures[k]));
+        sys->nngs++;
+    }
+
+    /* DMs: an actuator is active within D/2 + h tan θc of the centre (SPEC §1). */
+    sys->ndms = cfg->ndms;
+    for (int k = 0; k < cfg->ndms; k++) {
+        wt_grid g = wt_grid_centred(cfg->dm_actuators[k], cfg->dm_pitch[k]);
+        sys->dm_grid[k] = g;
+        sys->dm_altitude[k] = cfg->dm_altitude[k];
+        WT_ALLOC(ctx, sys->dm_active[k], wt_grid_size(&g), "DM active mask");
+        double rmax = 0.5 * cfg->diameter + cfg->dm_altitude[k] * tan(cfg->dm_field_radius);
+        int count = 0;
+        for (int iy = 0; iy < g.ny; iy++)
+            for (int ix = 0; ix < g.nx; ix++) {
+                double x = g.x0 + ix * g.dx, y = g.y0 + iy * g.dx;
+                /* a tiny tolerance keeps actuators exactly on the circle in, whatever the rounding */
+                int on = x * x + y * y <= rmax * rmax * (1.0 + 1e-12);
+                sys->dm_active[k][ix + (int64_t)g.nx * iy] = (uint8_t)on;
+                count += on;
+            }
+        if (count == 0) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: DM %d (dm.altitudes_m[%d] = %g) has no active actuator", cfg->path,
+                          k + 1, k, cfg->dm_altitude[k]);
+            goto fail;
+        }
+        sys->dm_nactive[k] = count;
+        sys->dm_offset[k] = sys->nact;
+        sys->nact += count;
+    }
+
+    int g = cfg->eval_grid;
+    sys->neval = g * g;
+    for (int j = 0; j < g; j++)
+        for (int i = 0; i < g; i++) {
+            sys->eval_x[i + g * j] = (i - 0.5 * (g - 1)) * cfg->eval_spacing;
+            sys->eval_y[i + g * j] = (j - 0.5 * (g - 1)) * cfg->eval_spacing;
+        }
+    sys->eval_centre = (g / 2) + g * (g / 2);
+    *out = sys;
+    return WT_OK;
+fail:
+    wt_system_free(sys);
+    return st;
+}
+
+void wt_system_free(wt_system *sys)
+{
+    if (!sys) return;
+    wt_context *ctx = sys->ctx;
+    for (int k = 0; k < sys->nsensors; k++) {
+        wt_shack_hartmann_free(sys->sensors[k].sh);
+        wt_free(ctx, sys->sensors[k].beta);
+    }
+    /* a sensor that failed half-way was not counted: free its parts too */
+    if (sys->nsensors < 2 * WT_MAX_GS) {
+        wt_shack_hartmann_free(sys->sensors[sys->nsensors].sh);
+        wt_free(ctx, sys->sensors[sys->nsensors].beta);
+    }
+    for (int k = 0; k < WT_MAX_DMS; k++) wt_free(ctx, sys->dm_active[k]);
+    wt_free(ctx, sys->valid);
+    wt_free(ctx, sys->corner_mask);
+    wt_free(ctx, sys);
+}

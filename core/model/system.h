@@ -1,0 +1,71 @@
+/* core/model/system.h: the MCAO system of a configuration, as geometry (SPEC §1, §3–§5, §8).
+ *
+ * Derived once from a wt_config: guide-star directions, the Shack–Hartmann operators and noise
+ * parameters of every sensor, the valid-subaperture and Fried-corner masks, the DM actuator grids
+ * and their active masks (|r| ≤ D/2 + h tan θc), and the evaluation directions.
+ *
+ * Sensor order: the nlgs LGS first, then the NGS; slopes are concatenated in that order, each sensor's
+ * block laid out as in core/op/shack_hartmann.h ([s_x…, s_y…] over its valid subapertures).
+ * All sensors share one fine Fried corner grid ((n+1)² points of spacing d = D/n, the LGS sampling);
+ * an NGS sensor with m x m subapertures averages the fine Fried slopes inside each.
+ * Actuator order: DM by DM, active actuators in grid-index order.
+ */
+#ifndef WT_SYSTEM_H
+#define WT_SYSTEM_H
+
+#include "../io/config.h"
+#include "../op/grid.h"
+#include "../op/shack_hartmann.h"
+
+enum { WT_SENSOR_LGS = 0, WT_SENSOR_NGS = 1 };
+
+typedef struct wt_sensor {
+    int kind;                   /* WT_SENSOR_LGS or WT_SENSOR_NGS */
+    int index;                  /* 0-based within its kind */
+    double theta_x, theta_y;    /* direction [rad] */
+    double altitude;            /* source altitude H [m]; 0 = infinity (NGS) */
+    int subapertures;           /* subapertures per side (LGS: n; NGS: 1 or 2) */
+    double launch_x, launch_y;  /* LGS launch position in the pupil [m] */
+    double sigma2;              /* noise variance per axis [rad²] (photon + read noise, or NEA²) */
+    double spot_fwhm;           /* θf [rad] */
+    wt_shack_hartmann *sh;      /* Γ_m (owned) */
+    int nsub;                   /* valid subapertures */
+    int nslopes;                /* 2 nsub */
+    int64_t offset;             /* first slope of this sensor in the concatenated vector */
+    double *beta;               /* LGS elongation vectors [rad], 2*nsub ([βx…, βy…]); NULL for NGS or Δh = 0 */
+    char name[16];              /* "LGS1", "NGS2", … for messages */
+} wt_sensor;
+
+typedef struct wt_system {
+    wt_context *ctx;
+    const wt_config *cfg;       /* not owned; must outlive the system */
+
+    int n;                      /* fine subapertures per side */
+    double d;                   /* fine subaperture side [m] */
+    uint8_t *valid;             /* n*n valid-subaperture mask */
+    int nvalid;
+    wt_grid corner_grid;        /* (n+1)² Fried corner grid */
+    uint8_t *corner_mask;       /* corners of valid subapertures */
+    int64_t ncorners;           /* set corners */
+
+    int nsensors, nlgs, nngs;
+    wt_sensor sensors[2 * WT_MAX_GS];
+    int64_t nslopes;            /* all sensors */
+
+    int ndms;
+    wt_grid dm_grid[WT_MAX_DMS];   /* actuator grids (centred) */
+    double dm_altitude[WT_MAX_DMS];
+    uint8_t *dm_active[WT_MAX_DMS];
+    int dm_nactive[WT_MAX_DMS];
+    int64_t dm_offset[WT_MAX_DMS]; /* first actuator of DM k in the command vector */
+    int64_t nact;               /* active actuators, all DMs */
+
+    int neval;                  /* evaluation directions, index i + g*j of the g x g grid */
+    double eval_x[WT_MAX_EVAL], eval_y[WT_MAX_EVAL]; /* [rad] */
+    int eval_centre;            /* index of the on-axis direction */
+} wt_system;
+
+int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out);
+void wt_system_free(wt_system *sys);
+
+#endif

@@ -1,0 +1,560 @@
+/* core/model/tomography.c: normal operator, right-hand side, modified Jacobi diagonal and (P)CG solve
+ * of the wavelet MAP tomography (paper eq. eqn_lse; SPEC §6). */
+#include "tomography.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "../op/noise.h"
+#include "../op/prior.h"
+#include "../op/projection.h"
+
+struct wt_tomography {
+    wt_context *ctx;
+    const wt_system *sys;
+    char variant[16];
+    int L;
+    wt_grid grid[WT_MAX_LAYERS];
+    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS + 1];
+    wt_wavelet *wav[WT_MAX_LAYERS];
+    wt_prior *prior[WT_MAX_LAYERS];
+    int64_t n;
+    double *alpha_d;
+    double *jinv;
+    int iterations;
+    double tol;
+    int S;                    /* sensors */
+    wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
+    wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
+    int64_t ncg;              /* corner grid points */
+    int nthreads;
+    double *phi;              /* n: spatial layers / adjoint sum */
+    double *acc;              /* nthreads x n adjoint accumulators */
+    double *phase;            /* S x ncg */
+    double *slopes;           /* nslopes */
+    double *weighted;         /* nslopes */
+    double *wwork;            /* nthreads x wsize wavelet workspace */
+    size_t wsize;
+    double *b;                /* n: right-hand side */
+    wt_pcg *pcg;
+};
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (linear split between the two
+ * nearest reconstruction layers). */
+static void bin_profile(const wt_config *cfg, int L, const double *alt, double *frac)
+{
+    for (int l = 0; l < L; l++) frac[l] = 0.0;
+    for (int k = 0; k < cfg->nlayers; k++) {
+        double h = cfg->layer_altitude[k], f = cfg->layer_fraction[k];
+        /* reconstruction altitudes are increasing (validated in config) */
+        if (h <= alt[0]) frac[0] += f;
+        else if (h >= alt[L - 1]) frac[L - 1] += f;
+        else {
+            int l = 0;
+            while (!(h >= alt[l] && h < alt[l + 1])) l++;
+            double w = (h - alt[l]) / (alt[l + 1] - alt[l]);
+            frac[l] += (1.0 - w) * f;
+            frac[l + 1] += w * f;
+        }
+    }
+    for (int l = 0; l < L; l++)
+        if (frac[l] < 1e-3) frac[l] = 1e-3;
+}
+
+int64_t wt_tomography_nunknowns(const wt_tomography *t) { return t->n; }
+int wt_tomography_nlayers(const wt_tomography *t) { return t->L; }
+const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l) { return &t->grid[l]; }
+double wt_tomography_layer_altitude(const wt_tomography *t, int l) { return t->alt[l]; }
+double wt_tomography_layer_fraction(const wt_tomography *t, int l) { return t->frac[l]; }
+int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
+const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
+const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
+const double *wt_tomography_jacobi_inverse(const wt_tomography *t) { return t->jinv; }
+
+static int compute_jacobi(wt_tomography *t);
+
+int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
+                        const char *variant_name, wt_tomography **out)
+{
+    int st = WT_OK;
+    const wt_config *cfg = sys->cfg;
+    wt_tomography *t = NULL;
+    *out = NULL;
+    WT_ALLOC(ctx, t, 1, "tomography");
+    t->ctx = ctx;
+    t->sys = sys;
+    snprintf(t->variant, sizeof t->variant, "%s", variant_name);
+    t->L = var->nlayers;
+    t->iterations = var->iterations;
+    t->tol = var->tolerance;
+    for (int l = 0; l < t->L; l++) {
+        t->alt[l] = var->altitudes[l];
+        t->grid[l] = wt_grid_layer(var->size[l], var->spacing[l]);
+        t->off[l + 1] = t->off[l] + wt_grid_size(&t->grid[l]);
+    }
+    t->n = t->off[t->L];
+    bin_profile(cfg, t->L, t->alt, t->frac);
+
+    WT_ALLOC(ctx, t->alpha_d, t->n, "prior diagonal");
+    for (int l = 0; l < t->L; l++) {
+        int levels = cfg->wavelet_levels;
+        WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, cfg->wavelet_order, levels, &t->wav[l]));
+        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, cfg->r0, t->frac[l], cfg->L0,
+                              cfg->exact_prior ? WT_PRIOR_EXACT : WT_PRIOR_PAPER, &t->prior[l]));
+        const double *d = wt_prior_diag(t->prior[l]);
+        for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = cfg->alpha * d[i];
+        size_t ws = wt_wavelet_work_size(t->wav[l]);
+        if (ws > t->wsize) t->wsize = ws;
+    }
+
+    t->S = sys->nsensors;
+    t->ncg = wt_grid_size(&sys->corner_grid);
+    WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
+    WT_ALLOC(ctx, t->noise, t->S, "noise models");
+    for (int m = 0; m < t->S; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        for (int l = 0; l < t->L; l++) {
+            st = wt_projection_alloc(ctx, 1, &t->grid[l], &t->alt[l], s->altitude, s->theta_x, s->theta_y,
+                                     &sys->corner_grid, sys->corner_mask, 0, &t->proj[m * t->L + l]);
+            if (st < 0) {
+                char detail[1024];
+                snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
+                st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                              "%s: recon.%s layer %d (layer_altitudes_m[%d] = %g m, layer_size[%d] = %d, "
+                              "layer_spacing_m[%d] = %g m, i.e. %g m across) does not cover the footprint of "
+                              "%s at that altitude; enlarge the layer grid. (%s)",
+                              cfg->path, variant_name, l + 1, l, t->alt[l], l, t->grid[l].nx, l, t->grid[l].dx,
+                              t->grid[l].nx * t->grid[l].dx, s->name, detail);
+                goto fail;
+            }
+        }
+        WT_TRY(wt_noise_alloc(ctx, s->nsub, s->sigma2, s->spot_fwhm, s->beta, cfg->tau, s->kind == WT_SENSOR_LGS,
+                              &t->noise[m]));
+    }
+
+    t->nthreads = wt_context_threads(ctx);
+    WT_ALLOC(ctx, t->phi, t->n, "layer workspace");
+    WT_ALLOC(ctx, t->acc, (size_t)t->nthreads * t->n, "adjoint accumulators");
+    WT_ALLOC(ctx, t->phase, (size_t)t->S * t->ncg, "phase workspace");
+    WT_ALLOC(ctx, t->slopes, sys->nslopes, "slope workspace");
+    WT_ALLOC(ctx, t->weighted, sys->nslopes, "weighted slope workspace");
+    WT_ALLOC(ctx, t->wwork, (size_t)t->nthreads * t->wsize, "wavelet workspace");
+    WT_ALLOC(ctx, t->b, t->n, "right-hand side");
+    WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
+    if (var->jacobi) WT_TRY(compute_jacobi(t));
+    *out = t;
+    return WT_OK;
+fail:
+    wt_tomography_free(t);
+    return st;
+}
+
+void wt_tomography_free(wt_tomography *t)
+{
+    if (!t) return;
+    wt_context *ctx = t->ctx;
+    for (int l = 0; l < t->L; l++) {
+        wt_wavelet_free(t->wav[l]);
+        wt_prior_free(t->prior[l]);
+    }
+    if (t->proj)
+        for (int i = 0; i < t->S * t->L; i++) wt_projection_free(t->proj[i]);
+    if (t->noise)
+        for (int m = 0; m < t->S; m++) wt_noise_free(t->noise[m]);
+    wt_free(ctx, t->proj);
+    wt_free(ctx, t->noise);
+    wt_free(ctx, t->alpha_d);
+    wt_free(ctx, t->jinv);
+    wt_free(ctx, t->phi);
+    wt_free(ctx, t->acc);
+    wt_free(ctx, t->phase);
+    wt_free(ctx, t->slopes);
+    wt_free(ctx, t->weighted);
+    wt_free(ctx, t->wwork);
+    wt_free(ctx, t->b);
+    wt_pcg_free(t->pcg);
+    wt_free(ctx, t);
+}
+
+/* phi = W⁻¹ c layer by layer */
+static void inverse_dwt(wt_tomography *t, const double *c, double *phi)
+{
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int l = 0; l < t->L; l++)
+        wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], t->wwork + (size_t)thread_id() * t->wsize);
+}
+
+static void forward_dwt(wt_tomography *t, const double *phi, double *c)
+{
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int l = 0; l < t->L; l++)
+        wt_wavelet_forward(t->wav[l], phi + t->off[l], c + t->off[l], t->wwork + (size_t)thread_id() * t->wsize);
+}
+
+/* slopes = Γ P φ for every sensor */
+static void forward_slopes(wt_tomography *t, const double *phi, double *slopes)
+{
+    const wt_system *sys = t->sys;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int m = 0; m < t->S; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        double *ph = t->phase + (size_t)m * t->ncg;
+        memset(ph, 0, (size_t)t->ncg * sizeof *ph);
+        for (int l = 0; l < t->L; l++) wt_projection_apply(t->proj[m * t->L + l], 1.0, phi + t->off[l], ph);
+        double *sl = slopes + s->offset;
+        memset(sl, 0, (size_t)s->nslopes * sizeof *sl);
+        wt_shack_hartmann_apply(s->sh, 1.0, ph, sl);
+    }
+}
+
+/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m */
+static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
+{
+    const wt_system *sys = t->sys;
+    const int64_t n = t->n;
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        int tid = thread_id();
+        double *acc = t->acc + (size_t)tid * n;
+        memset(acc, 0, (size_t)n * sizeof *acc);
+#pragma omp for schedule(dynamic, 1)
+        for (int m = 0; m < t->S; m++) {
+            const wt_sensor *s = &sys->sensors[m];
+            double *w = t->weighted + s->offset;
+            memset(w, 0, (size_t)s->nslopes * sizeof *w);
+            wt_noise_apply_weight(t->noise[m], 1.0, slopes + s->offset, w);
+            double *ph = t->phase + (size_t)m * t->ncg;
+            memset(ph, 0, (size_t)t->ncg * sizeof *ph);
+            wt_shack_hartmann_apply_t(s->sh, 1.0, w, ph);
+            for (int l = 0; l < t->L; l++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, ph, acc + t->off[l]);
+        }
+        /* implicit barrier: reduce the per-thread sums */
+#pragma omp for schedule(static)
+        for (int64_t i = 0; i < n; i++) {
+            double v = 0.0;
+            for (int k = 0; k < t->nthreads; k++) v += t->acc[(size_t)k * n + i];
+            t->phi[i] = v;
+        }
+    }
+    forward_dwt(t, t->phi, c);
+}
+
+void wt_tomography_apply(wt_tomography *t, const double *c, double *y)
+{
+    inverse_dwt(t, c, t->phi);
+    forward_slopes(t, t->phi, t->slopes);
+    adjoint_slopes(t, t->slopes, y);
+    for (int64_t i = 0; i < t->n; i++) y[i] += t->alpha_d[i] * c[i];
+}
+
+void wt_tomography_rhs(wt_tomography *t, const double *s, double *b) { adjoint_slopes(t, s, b); }
+
+void wt_tomography_slopes(wt_tomography *t, const double *c, double *s)
+{
+    inverse_dwt(t, c, t->phi);
+    forward_slopes(t, t->phi, s);
+}
+
+void wt_tomography_layers(wt_tomography *t, const double *c, double *phi) { inverse_dwt(t, c, phi); }
+
+static void apply_cb(void *user, const double *x, double *y) { wt_tomography_apply((wt_tomography *)user, x, y); }
+
+int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
+                        wt_pcg_result *res)
+{
+    for (int64_t i = 0; i < t->sys->nslopes; i++)
+        if (!isfinite(s[i]))
+            return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
+    wt_tomography_rhs(t, s, t->b);
+    return wt_pcg_solve(t->pcg, apply_cb, t, t->jinv, t->b, c, max_iter >= 0 ? max_iter : t->iterations,
+                        rtol >= 0 ? rtol : t->tol, history, res);
+}
+
+/* ---- modified Jacobi diagonal ------------------------------------------------------------------ */
+
+/* Centre (in grid points, unwrapped) of the support of a periodic 1-D profile: the middle of the
+ * complement of its largest circular run of zeros. */
+static double support_centre(const double *mag, int n)
+{
+    int best_len = 0, best_end = -1;
+    for (int start = 0; start < n; start++) {
+        if (mag[start] != 0.0) continue;
+        if (mag[(start + n - 1) % n] == 0.0 && best_len > 0 && start != 0) continue;
+        int len = 0;
+        while (len < n && mag[(start + len) % n] == 0.0) len++;
+        if (len > best_len) {
+            best_len = len;
+            best_end = start + len; /* first non-zero after the gap */
+        }
+    }
+    if (best_len == 0) return 0.5 * (n - 1);
+    double width = n - best_len; /* support occupies [best_end, best_end + width) */
+    return best_end + 0.5 * (width - 1);
+}
+
+/* Accumulates Σ_LGS ‖Ã_m e_λ‖²_{C̃⁻¹} for all coefficients of (layer l, level, orientation) coloured
+ * with stride s. Buffers: field (n²), coef (n²), work (wavelet), ph (ncg), sl/z (max slopes). */
+static void probe_block(wt_tomography *t, int l, int level, int orient, int s, double *diag, double *coef,
+                        double *field, double *work, double *ph, double *sl, double *z, int a0, int b0)
+{
+    const wt_system *sys = t->sys;
+    const wt_grid *g = &t->grid[l];
+    const int n = g->nx, J = wt_wavelet_levels(t->wav[l]);
+    const int lev = level > J ? J : level;
+    const int m = n >> lev, step = 1 << lev;
+    const int se = s < m ? s : m;
+    const int bx = (orient == 1 || orient == 3) ? m : 0, by = (orient == 2 || orient == 3) ? m : 0;
+
+    /* where the k = 0 basis function of this block sits: centre of its support */
+    memset(coef, 0, (size_t)n * n * sizeof *coef);
+    coef[bx + (int64_t)n * by] = 1.0;
+    wt_wavelet_inverse(t->wav[l], coef, field, work);
+    double *colmag = ph, *rowmag = ph + n; /* the caller sizes ph for max(ncg, 2n) */
+    memset(colmag, 0, 2 * (size_t)n * sizeof *colmag);
+    for (int iy = 0; iy < n; iy++)
+        for (int ix = 0; ix < n; ix++) {
+            double v = fabs(field[ix + (int64_t)n * iy]);
+            colmag[ix] += v;
+            rowmag[iy] += v;
+        }
+    double cx0 = support_centre(colmag, n), cy0 = support_centre(rowmag, n);
+
+    /* the colour's probes */
+    memset(coef, 0, (size_t)n * n * sizeof *coef);
+    for (int j = b0; j < m; j += se)
+        for (int i = a0; i < m; i += se) coef[bx + i + (int64_t)n * (by + j)] = 1.0;
+    wt_wavelet_inverse(t->wav[l], coef, field, work);
+
+    const int nprobe = m / se;
+    for (int mm = 0; mm < sys->nlgs; mm++) {
+        const wt_sensor *s_ = &sys->sensors[mm];
+        memset(ph, 0, (size_t)t->ncg * sizeof *ph);
+        wt_projection_apply(t->proj[mm * t->L + l], 1.0, field, ph);
+        memset(sl, 0, (size_t)s_->nslopes * sizeof *sl);
+        wt_shack_hartmann_apply(s_->sh, 1.0, ph, sl);
+        memset(z, 0, (size_t)s_->nslopes * sizeof *z);
+        wt_noise_apply_inv(t->noise[mm], 1.0, sl, z);
+        double cone = s_->altitude > 0 ? 1.0 - t->alt[l] / s_->altitude : 1.0;
+        for (int k = 0; k < s_->nsub; k++) {
+            double q = sl[k] * z[k] + sl[s_->nsub + k] * z[s_->nsub + k];
+            if (q == 0.0) continue;
+            int pi = 0, pj = 0;
+            if (nprobe > 1) {
+                double x, y;
+                wt_shack_hartmann_centre(s_->sh, k, &x, &y);
+                double gx = (cone * x + s_->theta_x * t->alt[l] - g->x0) / g->dx;
+                double gy = (cone * y + s_->theta_y * t->alt[l] - g->y0) / g->dx;
+                double period = (double)step * se;
+                pi = (int)lround((gx - cx0 - (double)step * a0) / period);
+                pj = (int)lround((gy - cy0 - (double)step * b0) / period);
+                pi = ((pi % nprobe) + nprobe) % nprobe;
+                pj = ((pj % nprobe) + nprobe) % nprobe;
+            }
+            int64_t lam = bx + a0 + (int64_t)se * pi + (int64_t)n * (by + b0 + (int64_t)se * pj);
+            diag[t->off[l] + lam] += q;
+        }
+    }
+}
+
+static int compute_jacobi(wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    double *diag = NULL, *buf = NULL;
+    int N = wt_wavelet_order(t->wav[0]);
+    int s = 1;
+    while (s < 2 * N + 2) s *= 2;
+    int64_t maxn2 = 0, maxsl = 0;
+    for (int l = 0; l < t->L; l++)
+        if (wt_grid_size(&t->grid[l]) > maxn2) maxn2 = wt_grid_size(&t->grid[l]);
+    for (int m = 0; m < t->sys->nsensors; m++)
+        if (t->sys->sensors[m].nslopes > maxsl) maxsl = t->sys->sensors[m].nslopes;
+    int64_t phn = t->ncg > 2 * t->grid[0].nx ? t->ncg : 2 * t->grid[0].nx;
+    for (int l = 0; l < t->L; l++)
+        if (2 * t->grid[l].nx > phn) phn = 2 * t->grid[l].nx;
+    int64_t per = 2 * maxn2 + (int64_t)t->wsize + phn + 2 * maxsl;
+    int nth = t->nthreads;
+    WT_ALLOC(ctx, diag, t->n, "Jacobi diagonal");
+    WT_ALLOC(ctx, buf, (size_t)nth * per, "Jacobi probing workspace");
+
+    for (int l = 0; l < t->L; l++) {
+        int J = wt_wavelet_levels(t->wav[l]), n = t->grid[l].nx;
+        for (int level = 1; level <= J + 1; level++) {
+            int o0 = level <= J ? 1 : 0, o1 = level <= J ? 3 : 0;
+            for (int orient = o0; orient <= o1; orient++) {
+                int lev = level > J ? J : level, m = n >> lev, se = s < m ? s : m;
+#pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
+                for (int b0 = 0; b0 < se; b0++)
+                    for (int a0 = 0; a0 < se; a0++) {
+                        double *base = buf + (size_t)thread_id() * per;
+                        double *coef = base, *field = coef + maxn2, *work = field + maxn2;
+                        double *ph = work + t->wsize, *sl = ph + phn, *z = sl + maxsl;
+                        probe_block(t, l, level, orient, s, diag, coef, field, work, ph, sl, z, a0, b0);
+                    }
+            }
+        }
+    }
+    WT_ALLOC(ctx, t->jinv, t->n, "inverse Jacobi diagonal");
+    for (int64_t i = 0; i < t->n; i++) t->jinv[i] = 1.0 / (diag[i] + t->alpha_d[i]);
+    wt_free(ctx, diag);
+    wt_free(ctx, buf);
+    return WT_OK;
+fail:
+    wt_free(ctx, diag);
+    wt_free(ctx, buf);
+    return st;
+}
+
+int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag)
+{
+    int st = WT_OK;
+    double *e = NULL, *phi = NULL, *z = NULL;
+    wt_context *ctx = t->ctx;
+    WT_ALLOC(ctx, e, t->n, "probe");
+    WT_ALLOC(ctx, phi, t->n, "probe field");
+    WT_ALLOC(ctx, z, t->sys->nslopes, "probe slopes");
+    for (int64_t i = 0; i < t->n; i++) {
+        e[i] = 1.0;
+        inverse_dwt(t, e, phi);
+        e[i] = 0.0;
+        forward_slopes(t, phi, t->slopes);
+        double q = 0.0;
+        for (int m = 0; m < t->sys->nlgs; m++) {
+            const wt_sensor *s = &t->sys->sensors[m];
+            memset(z + s->offset, 0, (size_t)s->nslopes * sizeof *z);
+            wt_noise_apply_inv(t->noise[m], 1.0, t->slopes + s->offset, z + s->offset);
+            for (int k = 0; k < s->nslopes; k++) q += t->slopes[s->offset + k] * z[s->offset + k];
+        }
+        diag[i] = q;
+    }
+fail:
+    wt_free(ctx, e);
+    wt_free(ctx, phi);
+    wt_free(ctx, z);
+    return st;
+}
+
+void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
+{
+    const wt_system *sys = t->sys;
+    double f = 0.0, b = 0.0;
+    for (int l = 0; l < t->L; l++) {
+        /* one DWT level on an m x m block: rows and columns, 2 filters of 2N taps, 2 flops a tap */
+        int N = wt_wavelet_order(t->wav[l]), J = wt_wavelet_levels(t->wav[l]);
+        double m2 = (double)wt_grid_size(&t->grid[l]), lev = 0.0;
+        for (int j = 0; j < J; j++) lev += m2 / (double)(1 << (2 * j));
+        f += 2.0 * 8.0 * N * lev;             /* forward + inverse */
+        b += 2.0 * 2.0 * 8.0 * lev * 2.0;     /* read + write each level, both passes, both transforms */
+        f += 2.0 * m2;                        /* α D c */
+        b += 3.0 * 8.0 * m2;
+    }
+    /* per sensor: bilinear projection (4 mult-adds per point and layer) and its transpose; Fried (4
+     * adds + 1 scale per slope) and transpose; the 2x2 weight (~8 flops per subaperture + T) */
+    for (int m = 0; m < sys->nsensors; m++) {
+        double pts = (double)sys->ncorners, sl = sys->sensors[m].nslopes;
+        f += 2.0 * 8.0 * pts * t->L + 2.0 * 5.0 * sl + 12.0 * sl;
+        /* stencil (index 4 B + 2 weights 16 B) and 4 layer values per point and layer, both passes;
+         * the corner phase and slopes a few times each */
+        b += 2.0 * pts * t->L * (20.0 + 4.0 * 8.0) + 4.0 * 8.0 * pts + 6.0 * 8.0 * sl;
+    }
+    *flops = f;
+    *bytes = b;
+}
+
+int wt_tomography_count_nnz(wt_tomography *t, int64_t *nnz_gp, int64_t *nnz_a)
+{
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    const wt_system *sys = t->sys;
+    const int S = t->S, L = t->L;
+    wt_sparse **gp = NULL;
+    int64_t *mark = NULL;
+    double *buf = NULL;
+    int nth = t->nthreads;
+    WT_ALLOC(ctx, gp, (size_t)S * L, "Γ P products");
+    for (int m = 0; m < S; m++) {
+        wt_sparse *G = NULL;
+        WT_TRY(wt_shack_hartmann_assemble(sys->sensors[m].sh, &G));
+        nnz_gp[m] = 0;
+        nnz_a[m] = 0;
+        for (int l = 0; l < L; l++) {
+            wt_sparse *P = NULL;
+            st = wt_projection_assemble(t->proj[m * L + l], &P);
+            if (st < 0) {
+                wt_sparse_free(G);
+                goto fail;
+            }
+            st = wt_sparse_multiply(G, P, &gp[m * L + l]);
+            wt_sparse_free(P);
+            if (st < 0) {
+                wt_sparse_free(G);
+                goto fail;
+            }
+            nnz_gp[m] += wt_sparse_nnz(gp[m * L + l]);
+        }
+        wt_sparse_free(G);
+    }
+    /* per thread: a row mark per sensor slope block, a coefficient vector and its basis function */
+    int64_t maxsl = 0, maxn2 = 0;
+    for (int m = 0; m < S; m++)
+        if (sys->sensors[m].nslopes > maxsl) maxsl = sys->sensors[m].nslopes;
+    for (int l = 0; l < L; l++)
+        if (wt_grid_size(&t->grid[l]) > maxn2) maxn2 = wt_grid_size(&t->grid[l]);
+    WT_ALLOC(ctx, mark, (size_t)nth * S * maxsl, "symbolic marks");
+    WT_ALLOC(ctx, buf, (size_t)nth * (2 * maxn2 + t->wsize), "symbolic workspace");
+    for (size_t i = 0; i < (size_t)nth * S * maxsl; i++) mark[i] = -1;
+    for (int l = 0; l < L; l++) {
+        const int64_t nl = wt_grid_size(&t->grid[l]);
+        int64_t counts[2 * WT_MAX_GS] = {0};
+#pragma omp parallel num_threads(nth)
+        {
+            int tid = thread_id();
+            int64_t local[2 * WT_MAX_GS] = {0};
+            int64_t *mk = mark + (size_t)tid * S * maxsl;
+            double *e = buf + (size_t)tid * (2 * maxn2 + t->wsize), *psi = e + maxn2, *work = psi + maxn2;
+#pragma omp for schedule(dynamic, 64)
+            for (int64_t lam = 0; lam < nl; lam++) {
+                memset(e, 0, (size_t)nl * sizeof *e);
+                e[lam] = 1.0;
+                wt_wavelet_inverse(t->wav[l], e, psi, work);
+                int64_t tag = t->off[l] + lam;
+                for (int m = 0; m < S; m++) {
+                    const wt_sparse *G = gp[m * L + l];
+                    int64_t *mm = mk + (size_t)m * maxsl;
+                    for (int64_t p = 0; p < nl; p++) {
+                        if (psi[p] == 0.0) continue;
+                        for (int64_t k = G->colptr[p]; k < G->colptr[p + 1]; k++)
+                            if (mm[G->rowind[k]] != tag) {
+                                mm[G->rowind[k]] = tag;
+                                local[m]++;
+                            }
+                    }
+                }
+            }
+#pragma omp critical
+            for (int m = 0; m < S; m++) counts[m] += local[m];
+        }
+        for (int m = 0; m < S; m++) nnz_a[m] += counts[m];
+    }
+fail:
+    if (gp)
+        for (int i = 0; i < S * L; i++) wt_sparse_free(gp[i]);
+    wt_free(ctx, gp);
+    wt_free(ctx, mark);
+    wt_free(ctx, buf);
+    return st;
+}

@@ -1,0 +1,76 @@
+/* core/model/tomography.h: the wavelet MAP tomography of paper §6.1 (SPEC §6).
+ *
+ *   M c = Σ_m Ã_mᵀ Ĉ_m⁻¹ Ã_m c + α D c,     b = Σ_m Ã_mᵀ Ĉ_m⁻¹ s_m          (paper eq. eqn_lse)
+ *   Ã_m = Γ_m P_m W⁻¹,  Ĉ_m⁻¹ = (I − T) C̃_m⁻¹ (I − T) for LGS, C̃_m⁻¹ for NGS  (eq. widehatc)
+ *   J = diag(Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m) + α D                                      (modified Jacobi)
+ *
+ * Reconstruction layers: one per altitude of the chosen variant (recon.pcg3 or recon.cg9), each a
+ * periodic n x n grid of spacing δ (wt_grid_layer) with its own DWT plan and prior D_ℓ. The prior needs
+ * the Cn² fraction of each reconstruction layer: the atmosphere profile is binned onto the
+ * reconstruction altitudes, each true layer split between the two nearest reconstruction layers
+ * linearly in altitude (all of it to the end layer outside their range); a floor of 1e-3 keeps a layer
+ * that receives nothing regularised.
+ * Unknowns: wavelet coefficients of the layers, concatenated layer by layer (Mallat layout each).
+ *
+ * Modified Jacobi diagonal: exact (not averaged). It is computed by coloured probing: coefficients of
+ * one layer, level and orientation on a sub-lattice of stride s (s ≥ 2N+2, N the Daubechies order) have
+ * images Ã_m e_λ with disjoint supports in slope space, so one application per colour gives every
+ * entry, attributing each subaperture's 2x2 quadratic form to the nearest probe.
+ *
+ * Not thread-safe per object: apply and solve use workspace held in the object (they run OpenMP
+ * regions inside). Set-up allocates; apply, rhs and solve allocate nothing.
+ */
+#ifndef WT_TOMOGRAPHY_H
+#define WT_TOMOGRAPHY_H
+
+#include "../op/grid.h"
+#include "../op/wavelet.h"
+#include "../solve/pcg.h"
+#include "system.h"
+
+typedef struct wt_tomography wt_tomography;
+
+/* var: the reconstructor variant (cfg->pcg3 or cfg->cg9); α, τ, the wavelet and the prior come from
+ * sys->cfg. A layer grid that does not cover some sensor's footprint is a WT_ERR_CONFIG naming the
+ * variant, the layer and the sensor. */
+int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
+                        const char *variant_name, wt_tomography **out);
+void wt_tomography_free(wt_tomography *t);
+
+int64_t wt_tomography_nunknowns(const wt_tomography *t);
+int wt_tomography_nlayers(const wt_tomography *t);
+const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l);
+double wt_tomography_layer_altitude(const wt_tomography *t, int l);
+double wt_tomography_layer_fraction(const wt_tomography *t, int l);
+int64_t wt_tomography_layer_offset(const wt_tomography *t, int l);
+const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
+/* α D (ncoef values) and, when the variant asks for it, the inverse Jacobi diagonal (else NULL). */
+const double *wt_tomography_alpha_prior(const wt_tomography *t);
+const double *wt_tomography_jacobi_inverse(const wt_tomography *t);
+
+/* y = M c */
+void wt_tomography_apply(wt_tomography *t, const double *c, double *y);
+/* s = Ã c: the model slopes of every sensor (system order) */
+void wt_tomography_slopes(wt_tomography *t, const double *c, double *s);
+/* b = Σ Ã_mᵀ Ĉ_m⁻¹ s_m (s: all slopes, system order) */
+void wt_tomography_rhs(wt_tomography *t, const double *s, double *b);
+/* Solve M c = b(s) by CG or Jacobi PCG (per the variant), warm-started from c.
+ * max_iter / rtol override the variant's when ≥ 0. history: NULL or max_iter + 1 doubles. */
+int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
+                        wt_pcg_result *res);
+/* Spatial layers φ = W⁻¹ c (same length as c, layer by layer on their grids). */
+void wt_tomography_layers(wt_tomography *t, const double *c, double *phi);
+/* Compute the exact diagonal of Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m by brute force (one apply per unknown):
+ * for tests of the probing. diag: ncoef values. */
+int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
+
+/* Work per application of M: floating-point operations and bytes moved (estimates for reports). */
+void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes);
+
+
+
+/* Non-zeros of the sparse operators of each sensor m: Γ_m P_m (slopes x layer points, all layers) and
+ * Ã_m = Γ_m P_m W⁻¹ (slopes x coefficients, counted symbolically, never stored). Arrays of nsensors. */
+int wt_tomography_count_nnz(wt_tomography *t, int64_t *nnz_gp, int64_t *nnz_a);
+
+#endif

@@ -1,0 +1,238 @@
+/* core/op/noise.c: the Shack–Hartmann noise covariance C_E of one sensor, its inverse and the LGS weight.
+ *
+ * Implements SPEC §4 and the paper's eq. elongation_matrix (C̃_i = σ²(I + (τ/θf²) β_i β_iᵀ), one 2x2
+ * block per subaperture) and eq. widehatc (Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T the orthogonal projection onto
+ * the sensor's global tip and tilt). Everything block-wise is precomputed at alloc: the inverse blocks
+ * (Sherman–Morrison), the covariance blocks and their Cholesky factors (for sampling).
+ */
+#include "noise.h"
+
+#include <math.h>
+
+struct wt_noise {
+    wt_context *ctx;
+    int nsub;
+    int remove_tt;
+    double sigma2;    /* per-axis variance [rad²] */
+    double spot_fwhm; /* θf [rad] */
+    double tau;       /* elongation weight of the model, in [0, 1] */
+    /* Structure-of-arrays, nsub each, so the apply loops vectorise. */
+    double *ia, *ib, *ic;    /* C̃_i⁻¹ = [[ia, ib], [ib, ic]] [1/rad²] */
+    double *ca, *cb, *cc;    /* C̃_i   = [[ca, cb], [cb, cc]] [rad²] */
+    double *l11, *l21, *l22; /* C̃_i = L Lᵀ, L = [[l11, 0], [l21, l22]] [rad] */
+    double *store;           /* the one allocation the nine arrays live in */
+};
+
+double wt_noise_variance(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
+                         double nea)
+{
+    if (nea > 0.0) return nea * nea;
+    /* No photons and no NEA: there is no measurement, an infinite variance (rejected by alloc). */
+    if (!(photons > 0.0)) return INFINITY;
+    double ns2 = (double)pixels * (double)pixels;
+    return spot_fwhm * spot_fwhm / (8.0 * log(2.0) * photons) +
+           pixel * pixel * read_noise_e * read_noise_e * ns2 * ns2 / (12.0 * photons * photons);
+}
+
+void wt_noise_elongation(int nsub, const double *cx, const double *cy, double launch_x, double launch_y,
+                         double sodium_fwhm, double lgs_altitude, double *beta)
+{
+    /* The sodium column of thickness Δh seen from a baseline b = r − l subtends b Δh / H² (small angles). */
+    double s = sodium_fwhm / (lgs_altitude * lgs_altitude);
+    for (int i = 0; i < nsub; i++) {
+        beta[i] = (cx[i] - launch_x) * s;
+        beta[nsub + i] = (cy[i] - launch_y) * s;
+    }
+}
+
+void wt_noise_free(wt_noise *n)
+{
+    if (!n) return;
+    wt_context *ctx = n->ctx;
+    wt_free(ctx, n->store);
+    wt_free(ctx, n);
+}
+
+int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, const double *beta, double tau,
+                   int remove_tt, wt_noise **out)
+{
+    int st = WT_OK;
+    wt_noise *n = NULL;
+    *out = NULL;
+    if (nsub < 1) return WT_ERROR(ctx, WT_ERR_INVALID, "noise: nsub = %d, expected at least 1 subaperture", nsub);
+    if (!(sigma2 > 0.0) || !isfinite(sigma2))
+        return WT_ERROR(ctx, WT_ERR_INVALID,
+                        "noise: per-axis variance sigma2 = %g rad^2, expected finite and > 0 "
+                        "(a noiseless sensor needs no noise model)",
+                        sigma2);
+    if (!(tau >= 0.0 && tau <= 1.0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "noise: elongation weight tau = %g, expected in [0, 1]", tau);
+    if (!(spot_fwhm > 0.0) || !isfinite(spot_fwhm))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "noise: spot FWHM = %g rad, expected finite and > 0", spot_fwhm);
+    if (beta) {
+        for (int i = 0; i < 2 * nsub; i++)
+            if (!isfinite(beta[i]))
+                return WT_ERROR(ctx, WT_ERR_INVALID, "noise: elongation vector entry %d is %g, expected finite", i,
+                                beta[i]);
+    }
+
+    WT_ALLOC(ctx, n, 1, "noise model");
+    n->ctx = ctx;
+    n->nsub = nsub;
+    n->remove_tt = remove_tt ? 1 : 0;
+    n->sigma2 = sigma2;
+    n->spot_fwhm = spot_fwhm;
+    n->tau = tau;
+    WT_ALLOC(ctx, n->store, (size_t)9 * (size_t)nsub, "noise blocks");
+    double *p = n->store;
+    n->ia = p, p += nsub;
+    n->ib = p, p += nsub;
+    n->ic = p, p += nsub;
+    n->ca = p, p += nsub;
+    n->cb = p, p += nsub;
+    n->cc = p, p += nsub;
+    n->l11 = p, p += nsub;
+    n->l21 = p, p += nsub;
+    n->l22 = p;
+
+    double g = tau / (spot_fwhm * spot_fwhm);
+    for (int i = 0; i < nsub; i++) {
+        double bx = beta ? beta[i] : 0.0, by = beta ? beta[nsub + i] : 0.0;
+        double gxx = g * bx * bx, gxy = g * bx * by, gyy = g * by * by;
+        double q = 1.0 + gxx + gyy; /* det(C̃_i) / σ⁴ = 1 + γ|β|² >= 1 */
+        n->ca[i] = sigma2 * (1.0 + gxx);
+        n->cb[i] = sigma2 * gxy;
+        n->cc[i] = sigma2 * (1.0 + gyy);
+        /* Sherman–Morrison: (I + γββᵀ)⁻¹ = I − γββᵀ / (1 + γ|β|²); no cancellation since q >= 1. */
+        n->ia[i] = (1.0 - gxx / q) / sigma2;
+        n->ib[i] = (-gxy / q) / sigma2;
+        n->ic[i] = (1.0 - gyy / q) / sigma2;
+        double l11 = sqrt(n->ca[i]);
+        n->l11[i] = l11;
+        n->l21[i] = n->cb[i] / l11;
+        /* l22² = det / C11 exactly, avoiding the cancellation of C22 − l21² for long spots. */
+        n->l22[i] = sqrt(sigma2 * q / (1.0 + gxx));
+    }
+    *out = n;
+    return WT_OK;
+fail:
+    wt_noise_free(n);
+    return st;
+}
+
+int wt_noise_nslopes(const wt_noise *n) { return 2 * n->nsub; }
+
+void wt_noise_apply_cov(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    const int m = n->nsub;
+    const double *xx = x, *xy = x + m;
+    double *yx = y, *yy = y + m;
+    for (int i = 0; i < m; i++) {
+        double u = xx[i], v = xy[i];
+        yx[i] += alpha * (n->ca[i] * u + n->cb[i] * v);
+        yy[i] += alpha * (n->cb[i] * u + n->cc[i] * v);
+    }
+}
+
+void wt_noise_apply_inv(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    const int m = n->nsub;
+    const double *xx = x, *xy = x + m;
+    double *yx = y, *yy = y + m;
+    for (int i = 0; i < m; i++) {
+        double u = xx[i], v = xy[i];
+        yx[i] += alpha * (n->ia[i] * u + n->ib[i] * v);
+        yy[i] += alpha * (n->ib[i] * u + n->ic[i] * v);
+    }
+}
+
+/* T x puts the mean of the x-slopes in every x entry and the mean of the y-slopes in every y entry:
+ * the projection onto span{(1…1, 0…0), (0…0, 1…1)}, orthogonal because the two vectors are. */
+static void means(int m, const double *x, double *mx, double *my)
+{
+    double sx = 0.0, sy = 0.0;
+    for (int i = 0; i < m; i++) {
+        sx += x[i];
+        sy += x[m + i];
+    }
+    *mx = sx / m;
+    *my = sy / m;
+}
+
+void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    if (!n->remove_tt) {
+        wt_noise_apply_inv(n, alpha, x, y);
+        return;
+    }
+    /* y += α (I − T) v with v = C̃⁻¹ (x − T x), in three O(n) passes and no scratch: T x and T v need
+     * only the two means of each, so v is added to y while its means are summed, and α T v is then
+     * taken off y. */
+    const int m = n->nsub;
+    double mx, my;
+    means(m, x, &mx, &my);
+    const double *xx = x, *xy = x + m;
+    double *yx = y, *yy = y + m;
+    double svx = 0.0, svy = 0.0;
+    for (int i = 0; i < m; i++) {
+        double u = xx[i] - mx, v = xy[i] - my;
+        double vx = n->ia[i] * u + n->ib[i] * v;
+        double vy = n->ib[i] * u + n->ic[i] * v;
+        svx += vx;
+        svy += vy;
+        yx[i] += alpha * vx;
+        yy[i] += alpha * vy;
+    }
+    double dx = alpha * svx / m, dy = alpha * svy / m;
+    for (int i = 0; i < m; i++) {
+        yx[i] -= dx;
+        yy[i] -= dy;
+    }
+}
+
+void wt_noise_remove_tt(const wt_noise *n, double *x)
+{
+    const int m = n->nsub;
+    double mx, my;
+    means(m, x, &mx, &my);
+    for (int i = 0; i < m; i++) {
+        x[i] -= mx;
+        x[m + i] -= my;
+    }
+}
+
+void wt_noise_inv_block(const wt_noise *n, int i, double *a, double *b, double *c)
+{
+    *a = n->ia[i];
+    *b = n->ib[i];
+    *c = n->ic[i];
+}
+
+void wt_noise_sample(const wt_noise *n, wt_rng *rng, double *x)
+{
+    const int m = n->nsub;
+    for (int i = 0; i < m; i++) {
+        double z1 = wt_rng_normal(rng), z2 = wt_rng_normal(rng);
+        x[i] += n->l11[i] * z1;
+        x[m + i] += n->l21[i] * z1 + n->l22[i] * z2;
+    }
+}
+
+int wt_noise_assemble_inv(const wt_noise *n, wt_sparse **out)
+{
+    int st = WT_OK;
+    wt_triplet *t = NULL;
+    const int m = n->nsub;
+    *out = NULL;
+    WT_TRY(wt_triplet_alloc(n->ctx, 2 * (int64_t)m, 2 * (int64_t)m, 4 * (int64_t)m, &t));
+    for (int64_t i = 0; i < m; i++) {
+        WT_TRY(wt_triplet_add(t, i, i, n->ia[i]));
+        WT_TRY(wt_triplet_add(t, m + i, i, n->ib[i]));
+        WT_TRY(wt_triplet_add(t, i, m + i, n->ib[i]));
+        WT_TRY(wt_triplet_add(t, m + i, m + i, n->ic[i]));
+    }
+    WT_TRY(wt_triplet_compress(t, out));
+fail:
+    wt_triplet_free(t);
+    return st;
+}

@@ -1,0 +1,51 @@
+/* core/op/noise.h: the Shack–Hartmann noise model C_E of one sensor (SPEC §4, paper eq.
+ * elongation_matrix and widehatc).
+ *
+ * Per-axis variance (Gaussian spot FWHM θf, N photons, read noise σe, Ns x Ns pixels of scale p):
+ *     σ² = θf² / (8 ln2 N) + p² σe² Ns⁴ / (12 N²)      [rad²]       (or σ² = NEA² when given)
+ * 2x2 block of subaperture i, elongation vector β_i [rad]:  C̃_i = σ² (I + (τ/θf²) β_i β_iᵀ)
+ * LGS tip-tilt removal:  Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T),  T the orthogonal projection onto the sensor's
+ * global tip and tilt, i.e. onto span{(1…1, 0…0), (0…0, 1…1)} in the [s_x…, s_y…] layout.
+ * Slope layout as core/op/shack_hartmann.h: block i couples s_x[i] and s_y[i] = slope[nsub + i].
+ */
+#ifndef WT_NOISE_H
+#define WT_NOISE_H
+
+#include "../base/base.h"
+#include "../base/rng.h"
+#include "../la/sparse.h"
+
+/* σ² per axis [rad²] from the photon/read-noise model; nea > 0 [rad] overrides it (σ² = nea²). */
+double wt_noise_variance(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
+                         double nea);
+
+/* Elongation vectors of an LGS sensor (SPEC §4): β_i = (r_i − l) Δh_Na / H², r_i the subaperture centre,
+ * l the launch position [m]. beta: 2*nsub, [βx…, βy…]. */
+void wt_noise_elongation(int nsub, const double *cx, const double *cy, double launch_x, double launch_y,
+                         double sodium_fwhm, double lgs_altitude, double *beta);
+
+typedef struct wt_noise wt_noise;
+
+/* nsub subapertures, per-axis σ² [rad²] (> 0), spot FWHM θf [rad], elongation vectors beta (2*nsub,
+ * copied; NULL: none), τ ∈ [0, 1], remove_tt: 1 for the LGS tip-tilt projection in the weight. */
+int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, const double *beta, double tau,
+                   int remove_tt, wt_noise **out);
+void wt_noise_free(wt_noise *n);
+int wt_noise_nslopes(const wt_noise *n);
+
+/* y <- y + alpha * C̃ x */
+void wt_noise_apply_cov(const wt_noise *n, double alpha, const double *x, double *y);
+/* y <- y + alpha * C̃⁻¹ x */
+void wt_noise_apply_inv(const wt_noise *n, double alpha, const double *x, double *y);
+/* y <- y + alpha * Ĉ⁻¹ x  (= C̃⁻¹ x when remove_tt is 0). x and y must not alias. */
+void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y);
+/* x <- (I − T) x: remove the global tip and tilt in place. */
+void wt_noise_remove_tt(const wt_noise *n, double *x);
+/* The inverse 2x2 block of subaperture i: {a, b, c} with C̃_i⁻¹ = [[a, b], [b, c]]. */
+void wt_noise_inv_block(const wt_noise *n, int i, double *a, double *b, double *c);
+/* x <- x + a draw of N(0, C̃) (2x2 Cholesky per block). */
+void wt_noise_sample(const wt_noise *n, wt_rng *rng, double *x);
+/* C̃⁻¹ as a sparse matrix (nslopes x nslopes, 2x2 blocks). */
+int wt_noise_assemble_inv(const wt_noise *n, wt_sparse **out);
+
+#endif

@@ -1,0 +1,41 @@
+/* core/op/prior.h: the diagonal wavelet prior D_ℓ of one reconstruction layer (SPEC §6, paper
+ * eq. REG_WAV_penalty_discr).
+ *
+ * Paper form:  D_λλ = (1/c_ℓ) (L0^(-11/3) + κ_λ^(11/3)),  κ_λ = 1 / (δ 2^l) [cycles/m] for a detail
+ * coefficient of level l (l = 1 finest; the paper's j = J − l), δ the layer spacing; the
+ * approximation coefficients use κ = 1 / (δ 2^(J+1)). c_ℓ is fixed so that α = 1 is the physical
+ * von Kármán prior: D⁻¹ matches, level by level, the exact coefficient variances (W C_φ Wᵀ)_λλ of the
+ * layer's von Kármán statistics (see wt_prior_level_variance); c_ℓ is the geometric-mean fit over the
+ * detail levels.
+ * Exact form: D_λλ = 1 / (W C_φ Wᵀ)_λλ, evaluated by FFT for each level and orientation (periodic
+ * stationarity makes it constant within a level and orientation).
+ *
+ * Von Kármán OPD spectrum of a layer with Cn² fraction f: Φ(κ) = (λ0/2π)² 0.0229 f r0^(-5/3)
+ * (κ² + L0^(-2))^(-11/6), κ in cycles/m, λ0 = 500 nm (SPEC §2). Units of D: 1/m² (coefficients in m).
+ */
+#ifndef WT_PRIOR_H
+#define WT_PRIOR_H
+
+#include "../base/base.h"
+#include "wavelet.h"
+
+enum { WT_PRIOR_PAPER = 0, WT_PRIOR_EXACT = 1 };
+
+typedef struct wt_prior wt_prior;
+
+/* w: the layer's wavelet plan (n, order, J); spacing δ [m]; r0 [m] at 500 nm of the whole atmosphere and
+ * the layer's Cn² fraction (> 0); L0 [m]. */
+int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction, double L0,
+                   int kind, wt_prior **out);
+void wt_prior_free(wt_prior *p);
+/* D_λλ for the n*n coefficients in the layout of core/op/wavelet.h [1/m²]. */
+const double *wt_prior_diag(const wt_prior *p);
+/* Exact variance (W C_φ Wᵀ)_λλ [m²] of a coefficient of level (1 … J+1) and orientation (0 … 3). */
+double wt_prior_level_variance(const wt_prior *p, int level, int orient);
+/* The fitted normalisation c_ℓ. */
+double wt_prior_scale(const wt_prior *p);
+
+/* Von Kármán OPD power spectral density Φ(κ) [m² · m²] (per cycles/m squared). */
+double wt_von_karman_psd(double kappa, double r0, double fraction, double L0);
+
+#endif

@@ -1,0 +1,45 @@
+/* core/op/shack_hartmann.h: the Shack–Hartmann model Γ in Fried geometry (SPEC §4, paper eq. SH_op),
+ * and the low-order NGS sensors that average it.
+ *
+ * Fried: n x n subapertures of side d over the (n+1) x (n+1) corner grid φ (index i + (n+1) j):
+ *   s_x(i,j) = [(φ(i+1,j) + φ(i+1,j+1)) − (φ(i,j) + φ(i,j+1))] / (2d)
+ *   s_y(i,j) = [(φ(i,j+1) + φ(i+1,j+1)) − (φ(i,j) + φ(i+1,j))] / (2d)
+ * Slopes are OPD gradients [m/m = rad]. Only valid subapertures produce slopes. Slope vector layout:
+ * [s_x of valid subapertures in index order, then s_y in the same order] — length 2 * nvalid.
+ *
+ * Averaged sensor (NGS 2x2, 1x1): m x m big subapertures over the same fine n x n cells; big
+ * subaperture (I, J) reports the mean of the Fried slopes of the valid fine cells inside it; it is
+ * valid when it holds at least one valid fine cell. Layout as above with m*m in place of n*n.
+ */
+#ifndef WT_SHACK_HARTMANN_H
+#define WT_SHACK_HARTMANN_H
+
+#include <stdint.h>
+
+#include "../base/base.h"
+#include "../la/sparse.h"
+
+typedef struct wt_shack_hartmann wt_shack_hartmann;
+
+/* valid: n*n flags of the fine subapertures (copied). */
+int wt_shack_hartmann_alloc(wt_context *ctx, int n, double d, const uint8_t *valid, wt_shack_hartmann **out);
+/* Averaged low-order sensor with m x m subapertures (n divisible by m) over fine cells `valid`. */
+int wt_shack_hartmann_alloc_averaged(wt_context *ctx, int n, double d, const uint8_t *valid, int m,
+                                     wt_shack_hartmann **out);
+void wt_shack_hartmann_free(wt_shack_hartmann *s);
+
+int wt_shack_hartmann_nsub(const wt_shack_hartmann *s);         /* valid (big) subapertures */
+int wt_shack_hartmann_nslopes(const wt_shack_hartmann *s);      /* 2 * nsub */
+int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s);     /* (n+1)^2 */
+const uint8_t *wt_shack_hartmann_corner_mask(const wt_shack_hartmann *s); /* corners the slopes read */
+/* Centre of valid subaperture k in pupil coordinates [m] (the pupil spans [-n d/2, n d/2]²). */
+void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, double *y);
+
+/* slopes <- slopes + alpha * Γ phase   (phase on the corner grid) */
+void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const double *phase, double *slopes);
+/* phase <- phase + alpha * Γᵀ slopes */
+void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const double *slopes, double *phase);
+/* Γ: nslopes x ncorners. */
+int wt_shack_hartmann_assemble(const wt_shack_hartmann *s, wt_sparse **out);
+
+#endif

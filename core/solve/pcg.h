@@ -1,0 +1,37 @@
+/* core/solve/pcg.h: conjugate gradients and Jacobi-preconditioned CG for symmetric positive definite
+ * operators given as callbacks (paper §6.1: CG for eqn_lse, PCG with the modified Jacobi J).
+ *
+ * The workspace is allocated once for a size n; wt_pcg_solve allocates nothing, so it can run every
+ * frame. Warm start: x holds the initial guess on entry (the previous frame's solution).
+ */
+#ifndef WT_PCG_H
+#define WT_PCG_H
+
+#include "../base/base.h"
+
+/* y = A x  (y must be fully overwritten). */
+typedef void (*wt_linop_fn)(void *user, const double *x, double *y);
+
+typedef struct wt_pcg wt_pcg;
+
+int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out);
+void wt_pcg_free(wt_pcg *p);
+
+typedef struct wt_pcg_result {
+    int iterations;   /* iterations done */
+    double rel_resid; /* ‖b − A x‖ / ‖b‖ of the recursive residual at exit */
+} wt_pcg_result;
+
+/* Solve A x = b.
+ *   inv_diag: NULL for plain CG, else the inverse of the Jacobi diagonal (preconditioner M⁻¹ = diag).
+ *   max_iter: iteration cap (≥ 0); rtol: stop when ‖r‖/‖b‖ ≤ rtol (0: always run max_iter).
+ *   history: NULL or max_iter + 1 doubles: ‖r_k‖/‖b‖ for k = 0 … iterations.
+ * Returns WT_OK, WT_WARN_MAXITER when rtol > 0 was not reached, WT_ERR_NUMERIC on a non-finite value
+ * or pᵀAp ≤ 0 (A not positive definite). b = 0 gives x = 0. */
+int wt_pcg_solve(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
+                 int max_iter, double rtol, double *history, wt_pcg_result *res);
+
+/* Flops of one iteration outside the operator (vector updates, dots, preconditioner): for reports. */
+double wt_pcg_flops_per_iteration(int64_t n, int preconditioned);
+
+#endif

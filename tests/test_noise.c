@@ -1,0 +1,448 @@
+/* tests/test_noise.c: the Shack–Hartmann noise model (core/op/noise.c): C̃ and its inverse, the
+ * tip-tilt projection and the LGS weight Ĉ⁻¹, the assembled matrix, the variance and elongation
+ * formulas against hand computations, sampling statistics, and rejected input. */
+#include "testutil.h"
+
+#include "core/op/noise.h"
+
+#define ARCSEC (M_PI / (180.0 * 3600.0)) /* [rad] */
+
+/* E-ELT LGS defaults (SPEC §4, §1) */
+static const double LGS_FWHM = 1.1 * ARCSEC;
+static const double LGS_PIXEL = 1.0 * ARCSEC;
+
+/* Elongation vectors of a ring of subapertures seen from a side launch, as on the E-ELT: |β| up to
+ * 5e-5 rad, i.e. up to ~10 spot widths — the regime where the blocks are far from diagonal. */
+static void make_beta(int nsub, double *beta, unsigned long seed)
+{
+    double *c = malloc(2 * (size_t)nsub * sizeof *c);
+    wt_rng r;
+    wt_rng_init(&r, seed, 1);
+    for (int i = 0; i < nsub; i++) {
+        c[i] = 42.0 * (wt_rng_uniform(&r) - 0.5);
+        c[nsub + i] = 42.0 * (wt_rng_uniform(&r) - 0.5);
+    }
+    wt_noise_elongation(nsub, c, c + nsub, 22.0 * cos(1.0), 22.0 * sin(1.0), 10e3, 90e3, beta);
+    free(c);
+}
+
+static double sigma2_lgs(void) { return wt_noise_variance(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, 0.0); }
+
+static wt_noise *make_noise(wt_context *ctx, int nsub, double tau, int remove_tt)
+{
+    double *beta = malloc(2 * (size_t)nsub * sizeof *beta);
+    make_beta(nsub, beta, 7);
+    wt_noise *n = NULL;
+    ck_assert_int_eq(wt_noise_alloc(ctx, nsub, sigma2_lgs(), LGS_FWHM, beta, tau, remove_tt, &n), WT_OK);
+    free(beta);
+    return n;
+}
+
+/* x − (I − T) x = T x */
+static void apply_T(const wt_noise *n, const double *x, double *tx)
+{
+    int ns = wt_noise_nslopes(n);
+    double *u = malloc((size_t)ns * sizeof *u);
+    memcpy(u, x, (size_t)ns * sizeof *u);
+    wt_noise_remove_tt(n, u);
+    for (int i = 0; i < ns; i++) tx[i] = x[i] - u[i];
+    free(u);
+}
+
+START_TEST(test_cov_inverse)
+{
+    /* C̃ C̃⁻¹ x = x and C̃⁻¹ C̃ x = x. The blocks have condition number 1 + γ|β|² ≲ 100, so the round
+     * trip loses at most ~100 ε ≈ 2e-14 per entry: 1e-12 leaves margin and still catches any wrong
+     * inverse-block formula (which errs at O(1)). */
+    wt_context *ctx = tu_context();
+    const int nsub = 1000, ns = 2 * nsub;
+    wt_noise *n = make_noise(ctx, nsub, 0.8, 0);
+    ck_assert_int_eq(wt_noise_nslopes(n), ns);
+    double *x = malloc(ns * sizeof *x), *y = calloc(ns, sizeof *y), *z = calloc(ns, sizeof *z);
+    tu_randn(x, ns, 11);
+    wt_noise_apply_inv(n, 1.0, x, y);
+    wt_noise_apply_cov(n, 1.0, y, z);
+    ck_assert_double_le(tu_rel_diff(z, x, ns), 1e-12);
+    memset(y, 0, ns * sizeof *y);
+    memset(z, 0, ns * sizeof *z);
+    wt_noise_apply_cov(n, 1.0, x, y);
+    wt_noise_apply_inv(n, 1.0, y, z);
+    ck_assert_double_le(tu_rel_diff(z, x, ns), 1e-12);
+    /* the blocks must really couple x and y (else the test above proves little) */
+    double a, b, c;
+    wt_noise_inv_block(n, 3, &a, &b, &c);
+    ck_assert_double_gt(fabs(b), 1e-3 * fmin(a, c));
+    /* y <- y + α A x accumulates: 2 C̃⁻¹ x − C̃⁻¹ x = C̃⁻¹ x */
+    double *w = calloc(ns, sizeof *w), *v = calloc(ns, sizeof *v);
+    wt_noise_apply_inv(n, 2.0, x, w);
+    wt_noise_apply_inv(n, -1.0, x, w);
+    wt_noise_apply_inv(n, 1.0, x, v);
+    ck_assert_double_le(tu_rel_diff(w, v, ns), 1e-15 * 10);
+    free(w), free(v), free(x), free(y), free(z);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_inv_block_hand)
+{
+    /* One block from the hand formula σ²(I + (τ/θf²)ββᵀ); inv_block times it must be I. */
+    wt_context *ctx = tu_context();
+    double beta[2] = {3e-5, -2e-5}, s2 = 2e-13, tau = 0.8, g = tau / (LGS_FWHM * LGS_FWHM);
+    wt_noise *n = NULL;
+    ck_assert_int_eq(wt_noise_alloc(ctx, 1, s2, LGS_FWHM, beta, tau, 0, &n), WT_OK);
+    double C11 = s2 * (1 + g * beta[0] * beta[0]), C12 = s2 * g * beta[0] * beta[1],
+           C22 = s2 * (1 + g * beta[1] * beta[1]);
+    double a, b, c;
+    wt_noise_inv_block(n, 0, &a, &b, &c);
+    /* products of O(1) quantities, each exact to a few ulp */
+    ck_assert_rel(a * C11 + b * C12, 1.0, 1e-14, 1.0);
+    ck_assert_rel(a * C12 + b * C22, 0.0, 1e-14, 1.0);
+    ck_assert_rel(b * C12 + c * C22, 1.0, 1e-14, 1.0);
+    /* apply_cov gives the same block */
+    double x[2] = {1, 0}, y[2] = {0, 0};
+    wt_noise_apply_cov(n, 1.0, x, y);
+    ck_assert_rel(y[0], C11, 1e-14, 0);
+    ck_assert_rel(y[1], C12, 1e-14, 0);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_tt_projection)
+{
+    wt_context *ctx = tu_context();
+    const int nsub = 357, ns = 2 * nsub;
+    wt_noise *n = make_noise(ctx, nsub, 0.8, 1);
+    double *x = malloc(ns * sizeof *x), *y = malloc(ns * sizeof *y), *tx = malloc(ns * sizeof *tx),
+           *ty = malloc(ns * sizeof *ty), *ttx = malloc(ns * sizeof *ttx);
+    tu_randn(x, ns, 21);
+    tu_randn(y, ns, 22);
+    for (int i = 0; i < ns; i++) x[i] += 3.0; /* a non-zero mean, so T x is not trivially 0 */
+    apply_T(n, x, tx);
+    apply_T(n, y, ty);
+    apply_T(n, tx, ttx);
+    /* T² = T (round-off of a mean over n terms: ~n ε relative) */
+    ck_assert_double_le(tu_rel_diff(ttx, tx, ns), 1e-13);
+    /* Tᵀ = T: <Tx, y> = <x, Ty> */
+    ck_assert_rel(tu_dot(tx, y, ns), tu_dot(x, ty, ns), 1e-12, 0);
+    /* T x must be the means: x-part constant, y-part constant */
+    double mx = 0, my = 0;
+    for (int i = 0; i < nsub; i++) mx += x[i], my += x[nsub + i];
+    mx /= nsub, my /= nsub;
+    ck_assert_rel(tx[5], mx, 1e-13, 0);
+    ck_assert_rel(tx[nsub + 5], my, 1e-13, 0);
+
+    /* a global tip-tilt s_x = a, s_y = b is removed exactly (to round-off relative to |a|, |b|) */
+    const double a = 3.7e-6, b = -1.3e-6;
+    for (int i = 0; i < nsub; i++) x[i] = a, x[nsub + i] = b;
+    wt_noise_remove_tt(n, x);
+    for (int i = 0; i < nsub; i++) {
+        ck_assert_double_le(fabs(x[i]), 1e-14 * fabs(a));
+        ck_assert_double_le(fabs(x[nsub + i]), 1e-14 * fabs(b));
+    }
+    /* a zero-mean vector (per axis) is unchanged */
+    tu_randn(x, ns, 23);
+    double sx = 0, sy = 0;
+    for (int i = 0; i < nsub; i++) sx += x[i], sy += x[nsub + i];
+    for (int i = 0; i < nsub; i++) x[i] -= sx / nsub, x[nsub + i] -= sy / nsub;
+    memcpy(y, x, ns * sizeof *x);
+    wt_noise_remove_tt(n, y);
+    ck_assert_double_le(tu_rel_diff(y, x, ns), 1e-14);
+    free(x), free(y), free(tx), free(ty), free(ttx);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_weight)
+{
+    /* Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), with C̃⁻¹ taken from the assembled sparse matrix (independent of the
+     * O(n) trick in apply_weight); symmetric; kills a global tip-tilt; equals C̃⁻¹ when remove_tt = 0. */
+    wt_context *ctx = tu_context();
+    const int nsub = 640, ns = 2 * nsub;
+    wt_noise *n = make_noise(ctx, nsub, 0.8, 1);
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_noise_assemble_inv(n, &A), WT_OK);
+    double *x = malloc(ns * sizeof *x), *y0 = malloc(ns * sizeof *y0), *y = malloc(ns * sizeof *y),
+           *u = malloc(ns * sizeof *u), *v = calloc(ns, sizeof *v), *ref = malloc(ns * sizeof *ref);
+    tu_randn(x, ns, 31);
+    for (int i = 0; i < nsub; i++) x[i] += 2.0, x[nsub + i] -= 1.0;
+    tu_randn(y0, ns, 32);
+    const double alpha = -0.7;
+    memcpy(y, y0, ns * sizeof *y);
+    wt_noise_apply_weight(n, alpha, x, y);
+    memcpy(u, x, ns * sizeof *u);
+    wt_noise_remove_tt(n, u);
+    wt_sparse_apply(A, 1.0, u, v);
+    wt_noise_remove_tt(n, v);
+    for (int i = 0; i < ns; i++) ref[i] = y0[i] + alpha * v[i];
+    /* sums over n terms of entries ~1/σ²: round-off ~n ε relative */
+    ck_assert_double_le(tu_rel_diff(y, ref, ns), 1e-12);
+
+    /* symmetry: <Ĉ⁻¹x, z> = <x, Ĉ⁻¹z> */
+    double *z = malloc(ns * sizeof *z), *wx = calloc(ns, sizeof *wx), *wz = calloc(ns, sizeof *wz);
+    tu_randn(z, ns, 33);
+    wt_noise_apply_weight(n, 1.0, x, wx);
+    wt_noise_apply_weight(n, 1.0, z, wz);
+    ck_assert_rel(tu_dot(wx, z, ns), tu_dot(x, wz, ns), 1e-12, 0);
+    /* its range has no tip-tilt: the output has zero mean per axis */
+    double sx = 0, sy = 0, s = 0;
+    for (int i = 0; i < nsub; i++) sx += wx[i], sy += wx[nsub + i], s += fabs(wx[i]) + fabs(wx[nsub + i]);
+    ck_assert_double_le(fabs(sx), 1e-13 * s);
+    ck_assert_double_le(fabs(sy), 1e-13 * s);
+    /* a global tip-tilt input gives zero */
+    for (int i = 0; i < nsub; i++) z[i] = 1e-6, z[nsub + i] = 2e-6;
+    memset(wz, 0, ns * sizeof *wz);
+    wt_noise_apply_weight(n, 1.0, z, wz);
+    memset(v, 0, ns * sizeof *v);
+    wt_noise_apply_inv(n, 1.0, z, v); /* scale of what it would be without the projection */
+    ck_assert_double_le(tu_norm(wz, ns), 1e-13 * tu_norm(v, ns));
+
+    /* without the projection the weight is C̃⁻¹ */
+    wt_noise *n0 = make_noise(ctx, nsub, 0.8, 0);
+    memset(wx, 0, ns * sizeof *wx);
+    memset(v, 0, ns * sizeof *v);
+    wt_noise_apply_weight(n0, 1.0, x, wx);
+    wt_noise_apply_inv(n0, 1.0, x, v);
+    ck_assert_double_le(tu_rel_diff(wx, v, ns), 1e-15);
+    wt_noise_free(n0);
+
+    free(x), free(y0), free(y), free(u), free(v), free(ref), free(z), free(wx), free(wz);
+    wt_sparse_free(A);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_assemble)
+{
+    wt_context *ctx = tu_context();
+    const int nsub = 300, ns = 2 * nsub;
+    wt_noise *n = make_noise(ctx, nsub, 0.8, 1);
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_noise_assemble_inv(n, &A), WT_OK);
+    ck_assert_int_eq(A->nrow, ns);
+    ck_assert_int_eq(A->ncol, ns);
+    ck_assert_int_eq(wt_sparse_nnz(A), 4 * nsub); /* 2x2 blocks, all off-diagonals non-zero here */
+    double *x = malloc(ns * sizeof *x), *y = calloc(ns, sizeof *y), *z = calloc(ns, sizeof *z);
+    tu_randn(x, ns, 41);
+    wt_sparse_apply(A, 1.0, x, y);
+    wt_noise_apply_inv(n, 1.0, x, z);
+    ck_assert_double_le(tu_rel_diff(y, z, ns), 1e-15);
+    /* block i sits at rows/cols (i, nsub + i) */
+    double a, b, c;
+    wt_noise_inv_block(n, 17, &a, &b, &c);
+    int64_t col = nsub + 17, found = 0;
+    for (int64_t k = A->colptr[col]; k < A->colptr[col + 1]; k++) {
+        if (A->rowind[k] == 17) {
+            ck_assert_double_eq(A->val[k], b);
+            found++;
+        }
+        if (A->rowind[k] == nsub + 17) {
+            ck_assert_double_eq(A->val[k], c);
+            found++;
+        }
+    }
+    ck_assert_int_eq(found, 2);
+    ck_assert_int_eq(A->colptr[col + 1] - A->colptr[col], 2);
+    free(x), free(y), free(z);
+    wt_sparse_free(A);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_variance_formula)
+{
+    /* E-ELT LGS: θf = 1.1″, p = 1″, Ns = 4, N = 100, σe = 3. By hand, in arcsec²:
+     *   θf²/(8 ln2 N) = 1.21 / (800 × 0.693147) = 0.00218208
+     *   p² σe² Ns⁴/(12 N²) = 1 × 9 × 256 / 120000 = 0.0192
+     *   σ² = 0.0213821 arcsec² = 5.02574e-13 rad², σ = 0.146226″ = 146.23 mas rms per axis. */
+    double s2 = wt_noise_variance(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, 0.0);
+    ck_assert_rel(s2 / (ARCSEC * ARCSEC), 0.00218208 + 0.0192, 1e-6, 0); /* 6 digits typed */
+    ck_assert_rel(s2, 5.02574e-13, 1e-5, 0);
+    ck_assert_rel(sqrt(s2) / ARCSEC * 1e3, 146.226, 1e-5, 0);
+    /* photon-noise term alone (σe = 0) scales as 1/N, read-noise term as 1/N² */
+    ck_assert_rel(wt_noise_variance(50.0, 0.0, LGS_FWHM, LGS_PIXEL, 4, 0.0),
+                  2.0 * wt_noise_variance(100.0, 0.0, LGS_FWHM, LGS_PIXEL, 4, 0.0), 1e-15, 0);
+    /* NEA overrides: 10 mas rms → (10 mas)² */
+    double nea = 0.010 * ARCSEC;
+    ck_assert_rel(wt_noise_variance(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, nea), nea * nea, 1e-15, 0);
+    /* no photons, no NEA: no information */
+    ck_assert(isinf(wt_noise_variance(0.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, 0.0)));
+}
+END_TEST
+
+START_TEST(test_elongation_hand)
+{
+    /* Launch at (22, 0) m, Δh = 10 km, H = 90 km: β = (r − l) Δh / H².
+     * r = (21, 0):  β = (−1 × 1e4 / 8.1e9, 0) = (−1.2345679e-6, 0) rad = −0.2546″ (a short spot);
+     * r = (−21, 5): β = (−43, 5) × 1e4 / 8.1e9 = (−5.3086420e-5, 6.1728395e-6) rad (−10.95″ along x). */
+    double cx[2] = {21.0, -21.0}, cy[2] = {0.0, 5.0}, beta[4];
+    wt_noise_elongation(2, cx, cy, 22.0, 0.0, 10e3, 90e3, beta);
+    ck_assert_rel(beta[0], -1.2345679e-6, 1e-7, 0);
+    ck_assert_double_eq(beta[2], 0.0);
+    ck_assert_rel(beta[1], -5.3086420e-5, 1e-7, 0);
+    ck_assert_rel(beta[3], 6.1728395e-6, 1e-7, 0);
+    ck_assert_rel(beta[1] / ARCSEC, -10.9499, 1e-5, 0);
+    /* zero sodium thickness: no elongation */
+    wt_noise_elongation(2, cx, cy, 22.0, 0.0, 0.0, 90e3, beta);
+    for (int i = 0; i < 4; i++) ck_assert_double_eq(beta[i], 0.0);
+}
+END_TEST
+
+START_TEST(test_sampling)
+{
+    /* 200000 draws of a 2-subaperture sensor: block 0 round, block 1 strongly elongated (τ = 1, the
+     * truth). The sample covariance S = (1/N) Σ x xᵀ (mean known to be 0) has standard errors
+     * sd(S_ii) = √(2/N) C_ii and sd(S_ij) = √((C_ii C_jj + C_ij²)/N); each entry must be within 6 of them
+     * (a false alarm has probability ~1e-8 per entry, a wrong factor misses by hundreds). */
+    wt_context *ctx = tu_context();
+    const double s2 = sigma2_lgs(), g = 1.0 / (LGS_FWHM * LGS_FWHM);
+    double beta[4] = {0.0, -3.0e-5, 0.0, 2.0e-5}; /* [βx0, βx1, βy0, βy1] */
+    wt_noise *n = NULL;
+    ck_assert_int_eq(wt_noise_alloc(ctx, 2, s2, LGS_FWHM, beta, 1.0, 0, &n), WT_OK);
+    /* hand covariance in the order (x0, x1, y0, y1) */
+    double C[4][4] = {{0}};
+    C[0][0] = C[2][2] = s2;
+    C[1][1] = s2 * (1 + g * beta[1] * beta[1]);
+    C[3][3] = s2 * (1 + g * beta[3] * beta[3]);
+    C[1][3] = C[3][1] = s2 * g * beta[1] * beta[3];
+    const int N = 200000;
+    double S[4][4] = {{0}};
+    wt_rng rng;
+    wt_rng_init(&rng, 12345, 3);
+    for (int k = 0; k < N; k++) {
+        double x[4] = {0, 0, 0, 0};
+        wt_noise_sample(n, &rng, x);
+        for (int i = 0; i < 4; i++)
+            for (int j = 0; j < 4; j++) S[i][j] += x[i] * x[j];
+    }
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) {
+            S[i][j] /= N;
+            double se = (i == j) ? sqrt(2.0 / N) * C[i][i] : sqrt((C[i][i] * C[j][j] + C[i][j] * C[i][j]) / N);
+            ck_assert_msg(fabs(S[i][j] - C[i][j]) <= 6.0 * se, "S[%d][%d] = %g vs C = %g (se %g)", i, j, S[i][j],
+                          C[i][j], se);
+        }
+    /* the elongated block is really correlated (ρ ≈ −0.8), so the check above has teeth */
+    ck_assert_double_lt(C[1][3] / sqrt(C[1][1] * C[3][3]), -0.5);
+    /* sampling adds to x */
+    double x[4] = {1, 1, 1, 1};
+    wt_rng_init(&rng, 1, 1);
+    wt_noise_sample(n, &rng, x);
+    wt_rng_init(&rng, 1, 1);
+    double z[4] = {0, 0, 0, 0};
+    wt_noise_sample(n, &rng, z);
+    for (int i = 0; i < 4; i++) ck_assert_double_eq(x[i], 1.0 + z[i]);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
+static void expect_reject(wt_context *ctx, int nsub, double s2, double fwhm, const double *beta, double tau,
+                          const char *word)
+{
+    wt_noise *n = (wt_noise *)&n; /* must be overwritten with NULL */
+    wt_error_clear(ctx);
+    int st = wt_noise_alloc(ctx, nsub, s2, fwhm, beta, tau, 1, &n);
+    ck_assert_int_eq(st, WT_ERR_INVALID);
+    ck_assert_ptr_null(n);
+    ck_assert_msg(strstr(wt_error_message(ctx), word) != NULL, "message '%s' does not name '%s'",
+                  wt_error_message(ctx), word);
+    ck_assert_msg(strstr(wt_error_message(ctx), "expected") != NULL, "message '%s' does not say what is accepted",
+                  wt_error_message(ctx));
+}
+
+START_TEST(test_bad_input)
+{
+    wt_context *ctx = tu_context();
+    const double s2 = 1e-13, f = LGS_FWHM;
+    double beta[4] = {1e-6, 2e-6, NAN, 0};
+    expect_reject(ctx, 0, s2, f, NULL, 0.8, "nsub");
+    expect_reject(ctx, -3, s2, f, NULL, 0.8, "nsub");
+    expect_reject(ctx, 2, 0.0, f, NULL, 0.8, "sigma2");
+    expect_reject(ctx, 2, -1e-13, f, NULL, 0.8, "sigma2");
+    expect_reject(ctx, 2, NAN, f, NULL, 0.8, "sigma2");
+    expect_reject(ctx, 2, INFINITY, f, NULL, 0.8, "sigma2");
+    expect_reject(ctx, 2, s2, f, NULL, -0.1, "tau");
+    expect_reject(ctx, 2, s2, f, NULL, 1.1, "tau");
+    expect_reject(ctx, 2, s2, f, NULL, NAN, "tau");
+    expect_reject(ctx, 2, s2, 0.0, NULL, 0.8, "FWHM");
+    expect_reject(ctx, 2, s2, -f, NULL, 0.8, "FWHM");
+    expect_reject(ctx, 2, s2, f, beta, 0.8, "elongation");
+    /* the edges of the accepted ranges are accepted */
+    wt_noise *n = NULL;
+    ck_assert_int_eq(wt_noise_alloc(ctx, 1, s2, f, NULL, 0.0, 0, &n), WT_OK);
+    wt_noise_free(n);
+    ck_assert_int_eq(wt_noise_alloc(ctx, 1, s2, f, NULL, 1.0, 0, &n), WT_OK);
+    wt_noise_free(n);
+    wt_noise_free(NULL);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* Allocation failure: every allocation of alloc and assemble_inv fails in turn; each must report
+ * WT_ERR_NOMEM and leak nothing (ASan run). */
+typedef struct {
+    int fail_at, count;
+} fail_alloc;
+static void *failing_malloc(void *user, size_t size)
+{
+    fail_alloc *f = user;
+    if (f->count++ == f->fail_at) return NULL;
+    return malloc(size);
+}
+static void plain_free(void *user, void *p)
+{
+    (void)user;
+    free(p);
+}
+
+START_TEST(test_alloc_failure)
+{
+    wt_context *ctx = tu_context();
+    double beta[6] = {1e-6, 2e-6, 3e-6, -1e-6, 0, 1e-6};
+    int failures = 0;
+    for (int k = 0; k < 20; k++) {
+        fail_alloc f = {k, 0};
+        wt_context_set_allocator(ctx, failing_malloc, plain_free, &f);
+        wt_noise *n = NULL;
+        wt_sparse *A = NULL;
+        int st = wt_noise_alloc(ctx, 3, 1e-13, LGS_FWHM, beta, 0.8, 1, &n);
+        if (st == WT_OK) st = wt_noise_assemble_inv(n, &A);
+        if (st != WT_OK) {
+            ck_assert_int_eq(st, WT_ERR_NOMEM);
+            ck_assert_ptr_null(A);
+            failures++;
+        }
+        wt_sparse_free(A);
+        wt_noise_free(n);
+        if (f.count <= k) break; /* every allocation has been made to fail once */
+    }
+    ck_assert_int_ge(failures, 3);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("noise");
+    TCase *tc = tcase_create("core");
+    tcase_set_timeout(tc, 60);
+    tcase_add_test(tc, test_cov_inverse);
+    tcase_add_test(tc, test_inv_block_hand);
+    tcase_add_test(tc, test_tt_projection);
+    tcase_add_test(tc, test_weight);
+    tcase_add_test(tc, test_assemble);
+    tcase_add_test(tc, test_variance_formula);
+    tcase_add_test(tc, test_elongation_hand);
+    tcase_add_test(tc, test_sampling);
+    tcase_add_test(tc, test_bad_input);
+    tcase_add_test(tc, test_alloc_failure);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN

@@ -1,0 +1,343 @@
+/* tests/test_projection.c: layer projections P (NGS and LGS, SPEC §3): adjoint, assembly, geometry
+ * (altitude 0, cone factor, NGS shift), coverage errors and clamping. */
+#include "testutil.h"
+
+#include "core/la/sparse.h"
+#include "core/op/projection.h"
+#include "core/op/pupil.h"
+
+#define ARCSEC (M_PI / (180.0 * 3600.0))
+
+/* The E-ELT-like stack of SPEC §6: 128² @ 0.5 m at 0 m, 64² @ 1 m at 4 and 12.7 km. */
+static const double alts3[3] = {0.0, 4000.0, 12700.0};
+static void layers3(wt_grid g[3])
+{
+    g[0] = wt_grid_layer(128, 0.5);
+    g[1] = wt_grid_layer(64, 1.0);
+    g[2] = wt_grid_layer(64, 1.0);
+}
+
+/* The LGS corner grid 85 x 85 at 0.5 m and its valid-corner mask (84 x 84 subapertures, SPEC §1). */
+static wt_grid corner_grid(uint8_t *mask)
+{
+    uint8_t v[84 * 84];
+    ck_assert_int_eq(wt_pupil_valid_subapertures(42.0, 0.28, 84, 0.5, v), 5112);
+    wt_pupil_corner_mask(84, v, mask);
+    return wt_grid_centred(85, 0.5);
+}
+
+static wt_projection *make(wt_context *ctx, int nl, const wt_grid *g, const double *h, double H, double tx, double ty,
+                           const wt_grid *t, const uint8_t *mask, int clamp)
+{
+    wt_projection *p = NULL;
+    int st = wt_projection_alloc(ctx, nl, g, h, H, tx, ty, t, mask, clamp, &p);
+    ck_assert_msg(st == WT_OK, "alloc failed: %s", wt_error_message(ctx));
+    return p;
+}
+
+/* ⟨P x, y⟩ = ⟨x, Pᵀ y⟩: both sides sum the same ~4·L·npts products in different orders, so they
+ * agree to ~ npts·ε·‖Px‖‖y‖ ≲ 1e-12 ‖Px‖‖y‖ (npts ≤ 7225). */
+static void check_adjoint(const wt_projection *p, unsigned long seed)
+{
+    long nin = wt_projection_nin(p), nout = wt_projection_nout(p);
+    double *x = malloc(nin * sizeof *x), *y = malloc(nout * sizeof *y);
+    double *px = calloc(nout, sizeof *px), *pty = calloc(nin, sizeof *pty);
+    tu_randn(x, nin, seed);
+    tu_randn(y, nout, seed + 1);
+    wt_projection_apply(p, 1.0, x, px);
+    wt_projection_apply_t(p, 1.0, y, pty);
+    double lhs = tu_dot(px, y, nout), rhs = tu_dot(x, pty, nin);
+    ck_assert(tu_norm(px, nout) > 0.0);
+    ck_assert_rel(lhs, rhs, 1e-12, tu_norm(px, nout) * tu_norm(y, nout));
+    free(x), free(y), free(px), free(pty);
+}
+
+/* apply (accumulating, with α) == y0 + α · assembled matrix × x. Weights and sums differ only in
+ * rounding order (products w_r·w_c formed before or after the sum): 1e-13 relative. */
+static void check_assembled(const wt_projection *p, unsigned long seed)
+{
+    long nin = wt_projection_nin(p), nout = wt_projection_nout(p);
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_projection_assemble(p, &A), WT_OK);
+    ck_assert_int_eq(A->nrow, nout);
+    ck_assert_int_eq(A->ncol, nin);
+    double *x = malloc(nin * sizeof *x), *y = malloc(nout * sizeof *y), *z = malloc(nout * sizeof *z);
+    double *u = malloc(nout * sizeof *u), *v = malloc(nin * sizeof *v), *w = malloc(nin * sizeof *w);
+    tu_randn(x, nin, seed);
+    tu_randn(y, nout, seed + 1);
+    memcpy(z, y, nout * sizeof *z);
+    wt_projection_apply(p, -0.7, x, y);
+    wt_sparse_apply(A, -0.7, x, z);
+    ck_assert_double_le(tu_rel_diff(y, z, nout), 1e-13);
+    tu_randn(u, nout, seed + 2);
+    tu_randn(v, nin, seed + 3);
+    memcpy(w, v, nin * sizeof *w);
+    wt_projection_apply_t(p, 1.3, u, v);
+    wt_sparse_apply_t(A, 1.3, u, w);
+    ck_assert_double_le(tu_rel_diff(v, w, nin), 1e-13);
+    wt_sparse_free(A);
+    free(x), free(y), free(z), free(u), free(v), free(w);
+}
+
+START_TEST(test_adjoint_and_assembly)
+{
+    wt_context *ctx = tu_context();
+    wt_grid g[3];
+    layers3(g);
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    wt_projection *lgs = make(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, -20 * ARCSEC, &t, mask, 0);
+    wt_projection *ngs = make(ctx, 3, g, alts3, 0.0, -45 * ARCSEC, 60 * ARCSEC, &t, mask, 0);
+    wt_projection *all = make(ctx, 3, g, alts3, 0.0, 10 * ARCSEC, 0.0, &t, NULL, 0);
+    ck_assert_int_eq(wt_projection_nin(lgs), 128 * 128 + 2 * 64 * 64);
+    ck_assert_int_eq(wt_projection_nout(lgs), 85 * 85);
+    check_adjoint(lgs, 11);
+    check_adjoint(ngs, 21);
+    check_adjoint(all, 31);
+    check_assembled(lgs, 41);
+    check_assembled(ngs, 51);
+    check_assembled(all, 61);
+    /* a clamped projection that hangs over a small layer's edge */
+    wt_grid small[2] = {wt_grid_centred(41, 0.5), wt_grid_layer(32, 1.0)};
+    double hs[2] = {0.0, 9000.0};
+    wt_projection *cl = make(ctx, 2, small, hs, 90000.0, 25 * ARCSEC, 5 * ARCSEC, &t, mask, 1);
+    check_adjoint(cl, 71);
+    check_assembled(cl, 81);
+    wt_projection_free(lgs);
+    wt_projection_free(ngs);
+    wt_projection_free(all);
+    wt_projection_free(cl);
+    wt_projection_free(NULL);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_masked_points_untouched)
+{
+    wt_context *ctx = tu_context();
+    wt_grid g[3];
+    layers3(g);
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    wt_projection *p = make(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, 0.0, &t, mask, 0);
+    long nin = wt_projection_nin(p);
+    double *x = malloc(nin * sizeof *x), *y = malloc(85 * 85 * sizeof *y);
+    tu_randn(x, nin, 5);
+    for (int k = 0; k < 85 * 85; k++) y[k] = -1.0;
+    wt_projection_apply(p, 1.0, x, y);
+    int changed = 0;
+    for (int k = 0; k < 85 * 85; k++) {
+        if (!mask[k]) ck_assert(y[k] == -1.0);
+        else changed += y[k] != -1.0;
+    }
+    ck_assert_int_eq(changed, 5328);
+    /* Pᵀ ignores unmasked points: NaN there must not leak into the layers */
+    for (int k = 0; k < 85 * 85; k++) y[k] = mask[k] ? 1.0 : NAN;
+    for (long k = 0; k < nin; k++) x[k] = 0.0;
+    wt_projection_apply_t(p, 1.0, y, x);
+    for (long k = 0; k < nin; k++) ck_assert(isfinite(x[k]));
+    free(x), free(y);
+    wt_projection_free(p);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_ground_layer_same_everywhere)
+{
+    /* A layer at h = 0 is seen identically from every direction and source altitude: the sample point
+     * is (1 − 0/H) r + θ·0 = r exactly, so the outputs must be bit-identical. */
+    wt_context *ctx = tu_context();
+    wt_grid g = wt_grid_layer(128, 0.5);
+    double h = 0.0;
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    double *x = malloc(128 * 128 * sizeof *x), *y0 = calloc(85 * 85, sizeof *y0), *y1 = calloc(85 * 85, sizeof *y1);
+    tu_randn(x, 128 * 128, 7);
+    wt_projection *ref = make(ctx, 1, &g, &h, 0.0, 0.0, 0.0, &t, mask, 0);
+    wt_projection_apply(ref, 1.0, x, y0);
+    const double dirs[4][3] = {{0.0, 60 * ARCSEC, 0.0}, {90000.0, 60 * ARCSEC, 0.0}, {90000.0, -30 * ARCSEC, 45 * ARCSEC},
+                               {0.0, 0.0, -80 * ARCSEC}};
+    for (int k = 0; k < 4; k++) {
+        wt_projection *p = make(ctx, 1, &g, &h, dirs[k][0], dirs[k][1], dirs[k][2], &t, mask, 0);
+        memset(y1, 0, 85 * 85 * sizeof *y1);
+        wt_projection_apply(p, 1.0, x, y1);
+        for (int i = 0; i < 85 * 85; i++) ck_assert(y1[i] == y0[i]);
+        wt_projection_free(p);
+    }
+    /* the target points at h = 0 fall on layer grid points: the values are the layer's own */
+    int ix = 42 + 10, iy = 42 - 6; /* target point (5, -3) m; layer index (5/0.5 + 64, -3/0.5 + 64) */
+    ck_assert(mask[ix + 85 * iy]);
+    ck_assert(y0[ix + 85 * iy] == x[(10 + 64) + 128 * (-6 + 64)]);
+    wt_projection_free(ref);
+    free(x), free(y0), free(y1);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* fill a layer with f(X, Y) at its grid points */
+static void fill(const wt_grid *g, double *v, double a, double b, double c, double e)
+{
+    for (int iy = 0; iy < g->ny; iy++)
+        for (int ix = 0; ix < g->nx; ix++) {
+            double X = g->x0 + ix * g->dx, Y = g->y0 + iy * g->dx;
+            v[ix + g->nx * iy] = a * X + b * Y + c * X * Y + e;
+        }
+}
+
+START_TEST(test_cone_and_shift)
+{
+    /* Bilinear interpolation reproduces any a X + b Y + c XY + e exactly (it is the tensor product of
+     * two linear interpolations), so the projections are exact up to rounding: ~ε·|f| with
+     * |f| ≤ |a|·32 + |b|·32 + |c|·32² + |e| — 1e-13 relative to that scale. */
+    wt_context *ctx = tu_context();
+    wt_grid g[3];
+    layers3(g);
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    const double H = 90000.0, tx = 30 * ARCSEC, ty = -17 * ARCSEC;
+    for (int l = 0; l < 3; l++) {
+        const double h = alts3[l], a = 1.7e-6, b = -0.6e-6, c = 2.3e-8, e = 4e-7;
+        double *v = malloc(wt_grid_size(&g[l]) * sizeof *v);
+        double *y = calloc(85 * 85, sizeof *y);
+        double scale = fabs(a) * 32 + fabs(b) * 32 + fabs(c) * 1024 + fabs(e);
+        /* LGS, linear layer: (1 − h/H)(a x + b y) + (a θx + b θy) h */
+        fill(&g[l], v, a, b, 0.0, 0.0);
+        wt_projection *lgs = make(ctx, 1, &g[l], &h, H, tx, ty, &t, mask, 0);
+        wt_projection_apply(lgs, 1.0, v, y);
+        for (int iy = 0; iy < 85; iy++)
+            for (int ix = 0; ix < 85; ix++) {
+                if (!mask[ix + 85 * iy]) continue;
+                double x = t.x0 + ix * t.dx, yy = t.y0 + iy * t.dx;
+                double want = (1 - h / H) * (a * x + b * yy) + (a * tx + b * ty) * h;
+                ck_assert_rel(y[ix + 85 * iy], want, 1e-13, scale);
+            }
+        /* NGS, bilinear layer: f(r + θh) */
+        fill(&g[l], v, a, b, c, e);
+        memset(y, 0, 85 * 85 * sizeof *y);
+        wt_projection *ngs = make(ctx, 1, &g[l], &h, 0.0, tx, ty, &t, mask, 0);
+        wt_projection_apply(ngs, 1.0, v, y);
+        for (int iy = 0; iy < 85; iy++)
+            for (int ix = 0; ix < 85; ix++) {
+                if (!mask[ix + 85 * iy]) continue;
+                double X = t.x0 + ix * t.dx + tx * h, Y = t.y0 + iy * t.dx + ty * h;
+                ck_assert_rel(y[ix + 85 * iy], a * X + b * Y + c * X * Y + e, 1e-13, scale);
+            }
+        wt_projection_free(lgs);
+        wt_projection_free(ngs);
+        free(v), free(y);
+    }
+    /* all three layers at once: the sum of the three single-layer results */
+    long nin = 128 * 128 + 2 * 64 * 64;
+    double *v = malloc(nin * sizeof *v), *y = calloc(85 * 85, sizeof *y);
+    fill(&g[0], v, 1e-6, 0, 0, 0);
+    fill(&g[1], v + 128 * 128, 1e-6, 0, 0, 0);
+    fill(&g[2], v + 128 * 128 + 64 * 64, 1e-6, 0, 0, 0);
+    wt_projection *p = make(ctx, 3, g, alts3, H, tx, ty, &t, mask, 0);
+    wt_projection_apply(p, 2.0, v, y);
+    for (int k = 0; k < 85 * 85; k++) {
+        if (!mask[k]) continue;
+        double x = t.x0 + (k % 85) * t.dx, want = 0;
+        for (int l = 0; l < 3; l++) want += 2.0 * 1e-6 * ((1 - alts3[l] / H) * x + tx * alts3[l]);
+        ck_assert_rel(y[k], want, 1e-13, 1e-6 * 32 * 6);
+    }
+    wt_projection_free(p);
+    free(v), free(y);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_outside_rejected)
+{
+    wt_context *ctx = tu_context();
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    /* layer 1 (32 x 32 at 1 m, spanning [-16, 15] m) cannot cover the 42 m pupil */
+    wt_grid g[2] = {wt_grid_layer(128, 0.5), wt_grid_layer(32, 1.0)};
+    double h[2] = {0.0, 4000.0};
+    wt_projection *p = (wt_projection *)&p; /* must be reset to NULL on failure */
+    int st = wt_projection_alloc(ctx, 2, g, h, 90000.0, 0.0, 0.0, &t, mask, 0, &p);
+    ck_assert_int_eq(st, WT_ERR_INVALID);
+    ck_assert_ptr_null(p);
+    const char *msg = wt_error_message(ctx);
+    ck_assert_msg(strstr(msg, "layer 1") && strstr(msg, "altitude 4000 m") && strstr(msg, "[-16, 15]"), "message: %s", msg);
+    /* a point exactly on the last grid line is inside: the 85 x 85 target on an identical layer grid */
+    wt_grid same = wt_grid_centred(85, 0.5);
+    double h0 = 0.0;
+    double *v = malloc(85 * 85 * sizeof *v), *y = calloc(85 * 85, sizeof *y);
+    tu_randn(v, 85 * 85, 3);
+    p = make(ctx, 1, &same, &h0, 0.0, 0.0, 0.0, &same, NULL, 0);
+    wt_projection_apply(p, 1.0, v, y);
+    for (int k = 0; k < 85 * 85; k++) ck_assert(y[k] == v[k]);
+    check_adjoint(p, 5);
+    check_assembled(p, 6); /* assembly rejects any stencil index beyond the layer, even at weight 0 */
+    wt_projection_free(p);
+    /* a millimetre further (0.002 cells, beyond rounding slack) is not */
+    wt_grid shifted = same;
+    shifted.x0 += 1e-3;
+    ck_assert_int_eq(wt_projection_alloc(ctx, 1, &shifted, &h0, 0.0, 0.0, 0.0, &same, NULL, 0, &p), WT_ERR_INVALID);
+    ck_assert(strstr(wt_error_message(ctx), "layer 0"));
+    /* bad arguments */
+    double hbad = 95000.0;
+    ck_assert_int_eq(wt_projection_alloc(ctx, 1, &g[0], &hbad, 90000.0, 0.0, 0.0, &t, mask, 0, &p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_projection_alloc(ctx, 0, g, h, 0.0, 0.0, 0.0, &t, mask, 0, &p), WT_ERR_INVALID);
+    wt_grid one = {1, 5, 1.0, 0.0, 0.0};
+    ck_assert_int_eq(wt_projection_alloc(ctx, 1, &one, &h0, 0.0, 0.0, 0.0, &t, mask, 0, &p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_projection_alloc(ctx, 1, &g[0], &h0, 0.0, NAN, 0.0, &t, mask, 0, &p), WT_ERR_INVALID);
+    free(v), free(y);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* hat function of linear interpolation: the weight of a grid point t cells away */
+static double hat(double t) { return fmax(0.0, 1.0 - fabs(t)); }
+
+START_TEST(test_clamp)
+{
+    /* A 41 x 41 layer at 0.5 m spanning [-10, 10] m, seen shifted by θh = (0.1, −0.35) m, so that the
+     * edge stencils have unequal weights (0.2/0.8, 0.7/0.3). With clamp_outside the result must be the
+     * interpolation of the zero-extended layer, computed independently as Σ_ij v_ij hat(Δx) hat(Δy).
+     * Both evaluate the same two-term sums per axis: 1e-13 relative to the O(1) values. */
+    wt_context *ctx = tu_context();
+    wt_grid g = wt_grid_centred(41, 0.5), t = wt_grid_centred(85, 0.5);
+    double h = 1000.0, thx = 0.1 / h, thy = -0.35 / h;
+    double *v = malloc(41 * 41 * sizeof *v), *y = calloc(85 * 85, sizeof *y);
+    tu_randn(v, 41 * 41, 17);
+    wt_projection *p = NULL;
+    ck_assert_int_eq(wt_projection_alloc(ctx, 1, &g, &h, 0.0, thx, thy, &t, NULL, 0, &p), WT_ERR_INVALID);
+    p = make(ctx, 1, &g, &h, 0.0, thx, thy, &t, NULL, 1);
+    wt_projection_apply(p, 1.0, v, y);
+    int zero = 0;
+    for (int iy = 0; iy < 85; iy++)
+        for (int ix = 0; ix < 85; ix++) {
+            double X = t.x0 + ix * t.dx + thx * h, Y = t.y0 + iy * t.dx + thy * h, want = 0.0;
+            for (int j = 0; j < 41; j++) {
+                double hy = hat((Y - (g.y0 + j * g.dx)) / g.dx);
+                if (hy == 0.0) continue;
+                for (int i = 0; i < 41; i++) want += v[i + 41 * j] * hat((X - (g.x0 + i * g.dx)) / g.dx) * hy;
+            }
+            ck_assert_rel(y[ix + 85 * iy], want, 1e-13, 1.0);
+            zero += y[ix + 85 * iy] == 0.0;
+        }
+    /* per axis 40 target points sample inside [-10, 10] and one on each side partly: 42 x 42 lit */
+    ck_assert_int_eq(zero, 85 * 85 - 42 * 42);
+    wt_projection_free(p);
+    free(v), free(y);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("projection");
+    TCase *tc = tcase_create("core");
+    tcase_add_test(tc, test_adjoint_and_assembly);
+    tcase_add_test(tc, test_masked_points_untouched);
+    tcase_add_test(tc, test_ground_layer_same_everywhere);
+    tcase_add_test(tc, test_cone_and_shift);
+    tcase_add_test(tc, test_outside_rejected);
+    tcase_add_test(tc, test_clamp);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN

@@ -1,0 +1,270 @@
+/* tests/test_shack_hartmann.c: the Fried model Γ and the averaged NGS sensors (SPEC §4): adjoint,
+ * assembly, exactness on linear and quadratic phases, averaging, masks, centres, errors. */
+#include "testutil.h"
+
+#include "core/la/sparse.h"
+#include "core/op/pupil.h"
+#include "core/op/shack_hartmann.h"
+
+#define N 84
+#define D_SUB 0.5
+
+static void eelt_valid(uint8_t *v) { ck_assert_int_eq(wt_pupil_valid_subapertures(42.0, 0.28, N, 0.5, v), 5112); }
+
+static wt_shack_hartmann *make(wt_context *ctx, int n, double d, const uint8_t *v, int m)
+{
+    wt_shack_hartmann *s = NULL;
+    int st = m ? wt_shack_hartmann_alloc_averaged(ctx, n, d, v, m, &s) : wt_shack_hartmann_alloc(ctx, n, d, v, &s);
+    ck_assert_msg(st == WT_OK, "alloc failed: %s", wt_error_message(ctx));
+    return s;
+}
+
+/* φ(x, y) on the corner grid of an n x n sensor of side d (corner (i, j) at (−nd/2 + i d, …)) */
+static void fill_phase(int n, double d, double *phi, double a, double b, double cxx, double cxy, double cyy, double p)
+{
+    for (int j = 0; j <= n; j++)
+        for (int i = 0; i <= n; i++) {
+            double x = -0.5 * n * d + i * d, y = -0.5 * n * d + j * d;
+            phi[i + (n + 1) * j] = a * x + b * y + cxx * x * x + cxy * x * y + cyy * y * y + p;
+        }
+}
+
+START_TEST(test_counts_and_masks)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N], c[(N + 1) * (N + 1)];
+    eelt_valid(v);
+    wt_shack_hartmann *s = make(ctx, N, D_SUB, v, 0);
+    ck_assert_int_eq(wt_shack_hartmann_nsub(s), 5112);
+    ck_assert_int_eq(wt_shack_hartmann_nslopes(s), 10224);
+    ck_assert_int_eq(wt_shack_hartmann_ncorners(s), 85 * 85);
+    wt_pupil_corner_mask(N, v, c);
+    ck_assert_mem_eq(wt_shack_hartmann_corner_mask(s), c, sizeof c);
+    /* centre of the first valid subaperture: row j = 0 is empty; the first valid cell in index order
+     * decides it, so recompute from the mask */
+    int first = 0;
+    while (!v[first]) first++;
+    double x, y;
+    wt_shack_hartmann_centre(s, 0, &x, &y);
+    ck_assert_rel(x, -21.0 + (first % N + 0.5) * D_SUB, 1e-15, 1.0);
+    ck_assert_rel(y, -21.0 + (first / N + 0.5) * D_SUB, 1e-15, 1.0);
+    wt_shack_hartmann_centre(s, 5112, &x, &y);
+    ck_assert(isnan(x) && isnan(y));
+    wt_shack_hartmann_free(s);
+
+    /* averaged 2 x 2 on the E-ELT pupil: all four quadrants are valid, centres at (±10.5, ±10.5) */
+    s = make(ctx, N, D_SUB, v, 2);
+    ck_assert_int_eq(wt_shack_hartmann_nsub(s), 4);
+    const double want[4][2] = {{-10.5, -10.5}, {10.5, -10.5}, {-10.5, 10.5}, {10.5, 10.5}};
+    for (int k = 0; k < 4; k++) {
+        wt_shack_hartmann_centre(s, k, &x, &y);
+        ck_assert_rel(x, want[k][0], 1e-15, 0);
+        ck_assert_rel(y, want[k][1], 1e-15, 0);
+    }
+    wt_shack_hartmann_free(s);
+
+    /* 1 x 1 over a fully valid 4 x 4: the mean x slope telescopes to the right column minus the left
+     * column, the mean y slope to top minus bottom, so only the 16 rim corners of the 5 x 5 grid are
+     * read and the 9 interior ones drop out exactly. */
+    uint8_t full[16], bigc[25];
+    memset(full, 1, sizeof full);
+    s = make(ctx, 4, 1.0, full, 1);
+    memcpy(bigc, wt_shack_hartmann_corner_mask(s), 25);
+    int nread = 0;
+    for (int k = 0; k < 25; k++) nread += bigc[k];
+    ck_assert_int_eq(nread, 16);
+    ck_assert(!bigc[6] && !bigc[12] && !bigc[18] && bigc[0] && bigc[4] && bigc[24]);
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_shack_hartmann_assemble(s, &A), WT_OK);
+    /* s_x row: corners (4, j) get +1/(2·1·16) · (1 or 2), (0, j) the negatives; (4, 0) and (4, 4) once */
+    ck_assert_int_eq(wt_sparse_nnz(A), 2 * 10);
+    wt_sparse_free(A);
+    wt_shack_hartmann_free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* ⟨Γφ, s⟩ = ⟨φ, Γᵀs⟩ to ~ n·ε·‖Γφ‖‖s‖ (n ≤ 2·10⁴ terms): 1e-12 relative. */
+static void check_adjoint_assembly(const wt_shack_hartmann *s, unsigned long seed)
+{
+    long nc = wt_shack_hartmann_ncorners(s), ns = wt_shack_hartmann_nslopes(s);
+    double *phi = malloc(nc * sizeof *phi), *sl = malloc(ns * sizeof *sl);
+    double *gphi = calloc(ns, sizeof *gphi), *gts = calloc(nc, sizeof *gts);
+    tu_randn(phi, nc, seed);
+    tu_randn(sl, ns, seed + 1);
+    wt_shack_hartmann_apply(s, 1.0, phi, gphi);
+    wt_shack_hartmann_apply_t(s, 1.0, sl, gts);
+    ck_assert(tu_norm(gphi, ns) > 0);
+    ck_assert_rel(tu_dot(gphi, sl, ns), tu_dot(phi, gts, nc), 1e-12, tu_norm(gphi, ns) * tu_norm(sl, ns));
+
+    /* apply (accumulating, α ≠ 1) == y0 + α A x: same products summed in another order → 1e-13 */
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_shack_hartmann_assemble(s, &A), WT_OK);
+    ck_assert_int_eq(A->nrow, ns);
+    ck_assert_int_eq(A->ncol, nc);
+    double *y1 = malloc(ns * sizeof *y1), *y2 = malloc(ns * sizeof *y2);
+    double *z1 = malloc(nc * sizeof *z1), *z2 = malloc(nc * sizeof *z2);
+    tu_randn(y1, ns, seed + 2);
+    memcpy(y2, y1, ns * sizeof *y2);
+    tu_randn(z1, nc, seed + 3);
+    memcpy(z2, z1, nc * sizeof *z2);
+    wt_shack_hartmann_apply(s, 2.5, phi, y1);
+    wt_sparse_apply(A, 2.5, phi, y2);
+    ck_assert_double_le(tu_rel_diff(y1, y2, ns), 1e-13);
+    wt_shack_hartmann_apply_t(s, -0.4, sl, z1);
+    wt_sparse_apply_t(A, -0.4, sl, z2);
+    ck_assert_double_le(tu_rel_diff(z1, z2, nc), 1e-13);
+    wt_sparse_free(A);
+    free(phi), free(sl), free(gphi), free(gts), free(y1), free(y2), free(z1), free(z2);
+}
+
+START_TEST(test_adjoint_and_assembly)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    for (int m = 0; m <= 2; m++) { /* Fried, 1 x 1, 2 x 2 */
+        wt_shack_hartmann *s = make(ctx, N, D_SUB, v, m);
+        check_adjoint_assembly(s, 100 + m);
+        wt_shack_hartmann_free(s);
+    }
+    /* a ragged mask, with a 3 x 3 averaged sensor whose corner block is empty (invalid) */
+    uint8_t r[12 * 12];
+    wt_rng g;
+    wt_rng_init(&g, 9, 0);
+    for (int k = 0; k < 144; k++) r[k] = wt_rng_uniform(&g) < 0.6;
+    for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) r[i + 12 * j] = 0;
+    wt_shack_hartmann *s = make(ctx, 12, 0.7, r, 3);
+    ck_assert_int_eq(wt_shack_hartmann_nsub(s), 8);
+    check_adjoint_assembly(s, 200);
+    wt_shack_hartmann_free(s);
+    s = make(ctx, 12, 0.7, r, 0);
+    check_adjoint_assembly(s, 300);
+    wt_shack_hartmann_free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_linear_and_quadratic_phase)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    wt_shack_hartmann *s = make(ctx, N, D_SUB, v, 0);
+    const int nsub = wt_shack_hartmann_nsub(s);
+    double *phi = malloc((N + 1) * (N + 1) * sizeof *phi), *sl = malloc(2 * nsub * sizeof *sl);
+
+    /* tilt + piston: s = (a, b) everywhere. Rounding: φ ~ 21|a| + |p| is differenced over d = 0.5,
+     * so errors are ~ ε·(21|a| + |p|)/d ≈ 1e-14 |a| — 1e-12 relative to the slope. */
+    const double a = 3.1e-6, b = -1.2e-6;
+    fill_phase(N, D_SUB, phi, a, b, 0, 0, 0, 5e-6);
+    memset(sl, 0, 2 * nsub * sizeof *sl);
+    wt_shack_hartmann_apply(s, 1.0, phi, sl);
+    for (int k = 0; k < nsub; k++) {
+        ck_assert_rel(sl[k], a, 1e-12, 0);
+        ck_assert_rel(sl[nsub + k], b, 1e-12, 0);
+    }
+
+    /* Fried is exact at the subaperture centre for quadratics: for x², s_x = 2[(x_c + d/2)² −
+     * (x_c − d/2)²]/(2d) = 2 x_c; for xy, s_x = d (y_c − d/2 + y_c + d/2)/(2d) = y_c; y² cancels.
+     * Rounding: φ ≤ (|cxx| + |cxy| + |cyy|)·21²·2 differenced over d → ~1e-12 of the slope scale
+     * 2·21·(|cxx| + |cxy| + |cyy|). */
+    const double cxx = 2e-7, cxy = -3e-7, cyy = 1.5e-7;
+    fill_phase(N, D_SUB, phi, a, b, cxx, cxy, cyy, 0);
+    memset(sl, 0, 2 * nsub * sizeof *sl);
+    wt_shack_hartmann_apply(s, 1.0, phi, sl);
+    double scale = 2 * 21 * (fabs(cxx) + fabs(cxy) + fabs(cyy)) + fabs(a) + fabs(b);
+    for (int k = 0; k < nsub; k++) {
+        double x, y;
+        wt_shack_hartmann_centre(s, k, &x, &y);
+        ck_assert_rel(sl[k], a + 2 * cxx * x + cxy * y, 1e-12, scale);
+        ck_assert_rel(sl[nsub + k], b + cxy * x + 2 * cyy * y, 1e-12, scale);
+    }
+    free(phi), free(sl);
+    wt_shack_hartmann_free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_averaged_is_mean)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    wt_shack_hartmann *fine = make(ctx, N, D_SUB, v, 0);
+    const int nf = wt_shack_hartmann_nsub(fine);
+    double *phi = malloc((N + 1) * (N + 1) * sizeof *phi), *sf = calloc(2 * nf, sizeof *sf);
+    tu_randn(phi, (N + 1) * (N + 1), 77);
+    wt_shack_hartmann_apply(fine, 1.0, phi, sf);
+    for (int m = 1; m <= 2; m++) {
+        wt_shack_hartmann *big = make(ctx, N, D_SUB, v, m);
+        const int nb = wt_shack_hartmann_nsub(big);
+        ck_assert_int_eq(nb, m * m);
+        double *sb = calloc(2 * nb, sizeof *sb), mean[2][4] = {{0}}, cnt[4] = {0};
+        wt_shack_hartmann_apply(big, 1.0, phi, sb);
+        /* the mean of the fine Fried slopes over the valid cells of each big subaperture */
+        for (int k = 0; k < nf; k++) {
+            double x, y;
+            wt_shack_hartmann_centre(fine, k, &x, &y);
+            int I = (int)floor((x + 21.0) / (42.0 / m)), J = (int)floor((y + 21.0) / (42.0 / m));
+            mean[0][I + m * J] += sf[k];
+            mean[1][I + m * J] += sf[nf + k];
+            cnt[I + m * J] += 1;
+        }
+        /* the averaged rows are the same sum reordered (telescoped terms cancelled exactly, from
+         * integer counts): the difference is ≲ ε·Σ|terms|/count ≈ ε·max|s_fine| ≈ 1e-15 for these
+         * O(1) slopes (unit-variance phase over d = 0.5 m) — asserted to 1e-12 absolute */
+        for (int q = 0; q < nb; q++) {
+            ck_assert_rel(sb[q], mean[0][q] / cnt[q], 1e-12, 1.0);
+            ck_assert_rel(sb[nb + q], mean[1][q] / cnt[q], 1e-12, 1.0);
+        }
+        /* a tilt is seen exactly */
+        double *tilt = malloc((N + 1) * (N + 1) * sizeof *tilt);
+        fill_phase(N, D_SUB, tilt, 2e-6, -7e-7, 0, 0, 0, 1e-6);
+        memset(sb, 0, 2 * nb * sizeof *sb);
+        wt_shack_hartmann_apply(big, 1.0, tilt, sb);
+        for (int q = 0; q < nb; q++) {
+            ck_assert_rel(sb[q], 2e-6, 1e-12, 0);
+            ck_assert_rel(sb[nb + q], -7e-7, 1e-12, 0);
+        }
+        free(tilt), free(sb);
+        wt_shack_hartmann_free(big);
+    }
+    free(phi), free(sf);
+    wt_shack_hartmann_free(fine);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_errors)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N], none[16] = {0};
+    eelt_valid(v);
+    wt_shack_hartmann *s = (wt_shack_hartmann *)&s;
+    ck_assert_int_eq(wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, 5, &s), WT_ERR_INVALID);
+    ck_assert_ptr_null(s);
+    ck_assert(strstr(wt_error_message(ctx), "84"));
+    ck_assert_int_eq(wt_shack_hartmann_alloc(ctx, 4, 1.0, none, &s), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_shack_hartmann_alloc(ctx, 0, 1.0, v, &s), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_shack_hartmann_alloc(ctx, N, -0.5, v, &s), WT_ERR_INVALID);
+    wt_shack_hartmann_free(NULL);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("shack_hartmann");
+    TCase *tc = tcase_create("core");
+    tcase_add_test(tc, test_counts_and_masks);
+    tcase_add_test(tc, test_adjoint_and_assembly);
+    tcase_add_test(tc, test_linear_and_quadratic_phase);
+    tcase_add_test(tc, test_averaged_is_mean);
+    tcase_add_test(tc, test_errors);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
