@@ -8,6 +8,27 @@
 
 #define ARCSEC (M_PI / (180.0 * 3600.0))
 
+/* Allocator that fails once its budget is spent (budget < 0: unlimited) and counts live blocks. */
+typedef struct {
+    int budget, live, nalloc;
+} tu_failing_alloc;
+static void *fa_malloc(void *u, size_t n)
+{
+    tu_failing_alloc *f = u;
+    if (f->budget == 0) return NULL;
+    if (f->budget > 0) f->budget--;
+    f->live++;
+    f->nalloc++;
+    return malloc(n);
+}
+static void fa_free(void *u, void *p)
+{
+    tu_failing_alloc *f = u;
+    f->live--;
+    free(p);
+}
+
+
 /* The E-ELT-like stack of SPEC §6: 128² @ 0.5 m at 0 m, 64² @ 1 m at 4 and 12.7 km. */
 static const double alts3[3] = {0.0, 4000.0, 12700.0};
 static void layers3(wt_grid g[3])
@@ -326,6 +347,56 @@ START_TEST(test_clamp)
 }
 END_TEST
 
+START_TEST(test_allocation)
+{
+    /* Every allocation failure in alloc and assemble is reported as WT_ERR_NOMEM and leaks nothing;
+     * apply and apply_t allocate nothing. */
+    wt_context *ctx = tu_context();
+    tu_failing_alloc fa = {-1, 0, 0};
+    wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+    wt_grid g[3];
+    layers3(g);
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    int k, ok = 0;
+    for (k = 0; k < 100 && !ok; k++) {
+        wt_projection *p = (wt_projection *)&p;
+        fa.budget = k;
+        int st = wt_projection_alloc(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, 0.0, &t, mask, 0, &p);
+        if (st == WT_OK) {
+            ok = 1;
+            fa.budget = -1;
+            long nin = wt_projection_nin(p);
+            double *x = calloc(nin, sizeof *x), *y = calloc(85 * 85, sizeof *y);
+            int before = fa.nalloc;
+            wt_projection_apply(p, 1.0, x, y);
+            wt_projection_apply_t(p, 1.0, y, x);
+            ck_assert_int_eq(fa.nalloc, before);
+            for (int b = 0; b < 20; b++) {
+                wt_sparse *A = (wt_sparse *)&A;
+                fa.budget = b;
+                int sa = wt_projection_assemble(p, &A);
+                if (sa == WT_OK) {
+                    wt_sparse_free(A);
+                    break;
+                }
+                ck_assert_int_eq(sa, WT_ERR_NOMEM);
+                ck_assert_ptr_null(A);
+            }
+            fa.budget = -1;
+            wt_projection_free(p);
+            free(x), free(y);
+        } else {
+            ck_assert_int_eq(st, WT_ERR_NOMEM);
+            ck_assert_ptr_null(p);
+        }
+        ck_assert_int_eq(fa.live, 0);
+    }
+    ck_assert_msg(ok && k > 5, "alloc never succeeded or made too few allocations (%d)", k);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("projection");
@@ -336,6 +407,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_cone_and_shift);
     tcase_add_test(tc, test_outside_rejected);
     tcase_add_test(tc, test_clamp);
+    tcase_add_test(tc, test_allocation);
     suite_add_tcase(s, tc);
     return s;
 }

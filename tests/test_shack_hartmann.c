@@ -9,6 +9,27 @@
 #define N 84
 #define D_SUB 0.5
 
+/* Allocator that fails once its budget is spent (budget < 0: unlimited) and counts live blocks. */
+typedef struct {
+    int budget, live, nalloc;
+} tu_failing_alloc;
+static void *fa_malloc(void *u, size_t n)
+{
+    tu_failing_alloc *f = u;
+    if (f->budget == 0) return NULL;
+    if (f->budget > 0) f->budget--;
+    f->live++;
+    f->nalloc++;
+    return malloc(n);
+}
+static void fa_free(void *u, void *p)
+{
+    tu_failing_alloc *f = u;
+    f->live--;
+    free(p);
+}
+
+
 static void eelt_valid(uint8_t *v) { ck_assert_int_eq(wt_pupil_valid_subapertures(42.0, 0.28, N, 0.5, v), 5112); }
 
 static wt_shack_hartmann *make(wt_context *ctx, int n, double d, const uint8_t *v, int m)
@@ -254,6 +275,54 @@ START_TEST(test_errors)
 }
 END_TEST
 
+START_TEST(test_allocation)
+{
+    /* allocation failures in alloc and assemble: WT_ERR_NOMEM, nothing leaked; apply allocates nothing */
+    wt_context *ctx = tu_context();
+    tu_failing_alloc fa = {-1, 0, 0};
+    wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+    uint8_t v[N * N];
+    eelt_valid(v);
+    for (int m = 0; m <= 2; m++) {
+        int k, ok = 0;
+        for (k = 0; k < 50 && !ok; k++) {
+            wt_shack_hartmann *s = (wt_shack_hartmann *)&s;
+            fa.budget = k;
+            int st = m ? wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, m, &s) : wt_shack_hartmann_alloc(ctx, N, D_SUB, v, &s);
+            if (st == WT_OK) {
+                ok = 1;
+                fa.budget = -1;
+                double *phi = calloc((N + 1) * (N + 1), sizeof *phi), *sl = calloc(2 * 5112, sizeof *sl);
+                int before = fa.nalloc;
+                wt_shack_hartmann_apply(s, 1.0, phi, sl);
+                wt_shack_hartmann_apply_t(s, 1.0, sl, phi);
+                ck_assert_int_eq(fa.nalloc, before);
+                for (int b = 0; b < 20; b++) {
+                    wt_sparse *A = (wt_sparse *)&A;
+                    fa.budget = b;
+                    int sa = wt_shack_hartmann_assemble(s, &A);
+                    if (sa == WT_OK) {
+                        wt_sparse_free(A);
+                        break;
+                    }
+                    ck_assert_int_eq(sa, WT_ERR_NOMEM);
+                    ck_assert_ptr_null(A);
+                }
+                fa.budget = -1;
+                wt_shack_hartmann_free(s);
+                free(phi), free(sl);
+            } else {
+                ck_assert_int_eq(st, WT_ERR_NOMEM);
+                ck_assert_ptr_null(s);
+            }
+            ck_assert_int_eq(fa.live, 0);
+        }
+        ck_assert_msg(ok && k > 3, "sensor %d: alloc never succeeded or too few allocations (%d)", m, k);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("shack_hartmann");
@@ -263,6 +332,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_linear_and_quadratic_phase);
     tcase_add_test(tc, test_averaged_is_mean);
     tcase_add_test(tc, test_errors);
+    tcase_add_test(tc, test_allocation);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -127,7 +127,7 @@ static const key_spec keys[] = {
 
     KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
     {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
-     "seed of the turbulence and noise generators"},
+     "seed of the turbulence and noise generators (above 2147483647 add the L suffix: 5000000000L)"},
     KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
 
     KF("recon.alpha", GT0, "", 1, alpha, "prior weight alpha"),
@@ -445,27 +445,29 @@ static int apply_override(pstate *ps, int i)
     char *text = wt_malloc(ps->ctx, cap, 1);
     if (!text) return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "out of memory parsing --set %s", ps->ov[i]);
     config_t tmp;
-    int st = WT_OK;
-    for (int quoted = 0; quoted < 2; quoted++) {
+    int st = WT_OK, ok = 0;
+    /* a bare word is retried as a string for string keys (recon.prior=exact) */
+    for (int quoted = 0; !ok && quoted < 1 + (keys[k].type == K_ENUM && !memchr(v, '"', vl)); quoted++) {
+        if (quoted) config_destroy(&tmp);
         snprintf(text, cap, quoted ? "v = \"%.*s\";" : "v = %.*s;", (int)vl, v);
         config_init(&tmp);
-        if (config_read_string(&tmp, text)) break;
-        /* a bare word is taken as a string for string keys (recon.prior=exact) */
-        if (quoted || keys[k].type != K_ENUM || memchr(v, '"', vl)) {
-            st = fail_at(ps, loc, "cannot read the value: %s%s (numbers 0.5, lists [1.0, 2.0], strings \"text\", "
-                         "booleans true/false)", config_error_text(&tmp), syntax_hint(config_error_text(&tmp)));
-            config_destroy(&tmp);
-            wt_free(ps->ctx, text);
-            return st;
-        }
-        config_destroy(&tmp);
+        ok = config_read_string(&tmp, text);
     }
     wt_free(ps->ctx, text);
-    const char *leaf;
-    config_setting_t *parent = ensure_parent(ps->cf, key, &leaf);
-    if (parent && config_setting_get_member(parent, leaf)) config_setting_remove(parent, leaf);
-    if (!parent || !copy_setting(parent, leaf, config_lookup(&tmp, "v")))
-        st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the setting", loc);
+    const char *leaf, *e = config_error_text(&tmp);
+    config_setting_t *parent = NULL;
+    if (!ok)
+        st = fail_at(ps, loc, "cannot read the value: %s%s (numbers 0.5, lists [1.0, 2.0], strings \"text\", "
+                     "booleans true/false)", e ? e : "?", syntax_hint(e));
+    else if (config_setting_length(config_root_setting(&tmp)) != 1)
+        st = fail_at(ps, loc, "expected one value after '='");
+    else if (!(parent = ensure_parent(ps->cf, key, &leaf)))
+        st = fail_at(ps, loc, "'%s' is not inside a group in the file", key);
+    else {
+        if (config_setting_get_member(parent, leaf)) config_setting_remove(parent, leaf);
+        if (!copy_setting(parent, leaf, config_lookup(&tmp, "v")))
+            st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the setting", loc);
+    }
     config_destroy(&tmp);
     ps->ovidx[k] = i;
     return st;

@@ -77,7 +77,7 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
     WT_ALLOC(ctx, sys->valid, (size_t)sys->n * sys->n, "valid-subaperture mask");
     sys->nvalid = wt_pupil_valid_subapertures(cfg->diameter, cfg->obstruction, sys->n, cfg->lgs_wfs.valid_fraction,
                                               sys->valid);
-    if (sys->nvalid == 0) {
+    if (sys->nvalid <= 0) {
         st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: no valid subaperture (lgs.wfs.subapertures = %d, valid_fraction = %g)",
                       cfg->path, sys->n, cfg->lgs_wfs.valid_fraction);
         goto fail;

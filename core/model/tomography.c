@@ -129,7 +129,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {
             st = wt_projection_alloc(ctx, 1, &t->grid[l], &t->alt[l], s->altitude, s->theta_x, s->theta_y,
-                                     &sys->corner_grid, sys->corner_mask, 0, &t->proj[m * t->L + l]);
+                                     &sys->corner_grid, wt_shack_hartmann_corner_mask(s->sh), 0,
+                                     &t->proj[m * t->L + l]);
             if (st < 0) {
                 char detail[1024];
                 snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));

@@ -15,7 +15,9 @@
 #include "../base/rng.h"
 #include "../la/sparse.h"
 
-/* σ² per axis [rad²] from the photon/read-noise model; nea > 0 [rad] overrides it (σ² = nea²). */
+/* σ² per axis [rad²] from the photon/read-noise model; nea > 0 [rad] overrides it (σ² = nea²).
+ * Returns +inf when photons ≤ 0 and no NEA is given (wt_noise_alloc rejects it). A noise-free truth is
+ * the simulator's switch (sim.noise), not a zero variance in the reconstructor's model. */
 double wt_noise_variance(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
                          double nea);
 

@@ -1,12 +1,14 @@
 /* core/op/prior.h: the diagonal wavelet prior D_ℓ of one reconstruction layer (SPEC §6, paper
  * eq. REG_WAV_penalty_discr).
  *
- * Paper form:  D_λλ = (1/c_ℓ) (L0^(-11/3) + κ_λ^(11/3)),  κ_λ = 1 / (δ 2^l) [cycles/m] for a detail
- * coefficient of level l (l = 1 finest; the paper's j = J − l), δ the layer spacing; the
- * approximation coefficients use κ = 1 / (δ 2^(J+1)). c_ℓ is fixed so that α = 1 is the physical
- * von Kármán prior: D⁻¹ matches, level by level, the exact coefficient variances (W C_φ Wᵀ)_λλ of the
- * layer's von Kármán statistics (see wt_prior_level_variance); c_ℓ is the geometric-mean fit over the
- * detail levels.
+ * Paper form: D_λλ = (1/c_ℓ)(L0^(-11/3) + κ_λ^(11/3)) for detail coefficients, κ_λ [cycles/m] the
+ * centre of the basis function's frequency band: 1/(√2 δ 2^l) for the x- and y-details of level l
+ * (l = 1 finest; the paper's j = J − l), 1/(δ 2^l) for the diagonal ones — diagonal details carry ~3.7x
+ * less variance than x/y details of the same level, so one κ per level cannot match both within a
+ * factor 2. The approximation coefficients take their exact variance 1/(W C_φ Wᵀ)_λλ (no single κ
+ * represents them for every J). c_ℓ is the geometric-mean fit over the 3J detail blocks of the exact
+ * variances, so that α = 1 is the physical von Kármán prior (D⁻¹ within a factor 2 of the exact
+ * variance at every level and orientation for the preset grids; tests/test_prior.c).
  * Exact form: D_λλ = 1 / (W C_φ Wᵀ)_λλ, evaluated by FFT for each level and orientation (periodic
  * stationarity makes it constant within a level and orientation).
  *

@@ -8,8 +8,13 @@
  * row iy), so the bilinear stencil of point (ix, iy) in layer ℓ is the tensor product of a column
  * stencil (base index, two weights) and a row stencil. Storing the factors costs O(L (nx + ny)) instead
  * of O(L · points) and produces bit-for-bit the same weights as per-point precomputation would; the
- * apply loop then streams only the layer values and the target row, with the ~2 KB of tables in L1.
- * Masked target points are stored as runs [lo, hi) per row, so apply never tests a mask.
+ * apply loop then reads only the layer values and the target row, with the few KB of tables in L1.
+ * Masked target points are stored as runs [lo, hi) per row, so apply never tests a mask. Along a run
+ * the stencil columns advance monotonically, which apply_t exploits to write each layer column once
+ * per run instead of once per point (1.9x faster than the plain scatter; see the loop). The same
+ * trick in apply (reuse the y-interpolated column while the stencil stays put) saves loads but adds
+ * a data-dependent branch, and measured between 0.75x and 1.07x of the plain gather depending on the
+ * machine's state, so apply keeps the plain gather.
  *
  * Weights are kept as (w0, w1) pairs instead of one fraction f (w0 = 1 − f, w1 = f) so that
  * clamp_outside needs no special path: a stencil corner beyond the grid simply gets weight 0 (the
@@ -237,6 +242,16 @@ fail:
 int64_t wt_projection_nin(const wt_projection *p) { return p->nin; }
 int64_t wt_projection_nout(const wt_projection *p) { return (int64_t)p->tnx * p->tny; }
 
+#if defined(__GNUC__) && !defined(__clang__)
+/* GCC vectorises apply's loop with gather instructions, which measured 1.6x slower than the scalar
+ * loop on AMD Zen (28 vs 18 µs for the E-ELT LGS case); the scalar loop already issues ~2.7 memory
+ * operations per cycle, close to the load/store-port bound. */
+#define WT_SCALAR_LOOPS __attribute__((optimize("no-tree-vectorize")))
+#else
+#define WT_SCALAR_LOOPS
+#endif
+
+WT_SCALAR_LOOPS
 void wt_projection_apply(const wt_projection *p, double alpha, const double *restrict layers, double *restrict points)
 {
     const int nl = p->nlayers, tnx = p->tnx, tny = p->tny;
@@ -257,6 +272,7 @@ void wt_projection_apply(const wt_projection *p, double alpha, const double *res
     }
 }
 
+WT_SCALAR_LOOPS
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *restrict points, double *restrict layers)
 {
     const int nl = p->nlayers, tnx = p->tnx, tny = p->tny;
@@ -269,15 +285,34 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
             const double a0 = alpha * p->rw0[kr], a1 = alpha * p->rw1[kr];
             const int32_t *restrict cb = p->cbase + (size_t)l * tnx;
             const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
-            /* consecutive points share stencil corners, so this scatter is inherently serial */
+            /* Neighbouring points share stencil columns; scattering each point straight into the layer
+             * would chain every update through the previous store. Instead the row's 1-D transpose is
+             * accumulated in registers for the current column pair (jc, jc + 1), and a column is written
+             * out once it has been left behind. */
+            int32_t jc = cb[lo];
+            double s0 = 0.0, s1 = 0.0;
             for (int ix = lo; ix < hi; ix++) {
                 const int32_t j = cb[ix];
-                const double t0 = a0 * y[ix], t1 = a1 * y[ix];
-                r0[j] += t0 * w0[ix];
-                r0[j + 1] += t0 * w1[ix];
-                r1[j] += t1 * w0[ix];
-                r1[j + 1] += t1 * w1[ix];
+                if (j != jc) {
+                    r0[jc] += a0 * s0;
+                    r1[jc] += a1 * s0;
+                    if (j == jc + 1) {
+                        s0 = s1;
+                    } else {
+                        r0[jc + 1] += a0 * s1;
+                        r1[jc + 1] += a1 * s1;
+                        s0 = 0.0;
+                    }
+                    s1 = 0.0;
+                    jc = j;
+                }
+                s0 += w0[ix] * y[ix];
+                s1 += w1[ix] * y[ix];
             }
+            r0[jc] += a0 * s0;
+            r1[jc] += a1 * s0;
+            r0[jc + 1] += a0 * s1;
+            r1[jc + 1] += a1 * s1;
         }
     }
 }

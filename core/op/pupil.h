@@ -12,11 +12,12 @@
 #include "grid.h"
 
 /* Fraction of the square [x0, x0+s] x [y0, y0+s] inside the annulus (outer radius D/2, inner ε D/2),
- * computed on a fixed fine sub-grid (deterministic, accurate to ~1e-4). */
+ * computed analytically (exact up to rounding, ~1e-15). */
 double wt_pupil_fraction(double D, double obstruction, double x0, double y0, double s);
 
 /* valid[i + n*j] = 1 when subaperture (i,j) of an n x n sensor over D is illuminated by at least
- * `threshold` of its area. Returns the number of valid subapertures. */
+ * `threshold` of its area. Returns the number of valid subapertures, or WT_ERR_INVALID for n ≤ 0,
+ * D ≤ 0 or an obstruction outside [0, 1). */
 int wt_pupil_valid_subapertures(double D, double obstruction, int n, double threshold, uint8_t *valid);
 
 /* corners[(n+1)*(n+1)]: 1 for every corner of a valid subaperture (the Fried phase points). */

@@ -12,6 +12,10 @@
  * The corner mask reports the corners with a nonzero coefficient in Γ — the phase points the slopes
  * actually read. For the Fried sensor that is every corner of a valid subaperture; for an averaged
  * sensor it is mostly the rim of the illuminated region of each big subaperture.
+ *
+ * The Fried sensor stores its valid cells as runs along rows, so apply reads two contiguous corner
+ * rows per run and apply_t writes each corner once (gather form): for n = 84 they take 2.4 and 3.1 µs
+ * against 5.9 and 33 µs for a per-cell gather/scatter, whose scatter chains through store forwarding.
  */
 #include "shack_hartmann.h"
 
@@ -25,7 +29,8 @@ struct wt_shack_hartmann {
     int m;          /* big subapertures per side (averaged sensor); 0 for the plain Fried sensor */
     int nsub;       /* valid (big) subapertures */
     int32_t *cell;  /* [nsub] index i + side*j of valid subaperture k, side = n (Fried) or m */
-    int32_t *corner; /* Fried: [nsub] corner-grid index of the lower-left corner of subaperture k */
+    int32_t nrun;    /* Fried: runs of consecutive valid subapertures within a row */
+    int32_t *run_corner, *run_len, *run_k; /* [nrun] lower-left corner of the first cell, cells, first k */
     int32_t *rowptr; /* averaged: [2 nsub + 1] CSR rows (s_x rows, then s_y rows) */
     int32_t *colind; /* averaged: corner-grid indices */
     double *val;     /* averaged: coefficients [1/m] */
@@ -37,7 +42,9 @@ void wt_shack_hartmann_free(wt_shack_hartmann *s)
     if (!s) return;
     wt_context *ctx = s->ctx;
     wt_free(ctx, s->cell);
-    wt_free(ctx, s->corner);
+    wt_free(ctx, s->run_corner);
+    wt_free(ctx, s->run_len);
+    wt_free(ctx, s->run_k);
     wt_free(ctx, s->rowptr);
     wt_free(ctx, s->colind);
     wt_free(ctx, s->val);
@@ -75,16 +82,27 @@ int wt_shack_hartmann_alloc(wt_context *ctx, int n, double d, const uint8_t *val
     s->d = d;
     s->m = 0;
     s->nsub = nsub;
+    int nrun = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) nrun += valid[i + n * j] && (i == 0 || !valid[i - 1 + n * j]);
+    s->nrun = nrun;
     WT_ALLOC(ctx, s->cell, nsub, "shack_hartmann subaperture list");
-    WT_ALLOC(ctx, s->corner, nsub, "shack_hartmann subaperture list");
+    WT_ALLOC(ctx, s->run_corner, nrun, "shack_hartmann runs");
+    WT_ALLOC(ctx, s->run_len, nrun, "shack_hartmann runs");
+    WT_ALLOC(ctx, s->run_k, nrun, "shack_hartmann runs");
     WT_ALLOC(ctx, s->corner_mask, (size_t)nc * nc, "shack_hartmann corner mask");
-    int k = 0;
+    int k = 0, r = -1;
     for (int j = 0; j < n; j++) {
         for (int i = 0; i < n; i++) {
             if (!valid[i + n * j]) continue;
             int c = i + nc * j;
+            if (i == 0 || !valid[i - 1 + n * j]) {
+                r++;
+                s->run_corner[r] = c;
+                s->run_k[r] = k;
+            }
+            s->run_len[r]++;
             s->cell[k] = i + n * j;
-            s->corner[k] = c;
             s->corner_mask[c] = s->corner_mask[c + 1] = s->corner_mask[c + nc] = s->corner_mask[c + nc + 1] = 1;
             k++;
         }
@@ -215,15 +233,18 @@ void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const dou
 {
     const int nsub = s->nsub;
     if (s->m == 0) {
+        /* a run of valid cells reads two contiguous corner rows: b (bottom) and t (top) */
         const int nc = s->n + 1;
         const double a = alpha / (2.0 * s->d);
-        const int32_t *restrict corner = s->corner;
-        double *restrict sx = slopes, *restrict sy = slopes + nsub;
-        for (int k = 0; k < nsub; k++) {
-            const double *q = phase + corner[k];
-            const double p00 = q[0], p10 = q[1], p01 = q[nc], p11 = q[nc + 1];
-            sx[k] += a * ((p10 + p11) - (p00 + p01));
-            sy[k] += a * ((p01 + p11) - (p00 + p10));
+        for (int32_t r = 0; r < s->nrun; r++) {
+            const double *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            double *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            for (int i = 0; i < len; i++) {
+                const double d1 = t[i + 1] - b[i], d2 = b[i + 1] - t[i]; /* the two diagonals */
+                sx[i] += a * (d1 + d2);
+                sy[i] += a * (d1 - d2);
+            }
         }
         return;
     }
@@ -239,17 +260,24 @@ void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const d
 {
     const int nsub = s->nsub;
     if (s->m == 0) {
+        /* Gather form: corner i of a run's bottom row takes −(s_x + s_y) from the cell to its right and
+         * (s_x − s_y) from the cell to its left; the top row (s_y − s_x) and (s_x + s_y). Writing each
+         * corner once (instead of scattering every cell to its four corners) avoids chaining each
+         * update through the previous cell's store and lets the loop vectorise. */
         const int nc = s->n + 1;
         const double a = alpha / (2.0 * s->d);
-        const int32_t *restrict corner = s->corner;
-        const double *restrict sx = slopes, *restrict sy = slopes + nsub;
-        for (int k = 0; k < nsub; k++) {
-            double *q = phase + corner[k];
-            const double u = a * sx[k], v = a * sy[k];
-            q[0] -= u + v;
-            q[1] += u - v;
-            q[nc] += v - u;
-            q[nc + 1] += u + v;
+        for (int32_t r = 0; r < s->nrun; r++) {
+            double *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            const double *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            b[0] -= a * (sx[0] + sy[0]);
+            t[0] += a * (sy[0] - sx[0]);
+            for (int i = 1; i < len; i++) {
+                b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));
+                t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));
+            }
+            b[len] += a * (sx[len - 1] - sy[len - 1]);
+            t[len] += a * (sx[len - 1] + sy[len - 1]);
         }
         return;
     }
@@ -270,7 +298,7 @@ int wt_shack_hartmann_assemble(const wt_shack_hartmann *s, wt_sparse **out)
     if (s->m == 0) {
         const double a = 1.0 / (2.0 * s->d);
         for (int k = 0; k < nsub; k++) {
-            const int64_t c = s->corner[k];
+            const int64_t c = s->cell[k] + s->cell[k] / s->n; /* i + (n+1) j */
             WT_TRY(wt_triplet_add(t, k, c, -a));
             WT_TRY(wt_triplet_add(t, k, c + nc, -a));
             WT_TRY(wt_triplet_add(t, k, c + 1, a));

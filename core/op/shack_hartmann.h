@@ -31,7 +31,7 @@ void wt_shack_hartmann_free(wt_shack_hartmann *s);
 int wt_shack_hartmann_nsub(const wt_shack_hartmann *s);         /* valid (big) subapertures */
 int wt_shack_hartmann_nslopes(const wt_shack_hartmann *s);      /* 2 * nsub */
 int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s);     /* (n+1)^2 */
-const uint8_t *wt_shack_hartmann_corner_mask(const wt_shack_hartmann *s); /* corners the slopes read */
+const uint8_t *wt_shack_hartmann_corner_mask(const wt_shack_hartmann *s); /* corners with a non-zero coefficient in Γ (for averaged sensors mostly the rim of the lit region) */
 /* Centre of valid subaperture k in pupil coordinates [m] (the pupil spans [-n d/2, n d/2]²). */
 void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, double *y);
 

@@ -7,7 +7,8 @@
  * A screen is the sum of two independent parts:
  *  - the FFT part: a periodic n x n grid of spacing δ (period L = nδ), every frequency k/L except 0
  *    with a complex Gaussian amplitude √Φ(κ)/L (FFTW);
- *  - the subharmonic part (Lane et al. 1992, Johansson & Gavel 1994): 3 levels p = 1..3 of 3 x 3
+ *  - the subharmonic part (Lane et al. 1992, in the standard form of Schmidt 2010, listing 9.3;
+ *    see also Johansson & Gavel 1994): 3 levels p = 1..3 of 3 x 3
  *    frequencies (m, n)/(3^p L), (m, n) ≠ (0, 0), amplitude √Φ(κ)/(3^p L), its mean over the
  *    screen grid removed. It is kept as its 24 Fourier terms and evaluated exactly wherever the
  *    screen is sampled, instead of being added to the grid: the grid part then stays exactly
@@ -20,8 +21,9 @@
  * the grid part by bilinear interpolation with periodic wrap.
  *
  * Randomness: layer ℓ draws from wt_rng stream (seed, ℓ): first the n² grid amplitudes, then the
- * subharmonic ones, so a layer does not depend on the number of layers, the thread count or on
- * whether subharmonics are on, and the same seed gives bit-identical screens.
+ * subharmonic ones. A layer's random pattern (its screen / √f_ℓ) thus depends on (seed, ℓ) only — not
+ * on the other layers, the thread count or whether subharmonics are on — and the same seed gives
+ * bit-identical screens.
  *
  * Coordinates: the screen grid of every layer is wt_grid_layer(n, δ): point i at (i − n/2) δ.
  * Wind direction: the direction the layer moves towards, counter-clockwise from +x [rad].
@@ -82,7 +84,7 @@ int wt_atmosphere_nlayers(const wt_atmosphere *atm);
 wt_grid wt_atmosphere_grid(const wt_atmosphere *atm);
 /* Bytes held by the atmosphere (screens and tables). */
 size_t wt_atmosphere_bytes(const wt_atmosphere *atm);
-/* Layer ℓ: altitude [m], normalised Cn² fraction, wind vector [m/s]. */
+/* Layer ℓ (0 ≤ ℓ < nlayers, not checked): altitude [m], normalised Cn² fraction, wind vector [m/s]. */
 double wt_atmosphere_layer_altitude(const wt_atmosphere *atm, int layer);
 double wt_atmosphere_layer_fraction(const wt_atmosphere *atm, int layer);
 void wt_atmosphere_layer_wind(const wt_atmosphere *atm, int layer, double *vx, double *vy);

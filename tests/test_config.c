@@ -1,0 +1,618 @@
+/* tests/test_config.c: the configuration reader (core/io/config.c): presets, canonical text, --set
+ * overrides, and a table of malformed inputs that must each be refused with a precise message. */
+#include "testutil.h"
+
+#include "core/io/config.h"
+
+#define NAME "t.cfg"
+
+/* A small valid system, one key per line so that a test can break one line and know its number. */
+static const char VALID[] =
+    "telescope = { diameter_m = 8.0; obstruction = 0.28; };\n"
+    "atmosphere = {\n"
+    "  r0_m = 0.129;\n"
+    "  L0_m = 25.0;\n"
+    "  altitudes_m = [0.0, 600.0, 2000.0, 6000.0, 12000.0];\n"
+    "  cn2_fractions = [0.55, 0.1, 0.1, 0.15, 0.1];\n"
+    "  wind_speed_mps = [8.0, 10.0, 12.0, 18.0, 25.0];\n"
+    "  wind_direction_deg = [0.0, 72.0, 144.0, 216.0, 288.0];\n"
+    "};\n"
+    "lgs = {\n"
+    "  count = 4;\n"
+    "  radius_arcsec = 45.0;\n"
+    "  azimuth0_deg = 0.0;\n"
+    "  altitude_m = 90000.0;\n"
+    "  sodium_fwhm_m = 10000.0;\n"
+    "  launch_radius_m = 4.5;\n"
+    "  tt_jitter_arcsec = 0.2;\n"
+    "  wfs = {\n"
+    "    subapertures = 16;\n"
+    "    valid_fraction = 0.5;\n"
+    "    photons = 100.0;\n"
+    "    read_noise_e = 3.0;\n"
+    "    spot_fwhm_arcsec = 1.1;\n"
+    "    pixel_arcsec = 1.0;\n"
+    "    pixels = 4;\n"
+    "  };\n"
+    "};\n"
+    "ngs = {\n"
+    "  radius_arcsec = 80.0;\n"
+    "  azimuths_deg = [30.0, 150.0, 270.0];\n"
+    "  subapertures = [2, 1, 1];\n"
+    "  wfs = { photons = 500.0; read_noise_e = 5.0; spot_fwhm_arcsec = 0.1; pixel_arcsec = 0.05; pixels = 4; };\n"
+    "};\n"
+    "dm = {\n"
+    "  altitudes_m = [0.0, 4000.0, 12700.0];\n"
+    "  pitch_m = [0.5, 1.0, 1.0];\n"
+    "  actuators = [17, 13, 21];\n"
+    "  field_radius_arcsec = 84.853;\n"
+    "};\n"
+    "evaluation = {\n"
+    "  grid = 5;\n"
+    "  spacing_arcsec = 30.0;\n"
+    "  wavelength_nm = 2200.0;\n"
+    "  settle_frames = 20;\n"
+    "};\n"
+    "loop = {\n"
+    "  rate_hz = 500.0;\n"
+    "  frames = 200;\n"
+    "  delay_frames = 2;\n"
+    "  gain = 0.4;\n"
+    "};\n"
+    "sim = { points_per_subaperture = 4; seed = 1; noise = true; };\n"
+    "recon = {\n"
+    "  alpha = 1.0;\n"
+    "  tau = 0.8;\n"
+    "  wavelet_order = 3;\n"
+    "  wavelet_levels = 3;\n"
+    "  prior = \"paper\";\n"
+    "  warm_start = true;\n"
+    "  pcg3 = {\n"
+    "    layer_altitudes_m = [0.0, 4000.0, 12700.0];\n"
+    "    layer_spacing_m = [0.5, 1.0, 1.0];\n"
+    "    layer_size = [32, 16, 32];\n"
+    "    iterations = 4;\n"
+    "    tolerance = 0.0;\n"
+    "    preconditioner = \"jacobi\";\n"
+    "  };\n"
+    "  cg9 = {\n"
+    "    layer_altitudes_m = [0.0, 600.0, 2000.0, 6000.0, 12000.0];\n"
+    "    layer_spacing_m = [0.5, 0.5, 0.5, 1.0, 1.0];\n"
+    "    layer_size = [32, 32, 32, 32, 32];\n"
+    "    iterations = 10;\n"
+    "    tolerance = 0.0;\n"
+    "    preconditioner = \"none\";\n"
+    "    fit_iterations = 4;\n"
+    "    fit_regularization = 1e-3;\n"
+    "  };\n"
+    "};\n";
+
+/* The same system: groups and keys in another order, comments of all three kinds, other spacing,
+ * integers where numbers are expected, ( ) lists instead of [ ] arrays, a bare integer seed. */
+static const char REORDERED[] =
+    "# the same system, shuffled\n"
+    "recon = { cg9 = { fit_regularization = 0.001; fit_iterations = 4; preconditioner = \"none\";\n"
+    "                  tolerance = 0; iterations = 10; layer_size = [32,32,32,32,32];\n"
+    "                  layer_spacing_m = (0.5, 0.5, 0.5, 1, 1); layer_altitudes_m = (0, 600, 2000, 6000, 12000); };\n"
+    "  pcg3 = { preconditioner = \"jacobi\"; tolerance = 0.0; iterations = 4; layer_size = [32, 16, 32];\n"
+    "           layer_spacing_m = (0.5, 1, 1); layer_altitudes_m = (0, 4000, 12700); };\n"
+    "  warm_start = true; prior = \"paper\"; wavelet_levels = 3; wavelet_order = 3; tau = 0.80; alpha = 1; };\n"
+    "sim = { noise = true; seed = 1; points_per_subaperture = 4; };   // C++ comment\n"
+    "loop = { gain = 0.4; delay_frames = 2; frames = 200; rate_hz = 500; };\n"
+    "/* C comment */ evaluation = { settle_frames = 20; wavelength_nm = 2.2e3; spacing_arcsec = 30; grid = 5; };\n"
+    "dm = { field_radius_arcsec = 84.853; actuators = [17, 13, 21]; pitch_m = (0.5, 1, 1); altitudes_m = (0, 4000, 12700); };\n"
+    "ngs = { wfs = { pixels = 4; pixel_arcsec = 0.05; spot_fwhm_arcsec = 0.1; read_noise_e = 5; photons = 500; };\n"
+    "        subapertures = [2, 1, 1]; azimuths_deg = (30, 150, 270); radius_arcsec = 80; };\n"
+    "lgs = { wfs = { pixels = 4; pixel_arcsec = 1; spot_fwhm_arcsec = 1.1; read_noise_e = 3; photons = 100;\n"
+    "                valid_fraction = 0.5; subapertures = 16; };\n"
+    "        tt_jitter_arcsec = 0.2; launch_radius_m = 4.5; sodium_fwhm_m = 1e4; altitude_m = 9e4;\n"
+    "        azimuth0_deg = 0; radius_arcsec = 45; count = 4; };\n"
+    "atmosphere = { wind_direction_deg = (0, 72, 144, 216, 288); wind_speed_mps = (8, 10, 12, 18, 25);\n"
+    "   cn2_fractions = [0.55, 0.10, 0.10, 0.15, 0.10]; altitudes_m = (0, 600, 2000, 6000, 12000);\n"
+    "   L0_m = 25; r0_m = 0.129; };\n"
+    "telescope = { obstruction = 0.28; diameter_m = 8; };\n";
+
+/* Presets live in data/presets of the source tree; tests run from its root (make test) or from tests/. */
+static int read_preset(wt_context *ctx, const char *file, int nov, const char *const *ov, wt_config **out)
+{
+    char path[256];
+    snprintf(path, sizeof path, "data/presets/%s", file);
+    FILE *f = fopen(path, "r");
+    if (!f) snprintf(path, sizeof path, "../data/presets/%s", file);
+    else fclose(f);
+    return wt_config_read(ctx, path, nov, ov, out);
+}
+
+static wt_config *parse_ok(wt_context *ctx, const char *text, int nov, const char *const *ov)
+{
+    wt_config *cfg = NULL;
+    int st = wt_config_parse(ctx, text, NAME, nov, ov, &cfg);
+    ck_assert_msg(st == WT_OK, "status %d: %s", st, wt_error_message(ctx));
+    ck_assert_ptr_nonnull(cfg);
+    ck_assert_ptr_nonnull(cfg->canonical);
+    return cfg;
+}
+
+/* Unit conversions are one multiplication each, so the stored values equal the expression below to
+ * the last bit or within one rounding of the product (2 ulp). */
+#define ULP2 4.5e-16
+
+START_TEST(test_eelt_preset)
+{
+    wt_context *ctx = tu_context();
+    wt_config *c = NULL;
+    int st = read_preset(ctx, "eelt-mcao.cfg", 0, NULL, &c);
+    ck_assert_msg(st == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert(strstr(c->path, "eelt-mcao.cfg") != NULL);
+    ck_assert_rel(c->diameter, 42.0, ULP2, 0);
+    ck_assert_rel(c->obstruction, 0.28, ULP2, 0);
+    ck_assert_rel(c->r0, 0.129, ULP2, 0);
+    ck_assert_int_eq(c->nlayers, 9);
+    ck_assert_rel(c->layer_altitude[0], 47.0, ULP2, 0);
+    ck_assert_rel(c->layer_altitude[8], 18000.0, ULP2, 0);
+    /* the SPEC fractions sum to 1 in decimal; normalising changes them by rounding only */
+    double sum = 0.0;
+    for (int i = 0; i < 9; i++) sum += c->layer_fraction[i];
+    ck_assert_rel(sum, 1.0, 1e-15, 0);
+    ck_assert_rel(c->layer_fraction[0], 0.5224, 1e-15, 0);
+    ck_assert_rel(c->wind_speed[7], 40.0, ULP2, 0);
+    ck_assert_rel(c->wind_direction[1], 40.0 * M_PI / 180.0, ULP2, 0);
+    ck_assert_int_eq(c->nlgs, 6);
+    ck_assert_rel(c->lgs_radius, 60.0 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->lgs_radius, 2.908882086657216e-4, 1e-15, 0); /* 60" in rad, independent of WT_ARCSEC */
+    ck_assert_rel(c->lgs_altitude, 90000.0, ULP2, 0);
+    ck_assert_rel(c->sodium_fwhm, 10000.0, ULP2, 0);
+    ck_assert_rel(c->launch_radius, 22.0, ULP2, 0);
+    ck_assert_rel(c->lgs_tt_jitter, 0.2 * WT_ARCSEC, ULP2, 0);
+    ck_assert_int_eq(c->lgs_wfs.subapertures, 84);
+    ck_assert_rel(c->diameter / c->lgs_wfs.subapertures, 0.5, ULP2, 0);
+    ck_assert_rel(c->lgs_wfs.photons, 100.0, ULP2, 0);
+    ck_assert_rel(c->lgs_wfs.spot_fwhm, 1.1 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->lgs_wfs.pixel, 1.0 * WT_ARCSEC, ULP2, 0);
+    ck_assert_int_eq(c->lgs_wfs.pixels, 4);
+    ck_assert(c->lgs_wfs.nea < 0.0); /* absent: photon model */
+    ck_assert_int_eq(c->nngs, 3);
+    ck_assert_rel(c->ngs_radius, 80.0 * WT_ARCSEC, ULP2, 0);
+    ck_assert_int_eq(c->ngs_subapertures[0], 2);
+    ck_assert_int_eq(c->ngs_subapertures[1], 1);
+    ck_assert_int_eq(c->ngs_subapertures[2], 1);
+    ck_assert_rel(c->ngs_wfs.pixel, 0.05 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->ngs_wfs.read_noise_e, 5.0, ULP2, 0);
+    ck_assert(c->ngs_wfs.nea < 0.0);
+    ck_assert_int_eq(c->ndms, 3);
+    ck_assert_rel(c->dm_altitude[2], 12700.0, ULP2, 0);
+    ck_assert_int_eq(c->dm_actuators[0], 85);
+    ck_assert_int_eq(c->dm_actuators[1], 47);
+    ck_assert_int_eq(c->dm_actuators[2], 53);
+    /* 84.853" is sqrt(2)*60" rounded to 5 digits: relative error < 0.5e-3/84.85 */
+    ck_assert_rel(c->dm_field_radius, sqrt(2.0) * 60.0 * WT_ARCSEC, 6e-6, 0);
+    ck_assert_int_eq(c->eval_grid, 5);
+    ck_assert_rel(c->eval_spacing, 30.0 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->eval_wavelength, 2.2e-6, ULP2, 0);
+    ck_assert_int_eq(c->settle_frames, 50);
+    ck_assert_rel(c->rate, 500.0, ULP2, 0);
+    ck_assert_int_eq(c->frames, 500);
+    ck_assert_int_eq(c->delay, 2);
+    ck_assert_rel(c->gain, 0.4, ULP2, 0);
+    ck_assert_int_eq(c->points_per_subaperture, 4);
+    ck_assert_uint_eq(c->seed, 1);
+    ck_assert_int_eq(c->noise, 1);
+    ck_assert_rel(c->alpha, 1.0, ULP2, 0);
+    ck_assert_rel(c->tau, 0.8, ULP2, 0);
+    ck_assert_int_eq(c->wavelet_order, 3);
+    ck_assert_int_eq(c->wavelet_levels, 5);
+    ck_assert_int_eq(c->exact_prior, 0);
+    ck_assert_int_eq(c->warm_start, 1);
+    ck_assert_int_eq(c->pcg3.nlayers, 3);
+    ck_assert_int_eq(c->pcg3.size[0], 128);
+    ck_assert_int_eq(c->pcg3.size[2], 64);
+    ck_assert_rel(c->pcg3.spacing[1], 1.0, ULP2, 0);
+    ck_assert_int_eq(c->pcg3.iterations, 4);
+    ck_assert_int_eq(c->pcg3.jacobi, 1);
+    ck_assert_int_eq(c->pcg3.fit_iterations, 0);
+    ck_assert_int_eq(c->cg9.nlayers, 9);
+    for (int i = 0; i < 9; i++) {
+        ck_assert_rel(c->cg9.altitudes[i], c->layer_altitude[i], ULP2, 0);
+        ck_assert_rel(c->cg9.spacing[i], c->layer_altitude[i] < 3000.0 ? 0.5 : 1.0, ULP2, 0);
+        ck_assert_int_eq(c->cg9.size[i], c->layer_altitude[i] < 3000.0 ? 128 : 64);
+    }
+    ck_assert_int_eq(c->cg9.iterations, 10);
+    ck_assert_int_eq(c->cg9.jacobi, 0);
+    ck_assert_int_eq(c->cg9.fit_iterations, 4);
+    ck_assert_rel(c->cg9.fit_regularization, 1e-3, ULP2, 0);
+    wt_config_free(ctx, c);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_demo_preset)
+{
+    wt_context *ctx = tu_context();
+    wt_config *c = NULL;
+    int st = read_preset(ctx, "demo.cfg", 0, NULL, &c);
+    ck_assert_msg(st == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_rel(c->diameter, 8.0, ULP2, 0);
+    ck_assert_rel(c->diameter / c->lgs_wfs.subapertures, 0.5, ULP2, 0);
+    ck_assert_int_eq(c->nlgs, 4);
+    ck_assert_rel(c->lgs_radius, 45.0 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->launch_radius, 4.5, ULP2, 0);
+    ck_assert(c->sodium_fwhm > 0.0);
+    ck_assert_int_eq(c->nngs, 3);
+    ck_assert_int_eq(c->nlayers, 5);
+    double sum = 0.0;
+    for (int i = 0; i < c->nlayers; i++) sum += c->layer_fraction[i];
+    ck_assert_rel(sum, 1.0, 1e-15, 0);
+    ck_assert_int_eq(c->ndms, 3);
+    ck_assert_int_eq(c->dm_actuators[0], 17);
+    ck_assert_int_eq(c->dm_actuators[1], 13);
+    ck_assert_int_eq(c->dm_actuators[2], 21);
+    ck_assert_int_eq(c->pcg3.size[0], 32);
+    ck_assert_int_eq(c->pcg3.size[1], 16);
+    ck_assert_int_eq(c->pcg3.size[2], 32);
+    ck_assert_rel(c->pcg3.spacing[0], 0.5, ULP2, 0);
+    ck_assert_int_eq(c->cg9.nlayers, c->nlayers);
+    for (int i = 0; i < c->nlayers; i++) {
+        ck_assert_rel(c->cg9.altitudes[i], c->layer_altitude[i], ULP2, 0);
+        ck_assert_int_eq(c->cg9.size[i], 32);
+        ck_assert_rel(c->cg9.spacing[i], c->layer_altitude[i] < 3000.0 ? 0.5 : 1.0, ULP2, 0);
+    }
+    ck_assert_int_eq(c->wavelet_levels, 3);
+    ck_assert_int_eq(c->frames, 200);
+    ck_assert_int_eq(c->settle_frames, 20);
+    ck_assert_rel(c->dm_field_radius, 84.853 * WT_ARCSEC, ULP2, 0);
+    wt_config_free(ctx, c);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* Everything but the owned pointers, for a whole-struct comparison (both were calloc'd, so padding is 0). */
+static void assert_same_values(const wt_config *a, const wt_config *b)
+{
+    wt_config x, y;
+    memcpy(&x, a, sizeof x);
+    memcpy(&y, b, sizeof y);
+    x.canonical = y.canonical = NULL;
+    memset(x.path, 0, sizeof x.path);
+    memset(y.path, 0, sizeof y.path);
+    ck_assert_msg(memcmp(&x, &y, sizeof x) == 0, "typed values differ");
+}
+
+START_TEST(test_canonical)
+{
+    wt_context *ctx = tu_context();
+    wt_config *a = parse_ok(ctx, VALID, 0, NULL);
+    wt_config *b = parse_ok(ctx, REORDERED, 0, NULL);
+    ck_assert_str_eq(a->canonical, b->canonical);
+    assert_same_values(a, b);
+
+    /* the canonical text reads back to itself and to the same values */
+    wt_config *c = parse_ok(ctx, a->canonical, 0, NULL);
+    ck_assert_str_eq(c->canonical, a->canonical);
+    assert_same_values(a, c);
+
+    /* one value changed, in the file or by --set: another text */
+    const char *ov[] = {"atmosphere.r0_m=0.13"};
+    wt_config *d = parse_ok(ctx, VALID, 1, ov);
+    ck_assert_str_ne(d->canonical, a->canonical);
+    ck_assert(strstr(d->canonical, "r0_m = 0.13;") != NULL);
+    const char *ov2[] = {"sim.seed=2"};
+    wt_config *e = parse_ok(ctx, VALID, 1, ov2);
+    ck_assert_str_ne(e->canonical, a->canonical);
+    /* an optional key only appears once given */
+    ck_assert(strstr(a->canonical, "nea_mas") == NULL);
+    const char *ov3[] = {"ngs.wfs.nea_mas=5.0"};
+    wt_config *f = parse_ok(ctx, VALID, 1, ov3);
+    ck_assert(strstr(f->canonical, "nea_mas = 5.0;") != NULL);
+    wt_config *g = parse_ok(ctx, f->canonical, 0, NULL);
+    assert_same_values(f, g);
+    wt_config *cs[] = {a, b, c, d, e, f, g};
+    for (int i = 0; i < 7; i++) wt_config_free(ctx, cs[i]);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_overrides)
+{
+    wt_context *ctx = tu_context();
+    wt_config *base = parse_ok(ctx, VALID, 0, NULL);
+    const char *ov[] = {"atmosphere.r0_m=0.2",          "loop.frames=123",
+                        "dm.pitch_m=[0.25, 1.0, 2.0]",  "recon.prior=exact",
+                        "recon.cg9.preconditioner=\"jacobi\"", "sim.noise=false",
+                        "lgs.wfs.nea_mas=20",           " loop.gain = 0.5; ",
+                        "sim.seed=7",                   "sim.seed=9",
+                        "atmosphere.cn2_fractions=[0.505, 0.1, 0.1, 0.2, 0.1]"};
+    wt_config *c = parse_ok(ctx, VALID, (int)(sizeof ov / sizeof ov[0]), ov);
+    ck_assert_rel(c->r0, 0.2, ULP2, 0);
+    ck_assert_int_eq(c->frames, 123);
+    ck_assert_rel(c->dm_pitch[0], 0.25, ULP2, 0);
+    ck_assert_rel(c->dm_pitch[2], 2.0, ULP2, 0);
+    ck_assert_int_eq(base->exact_prior, 0);
+    ck_assert_int_eq(c->exact_prior, 1);
+    ck_assert_int_eq(base->cg9.jacobi, 0);
+    ck_assert_int_eq(c->cg9.jacobi, 1);
+    ck_assert_int_eq(base->noise, 1);
+    ck_assert_int_eq(c->noise, 0);
+    ck_assert(base->lgs_wfs.nea < 0.0);
+    ck_assert_rel(c->lgs_wfs.nea, 20e-3 * WT_ARCSEC, ULP2, 0);
+    ck_assert_rel(c->gain, 0.5, ULP2, 0);
+    ck_assert_uint_eq(c->seed, 9); /* the last of two overrides of one key wins */
+    /* the sum 1.005 is within 1 %: the fractions are divided by it */
+    ck_assert_rel(c->layer_fraction[0], 0.505 / 1.005, 1e-15, 0);
+    ck_assert_rel(c->layer_fraction[3], 0.2 / 1.005, 1e-15, 0);
+    ck_assert(strstr(c->canonical, "prior = \"exact\";") != NULL);
+    ck_assert(strstr(c->canonical, "noise = false;") != NULL);
+    /* untouched keys keep their file values */
+    ck_assert_rel(c->L0, base->L0, 0, 0);
+    ck_assert_int_eq(c->dm_actuators[1], base->dm_actuators[1]);
+    wt_config_free(ctx, c);
+    wt_config_free(ctx, base);
+
+    /* refused overrides: status, the override named with --set, and what is wrong */
+    static const struct {
+        const char *ov, *want1, *want2;
+    } bad[] = {
+        {"atmosphere.r00=0.1", "--set atmosphere.r00=0.1: unknown key 'atmosphere.r00'", "did you mean 'atmosphere.r0_m'?"},
+        {"loop.rate=400", "unknown key 'loop.rate'", "did you mean 'loop.rate_hz'?"},
+        {"atmosphere.r0_m=-1", "--set atmosphere.r0_m=-1: key 'atmosphere.r0_m': value -1 is out of range", "> 0 [m]"},
+        {"loop.frames=abc", "--set loop.frames=abc: cannot read the value", "syntax error"},
+        {"lgs.wfs=3", "--set lgs.wfs=3: 'lgs.wfs' is a group", "lgs.wfs.<key>"},
+        {"loop.frames", "--set loop.frames: expected key=value", ""},
+        {"dm.pitch_m=[0.5, 1, 1]", "mismatched element type", "write 1.0, not 1"},
+        {"loop.frames=1; lgs = 3", "--set loop.frames=1; lgs = 3: expected one value", ""},
+        {"recon.prior=best", "--set recon.prior=best: key 'recon.prior': value \"best\" is not accepted", "\"paper\", \"exact\""},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        wt_config *x = (wt_config *)1;
+        int st = wt_config_parse(ctx, VALID, NAME, 1, &bad[i].ov, &x);
+        ck_assert_msg(st == WT_ERR_CONFIG, "%s: status %d", bad[i].ov, st);
+        ck_assert_ptr_null(x);
+        const char *m = wt_error_message(ctx);
+        ck_assert_msg(strstr(m, bad[i].want1) && strstr(m, bad[i].want2), "%s: message \"%s\"", bad[i].ov, m);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* VALID with the first `old` replaced by `new` (malloc'd); *line = the line of `old` in VALID. */
+static char *edit(const char *old, const char *new, const char *line_of, int *line)
+{
+    const char *p = strstr(VALID, old);
+    ck_assert_msg(p != NULL, "'%s' not in VALID", old);
+    const char *q = line_of ? strstr(VALID, line_of) : p;
+    ck_assert_ptr_nonnull(q);
+    *line = 1;
+    for (const char *s = VALID; s < q; s++) *line += *s == '\n';
+    size_t n = strlen(VALID) - strlen(old) + strlen(new) + 1;
+    char *t = malloc(n);
+    ck_assert_ptr_nonnull(t);
+    snprintf(t, n, "%.*s%s%s", (int)(p - VALID), VALID, new, p + strlen(old));
+    return t;
+}
+
+static const struct bad_case {
+    const char *what, *old, *new;
+    int with_line;          /* the message starts with "t.cfg:LINE:" (else "t.cfg:") */
+    const char *line_of;    /* the line reported is this text's, not the edited one's */
+    const char *want[3];    /* substrings of the message */
+} bad_cases[] = {
+    {"syntax error", "r0_m = 0.129;", "r0_m = = 0.129;", 1, NULL, {"syntax error", "", ""}},
+    {"mixed array", "pitch_m = [0.5, 1.0, 1.0];", "pitch_m = [0.5, 1, 1];", 1, NULL, {"syntax error", "mismatched element type", "1.0, not 1"}},
+    {"missing key", "  pitch_m = [0.5, 1.0, 1.0];\n", "", 0, NULL, {"t.cfg: missing key 'dm.pitch_m'", "[m]", "1..8"}},
+    {"misspelled key", "r0_m = 0.129;", "r0 = 0.129;", 1, NULL, {"unknown key 'atmosphere.r0'", "(did you mean 'atmosphere.r0_m'?)", ""}},
+    {"unit left out", "rate_hz = 500.0;", "rate = 500.0;", 1, NULL, {"unknown key 'loop.rate'", "did you mean 'loop.rate_hz'?", ""}},
+    {"unrelated key: no suggestion", "telescope = { diameter_m = 8.0;", "telescope = { colour = 1; diameter_m = 8.0;", 1, NULL,
+     {"unknown key 'telescope.colour'; `wavetomo info --keys` lists the accepted keys", "", ""}},
+    {"misspelled group", "atmosphere = {", "atmosphre = {", 1, NULL, {"unknown group 'atmosphre'", "did you mean 'atmosphere'?", ""}},
+    {"key in a nested group", "photons = 100.0;", "photon = 100.0;", 1, NULL, {"unknown key 'lgs.wfs.photon'", "'lgs.wfs.photons'", ""}},
+    {"string for integer", "frames = 200;", "frames = \"abc\";", 1, NULL, {"key 'loop.frames': expected an integer, got a string \"abc\"", "", ""}},
+    {"number for integer", "actuators = [17, 13, 21];", "actuators = (17, 13.5, 21);", 1, NULL, {"key 'dm.actuators', element [1]: expected an integer, got a number 13.5", "", ""}},
+    {"integer for boolean", "noise = true;", "noise = 1;", 1, NULL, {"key 'sim.noise': expected a boolean", "got an integer 1", ""}},
+    {"scalar for list", "pitch_m = [0.5, 1.0, 1.0];", "pitch_m = 0.5;", 1, NULL, {"key 'dm.pitch_m': expected a list", "got a number 0.5", ""}},
+    {"group for scalar", "  r0_m = 0.129;", "  r0_m = { v = 0.129; };", 1, NULL, {"key 'atmosphere.r0_m': expected a number", "got a group", ""}},
+    {"r0 out of range", "r0_m = 0.129;", "r0_m = -0.1;", 1, NULL, {"key 'atmosphere.r0_m': value -0.1 is out of range; expected a number > 0 [m]", "", ""}},
+    {"gain out of range", "gain = 0.4;", "gain = 1.5;", 1, NULL, {"key 'loop.gain': value 1.5 is out of range", "(0, 1]", ""}},
+    {"too many LGS", "count = 4;", "count = 17;", 1, NULL, {"key 'lgs.count': value 17 is out of range", "[0, 16]", ""}},
+    {"list element out of range", "pitch_m = [0.5, 1.0, 1.0];", "pitch_m = [0.5, -1.0, 1.0];", 1, NULL, {"key 'dm.pitch_m', element [1]: value -1 is out of range", "> 0 [m]", ""}},
+    {"NGS sensor size", "subapertures = [2, 1, 1];", "subapertures = [2, 3, 1];", 1, NULL, {"key 'ngs.subapertures', element [1]: value 3", "[1, 2]", ""}},
+    {"even evaluation grid", "grid = 5;", "grid = 4;", 1, NULL, {"key 'evaluation.grid': value 4 is even", "odd integer", ""}},
+    {"delay", "delay_frames = 2;", "delay_frames = 3;", 1, NULL, {"key 'loop.delay_frames': value 3 is out of range", "[1, 2]", ""}},
+    {"zero NEA", "pixels = 4;\n  };", "nea_mas = 0.0; pixels = 4;\n  };", 1, NULL, {"key 'lgs.wfs.nea_mas': value 0 is out of range", "[mas]", ""}},
+    {"list lengths", "wind_speed_mps = [8.0, 10.0, 12.0, 18.0, 25.0];", "wind_speed_mps = [8.0, 10.0, 12.0, 18.0];", 1, NULL,
+     {"key 'atmosphere.wind_speed_mps' has 4 elements but 'atmosphere.altitudes_m' has 5", "", ""}},
+    {"too many DMs", "actuators = [17, 13, 21];", "actuators = [17, 13, 21, 5, 5, 5, 5, 5, 5];", 1, NULL, {"key 'dm.actuators': has 9 elements; expected 1..8", "", ""}},
+    {"altitudes not increasing", "altitudes_m = [0.0, 600.0, 2000.0, 6000.0, 12000.0];", "altitudes_m = [0.0, 600.0, 500.0, 6000.0, 12000.0];", 1, NULL,
+     {"key 'atmosphere.altitudes_m', element [2]: value 500 is not above the previous element 600", "strictly increasing", ""}},
+    {"fractions sum", "cn2_fractions = [0.55, 0.1, 0.1, 0.15, 0.1];", "cn2_fractions = [0.5, 0.1, 0.1, 0.15, 0.1];", 1, NULL,
+     {"key 'atmosphere.cn2_fractions': the fractions sum to 0.95", "expected 1 within 1 %", ""}},
+    {"LGS below a layer", "altitude_m = 90000.0;", "altitude_m = 10000.0;", 1, NULL,
+     {"key 'lgs.altitude_m': value 10000 is not above 'atmosphere.altitudes_m' element [4] = 12000", "an LGS below a layer", ""}},
+    {"LGS below a reconstruction layer", "layer_altitudes_m = [0.0, 4000.0, 12700.0];", "layer_altitudes_m = [0.0, 4000.0, 95000.0];", 1,
+     "altitude_m = 90000.0;", {"'recon.pcg3.layer_altitudes_m' element [2] = 95000", "an LGS below a layer", ""}},
+    {"layer size not a power of two", "layer_size = [32, 32, 32, 32, 32];", "layer_size = [32, 32, 32, 32, 24];", 1, NULL,
+     {"key 'recon.cg9.layer_size', element [4]: value 24 is not a power of two", "", ""}},
+    {"layer size below 2^J", "wavelet_levels = 3;", "wavelet_levels = 5;", 1, "layer_size = [32, 16, 32];",
+     {"key 'recon.pcg3.layer_size', element [1]: value 16 is smaller than 2^recon.wavelet_levels = 2^5 = 32", "t.cfg:", ""}},
+    {"unknown prior", "prior = \"paper\";", "prior = \"papr\";", 1, NULL, {"key 'recon.prior': value \"papr\" is not accepted", "\"paper\", \"exact\"", ""}},
+    {"unknown preconditioner", "preconditioner = \"jacobi\";", "preconditioner = \"ilu\";", 1, NULL, {"key 'recon.pcg3.preconditioner': value \"ilu\"", "\"none\", \"jacobi\"", ""}},
+    {"settle past the end", "settle_frames = 20;", "settle_frames = 200;", 1, NULL, {"key 'evaluation.settle_frames': value 200 is not below 'loop.frames' = 200", "", ""}},
+    {"negative seed", "seed = 1;", "seed = -3;", 1, NULL, {"key 'sim.seed': value -3 is out of range", ">= 0", ""}},
+    {"duplicate key", "r0_m = 0.129;", "r0_m = 0.129; r0_m = 0.2;", 1, NULL, {"syntax error", "duplicate", ""}},
+};
+
+START_TEST(test_bad_inputs)
+{
+    const struct bad_case *b = &bad_cases[_i];
+    wt_context *ctx = tu_context();
+    int line;
+    char *text = edit(b->old, b->new, b->line_of, &line);
+    wt_config *cfg = (wt_config *)1;
+    int st = wt_config_parse(ctx, text, NAME, 0, NULL, &cfg);
+    const char *m = wt_error_message(ctx);
+    ck_assert_msg(st == WT_ERR_CONFIG, "%s: status %d (%s)", b->what, st, m);
+    ck_assert_ptr_null(cfg);
+    char loc[64];
+    if (b->with_line) snprintf(loc, sizeof loc, NAME ":%d: ", line);
+    else snprintf(loc, sizeof loc, NAME ": ");
+    ck_assert_msg(!strncmp(m, loc, strlen(loc)), "%s: message \"%s\" does not start with \"%s\"", b->what, m, loc);
+    for (int i = 0; i < 3; i++)
+        ck_assert_msg(strstr(m, b->want[i]) != NULL, "%s: message \"%s\" lacks \"%s\"", b->what, m, b->want[i]);
+    free(text);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_files)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg = (wt_config *)1;
+    int st = wt_config_read(ctx, "/nonexistent-dir/missing.cfg", 0, NULL, &cfg);
+    ck_assert_int_eq(st, WT_ERR_IO);
+    ck_assert_ptr_null(cfg);
+    ck_assert(strstr(wt_error_message(ctx), "'/nonexistent-dir/missing.cfg'") != NULL);
+
+    /* a file: line numbers name the file; reading it equals parsing its text */
+    char path[] = "/tmp/wt_test_config_XXXXXX";
+    int fd = mkstemp(path);
+    ck_assert_int_ge(fd, 0);
+    FILE *f = fdopen(fd, "w");
+    fputs(VALID, f);
+    fclose(f);
+    st = wt_config_read(ctx, path, 0, NULL, &cfg);
+    ck_assert_msg(st == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_str_eq(cfg->path, path);
+    wt_config *p = parse_ok(ctx, VALID, 0, NULL);
+    ck_assert_str_eq(cfg->canonical, p->canonical);
+    wt_config_free(ctx, cfg);
+    wt_config_free(ctx, p);
+    const char *ov[] = {"loop.gain=2"};
+    st = wt_config_read(ctx, path, 1, ov, &cfg);
+    ck_assert_int_eq(st, WT_ERR_CONFIG);
+    ck_assert(strstr(wt_error_message(ctx), "--set loop.gain=2: key 'loop.gain': value 2 is out of range") != NULL);
+    f = fopen(path, "w");
+    fputs("telescope = { diameter_m = 8.0;\n\n  obstruction = -0.5; };\n", f);
+    fclose(f);
+    st = wt_config_read(ctx, path, 0, NULL, &cfg);
+    ck_assert_int_eq(st, WT_ERR_CONFIG);
+    char want[128];
+    snprintf(want, sizeof want, "%s:3: key 'telescope.obstruction': value -0.5 is out of range", path);
+    ck_assert_msg(strstr(wt_error_message(ctx), want) != NULL, "%s", wt_error_message(ctx));
+    remove(path);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* Every key of a full canonical text has a line in the reference, with its unit where it has one. */
+START_TEST(test_reference)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    wt_config_print_reference(f);
+    fclose(f);
+    wt_context *ctx = tu_context();
+    const char *ov[] = {"lgs.wfs.nea_mas=1.0", "ngs.wfs.nea_mas=1.0"}; /* so that the optional keys appear too */
+    wt_config *c = parse_ok(ctx, VALID, 2, ov);
+    char group[4][64], path[256];
+    int depth = 0, nkeys = 0, nlines = 0;
+    for (const char *s = buf; *s; s++) nlines += *s == '\n';
+    for (char *line = strtok(c->canonical, "\n"); line; line = strtok(NULL, "\n")) {
+        char name[64];
+        while (*line == ' ') line++;
+        if (!strncmp(line, "};", 2)) {
+            depth--;
+            continue;
+        }
+        ck_assert_int_eq(sscanf(line, "%63s", name), 1);
+        path[0] = '\0';
+        for (int i = 0; i < depth; i++) strcat(strcat(path, group[i]), ".");
+        strcat(path, name);
+        if (strstr(line, "= {")) {
+            snprintf(group[depth++], sizeof group[0], "%s", name);
+            continue;
+        }
+        nkeys++;
+        const char *at = buf;
+        while (at && !((at == buf || at[-1] == '\n') && !strncmp(at, path, strlen(path)) && at[strlen(path)] == ' '))
+            at = strchr(at + 1, path[0]);
+        ck_assert_msg(at != NULL, "no reference line for %s", path);
+        const char *u = strrchr(path, '_');
+        if (u && strcmp(u, "_e") && strcmp(u, "_fractions") && !strstr(path, "warm_start") && !strstr(path, "_size") &&
+            !strstr(path, "_order") && !strstr(path, "_levels") && !strstr(path, "_frames") && !strstr(path, "_fraction") &&
+            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture")) {
+            char unit[32];
+            snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
+            char ref[512];
+            snprintf(ref, sizeof ref, "%.*s", (int)strcspn(at, "\n"), at);
+            ck_assert_msg(strstr(ref, unit) != NULL, "%s: unit %s not in its line", path, unit);
+        }
+    }
+    ck_assert_int_eq(nkeys, nlines); /* one line per key, no more */
+    wt_config_free(ctx, c);
+    wt_context_free(ctx);
+    free(buf);
+}
+END_TEST
+
+/* Allocation failure at each of the reader's allocations: WT_ERR_NOMEM, nothing returned, no leak
+ * (the sanitizer build checks the last part). */
+typedef struct {
+    int left, live;
+} fail_alloc;
+static void *fa_malloc(void *user, size_t n)
+{
+    fail_alloc *fa = user;
+    if (fa->left-- <= 0) return NULL;
+    fa->live++;
+    return malloc(n);
+}
+static void fa_free(void *user, void *p)
+{
+    fail_alloc *fa = user;
+    if (p) fa->live--;
+    free(p);
+}
+
+START_TEST(test_alloc_failure)
+{
+    const char *ov[] = {"loop.frames=300"};
+    int failures = 0;
+    for (int n = 0; n < 50; n++) {
+        wt_context *ctx = tu_context();
+        fail_alloc fa = {n, 0};
+        wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+        wt_config *cfg = (wt_config *)1;
+        int st = wt_config_parse(ctx, VALID, NAME, 1, ov, &cfg);
+        if (st == WT_OK) {
+            ck_assert_int_eq(cfg->frames, 300);
+            wt_config_free(ctx, cfg);
+            ck_assert_int_eq(fa.live, 0);
+            wt_context_free(ctx);
+            break;
+        }
+        failures++;
+        ck_assert_int_eq(st, WT_ERR_NOMEM);
+        ck_assert_ptr_null(cfg);
+        ck_assert_int_eq(fa.live, 0);
+        wt_context_free(ctx);
+    }
+    ck_assert_int_ge(failures, 2); /* the override text, the struct and the canonical text are allocated */
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("config");
+    TCase *tc = tcase_create("config");
+    tcase_add_test(tc, test_eelt_preset);
+    tcase_add_test(tc, test_demo_preset);
+    tcase_add_test(tc, test_canonical);
+    tcase_add_test(tc, test_overrides);
+    tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));
+    tcase_add_test(tc, test_files);
+    tcase_add_test(tc, test_reference);
+    tcase_add_test(tc, test_alloc_failure);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
