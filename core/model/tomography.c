@@ -83,6 +83,9 @@ double wt_tomography_layer_fraction(const wt_tomography *t, int l) { return t->f
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
+const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l) { return t->proj[m * t->L + l]; }
+const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
+const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
 const double *wt_tomography_jacobi_inverse(const wt_tomography *t) { return t->jinv; }
 
 static int compute_jacobi(wt_tomography *t);

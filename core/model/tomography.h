@@ -44,6 +44,12 @@ double wt_tomography_layer_altitude(const wt_tomography *t, int l);
 double wt_tomography_layer_fraction(const wt_tomography *t, int l);
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l);
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
+/* The operators the tomography is built from (for the MVM builder, which assembles the same ones):
+ * the projection of layer l onto sensor m's Fried corner grid, and sensor m's noise model (τ as
+ * configured; Ĉ⁻¹ with the tip-tilt removal for LGS). */
+const struct wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l);
+const struct wt_noise *wt_tomography_noise(const wt_tomography *t, int m);
+const wt_system *wt_tomography_system(const wt_tomography *t);
 /* α D (ncoef values) and, when the variant asks for it, the inverse Jacobi diagonal (else NULL). */
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
 const double *wt_tomography_jacobi_inverse(const wt_tomography *t);

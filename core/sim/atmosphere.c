@@ -28,6 +28,8 @@
  */
 #include "atmosphere.h"
 
+#include "../op/prior.h"
+
 #include <fftw3.h>
 #include <math.h>
 #include <string.h>
@@ -35,7 +37,6 @@
 #include "../base/rng.h"
 
 #define SHL WT_ATMOSPHERE_SUBHARMONIC_LEVELS
-#define LAMBDA0 500e-9 /* wavelength of r0 [m] */
 #define MAX_N 32768    /* 8 GiB per layer: beyond that the request is surely a units mistake */
 
 typedef struct atm_layer {
@@ -221,12 +222,11 @@ static int check_params(wt_context *ctx, const wt_atmosphere_params *p, double *
 /* ---------------------------------------------------------------------------------------------- */
 /* Generation */
 
-/* √Φ(κ) Δκ for a unit fraction, κ² = kappa2 [(cycles/m)²]. */
+/* √Φ(κ) Δκ for a unit fraction, κ² = kappa2 [(cycles/m)²]; Φ is the prior's von Kármán spectrum, so
+ * the truth and the reconstructor's model share one formula (L0 = ∞ gives Kolmogorov). */
 static double vk_amplitude(double kappa2, double r0, double L0, double dk)
 {
-    double c = (LAMBDA0 / (2.0 * M_PI)) * (LAMBDA0 / (2.0 * M_PI)) * 0.0229 * pow(r0, -5.0 / 3.0);
-    double k0 = isinf(L0) ? 0.0 : 1.0 / (L0 * L0);
-    return sqrt(c) * pow(kappa2 + k0, -11.0 / 12.0) * dk;
+    return sqrt(wt_von_karman_psd(sqrt(kappa2), r0, 1.0, L0)) * dk;
 }
 
 /* Mean over the screen grid of layer `ly`'s subharmonic field without offset. */

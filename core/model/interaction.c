@@ -1,0 +1,130 @@
+/* core/model/interaction.c: DM-to-slope interaction Â = Γ H (SPEC §7). */
+#include "interaction.h"
+
+#include <string.h>
+
+#include "../op/projection.h"
+#include "fitting.h"
+
+struct wt_interaction {
+    wt_context *ctx;
+    const wt_system *sys;
+    wt_projection **h;  /* per sensor: DM grids → corner grid */
+    int64_t ncg, ndm;
+    double *grids;      /* ndm */
+    double *phase;      /* nsensors x ncg */
+};
+
+int wt_interaction_alloc(wt_context *ctx, const wt_system *sys, wt_interaction **out)
+{
+    int st = WT_OK;
+    wt_interaction *ia = NULL;
+    *out = NULL;
+    WT_ALLOC(ctx, ia, 1, "interaction");
+    ia->ctx = ctx;
+    ia->sys = sys;
+    ia->ncg = wt_grid_size(&sys->corner_grid);
+    ia->ndm = wt_dm_grid_points(sys);
+    WT_ALLOC(ctx, ia->h, sys->nsensors, "interaction projections");
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, s->altitude, s->theta_x, s->theta_y,
+                                   &sys->corner_grid, wt_shack_hartmann_corner_mask(s->sh), 1, &ia->h[m]));
+    }
+    WT_ALLOC(ctx, ia->grids, ia->ndm, "interaction grids");
+    WT_ALLOC(ctx, ia->phase, (size_t)sys->nsensors * ia->ncg, "interaction phase");
+    *out = ia;
+    return WT_OK;
+fail:
+    wt_interaction_free(ia);
+    return st;
+}
+
+void wt_interaction_free(wt_interaction *ia)
+{
+    if (!ia) return;
+    if (ia->h)
+        for (int m = 0; m < ia->sys->nsensors; m++) wt_projection_free(ia->h[m]);
+    wt_free(ia->ctx, ia->h);
+    wt_free(ia->ctx, ia->grids);
+    wt_free(ia->ctx, ia->phase);
+    wt_free(ia->ctx, ia);
+}
+
+void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, double *s)
+{
+    const wt_system *sys = ia->sys;
+    wt_dm_expand(sys, a, ia->grids);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int m = 0; m < sys->nsensors; m++) {
+        double *ph = ia->phase + (size_t)m * ia->ncg;
+        memset(ph, 0, (size_t)ia->ncg * sizeof *ph);
+        wt_projection_apply(ia->h[m], 1.0, ia->grids, ph);
+        wt_shack_hartmann_apply(sys->sensors[m].sh, alpha, ph, s + sys->sensors[m].offset);
+    }
+}
+
+void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, double *a)
+{
+    const wt_system *sys = ia->sys;
+    /* serial over sensors: every sensor scatters into the same DM grids */
+    memset(ia->grids, 0, (size_t)ia->ndm * sizeof *ia->grids);
+    for (int m = 0; m < sys->nsensors; m++) {
+        double *ph = ia->phase + (size_t)m * ia->ncg;
+        memset(ph, 0, (size_t)ia->ncg * sizeof *ph);
+        wt_shack_hartmann_apply_t(sys->sensors[m].sh, alpha, s + sys->sensors[m].offset, ph);
+        wt_projection_apply_t(ia->h[m], 1.0, ph, ia->grids);
+    }
+    /* a += restriction of the grids to the active actuators */
+    int64_t p = 0, q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        int64_t np = wt_grid_size(&sys->dm_grid[k]);
+        for (int64_t i = 0; i < np; i++)
+            if (sys->dm_active[k][i]) a[q++] += ia->grids[p + i];
+        p += np;
+    }
+}
+
+int wt_interaction_assemble(wt_interaction *ia, wt_sparse **out)
+{
+    int st = WT_OK;
+    const wt_system *sys = ia->sys;
+    wt_context *ctx = ia->ctx;
+    wt_triplet *tr = NULL;
+    wt_sparse *G = NULL, *H = NULL, *GH = NULL;
+    int64_t *col_of_grid = NULL;
+    *out = NULL;
+    /* grid point → active actuator column, or −1 */
+    WT_ALLOC(ctx, col_of_grid, ia->ndm, "actuator map");
+    {
+        int64_t p = 0, q = 0;
+        for (int k = 0; k < sys->ndms; k++) {
+            int64_t np = wt_grid_size(&sys->dm_grid[k]);
+            for (int64_t i = 0; i < np; i++) col_of_grid[p + i] = sys->dm_active[k][i] ? q++ : -1;
+            p += np;
+        }
+    }
+    WT_TRY(wt_triplet_alloc(ctx, sys->nslopes, sys->nact, 1 << 20, &tr));
+    for (int m = 0; m < sys->nsensors; m++) {
+        WT_TRY(wt_shack_hartmann_assemble(sys->sensors[m].sh, &G));
+        WT_TRY(wt_projection_assemble(ia->h[m], &H));
+        WT_TRY(wt_sparse_multiply(G, H, &GH));
+        for (int64_t c = 0; c < GH->ncol; c++) {
+            if (col_of_grid[c] < 0) continue;
+            for (int64_t k = GH->colptr[c]; k < GH->colptr[c + 1]; k++)
+                WT_TRY(wt_triplet_add(tr, sys->sensors[m].offset + GH->rowind[k], col_of_grid[c], GH->val[k]));
+        }
+        wt_sparse_free(G);
+        wt_sparse_free(H);
+        wt_sparse_free(GH);
+        G = H = GH = NULL;
+    }
+    WT_TRY(wt_triplet_compress(tr, out));
+fail:
+    wt_sparse_free(G);
+    wt_sparse_free(H);
+    wt_sparse_free(GH);
+    wt_triplet_free(tr);
+    wt_free(ctx, col_of_grid);
+    return st;
+}
