@@ -1,0 +1,182 @@
+/* core/model/reconstructor.c: the pcg3 / cg9 / none reconstructors as one slopes → commands map. */
+#include "reconstructor.h"
+
+#include <math.h>
+#include <string.h>
+
+struct wt_reconstructor {
+    wt_context *ctx;
+    const wt_system *sys;
+    int kind;
+    int iterations;          /* tomography (P)CG iterations per frame */
+    double tol;
+    int fit_iterations;
+    int warm;
+    wt_tomography *tomo;
+    wt_fitting *fit;
+    double *c;               /* wavelet coefficients (warm start) */
+    double *phi;             /* spatial layers */
+    double *a_fit;           /* fitting warm start */
+    int64_t *act_index;      /* pcg3: actuator → index into phi */
+    double t_tomo, t_fit;
+    wt_pcg_result last;
+};
+
+int wt_reconstructor_kind(const char *name)
+{
+    if (!strcmp(name, "pcg3")) return WT_RECON_PCG3;
+    if (!strcmp(name, "cg9")) return WT_RECON_CG9;
+    if (!strcmp(name, "none")) return WT_RECON_NONE;
+    return -1;
+}
+
+const char *wt_reconstructor_name(int kind)
+{
+    switch (kind) {
+    case WT_RECON_PCG3: return "pcg3";
+    case WT_RECON_CG9: return "cg9";
+    case WT_RECON_NONE: return "none";
+    default: return "?";
+    }
+}
+
+/* pcg3: every DM must coincide with a reconstruction layer (altitude and pitch) and its actuators with
+ * layer points; build the actuator → layer-point map. */
+static int map_actuators(wt_reconstructor *r)
+{
+    int st = WT_OK;
+    const wt_system *sys = r->sys;
+    wt_context *ctx = r->ctx;
+    WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
+    int64_t q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        int l = -1;
+        for (int i = 0; i < wt_tomography_nlayers(r->tomo); i++)
+            if (fabs(wt_tomography_layer_altitude(r->tomo, i) - sys->dm_altitude[k]) < 1e-6) l = i;
+        const wt_grid *g = &sys->dm_grid[k];
+        if (l < 0)
+            return WT_ERROR(ctx, WT_ERR_CONFIG,
+                            "%s: pcg3 has no reconstruction layer at the altitude of DM %d (%g m); "
+                            "recon.pcg3.layer_altitudes_m must list every dm.altitudes_m",
+                            sys->cfg->path, k + 1, sys->dm_altitude[k]);
+        const wt_grid *lg = wt_tomography_layer_grid(r->tomo, l);
+        if (fabs(lg->dx - g->dx) > 1e-9 * g->dx)
+            return WT_ERROR(ctx, WT_ERR_CONFIG,
+                            "%s: pcg3 layer %d spacing %g m differs from the pitch %g m of DM %d "
+                            "(recon.pcg3.layer_spacing_m[%d] must equal dm.pitch_m[%d])",
+                            sys->cfg->path, l + 1, lg->dx, g->dx, k + 1, l, k);
+        for (int iy = 0; iy < g->ny; iy++)
+            for (int ix = 0; ix < g->nx; ix++) {
+                if (!sys->dm_active[k][ix + (int64_t)g->nx * iy]) continue;
+                double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
+                double u = (x - lg->x0) / lg->dx, v = (y - lg->y0) / lg->dx;
+                long lx = lround(u), ly = lround(v);
+                if (fabs(u - lx) > 1e-6 || fabs(v - ly) > 1e-6 || lx < 0 || ly < 0 || lx >= lg->nx || ly >= lg->ny)
+                    return WT_ERROR(ctx, WT_ERR_CONFIG,
+                                    "%s: actuator (%d, %d) of DM %d at (%g, %g) m is not a point of pcg3 layer %d "
+                                    "(%dx%d, spacing %g m)",
+                                    sys->cfg->path, ix, iy, k + 1, x, y, l + 1, lg->nx, lg->ny, lg->dx);
+                r->act_index[q++] = wt_tomography_layer_offset(r->tomo, l) + lx + (int64_t)lg->nx * ly;
+            }
+    }
+    return WT_OK;
+fail:
+    return st;
+}
+
+int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out)
+{
+    int st = WT_OK;
+    wt_reconstructor *r = NULL;
+    const wt_config *cfg = sys->cfg;
+    *out = NULL;
+    if (kind != WT_RECON_NONE && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "unknown reconstructor kind %d", kind);
+    WT_ALLOC(ctx, r, 1, "reconstructor");
+    r->ctx = ctx;
+    r->sys = sys;
+    r->kind = kind;
+    r->warm = cfg->warm_start;
+    if (kind == WT_RECON_NONE) {
+        *out = r;
+        return WT_OK;
+    }
+    const wt_recon_variant_config *v = kind == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9;
+    r->iterations = iterations >= 0 ? iterations : v->iterations;
+    r->tol = v->tolerance;
+    r->fit_iterations = v->fit_iterations;
+    WT_TRY(wt_tomography_alloc(ctx, sys, v, wt_reconstructor_name(kind), &r->tomo));
+    int64_t n = wt_tomography_nunknowns(r->tomo);
+    WT_ALLOC(ctx, r->c, n, "coefficients");
+    WT_ALLOC(ctx, r->phi, n, "layers");
+    if (kind == WT_RECON_PCG3) {
+        WT_TRY(map_actuators(r));
+    } else {
+        wt_grid grids[WT_MAX_LAYERS];
+        double alts[WT_MAX_LAYERS];
+        for (int l = 0; l < v->nlayers; l++) {
+            grids[l] = *wt_tomography_layer_grid(r->tomo, l);
+            alts[l] = wt_tomography_layer_altitude(r->tomo, l);
+        }
+        WT_TRY(wt_fitting_alloc(ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &r->fit));
+        WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
+    }
+    *out = r;
+    return WT_OK;
+fail:
+    wt_reconstructor_free(r);
+    return st;
+}
+
+void wt_reconstructor_free(wt_reconstructor *r)
+{
+    if (!r) return;
+    wt_tomography_free(r->tomo);
+    wt_fitting_free(r->fit);
+    wt_free(r->ctx, r->c);
+    wt_free(r->ctx, r->phi);
+    wt_free(r->ctx, r->a_fit);
+    wt_free(r->ctx, r->act_index);
+    wt_free(r->ctx, r);
+}
+
+void wt_reconstructor_reset(wt_reconstructor *r)
+{
+    if (r->c) memset(r->c, 0, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->c);
+    if (r->a_fit) memset(r->a_fit, 0, (size_t)r->sys->nact * sizeof *r->a_fit);
+}
+
+int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
+{
+    const int64_t na = r->sys->nact;
+    r->t_tomo = r->t_fit = 0.0;
+    if (r->kind == WT_RECON_NONE) {
+        memset(a, 0, (size_t)na * sizeof *a);
+        return WT_OK;
+    }
+    if (!r->warm) wt_reconstructor_reset(r);
+    double t0 = wt_time_now();
+    int st = wt_tomography_solve(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
+    if (st < 0) return st;
+    wt_tomography_layers(r->tomo, r->c, r->phi);
+    r->t_tomo = wt_time_now() - t0;
+    if (r->kind == WT_RECON_PCG3) {
+        for (int64_t i = 0; i < na; i++) a[i] = r->phi[r->act_index[i]];
+        return WT_OK;
+    }
+    t0 = wt_time_now();
+    st = wt_fitting_solve(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL);
+    r->t_fit = wt_time_now() - t0;
+    if (st < 0) return st;
+    memcpy(a, r->a_fit, (size_t)na * sizeof *a);
+    return WT_OK;
+}
+
+void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, double *fitting)
+{
+    *tomography = r->t_tomo;
+    *fitting = r->t_fit;
+}
+
+wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r) { return r->last; }
+wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }

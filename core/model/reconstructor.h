@@ -1,0 +1,40 @@
+/* core/model/reconstructor.h: slopes → DM commands, the R of the POLC loop (paper §6.1, SPEC §5–§7).
+ *
+ *  pcg3: layers at the DM altitudes, modified Jacobi PCG (recon.pcg3); commands = the reconstructed
+ *        layer values at the active actuator positions (each DM's actuators must be points of the
+ *        reconstruction layer at its altitude, which must have the DM's pitch).
+ *  cg9:  layers at the atmosphere altitudes, CG (recon.cg9), then the fitting step by CG over the
+ *        evaluation directions (recon.cg9.fit_iterations).
+ *  none: commands 0 (the uncorrected baseline).
+ * Both iterative variants warm-start from the previous frame's solution (recon.warm_start).
+ */
+#ifndef WT_RECONSTRUCTOR_H
+#define WT_RECONSTRUCTOR_H
+
+#include "fitting.h"
+#include "system.h"
+#include "tomography.h"
+
+enum { WT_RECON_NONE = 0, WT_RECON_PCG3 = 1, WT_RECON_CG9 = 2 };
+
+typedef struct wt_reconstructor wt_reconstructor;
+
+/* Parse "pcg3" | "cg9" | "none"; returns -1 for anything else. */
+int wt_reconstructor_kind(const char *name);
+const char *wt_reconstructor_name(int kind);
+
+/* iterations: ≥ 0 overrides the variant's (P)CG iteration count. */
+int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out);
+void wt_reconstructor_free(wt_reconstructor *r);
+
+/* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). */
+int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);
+/* Wall time [s] of the last apply's tomography and fitting parts; the last (P)CG result. */
+void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, double *fitting);
+wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r);
+/* The tomography object (NULL for none). */
+wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r);
+/* Forget the warm-start state (the next apply starts from zero). */
+void wt_reconstructor_reset(wt_reconstructor *r);
+
+#endif

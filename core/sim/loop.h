@@ -1,0 +1,62 @@
+/* core/sim/loop.h: the closed-loop end-to-end MCAO simulation, frame by frame (SPEC §2–§8, paper
+ * Algorithm POLC).
+ *
+ * Frame t (time t/rate): every sensor sees the atmosphere at t minus the DM shape a_t applied during
+ * the frame (SPEC §3, §5; cone geometry for the LGS), measured by the truth Shack–Hartmann model on the
+ * fine grid (average gradient over the illuminated part, SPEC §4), plus noise (photon + read, elongated
+ * 2x2 covariance with τ = 1) and a random tip-tilt per LGS. The evaluation directions give the residual
+ * OPD and its Strehl (SPEC §8). Pseudo-open-loop control with a delay of d frames (d = 2 in the paper):
+ *   s_ol = s_t + Â a_t,   a_{t+d} = a_{t+d−1} + g (R s_ol − a_t).
+ *
+ * Randomness: the atmosphere draws from wt_rng streams (seed, layer); the noise of sensor m in frame t
+ * from stream (seed, 2^32 + 64 t + m). The same seed gives bit-identical results for any thread count.
+ */
+#ifndef WT_LOOP_H
+#define WT_LOOP_H
+
+#include "../model/reconstructor.h"
+#include "../model/system.h"
+#include "strehl.h"
+
+typedef struct wt_loop wt_loop;
+
+typedef struct wt_loop_options {
+    int recon;          /* WT_RECON_NONE / PCG3 / CG9 */
+    int iterations;     /* (P)CG iterations override, < 0: the config's */
+    uint64_t seed;      /* random seed (the driver passes the config's unless overridden) */
+    int noise;          /* 0: noise-free sensors (no photon/read noise, no LGS tip-tilt) */
+} wt_loop_options;
+
+/* Cumulative wall time per part [s]. */
+typedef struct wt_loop_times {
+    double atmosphere, sensors, reconstruction, fitting, control, evaluation;
+} wt_loop_times;
+
+/* Builds the atmosphere, truth sensors, reconstructor and control. sys (and its config) must outlive it. */
+int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out);
+void wt_loop_free(wt_loop *lp);
+
+/* Run one frame. Allocates nothing. */
+int wt_loop_step(wt_loop *lp);
+
+long wt_loop_frames_done(const wt_loop *lp);
+/* Of the last frame: measured slopes s_t, pseudo-open-loop slopes s_ol (nslopes), the commands a_t
+ * applied during it (nact), the residual rms per evaluation direction [m] and their short-exposure
+ * Strehl. */
+const double *wt_loop_slopes(const wt_loop *lp);
+const double *wt_loop_slopes_ol(const wt_loop *lp);
+const double *wt_loop_applied(const wt_loop *lp);
+const double *wt_loop_rms(const wt_loop *lp);
+double wt_loop_field_strehl(const wt_loop *lp); /* field-average short-exposure Strehl of the last frame */
+/* Long-exposure accumulators (frames after the settle period). */
+const wt_strehl_le *wt_loop_le(const wt_loop *lp);
+wt_loop_times wt_loop_get_times(const wt_loop *lp);
+/* Fine evaluation grid and pupil mask; residual OPD of direction j in the last frame [m]. */
+const wt_grid *wt_loop_fine_grid(const wt_loop *lp);
+const uint8_t *wt_loop_pupil_mask(const wt_loop *lp);
+const double *wt_loop_residual(const wt_loop *lp, int j);
+/* The atmosphere (screens, for dumps). */
+const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
+wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);
+
+#endif
