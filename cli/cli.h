@@ -52,4 +52,17 @@ void wt_progress_end(wt_progress *p);
 int wt_cmd_info(int argc, char **argv);
 int wt_cmd_bench(int argc, char **argv);
 
+
+
+/* Shared pieces of the self-documenting output files (RUN.h5, TEL.h5, MATRIX.h5). */
+struct wt_h5_writer;
+struct wt_system;
+/* Root attributes (wavetomo and HDF5 versions, creation time, command line, seed) and the dataset
+ * "config" (the canonical configuration text the run used). */
+int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv);
+/* The slope and actuator orderings: group "layout". */
+int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
+
+int wt_cmd_sim(int argc, char **argv);
+
 #endif

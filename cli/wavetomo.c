@@ -15,6 +15,7 @@ static void usage(FILE *f)
             "commands:\n"
             "  info CONFIG      derived sizes of a system: subapertures, slopes, actuators, unknowns,\n"
             "                   non-zeros of the operators, MVM matrix size (--keys: config reference)\n"
+            "  sim              closed-loop simulation of one reconstructor (pcg3, cg9, none)\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
             "\n"
             "Every command takes --set key=value (any config key, repeatable) and --help.\n"
@@ -38,6 +39,7 @@ int main(int argc, char **argv)
     }
     if (!strcmp(cmd, "info")) return wt_cmd_info(argc - 1, argv + 1);
     if (!strcmp(cmd, "bench")) return wt_cmd_bench(argc - 1, argv + 1);
+    if (!strcmp(cmd, "sim")) return wt_cmd_sim(argc - 1, argv + 1);
     fprintf(stderr, "wavetomo: error: unknown command '%s'\n\n", cmd);
     usage(stderr);
     return 2;

@@ -6,6 +6,7 @@
 #include <omp.h>
 #endif
 
+#include "../la/vec.h"
 #include "../op/projection.h"
 
 struct wt_fitting {
@@ -19,7 +20,8 @@ struct wt_fitting {
     int nthreads;
     double *grids;          /* ndm_pts: expanded commands */
     double *ygrid;          /* ndm_pts: Σ Hᵀ H on the grids */
-    double *acc;            /* nthreads x ndm_pts */
+    double *acc;            /* WT_GROUPS x ndm_pts */
+    int *group;             /* direction → accumulator group */
     double *pupil;          /* ndir x ncg */
     double *b;              /* nact */
     wt_pcg *pcg;
@@ -53,37 +55,24 @@ void wt_dm_restrict(const wt_system *sys, const double *grids, double *a)
     }
 }
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
-/* y = Σ H_jᵀ H_j a  on the full grids (without ε) */
+/* y = Σ H_jᵀ H_j a  on the full grids (without ε); fixed groups of directions (core/la/vec.h) */
 static void normal_grids(wt_fitting *f, const double *grids, double *out)
 {
     const int64_t nd = f->ndm_pts;
-#pragma omp parallel num_threads(f->nthreads)
-    {
-        double *acc = f->acc + (size_t)thread_id() * nd;
+#pragma omp parallel for schedule(static) num_threads(f->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        double *acc = f->acc + (size_t)g * nd;
         memset(acc, 0, (size_t)nd * sizeof *acc);
-#pragma omp for schedule(dynamic, 1)
         for (int j = 0; j < f->ndir; j++) {
+            if (f->group[j] != g) continue;
             double *pu = f->pupil + (size_t)j * f->ncg;
             memset(pu, 0, (size_t)f->ncg * sizeof *pu);
             wt_projection_apply(f->dm[j], 1.0, grids, pu);
             wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
         }
-#pragma omp for schedule(static)
-        for (int64_t i = 0; i < nd; i++) {
-            double v = 0.0;
-            for (int k = 0; k < f->nthreads; k++) v += f->acc[(size_t)k * nd + i];
-            out[i] = v;
-        }
     }
+    wt_vec_sum_groups(f->acc, nd, out);
 }
 
 void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
@@ -97,24 +86,19 @@ void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
 void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
 {
     const int64_t nd = f->ndm_pts;
-#pragma omp parallel num_threads(f->nthreads)
-    {
-        double *acc = f->acc + (size_t)thread_id() * nd;
+#pragma omp parallel for schedule(static) num_threads(f->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        double *acc = f->acc + (size_t)g * nd;
         memset(acc, 0, (size_t)nd * sizeof *acc);
-#pragma omp for schedule(dynamic, 1)
         for (int j = 0; j < f->ndir; j++) {
+            if (f->group[j] != g) continue;
             double *pu = f->pupil + (size_t)j * f->ncg;
             memset(pu, 0, (size_t)f->ncg * sizeof *pu);
             wt_projection_apply(f->layer[j], 1.0, phi, pu);
             wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
         }
-#pragma omp for schedule(static)
-        for (int64_t i = 0; i < nd; i++) {
-            double v = 0.0;
-            for (int k = 0; k < f->nthreads; k++) v += f->acc[(size_t)k * nd + i];
-            f->grids[i] = v;
-        }
     }
+    wt_vec_sum_groups(f->acc, nd, f->grids);
     wt_dm_restrict(f->sys, f->grids, b);
 }
 
@@ -162,7 +146,15 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     }
     WT_ALLOC(ctx, f->grids, f->ndm_pts, "fitting grids");
     WT_ALLOC(ctx, f->ygrid, f->ndm_pts, "fitting grids");
-    WT_ALLOC(ctx, f->acc, (size_t)f->nthreads * f->ndm_pts, "fitting accumulators");
+    WT_ALLOC(ctx, f->acc, (size_t)WT_GROUPS * f->ndm_pts, "fitting accumulators");
+    WT_ALLOC(ctx, f->group, f->ndir, "fitting groups");
+    {
+        double *cost = NULL;
+        WT_ALLOC(ctx, cost, f->ndir, "fitting group costs");
+        for (int j = 0; j < f->ndir; j++) cost[j] = 1.0;
+        wt_vec_groups(f->ndir, cost, f->group);
+        wt_free(ctx, cost);
+    }
     WT_ALLOC(ctx, f->pupil, (size_t)f->ndir * f->ncg, "fitting pupil workspace");
     WT_ALLOC(ctx, f->b, sys->nact, "fitting right-hand side");
     WT_TRY(wt_pcg_alloc(ctx, sys->nact, &f->pcg));
@@ -227,6 +219,7 @@ void wt_fitting_free(wt_fitting *f)
     wt_free(ctx, f->grids);
     wt_free(ctx, f->ygrid);
     wt_free(ctx, f->acc);
+    wt_free(ctx, f->group);
     wt_free(ctx, f->pupil);
     wt_free(ctx, f->b);
     wt_pcg_free(f->pcg);

@@ -9,6 +9,7 @@
 #include <omp.h>
 #endif
 
+#include "../la/vec.h"
 #include "../op/noise.h"
 #include "../op/prior.h"
 #include "../op/projection.h"
@@ -34,7 +35,8 @@ struct wt_tomography {
     int64_t ncg;              /* corner grid points */
     int nthreads;
     double *phi;              /* n: spatial layers / adjoint sum */
-    double *acc;              /* nthreads x n adjoint accumulators */
+    double *acc;              /* WT_GROUPS x n adjoint accumulators */
+    int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
     double *phase;            /* S x ncg */
     double *slopes;           /* nslopes */
     double *weighted;         /* nslopes */
@@ -152,7 +154,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
 
     t->nthreads = wt_context_threads(ctx);
     WT_ALLOC(ctx, t->phi, t->n, "layer workspace");
-    WT_ALLOC(ctx, t->acc, (size_t)t->nthreads * t->n, "adjoint accumulators");
+    WT_ALLOC(ctx, t->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
+    {
+        double cost[2 * WT_MAX_GS];
+        for (int m = 0; m < t->S; m++) cost[m] = (double)sys->sensors[m].nslopes + 1.0;
+        wt_vec_groups(t->S, cost, t->group);
+    }
     WT_ALLOC(ctx, t->phase, (size_t)t->S * t->ncg, "phase workspace");
     WT_ALLOC(ctx, t->slopes, sys->nslopes, "slope workspace");
     WT_ALLOC(ctx, t->weighted, sys->nslopes, "weighted slope workspace");
@@ -225,18 +232,18 @@ static void forward_slopes(wt_tomography *t, const double *phi, double *slopes)
     }
 }
 
-/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m */
+/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m. Each accumulator group takes its sensors in index order and the
+ * groups are summed in order, so the result does not depend on the threads (core/la/vec.h). */
 static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
 {
     const wt_system *sys = t->sys;
     const int64_t n = t->n;
-#pragma omp parallel num_threads(t->nthreads)
-    {
-        int tid = thread_id();
-        double *acc = t->acc + (size_t)tid * n;
+#pragma omp parallel for schedule(static) num_threads(t->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        double *acc = t->acc + (size_t)g * n;
         memset(acc, 0, (size_t)n * sizeof *acc);
-#pragma omp for schedule(dynamic, 1)
         for (int m = 0; m < t->S; m++) {
+            if (t->group[m] != g) continue;
             const wt_sensor *s = &sys->sensors[m];
             double *w = t->weighted + s->offset;
             memset(w, 0, (size_t)s->nslopes * sizeof *w);
@@ -246,14 +253,8 @@ static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
             wt_shack_hartmann_apply_t(s->sh, 1.0, w, ph);
             for (int l = 0; l < t->L; l++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, ph, acc + t->off[l]);
         }
-        /* implicit barrier: reduce the per-thread sums */
-#pragma omp for schedule(static)
-        for (int64_t i = 0; i < n; i++) {
-            double v = 0.0;
-            for (int k = 0; k < t->nthreads; k++) v += t->acc[(size_t)k * n + i];
-            t->phi[i] = v;
-        }
     }
+    wt_vec_sum_groups(t->acc, n, t->phi);
     forward_dwt(t, t->phi, c);
 }
 

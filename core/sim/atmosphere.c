@@ -33,6 +33,11 @@
 #include <fftw3.h>
 #include <math.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#else
+static inline int omp_in_parallel(void) { return 0; }
+#endif
 
 #include "../base/rng.h"
 
@@ -521,7 +526,7 @@ int wt_atmosphere_project(const wt_atmosphere *atm, double t, double source_alti
     /* Layers outer, rows inner: the per-layer set-up (subharmonic rotations) is done once per thread.
      * The static schedule gives each thread the same rows for every layer, so `nowait` is safe and
      * every point adds its layers in layer order whatever the thread count (bit-identical results). */
-#pragma omp parallel num_threads(nth) if (nth > 1 && ny > 1)
+#pragma omp parallel num_threads(nth) if (nth > 1 && ny > 1 && !omp_in_parallel())
     for (int l = 0; l < nl; l++) {
         layer_call lc;
         layer_call_init(atm, l, t, source_altitude, theta_x, theta_y, target, &lc);

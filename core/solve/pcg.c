@@ -3,6 +3,8 @@
 
 #include <math.h>
 
+#include "../la/vec.h"
+
 struct wt_pcg {
     wt_context *ctx;
     int64_t n;
@@ -45,13 +47,7 @@ double wt_pcg_flops_per_iteration(int64_t n, int preconditioned)
     return (double)n * (12.0 + (preconditioned ? 1.0 : 0.0));
 }
 
-static double dot(const double *a, const double *b, int64_t n)
-{
-    double s = 0.0;
-#pragma omp parallel for reduction(+ : s) schedule(static) if (n > 32768)
-    for (int64_t i = 0; i < n; i++) s += a[i] * b[i];
-    return s;
-}
+static double dot(const double *a, const double *b, int64_t n) { return wt_vec_dot(a, b, n); }
 
 int wt_pcg_solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
                  int max_iter, double rtol, double *history, wt_pcg_result *res)

@@ -189,46 +189,49 @@ int wt_loop_step(wt_loop *lp)
     memcpy(lp->applied, lp->ring[t % D1], (size_t)sys->nact * sizeof *lp->applied);
     wt_dm_expand(sys, lp->applied, lp->dm_grids);
 
-    /* 1. turbulence along every line of sight (the projection is parallel inside) */
-    double t0 = wt_time_now();
+    /* 1.–3. every line of sight in one parallel region: turbulence minus the DMs, then the truth
+     * sensor with its noise, or the residual rms of an evaluation direction. Per-part CPU times are
+     * summed over the threads and the region's wall time is split in their proportion. */
+    double t0 = wt_time_now(), c_atm = 0.0, c_sens = 0.0, c_eval = 0.0;
+    int err = WT_OK;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_atm, c_sens, c_eval) reduction(min : err)
     for (int i = 0; i < lp->nlos; i++) {
-        double tx, ty;
+        double a0 = wt_time_now(), tx, ty;
         los_direction(lp, i, &tx, &ty);
         double *o = lp->opd + (size_t)i * nf;
         const uint8_t *mask = los_mask(lp, i);
         for (int64_t k = 0; k < nf; k++)
             if (mask[k]) o[k] = 0.0;
-        st = wt_atmosphere_project(lp->atm, time, los_altitude(lp, i), tx, ty, &lp->fine, mask, 1.0, o);
-        if (st < 0) return st;
-    }
-    double t1 = wt_time_now();
-    lp->times.atmosphere += t1 - t0;
-
-    /* 2. minus the DMs, the truth sensors and their noise */
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int i = 0; i < sys->nsensors; i++) {
-        const wt_sensor *s = &sys->sensors[i];
-        double *o = lp->opd + (size_t)i * nf, *sl = lp->s + s->offset;
+        int e = wt_atmosphere_project(lp->atm, time, los_altitude(lp, i), tx, ty, &lp->fine, mask, 1.0, o);
+        if (e < err) err = e;
+        double a1 = wt_time_now();
+        c_atm += a1 - a0;
         wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
-        wt_wfs_measure(lp->wfs[i], o, sl);
-        if (lp->opt.noise) {
-            wt_rng rng;
-            wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
-            wt_noise_sample(lp->noise[i], &rng, sl);
-            if (s->kind == WT_SENSOR_LGS && cfg->lgs_tt_jitter > 0.0)
-                wt_wfs_add_tiptilt(lp->wfs[i], &rng, cfg->lgs_tt_jitter, sl);
+        if (i < sys->nsensors) {
+            const wt_sensor *s = &sys->sensors[i];
+            double *sl = lp->s + s->offset;
+            wt_wfs_measure(lp->wfs[i], o, sl);
+            if (lp->opt.noise) {
+                wt_rng rng;
+                wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
+                wt_noise_sample(lp->noise[i], &rng, sl);
+                if (s->kind == WT_SENSOR_LGS && cfg->lgs_tt_jitter > 0.0)
+                    wt_wfs_add_tiptilt(lp->wfs[i], &rng, cfg->lgs_tt_jitter, sl);
+            }
+            c_sens += wt_time_now() - a1;
+        } else {
+            lp->rms[i - sys->nsensors] = wt_strehl_rms(o, lp->pupil, nf);
+            c_eval += wt_time_now() - a1;
         }
     }
-    double t2 = wt_time_now();
-    lp->times.sensors += t2 - t1;
-
-    /* 3. residual along the evaluation directions */
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int j = 0; j < sys->neval; j++) {
-        double *o = lp->opd + (size_t)(sys->nsensors + j) * nf;
-        wt_projection_apply(lp->dm[sys->nsensors + j], -1.0, lp->dm_grids, o);
-        lp->rms[j] = wt_strehl_rms(o, lp->pupil, nf);
+    if (err < 0) return err;
+    double t2 = wt_time_now(), csum = c_atm + c_sens + c_eval;
+    if (csum > 0.0) {
+        lp->times.atmosphere += (t2 - t0) * c_atm / csum;
+        lp->times.sensors += (t2 - t0) * c_sens / csum;
+        lp->times.evaluation += (t2 - t0) * c_eval / csum;
     }
+
     double fs = 0.0;
     for (int j = 0; j < sys->neval; j++) fs += wt_strehl_marechal(lp->rms[j], cfg->eval_wavelength);
     lp->field_strehl = fs / sys->neval;

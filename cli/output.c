@@ -1,0 +1,113 @@
+/* cli/output.c: provenance and layout groups written into every output file, so that a file read
+ * years later says what made it and how its vectors are ordered. */
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "cli.h"
+#include "core/io/h5.h"
+#include "core/model/system.h"
+
+int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv)
+{
+    (void)cli;
+    int st;
+    char cmd[4096] = "";
+    size_t used = 0;
+    for (int i = 0; i < argc && used + 2 < sizeof cmd; i++) {
+        int k = snprintf(cmd + used, sizeof cmd - used, "%s%s", i ? " " : "", argv[i]);
+        if (k < 0) break;
+        used += (size_t)k;
+    }
+    char when[64];
+    time_t now = time(NULL);
+    struct tm tmv;
+    gmtime_r(&now, &tmv);
+    strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%SZ", &tmv);
+    if ((st = wt_h5_attr_write_string(w, "/", "wavetomo_version", WT_VERSION)) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "created_utc", when)) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "command_line", cmd)) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "config_path", cfg->path)) < 0) return st;
+    if ((st = wt_h5_attr_write_int64(w, "/", "seed", (int64_t)cfg->seed)) < 0) return st;
+    return wt_h5_write_string(w, "config", cfg->canonical,
+                              "the effective configuration (libconfig text, after --set overrides) of this run");
+}
+
+int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys)
+{
+    int st;
+    wt_context *ctx = sys->ctx;
+    int64_t ns = sys->nsensors;
+    int64_t *off = calloc((size_t)ns, sizeof *off), *cnt = calloc((size_t)ns, sizeof *cnt);
+    int32_t *act = calloc((size_t)sys->nact * 3, sizeof *act);
+    double *axy = calloc((size_t)sys->nact * 2, sizeof *axy);
+    char names[1024] = "";
+    if (!off || !cnt || !act || !axy) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory writing the layout");
+        goto out;
+    }
+    for (int m = 0; m < ns; m++) {
+        off[m] = sys->sensors[m].offset;
+        cnt[m] = sys->sensors[m].nslopes;
+        strncat(names, sys->sensors[m].name, sizeof names - strlen(names) - 2);
+        if (m + 1 < ns) strcat(names, ",");
+    }
+    int64_t q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        const wt_grid *g = &sys->dm_grid[k];
+        for (int iy = 0; iy < g->ny; iy++)
+            for (int ix = 0; ix < g->nx; ix++) {
+                if (!sys->dm_active[k][ix + (int64_t)g->nx * iy]) continue;
+                act[3 * q] = k;
+                act[3 * q + 1] = ix;
+                act[3 * q + 2] = iy;
+                axy[2 * q] = g->x0 + ix * g->dx;
+                axy[2 * q + 1] = g->y0 + iy * g->dx;
+                q++;
+            }
+    }
+    int64_t d1[1] = {ns}, d2[2] = {sys->nact, 3}, d3[2] = {sys->nact, 2};
+    if ((st = wt_h5_write(w, "layout/sensor_slope_offset", WT_H5_I64, WT_H5_I64, 1, d1, off, "",
+                          "first slope of each sensor in a slope vector (sensors in the order of the attribute "
+                          "'sensors'); each sensor's block is [s_x of its valid subapertures..., s_y...]")) < 0)
+        goto out;
+    if ((st = wt_h5_write(w, "layout/sensor_slope_count", WT_H5_I64, WT_H5_I64, 1, d1, cnt, "",
+                          "slopes of each sensor (2 x valid subapertures)")) < 0)
+        goto out;
+    if ((st = wt_h5_attr_write_string(w, "layout", "sensors", names)) < 0) goto out;
+    if ((st = wt_h5_write(w, "layout/actuator_index", WT_H5_I32, WT_H5_I32, 2, d2, act, "",
+                          "for each command: DM number (0-based), actuator column ix and row iy on that DM's grid")) < 0)
+        goto out;
+    if ((st = wt_h5_write(w, "layout/actuator_position", WT_H5_F64, WT_H5_F64, 2, d3, axy, "m",
+                          "for each command: actuator position (x, y) in the DM's conjugate plane")) < 0)
+        goto out;
+    for (int m = 0; m < ns; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        double *c = malloc((size_t)s->nsub * 2 * sizeof *c);
+        if (!c) {
+            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory writing the layout");
+            goto out;
+        }
+        for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &c[2 * k], &c[2 * k + 1]);
+        char name[64];
+        snprintf(name, sizeof name, "layout/%s/subaperture_centre", s->name);
+        int64_t d[2] = {s->nsub, 2};
+        st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 2, d, c, "m",
+                         "centre (x, y) in the pupil of each valid subaperture, in slope order");
+        free(c);
+        if (st < 0) goto out;
+        snprintf(name, sizeof name, "layout/%s", s->name);
+        if ((st = wt_h5_attr_write_double(w, name, "theta_x_arcsec", s->theta_x / WT_ARCSEC)) < 0) goto out;
+        if ((st = wt_h5_attr_write_double(w, name, "theta_y_arcsec", s->theta_y / WT_ARCSEC)) < 0) goto out;
+        if ((st = wt_h5_attr_write_double(w, name, "source_altitude_m", s->altitude)) < 0) goto out;
+        if ((st = wt_h5_attr_write_double(w, name, "noise_sigma_mas", sqrt(s->sigma2) / WT_ARCSEC * 1e3)) < 0)
+            goto out;
+    }
+    st = WT_OK;
+out:
+    free(off);
+    free(cnt);
+    free(act);
+    free(axy);
+    return st;
+}

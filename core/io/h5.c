@@ -1,0 +1,1233 @@
+/* core/io/h5.c: the HDF5 layer: atomic writer, row-block matrices, appendable series, checked reader.
+ *
+ * Implements the file side of SPEC §9 (R and RÂ as float32, written to a temporary and renamed so an
+ * interrupted build never leaves a file that looks complete) and the telemetry/result files of the
+ * simulator. Every public function brackets its HDF5 calls with quiet_on/quiet_off: HDF5's automatic
+ * stack printing is off inside, restored on return, and the innermost HDF5 error description is
+ * folded into our message (h5err). Writers remember their first failure and refuse to commit.
+ */
+#include "h5.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <hdf5.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#define CHUNK_BYTES ((size_t)1 << 20)        /* fixed-size datasets: ~1 MiB bands of rows */
+#define SERIES_CHUNK_BYTES ((size_t)1 << 16) /* series: the last chunk is allocated whole, keep it small */
+#define PROBE_FRAMES ((hsize_t)1 << 24)      /* stands for "many frames" when sizing series chunks */
+
+struct wt_h5_writer {
+    wt_context *ctx;
+    hid_t file, lcpl;
+    char *target, *temp;
+    int created; /* the temporary is ours to unlink */
+    int status;  /* first failure; commit refuses when < 0 */
+    char first_error[512];
+    wt_h5_matrix *matrices; /* still open, closed by commit/abort */
+    wt_h5_series *series;
+};
+
+struct wt_h5_matrix {
+    wt_h5_writer *w;
+    hid_t dset;
+    char *name;
+    int64_t rows, cols, ndone;
+    uint8_t *done; /* rows written: commit refuses a matrix with holes */
+    wt_h5_matrix *next;
+};
+
+struct wt_h5_series {
+    wt_h5_writer *w;
+    hid_t dset;
+    char *name;
+    int64_t n, len;
+    wt_h5_series *next;
+};
+
+struct wt_h5_reader {
+    wt_context *ctx;
+    hid_t file;
+    char *path;
+};
+
+/* ---- HDF5 error handling ------------------------------------------------------------------------ */
+
+typedef struct quiet {
+    H5E_auto2_t func;
+    void *data;
+} quiet;
+
+static quiet quiet_on(void)
+{
+    quiet q = {NULL, NULL};
+    H5Eget_auto2(H5E_DEFAULT, &q.func, &q.data);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    return q;
+}
+
+static void quiet_off(quiet q)
+{
+    H5Eclear2(H5E_DEFAULT);
+    H5Eset_auto2(H5E_DEFAULT, q.func, q.data);
+}
+
+#define QUIET(expr)            \
+    do {                       \
+        quiet q_ = quiet_on(); \
+        st = (expr);           \
+        quiet_off(q_);         \
+    } while (0)
+
+static herr_t walk_cb(unsigned n, const H5E_error2_t *e, void *user)
+{
+    if (n == 0 && e->desc) /* upward walk: n == 0 is where the failure was detected */
+        snprintf((char *)user, 400, "%s: %s", e->func_name ? e->func_name : "?", e->desc);
+    return 0;
+}
+
+/* Record `status` with our message plus HDF5's innermost description, then clear HDF5's stack. */
+static int h5err(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static int h5err(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
+{
+    char msg[1200], detail[400] = "";
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, walk_cb, detail);
+    H5Eclear2(H5E_DEFAULT);
+    if (detail[0]) return wt_error_set(ctx, status, src, line, "%s [HDF5 %s]", msg, detail);
+    return wt_error_set(ctx, status, src, line, "%s", msg);
+}
+#define H5ERR(ctx, status, ...) h5err((ctx), (status), __FILE__, __LINE__, __VA_ARGS__)
+
+/* Record an error and jump to the function's `fail` label (needs an `int st`); H5FAIL adds HDF5's detail. */
+#define FAIL(ctx, status, ...)                       \
+    do {                                             \
+        st = WT_ERROR((ctx), (status), __VA_ARGS__); \
+        goto fail;                                   \
+    } while (0)
+#define H5FAIL(ctx, status, ...)                  \
+    do {                                          \
+        st = H5ERR((ctx), (status), __VA_ARGS__); \
+        goto fail;                                \
+    } while (0)
+
+/* Bodies of the public calls: quiet HDF5 around the work; a writer remembers its first failure. */
+#define WRITER_CALL(handle, writer, expr)     \
+    do {                                      \
+        int st;                               \
+        if (!(handle)) return WT_ERR_INVALID; \
+        QUIET(expr);                          \
+        return poison((writer), st);          \
+    } while (0)
+#define READER_CALL(r, expr)             \
+    do {                                 \
+        int st;                          \
+        if (!(r)) return WT_ERR_INVALID; \
+        QUIET(expr);                     \
+        return st;                       \
+    } while (0)
+
+static int poison(wt_h5_writer *w, int st)
+{
+    if (st < 0 && w->status >= 0) {
+        w->status = st;
+        snprintf(w->first_error, sizeof w->first_error, "%s", wt_error_message(w->ctx));
+    }
+    return st;
+}
+
+/* Close any HDF5 id we created; ignores invalid ids (cleanup paths). */
+static void drop(hid_t id)
+{
+    if (id < 0) return;
+    switch (H5Iget_type(id)) {
+    case H5I_FILE: H5Fclose(id); break;
+    case H5I_GROUP: H5Gclose(id); break;
+    case H5I_DATASET: H5Dclose(id); break;
+    case H5I_DATASPACE: H5Sclose(id); break;
+    case H5I_DATATYPE: H5Tclose(id); break;
+    case H5I_ATTR: H5Aclose(id); break;
+    case H5I_GENPROP_LST: H5Pclose(id); break;
+    default: break;
+    }
+}
+
+/* ---- types, names, shapes ----------------------------------------------------------------------- */
+
+static int type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_U8; }
+static int type_float(int t) { return t == WT_H5_F64 || t == WT_H5_F32; }
+
+static const char *type_name(int t)
+{
+    static const char *const names[] = {"?", "float64", "float32", "int32", "int64", "uint8"};
+    return type_ok(t) ? names[t] : "?";
+}
+
+static size_t type_size(int t)
+{
+    static const size_t sizes[] = {0, 8, 4, 4, 8, 1};
+    return type_ok(t) ? sizes[t] : 0;
+}
+
+static hid_t mem_type(int t)
+{
+    switch (t) {
+    case WT_H5_F64: return H5T_NATIVE_DOUBLE;
+    case WT_H5_F32: return H5T_NATIVE_FLOAT;
+    case WT_H5_I32: return H5T_NATIVE_INT32;
+    case WT_H5_I64: return H5T_NATIVE_INT64;
+    case WT_H5_U8: return H5T_NATIVE_UINT8;
+    default: return -1;
+    }
+}
+
+static hid_t file_type(int t)
+{
+    switch (t) {
+    case WT_H5_F64: return H5T_IEEE_F64LE;
+    case WT_H5_F32: return H5T_IEEE_F32LE;
+    case WT_H5_I32: return H5T_STD_I32LE;
+    case WT_H5_I64: return H5T_STD_I64LE;
+    case WT_H5_U8: return H5T_STD_U8LE;
+    default: return -1;
+    }
+}
+
+static char *dupstr(wt_context *ctx, const char *s)
+{
+    size_t n = strlen(s);
+    char *p = wt_malloc(ctx, n + 1, 1);
+    if (p) memcpy(p, s, n + 1);
+    return p;
+}
+
+/* "9295 x 61356", "any" for a negative entry, "a scalar" for rank 0. */
+static const char *shape_text(char *buf, size_t n, int rank, const int64_t *d)
+{
+    size_t k = 0;
+    buf[0] = '\0';
+    if (rank == 0) return snprintf(buf, n, "a scalar"), buf;
+    for (int i = 0; i < rank && k < n; i++) {
+        const char *sep = i ? " x " : "";
+        if (!d || d[i] < 0)
+            k += (size_t)snprintf(buf + k, n - k, "%sany", sep);
+        else
+            k += (size_t)snprintf(buf + k, n - k, "%s%lld", sep, (long long)d[i]);
+    }
+    return buf;
+}
+
+/* 1 when every prefix of `name` is a link (so H5Lexists never sees a missing parent), else 0. */
+static int path_exists(hid_t file, const char *name)
+{
+    char buf[1024];
+    size_t n = strlen(name);
+    if (strcmp(name, "/") == 0) return 1;
+    if (n == 0 || n >= sizeof buf) return 0;
+    memcpy(buf, name, n + 1);
+    for (size_t i = 1; i <= n; i++) {
+        if (buf[i] != '/' && buf[i] != '\0') continue;
+        char c = buf[i];
+        buf[i] = '\0';
+        htri_t e = H5Lexists(file, buf, H5P_DEFAULT);
+        buf[i] = c;
+        if (e <= 0) {
+            H5Eclear2(H5E_DEFAULT);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Chunk dims: start from the whole dataset and shrink the leading dims (at most `nshrink` of them)
+ * until a chunk holds at most `target` bytes, so a chunk is a band of whole rows whenever a row fits
+ * (series pass nshrink = 1: a frame is never split, whatever its size). */
+static void choose_chunk(int rank, const hsize_t *dims, size_t elem, size_t target, int nshrink, hsize_t *chunk)
+{
+    for (int i = 0; i < rank; i++) chunk[i] = dims[i] > 0 ? dims[i] : 1;
+    for (int i = 0; i < nshrink; i++) {
+        hsize_t inner = elem;
+        for (int j = i + 1; j < rank; j++) inner *= chunk[j];
+        if (chunk[i] * inner <= target) break;
+        hsize_t fit = target / inner;
+        chunk[i] = fit > 0 ? fit : 1;
+        if (inner <= target) break;
+    }
+}
+
+/* Creation properties of a numeric dataset: chunked (see choose_chunk; `cdims` sizes the chunks) with
+ * Fletcher32 when it holds data, contiguous when empty. Fill value 0 for partially written chunks. */
+static hid_t numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
+                          hsize_t *chunk)
+{
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    if (dcpl < 0 || empty) return dcpl;
+    const int zero = 0;
+    choose_chunk(rank, cdims, elem, target, nshrink, chunk);
+    if (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_fletcher32(dcpl) < 0 ||
+        H5Pset_fill_value(dcpl, H5T_NATIVE_INT, &zero) < 0) {
+        H5Pclose(dcpl);
+        return -1;
+    }
+    return dcpl;
+}
+
+/* Metadata in the 1.8+ format (checksummed headers), strong close, file locks where supported. */
+static hid_t file_access(void)
+{
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    if (fapl < 0) return -1;
+    if (H5Pset_libver_bounds(fapl, H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0 ||
+        H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG) < 0 || H5Pset_file_locking(fapl, 1, 1) < 0) {
+        H5Pclose(fapl);
+        return -1;
+    }
+    return fapl;
+}
+
+static hid_t string_type(size_t len, H5T_cset_t cset)
+{
+    hid_t t = H5Tcopy(H5T_C_S1);
+    if (t < 0) return -1;
+    if (H5Tset_size(t, len + 1) < 0 || H5Tset_strpad(t, H5T_STR_NULLTERM) < 0 || H5Tset_cset(t, cset) < 0) {
+        H5Tclose(t);
+        return -1;
+    }
+    return t;
+}
+
+/* ---- attributes (shared by writer and reader) --------------------------------------------------- */
+
+/* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt. */
+static herr_t put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value)
+{
+    hid_t space = -1, a = -1;
+    herr_t r = -1;
+    htri_t e = H5Aexists(obj, name);
+    if (e < 0 || (e > 0 && H5Adelete(obj, name) < 0)) return -1;
+    if ((space = H5Screate(H5S_SCALAR)) < 0) goto out;
+    if ((a = H5Acreate2(obj, name, ft, space, H5P_DEFAULT, H5P_DEFAULT)) < 0) goto out;
+    r = H5Awrite(a, mt, value);
+out:
+    drop(a);
+    drop(space);
+    return r;
+}
+
+static herr_t put_attr_string(hid_t obj, const char *name, const char *value)
+{
+    hid_t t = string_type(strlen(value), H5T_CSET_UTF8);
+    if (t < 0) return -1;
+    herr_t r = put_attr(obj, name, t, t, value);
+    H5Tclose(t);
+    return r;
+}
+
+/* Read a one-element string from a dataset or attribute, fixed or variable length. */
+static int get_string(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, char **out)
+{
+    int st = WT_OK;
+    hid_t ft = -1, mt = -1, space = -1;
+    char *buf = NULL, *vl = NULL;
+    ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
+    space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
+    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
+    if (H5Tget_class(ft) != H5T_STRING || H5Sget_simple_extent_npoints(space) != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is not a single string", file, what);
+    int var = H5Tis_variable_str(ft) > 0;
+    size_t size = var ? 0 : H5Tget_size(ft);
+    if ((mt = string_type(size, H5Tget_cset(ft))) < 0 || (var && H5Tset_size(mt, H5T_VARIABLE) < 0))
+        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for %s", file, what);
+    void *dst = var ? (void *)&vl : NULL;
+    if (!var) {
+        WT_ALLOC(ctx, buf, size + 1, "a string read from HDF5");
+        dst = buf;
+    }
+    herr_t r = is_attr ? H5Aread(obj, mt, dst) : H5Dread(obj, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, dst);
+    if (r < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed (%s)", file, what, is_attr ? "H5Aread" : "H5Dread");
+    if (var) {
+        WT_ALLOC(ctx, buf, (vl ? strlen(vl) : 0) + 1, "a string read from HDF5");
+        if (vl) strcpy(buf, vl);
+    }
+    *out = buf;
+    buf = NULL;
+fail:
+    if (vl) H5Dvlen_reclaim(mt, space, H5P_DEFAULT, &vl);
+    wt_free(ctx, buf);
+    drop(mt);
+    drop(ft);
+    drop(space);
+    return st;
+}
+
+/* Read one numeric value (scalar or one element) from a dataset or attribute as type t. */
+static int get_number(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, int t, void *value)
+{
+    int st = WT_OK;
+    hid_t ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
+    hid_t space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
+    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
+    H5T_class_t c = H5Tget_class(ft);
+    hssize_t np = H5Sget_simple_extent_npoints(space);
+    if ((c != H5T_FLOAT && c != H5T_INTEGER) || np != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s holds %lld %s value(s), expected one number", file, what, (long long)np,
+             c == H5T_STRING ? "string" : c == H5T_FLOAT ? "float" : c == H5T_INTEGER ? "integer" : "non-numeric");
+    if (c == H5T_FLOAT && !type_float(t))
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is floating point, refused as %s", file, what, type_name(t));
+    if ((is_attr ? H5Aread(obj, mem_type(t), value)
+                 : H5Dread(obj, mem_type(t), H5S_ALL, H5S_ALL, H5P_DEFAULT, value)) < 0)
+        H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed", file, what);
+fail:
+    drop(ft);
+    drop(space);
+    return st;
+}
+
+/* ---- writability probe -------------------------------------------------------------------------- */
+
+int wt_h5_check_writable(wt_context *ctx, const char *path, int64_t bytes)
+{
+    int st = WT_OK;
+    char *dir = NULL, *probe = NULL;
+    struct stat sb;
+    if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_check_writable: empty output path");
+    WT_ALLOC(ctx, dir, strlen(path) + 2, "a directory name");
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        strcpy(dir, ".");
+    else if (slash == path)
+        strcpy(dir, "/");
+    else
+        memcpy(dir, path, (size_t)(slash - path));
+    if (stat(dir, &sb) != 0)
+        FAIL(ctx, WT_ERR_IO, "cannot write '%s': directory '%s' %s", path, dir,
+             errno == ENOENT ? "does not exist" : strerror(errno));
+    if (!S_ISDIR(sb.st_mode)) FAIL(ctx, WT_ERR_IO, "cannot write '%s': '%s' is not a directory", path, dir);
+    if (stat(path, &sb) == 0 && S_ISDIR(sb.st_mode))
+        FAIL(ctx, WT_ERR_IO, "cannot write '%s': it is a directory, expected a file name", path);
+    WT_ALLOC(ctx, probe, strlen(path) + 32, "a probe file name");
+    snprintf(probe, strlen(path) + 32, "%s.probe-%ld", path, (long)getpid());
+    int fd = open(probe, O_WRONLY | O_CREAT | O_EXCL, 0600);
+    if (fd < 0)
+        FAIL(ctx, WT_ERR_IO, "cannot write '%s': creating a file in directory '%s' failed: %s", path, dir,
+             strerror(errno));
+    close(fd);
+    unlink(probe);
+    struct statvfs vs;
+    if (bytes > 0 && statvfs(dir, &vs) == 0 && (double)vs.f_bavail * (double)vs.f_frsize < (double)bytes)
+        FAIL(ctx, WT_ERR_IO, "cannot write '%s': it needs %.2f GB, only %.2f GB are free in '%s'", path,
+             1e-9 * (double)bytes, 1e-9 * (double)vs.f_bavail * (double)vs.f_frsize, dir);
+fail:
+    wt_free(ctx, probe);
+    wt_free(ctx, dir);
+    return st;
+}
+
+const char *wt_h5_library_version(void)
+{
+#define WT_H5_STR_(x) #x
+#define WT_H5_STR(x) WT_H5_STR_(x)
+    return WT_H5_STR(H5_VERS_MAJOR) "." WT_H5_STR(H5_VERS_MINOR) "." WT_H5_STR(H5_VERS_RELEASE);
+}
+
+/* ---- writer ------------------------------------------------------------------------------------- */
+
+static int matrix_close_impl(wt_h5_matrix *m, int check);
+static int series_close_impl(wt_h5_series *s);
+
+/* Close everything; unlink the temporary when asked and when it is ours; free w. */
+static void writer_destroy(wt_h5_writer *w, int remove_temp)
+{
+    if (!w) return;
+    while (w->matrices) matrix_close_impl(w->matrices, 0);
+    while (w->series) series_close_impl(w->series);
+    drop(w->lcpl);
+    drop(w->file);
+    if (remove_temp && w->created && w->temp) unlink(w->temp);
+    wt_free(w->ctx, w->temp);
+    wt_free(w->ctx, w->target);
+    wt_free(w->ctx, w);
+}
+
+static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
+{
+    int st = WT_OK;
+    wt_h5_writer *w = NULL;
+    hid_t fapl = -1;
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_create: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_create: empty output path");
+    WT_ALLOC(ctx, w, 1, "an HDF5 writer");
+    w->ctx = ctx;
+    w->file = w->lcpl = -1;
+    size_t tn = strlen(path) + 32;
+    w->target = dupstr(ctx, path);
+    w->temp = wt_malloc(ctx, tn, 1);
+    if (!w->target || !w->temp) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file names of '%s'", path);
+    snprintf(w->temp, tn, "%s.tmp-%ld", path, (long)getpid());
+    if ((fapl = file_access()) < 0) H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
+    if ((w->file = H5Fcreate(w->temp, H5F_ACC_TRUNC, H5P_DEFAULT, fapl)) < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: cannot create the temporary file '%s' (H5Fcreate)", path, w->temp);
+    w->created = 1;
+    if ((w->lcpl = H5Pcreate(H5P_LINK_CREATE)) < 0 || H5Pset_create_intermediate_group(w->lcpl, 1) < 0 ||
+        H5Pset_char_encoding(w->lcpl, H5T_CSET_UTF8) < 0)
+        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up link creation properties", path);
+    if (put_attr_string(w->file, "creator", "wavetomo " WT_VERSION) < 0 ||
+        put_attr_string(w->file, "hdf5_version", wt_h5_library_version()) < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attributes", path);
+    drop(fapl);
+    *out = w;
+    return WT_OK;
+fail:
+    drop(fapl);
+    writer_destroy(w, 1);
+    return st;
+}
+
+int wt_h5_create(wt_context *ctx, const char *path, wt_h5_writer **out)
+{
+    int st;
+    QUIET(create_impl(ctx, path, out));
+    return st;
+}
+
+static int commit_impl(wt_h5_writer *w)
+{
+    wt_context *ctx = w->ctx;
+    int st = WT_OK;
+    const int64_t one = 1;
+    while (w->matrices) poison(w, matrix_close_impl(w->matrices, 1));
+    while (w->series) poison(w, series_close_impl(w->series));
+    if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
+    if (put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
+    herr_t r = H5Fclose(w->file);
+    w->file = -1;
+    if (r < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: closing the temporary '%s' failed (H5Fclose; disk full?)", w->target, w->temp);
+    /* the data must be on disk before the name points at it, or a crash could publish a hollow file */
+    int fd = open(w->temp, O_RDONLY), synced = fd >= 0 && fsync(fd) == 0;
+    if (fd >= 0) close(fd);
+    if (!synced) FAIL(ctx, WT_ERR_IO, "%s: cannot fsync the temporary '%s': %s", w->target, w->temp, strerror(errno));
+    if (rename(w->temp, w->target) != 0)
+        FAIL(ctx, WT_ERR_IO, "%s: cannot rename the temporary '%s' onto it: %s", w->target, w->temp, strerror(errno));
+    w->created = 0;
+    writer_destroy(w, 0);
+    return WT_OK;
+fail:
+    writer_destroy(w, 1);
+    return st;
+}
+
+int wt_h5_commit(wt_h5_writer *w)
+{
+    int st;
+    if (!w) return WT_ERR_INVALID;
+    QUIET(commit_impl(w));
+    return st;
+}
+
+void wt_h5_abort(wt_h5_writer *w)
+{
+    quiet q = quiet_on();
+    writer_destroy(w, 1);
+    quiet_off(q);
+}
+
+int wt_h5_flush(wt_h5_writer *w)
+{
+    int st = WT_OK;
+    if (!w) return WT_ERR_INVALID;
+    quiet q = quiet_on();
+    if (H5Fflush(w->file, H5F_SCOPE_GLOBAL) < 0)
+        st = poison(w, H5ERR(w->ctx, WT_ERR_IO, "%s: H5Fflush of the temporary '%s' failed", w->target, w->temp));
+    quiet_off(q);
+    return st;
+}
+
+const char *wt_h5_temp_path(const wt_h5_writer *w) { return w ? w->temp : NULL; }
+const char *wt_h5_target_path(const wt_h5_writer *w) { return w ? w->target : NULL; }
+
+/* A new numeric dataset's name and documentation. */
+static int check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units)
+{
+    if (!name || !*name) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: empty dataset name", w->target);
+    if ((need_units && !units) || !desc || !*desc)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s' needs %s (every dataset documents itself)", w->target,
+                        name, need_units && !units ? "units (\"\" if dimensionless)" : "a description");
+    if (path_exists(w->file, name)) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' already exists", w->target, name);
+    return WT_OK;
+}
+
+static int check_types(wt_h5_writer *w, const char *name, int ft, int mt)
+{
+    if (!type_ok(ft) || !type_ok(mt))
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown element type %d", w->target, name,
+                        type_ok(ft) ? mt : ft);
+    if (type_float(mt) && !type_float(ft))
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an %s dataset (lossy)",
+                        w->target, name, type_name(mt), type_name(ft));
+    return WT_OK;
+}
+
+static int set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc)
+{
+    if ((units && put_attr_string(obj, "units", units) < 0) || put_attr_string(obj, "description", desc) < 0)
+        return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write the units/description of '%s'", w->target, name);
+    return WT_OK;
+}
+
+static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int rank, const int64_t *dims,
+                      const void *data, const char *units, const char *desc)
+{
+    int st = WT_OK;
+    hid_t space = -1, dcpl = -1, d = -1;
+    hsize_t hd[WT_H5_MAX_RANK], chunk[WT_H5_MAX_RANK];
+    WT_TRY(check_new(w, name, units, desc, 1));
+    WT_TRY(check_types(w, name, ft, mt));
+    if (rank < 1 || rank > WT_H5_MAX_RANK || !dims)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': rank %d, expected 1..%d", w->target, name, rank,
+                        WT_H5_MAX_RANK);
+    int64_t total = 1;
+    for (int i = 0; i < rank; i++) {
+        if (dims[i] < 0 || (dims[i] > 0 && total > INT64_MAX / dims[i]))
+            return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': dimension %d is %lld", w->target, name, i,
+                            (long long)dims[i]);
+        total *= dims[i];
+        hd[i] = (hsize_t)dims[i];
+    }
+    if (total > 0 && !data) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': data is NULL", w->target, name);
+    if ((space = H5Screate_simple(rank, hd, NULL)) < 0 ||
+        (dcpl = numeric_dcpl(rank, hd, type_size(ft), CHUNK_BYTES, rank, total == 0, chunk)) < 0 ||
+        (d = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
+    if (total > 0 && H5Dwrite(d, mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
+    WT_TRY(set_doc(w, d, name, units, desc));
+    if (H5Dclose(d) < 0) st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing dataset '%s' failed", w->target, name);
+    d = -1;
+fail:
+    drop(d);
+    drop(dcpl);
+    drop(space);
+    return st;
+}
+
+int wt_h5_write(wt_h5_writer *w, const char *name, int file_type, int mem_type, int rank, const int64_t *dims,
+                const void *data, const char *units, const char *description)
+{
+    WRITER_CALL(w, w, write_impl(w, name, file_type, mem_type, rank, dims, data, units, description));
+}
+
+/* A scalar dataset: numeric (ft >= 0, units required) or a string (ft < 0, text in value). */
+static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, const void *value, const char *units,
+                       const char *desc)
+{
+    int st = WT_OK;
+    hid_t space = -1, d = -1, t = -1;
+    int is_string = ft < 0;
+    WT_TRY(check_new(w, name, units, desc, !is_string));
+    if (is_string) {
+        if (!value) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: string dataset '%s' is NULL", w->target, name);
+        if ((t = string_type(strlen(value), H5T_CSET_UTF8)) < 0)
+            H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for '%s'", w->target, name);
+        ft = mt = t;
+    }
+    if ((space = H5Screate(H5S_SCALAR)) < 0 ||
+        (d = H5Dcreate2(w->file, name, ft, space, w->lcpl, H5P_DEFAULT, H5P_DEFAULT)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
+    if (H5Dwrite(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, value) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
+    st = set_doc(w, d, name, is_string ? NULL : units, desc);
+fail:
+    drop(d);
+    drop(space);
+    drop(t);
+    return st;
+}
+
+int wt_h5_write_double(wt_h5_writer *w, const char *name, double value, const char *units, const char *description)
+{
+    WRITER_CALL(w, w, scalar_impl(w, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value, units, description));
+}
+
+int wt_h5_write_int64(wt_h5_writer *w, const char *name, int64_t value, const char *units, const char *description)
+{
+    WRITER_CALL(w, w, scalar_impl(w, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value, units, description));
+}
+
+int wt_h5_write_string(wt_h5_writer *w, const char *name, const char *text, const char *description)
+{
+    WRITER_CALL(w, w, scalar_impl(w, name, -1, -1, text, NULL, description));
+}
+
+static int group_impl(wt_h5_writer *w, const char *name)
+{
+    if (!name || !*name) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: empty group name", w->target);
+    if (path_exists(w->file, name)) {
+        H5O_info_t info;
+        if (H5Oget_info_by_name(w->file, name, &info, H5P_DEFAULT) < 0 || info.type != H5O_TYPE_GROUP)
+            return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' exists and is not a group", w->target, name);
+        return WT_OK;
+    }
+    hid_t g = H5Gcreate2(w->file, name, w->lcpl, H5P_DEFAULT, H5P_DEFAULT);
+    if (g < 0) return H5ERR(w->ctx, WT_ERR_LIBRARY, "%s: cannot create group '%s' (H5Gcreate2)", w->target, name);
+    H5Gclose(g);
+    return WT_OK;
+}
+
+int wt_h5_group(wt_h5_writer *w, const char *name) { WRITER_CALL(w, w, group_impl(w, name)); }
+
+/* Attribute on an existing object; ft < 0 means a string in value. */
+static int attr_impl(wt_h5_writer *w, const char *obj, const char *name, hid_t ft, hid_t mt, const void *value)
+{
+    if (!obj || !name || !*name || !value)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: attribute with a NULL or empty object, name or value", w->target);
+    if (strcmp(obj, "/") == 0 && strcmp(name, "complete") == 0)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: root attribute 'complete' is written by commit only", w->target);
+    if (!path_exists(w->file, obj))
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: cannot set attribute '%s' on '%s': no such group or dataset",
+                        w->target, name, obj);
+    hid_t o = H5Oopen(w->file, obj, H5P_DEFAULT);
+    herr_t r = o < 0 ? -1 : ft < 0 ? put_attr_string(o, name, value) : put_attr(o, name, ft, mt, value);
+    drop(o);
+    if (r < 0) return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write attribute '%s' of '%s'", w->target, name, obj);
+    return WT_OK;
+}
+
+int wt_h5_attr_write_string(wt_h5_writer *w, const char *obj, const char *name, const char *value)
+{
+    WRITER_CALL(w, w, attr_impl(w, obj, name, -1, -1, value));
+}
+
+int wt_h5_attr_write_double(wt_h5_writer *w, const char *obj, const char *name, double value)
+{
+    WRITER_CALL(w, w, attr_impl(w, obj, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value));
+}
+
+int wt_h5_attr_write_int64(wt_h5_writer *w, const char *obj, const char *name, int64_t value)
+{
+    WRITER_CALL(w, w, attr_impl(w, obj, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value));
+}
+
+/* Float data into an integer dataset loses the fraction silently in HDF5: refuse it. */
+static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, const void *data)
+{
+    if (!type_ok(mt) || !data)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown type %d or NULL data", w->target, name, mt);
+    hid_t ft = H5Dget_type(dset);
+    int file_float = ft >= 0 && H5Tget_class(ft) == H5T_FLOAT;
+    drop(ft);
+    if (type_float(mt) && !file_float)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an integer dataset (lossy)",
+                        w->target, name, type_name(mt));
+    return WT_OK;
+}
+
+/* ---- row-block matrices ------------------------------------------------------------------------- */
+
+static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t rows, int64_t cols, const char *units,
+                              const char *desc, wt_h5_matrix **out)
+{
+    int st = WT_OK;
+    wt_h5_matrix *m = NULL;
+    hid_t space = -1, dcpl = -1, dapl = -1;
+    hsize_t hd[2] = {(hsize_t)rows, (hsize_t)cols}, chunk[2];
+    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_matrix_create: out is NULL", w->target);
+    *out = NULL;
+    WT_TRY(check_new(w, name, units, desc, 1));
+    WT_TRY(check_types(w, name, ft, ft));
+    if (rows < 1 || cols < 1)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s' of %lld x %lld, expected positive dims", w->target,
+                        name, (long long)rows, (long long)cols);
+    WT_ALLOC(w->ctx, m, 1, "an HDF5 matrix handle");
+    m->w = w;
+    m->dset = -1;
+    m->rows = rows;
+    m->cols = cols;
+    WT_ALLOC(w->ctx, m->done, rows, "the row map of an HDF5 matrix");
+    if (!(m->name = dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if ((space = H5Screate_simple(2, hd, NULL)) < 0 ||
+        (dcpl = numeric_dcpl(2, hd, type_size(ft), CHUNK_BYTES, 2, 0, chunk)) < 0 ||
+        (dapl = H5Pcreate(H5P_DATASET_ACCESS)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot set up matrix '%s'", w->target, name);
+    /* room for two chunks, so the chunk a misaligned block ends in is still cached for the next block */
+    size_t cbytes = (size_t)(chunk[0] * chunk[1]) * type_size(ft);
+    size_t cache = 2 * cbytes + CHUNK_BYTES;
+    if (H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, cache, H5D_CHUNK_CACHE_W0_DEFAULT) < 0 ||
+        (m->dset = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, dapl)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create matrix '%s' (H5Dcreate2)", w->target, name);
+    WT_TRY(set_doc(w, m->dset, name, units, desc));
+    m->next = w->matrices;
+    w->matrices = m;
+    *out = m;
+    m = NULL;
+fail:
+    if (m) {
+        drop(m->dset);
+        wt_free(w->ctx, m->name);
+        wt_free(w->ctx, m->done);
+        wt_free(w->ctx, m);
+    }
+    drop(dapl);
+    drop(dcpl);
+    drop(space);
+    return st;
+}
+
+int wt_h5_matrix_create(wt_h5_writer *w, const char *name, int file_type, int64_t rows, int64_t cols, const char *units,
+                        const char *description, wt_h5_matrix **out)
+{
+    WRITER_CALL(w, w, matrix_create_impl(w, name, file_type, rows, cols, units, description, out));
+}
+
+static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mt, const void *data)
+{
+    wt_h5_writer *w = m->w;
+    int st = WT_OK;
+    hid_t fs = -1, ms = -1;
+    WT_TRY(check_data(w, m->name, m->dset, mt, data));
+    if (row0 < 0 || nrows < 1 || row0 > m->rows - nrows)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s': rows %lld..%lld, expected within 0..%lld", w->target,
+                        m->name, (long long)row0, (long long)(row0 + nrows - 1), (long long)(m->rows - 1));
+    hsize_t start[2] = {(hsize_t)row0, 0}, count[2] = {(hsize_t)nrows, (hsize_t)m->cols};
+    if ((fs = H5Dget_space(m->dset)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(2, count, NULL)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: matrix '%s': cannot select rows %lld..%lld", w->target, m->name,
+               (long long)row0, (long long)(row0 + nrows - 1));
+    if (H5Dwrite(m->dset, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing rows %lld..%lld of matrix '%s' failed (H5Dwrite)", w->target,
+               (long long)row0, (long long)(row0 + nrows - 1), m->name);
+    for (int64_t i = row0; i < row0 + nrows; i++) {
+        m->ndone += !m->done[i];
+        m->done[i] = 1;
+    }
+fail:
+    drop(ms);
+    drop(fs);
+    return st;
+}
+
+int wt_h5_matrix_write_rows(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mem_type, const void *data)
+{
+    WRITER_CALL(m, m->w, matrix_write_impl(m, row0, nrows, mem_type, data));
+}
+
+/* Unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
+static int matrix_close_impl(wt_h5_matrix *m, int check)
+{
+    wt_h5_writer *w = m->w;
+    int st = WT_OK;
+    for (wt_h5_matrix **p = &w->matrices; *p; p = &(*p)->next)
+        if (*p == m) {
+            *p = m->next;
+            break;
+        }
+    if (check && m->ndone < m->rows) {
+        int64_t first = 0;
+        while (m->done[first]) first++;
+        st = WT_ERROR(w->ctx, WT_ERR_INVALID,
+                      "%s: matrix '%s' has %lld rows, only %lld were written (first missing: %lld)", w->target, m->name,
+                      (long long)m->rows, (long long)m->ndone, (long long)first);
+    }
+    if (H5Dclose(m->dset) < 0 && st == WT_OK && check)
+        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing matrix '%s' failed (disk full?)", w->target, m->name);
+    wt_free(w->ctx, m->name);
+    wt_free(w->ctx, m->done);
+    wt_free(w->ctx, m);
+    return st;
+}
+
+int wt_h5_matrix_close(wt_h5_matrix *m)
+{
+    int st;
+    if (!m) return WT_OK;
+    wt_h5_writer *w = m->w;
+    QUIET(matrix_close_impl(m, 1));
+    return poison(w, st);
+}
+
+/* ---- appendable series -------------------------------------------------------------------------- */
+
+static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t n, const char *units, const char *desc,
+                              wt_h5_series **out)
+{
+    int st = WT_OK;
+    wt_h5_series *s = NULL;
+    hid_t space = -1, dcpl = -1;
+    int rank = n > 0 ? 2 : 1;
+    hsize_t hd[2] = {0, (hsize_t)n}, maxd[2] = {H5S_UNLIMITED, (hsize_t)n}, cd[2] = {PROBE_FRAMES, (hsize_t)n};
+    hsize_t chunk[2];
+    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_series_create: out is NULL", w->target);
+    *out = NULL;
+    WT_TRY(check_new(w, name, units, desc, 1));
+    WT_TRY(check_types(w, name, ft, ft));
+    if (n < 0)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
+                        (long long)n);
+    WT_ALLOC(w->ctx, s, 1, "an HDF5 series handle");
+    s->w = w;
+    s->dset = -1;
+    s->n = n;
+    if (!(s->name = dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if ((space = H5Screate_simple(rank, hd, maxd)) < 0 ||
+        (dcpl = numeric_dcpl(rank, cd, type_size(ft), SERIES_CHUNK_BYTES, 1, 0, chunk)) < 0 ||
+        (s->dset = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create series '%s' (H5Dcreate2)", w->target, name);
+    WT_TRY(set_doc(w, s->dset, name, units, desc));
+    s->next = w->series;
+    w->series = s;
+    *out = s;
+    s = NULL;
+fail:
+    if (s) {
+        drop(s->dset);
+        wt_free(w->ctx, s->name);
+        wt_free(w->ctx, s);
+    }
+    drop(dcpl);
+    drop(space);
+    return st;
+}
+
+int wt_h5_series_create(wt_h5_writer *w, const char *name, int file_type, int64_t n, const char *units,
+                        const char *description, wt_h5_series **out)
+{
+    WRITER_CALL(w, w, series_create_impl(w, name, file_type, n, units, description, out));
+}
+
+static int series_append_impl(wt_h5_series *s, int mt, const void *data)
+{
+    wt_h5_writer *w = s->w;
+    int st = WT_OK;
+    hid_t fs = -1, ms = -1;
+    WT_TRY(check_data(w, s->name, s->dset, mt, data));
+    hsize_t ext[2] = {(hsize_t)s->len + 1, (hsize_t)s->n}, start[2] = {(hsize_t)s->len, 0};
+    hsize_t count[2] = {1, (hsize_t)s->n};
+    int rank = s->n > 0 ? 2 : 1;
+    if (H5Dset_extent(s->dset, ext) < 0 || (fs = H5Dget_space(s->dset)) < 0 ||
+        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(rank, count, NULL)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: series '%s': cannot extend to %lld frames", w->target, s->name,
+               (long long)s->len + 1);
+    if (H5Dwrite(s->dset, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing frame %lld of series '%s' failed (H5Dwrite)", w->target,
+               (long long)s->len, s->name);
+    s->len++;
+fail:
+    drop(ms);
+    drop(fs);
+    return st;
+}
+
+int wt_h5_series_append(wt_h5_series *s, int mem_type, const void *data)
+{
+    WRITER_CALL(s, s->w, series_append_impl(s, mem_type, data));
+}
+
+int64_t wt_h5_series_length(const wt_h5_series *s) { return s ? s->len : 0; }
+
+static int series_close_impl(wt_h5_series *s)
+{
+    wt_h5_writer *w = s->w;
+    int st = WT_OK;
+    for (wt_h5_series **p = &w->series; *p; p = &(*p)->next)
+        if (*p == s) {
+            *p = s->next;
+            break;
+        }
+    if (H5Dclose(s->dset) < 0)
+        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing series '%s' failed (disk full?)", w->target, s->name);
+    wt_free(w->ctx, s->name);
+    wt_free(w->ctx, s);
+    return st;
+}
+
+int wt_h5_series_close(wt_h5_series *s)
+{
+    int st;
+    if (!s) return WT_OK;
+    wt_h5_writer *w = s->w;
+    QUIET(series_close_impl(s));
+    return poison(w, st);
+}
+
+/* ---- reader ------------------------------------------------------------------------------------- */
+
+static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value);
+
+static int open_impl(wt_context *ctx, const char *path, wt_h5_reader **out)
+{
+    int st = WT_OK;
+    wt_h5_reader *r = NULL;
+    hid_t fapl = -1;
+    struct stat sb;
+    int64_t complete = 0;
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: empty file name");
+    if (stat(path, &sb) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
+    if (S_ISDIR(sb.st_mode)) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': it is a directory", path);
+    if (access(path, R_OK) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot read '%s': %s", path, strerror(errno));
+    if (H5Fis_hdf5(path) <= 0)
+        return WT_ERROR(ctx, WT_ERR_FORMAT, "%s: not an HDF5 file (no HDF5 signature; %lld bytes)", path,
+                        (long long)sb.st_size);
+    WT_ALLOC(ctx, r, 1, "an HDF5 reader");
+    r->ctx = ctx;
+    r->file = -1;
+    if (!(r->path = dupstr(ctx, path))) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file name '%s'", path);
+    if ((fapl = file_access()) < 0) H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
+    if ((r->file = H5Fopen(path, H5F_ACC_RDONLY, fapl)) < 0)
+        H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot open as HDF5, the file is truncated or corrupt (H5Fopen)", path);
+    if (H5Aexists(r->file, "complete") <= 0)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: no root attribute 'complete' (its writer never committed "
+             "it: an interrupted run or a copied temporary)", path);
+    WT_TRY(read_one(r, "/", "complete", WT_H5_I64, &complete));
+    if (complete != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: root attribute 'complete' is %lld, expected 1", path,
+             (long long)complete);
+    drop(fapl);
+    *out = r;
+    return WT_OK;
+fail:
+    drop(fapl);
+    wt_h5_close(r);
+    return st;
+}
+
+int wt_h5_open(wt_context *ctx, const char *path, wt_h5_reader **out)
+{
+    int st;
+    QUIET(open_impl(ctx, path, out));
+    return st;
+}
+
+void wt_h5_close(wt_h5_reader *r)
+{
+    if (!r) return;
+    quiet q = quiet_on();
+    drop(r->file);
+    quiet_off(q);
+    wt_free(r->ctx, r->path);
+    wt_free(r->ctx, r);
+}
+
+const char *wt_h5_path(const wt_h5_reader *r) { return r ? r->path : NULL; }
+
+int wt_h5_exists(wt_h5_reader *r, const char *name)
+{
+    if (!r || !name) return 0;
+    quiet q = quiet_on();
+    int e = path_exists(r->file, name);
+    quiet_off(q);
+    return e;
+}
+
+/* Open dataset `name`; [out] its rank and dims. */
+static int open_dataset(wt_h5_reader *r, const char *name, hid_t *dset, int *rank, int64_t *dims)
+{
+    hid_t d = -1, space = -1;
+    int st = WT_OK;
+    *dset = -1;
+    if (!name || !path_exists(r->file, name))
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: no dataset '%s'", r->path, name ? name : "(null)");
+    if ((d = H5Dopen2(r->file, name, H5P_DEFAULT)) < 0 || (space = H5Dget_space(d)) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' is not a readable dataset (H5Dopen2)", r->path, name);
+    int nd = H5Sget_simple_extent_ndims(space);
+    hsize_t hd[WT_H5_MAX_RANK];
+    if (nd < 0 || nd > WT_H5_MAX_RANK)
+        FAIL(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has rank %d, at most %d is supported", r->path, name, nd,
+             WT_H5_MAX_RANK);
+    H5Sget_simple_extent_dims(space, hd, NULL);
+    *rank = nd;
+    for (int i = 0; i < nd; i++) dims[i] = (int64_t)hd[i];
+    *dset = d;
+    d = -1;
+fail:
+    drop(space);
+    drop(d);
+    return st;
+}
+
+int wt_h5_dims(wt_h5_reader *r, const char *name, int *rank, int64_t *dims)
+{
+    int st, s2;
+    hid_t d = -1;
+    if (!r) return WT_ERR_INVALID;
+    if (!rank || !dims) return WT_ERROR(r->ctx, WT_ERR_INVALID, "wt_h5_dims: rank or dims is NULL");
+    QUIET((s2 = open_dataset(r, name, &d, rank, dims), drop(d), s2));
+    return st;
+}
+
+static int shape_impl(wt_h5_reader *r, const char *name, hid_t *dset, int rank, const int64_t *expect, int64_t *dims)
+{
+    int nd = 0, st;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    char a[128], b[128];
+    if ((st = open_dataset(r, name, dset, &nd, got)) < 0) return st;
+    int ok = nd == rank;
+    for (int i = 0; ok && i < rank; i++) ok = !expect || expect[i] < 0 || expect[i] == got[i];
+    if (!ok) {
+        drop(*dset);
+        *dset = -1;
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has shape %s, expected %s", r->path, name,
+                        shape_text(a, sizeof a, nd, got), shape_text(b, sizeof b, rank, expect));
+    }
+    if (dims)
+        for (int i = 0; i < rank; i++) dims[i] = got[i];
+    return WT_OK;
+}
+
+int wt_h5_check_shape(wt_h5_reader *r, const char *name, int rank, const int64_t *expect, int64_t *dims)
+{
+    int st, s2;
+    hid_t d = -1;
+    if (!r) return WT_ERR_INVALID;
+    QUIET((s2 = shape_impl(r, name, &d, rank, expect, dims), drop(d), s2));
+    return st;
+}
+
+/* Numbers only, and no floating point into integers. */
+static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
+{
+    if (!type_ok(mt))
+        return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown memory type %d", r->path, name, mt);
+    hid_t ft = H5Dget_type(d);
+    H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
+    drop(ft);
+    if (c != H5T_FLOAT && c != H5T_INTEGER)
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' does not hold numbers (HDF5 type class %d)", r->path,
+                        name, (int)c);
+    if (c == H5T_FLOAT && !type_float(mt))
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' is floating point, refused as %s (lossy)", r->path,
+                        name, type_name(mt));
+    return WT_OK;
+}
+
+static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const int64_t *expect, int64_t *dims,
+                     void *data, size_t capacity)
+{
+    int st;
+    hid_t d = -1;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    WT_TRY(shape_impl(r, name, &d, rank, expect, got));
+    WT_TRY(check_readable(r, name, d, mt));
+    uint64_t total = 1;
+    for (int i = 0; i < rank; i++) total *= (uint64_t)got[i];
+    if (total > capacity || (total > 0 && !data))
+        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %llu elements, the buffer holds %zu", r->path, name,
+             (unsigned long long)total, data ? capacity : 0);
+    if (total > 0 && H5Dread(d, mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading dataset '%s' failed: corrupt data (checksum) or truncated file "
+               "(H5Dread)", r->path, name);
+    if (dims)
+        for (int i = 0; i < rank; i++) dims[i] = got[i];
+fail:
+    drop(d);
+    return st;
+}
+
+int wt_h5_read(wt_h5_reader *r, const char *name, int mem_type, int rank, const int64_t *expect, int64_t *dims,
+               void *data, size_t capacity)
+{
+    READER_CALL(r, read_impl(r, name, mem_type, rank, expect, dims, data, capacity));
+}
+
+static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row0, int64_t nrows, void *data)
+{
+    int st, nd = 0;
+    hid_t d = -1, fs = -1, ms = -1;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    hsize_t start[WT_H5_MAX_RANK] = {0}, count[WT_H5_MAX_RANK];
+    WT_TRY(open_dataset(r, name, &d, &nd, got));
+    WT_TRY(check_readable(r, name, d, mt));
+    if (nd < 1 || !data || row0 < 0 || nrows < 1 || row0 > got[0] - nrows)
+        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %lld rows, rows %lld..%lld requested", r->path, name,
+             nd < 1 ? 0LL : (long long)got[0], (long long)row0, (long long)(row0 + nrows - 1));
+    start[0] = (hsize_t)row0;
+    count[0] = (hsize_t)nrows;
+    for (int i = 1; i < nd; i++) count[i] = (hsize_t)got[i];
+    /* memory space of the selection's own shape: a flat one sends HDF5 down a ~30x slower path */
+    if ((fs = H5Dget_space(d)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(nd, count, NULL)) < 0)
+        H5FAIL(r->ctx, WT_ERR_LIBRARY, "%s: dataset '%s': cannot select rows", r->path, name);
+    if (H5Dread(d, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
+               "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
+fail:
+    drop(ms);
+    drop(fs);
+    drop(d);
+    return st;
+}
+
+int wt_h5_read_rows(wt_h5_reader *r, const char *name, int mem_type, int64_t row0, int64_t nrows, void *data)
+{
+    READER_CALL(r, read_rows_impl(r, name, mem_type, row0, nrows, data));
+}
+
+/* One value or a string from dataset `name` (obj == NULL) or from attribute `name` of `obj`. */
+static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value)
+{
+    int st = WT_OK, nd;
+    hid_t o = -1, a = -1;
+    int64_t dims[WT_H5_MAX_RANK];
+    char what[512];
+    if (!name || !value) return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: NULL name or output", r->path);
+    if (!obj) {
+        snprintf(what, sizeof what, "dataset '%s'", name);
+        WT_TRY(open_dataset(r, name, &o, &nd, dims));
+    } else {
+        snprintf(what, sizeof what, "attribute '%s' of '%s'", name, obj);
+        if (!path_exists(r->file, obj) || (o = H5Oopen(r->file, obj, H5P_DEFAULT)) < 0)
+            FAIL(r->ctx, WT_ERR_FORMAT, "%s: no group or dataset '%s' (looking for its attribute '%s')", r->path, obj,
+                 name);
+        if (H5Aexists(o, name) <= 0 || (a = H5Aopen(o, name, H5P_DEFAULT)) < 0)
+            FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' has no attribute '%s'", r->path, obj, name);
+    }
+    hid_t src = obj ? a : o;
+    st = t ? get_number(r->ctx, r->path, what, src, obj != NULL, t, value)
+           : get_string(r->ctx, r->path, what, src, obj != NULL, value);
+fail:
+    drop(a);
+    drop(o);
+    return st;
+}
+
+int wt_h5_read_double(wt_h5_reader *r, const char *name, double *value)
+{
+    READER_CALL(r, read_one(r, NULL, name, WT_H5_F64, value));
+}
+int wt_h5_read_int64(wt_h5_reader *r, const char *name, int64_t *value)
+{
+    READER_CALL(r, read_one(r, NULL, name, WT_H5_I64, value));
+}
+int wt_h5_read_string(wt_h5_reader *r, const char *name, char **text)
+{
+    READER_CALL(r, read_one(r, NULL, name, 0, text));
+}
+
+int wt_h5_attr_read_string(wt_h5_reader *r, const char *obj, const char *name, char **value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, 0, value));
+}
+
+int wt_h5_attr_read_double(wt_h5_reader *r, const char *obj, const char *name, double *value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_F64, value));
+}
+
+int wt_h5_attr_read_int64(wt_h5_reader *r, const char *obj, const char *name, int64_t *value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_I64, value));
+}

@@ -1,0 +1,57 @@
+/* core/la/chol.h: sparse Cholesky factorisation of a symmetric positive definite matrix (CHOLMOD).
+ *
+ * The MVM builder (SPEC §9) factorises the sparse MAP normal matrix N = Σ Ãᵀ C̃⁻¹ Ã + α D with it and
+ * solves for blocks of right-hand sides. This file pair is the only place that includes cholmod.h: the
+ * rest of the library sees an opaque wt_chol and plain wt_sparse / column-major double arrays.
+ *
+ * CHOLMOD's long-index interface (cholmod_l_*) is used, so matrices of more than 2^31 non-zeros work;
+ * wt_sparse's int64_t arrays are handed over without copying. Supernodal LLᵀ (its dense kernels run
+ * in the BLAS, i.e. OpenBLAS's threads), fill-reducing ordering as CHOLMOD chooses it (AMD, and METIS
+ * when AMD's fill is poor). CHOLMOD's memory comes from its own allocator (malloc), not the context's:
+ * wt_chol_info reports what it holds. CHOLMOD prints nothing (print level 0); its failures become
+ * WT_ERR_NOMEM, WT_ERR_NUMERIC (not positive definite) or WT_ERR_LIBRARY naming the call.
+ */
+#ifndef WT_CHOL_H
+#define WT_CHOL_H
+
+#include "sparse.h"
+
+typedef struct wt_chol wt_chol;
+
+typedef struct wt_chol_info {
+    int64_t n;              /* order of the matrix */
+    int64_t nnz_matrix;     /* entries of the upper triangle handed over */
+    double nnz_factor;      /* non-zeros of L (CHOLMOD's count, without supernodal padding) */
+    double factor_entries;  /* numerical entries L holds (with supernodal padding) */
+    double factor_bytes;    /* bytes of the numeric factor (values and supernode row indices) */
+    double flops;           /* flops of the factorisation, as CHOLMOD's analysis counts them */
+    double peak_bytes;      /* CHOLMOD's own peak memory so far [bytes] */
+    int supernodal;         /* 1 supernodal, 0 simplicial */
+    int factorized;         /* 1 after wt_chol_factorize */
+    const char *ordering;   /* "AMD", "METIS", "NESDIS", "natural", … */
+} wt_chol_info;
+
+/* Symbolic analysis (ordering, elimination tree, supernodes) of the n x n SPD matrix whose UPPER
+ * triangle is `upper` (CSC, rows sorted; entries below the diagonal are ignored). The sizes of the
+ * factor are known after this call (wt_chol_info), before any numeric memory is committed.
+ * `upper` is not copied and not kept. Allocates (CHOLMOD). */
+int wt_chol_analyze(wt_context *ctx, const wt_sparse *upper, wt_chol **out);
+void wt_chol_free(wt_chol *c);
+void wt_chol_info_get(const wt_chol *c, wt_chol_info *info);
+
+/* Numeric factorisation of the matrix (same pattern as at analysis; values may differ).
+ * WT_ERR_NUMERIC when it is not positive definite (naming the column), WT_ERR_NOMEM, WT_ERR_LIBRARY. */
+int wt_chol_factorize(wt_chol *c, const wt_sparse *upper);
+
+/* X = A⁻¹ B for nrhs columns (column-major, leading dimensions ldb, ldx ≥ n; B and X may be the same
+ * array). CHOLMOD allocates its solve workspace on the first call and reuses it while nrhs does not
+ * grow; not thread-safe per object. */
+int wt_chol_solve(wt_chol *c, int64_t nrhs, const double *b, int64_t ldb, double *x, int64_t ldx);
+
+/* Bytes CHOLMOD's solve needs for nrhs right-hand sides (its X, Y and E workspaces), for estimates. */
+double wt_chol_solve_bytes(int64_t n, int64_t nrhs);
+
+/* CHOLMOD's version string ("CHOLMOD 3.0.14"), for provenance records. */
+const char *wt_chol_version(void);
+
+#endif

@@ -1,0 +1,473 @@
+/* tests/test_mvm.c: the offline MVM builder (core/model/mvm.c, core/la/chol.c; SPEC §9): the assembled
+ * Ã against the matrix-free slopes, the factorised M = N + B Q Bᵀ against the matrix-free normal
+ * operator and PCG, R s against the converged matrix-free reconstructors (pcg3 and cg9), RÂ, the
+ * orderings, the memory budget and the error paths. */
+#include <cblas.h>
+
+#include "core/la/chol.h"
+#include "core/model/fitting.h"
+#include "core/model/interaction.h"
+#include "core/model/mvm.h"
+#include "core/model/system.h"
+#include "core/model/tomography.h"
+#include "core/op/shack_hartmann.h"
+#include "testutil.h"
+
+#define DEMO "data/presets/demo.cfg"
+
+typedef struct {
+    wt_context *ctx;
+    wt_config *cfg;
+    wt_system *sys;
+    wt_tomography *t;
+    int64_t n, ns, na;
+} fixture;
+
+static void setup(fixture *f, int cg9, int nset, const char *const *set)
+{
+    f->ctx = tu_context();
+    ck_assert_msg(wt_config_read(f->ctx, DEMO, nset, set, &f->cfg) == WT_OK, "%s", wt_error_message(f->ctx));
+    ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
+    ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3", &f->t) ==
+                      WT_OK,
+                  "%s", wt_error_message(f->ctx));
+    f->n = wt_tomography_nunknowns(f->t);
+    f->ns = f->sys->nslopes;
+    f->na = f->sys->nact;
+}
+
+static void teardown(fixture *f)
+{
+    wt_tomography_free(f->t);
+    wt_system_free(f->sys);
+    wt_config_free(f->ctx, f->cfg);
+    wt_context_free(f->ctx);
+}
+
+static void build(fixture *f, int cg9, wt_mvm **mv)
+{
+    wt_mvm_options opt;
+    wt_mvm_options_default(&opt);
+    opt.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
+    opt.fit_regularization = f->cfg->cg9.fit_regularization;
+    opt.block = 100; /* several blocks, the last one partial: the block loop's bookkeeping is exercised */
+    ck_assert_msg(wt_mvm_build(f->ctx, f->t, &opt, mv) == WT_OK, "%s", wt_error_message(f->ctx));
+}
+
+/* y = R s with float32 R, accumulated in double */
+static void apply_r(const wt_mvm *mv, const double *s, double *y)
+{
+    for (int64_t i = 0; i < mv->nact; i++) {
+        double acc = 0.0;
+        const float *row = mv->R + (size_t)i * mv->nslopes;
+        for (int64_t j = 0; j < mv->nslopes; j++) acc += (double)row[j] * s[j];
+        y[i] = acc;
+    }
+}
+
+/* Slopes of real size [rad]: Ã of a random coefficient vector plus white noise. */
+static void test_slopes(fixture *f, double *s, unsigned long seed)
+{
+    double *c = malloc(f->n * sizeof *c), *e = malloc(f->ns * sizeof *e);
+    tu_randn(c, f->n, seed);
+    for (int64_t i = 0; i < f->n; i++) c[i] *= 1e-7;
+    wt_tomography_slopes(f->t, c, s);
+    double rms = tu_norm(s, f->ns) / sqrt((double)f->ns);
+    tu_randn(e, f->ns, seed + 1);
+    for (int64_t i = 0; i < f->ns; i++) s[i] += 0.3 * rms * e[i];
+    free(c);
+    free(e);
+}
+
+/* Ã assembled column by column from the wavelet templates equals the matrix-free Γ P W⁻¹. Both are
+ * sums of a few hundred double products per slope: 1e-12 relative is rounding, any wrong template
+ * shift, layer offset, sensor row offset or weight is O(1). */
+START_TEST(test_atilde_matches_slopes)
+{
+    for (int v = 0; v < 2; v++) {
+        fixture f;
+        setup(&f, v, 0, NULL);
+        wt_sparse *A = NULL;
+        ck_assert_msg(wt_mvm_assemble_atilde(f.ctx, f.t, &A) == WT_OK, "%s", wt_error_message(f.ctx));
+        ck_assert_int_eq(A->nrow, f.ns);
+        ck_assert_int_eq(A->ncol, f.n);
+        double *c = malloc(f.n * sizeof *c), *y1 = calloc(f.ns, sizeof *y1), *y2 = malloc(f.ns * sizeof *y2);
+        tu_randn(c, f.n, 21 + v);
+        wt_sparse_apply(A, 1.0, c, y1);
+        wt_tomography_slopes(f.t, c, y2);
+        ck_assert_double_gt(tu_norm(y2, f.ns), 0.0);
+        ck_assert_double_le(tu_rel_diff(y1, y2, f.ns), 1e-12);
+        /* per sensor too, so that a small sensor (the NGS) cannot hide in the norm of the LGS */
+        for (int m = 0; m < f.sys->nsensors; m++) {
+            const wt_sensor *s = &f.sys->sensors[m];
+            ck_assert_msg(tu_rel_diff(y1 + s->offset, y2 + s->offset, s->nslopes) <= 1e-12, "variant %d sensor %s", v,
+                          s->name);
+        }
+        /* every column sorted (CHOLMOD and the builder rely on it) */
+        for (int64_t j = 0; j < A->ncol; j++)
+            for (int64_t k = A->colptr[j] + 1; k < A->colptr[j + 1]; k++) ck_assert(A->rowind[k] > A->rowind[k - 1]);
+        free(c);
+        free(y1);
+        free(y2);
+        wt_sparse_free(A);
+        teardown(&f);
+    }
+}
+END_TEST
+
+static wt_mvm_normal *normal(fixture *f)
+{
+    wt_mvm_normal *nm = NULL;
+    ck_assert_msg(wt_mvm_normal_alloc(f->ctx, f->t, NULL, 0.0, 1, &nm) == WT_OK, "%s", wt_error_message(f->ctx));
+    return nm;
+}
+
+/* N + B Q Bᵀ is the matrix-free M (tip-tilt removal and NGS in the low-rank part): same sums in another
+ * order, 1e-12 relative. The rank is 4 per LGS plus the NGS slopes. */
+START_TEST(test_normal_apply_matches)
+{
+    for (int v = 0; v < 2; v++) {
+        fixture f;
+        setup(&f, v, 0, NULL);
+        wt_mvm_normal *nm = normal(&f);
+        int rank = 4 * f.sys->nlgs;
+        for (int m = f.sys->nlgs; m < f.sys->nsensors; m++) rank += f.sys->sensors[m].nslopes;
+        ck_assert_int_eq(wt_mvm_normal_rank(nm), rank);
+        ck_assert_int_eq(wt_mvm_normal_size(nm), f.n);
+        double *x = malloc(f.n * sizeof *x), *y1 = malloc(f.n * sizeof *y1), *y2 = malloc(f.n * sizeof *y2);
+        for (int trial = 0; trial < 2; trial++) {
+            tu_randn(x, f.n, 31 + trial);
+            ck_assert_int_eq(wt_mvm_normal_apply(nm, x, y1), WT_OK);
+            wt_tomography_apply(f.t, x, y2);
+            ck_assert_double_le(tu_rel_diff(y1, y2, f.n), 1e-12);
+        }
+        wt_mvm_stats st;
+        wt_mvm_normal_stats(nm, &st);
+        ck_assert_int_gt(st.nnz_normal, f.n);
+        ck_assert_double_ge(st.nnz_factor, (double)st.nnz_normal); /* L holds at least N's upper pattern */
+        free(x);
+        free(y1);
+        free(y2);
+        wt_mvm_normal_free(nm);
+        teardown(&f);
+    }
+}
+END_TEST
+
+/* M⁻¹ b by CHOLMOD + Woodbury equals PCG run to 1e-12. The direct solve's own residual through the
+ * matrix-free M must be at rounding level (1e-10 allows κ ~ 1e5 times ε); the two solutions agree to
+ * 1e-9 (PCG's residual 1e-12 times the condition number of M). Several right-hand sides at once check
+ * the block path. */
+START_TEST(test_normal_solve_matches_pcg)
+{
+    for (int v = 0; v < 2; v++) {
+        fixture f;
+        setup(&f, v, 0, NULL);
+        wt_mvm_normal *nm = normal(&f);
+        const int k = 3;
+        double *s = malloc(f.ns * sizeof *s), *b = malloc(k * f.n * sizeof *b), *x = malloc(k * f.n * sizeof *x),
+               *xp = calloc(f.n, sizeof *xp), *r = malloc(f.n * sizeof *r);
+        for (int j = 0; j < k; j++) {
+            test_slopes(&f, s, 41 + 7 * j);
+            wt_tomography_rhs(f.t, s, b + j * f.n);
+        }
+        ck_assert_int_eq(wt_mvm_normal_solve(nm, k, b, x), WT_OK);
+        for (int j = 0; j < k; j++) {
+            wt_tomography_apply(f.t, x + j * f.n, r);
+            ck_assert_double_le(tu_rel_diff(r, b + j * f.n, f.n), 1e-10);
+        }
+        test_slopes(&f, s, 41 + 7 * (k - 1));
+        wt_pcg_result res;
+        int st = wt_tomography_solve(f.t, s, xp, 20000, 1e-12, NULL, &res);
+        ck_assert_msg(st == WT_OK, "PCG did not converge: %d its, %g", res.iterations, res.rel_resid);
+        ck_assert_double_le(tu_rel_diff(x + (k - 1) * f.n, xp, f.n), 1e-9);
+        free(s);
+        free(b);
+        free(x);
+        free(xp);
+        free(r);
+        wt_mvm_normal_free(nm);
+        teardown(&f);
+    }
+}
+END_TEST
+
+/* pcg3 commands computed independently of the builder: the layer value at each active actuator's
+ * position (the layer at the DM's altitude, points at (i − n/2) δ). */
+static void pcg3_commands(fixture *f, const double *c, double *a)
+{
+    double *phi = malloc(f->n * sizeof *phi);
+    wt_tomography_layers(f->t, c, phi);
+    int64_t q = 0;
+    for (int k = 0; k < f->sys->ndms; k++) {
+        int l = 0;
+        while (wt_tomography_layer_altitude(f->t, l) != f->sys->dm_altitude[k]) l++;
+        const wt_grid *lg = wt_tomography_layer_grid(f->t, l), *dg = &f->sys->dm_grid[k];
+        const double *layer = phi + wt_tomography_layer_offset(f->t, l);
+        for (int iy = 0; iy < dg->ny; iy++)
+            for (int ix = 0; ix < dg->nx; ix++) {
+                if (!f->sys->dm_active[k][ix + dg->nx * iy]) continue;
+                int gx = (int)lround((dg->x0 + ix * dg->dx - lg->x0) / lg->dx);
+                int gy = (int)lround((dg->y0 + iy * dg->dx - lg->y0) / lg->dx);
+                a[q++] = layer[gx + lg->nx * gy];
+            }
+    }
+    ck_assert_int_eq(q, f->na);
+    free(phi);
+}
+
+/* The issue test: R s equals the commands of the matrix-free reconstructor run to convergence
+ * (PCG to 1e-12; cg9's fitting by CG to 1e-13). R is float32: relative rounding 6e-8 per entry, grown
+ * by the cancellation in R s (‖|R| |s|‖ / ‖R s‖ ~ 10–100) to ≤ 1e-6; the converged iterations add
+ * ~1e-9. The issue asks 1e-4; 1e-5 is tighter and still a factor 10 above that bound (2.4e-8 measured
+ * on the demo). Any wrong row, column, weight or fitting ε is O(1e-3) or more. */
+static void check_r_matches(int cg9)
+{
+    fixture f;
+    setup(&f, cg9, 0, NULL);
+    wt_mvm *mv = NULL;
+    build(&f, cg9, &mv);
+    ck_assert_int_eq(mv->nact, f.na);
+    ck_assert_int_eq(mv->nslopes, f.ns);
+    double *s = malloc(f.ns * sizeof *s), *c = calloc(f.n, sizeof *c), *a = calloc(f.na, sizeof *a),
+           *ar = malloc(f.na * sizeof *ar);
+    for (int trial = 0; trial < 2; trial++) {
+        test_slopes(&f, s, 51 + trial);
+        memset(c, 0, f.n * sizeof *c);
+        wt_pcg_result res;
+        ck_assert_int_eq(wt_tomography_solve(f.t, s, c, 20000, 1e-12, NULL, &res), WT_OK);
+        if (!cg9) {
+            pcg3_commands(&f, c, a);
+        } else {
+            wt_fitting *fit = NULL;
+            wt_grid grids[WT_MAX_LAYERS];
+            double alts[WT_MAX_LAYERS];
+            int L = wt_tomography_nlayers(f.t);
+            for (int l = 0; l < L; l++) {
+                grids[l] = *wt_tomography_layer_grid(f.t, l);
+                alts[l] = wt_tomography_layer_altitude(f.t, l);
+            }
+            ck_assert_int_eq(wt_fitting_alloc(f.ctx, f.sys, L, grids, alts, f.cfg->cg9.fit_regularization, &fit), WT_OK);
+            double *phi = malloc(f.n * sizeof *phi);
+            wt_tomography_layers(f.t, c, phi);
+            memset(a, 0, f.na * sizeof *a);
+            ck_assert_int_eq(wt_fitting_solve(fit, phi, a, 20000, 1e-13, NULL, &res), WT_OK);
+            free(phi);
+            wt_fitting_free(fit);
+        }
+        apply_r(mv, s, ar);
+        ck_assert_double_gt(tu_norm(a, f.na), 0.0);
+        ck_assert_double_le(tu_rel_diff(ar, a, f.na), 1e-5);
+    }
+    free(s);
+    free(c);
+    free(a);
+    free(ar);
+    wt_mvm_free(mv);
+    teardown(&f);
+}
+
+START_TEST(test_r_matches_pcg3) { check_r_matches(0); }
+END_TEST
+
+START_TEST(test_r_matches_cg9) { check_r_matches(1); }
+END_TEST
+
+/* RÂ = R · Â with the dense Â: the builder forms it from the double-precision rows before rounding,
+ * so the difference to float R times Â is float rounding of R (6e-8) amplified by cancellation in the
+ * sums; 1e-5 relative per row. */
+START_TEST(test_ra_matches)
+{
+    fixture f;
+    setup(&f, 0, 0, NULL);
+    wt_mvm *mv = NULL;
+    build(&f, 0, &mv);
+    wt_interaction *ia = NULL;
+    ck_assert_int_eq(wt_interaction_alloc(f.ctx, f.sys, &ia), WT_OK);
+    double *ahat = calloc(f.ns * f.na, sizeof *ahat), *e = calloc(f.na, sizeof *e), *rf = malloc(f.ns * f.na * sizeof *rf),
+           *ref = malloc(f.na * f.na * sizeof *ref), *got = malloc(f.na * sizeof *got);
+    for (int64_t k = 0; k < f.na; k++) { /* dense Â column by column, matrix-free */
+        e[k] = 1.0;
+        wt_interaction_apply(ia, 1.0, e, ahat + k * f.ns);
+        e[k] = 0.0;
+    }
+    for (int64_t i = 0; i < f.na * f.ns; i++) rf[i] = mv->R[i];
+    /* ref = R Â: (na x ns row-major) · (ns x na column-major) */
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, (int)f.na, (int)f.na, (int)f.ns, 1.0, rf, (int)f.ns, ahat,
+                (int)f.ns, 0.0, ref, (int)f.na);
+    for (int64_t i = 0; i < f.na; i++) {
+        for (int64_t k = 0; k < f.na; k++) got[k] = mv->RA[i * f.na + k];
+        ck_assert_msg(tu_rel_diff(got, ref + i * f.na, f.na) <= 1e-5, "row %lld: %g", (long long)i,
+                      tu_rel_diff(got, ref + i * f.na, f.na));
+    }
+    free(ahat);
+    free(e);
+    free(rf);
+    free(ref);
+    free(got);
+    wt_interaction_free(ia);
+    wt_mvm_free(mv);
+    teardown(&f);
+}
+END_TEST
+
+/* Orderings: rows follow the actuators DM by DM in grid order, columns the slopes sensor by sensor.
+ * A ground-DM actuator's command depends most on the ground-layer gradient next to it, so in an LGS
+ * block of its row the subaperture of largest weight |R_x| + |R_y| is usually one of the four that
+ * share the actuator's corner (0.35 m away; 84 % of the cases on the demo, the rest pulled elsewhere by
+ * the global tip-tilt and the other layers); a transposed or shuffled layout makes that a 4/nsub
+ * chance. Checked on the interior actuators of DM 1 (the rim is distorted by the pupil edge),
+ * requiring 70 %. */
+START_TEST(test_orderings)
+{
+    fixture f;
+    setup(&f, 0, 0, NULL);
+    wt_mvm *mv = NULL;
+    build(&f, 0, &mv);
+    ck_assert_int_eq(mv->nact, f.sys->nact);
+    ck_assert_int_eq(mv->nslopes, f.sys->nslopes);
+    const wt_grid *dg = &f.sys->dm_grid[0];
+    const double rin = 0.5 * f.cfg->obstruction * f.cfg->diameter + 1.0, rout = 0.5 * f.cfg->diameter - 1.0;
+    int good = 0, total = 0;
+    int64_t q = 0;
+    for (int iy = 0; iy < dg->ny; iy++)
+        for (int ix = 0; ix < dg->nx; ix++) {
+            if (!f.sys->dm_active[0][ix + dg->nx * iy]) continue;
+            int64_t i = q++;
+            double x = dg->x0 + ix * dg->dx, y = dg->y0 + iy * dg->dx, r = hypot(x, y);
+            if (r < rin || r > rout) continue;
+            for (int m = 0; m < f.sys->nlgs; m++) {
+                const wt_sensor *s = &f.sys->sensors[m];
+                const float *row = mv->R + i * f.ns + s->offset;
+                int best = 0;
+                double bw = -1.0;
+                for (int k = 0; k < s->nsub; k++) {
+                    double w = fabs(row[k]) + fabs(row[s->nsub + k]);
+                    if (w > bw) bw = w, best = k;
+                }
+                double cx, cy;
+                wt_shack_hartmann_centre(s->sh, best, &cx, &cy);
+                good += hypot(cx - x, cy - y) <= 0.75 * f.sys->d;
+                total++;
+            }
+        }
+    ck_assert_int_gt(total, 20);
+    ck_assert_msg(good >= 0.7 * total, "only %d of %d largest weights next to their actuator", good, total);
+    wt_mvm_free(mv);
+    teardown(&f);
+}
+END_TEST
+
+/* The memory estimate refuses before allocating: a 1 MB budget stops at the first check, a budget one
+ * byte below the build's own peak estimate stops at a later one; both name the bytes. */
+START_TEST(test_budget_refuses)
+{
+    fixture f;
+    setup(&f, 0, 0, NULL);
+    wt_mvm_options opt;
+    wt_mvm_options_default(&opt);
+    wt_mvm *mv = NULL;
+    opt.memory_budget = 1e6;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_ERR_NOMEM);
+    ck_assert_ptr_null(mv);
+    const char *msg = wt_error_message(f.ctx);
+    ck_assert_msg(strstr(msg, "bytes") && strstr(msg, "1000000"), "message: %s", msg);
+    opt.memory_budget = 0.0;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_OK);
+    double peak = mv->stats.peak_estimate;
+    ck_assert_double_gt(peak, 4.0 * f.na * f.ns); /* R alone */
+    ck_assert_double_gt(mv->stats.nnz_factor, 0.0);
+    ck_assert_double_gt(mv->stats.t_total, 0.0);
+    wt_mvm_free(mv);
+    mv = NULL;
+    opt.memory_budget = floor(peak) - 1.0;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_ERR_NOMEM);
+    ck_assert_msg(strstr(wt_error_message(f.ctx), "bytes"), "message: %s", wt_error_message(f.ctx));
+    opt.memory_budget = peak + 1.0;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_OK);
+    wt_mvm_free(mv);
+    teardown(&f);
+}
+END_TEST
+
+/* pcg3 needs a layer at every DM's altitude and pitch: a second layer at 0.5 m for the 1 m DM 2 is
+ * refused naming the DM. */
+START_TEST(test_pcg3_layer_mismatch_refused)
+{
+    const char *set[] = {"recon.pcg3.layer_spacing_m=[0.5, 0.5, 1.0]", "recon.pcg3.layer_size=[32, 32, 32]"};
+    fixture f;
+    setup(&f, 0, 2, set);
+    wt_mvm_options opt;
+    wt_mvm_options_default(&opt);
+    wt_mvm *mv = NULL;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(f.ctx), "DM 2"), "message: %s", wt_error_message(f.ctx));
+    teardown(&f);
+}
+END_TEST
+
+/* CHOLMOD's failures come back as statuses naming the call: an indefinite matrix is WT_ERR_NUMERIC.
+ * A small SPD one is solved to rounding. */
+START_TEST(test_chol_errors_and_solve)
+{
+    wt_context *ctx = tu_context();
+    wt_triplet *tr = NULL;
+    wt_sparse *a = NULL;
+    wt_chol *ch = NULL;
+    /* [[1, 2], [2, 1]]: eigenvalues 3 and −1 */
+    ck_assert_int_eq(wt_triplet_alloc(ctx, 2, 2, 3, &tr), WT_OK);
+    wt_triplet_add(tr, 0, 0, 1.0);
+    wt_triplet_add(tr, 0, 1, 2.0);
+    wt_triplet_add(tr, 1, 1, 1.0);
+    ck_assert_int_eq(wt_triplet_compress(tr, &a), WT_OK);
+    wt_triplet_free(tr);
+    ck_assert_int_eq(wt_chol_analyze(ctx, a, &ch), WT_OK);
+    ck_assert_int_eq(wt_chol_factorize(ch, a), WT_ERR_NUMERIC);
+    ck_assert_msg(strstr(wt_error_message(ctx), "cholmod_l_factorize"), "%s", wt_error_message(ctx));
+    double b[2] = {1, 1}, x[2];
+    ck_assert_int_eq(wt_chol_solve(ch, 1, b, 2, x, 2), WT_ERR_INVALID);
+    wt_chol_free(ch);
+    wt_sparse_free(a);
+    /* [[4, 1], [1, 3]] x = [1, 2]: x = [1/11, 7/11] */
+    ck_assert_int_eq(wt_triplet_alloc(ctx, 2, 2, 3, &tr), WT_OK);
+    wt_triplet_add(tr, 0, 0, 4.0);
+    wt_triplet_add(tr, 0, 1, 1.0);
+    wt_triplet_add(tr, 1, 1, 3.0);
+    ck_assert_int_eq(wt_triplet_compress(tr, &a), WT_OK);
+    wt_triplet_free(tr);
+    ck_assert_int_eq(wt_chol_analyze(ctx, a, &ch), WT_OK);
+    ck_assert_int_eq(wt_chol_factorize(ch, a), WT_OK);
+    b[1] = 2.0;
+    ck_assert_int_eq(wt_chol_solve(ch, 1, b, 2, x, 2), WT_OK);
+    ck_assert_rel(x[0], 1.0 / 11.0, 1e-14, 0.0);
+    ck_assert_rel(x[1], 7.0 / 11.0, 1e-14, 0.0);
+    wt_chol_info ci;
+    wt_chol_info_get(ch, &ci);
+    ck_assert_double_eq(ci.nnz_factor, 3.0);
+    ck_assert_int_eq(ci.factorized, 1);
+    wt_chol_free(ch);
+    wt_sparse_free(a);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("mvm");
+    TCase *tc = tcase_create("core");
+    tcase_set_timeout(tc, 300);
+    tcase_add_test(tc, test_chol_errors_and_solve);
+    tcase_add_test(tc, test_atilde_matches_slopes);
+    tcase_add_test(tc, test_normal_apply_matches);
+    tcase_add_test(tc, test_normal_solve_matches_pcg);
+    tcase_add_test(tc, test_r_matches_pcg3);
+    tcase_add_test(tc, test_r_matches_cg9);
+    tcase_add_test(tc, test_ra_matches);
+    tcase_add_test(tc, test_orderings);
+    tcase_add_test(tc, test_budget_refuses);
+    tcase_add_test(tc, test_pcg3_layer_mismatch_refused);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
