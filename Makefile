@@ -68,8 +68,14 @@ test: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
 	@BUILD=$(BUILD) BIN=$(BIN) bash tests/run.sh $(TEST_BIN)
 
+# The main job on the demo system: the closed loop without correction, with pcg3 and with cg9.
 demo: all
-	$(BIN)/wavetomo info data/presets/demo.cfg
+	@mkdir -p out/demo
+	$(BIN)/wavetomo info data/presets/demo.cfg --no-nnz
+	@for r in none pcg3 cg9; do \
+	  $(BIN)/wavetomo sim --config data/presets/demo.cfg --recon $$r --out out/demo/$$r.h5 || exit 1; \
+	done
+	@echo "results: out/demo/{none,pcg3,cg9}.h5 (see README, 'Result files')"
 
 bench: all
 	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg

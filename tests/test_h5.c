@@ -636,6 +636,80 @@ START_TEST(test_silent)
 }
 END_TEST
 
+/* Allocation failure at every allocation of a write + read cycle: each run ends in WT_ERR_NOMEM or
+ * success, never leaves a temporary behind, and leaves the target only when commit succeeded. */
+typedef struct failing_alloc {
+    int countdown; /* allocations left before the failing one */
+    int failed;
+} failing_alloc;
+
+static void *fa_malloc(void *user, size_t n)
+{
+    failing_alloc *fa = user;
+    if (fa->countdown-- == 0) {
+        fa->failed = 1;
+        return NULL;
+    }
+    return malloc(n);
+}
+
+static void fa_free(void *user, void *p)
+{
+    (void)user;
+    free(p);
+}
+
+static int alloc_cycle(wt_context *ctx, const char *path)
+{
+    int st;
+    wt_h5_writer *w = NULL;
+    wt_h5_matrix *m = NULL;
+    wt_h5_series *s = NULL;
+    wt_h5_reader *r = NULL;
+    char *text = NULL;
+    float row[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+    if ((st = wt_h5_create(ctx, path, &w)) < 0) return st;
+    if ((st = wt_h5_matrix_create(w, "R", WT_H5_F32, 2, 8, "", "m", &m)) < 0 ||
+        (st = wt_h5_matrix_write_rows(m, 0, 1, WT_H5_F32, row)) < 0 ||
+        (st = wt_h5_matrix_write_rows(m, 1, 1, WT_H5_F32, row)) < 0 ||
+        (st = wt_h5_series_create(w, "s", WT_H5_F32, 8, "", "s", &s)) < 0 ||
+        (st = wt_h5_series_append(s, WT_H5_F32, row)) < 0 || (st = wt_h5_write_string(w, "c", "a = 1;", "c")) < 0) {
+        wt_h5_abort(w);
+        return st;
+    }
+    if ((st = wt_h5_commit(w)) < 0) return st;
+    if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
+    st = wt_h5_read_string(r, "c", &text);
+    if (st == WT_OK) st = strcmp(text, "a = 1;") == 0 ? WT_OK : WT_ERR_FORMAT;
+    wt_free(ctx, text);
+    wt_h5_close(r);
+    return st;
+}
+
+START_TEST(test_alloc_failures)
+{
+    char tmp[600];
+    int k;
+    for (k = 0; k < 100; k++) {
+        failing_alloc fa = {k, 0};
+        wt_context *ctx = tu_context();
+        wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+        int st = alloc_cycle(ctx, P(0, "a.h5"));
+        snprintf(tmp, sizeof tmp, "%s.tmp-%ld", P(0, "a.h5"), (long)getpid());
+        ck_assert_msg(!file_exists(tmp), "allocation %d: temporary left behind", k);
+        if (!fa.failed) {
+            ck_assert_int_eq(st, WT_OK);
+            wt_context_free(ctx);
+            break;
+        }
+        ck_assert_msg(st == WT_ERR_NOMEM, "allocation %d failed: status %d (%s)", k, st, wt_error_message(ctx));
+        unlink(P(0, "a.h5"));
+        wt_context_free(ctx);
+    }
+    ck_assert(k > 5 && k < 100); /* the cycle allocates a handful of times, and did complete */
+}
+END_TEST
+
 /* HDF5's automatic error printing is the caller's setting: off inside our calls, restored after.
  * A counting handler must see none of our failures and still see a direct HDF5 failure afterwards.
  * Then files the API cannot write, forged with HDF5 directly: "complete" = 0 (refused) and a
@@ -729,6 +803,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_poisoned_writer);
     tcase_add_test(tc, test_check_writable);
     tcase_add_test(tc, test_silent);
+    tcase_add_test(tc, test_alloc_failures);
     tcase_add_test(tc, test_hdf5_error_state);
     tcase_add_test(tc, test_version);
     suite_add_tcase(s, tc);

@@ -11,8 +11,9 @@
  *    uncommitted file, a dataset of the wrong shape, and data whose checksum fails.
  *
  * Layout choices (why):
- *  - every numeric dataset with at least one element is chunked with the Fletcher32 filter, so a
- *    corrupted byte of R is an error on reading rather than a wrong command; chunks are bands of whole
+ *  - every non-empty numeric array (rank >= 1) is chunked with the Fletcher32 filter, so a corrupted
+ *    byte of R is an error on reading rather than a wrong command (scalars and strings are stored
+ *    plainly: their headers are checksummed, their bytes are not); chunks are bands of whole
  *    rows of about 1 MiB (R at the E-ELT size: 4 rows of 61356); appendable series chunk by whole
  *    frames, as many as fit in 64 KiB (at least one: a 61356-slope frame is one chunk), because the
  *    last chunk is allocated in full;
@@ -102,7 +103,8 @@ int wt_h5_matrix_create(wt_h5_writer *w, const char *name, int file_type, int64_
                         const char *units, const char *description, wt_h5_matrix **out);
 /* Rows [row0, row0 + nrows) from `data`: a row-major nrows x cols array of mem_type. */
 int wt_h5_matrix_write_rows(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mem_type, const void *data);
-/* Optional early close (frees m); WT_ERR_INVALID if some rows were never written. NULL is fine. */
+/* Optional early close (frees m). Rows never written: WT_ERR_INVALID, and the writer will not commit.
+ * NULL is fine. */
 int wt_h5_matrix_close(wt_h5_matrix *m);
 
 /* An appendable series: n >= 1 gives a (frames x n) dataset, n == 0 a 1-D dataset of one value per
