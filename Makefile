@@ -22,7 +22,7 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug clean
+.PHONY: all deps test demo bench debug debug-test clean
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo
 
@@ -80,12 +80,16 @@ demo: all
 bench: all
 	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg
 
-# Sanitizer build in build-debug/ and bin-debug/: make debug && make test BUILD=build-debug BIN=bin-debug OPT=...
+# AddressSanitizer + UBSan build in build-debug/ and bin-debug/; `make debug-test` runs the suites with it
+# (UBSan findings abort, so a report fails the suite).
+SAN := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
 debug: deps
-	@$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug \
-	    OPT="-O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined" \
-	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" \
-	    bin-debug/wavetomo
+	@$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug OPT="$(SAN)" \
+	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" bin-debug/wavetomo
+
+debug-test: deps
+	@$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug OPT="$(SAN)" \
+	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" test
 
 clean:
 	rm -rf build build-debug bin bin-debug

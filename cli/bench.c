@@ -232,47 +232,38 @@ static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
     return st;
 }
 
+typedef struct {
+    const char *path;
+    long reps, loop_frames;
+    int skip_loop;
+} bench_args;
+
+static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
+{
+    bench_args *a = user;
+    const char *o = argv[*i], *v;
+    if (!strcmp(o, "--no-loop")) a->skip_loop = 1;
+    else if (!strcmp(o, "--reps") || !strcmp(o, "--loop-frames")) {
+        if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
+        if (wt_cli_int(cli, o, v, 3, 100000, o[2] == 'r' ? &a->reps : &a->loop_frames) < 0) return -1;
+    } else if (o[0] == '-' || a->path) return 0;
+    else a->path = o;
+    return 1;
+}
+
 int wt_cmd_bench(int argc, char **argv)
 {
     wt_cli cli;
-    if (wt_cli_init(&cli, "wavetomo bench")) return 1;
-    const char *path = NULL;
-    int reps = 50, rc = 0, skip_loop = 0, loop_frames = 20;
-    for (int i = 1; i < argc; i++) {
-        int h = wt_cli_common_option(&cli, argc, argv, &i);
-        if (h < 0) {
-            wt_cli_done(&cli);
-            return 2;
-        }
-        if (h) continue;
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            help();
-            wt_cli_done(&cli);
-            return 0;
-        }
-        if (!strcmp(argv[i], "--no-loop")) {
-            skip_loop = 1;
-        } else if (!strcmp(argv[i], "--loop-frames") && i + 1 < argc) {
-            loop_frames = atoi(argv[++i]);
-            if (loop_frames < 3) {
-                rc = wt_cli_usage_error(&cli, "--loop-frames must be at least 3, got '%s'", argv[i]);
-                wt_cli_done(&cli);
-                return rc;
-            }
-        } else if (!strcmp(argv[i], "--reps") && i + 1 < argc) {
-            reps = atoi(argv[++i]);
-            if (reps < 3) {
-                rc = wt_cli_usage_error(&cli, "--reps must be at least 3, got '%s'", argv[i]);
-                wt_cli_done(&cli);
-                return rc;
-            }
-        } else if (argv[i][0] == '-') {
-            rc = wt_cli_usage_error(&cli, "unknown option '%s'", argv[i]);
-            wt_cli_done(&cli);
-            return rc;
-        } else
-            path = argv[i];
+    if (wt_cli_init(&cli, "wavetomo bench", help)) return 1;
+    bench_args args = {NULL, 50, 20, 0};
+    int rc = wt_cli_parse(&cli, argc, argv, bench_option, &args);
+    if (rc >= 0) {
+        wt_cli_done(&cli);
+        return rc;
     }
+    rc = 0;
+    const char *path = args.path;
+    int reps = (int)args.reps, loop_frames = (int)args.loop_frames, skip_loop = args.skip_loop;
     if (!path && !cli.config_path) path = "data/presets/eelt-mcao.cfg";
     wt_config *cfg = NULL;
     wt_system *sys = NULL;

@@ -16,10 +16,11 @@ static void log_to_stderr(void *user, int level, const char *msg)
     fprintf(stderr, "wavetomo: %s: %s\n", names[level < 0 ? 0 : (level > 3 ? 3 : level)], msg);
 }
 
-int wt_cli_init(wt_cli *cli, const char *prog)
+int wt_cli_init(wt_cli *cli, const char *prog, void (*help)(void))
 {
     memset(cli, 0, sizeof *cli);
     cli->prog = prog;
+    cli->help = help;
     cli->ctx = wt_context_alloc();
     if (!cli->ctx) {
         fprintf(stderr, "%s: error: out of memory\n", prog);
@@ -96,6 +97,46 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
 #endif
     }
     return 1;
+}
+
+int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user)
+{
+    for (int i = 1; i < argc; i++) {
+        int h = wt_cli_common_option(cli, argc, argv, &i);
+        if (h < 0) return 2;
+        if (h) continue;
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            if (cli->help) cli->help();
+            return 0;
+        }
+        h = fn ? fn(cli, argc, argv, &i, user) : 0;
+        if (h < 0) return 2;
+        if (h == 0)
+            return wt_cli_usage_error(cli, argv[i][0] == '-' ? "unknown option '%s'" : "unexpected argument '%s'",
+                                      argv[i]);
+    }
+    return -1;
+}
+
+const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i)
+{
+    if (*i + 1 >= argc) {
+        wt_cli_usage_error(cli, "option %s needs a value", argv[*i]);
+        return NULL;
+    }
+    return argv[++*i];
+}
+
+int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out)
+{
+    char *end = NULL;
+    long v = strtol(text, &end, 10);
+    if (!text[0] || *end || v < lo || v > hi) {
+        wt_cli_usage_error(cli, "%s expects an integer in [%ld, %ld], got '%s'", name, lo, hi, text);
+        return -1;
+    }
+    *out = v;
+    return 0;
 }
 
 int wt_cli_fail(wt_cli *cli, int status)

@@ -14,6 +14,7 @@
 typedef struct wt_cli {
     wt_context *ctx;
     const char *prog;           /* "wavetomo info" … for messages */
+    void (*help)(void);         /* prints the command's --help text */
     const char *config_path;
     int nset;
     const char *set[WT_CLI_MAX_SET];
@@ -21,13 +22,25 @@ typedef struct wt_cli {
     int quiet;
 } wt_cli;
 
-/* Create the context (log to stderr unless quiet). Returns NULL on allocation failure. */
-int wt_cli_init(wt_cli *cli, const char *prog);
+/* Create the context (log to stderr unless quiet). Non-zero on allocation failure (message printed). */
+int wt_cli_init(wt_cli *cli, const char *prog, void (*help)(void));
 void wt_cli_done(wt_cli *cli);
 
 /* Handle a common option at argv[*i] (--config F, --set k=v, --threads N, --quiet); advances *i past
  * its value. Returns 1 if handled, 0 if not a common option, -1 on a usage error (message printed). */
 int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i);
+/* A command's own arguments: return 1 when argv[*i] was taken (advancing *i past a value it consumed),
+ * 0 when it is not one of the command's (an "unknown option" / "unexpected argument" error follows),
+ * or -1 after reporting a usage error with wt_cli_usage_error. */
+typedef int (*wt_cli_option_fn)(wt_cli *cli, int argc, char **argv, int *i, void *user);
+/* Parse argv[1..]: the common options, --help/-h (prints cli->help), then `fn` for the rest.
+ * Returns -1 to go on with the command, or the exit code to stop with (0 after --help, 2 on a usage
+ * error). */
+int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user);
+/* The value of option argv[*i]: argv[*i + 1] (advancing *i), or NULL after reporting a usage error. */
+const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i);
+/* Parse an integer in [lo, hi] for option `name`; reports a usage error and returns -1 when it is not. */
+int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out);
 /* Print "PROG: error: <message>" for a failed status and return the process exit code (1). */
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */

@@ -83,41 +83,43 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
     wt_tomography_free(t);
 }
 
+typedef struct {
+    const char *path;
+    int count_nnz, keys;
+} info_args;
+
+static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
+{
+    (void)argc;
+    info_args *a = user;
+    if (!strcmp(argv[*i], "--keys")) a->keys = 1;
+    else if (!strcmp(argv[*i], "--no-nnz")) a->count_nnz = 0;
+    else if (argv[*i][0] == '-') return 0;
+    else if (!a->path) a->path = argv[*i];
+    else {
+        wt_cli_usage_error(cli, "more than one CONFIG given ('%s' and '%s')", a->path, argv[*i]);
+        return -1;
+    }
+    return 1;
+}
+
 int wt_cmd_info(int argc, char **argv)
 {
     wt_cli cli;
-    if (wt_cli_init(&cli, "wavetomo info")) return 1;
-    const char *path = NULL;
-    int count_nnz = 1, rc = 0;
-    for (int i = 1; i < argc; i++) {
-        int h = wt_cli_common_option(&cli, argc, argv, &i);
-        if (h < 0) {
-            wt_cli_done(&cli);
-            return 2;
-        }
-        if (h) continue;
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            help();
-            wt_cli_done(&cli);
-            return 0;
-        }
-        if (!strcmp(argv[i], "--keys")) {
+    if (wt_cli_init(&cli, "wavetomo info", help)) return 1;
+    info_args args = {NULL, 1, 0};
+    int rc = wt_cli_parse(&cli, argc, argv, info_option, &args);
+    if (rc >= 0 || args.keys) {
+        if (args.keys && rc < 0) {
             wt_config_print_reference(stdout);
-            wt_cli_done(&cli);
-            return 0;
+            rc = 0;
         }
-        if (!strcmp(argv[i], "--no-nnz")) count_nnz = 0;
-        else if (argv[i][0] == '-') {
-            rc = wt_cli_usage_error(&cli, "unknown option '%s'", argv[i]);
-            wt_cli_done(&cli);
-            return rc;
-        } else if (!path) path = argv[i];
-        else {
-            rc = wt_cli_usage_error(&cli, "more than one CONFIG given ('%s' and '%s')", path, argv[i]);
-            wt_cli_done(&cli);
-            return rc;
-        }
+        wt_cli_done(&cli);
+        return rc;
     }
+    rc = 0;
+    const char *path = args.path;
+    int count_nnz = args.count_nnz;
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
     int st = wt_cli_read_config(&cli, path, &cfg);

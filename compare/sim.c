@@ -153,54 +153,49 @@ static int write_results(wt_cli *cli, wt_h5_writer *w, const wt_config *cfg, con
     return WT_OK;
 }
 
+typedef struct {
+    const char *recon, *out, *tel, *seed;
+    long frames, iters;
+    int dump, nonoise;
+} sim_args;
+
+static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
+{
+    sim_args *a = user;
+    const char *o = argv[*i];
+    const char **str = !strcmp(o, "--recon") ? &a->recon
+                       : !strcmp(o, "--out")      ? &a->out
+                       : !strcmp(o, "--telemetry") ? &a->tel
+                       : !strcmp(o, "--seed")     ? &a->seed
+                                                  : NULL;
+    if (!strcmp(o, "--no-noise")) a->nonoise = 1;
+    else if (!strcmp(o, "--dump-screens")) a->dump = 1;
+    else if (str) {
+        if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
+    } else if (!strcmp(o, "--frames") || !strcmp(o, "--iters")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        if (!v || wt_cli_int(cli, o, v, o[2] == 'f' ? 1 : 0, 10000000, o[2] == 'f' ? &a->frames : &a->iters) < 0)
+            return -1;
+    } else
+        return 0;
+    return 1;
+}
+
 int wt_cmd_sim(int argc, char **argv)
 {
     wt_cli cli;
-    if (wt_cli_init(&cli, "wavetomo sim")) return 1;
-    const char *recon = "pcg3", *out = NULL, *tel = NULL;
-    int iters = -1, dump = 0, rc = 0, nonoise = 0;
-    long frames_opt = -1;
-    const char *seed_opt = NULL;
-    char frames_set[64], seed_set[64], settle_set[64];
-    for (int i = 1; i < argc; i++) {
-        int h = wt_cli_common_option(&cli, argc, argv, &i);
-        if (h < 0) {
-            wt_cli_done(&cli);
-            return 2;
-        }
-        if (h) continue;
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            help();
-            wt_cli_done(&cli);
-            return 0;
-        } else if (!strcmp(a, "--no-noise")) nonoise = 1;
-        else if (!strcmp(a, "--dump-screens")) dump = 1;
-        else if (!v && (!strcmp(a, "--recon") || !strcmp(a, "--out") || !strcmp(a, "--telemetry") ||
-                        !strcmp(a, "--frames") || !strcmp(a, "--seed") || !strcmp(a, "--iters"))) {
-            rc = wt_cli_usage_error(&cli, "option %s needs a value", a);
-            goto done;
-        } else if (!strcmp(a, "--recon")) recon = argv[++i];
-        else if (!strcmp(a, "--out")) out = argv[++i];
-        else if (!strcmp(a, "--telemetry")) tel = argv[++i];
-        else if (!strcmp(a, "--frames") || !strcmp(a, "--iters")) {
-            char *end;
-            long x = strtol(v, &end, 10);
-            if (*end || x < (a[2] == 'f' ? 1 : 0) || x > 10000000) {
-                rc = wt_cli_usage_error(&cli, "%s expects a %s integer, got '%s'", a,
-                                        a[2] == 'f' ? "positive" : "non-negative", v);
-                goto done;
-            }
-            if (a[2] == 'f') frames_opt = x;
-            else iters = (int)x;
-            i++;
-        } else if (!strcmp(a, "--seed")) seed_opt = argv[++i];
-        else {
-            rc = wt_cli_usage_error(&cli, "unknown option '%s'", a);
-            goto done;
-        }
+    if (wt_cli_init(&cli, "wavetomo sim", help)) return 1;
+    sim_args args = {"pcg3", NULL, NULL, NULL, -1, -1, 0, 0};
+    int rc = wt_cli_parse(&cli, argc, argv, sim_option, &args);
+    if (rc >= 0) {
+        wt_cli_done(&cli);
+        return rc;
     }
+    rc = 0;
+    const char *recon = args.recon, *out = args.out, *tel = args.tel, *seed_opt = args.seed;
+    int iters = (int)args.iters, dump = args.dump, nonoise = args.nonoise;
+    long frames_opt = args.frames;
+    char frames_set[64], seed_set[64], settle_set[64];
     int kind = wt_reconstructor_kind(recon);
     if (kind < 0) {
         rc = wt_cli_usage_error(&cli, "--recon expects pcg3, cg9 or none, got '%s'", recon);

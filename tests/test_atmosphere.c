@@ -761,34 +761,12 @@ START_TEST(test_bad_input)
 }
 END_TEST
 
-typedef struct fail_alloc {
-    int countdown; /* allocations left before failing; < 0: never fail */
-    long live;     /* outstanding allocations */
-} fail_alloc;
-
-static void *fa_malloc(void *user, size_t size)
-{
-    fail_alloc *f = user;
-    if (f->countdown == 0) return NULL;
-    if (f->countdown > 0) f->countdown--;
-    void *p = malloc(size);
-    if (p) f->live++;
-    return p;
-}
-
-static void fa_free(void *user, void *p)
-{
-    fail_alloc *f = user;
-    if (p) f->live--;
-    free(p);
-}
-
 /* Each allocation of alloc failing in turn gives WT_ERR_NOMEM, *out = NULL and nothing left allocated. */
 START_TEST(test_alloc_failure)
 {
     wt_context *ctx = tu_context();
-    fail_alloc fa = {-1, 0};
-    wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_install(ctx, &fa);
     atm_setup s = three_layers(3);
     s.n = 32;
     wt_atmosphere *atm = make_atm(ctx, &s);
@@ -798,7 +776,7 @@ START_TEST(test_alloc_failure)
     ck_assert_int_eq(fa.live, 0);
     int failures = 0;
     for (int k = 0; k < 20; k++) {
-        fa.countdown = k;
+        tu_alloc_budget(&fa, k);
         wt_atmosphere_params p = {s.nl, s.h, s.f, s.v, s.dir, s.r0, s.L0, s.n, s.delta, s.seed, s.nosh};
         atm = NULL;
         int st = wt_atmosphere_alloc(ctx, &p, &atm);

@@ -555,31 +555,15 @@ END_TEST
 
 /* Allocation failure at each of the reader's allocations: WT_ERR_NOMEM, nothing returned, no leak
  * (the sanitizer build checks the last part). */
-typedef struct {
-    int left, live;
-} fail_alloc;
-static void *fa_malloc(void *user, size_t n)
-{
-    fail_alloc *fa = user;
-    if (fa->left-- <= 0) return NULL;
-    fa->live++;
-    return malloc(n);
-}
-static void fa_free(void *user, void *p)
-{
-    fail_alloc *fa = user;
-    if (p) fa->live--;
-    free(p);
-}
-
 START_TEST(test_alloc_failure)
 {
     const char *ov[] = {"loop.frames=300"};
     int failures = 0;
     for (int n = 0; n < 50; n++) {
         wt_context *ctx = tu_context();
-        fail_alloc fa = {n, 0};
-        wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+        tu_alloc fa = TU_ALLOC_INIT;
+        tu_alloc_budget(&fa, n);
+        tu_alloc_install(ctx, &fa);
         wt_config *cfg = (wt_config *)1;
         int st = wt_config_parse(ctx, VALID, NAME, 1, ov, &cfg);
         if (st == WT_OK) {

@@ -638,27 +638,6 @@ END_TEST
 
 /* Allocation failure at every allocation of a write + read cycle: each run ends in WT_ERR_NOMEM or
  * success, never leaves a temporary behind, and leaves the target only when commit succeeded. */
-typedef struct failing_alloc {
-    int countdown; /* allocations left before the failing one */
-    int failed;
-} failing_alloc;
-
-static void *fa_malloc(void *user, size_t n)
-{
-    failing_alloc *fa = user;
-    if (fa->countdown-- == 0) {
-        fa->failed = 1;
-        return NULL;
-    }
-    return malloc(n);
-}
-
-static void fa_free(void *user, void *p)
-{
-    (void)user;
-    free(p);
-}
-
 static int alloc_cycle(wt_context *ctx, const char *path)
 {
     int st;
@@ -691,9 +670,10 @@ START_TEST(test_alloc_failures)
     char tmp[600];
     int k;
     for (k = 0; k < 100; k++) {
-        failing_alloc fa = {k, 0};
+        tu_alloc fa = TU_ALLOC_INIT;
+        tu_alloc_fail_nth(&fa, k);
         wt_context *ctx = tu_context();
-        wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+        tu_alloc_install(ctx, &fa);
         int st = alloc_cycle(ctx, P(0, "a.h5"));
         snprintf(tmp, sizeof tmp, "%s.tmp-%ld", P(0, "a.h5"), (long)getpid());
         ck_assert_msg(!file_exists(tmp), "allocation %d: temporary left behind", k);

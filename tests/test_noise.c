@@ -385,29 +385,15 @@ END_TEST
 
 /* Allocation failure: every allocation of alloc and assemble_inv fails in turn; each must report
  * WT_ERR_NOMEM and leak nothing (ASan run). */
-typedef struct {
-    int fail_at, count;
-} fail_alloc;
-static void *failing_malloc(void *user, size_t size)
-{
-    fail_alloc *f = user;
-    if (f->count++ == f->fail_at) return NULL;
-    return malloc(size);
-}
-static void plain_free(void *user, void *p)
-{
-    (void)user;
-    free(p);
-}
-
 START_TEST(test_alloc_failure)
 {
     wt_context *ctx = tu_context();
     double beta[6] = {1e-6, 2e-6, 3e-6, -1e-6, 0, 1e-6};
     int failures = 0;
     for (int k = 0; k < 20; k++) {
-        fail_alloc f = {k, 0};
-        wt_context_set_allocator(ctx, failing_malloc, plain_free, &f);
+        tu_alloc f = TU_ALLOC_INIT;
+        tu_alloc_fail_nth(&f, k);
+        tu_alloc_install(ctx, &f);
         wt_noise *n = NULL;
         wt_sparse *A = NULL;
         int st = wt_noise_alloc(ctx, 3, 1e-13, LGS_FWHM, beta, 0.8, 1, &n);

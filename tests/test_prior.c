@@ -271,21 +271,6 @@ START_TEST(test_bad_input)
 }
 END_TEST
 
-typedef struct {
-    int fail_at, count;
-} fail_alloc;
-static void *failing_malloc(void *user, size_t size)
-{
-    fail_alloc *f = user;
-    if (f->count++ == f->fail_at) return NULL;
-    return malloc(size);
-}
-static void plain_free(void *user, void *p)
-{
-    (void)user;
-    free(p);
-}
-
 START_TEST(test_alloc_failure)
 {
     /* every allocation of wt_prior_alloc fails in turn: WT_ERR_NOMEM, NULL out, no leak (ASan run) */
@@ -293,8 +278,9 @@ START_TEST(test_alloc_failure)
     wt_wavelet *w = make_wavelet(ctx, 16, 3, 2);
     int failures = 0;
     for (int k = 0; k < 30; k++) {
-        fail_alloc f = {k, 0};
-        wt_context_set_allocator(ctx, failing_malloc, plain_free, &f);
+        tu_alloc f = TU_ALLOC_INIT;
+        tu_alloc_fail_nth(&f, k);
+        tu_alloc_install(ctx, &f);
         wt_prior *p = NULL;
         int st = wt_prior_alloc(ctx, w, 0.5, R0, 0.5, L0, WT_PRIOR_PAPER, &p);
         wt_context_set_allocator(ctx, NULL, NULL, NULL);

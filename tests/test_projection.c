@@ -8,27 +8,6 @@
 
 #define ARCSEC (M_PI / (180.0 * 3600.0))
 
-/* Allocator that fails once its budget is spent (budget < 0: unlimited) and counts live blocks. */
-typedef struct {
-    int budget, live, nalloc;
-} tu_failing_alloc;
-static void *fa_malloc(void *u, size_t n)
-{
-    tu_failing_alloc *f = u;
-    if (f->budget == 0) return NULL;
-    if (f->budget > 0) f->budget--;
-    f->live++;
-    f->nalloc++;
-    return malloc(n);
-}
-static void fa_free(void *u, void *p)
-{
-    tu_failing_alloc *f = u;
-    f->live--;
-    free(p);
-}
-
-
 /* The E-ELT-like stack of SPEC §6: 128² @ 0.5 m at 0 m, 64² @ 1 m at 4 and 12.7 km. */
 static const double alts3[3] = {0.0, 4000.0, 12700.0};
 static void layers3(wt_grid g[3])
@@ -352,8 +331,8 @@ START_TEST(test_allocation)
     /* Every allocation failure in alloc and assemble is reported as WT_ERR_NOMEM and leaks nothing;
      * apply and apply_t allocate nothing. */
     wt_context *ctx = tu_context();
-    tu_failing_alloc fa = {-1, 0, 0};
-    wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_install(ctx, &fa);
     wt_grid g[3];
     layers3(g);
     uint8_t mask[85 * 85];
@@ -361,20 +340,20 @@ START_TEST(test_allocation)
     int k, ok = 0;
     for (k = 0; k < 100 && !ok; k++) {
         wt_projection *p = (wt_projection *)&p;
-        fa.budget = k;
+        tu_alloc_budget(&fa, k);
         int st = wt_projection_alloc(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, 0.0, &t, mask, 0, &p);
         if (st == WT_OK) {
             ok = 1;
-            fa.budget = -1;
+            tu_alloc_budget(&fa, -1);
             long nin = wt_projection_nin(p);
             double *x = calloc(nin, sizeof *x), *y = calloc(85 * 85, sizeof *y);
-            int before = fa.nalloc;
+            long before = fa.nalloc;
             wt_projection_apply(p, 1.0, x, y);
             wt_projection_apply_t(p, 1.0, y, x);
             ck_assert_int_eq(fa.nalloc, before);
             for (int b = 0; b < 20; b++) {
                 wt_sparse *A = (wt_sparse *)&A;
-                fa.budget = b;
+                tu_alloc_budget(&fa, b);
                 int sa = wt_projection_assemble(p, &A);
                 if (sa == WT_OK) {
                     wt_sparse_free(A);
@@ -383,7 +362,7 @@ START_TEST(test_allocation)
                 ck_assert_int_eq(sa, WT_ERR_NOMEM);
                 ck_assert_ptr_null(A);
             }
-            fa.budget = -1;
+            tu_alloc_budget(&fa, -1);
             wt_projection_free(p);
             free(x), free(y);
         } else {

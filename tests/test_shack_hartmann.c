@@ -9,27 +9,6 @@
 #define N 84
 #define D_SUB 0.5
 
-/* Allocator that fails once its budget is spent (budget < 0: unlimited) and counts live blocks. */
-typedef struct {
-    int budget, live, nalloc;
-} tu_failing_alloc;
-static void *fa_malloc(void *u, size_t n)
-{
-    tu_failing_alloc *f = u;
-    if (f->budget == 0) return NULL;
-    if (f->budget > 0) f->budget--;
-    f->live++;
-    f->nalloc++;
-    return malloc(n);
-}
-static void fa_free(void *u, void *p)
-{
-    tu_failing_alloc *f = u;
-    f->live--;
-    free(p);
-}
-
-
 static void eelt_valid(uint8_t *v) { ck_assert_int_eq(wt_pupil_valid_subapertures(42.0, 0.28, N, 0.5, v), 5112); }
 
 static wt_shack_hartmann *make(wt_context *ctx, int n, double d, const uint8_t *v, int m)
@@ -279,27 +258,27 @@ START_TEST(test_allocation)
 {
     /* allocation failures in alloc and assemble: WT_ERR_NOMEM, nothing leaked; apply allocates nothing */
     wt_context *ctx = tu_context();
-    tu_failing_alloc fa = {-1, 0, 0};
-    wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_install(ctx, &fa);
     uint8_t v[N * N];
     eelt_valid(v);
     for (int m = 0; m <= 2; m++) {
         int k, ok = 0;
         for (k = 0; k < 50 && !ok; k++) {
             wt_shack_hartmann *s = (wt_shack_hartmann *)&s;
-            fa.budget = k;
+            tu_alloc_budget(&fa, k);
             int st = m ? wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, m, &s) : wt_shack_hartmann_alloc(ctx, N, D_SUB, v, &s);
             if (st == WT_OK) {
                 ok = 1;
-                fa.budget = -1;
+                tu_alloc_budget(&fa, -1);
                 double *phi = calloc((N + 1) * (N + 1), sizeof *phi), *sl = calloc(2 * 5112, sizeof *sl);
-                int before = fa.nalloc;
+                long before = fa.nalloc;
                 wt_shack_hartmann_apply(s, 1.0, phi, sl);
                 wt_shack_hartmann_apply_t(s, 1.0, sl, phi);
                 ck_assert_int_eq(fa.nalloc, before);
                 for (int b = 0; b < 20; b++) {
                     wt_sparse *A = (wt_sparse *)&A;
-                    fa.budget = b;
+                    tu_alloc_budget(&fa, b);
                     int sa = wt_shack_hartmann_assemble(s, &A);
                     if (sa == WT_OK) {
                         wt_sparse_free(A);
@@ -308,7 +287,7 @@ START_TEST(test_allocation)
                     ck_assert_int_eq(sa, WT_ERR_NOMEM);
                     ck_assert_ptr_null(A);
                 }
-                fa.budget = -1;
+                tu_alloc_budget(&fa, -1);
                 wt_shack_hartmann_free(s);
                 free(phi), free(sl);
             } else {

@@ -456,22 +456,12 @@ START_TEST(test_bad_input)
 }
 END_TEST
 
-static void *failing_malloc(void *user, size_t size)
-{
-    (void)user;
-    (void)size;
-    return NULL;
-}
-static void plain_free(void *user, void *ptr)
-{
-    (void)user;
-    free(ptr);
-}
-
 START_TEST(test_alloc_failure)
 {
     wt_context *ctx = tu_context();
-    wt_context_set_allocator(ctx, failing_malloc, plain_free, NULL);
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_budget(&fa, 0); /* every allocation fails */
+    tu_alloc_install(ctx, &fa);
     wt_wavelet *w = NULL;
     ck_assert_int_eq(wt_wavelet_alloc(ctx, 64, 3, 5, &w), WT_ERR_NOMEM);
     ck_assert_ptr_null(w);

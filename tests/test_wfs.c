@@ -17,25 +17,6 @@
 #define DSUB 0.5
 #define P 4
 
-/* Allocator that fails once its budget is spent (budget < 0: unlimited) and counts live blocks. */
-typedef struct {
-    int budget, live;
-} failing_alloc;
-static void *fa_malloc(void *u, size_t n)
-{
-    failing_alloc *f = u;
-    if (f->budget == 0) return NULL;
-    if (f->budget > 0) f->budget--;
-    f->live++;
-    return malloc(n);
-}
-static void fa_free(void *u, void *p)
-{
-    failing_alloc *f = u;
-    if (p) f->live--;
-    free(p);
-}
-
 static void eelt_valid(uint8_t *v) { ck_assert_int_eq(wt_pupil_valid_subapertures(DIAM, OBS, N, 0.5, v), 5112); }
 
 static wt_wfs *make(wt_context *ctx, double D, double obs, int n, int p, const uint8_t *v, int m)
@@ -619,8 +600,9 @@ START_TEST(test_alloc_failure)
     for (int t = 0; t < 2; t++) {
         int budget = 0, st;
         do {
-            failing_alloc fa = {budget, 0};
-            wt_context_set_allocator(ctx, fa_malloc, fa_free, &fa);
+            tu_alloc fa = TU_ALLOC_INIT;
+            tu_alloc_budget(&fa, budget);
+            tu_alloc_install(ctx, &fa);
             wt_wfs *w = NULL;
             st = wt_wfs_alloc(ctx, 4.0, 0.3, 8, 0.5, 3, v, ms[t], &w);
             if (st == WT_OK) {

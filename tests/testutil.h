@@ -55,6 +55,62 @@ static inline wt_context *tu_context(void)
     return ctx;
 }
 
+/* An allocator for a context that refuses chosen allocations and counts what it grants, for the
+ * allocation-failure tests: every failure must surface as WT_ERR_NOMEM and leave `live` at 0.
+ * Allocation requests are numbered from 0 in `count`; the request numbered `fail_at` is refused and,
+ * unless `once` is set, so is every later one (a budget of fail_at allocations). Declare it with
+ * TU_ALLOC_INIT (refuses nothing), then aim it with tu_alloc_budget or tu_alloc_fail_nth. */
+typedef struct tu_alloc {
+    long fail_at; /* number of the first request refused; < 0: none */
+    int once;     /* nonzero: refuse request fail_at only; zero: refuse it and all after it */
+    long count;   /* requests seen, refused ones included */
+    long nalloc;  /* requests granted */
+    long failed;  /* requests refused */
+    long live;    /* granted blocks not yet freed */
+} tu_alloc;
+
+#define TU_ALLOC_INIT {.fail_at = -1}
+
+static inline void *tu_alloc_malloc(void *user, size_t size)
+{
+    tu_alloc *a = user;
+    long k = a->count++;
+    if (a->fail_at >= 0 && (a->once ? k == a->fail_at : k >= a->fail_at)) {
+        a->failed++;
+        return NULL;
+    }
+    void *p = malloc(size);
+    if (p) a->nalloc++, a->live++;
+    return p;
+}
+
+static inline void tu_alloc_free(void *user, void *p)
+{
+    tu_alloc *a = user;
+    if (p) a->live--;
+    free(p);
+}
+
+/* Route ctx's allocations through a (which must outlive them, or be uninstalled first). */
+static inline void tu_alloc_install(wt_context *ctx, tu_alloc *a)
+{
+    wt_context_set_allocator(ctx, tu_alloc_malloc, tu_alloc_free, a);
+}
+
+/* From now on grant k more requests and refuse all later ones; k < 0: refuse nothing. */
+static inline void tu_alloc_budget(tu_alloc *a, long k)
+{
+    a->fail_at = k < 0 ? -1 : a->count + k;
+    a->once = 0;
+}
+
+/* Refuse only the k-th request from now on (k = 0: the next one); the ones after it are granted. */
+static inline void tu_alloc_fail_nth(tu_alloc *a, long k)
+{
+    a->fail_at = a->count + k;
+    a->once = 1;
+}
+
 /* Every suite file defines `Suite *make_suite(void)` and ends with TU_MAIN. */
 #define TU_MAIN                                              \
     int main(void)                                           \

@@ -1,16 +1,17 @@
-/* core/io/h5.c: the HDF5 layer: atomic writer, row-block matrices, appendable series, checked reader.
+/* core/io/h5.c: the HDF5 layer's shared helpers and the atomic writer: datasets, attributes,
+ * row-block matrices, appendable series, commit.
  *
  * Implements the file side of SPEC §9 (R and RÂ as float32, written to a temporary and renamed so an
  * interrupted build never leaves a file that looks complete) and the telemetry/result files of the
  * simulator. Every public function brackets its HDF5 calls with quiet_on/quiet_off: HDF5's automatic
  * stack printing is off inside, restored on return, and the innermost HDF5 error description is
- * folded into our message (h5err). Writers remember their first failure and refuse to commit.
+ * folded into our message (H5ERR). Writers remember their first failure and refuse to commit.
+ * The reader is h5_read.c; what both use is declared in h5_private.h.
  */
-#include "h5.h"
+#include "h5_private.h"
 
 #include <errno.h>
 #include <fcntl.h>
-#include <hdf5.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -51,39 +52,21 @@ struct wt_h5_series {
     wt_h5_series *next;
 };
 
-struct wt_h5_reader {
-    wt_context *ctx;
-    hid_t file;
-    char *path;
-};
-
 /* ---- HDF5 error handling ------------------------------------------------------------------------ */
 
-typedef struct quiet {
-    H5E_auto2_t func;
-    void *data;
-} quiet;
-
-static quiet quiet_on(void)
+wt_h5_priv_quiet wt_h5_priv_quiet_on(void)
 {
-    quiet q = {NULL, NULL};
+    wt_h5_priv_quiet q = {NULL, NULL};
     H5Eget_auto2(H5E_DEFAULT, &q.func, &q.data);
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
     return q;
 }
 
-static void quiet_off(quiet q)
+void wt_h5_priv_quiet_off(wt_h5_priv_quiet q)
 {
     H5Eclear2(H5E_DEFAULT);
     H5Eset_auto2(H5E_DEFAULT, q.func, q.data);
 }
-
-#define QUIET(expr)            \
-    do {                       \
-        quiet q_ = quiet_on(); \
-        st = (expr);           \
-        quiet_off(q_);         \
-    } while (0)
 
 static herr_t walk_cb(unsigned n, const H5E_error2_t *e, void *user)
 {
@@ -92,10 +75,7 @@ static herr_t walk_cb(unsigned n, const H5E_error2_t *e, void *user)
     return 0;
 }
 
-/* Record `status` with our message plus HDF5's innermost description, then clear HDF5's stack. */
-static int h5err(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
-    __attribute__((format(printf, 5, 6)));
-static int h5err(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
+int wt_h5_priv_error(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
 {
     char msg[1200], detail[400] = "";
     va_list ap;
@@ -107,34 +87,14 @@ static int h5err(wt_context *ctx, int status, const char *src, int line, const c
     if (detail[0]) return wt_error_set(ctx, status, src, line, "%s [HDF5 %s]", msg, detail);
     return wt_error_set(ctx, status, src, line, "%s", msg);
 }
-#define H5ERR(ctx, status, ...) h5err((ctx), (status), __FILE__, __LINE__, __VA_ARGS__)
 
-/* Record an error and jump to the function's `fail` label (needs an `int st`); H5FAIL adds HDF5's detail. */
-#define FAIL(ctx, status, ...)                       \
-    do {                                             \
-        st = WT_ERROR((ctx), (status), __VA_ARGS__); \
-        goto fail;                                   \
-    } while (0)
-#define H5FAIL(ctx, status, ...)                  \
-    do {                                          \
-        st = H5ERR((ctx), (status), __VA_ARGS__); \
-        goto fail;                                \
-    } while (0)
-
-/* Bodies of the public calls: quiet HDF5 around the work; a writer remembers its first failure. */
+/* Body of the public writer calls: quiet HDF5 around the work; the writer remembers its first failure. */
 #define WRITER_CALL(handle, writer, expr)     \
     do {                                      \
         int st;                               \
         if (!(handle)) return WT_ERR_INVALID; \
         QUIET(expr);                          \
         return poison((writer), st);          \
-    } while (0)
-#define READER_CALL(r, expr)             \
-    do {                                 \
-        int st;                          \
-        if (!(r)) return WT_ERR_INVALID; \
-        QUIET(expr);                     \
-        return st;                       \
     } while (0)
 
 static int poison(wt_h5_writer *w, int st)
@@ -146,8 +106,7 @@ static int poison(wt_h5_writer *w, int st)
     return st;
 }
 
-/* Close any HDF5 id we created; ignores invalid ids (cleanup paths). */
-static void drop(hid_t id)
+void wt_h5_priv_drop(hid_t id)
 {
     if (id < 0) return;
     switch (H5Iget_type(id)) {
@@ -162,24 +121,24 @@ static void drop(hid_t id)
     }
 }
 
-/* ---- types, names, shapes ----------------------------------------------------------------------- */
+/* ---- types, names, files ------------------------------------------------------------------------ */
 
-static int type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_U8; }
-static int type_float(int t) { return t == WT_H5_F64 || t == WT_H5_F32; }
+int wt_h5_priv_type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_U8; }
+int wt_h5_priv_type_float(int t) { return t == WT_H5_F64 || t == WT_H5_F32; }
 
-static const char *type_name(int t)
+const char *wt_h5_priv_type_name(int t)
 {
     static const char *const names[] = {"?", "float64", "float32", "int32", "int64", "uint8"};
-    return type_ok(t) ? names[t] : "?";
+    return wt_h5_priv_type_ok(t) ? names[t] : "?";
 }
 
 static size_t type_size(int t)
 {
     static const size_t sizes[] = {0, 8, 4, 4, 8, 1};
-    return type_ok(t) ? sizes[t] : 0;
+    return wt_h5_priv_type_ok(t) ? sizes[t] : 0;
 }
 
-static hid_t mem_type(int t)
+hid_t wt_h5_priv_mem_type(int t)
 {
     switch (t) {
     case WT_H5_F64: return H5T_NATIVE_DOUBLE;
@@ -203,7 +162,7 @@ static hid_t file_type(int t)
     }
 }
 
-static char *dupstr(wt_context *ctx, const char *s)
+char *wt_h5_priv_dupstr(wt_context *ctx, const char *s)
 {
     size_t n = strlen(s);
     char *p = wt_malloc(ctx, n + 1, 1);
@@ -211,24 +170,8 @@ static char *dupstr(wt_context *ctx, const char *s)
     return p;
 }
 
-/* "9295 x 61356", "any" for a negative entry, "a scalar" for rank 0. */
-static const char *shape_text(char *buf, size_t n, int rank, const int64_t *d)
-{
-    size_t k = 0;
-    buf[0] = '\0';
-    if (rank == 0) return snprintf(buf, n, "a scalar"), buf;
-    for (int i = 0; i < rank && k < n; i++) {
-        const char *sep = i ? " x " : "";
-        if (!d || d[i] < 0)
-            k += (size_t)snprintf(buf + k, n - k, "%sany", sep);
-        else
-            k += (size_t)snprintf(buf + k, n - k, "%s%lld", sep, (long long)d[i]);
-    }
-    return buf;
-}
-
 /* 1 when every prefix of `name` is a link (so H5Lexists never sees a missing parent), else 0. */
-static int path_exists(hid_t file, const char *name)
+int wt_h5_priv_path_exists(hid_t file, const char *name)
 {
     char buf[1024];
     size_t n = strlen(name);
@@ -283,7 +226,7 @@ static hid_t numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t ta
 }
 
 /* Metadata in the 1.8+ format (checksummed headers), strong close, file locks where supported. */
-static hid_t file_access(void)
+hid_t wt_h5_priv_file_access(void)
 {
     hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
     if (fapl < 0) return -1;
@@ -295,7 +238,7 @@ static hid_t file_access(void)
     return fapl;
 }
 
-static hid_t string_type(size_t len, H5T_cset_t cset)
+hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset)
 {
     hid_t t = H5Tcopy(H5T_C_S1);
     if (t < 0) return -1;
@@ -306,7 +249,7 @@ static hid_t string_type(size_t len, H5T_cset_t cset)
     return t;
 }
 
-/* ---- attributes (shared by writer and reader) --------------------------------------------------- */
+/* ---- attributes --------------------------------------------------------------------------------- */
 
 /* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt. */
 static herr_t put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value)
@@ -319,78 +262,18 @@ static herr_t put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const vo
     if ((a = H5Acreate2(obj, name, ft, space, H5P_DEFAULT, H5P_DEFAULT)) < 0) goto out;
     r = H5Awrite(a, mt, value);
 out:
-    drop(a);
-    drop(space);
+    wt_h5_priv_drop(a);
+    wt_h5_priv_drop(space);
     return r;
 }
 
 static herr_t put_attr_string(hid_t obj, const char *name, const char *value)
 {
-    hid_t t = string_type(strlen(value), H5T_CSET_UTF8);
+    hid_t t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8);
     if (t < 0) return -1;
     herr_t r = put_attr(obj, name, t, t, value);
     H5Tclose(t);
     return r;
-}
-
-/* Read a one-element string from a dataset or attribute, fixed or variable length. */
-static int get_string(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, char **out)
-{
-    int st = WT_OK;
-    hid_t ft = -1, mt = -1, space = -1;
-    char *buf = NULL, *vl = NULL;
-    ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
-    space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
-    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
-    if (H5Tget_class(ft) != H5T_STRING || H5Sget_simple_extent_npoints(space) != 1)
-        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is not a single string", file, what);
-    int var = H5Tis_variable_str(ft) > 0;
-    size_t size = var ? 0 : H5Tget_size(ft);
-    if ((mt = string_type(size, H5Tget_cset(ft))) < 0 || (var && H5Tset_size(mt, H5T_VARIABLE) < 0))
-        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for %s", file, what);
-    void *dst = var ? (void *)&vl : NULL;
-    if (!var) {
-        WT_ALLOC(ctx, buf, size + 1, "a string read from HDF5");
-        dst = buf;
-    }
-    herr_t r = is_attr ? H5Aread(obj, mt, dst) : H5Dread(obj, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, dst);
-    if (r < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed (%s)", file, what, is_attr ? "H5Aread" : "H5Dread");
-    if (var) {
-        WT_ALLOC(ctx, buf, (vl ? strlen(vl) : 0) + 1, "a string read from HDF5");
-        if (vl) strcpy(buf, vl);
-    }
-    *out = buf;
-    buf = NULL;
-fail:
-    if (vl) H5Dvlen_reclaim(mt, space, H5P_DEFAULT, &vl);
-    wt_free(ctx, buf);
-    drop(mt);
-    drop(ft);
-    drop(space);
-    return st;
-}
-
-/* Read one numeric value (scalar or one element) from a dataset or attribute as type t. */
-static int get_number(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, int t, void *value)
-{
-    int st = WT_OK;
-    hid_t ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
-    hid_t space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
-    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
-    H5T_class_t c = H5Tget_class(ft);
-    hssize_t np = H5Sget_simple_extent_npoints(space);
-    if ((c != H5T_FLOAT && c != H5T_INTEGER) || np != 1)
-        FAIL(ctx, WT_ERR_FORMAT, "%s: %s holds %lld %s value(s), expected one number", file, what, (long long)np,
-             c == H5T_STRING ? "string" : c == H5T_FLOAT ? "float" : c == H5T_INTEGER ? "integer" : "non-numeric");
-    if (c == H5T_FLOAT && !type_float(t))
-        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is floating point, refused as %s", file, what, type_name(t));
-    if ((is_attr ? H5Aread(obj, mem_type(t), value)
-                 : H5Dread(obj, mem_type(t), H5S_ALL, H5S_ALL, H5P_DEFAULT, value)) < 0)
-        H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed", file, what);
-fail:
-    drop(ft);
-    drop(space);
-    return st;
 }
 
 /* ---- writability probe -------------------------------------------------------------------------- */
@@ -451,8 +334,8 @@ static void writer_destroy(wt_h5_writer *w, int remove_temp)
     if (!w) return;
     while (w->matrices) matrix_close_impl(w->matrices, 0);
     while (w->series) series_close_impl(w->series);
-    drop(w->lcpl);
-    drop(w->file);
+    wt_h5_priv_drop(w->lcpl);
+    wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
     wt_free(w->ctx, w->temp);
     wt_free(w->ctx, w->target);
@@ -471,11 +354,12 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     w->ctx = ctx;
     w->file = w->lcpl = -1;
     size_t tn = strlen(path) + 32;
-    w->target = dupstr(ctx, path);
+    w->target = wt_h5_priv_dupstr(ctx, path);
     w->temp = wt_malloc(ctx, tn, 1);
     if (!w->target || !w->temp) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file names of '%s'", path);
     snprintf(w->temp, tn, "%s.tmp-%ld", path, (long)getpid());
-    if ((fapl = file_access()) < 0) H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
+    if ((fapl = wt_h5_priv_file_access()) < 0)
+        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
     if ((w->file = H5Fcreate(w->temp, H5F_ACC_TRUNC, H5P_DEFAULT, fapl)) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot create the temporary file '%s' (H5Fcreate)", path, w->temp);
     w->created = 1;
@@ -485,11 +369,11 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     if (put_attr_string(w->file, "creator", "wavetomo " WT_VERSION) < 0 ||
         put_attr_string(w->file, "hdf5_version", wt_h5_library_version()) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attributes", path);
-    drop(fapl);
+    wt_h5_priv_drop(fapl);
     *out = w;
     return WT_OK;
 fail:
-    drop(fapl);
+    wt_h5_priv_drop(fapl);
     writer_destroy(w, 1);
     return st;
 }
@@ -539,19 +423,19 @@ int wt_h5_commit(wt_h5_writer *w)
 
 void wt_h5_abort(wt_h5_writer *w)
 {
-    quiet q = quiet_on();
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
     writer_destroy(w, 1);
-    quiet_off(q);
+    wt_h5_priv_quiet_off(q);
 }
 
 int wt_h5_flush(wt_h5_writer *w)
 {
     int st = WT_OK;
     if (!w) return WT_ERR_INVALID;
-    quiet q = quiet_on();
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
     if (H5Fflush(w->file, H5F_SCOPE_GLOBAL) < 0)
         st = poison(w, H5ERR(w->ctx, WT_ERR_IO, "%s: H5Fflush of the temporary '%s' failed", w->target, w->temp));
-    quiet_off(q);
+    wt_h5_priv_quiet_off(q);
     return st;
 }
 
@@ -565,18 +449,19 @@ static int check_new(wt_h5_writer *w, const char *name, const char *units, const
     if ((need_units && !units) || !desc || !*desc)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s' needs %s (every dataset documents itself)", w->target,
                         name, need_units && !units ? "units (\"\" if dimensionless)" : "a description");
-    if (path_exists(w->file, name)) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' already exists", w->target, name);
+    if (wt_h5_priv_path_exists(w->file, name))
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' already exists", w->target, name);
     return WT_OK;
 }
 
 static int check_types(wt_h5_writer *w, const char *name, int ft, int mt)
 {
-    if (!type_ok(ft) || !type_ok(mt))
+    if (!wt_h5_priv_type_ok(ft) || !wt_h5_priv_type_ok(mt))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown element type %d", w->target, name,
-                        type_ok(ft) ? mt : ft);
-    if (type_float(mt) && !type_float(ft))
+                        wt_h5_priv_type_ok(ft) ? mt : ft);
+    if (wt_h5_priv_type_float(mt) && !wt_h5_priv_type_float(ft))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an %s dataset (lossy)",
-                        w->target, name, type_name(mt), type_name(ft));
+                        w->target, name, wt_h5_priv_type_name(mt), wt_h5_priv_type_name(ft));
     return WT_OK;
 }
 
@@ -611,15 +496,15 @@ static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int ran
         (dcpl = numeric_dcpl(rank, hd, type_size(ft), CHUNK_BYTES, rank, total == 0, chunk)) < 0 ||
         (d = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
-    if (total > 0 && H5Dwrite(d, mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    if (total > 0 && H5Dwrite(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
     WT_TRY(set_doc(w, d, name, units, desc));
     if (H5Dclose(d) < 0) st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing dataset '%s' failed", w->target, name);
     d = -1;
 fail:
-    drop(d);
-    drop(dcpl);
-    drop(space);
+    wt_h5_priv_drop(d);
+    wt_h5_priv_drop(dcpl);
+    wt_h5_priv_drop(space);
     return st;
 }
 
@@ -639,7 +524,7 @@ static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, co
     WT_TRY(check_new(w, name, units, desc, !is_string));
     if (is_string) {
         if (!value) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: string dataset '%s' is NULL", w->target, name);
-        if ((t = string_type(strlen(value), H5T_CSET_UTF8)) < 0)
+        if ((t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8)) < 0)
             H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for '%s'", w->target, name);
         ft = mt = t;
     }
@@ -650,9 +535,9 @@ static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, co
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
     st = set_doc(w, d, name, is_string ? NULL : units, desc);
 fail:
-    drop(d);
-    drop(space);
-    drop(t);
+    wt_h5_priv_drop(d);
+    wt_h5_priv_drop(space);
+    wt_h5_priv_drop(t);
     return st;
 }
 
@@ -674,7 +559,7 @@ int wt_h5_write_string(wt_h5_writer *w, const char *name, const char *text, cons
 static int group_impl(wt_h5_writer *w, const char *name)
 {
     if (!name || !*name) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: empty group name", w->target);
-    if (path_exists(w->file, name)) {
+    if (wt_h5_priv_path_exists(w->file, name)) {
         H5O_info_t info;
         if (H5Oget_info_by_name(w->file, name, &info, H5P_DEFAULT) < 0 || info.type != H5O_TYPE_GROUP)
             return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' exists and is not a group", w->target, name);
@@ -695,12 +580,12 @@ static int attr_impl(wt_h5_writer *w, const char *obj, const char *name, hid_t f
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: attribute with a NULL or empty object, name or value", w->target);
     if (strcmp(obj, "/") == 0 && strcmp(name, "complete") == 0)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: root attribute 'complete' is written by commit only", w->target);
-    if (!path_exists(w->file, obj))
+    if (!wt_h5_priv_path_exists(w->file, obj))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: cannot set attribute '%s' on '%s': no such group or dataset",
                         w->target, name, obj);
     hid_t o = H5Oopen(w->file, obj, H5P_DEFAULT);
     herr_t r = o < 0 ? -1 : ft < 0 ? put_attr_string(o, name, value) : put_attr(o, name, ft, mt, value);
-    drop(o);
+    wt_h5_priv_drop(o);
     if (r < 0) return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write attribute '%s' of '%s'", w->target, name, obj);
     return WT_OK;
 }
@@ -723,14 +608,14 @@ int wt_h5_attr_write_int64(wt_h5_writer *w, const char *obj, const char *name, i
 /* Float data into an integer dataset loses the fraction silently in HDF5: refuse it. */
 static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, const void *data)
 {
-    if (!type_ok(mt) || !data)
+    if (!wt_h5_priv_type_ok(mt) || !data)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown type %d or NULL data", w->target, name, mt);
     hid_t ft = H5Dget_type(dset);
     int file_float = ft >= 0 && H5Tget_class(ft) == H5T_FLOAT;
-    drop(ft);
-    if (type_float(mt) && !file_float)
+    wt_h5_priv_drop(ft);
+    if (wt_h5_priv_type_float(mt) && !file_float)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an integer dataset (lossy)",
-                        w->target, name, type_name(mt));
+                        w->target, name, wt_h5_priv_type_name(mt));
     return WT_OK;
 }
 
@@ -756,7 +641,7 @@ static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     m->rows = rows;
     m->cols = cols;
     WT_ALLOC(w->ctx, m->done, rows, "the row map of an HDF5 matrix");
-    if (!(m->name = dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if (!(m->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
     if ((space = H5Screate_simple(2, hd, NULL)) < 0 ||
         (dcpl = numeric_dcpl(2, hd, type_size(ft), CHUNK_BYTES, 2, 0, chunk)) < 0 ||
         (dapl = H5Pcreate(H5P_DATASET_ACCESS)) < 0)
@@ -774,14 +659,14 @@ static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     m = NULL;
 fail:
     if (m) {
-        drop(m->dset);
+        wt_h5_priv_drop(m->dset);
         wt_free(w->ctx, m->name);
         wt_free(w->ctx, m->done);
         wt_free(w->ctx, m);
     }
-    drop(dapl);
-    drop(dcpl);
-    drop(space);
+    wt_h5_priv_drop(dapl);
+    wt_h5_priv_drop(dcpl);
+    wt_h5_priv_drop(space);
     return st;
 }
 
@@ -805,7 +690,7 @@ static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int m
         (ms = H5Screate_simple(2, count, NULL)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: matrix '%s': cannot select rows %lld..%lld", w->target, m->name,
                (long long)row0, (long long)(row0 + nrows - 1));
-    if (H5Dwrite(m->dset, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+    if (H5Dwrite(m->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing rows %lld..%lld of matrix '%s' failed (H5Dwrite)", w->target,
                (long long)row0, (long long)(row0 + nrows - 1), m->name);
     for (int64_t i = row0; i < row0 + nrows; i++) {
@@ -813,8 +698,8 @@ static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int m
         m->done[i] = 1;
     }
 fail:
-    drop(ms);
-    drop(fs);
+    wt_h5_priv_drop(ms);
+    wt_h5_priv_drop(fs);
     return st;
 }
 
@@ -879,7 +764,7 @@ static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     s->w = w;
     s->dset = -1;
     s->n = n;
-    if (!(s->name = dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if (!(s->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
     if ((space = H5Screate_simple(rank, hd, maxd)) < 0 ||
         (dcpl = numeric_dcpl(rank, cd, type_size(ft), SERIES_CHUNK_BYTES, 1, 0, chunk)) < 0 ||
         (s->dset = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
@@ -891,12 +776,12 @@ static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     s = NULL;
 fail:
     if (s) {
-        drop(s->dset);
+        wt_h5_priv_drop(s->dset);
         wt_free(w->ctx, s->name);
         wt_free(w->ctx, s);
     }
-    drop(dcpl);
-    drop(space);
+    wt_h5_priv_drop(dcpl);
+    wt_h5_priv_drop(space);
     return st;
 }
 
@@ -920,13 +805,13 @@ static int series_append_impl(wt_h5_series *s, int mt, const void *data)
         (ms = H5Screate_simple(rank, count, NULL)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: series '%s': cannot extend to %lld frames", w->target, s->name,
                (long long)s->len + 1);
-    if (H5Dwrite(s->dset, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+    if (H5Dwrite(s->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing frame %lld of series '%s' failed (H5Dwrite)", w->target,
                (long long)s->len, s->name);
     s->len++;
 fail:
-    drop(ms);
-    drop(fs);
+    wt_h5_priv_drop(ms);
+    wt_h5_priv_drop(fs);
     return st;
 }
 
@@ -960,274 +845,4 @@ int wt_h5_series_close(wt_h5_series *s)
     wt_h5_writer *w = s->w;
     QUIET(series_close_impl(s));
     return poison(w, st);
-}
-
-/* ---- reader ------------------------------------------------------------------------------------- */
-
-static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value);
-
-static int open_impl(wt_context *ctx, const char *path, wt_h5_reader **out)
-{
-    int st = WT_OK;
-    wt_h5_reader *r = NULL;
-    hid_t fapl = -1;
-    struct stat sb;
-    int64_t complete = 0;
-    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: out is NULL");
-    *out = NULL;
-    if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: empty file name");
-    if (stat(path, &sb) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
-    if (S_ISDIR(sb.st_mode)) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': it is a directory", path);
-    if (access(path, R_OK) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot read '%s': %s", path, strerror(errno));
-    if (H5Fis_hdf5(path) <= 0)
-        return WT_ERROR(ctx, WT_ERR_FORMAT, "%s: not an HDF5 file (no HDF5 signature; %lld bytes)", path,
-                        (long long)sb.st_size);
-    WT_ALLOC(ctx, r, 1, "an HDF5 reader");
-    r->ctx = ctx;
-    r->file = -1;
-    if (!(r->path = dupstr(ctx, path))) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file name '%s'", path);
-    if ((fapl = file_access()) < 0) H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
-    if ((r->file = H5Fopen(path, H5F_ACC_RDONLY, fapl)) < 0)
-        H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot open as HDF5, the file is truncated or corrupt (H5Fopen)", path);
-    if (H5Aexists(r->file, "complete") <= 0)
-        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: no root attribute 'complete' (its writer never committed "
-             "it: an interrupted run or a copied temporary)", path);
-    WT_TRY(read_one(r, "/", "complete", WT_H5_I64, &complete));
-    if (complete != 1)
-        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: root attribute 'complete' is %lld, expected 1", path,
-             (long long)complete);
-    drop(fapl);
-    *out = r;
-    return WT_OK;
-fail:
-    drop(fapl);
-    wt_h5_close(r);
-    return st;
-}
-
-int wt_h5_open(wt_context *ctx, const char *path, wt_h5_reader **out)
-{
-    int st;
-    QUIET(open_impl(ctx, path, out));
-    return st;
-}
-
-void wt_h5_close(wt_h5_reader *r)
-{
-    if (!r) return;
-    quiet q = quiet_on();
-    drop(r->file);
-    quiet_off(q);
-    wt_free(r->ctx, r->path);
-    wt_free(r->ctx, r);
-}
-
-const char *wt_h5_path(const wt_h5_reader *r) { return r ? r->path : NULL; }
-
-int wt_h5_exists(wt_h5_reader *r, const char *name)
-{
-    if (!r || !name) return 0;
-    quiet q = quiet_on();
-    int e = path_exists(r->file, name);
-    quiet_off(q);
-    return e;
-}
-
-/* Open dataset `name`; [out] its rank and dims. */
-static int open_dataset(wt_h5_reader *r, const char *name, hid_t *dset, int *rank, int64_t *dims)
-{
-    hid_t d = -1, space = -1;
-    int st = WT_OK;
-    *dset = -1;
-    if (!name || !path_exists(r->file, name))
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: no dataset '%s'", r->path, name ? name : "(null)");
-    if ((d = H5Dopen2(r->file, name, H5P_DEFAULT)) < 0 || (space = H5Dget_space(d)) < 0)
-        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' is not a readable dataset (H5Dopen2)", r->path, name);
-    int nd = H5Sget_simple_extent_ndims(space);
-    hsize_t hd[WT_H5_MAX_RANK];
-    if (nd < 0 || nd > WT_H5_MAX_RANK)
-        FAIL(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has rank %d, at most %d is supported", r->path, name, nd,
-             WT_H5_MAX_RANK);
-    H5Sget_simple_extent_dims(space, hd, NULL);
-    *rank = nd;
-    for (int i = 0; i < nd; i++) dims[i] = (int64_t)hd[i];
-    *dset = d;
-    d = -1;
-fail:
-    drop(space);
-    drop(d);
-    return st;
-}
-
-int wt_h5_dims(wt_h5_reader *r, const char *name, int *rank, int64_t *dims)
-{
-    int st, s2;
-    hid_t d = -1;
-    if (!r) return WT_ERR_INVALID;
-    if (!rank || !dims) return WT_ERROR(r->ctx, WT_ERR_INVALID, "wt_h5_dims: rank or dims is NULL");
-    QUIET((s2 = open_dataset(r, name, &d, rank, dims), drop(d), s2));
-    return st;
-}
-
-static int shape_impl(wt_h5_reader *r, const char *name, hid_t *dset, int rank, const int64_t *expect, int64_t *dims)
-{
-    int nd = 0, st;
-    int64_t got[WT_H5_MAX_RANK] = {0};
-    char a[128], b[128];
-    if ((st = open_dataset(r, name, dset, &nd, got)) < 0) return st;
-    int ok = nd == rank;
-    for (int i = 0; ok && i < rank; i++) ok = !expect || expect[i] < 0 || expect[i] == got[i];
-    if (!ok) {
-        drop(*dset);
-        *dset = -1;
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has shape %s, expected %s", r->path, name,
-                        shape_text(a, sizeof a, nd, got), shape_text(b, sizeof b, rank, expect));
-    }
-    if (dims)
-        for (int i = 0; i < rank; i++) dims[i] = got[i];
-    return WT_OK;
-}
-
-int wt_h5_check_shape(wt_h5_reader *r, const char *name, int rank, const int64_t *expect, int64_t *dims)
-{
-    int st, s2;
-    hid_t d = -1;
-    if (!r) return WT_ERR_INVALID;
-    QUIET((s2 = shape_impl(r, name, &d, rank, expect, dims), drop(d), s2));
-    return st;
-}
-
-/* Numbers only, and no floating point into integers. */
-static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
-{
-    if (!type_ok(mt))
-        return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown memory type %d", r->path, name, mt);
-    hid_t ft = H5Dget_type(d);
-    H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
-    drop(ft);
-    if (c != H5T_FLOAT && c != H5T_INTEGER)
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' does not hold numbers (HDF5 type class %d)", r->path,
-                        name, (int)c);
-    if (c == H5T_FLOAT && !type_float(mt))
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' is floating point, refused as %s (lossy)", r->path,
-                        name, type_name(mt));
-    return WT_OK;
-}
-
-static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const int64_t *expect, int64_t *dims,
-                     void *data, size_t capacity)
-{
-    int st;
-    hid_t d = -1;
-    int64_t got[WT_H5_MAX_RANK] = {0};
-    WT_TRY(shape_impl(r, name, &d, rank, expect, got));
-    WT_TRY(check_readable(r, name, d, mt));
-    uint64_t total = 1;
-    for (int i = 0; i < rank; i++) total *= (uint64_t)got[i];
-    if (total > capacity || (total > 0 && !data))
-        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %llu elements, the buffer holds %zu", r->path, name,
-             (unsigned long long)total, data ? capacity : 0);
-    if (total > 0 && H5Dread(d, mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
-        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading dataset '%s' failed: corrupt data (checksum) or truncated file "
-               "(H5Dread)", r->path, name);
-    if (dims)
-        for (int i = 0; i < rank; i++) dims[i] = got[i];
-fail:
-    drop(d);
-    return st;
-}
-
-int wt_h5_read(wt_h5_reader *r, const char *name, int mem_type, int rank, const int64_t *expect, int64_t *dims,
-               void *data, size_t capacity)
-{
-    READER_CALL(r, read_impl(r, name, mem_type, rank, expect, dims, data, capacity));
-}
-
-static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row0, int64_t nrows, void *data)
-{
-    int st, nd = 0;
-    hid_t d = -1, fs = -1, ms = -1;
-    int64_t got[WT_H5_MAX_RANK] = {0};
-    hsize_t start[WT_H5_MAX_RANK] = {0}, count[WT_H5_MAX_RANK];
-    WT_TRY(open_dataset(r, name, &d, &nd, got));
-    WT_TRY(check_readable(r, name, d, mt));
-    if (nd < 1 || !data || row0 < 0 || nrows < 1 || row0 > got[0] - nrows)
-        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %lld rows, rows %lld..%lld requested", r->path, name,
-             nd < 1 ? 0LL : (long long)got[0], (long long)row0, (long long)(row0 + nrows - 1));
-    start[0] = (hsize_t)row0;
-    count[0] = (hsize_t)nrows;
-    for (int i = 1; i < nd; i++) count[i] = (hsize_t)got[i];
-    /* memory space of the selection's own shape: a flat one sends HDF5 down a ~30x slower path */
-    if ((fs = H5Dget_space(d)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
-        (ms = H5Screate_simple(nd, count, NULL)) < 0)
-        H5FAIL(r->ctx, WT_ERR_LIBRARY, "%s: dataset '%s': cannot select rows", r->path, name);
-    if (H5Dread(d, mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
-        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
-               "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
-fail:
-    drop(ms);
-    drop(fs);
-    drop(d);
-    return st;
-}
-
-int wt_h5_read_rows(wt_h5_reader *r, const char *name, int mem_type, int64_t row0, int64_t nrows, void *data)
-{
-    READER_CALL(r, read_rows_impl(r, name, mem_type, row0, nrows, data));
-}
-
-/* One value or a string from dataset `name` (obj == NULL) or from attribute `name` of `obj`. */
-static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value)
-{
-    int st = WT_OK, nd;
-    hid_t o = -1, a = -1;
-    int64_t dims[WT_H5_MAX_RANK];
-    char what[512];
-    if (!name || !value) return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: NULL name or output", r->path);
-    if (!obj) {
-        snprintf(what, sizeof what, "dataset '%s'", name);
-        WT_TRY(open_dataset(r, name, &o, &nd, dims));
-    } else {
-        snprintf(what, sizeof what, "attribute '%s' of '%s'", name, obj);
-        if (!path_exists(r->file, obj) || (o = H5Oopen(r->file, obj, H5P_DEFAULT)) < 0)
-            FAIL(r->ctx, WT_ERR_FORMAT, "%s: no group or dataset '%s' (looking for its attribute '%s')", r->path, obj,
-                 name);
-        if (H5Aexists(o, name) <= 0 || (a = H5Aopen(o, name, H5P_DEFAULT)) < 0)
-            FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' has no attribute '%s'", r->path, obj, name);
-    }
-    hid_t src = obj ? a : o;
-    st = t ? get_number(r->ctx, r->path, what, src, obj != NULL, t, value)
-           : get_string(r->ctx, r->path, what, src, obj != NULL, value);
-fail:
-    drop(a);
-    drop(o);
-    return st;
-}
-
-int wt_h5_read_double(wt_h5_reader *r, const char *name, double *value)
-{
-    READER_CALL(r, read_one(r, NULL, name, WT_H5_F64, value));
-}
-int wt_h5_read_int64(wt_h5_reader *r, const char *name, int64_t *value)
-{
-    READER_CALL(r, read_one(r, NULL, name, WT_H5_I64, value));
-}
-int wt_h5_read_string(wt_h5_reader *r, const char *name, char **text)
-{
-    READER_CALL(r, read_one(r, NULL, name, 0, text));
-}
-
-int wt_h5_attr_read_string(wt_h5_reader *r, const char *obj, const char *name, char **value)
-{
-    READER_CALL(r, read_one(r, obj ? obj : "/", name, 0, value));
-}
-
-int wt_h5_attr_read_double(wt_h5_reader *r, const char *obj, const char *name, double *value)
-{
-    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_F64, value));
-}
-
-int wt_h5_attr_read_int64(wt_h5_reader *r, const char *obj, const char *name, int64_t *value)
-{
-    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_I64, value));
 }

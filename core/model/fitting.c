@@ -56,8 +56,9 @@ void wt_dm_restrict(const wt_system *sys, const double *grids, double *a)
 }
 
 
-/* y = Σ H_jᵀ H_j a  on the full grids (without ε); fixed groups of directions (core/la/vec.h) */
-static void normal_grids(wt_fitting *f, const double *grids, double *out)
+/* out = Σ_j H_jᵀ S_j in, on the full DM grids: S_j = H_j (normal operator, in = DM grids) or P_j
+ * (right-hand side, in = layers). Fixed groups of directions keep the sum's order (core/la/vec.h). */
+static void project_back(wt_fitting *f, wt_projection *const *src, const double *in, double *out)
 {
     const int64_t nd = f->ndm_pts;
 #pragma omp parallel for schedule(static) num_threads(f->nthreads)
@@ -68,12 +69,14 @@ static void normal_grids(wt_fitting *f, const double *grids, double *out)
             if (f->group[j] != g) continue;
             double *pu = f->pupil + (size_t)j * f->ncg;
             memset(pu, 0, (size_t)f->ncg * sizeof *pu);
-            wt_projection_apply(f->dm[j], 1.0, grids, pu);
+            wt_projection_apply(src[j], 1.0, in, pu);
             wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
         }
     }
     wt_vec_sum_groups(f->acc, nd, out);
 }
+
+static void normal_grids(wt_fitting *f, const double *grids, double *out) { project_back(f, f->dm, grids, out); }
 
 void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
 {
@@ -85,20 +88,7 @@ void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
 
 void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
 {
-    const int64_t nd = f->ndm_pts;
-#pragma omp parallel for schedule(static) num_threads(f->nthreads)
-    for (int g = 0; g < WT_GROUPS; g++) {
-        double *acc = f->acc + (size_t)g * nd;
-        memset(acc, 0, (size_t)nd * sizeof *acc);
-        for (int j = 0; j < f->ndir; j++) {
-            if (f->group[j] != g) continue;
-            double *pu = f->pupil + (size_t)j * f->ncg;
-            memset(pu, 0, (size_t)f->ncg * sizeof *pu);
-            wt_projection_apply(f->layer[j], 1.0, phi, pu);
-            wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
-        }
-    }
-    wt_vec_sum_groups(f->acc, nd, f->grids);
+    project_back(f, f->layer, phi, f->grids);
     wt_dm_restrict(f->sys, f->grids, b);
 }
 

@@ -1,0 +1,381 @@
+/* core/io/h5_read.c: the checked HDF5 reader: open, shapes, whole datasets, row blocks, scalars, attributes.
+ *
+ * Implements the reading side of SPEC §9: a file is accepted only when it is HDF5, opens whole and
+ * carries the root attribute "complete" = 1 that only a writer's commit (h5.c) sets, so a truncated
+ * file or a copied temporary is refused; every dataset is checked against the shape and element type
+ * the caller expects, and a Fletcher32 checksum failure is an error rather than a wrong number.
+ * HDF5's printing is off during every call (wt_h5_priv_quiet_on/off, see h5_private.h).
+ */
+#include "h5_private.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+struct wt_h5_reader {
+    wt_context *ctx;
+    hid_t file;
+    char *path;
+};
+
+/* Body of the public reader calls: quiet HDF5 around the work. */
+#define READER_CALL(r, expr)             \
+    do {                                 \
+        int st;                          \
+        if (!(r)) return WT_ERR_INVALID; \
+        QUIET(expr);                     \
+        return st;                       \
+    } while (0)
+
+/* ---- values and shapes -------------------------------------------------------------------------- */
+
+/* "9295 x 61356", "any" for a negative entry, "a scalar" for rank 0. */
+static const char *shape_text(char *buf, size_t n, int rank, const int64_t *d)
+{
+    size_t k = 0;
+    buf[0] = '\0';
+    if (rank == 0) return snprintf(buf, n, "a scalar"), buf;
+    for (int i = 0; i < rank && k < n; i++) {
+        const char *sep = i ? " x " : "";
+        if (!d || d[i] < 0)
+            k += (size_t)snprintf(buf + k, n - k, "%sany", sep);
+        else
+            k += (size_t)snprintf(buf + k, n - k, "%s%lld", sep, (long long)d[i]);
+    }
+    return buf;
+}
+
+/* Read a one-element string from a dataset or attribute, fixed or variable length. */
+static int get_string(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, char **out)
+{
+    int st = WT_OK;
+    hid_t ft = -1, mt = -1, space = -1;
+    char *buf = NULL, *vl = NULL;
+    ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
+    space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
+    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
+    if (H5Tget_class(ft) != H5T_STRING || H5Sget_simple_extent_npoints(space) != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is not a single string", file, what);
+    int var = H5Tis_variable_str(ft) > 0;
+    size_t size = var ? 0 : H5Tget_size(ft);
+    if ((mt = wt_h5_priv_string_type(size, H5Tget_cset(ft))) < 0 || (var && H5Tset_size(mt, H5T_VARIABLE) < 0))
+        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for %s", file, what);
+    void *dst = var ? (void *)&vl : NULL;
+    if (!var) {
+        WT_ALLOC(ctx, buf, size + 1, "a string read from HDF5");
+        dst = buf;
+    }
+    herr_t r = is_attr ? H5Aread(obj, mt, dst) : H5Dread(obj, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, dst);
+    if (r < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed (%s)", file, what, is_attr ? "H5Aread" : "H5Dread");
+    if (var) {
+        WT_ALLOC(ctx, buf, (vl ? strlen(vl) : 0) + 1, "a string read from HDF5");
+        if (vl) strcpy(buf, vl);
+    }
+    *out = buf;
+    buf = NULL;
+fail:
+    if (vl) H5Dvlen_reclaim(mt, space, H5P_DEFAULT, &vl);
+    wt_free(ctx, buf);
+    wt_h5_priv_drop(mt);
+    wt_h5_priv_drop(ft);
+    wt_h5_priv_drop(space);
+    return st;
+}
+
+/* Read one numeric value (scalar or one element) from a dataset or attribute as type t. */
+static int get_number(wt_context *ctx, const char *file, const char *what, hid_t obj, int is_attr, int t, void *value)
+{
+    int st = WT_OK;
+    hid_t ft = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
+    hid_t space = is_attr ? H5Aget_space(obj) : H5Dget_space(obj);
+    if (ft < 0 || space < 0) H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot read the type of %s", file, what);
+    H5T_class_t c = H5Tget_class(ft);
+    hssize_t np = H5Sget_simple_extent_npoints(space);
+    if ((c != H5T_FLOAT && c != H5T_INTEGER) || np != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s holds %lld %s value(s), expected one number", file, what, (long long)np,
+             c == H5T_STRING ? "string" : c == H5T_FLOAT ? "float" : c == H5T_INTEGER ? "integer" : "non-numeric");
+    if (c == H5T_FLOAT && !wt_h5_priv_type_float(t))
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s is floating point, refused as %s", file, what, wt_h5_priv_type_name(t));
+    if ((is_attr ? H5Aread(obj, wt_h5_priv_mem_type(t), value)
+                 : H5Dread(obj, wt_h5_priv_mem_type(t), H5S_ALL, H5S_ALL, H5P_DEFAULT, value)) < 0)
+        H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed", file, what);
+fail:
+    wt_h5_priv_drop(ft);
+    wt_h5_priv_drop(space);
+    return st;
+}
+
+/* ---- reader ------------------------------------------------------------------------------------- */
+
+static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value);
+
+static int open_impl(wt_context *ctx, const char *path, wt_h5_reader **out)
+{
+    int st = WT_OK;
+    wt_h5_reader *r = NULL;
+    hid_t fapl = -1;
+    struct stat sb;
+    int64_t complete = 0;
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_h5_open: empty file name");
+    if (stat(path, &sb) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
+    if (S_ISDIR(sb.st_mode)) return WT_ERROR(ctx, WT_ERR_IO, "cannot open '%s': it is a directory", path);
+    if (access(path, R_OK) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot read '%s': %s", path, strerror(errno));
+    if (H5Fis_hdf5(path) <= 0)
+        return WT_ERROR(ctx, WT_ERR_FORMAT, "%s: not an HDF5 file (no HDF5 signature; %lld bytes)", path,
+                        (long long)sb.st_size);
+    WT_ALLOC(ctx, r, 1, "an HDF5 reader");
+    r->ctx = ctx;
+    r->file = -1;
+    if (!(r->path = wt_h5_priv_dupstr(ctx, path)))
+        FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file name '%s'", path);
+    if ((fapl = wt_h5_priv_file_access()) < 0)
+        H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
+    if ((r->file = H5Fopen(path, H5F_ACC_RDONLY, fapl)) < 0)
+        H5FAIL(ctx, WT_ERR_FORMAT, "%s: cannot open as HDF5, the file is truncated or corrupt (H5Fopen)", path);
+    if (H5Aexists(r->file, "complete") <= 0)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: no root attribute 'complete' (its writer never committed "
+             "it: an interrupted run or a copied temporary)", path);
+    WT_TRY(read_one(r, "/", "complete", WT_H5_I64, &complete));
+    if (complete != 1)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: incomplete file: root attribute 'complete' is %lld, expected 1", path,
+             (long long)complete);
+    wt_h5_priv_drop(fapl);
+    *out = r;
+    return WT_OK;
+fail:
+    wt_h5_priv_drop(fapl);
+    wt_h5_close(r);
+    return st;
+}
+
+int wt_h5_open(wt_context *ctx, const char *path, wt_h5_reader **out)
+{
+    int st;
+    QUIET(open_impl(ctx, path, out));
+    return st;
+}
+
+void wt_h5_close(wt_h5_reader *r)
+{
+    if (!r) return;
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    wt_h5_priv_drop(r->file);
+    wt_h5_priv_quiet_off(q);
+    wt_free(r->ctx, r->path);
+    wt_free(r->ctx, r);
+}
+
+const char *wt_h5_path(const wt_h5_reader *r) { return r ? r->path : NULL; }
+
+int wt_h5_exists(wt_h5_reader *r, const char *name)
+{
+    if (!r || !name) return 0;
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    int e = wt_h5_priv_path_exists(r->file, name);
+    wt_h5_priv_quiet_off(q);
+    return e;
+}
+
+/* Open dataset `name`; [out] its rank and dims. */
+static int open_dataset(wt_h5_reader *r, const char *name, hid_t *dset, int *rank, int64_t *dims)
+{
+    hid_t d = -1, space = -1;
+    int st = WT_OK;
+    *dset = -1;
+    if (!name || !wt_h5_priv_path_exists(r->file, name))
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: no dataset '%s'", r->path, name ? name : "(null)");
+    if ((d = H5Dopen2(r->file, name, H5P_DEFAULT)) < 0 || (space = H5Dget_space(d)) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' is not a readable dataset (H5Dopen2)", r->path, name);
+    int nd = H5Sget_simple_extent_ndims(space);
+    hsize_t hd[WT_H5_MAX_RANK];
+    if (nd < 0 || nd > WT_H5_MAX_RANK)
+        FAIL(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has rank %d, at most %d is supported", r->path, name, nd,
+             WT_H5_MAX_RANK);
+    H5Sget_simple_extent_dims(space, hd, NULL);
+    *rank = nd;
+    for (int i = 0; i < nd; i++) dims[i] = (int64_t)hd[i];
+    *dset = d;
+    d = -1;
+fail:
+    wt_h5_priv_drop(space);
+    wt_h5_priv_drop(d);
+    return st;
+}
+
+int wt_h5_dims(wt_h5_reader *r, const char *name, int *rank, int64_t *dims)
+{
+    int st, s2;
+    hid_t d = -1;
+    if (!r) return WT_ERR_INVALID;
+    if (!rank || !dims) return WT_ERROR(r->ctx, WT_ERR_INVALID, "wt_h5_dims: rank or dims is NULL");
+    QUIET((s2 = open_dataset(r, name, &d, rank, dims), wt_h5_priv_drop(d), s2));
+    return st;
+}
+
+static int shape_impl(wt_h5_reader *r, const char *name, hid_t *dset, int rank, const int64_t *expect, int64_t *dims)
+{
+    int nd = 0, st;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    char a[128], b[128];
+    if ((st = open_dataset(r, name, dset, &nd, got)) < 0) return st;
+    int ok = nd == rank;
+    for (int i = 0; ok && i < rank; i++) ok = !expect || expect[i] < 0 || expect[i] == got[i];
+    if (!ok) {
+        wt_h5_priv_drop(*dset);
+        *dset = -1;
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has shape %s, expected %s", r->path, name,
+                        shape_text(a, sizeof a, nd, got), shape_text(b, sizeof b, rank, expect));
+    }
+    if (dims)
+        for (int i = 0; i < rank; i++) dims[i] = got[i];
+    return WT_OK;
+}
+
+int wt_h5_check_shape(wt_h5_reader *r, const char *name, int rank, const int64_t *expect, int64_t *dims)
+{
+    int st, s2;
+    hid_t d = -1;
+    if (!r) return WT_ERR_INVALID;
+    QUIET((s2 = shape_impl(r, name, &d, rank, expect, dims), wt_h5_priv_drop(d), s2));
+    return st;
+}
+
+/* Numbers only, and no floating point into integers. */
+static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
+{
+    if (!wt_h5_priv_type_ok(mt))
+        return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown memory type %d", r->path, name, mt);
+    hid_t ft = H5Dget_type(d);
+    H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
+    wt_h5_priv_drop(ft);
+    if (c != H5T_FLOAT && c != H5T_INTEGER)
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' does not hold numbers (HDF5 type class %d)", r->path,
+                        name, (int)c);
+    if (c == H5T_FLOAT && !wt_h5_priv_type_float(mt))
+        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' is floating point, refused as %s (lossy)", r->path,
+                        name, wt_h5_priv_type_name(mt));
+    return WT_OK;
+}
+
+static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const int64_t *expect, int64_t *dims,
+                     void *data, size_t capacity)
+{
+    int st;
+    hid_t d = -1;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    WT_TRY(shape_impl(r, name, &d, rank, expect, got));
+    WT_TRY(check_readable(r, name, d, mt));
+    uint64_t total = 1;
+    for (int i = 0; i < rank; i++) total *= (uint64_t)got[i];
+    if (total > capacity || (total > 0 && !data))
+        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %llu elements, the buffer holds %zu", r->path, name,
+             (unsigned long long)total, data ? capacity : 0);
+    if (total > 0 && H5Dread(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading dataset '%s' failed: corrupt data (checksum) or truncated file "
+               "(H5Dread)", r->path, name);
+    if (dims)
+        for (int i = 0; i < rank; i++) dims[i] = got[i];
+fail:
+    wt_h5_priv_drop(d);
+    return st;
+}
+
+int wt_h5_read(wt_h5_reader *r, const char *name, int mem_type, int rank, const int64_t *expect, int64_t *dims,
+               void *data, size_t capacity)
+{
+    READER_CALL(r, read_impl(r, name, mem_type, rank, expect, dims, data, capacity));
+}
+
+static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row0, int64_t nrows, void *data)
+{
+    int st, nd = 0;
+    hid_t d = -1, fs = -1, ms = -1;
+    int64_t got[WT_H5_MAX_RANK] = {0};
+    hsize_t start[WT_H5_MAX_RANK] = {0}, count[WT_H5_MAX_RANK];
+    WT_TRY(open_dataset(r, name, &d, &nd, got));
+    WT_TRY(check_readable(r, name, d, mt));
+    if (nd < 1 || !data || row0 < 0 || nrows < 1 || row0 > got[0] - nrows)
+        FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %lld rows, rows %lld..%lld requested", r->path, name,
+             nd < 1 ? 0LL : (long long)got[0], (long long)row0, (long long)(row0 + nrows - 1));
+    start[0] = (hsize_t)row0;
+    count[0] = (hsize_t)nrows;
+    for (int i = 1; i < nd; i++) count[i] = (hsize_t)got[i];
+    /* memory space of the selection's own shape: a flat one sends HDF5 down a ~30x slower path */
+    if ((fs = H5Dget_space(d)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(nd, count, NULL)) < 0)
+        H5FAIL(r->ctx, WT_ERR_LIBRARY, "%s: dataset '%s': cannot select rows", r->path, name);
+    if (H5Dread(d, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
+               "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
+fail:
+    wt_h5_priv_drop(ms);
+    wt_h5_priv_drop(fs);
+    wt_h5_priv_drop(d);
+    return st;
+}
+
+int wt_h5_read_rows(wt_h5_reader *r, const char *name, int mem_type, int64_t row0, int64_t nrows, void *data)
+{
+    READER_CALL(r, read_rows_impl(r, name, mem_type, row0, nrows, data));
+}
+
+/* One value or a string from dataset `name` (obj == NULL) or from attribute `name` of `obj`. */
+static int read_one(wt_h5_reader *r, const char *obj, const char *name, int t, void *value)
+{
+    int st = WT_OK, nd;
+    hid_t o = -1, a = -1;
+    int64_t dims[WT_H5_MAX_RANK];
+    char what[512];
+    if (!name || !value) return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: NULL name or output", r->path);
+    if (!obj) {
+        snprintf(what, sizeof what, "dataset '%s'", name);
+        WT_TRY(open_dataset(r, name, &o, &nd, dims));
+    } else {
+        snprintf(what, sizeof what, "attribute '%s' of '%s'", name, obj);
+        if (!wt_h5_priv_path_exists(r->file, obj) || (o = H5Oopen(r->file, obj, H5P_DEFAULT)) < 0)
+            FAIL(r->ctx, WT_ERR_FORMAT, "%s: no group or dataset '%s' (looking for its attribute '%s')", r->path, obj,
+                 name);
+        if (H5Aexists(o, name) <= 0 || (a = H5Aopen(o, name, H5P_DEFAULT)) < 0)
+            FAIL(r->ctx, WT_ERR_FORMAT, "%s: '%s' has no attribute '%s'", r->path, obj, name);
+    }
+    hid_t src = obj ? a : o;
+    st = t ? get_number(r->ctx, r->path, what, src, obj != NULL, t, value)
+           : get_string(r->ctx, r->path, what, src, obj != NULL, value);
+fail:
+    wt_h5_priv_drop(a);
+    wt_h5_priv_drop(o);
+    return st;
+}
+
+int wt_h5_read_double(wt_h5_reader *r, const char *name, double *value)
+{
+    READER_CALL(r, read_one(r, NULL, name, WT_H5_F64, value));
+}
+int wt_h5_read_int64(wt_h5_reader *r, const char *name, int64_t *value)
+{
+    READER_CALL(r, read_one(r, NULL, name, WT_H5_I64, value));
+}
+int wt_h5_read_string(wt_h5_reader *r, const char *name, char **text)
+{
+    READER_CALL(r, read_one(r, NULL, name, 0, text));
+}
+
+int wt_h5_attr_read_string(wt_h5_reader *r, const char *obj, const char *name, char **value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, 0, value));
+}
+
+int wt_h5_attr_read_double(wt_h5_reader *r, const char *obj, const char *name, double *value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_F64, value));
+}
+
+int wt_h5_attr_read_int64(wt_h5_reader *r, const char *obj, const char *name, int64_t *value)
+{
+    READER_CALL(r, read_one(r, obj ? obj : "/", name, WT_H5_I64, value));
+}
+
