@@ -77,5 +77,7 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 
 int wt_cmd_sim(int argc, char **argv);
+int wt_cmd_build(int argc, char **argv);
+int wt_cmd_run(int argc, char **argv);
 
 #endif

@@ -15,7 +15,9 @@ static void usage(FILE *f)
             "commands:\n"
             "  info CONFIG      derived sizes of a system: subapertures, slopes, actuators, unknowns,\n"
             "                   non-zeros of the operators, MVM matrix size (--keys: config reference)\n"
-            "  sim              closed-loop simulation of one reconstructor (pcg3, cg9, none)\n"
+            "  sim              closed-loop simulation of one reconstructor (pcg3, cg9, mvm, none)\n"
+            "  build            offline MVM builder: CHOLMOD factorisation -> control matrix MATRIX.h5\n"
+            "  run              apply a stored MVM or the wavelet PCG to every frame of a telemetry file\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
             "\n"
             "Every command takes --set key=value (any config key, repeatable) and --help.\n"
@@ -40,6 +42,8 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "info")) return wt_cmd_info(argc - 1, argv + 1);
     if (!strcmp(cmd, "bench")) return wt_cmd_bench(argc - 1, argv + 1);
     if (!strcmp(cmd, "sim")) return wt_cmd_sim(argc - 1, argv + 1);
+    if (!strcmp(cmd, "build")) return wt_cmd_build(argc - 1, argv + 1);
+    if (!strcmp(cmd, "run")) return wt_cmd_run(argc - 1, argv + 1);
     fprintf(stderr, "wavetomo: error: unknown command '%s'\n\n", cmd);
     usage(stderr);
     return 2;

@@ -7,12 +7,14 @@
 
 #include "cli/cli.h"
 #include "core/io/h5.h"
+#include "core/io/mvm_file.h"
 #include "core/sim/atmosphere.h"
 #include "core/sim/loop.h"
 
 static void help(void)
 {
-    printf("usage: wavetomo sim --config FILE [--set key=value]... [--recon pcg3|cg9|none]\n"
+    printf("usage: wavetomo sim --config FILE [--set key=value]... [--recon pcg3|cg9|none|mvm]\n"
+           "                    [--matrix MATRIX.h5]\n"
            "                    [--frames N] [--seed S] [--iters N] [--no-noise] --out RUN.h5\n"
            "                    [--telemetry TEL.h5] [--dump-screens] [--threads N] [--quiet]\n"
            "\n"
@@ -22,7 +24,9 @@ static void help(void)
            "Strehl ratio in every evaluation direction.\n"
            "\n"
            "  --recon R        pcg3 (default: layers at the DMs, modified Jacobi PCG), cg9 (layers at the\n"
-           "                   atmosphere altitudes, CG + fitting), none (DMs flat: the uncorrected baseline)\n"
+           "                   atmosphere altitudes, CG + fitting), none (DMs flat: the uncorrected baseline),\n"
+           "                   mvm (the stored control matrix given by --matrix, from `wavetomo build`)\n"
+           "  --matrix F       MATRIX.h5 for --recon mvm; refused unless built for this configuration\n"
            "  --frames N       frames to run (loop.frames); settle frames are kept below N\n"
            "  --seed S         random seed (sim.seed): the same seed gives identical results\n"
            "  --iters N        (P)CG iterations per frame (overrides recon.<variant>.iterations)\n"
@@ -154,7 +158,7 @@ static int write_results(wt_cli *cli, wt_h5_writer *w, const wt_config *cfg, con
 }
 
 typedef struct {
-    const char *recon, *out, *tel, *seed;
+    const char *recon, *out, *tel, *seed, *matrix;
     long frames, iters;
     int dump, nonoise;
 } sim_args;
@@ -167,6 +171,7 @@ static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
                        : !strcmp(o, "--out")      ? &a->out
                        : !strcmp(o, "--telemetry") ? &a->tel
                        : !strcmp(o, "--seed")     ? &a->seed
+                       : !strcmp(o, "--matrix")   ? &a->matrix
                                                   : NULL;
     if (!strcmp(o, "--no-noise")) a->nonoise = 1;
     else if (!strcmp(o, "--dump-screens")) a->dump = 1;
@@ -185,7 +190,7 @@ int wt_cmd_sim(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo sim", help)) return 1;
-    sim_args args = {"pcg3", NULL, NULL, NULL, -1, -1, 0, 0};
+    sim_args args = {"pcg3", NULL, NULL, NULL, NULL, -1, -1, 0, 0};
     int rc = wt_cli_parse(&cli, argc, argv, sim_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -198,7 +203,12 @@ int wt_cmd_sim(int argc, char **argv)
     char frames_set[64], seed_set[64], settle_set[64];
     int kind = wt_reconstructor_kind(recon);
     if (kind < 0) {
-        rc = wt_cli_usage_error(&cli, "--recon expects pcg3, cg9 or none, got '%s'", recon);
+        rc = wt_cli_usage_error(&cli, "--recon expects pcg3, cg9, none or mvm, got '%s'", recon);
+        goto done;
+    }
+    if ((kind == WT_RECON_MVM) != (args.matrix != NULL)) {
+        rc = wt_cli_usage_error(&cli, kind == WT_RECON_MVM ? "--recon mvm needs --matrix MATRIX.h5"
+                                                           : "--matrix is only for --recon mvm");
         goto done;
     }
     if (!out) {
@@ -229,6 +239,7 @@ int wt_cmd_sim(int argc, char **argv)
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
     wt_loop *lp = NULL;
+    wt_mvm *mvm = NULL;
     wt_h5_writer *w = NULL, *tw = NULL;
     telemetry T = {0};
     double *se_field = NULL, *se_axis = NULL;
@@ -253,7 +264,8 @@ int wt_cmd_sim(int argc, char **argv)
         int64_t bytes = (int64_t)frames * (2 * sys->nslopes + sys->nact) * 4;
         if ((st = wt_h5_check_writable(cli.ctx, tel, bytes)) < 0) goto fail;
     }
-    wt_loop_options o = {.recon = kind, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
+    if (kind == WT_RECON_MVM && (st = wt_mvm_file_read(cli.ctx, args.matrix, cfg, sys, &mvm, NULL)) < 0) goto fail;
+    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;
     double setup = wt_time_now() - t0;
@@ -354,6 +366,7 @@ cleanup:
     free(rms_nm);
     free(fbuf);
     wt_loop_free(lp);
+    wt_mvm_free(mvm);
     wt_system_free(sys);
     wt_config_free(cli.ctx, cfg);
 done:

@@ -272,10 +272,39 @@ static void assert_same_values(const wt_config *a, const wt_config *b)
     memcpy(&x, a, sizeof x);
     memcpy(&y, b, sizeof y);
     x.canonical = y.canonical = NULL;
+    x.matrix_text = y.matrix_text = NULL;
     memset(x.path, 0, sizeof x.path);
     memset(y.path, 0, sizeof y.path);
     ck_assert_msg(memcmp(&x, &y, sizeof x) == 0, "typed values differ");
 }
+
+/* The matrix identity (SPEC §9): keys that change R change the hash; the simulation-only keys do not. */
+START_TEST(test_matrix_hash)
+{
+    wt_context *ctx = tu_context();
+    const char *path = "data/presets/demo.cfg";
+    wt_config *base, *c;
+    ck_assert_int_eq(wt_config_read(ctx, path, 0, NULL, &base), WT_OK);
+    ck_assert_int_eq(strlen(base->matrix_sha256), 64);
+    const char *same[] = {"sim.seed=7", "loop.gain=0.3", "atmosphere.wind_speed_mps=[1.0, 2.0, 3.0, 4.0, 5.0]",
+                          "recon.pcg3.iterations=9", "lgs.tt_jitter_arcsec=0.5", "loop.frames=50"};
+    const char *differ[] = {"recon.alpha=2.0", "lgs.wfs.photons=50.0", "recon.tau=0.5", "dm.field_radius_arcsec=80.0",
+                            "atmosphere.r0_m=0.15", "evaluation.spacing_arcsec=20.0"};
+    for (size_t i = 0; i < sizeof same / sizeof *same; i++) {
+        ck_assert_int_eq(wt_config_read(ctx, path, 1, &same[i], &c), WT_OK);
+        ck_assert_msg(!strcmp(c->matrix_sha256, base->matrix_sha256), "%s changed the matrix hash", same[i]);
+        ck_assert_str_ne(c->canonical, base->canonical);
+        wt_config_free(ctx, c);
+    }
+    for (size_t i = 0; i < sizeof differ / sizeof *differ; i++) {
+        ck_assert_int_eq(wt_config_read(ctx, path, 1, &differ[i], &c), WT_OK);
+        ck_assert_msg(strcmp(c->matrix_sha256, base->matrix_sha256), "%s left the matrix hash unchanged", differ[i]);
+        wt_config_free(ctx, c);
+    }
+    wt_config_free(ctx, base);
+    wt_context_free(ctx);
+}
+END_TEST
 
 START_TEST(test_canonical)
 {
@@ -590,6 +619,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_eelt_preset);
     tcase_add_test(tc, test_demo_preset);
     tcase_add_test(tc, test_canonical);
+    tcase_add_test(tc, test_matrix_hash);
     tcase_add_test(tc, test_overrides);
     tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));
     tcase_add_test(tc, test_files);

@@ -9,6 +9,8 @@
  */
 #include "config.h"
 
+#include "../base/sha256.h"
+
 #include <errno.h>
 #include <libconfig.h>
 #include <limits.h>
@@ -676,7 +678,22 @@ static int check_consistency(pstate *ps, wt_config *cfg)
 /* The effective settings in schema order with one type per key (floats as floats, lists as arrays),
  * so comments, layout, key order, 42 vs 42.0 and [..] vs (..) do not change the text. Floats are
  * written by libconfig with 15 significant digits. */
-static int build_canonical(pstate *ps, wt_config *cfg)
+/* Keys that cannot change the reconstructor's matrices (R, RÂ): the simulation truth only (wind, LGS
+ * jitter, seed, noise switch), the loop, the long-exposure bookkeeping, and how an iterative solver
+ * stops. Everything else is hashed into the matrix's identity (SPEC §9). */
+static int affects_matrix(const char *path)
+{
+    static const char *const skip[] = {"sim.", "loop.", "evaluation.settle_frames", "evaluation.wavelength_nm",
+                                       "lgs.tt_jitter_arcsec", "atmosphere.wind_", "recon.warm_start",
+                                       "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
+                                       "recon.cg9.iterations", "recon.cg9.tolerance", "recon.cg9.preconditioner",
+                                       "recon.cg9.fit_iterations"};
+    for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
+        if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
+    return 1;
+}
+
+static int build_text(pstate *ps, int matrix_only, char **text)
 {
     config_t out;
     char *buf = NULL;
@@ -688,7 +705,7 @@ static int build_canonical(pstate *ps, wt_config *cfg)
     for (int k = 0; k < NKEYS && st == WT_OK; k++) {
         const key_spec *ks = &keys[k];
         const config_setting_t *s = ps->set[k];
-        if (!s) continue;
+        if (!s || (matrix_only && !affects_matrix(ks->path))) continue;
         const char *leaf;
         config_setting_t *g = ensure_parent(&out, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
@@ -721,11 +738,19 @@ static int build_canonical(pstate *ps, wt_config *cfg)
     }
     config_destroy(&out);
     if (st == WT_OK) {
-        cfg->canonical = wt_malloc(ps->ctx, len + 1, 1);
-        if (!cfg->canonical) st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "out of memory for the canonical text (%zu bytes)", len + 1);
-        else memcpy(cfg->canonical, buf, len + 1);
+        *text = wt_malloc(ps->ctx, len + 1, 1);
+        if (!*text) st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "out of memory for the canonical text (%zu bytes)", len + 1);
+        else memcpy(*text, buf, len + 1);
     }
     free(buf); /* open_memstream's buffer comes from malloc, not from the context's allocator */
+    return st;
+}
+
+static int build_canonical(pstate *ps, wt_config *cfg)
+{
+    int st = build_text(ps, 0, &cfg->canonical);
+    if (st == WT_OK) st = build_text(ps, 1, &cfg->matrix_text);
+    if (st == WT_OK) wt_sha256_hex(cfg->matrix_text, strlen(cfg->matrix_text), cfg->matrix_sha256);
     return st;
 }
 
@@ -824,6 +849,7 @@ void wt_config_free(wt_context *ctx, wt_config *cfg)
 {
     if (!cfg) return;
     wt_free(ctx, cfg->canonical);
+    wt_free(ctx, cfg->matrix_text);
     wt_free(ctx, cfg);
 }
 

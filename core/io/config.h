@@ -46,6 +46,8 @@ typedef struct wt_recon_variant_config {
 typedef struct wt_config {
     char path[1024];                 /* file it was read from */
     char *canonical;                 /* the effective configuration as libconfig text (owned) */
+    char *matrix_text;               /* the canonical text of the keys that can change an MVM matrix (owned) */
+    char matrix_sha256[65];          /* SHA-256 of matrix_text: the identity of the system for MVM files */
 
     /* telescope */
     double diameter;                 /* pupil diameter D [m] */

@@ -1,6 +1,9 @@
 /* core/model/reconstructor.c: the pcg3 / cg9 / none reconstructors as one slopes → commands map. */
 #include "reconstructor.h"
 
+#include "mvm.h"
+
+#include <cblas.h>
 #include <math.h>
 #include <string.h>
 
@@ -18,6 +21,8 @@ struct wt_reconstructor {
     double *phi;             /* spatial layers */
     double *a_fit;           /* fitting warm start */
     int64_t *act_index;      /* pcg3: actuator → index into phi */
+    const wt_mvm *mvm;       /* mvm: the control matrix (not owned) */
+    float *sf, *af;          /* mvm: float32 slopes and commands */
     double t_tomo, t_fit;
     wt_pcg_result last;
 };
@@ -27,6 +32,7 @@ int wt_reconstructor_kind(const char *name)
     if (!strcmp(name, "pcg3")) return WT_RECON_PCG3;
     if (!strcmp(name, "cg9")) return WT_RECON_CG9;
     if (!strcmp(name, "none")) return WT_RECON_NONE;
+    if (!strcmp(name, "mvm")) return WT_RECON_MVM;
     return -1;
 }
 
@@ -36,6 +42,7 @@ const char *wt_reconstructor_name(int kind)
     case WT_RECON_PCG3: return "pcg3";
     case WT_RECON_CG9: return "cg9";
     case WT_RECON_NONE: return "none";
+    case WT_RECON_MVM: return "mvm";
     default: return "?";
     }
 }
@@ -128,9 +135,33 @@ fail:
     return st;
 }
 
+int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const wt_mvm *m, wt_reconstructor **out)
+{
+    int st = WT_OK;
+    wt_reconstructor *r = NULL;
+    *out = NULL;
+    if (m->nact != sys->nact || m->nslopes != sys->nslopes)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "MVM of %lld x %lld for a system of %lld actuators and %lld slopes",
+                        (long long)m->nact, (long long)m->nslopes, (long long)sys->nact, (long long)sys->nslopes);
+    WT_ALLOC(ctx, r, 1, "reconstructor");
+    r->ctx = ctx;
+    r->sys = sys;
+    r->kind = WT_RECON_MVM;
+    r->mvm = m;
+    WT_ALLOC(ctx, r->sf, sys->nslopes, "float32 slopes");
+    WT_ALLOC(ctx, r->af, sys->nact, "float32 commands");
+    *out = r;
+    return WT_OK;
+fail:
+    wt_reconstructor_free(r);
+    return st;
+}
+
 void wt_reconstructor_free(wt_reconstructor *r)
 {
     if (!r) return;
+    wt_free(r->ctx, r->sf);
+    wt_free(r->ctx, r->af);
     wt_tomography_free(r->tomo);
     wt_fitting_free(r->fit);
     wt_free(r->ctx, r->c);
@@ -152,6 +183,19 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     r->t_tomo = r->t_fit = 0.0;
     if (r->kind == WT_RECON_NONE) {
         memset(a, 0, (size_t)na * sizeof *a);
+        return WT_OK;
+    }
+    if (r->kind == WT_RECON_MVM) {
+        double t0 = wt_time_now();
+        const int64_t ns = r->sys->nslopes;
+        for (int64_t i = 0; i < ns; i++) {
+            if (!isfinite(s_ol[i]))
+                return WT_ERROR(r->ctx, WT_ERR_NUMERIC, "mvm: slope %lld is %g (NaN or Inf)", (long long)i, s_ol[i]);
+            r->sf[i] = (float)s_ol[i];
+        }
+        cblas_sgemv(CblasRowMajor, CblasNoTrans, (int)na, (int)ns, 1.0f, r->mvm->R, (int)ns, r->sf, 1, 0.0f, r->af, 1);
+        for (int64_t i = 0; i < na; i++) a[i] = r->af[i];
+        r->t_tomo = wt_time_now() - t0;
         return WT_OK;
     }
     if (!r->warm) wt_reconstructor_reset(r);

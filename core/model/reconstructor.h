@@ -6,6 +6,8 @@
  *  cg9:  layers at the atmosphere altitudes, CG (recon.cg9), then the fitting step by CG over the
  *        evaluation directions (recon.cg9.fit_iterations).
  *  none: commands 0 (the uncorrected baseline).
+ *  mvm:  a stored control matrix (core/model/mvm.h): a = R s_ol, one float32 GEMV through OpenBLAS
+ *        (memory-bound: it streams n_act x n_slopes x 4 bytes per frame).
  * Both iterative variants warm-start from the previous frame's solution (recon.warm_start).
  */
 #ifndef WT_RECONSTRUCTOR_H
@@ -15,16 +17,20 @@
 #include "system.h"
 #include "tomography.h"
 
-enum { WT_RECON_NONE = 0, WT_RECON_PCG3 = 1, WT_RECON_CG9 = 2 };
+enum { WT_RECON_NONE = 0, WT_RECON_PCG3 = 1, WT_RECON_CG9 = 2, WT_RECON_MVM = 3 };
+
+struct wt_mvm;
 
 typedef struct wt_reconstructor wt_reconstructor;
 
-/* Parse "pcg3" | "cg9" | "none"; returns -1 for anything else. */
+/* Parse "pcg3" | "cg9" | "none" | "mvm"; returns -1 for anything else. */
 int wt_reconstructor_kind(const char *name);
 const char *wt_reconstructor_name(int kind);
 
 /* iterations: ≥ 0 overrides the variant's (P)CG iteration count. */
 int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out);
+/* The MVM reconstructor around a matrix built for sys (not owned: it must outlive the reconstructor). */
+int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const struct wt_mvm *m, wt_reconstructor **out);
 void wt_reconstructor_free(wt_reconstructor *r);
 
 /* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). */

@@ -129,7 +129,15 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
     WT_ALLOC(ctx, lp->opd, (size_t)lp->nlos * lp->nfine, "OPD maps");
     WT_ALLOC(ctx, lp->dm_grids, wt_dm_grid_points(sys), "DM grids");
     WT_TRY(wt_interaction_alloc(ctx, sys, &lp->ia));
-    WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, opt->iterations, &lp->rec));
+    if (opt->recon == WT_RECON_MVM) {
+        if (!opt->mvm) {
+            st = WT_ERROR(ctx, WT_ERR_INVALID, "the mvm reconstructor needs a control matrix");
+            goto fail;
+        }
+        WT_TRY(wt_reconstructor_alloc_mvm(ctx, sys, opt->mvm, &lp->rec));
+    } else {
+        WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, opt->iterations, &lp->rec));
+    }
     WT_ALLOC(ctx, lp->ring, lp->delay + 1, "command history");
     for (int k = 0; k <= lp->delay; k++) WT_ALLOC(ctx, lp->ring[k], sys->nact, "command history");
     WT_ALLOC(ctx, lp->s, sys->nslopes, "slopes");

@@ -21,7 +21,8 @@
 typedef struct wt_loop wt_loop;
 
 typedef struct wt_loop_options {
-    int recon;          /* WT_RECON_NONE / PCG3 / CG9 */
+    int recon;          /* WT_RECON_NONE / PCG3 / CG9 / MVM */
+    const struct wt_mvm *mvm; /* WT_RECON_MVM: the control matrix (not owned; must outlive the loop) */
     int iterations;     /* (P)CG iterations override, < 0: the config's */
     uint64_t seed;      /* random seed (the driver passes the config's unless overridden) */
     int noise;          /* 0: noise-free sensors (no photon/read noise, no LGS tip-tilt) */

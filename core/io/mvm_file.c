@@ -1,0 +1,95 @@
+/* core/io/mvm_file.c: MATRIX.h5, written by `wavetomo build`, read by `wavetomo run` and
+ * `wavetomo sim --recon mvm` (SPEC §9). */
+#include "mvm_file.h"
+
+#include <string.h>
+
+int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const char *variant)
+{
+    int st;
+    wt_h5_matrix *R = NULL;
+    const int64_t block = 256;
+    if ((st = wt_h5_matrix_create(w, "R", WT_H5_F32, m->nact, m->nslopes, "m/rad",
+                                  "control matrix: commands [m] = R x slopes [rad]; row = actuator (layout/actuator_index), "
+                                  "column = slope (layout/sensor_slope_offset)",
+                                  &R)) < 0)
+        return st;
+    for (int64_t r = 0; r < m->nact; r += block) {
+        int64_t nr = m->nact - r < block ? m->nact - r : block;
+        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, m->R + (size_t)r * m->nslopes)) < 0) return st;
+    }
+    int64_t d[2] = {m->nact, m->nact};
+    if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, m->RA, "",
+                          "R A^: R times the DM-to-slope interaction, so that R s_ol = R s + RA a (POLC)")) < 0)
+        return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "config_sha256", cfg->matrix_sha256)) < 0) return st;
+    if ((st = wt_h5_write_string(w, "matrix_config", cfg->matrix_text,
+                                 "the configuration keys that define R (their SHA-256 is the root attribute "
+                                 "config_sha256)")) < 0)
+        return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "variant", variant)) < 0) return st;
+    if ((st = wt_h5_attr_write_double(w, "/", "alpha", cfg->alpha)) < 0) return st;
+    if ((st = wt_h5_attr_write_double(w, "/", "tau", cfg->tau)) < 0) return st;
+    const wt_mvm_stats *s = &m->stats;
+    if ((st = wt_h5_write_int64(w, "build/unknowns", s->nunknowns, "", "wavelet coefficients of the MAP problem")) < 0)
+        return st;
+    if ((st = wt_h5_write_double(w, "build/factor_nonzeros", s->nnz_factor, "",
+                                 "non-zeros of the CHOLMOD Cholesky factor of the sparse part N")) < 0)
+        return st;
+    if ((st = wt_h5_write_int64(w, "build/lowrank_rank", s->rank, "",
+                                "rank of the Woodbury correction (LGS tip-tilt removal and NGS rows)")) < 0)
+        return st;
+    if ((st = wt_h5_write_double(w, "build/time", s->t_total, "s", "wall time of the build")) < 0) return st;
+    if ((st = wt_h5_write_double(w, "build/peak_memory_estimate", s->peak_estimate / 1e9, "GB",
+                                 "estimated peak memory of the build")) < 0)
+        return st;
+    return wt_h5_write_string(w, "build/ordering", s->ordering ? s->ordering : "?",
+                              "fill-reducing ordering CHOLMOD chose");
+}
+
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, const wt_system *sys, wt_mvm **out,
+                     char *variant_out)
+{
+    int st;
+    wt_h5_reader *r = NULL;
+    wt_mvm *m = NULL;
+    char *hash = NULL, *variant = NULL;
+    *out = NULL;
+    if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
+    if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
+    if (strcmp(hash, cfg->matrix_sha256) != 0) {
+        st = WT_ERROR(ctx, WT_ERR_FORMAT,
+                      "%s: the matrix was built for another system (config_sha256 %.12s…, this configuration %.12s…); "
+                      "rebuild it with `wavetomo build` for %s",
+                      path, hash, cfg->matrix_sha256, cfg->path);
+        goto fail;
+    }
+    if ((st = wt_h5_attr_read_string(r, "/", "variant", &variant)) < 0) goto fail;
+    WT_ALLOC(ctx, m, 1, "MVM");
+    m->ctx = ctx;
+    m->nact = sys->nact;
+    m->nslopes = sys->nslopes;
+    m->commands = !strcmp(variant, "cg9") ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
+    int64_t er[2] = {sys->nact, sys->nslopes}, ea[2] = {sys->nact, sys->nact};
+    if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
+    if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
+    WT_ALLOC(ctx, m->R, (size_t)sys->nact * sys->nslopes, "the control matrix R");
+    WT_ALLOC(ctx, m->RA, (size_t)sys->nact * sys->nact, "the POLC matrix RA");
+    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, m->R, (size_t)sys->nact * sys->nslopes)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, m->RA, (size_t)sys->nact * sys->nact)) < 0) goto fail;
+    if (variant_out) {
+        strncpy(variant_out, variant, 15);
+        variant_out[15] = '\0';
+    }
+    wt_free(ctx, hash);
+    wt_free(ctx, variant);
+    wt_h5_close(r);
+    *out = m;
+    return WT_OK;
+fail:
+    wt_free(ctx, hash);
+    wt_free(ctx, variant);
+    wt_h5_close(r);
+    wt_mvm_free(m);
+    return st;
+}
