@@ -146,6 +146,24 @@ int wt_cli_fail(wt_cli *cli, int status)
     return 1;
 }
 
+int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed)
+{
+    if (cli->nset + 3 > WT_CLI_MAX_SET) return wt_cli_usage_error(cli, "too many --set options");
+    if (frames > 0) {
+        cli->frames = frames;
+        snprintf(cli->frames_set, sizeof cli->frames_set, "loop.frames=%ld", frames);
+        cli->set[cli->nset++] = cli->frames_set;
+    }
+    if (seed) {
+        char *end;
+        long long s = strtoll(seed, &end, 10);
+        if (!seed[0] || *end || s < 0) return wt_cli_usage_error(cli, "--seed expects a non-negative integer, got '%s'", seed);
+        snprintf(cli->seed_set, sizeof cli->seed_set, "sim.seed=%lldL", s);
+        cli->set[cli->nset++] = cli->seed_set;
+    }
+    return 0;
+}
+
 int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
 {
     if (!path) path = cli->config_path;
@@ -153,7 +171,18 @@ int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
         wt_error_set(cli->ctx, WT_ERR_INVALID, __FILE__, __LINE__, "no configuration given (use --config FILE)");
         return WT_ERR_INVALID;
     }
-    return wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
+    int st = wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
+    if (st == WT_ERR_CONFIG && cli->frames > 0 && strstr(wt_error_message(cli->ctx), "settle_frames") &&
+        cli->nset < WT_CLI_MAX_SET) {
+        /* a short run: keep the settle period inside it */
+        snprintf(cli->settle_set, sizeof cli->settle_set, "evaluation.settle_frames=%ld", cli->frames / 2);
+        cli->set[cli->nset++] = cli->settle_set;
+        if (!cli->quiet)
+            fprintf(stderr, "%s: note: --frames %ld is not above evaluation.settle_frames; using %s\n", cli->prog,
+                    cli->frames, cli->settle_set);
+        st = wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
+    }
+    return st;
 }
 
 void wt_progress_start(wt_progress *p, const char *label, const char *unit, long total)

@@ -20,6 +20,8 @@ typedef struct wt_cli {
     const char *set[WT_CLI_MAX_SET];
     int threads;                /* 0: all */
     int quiet;
+    long frames;                /* --frames of the run commands (0: the config's) */
+    char frames_set[64], seed_set[64], settle_set[64]; /* storage of the overrides they become */
 } wt_cli;
 
 /* Create the context (log to stderr unless quiet). Non-zero on allocation failure (message printed). */
@@ -45,7 +47,11 @@ int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */
 int wt_cli_usage_error(wt_cli *cli, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-/* Read the configuration named by --config (or `path`) with the --set overrides. */
+/* The run shortcuts --frames N and --seed S (NULL/≤ 0: not given) become the overrides loop.frames and
+ * sim.seed, so the stored configuration says what ran. Returns 0, or 2 after a usage error. */
+int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed);
+/* Read the configuration named by --config (or `path`) with the --set overrides. When --frames made
+ * the run too short for evaluation.settle_frames, the settle period becomes frames/2 (with a note). */
 int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg);
 
 /* Terminal progress line on stderr (only when stderr is a terminal): "label  done/total  rate/s  ETA". */
@@ -79,5 +85,6 @@ int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 int wt_cmd_sim(int argc, char **argv);
 int wt_cmd_build(int argc, char **argv);
 int wt_cmd_run(int argc, char **argv);
+int wt_cmd_compare(int argc, char **argv);
 
 #endif

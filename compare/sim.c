@@ -200,7 +200,6 @@ int wt_cmd_sim(int argc, char **argv)
     const char *recon = args.recon, *out = args.out, *tel = args.tel, *seed_opt = args.seed;
     int iters = (int)args.iters, dump = args.dump, nonoise = args.nonoise;
     long frames_opt = args.frames;
-    char frames_set[64], seed_set[64], settle_set[64];
     int kind = wt_reconstructor_kind(recon);
     if (kind < 0) {
         rc = wt_cli_usage_error(&cli, "--recon expects pcg3, cg9, none or mvm, got '%s'", recon);
@@ -219,21 +218,7 @@ int wt_cmd_sim(int argc, char **argv)
         rc = wt_cli_usage_error(&cli, "--config FILE is required");
         goto done;
     }
-    /* command-line shortcuts become config overrides, so the stored configuration says what ran */
-    if (frames_opt > 0) {
-        snprintf(frames_set, sizeof frames_set, "loop.frames=%ld", frames_opt);
-        cli.set[cli.nset++] = frames_set;
-    }
-    if (seed_opt) {
-        char *end;
-        long long s = strtoll(seed_opt, &end, 10);
-        if (*end || s < 0) {
-            rc = wt_cli_usage_error(&cli, "--seed expects a non-negative integer, got '%s'", seed_opt);
-            goto done;
-        }
-        snprintf(seed_set, sizeof seed_set, "sim.seed=%lldL", s);
-        cli.set[cli.nset++] = seed_set;
-    }
+    if ((rc = wt_cli_run_overrides(&cli, frames_opt, seed_opt)) != 0) goto done;
     if (nonoise) cli.set[cli.nset++] = "sim.noise=false";
 
     wt_config *cfg = NULL;
@@ -245,16 +230,6 @@ int wt_cmd_sim(int argc, char **argv)
     double *se_field = NULL, *se_axis = NULL;
     float *rms_nm = NULL, *fbuf = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
-    if (st == WT_ERR_CONFIG && frames_opt > 0 && strstr(wt_error_message(cli.ctx), "settle_frames")) {
-        /* a short run: keep the settle period inside it */
-        wt_config_free(cli.ctx, cfg);
-        cfg = NULL;
-        snprintf(settle_set, sizeof settle_set, "evaluation.settle_frames=%ld", frames_opt / 2);
-        cli.set[cli.nset++] = settle_set;
-        fprintf(stderr, "wavetomo sim: note: --frames %ld is not above evaluation.settle_frames; using %s\n",
-                frames_opt, settle_set);
-        st = wt_cli_read_config(&cli, NULL, &cfg);
-    }
     if (st < 0) goto fail;
     /* find an unwritable output before the run, not after it */
     if ((st = wt_h5_check_writable(cli.ctx, out, 0)) < 0) goto fail;

@@ -145,10 +145,15 @@ void wt_chol_info_get(const wt_chol *c, wt_chol_info *info)
         /* values, supernode row indices, and the per-supernode and per-column index arrays */
         info->factor_bytes = 8.0 * (double)L->xsize + 8.0 * (double)L->ssize + 8.0 * 4.0 * (double)(L->nsuper + 1) +
                              8.0 * 3.0 * (double)c->n;
+        info->factorize_bytes = info->factor_bytes + 8.0 * (double)L->maxcsize;
     } else {
         info->factor_entries = c->cm.lnz;
         info->factor_bytes = 16.0 * c->cm.lnz + 8.0 * 6.0 * (double)c->n;
+        info->factorize_bytes = info->factor_bytes;
     }
+    /* the permuted copy of A and the integer workspace (measured on E-ELT cg9: factor 4.11 GB, A 2.99 GB,
+     * CHOLMOD peak 7.77 GB) */
+    info->factorize_bytes += 16.0 * (double)c->nnz + 8.0 * 8.0 * (double)c->n;
 }
 
 int wt_chol_factorize(wt_chol *c, const wt_sparse *upper)

@@ -24,6 +24,9 @@ typedef struct wt_chol_info {
     double nnz_factor;      /* non-zeros of L (CHOLMOD's count, without supernodal padding) */
     double factor_entries;  /* numerical entries L holds (with supernodal padding) */
     double factor_bytes;    /* bytes of the numeric factor (values and supernode row indices) */
+    double factorize_bytes; /* CHOLMOD's peak during wt_chol_factorize: the factor, its permuted copy of
+                               the matrix (supernodal numeric works on A(p,p)) and the largest update
+                               matrix [bytes]; the caller's own copy of the matrix comes on top */
     double flops;           /* flops of the factorisation, as CHOLMOD's analysis counts them */
     double peak_bytes;      /* CHOLMOD's own peak memory so far [bytes] */
     int supernodal;         /* 1 supernodal, 0 simplicial */

@@ -117,7 +117,8 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     f->ncg = wt_grid_size(&sys->corner_grid);
     f->ndm_pts = wt_dm_grid_points(sys);
     for (int l = 0; l < nlayers; l++) f->nlayer_pts += wt_grid_size(&layers[l]);
-    f->nthreads = wt_context_threads(ctx);
+    /* small DM sets: serial is faster than a parallel region (see core/model/tomography.c) */
+    f->nthreads = f->ndm_pts < 4096 ? 1 : wt_context_threads(ctx);
     WT_ALLOC(ctx, f->dm, f->ndir, "fitting DM projections");
     WT_ALLOC(ctx, f->layer, f->ndir, "fitting layer projections");
     for (int j = 0; j < f->ndir; j++) {

@@ -778,11 +778,12 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     snprintf(detail, sizeof detail, "Γ P %.3g GB, Lᵀ Ã_LGS and transpose %.3g GB, N %.3g GB (%lld non-zeros)",
              gp_bytes / 1e9, (g_bytes + f_bytes) / 1e9, n_bytes / 1e9, (long long)S->nnz_normal);
     WT_TRY(check_budget(ctx, &opt, &S->peak_estimate, "forming N", gp_bytes + g_bytes + f_bytes + n_bytes, detail));
-    /* the factor holds at least the pattern of N's upper triangle */
+    /* the factor holds at least the pattern of N's upper triangle, and CHOLMOD copies N once */
     snprintf(detail, sizeof detail,
-             "at least: N %.3g GB and a factor of ≥ %lld non-zeros %.3g GB, Γ P %.3g GB",
+             "at least: N %.3g GB, CHOLMOD's permuted copy of it, a factor of ≥ %lld non-zeros %.3g GB, Γ P %.3g GB",
              n_bytes / 1e9, (long long)S->nnz_normal, 8.0 * S->nnz_normal / 1e9, gp_bytes / 1e9);
-    WT_TRY(check_budget(ctx, &opt, &S->peak_estimate, "factorising N", gp_bytes + n_bytes + 8.0 * S->nnz_normal, detail));
+    WT_TRY(check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
+                        gp_bytes + 2.0 * n_bytes + 8.0 * S->nnz_normal, detail));
     WT_TRY(wt_sparse_alloc(ctx, n, n, S->nnz_normal, &N));
     memcpy(N->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
     fill_columns(&pool, N, normal_column, &nc, &opt, "normal", n, 2 * n);
@@ -804,9 +805,11 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     S->ordering = ci.ordering;
     S->t_analyze = wt_time_now() - tt;
     progress(&opt, "analyze", 1, 1);
-    snprintf(detail, sizeof detail, "N %.3g GB, Cholesky factor %.3g GB (%.4g non-zeros, %s ordering), Γ P %.3g GB",
-             n_bytes / 1e9, ci.factor_bytes / 1e9, ci.nnz_factor, ci.ordering, gp_bytes / 1e9);
-    WT_TRY(check_budget(ctx, &opt, &S->peak_estimate, "factorising N", gp_bytes + n_bytes + ci.factor_bytes, detail));
+    snprintf(detail, sizeof detail,
+             "N %.3g GB, CHOLMOD's factorisation %.3g GB (factor %.3g GB of %.4g non-zeros, %s ordering, plus its "
+             "permuted copy of N and workspace), Γ P %.3g GB",
+             n_bytes / 1e9, ci.factorize_bytes / 1e9, ci.factor_bytes / 1e9, ci.nnz_factor, ci.ordering, gp_bytes / 1e9);
+    WT_TRY(check_budget(ctx, &opt, &S->peak_estimate, "factorising N", gp_bytes + n_bytes + ci.factorize_bytes, detail));
     double solve_ws = wt_chol_solve_bytes(n, opt.block > rank ? opt.block : rank) + 16.0 * rank * opt.block;
     double final_bytes = reserve + gp_bytes + ci.factor_bytes + lowrank_bytes + solve_ws + (keep_matrix ? n_bytes : 0.0);
     snprintf(detail, sizeof detail,

@@ -152,7 +152,9 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                               &t->noise[m]));
     }
 
-    t->nthreads = wt_context_threads(ctx);
+    /* A parallel region costs a few µs on an idle machine and a scheduler time slice when a thread is
+     * descheduled: below ~16k unknowns (an apply of well under 0.1 ms) threads do not pay. */
+    t->nthreads = t->n < 16384 ? 1 : wt_context_threads(ctx);
     WT_ALLOC(ctx, t->phi, t->n, "layer workspace");
     WT_ALLOC(ctx, t->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
     {
@@ -451,6 +453,16 @@ fail:
     wt_free(ctx, phi);
     wt_free(ctx, z);
     return st;
+}
+
+double wt_tomography_bytes(const wt_tomography *t)
+{
+    /* vectors of n: α D, J⁻¹, φ, b, the group accumulators and the 4 PCG vectors */
+    double b = 8.0 * (double)t->n * (4.0 + (t->jinv ? 1.0 : 0.0) + 2.0 + 4.0);
+    b += 8.0 * (double)t->S * (double)t->ncg + 16.0 * (double)t->sys->nslopes + 8.0 * t->nthreads * (double)t->wsize;
+    /* projection stencils: ~24 bytes per masked point and layer, plus the separable tables */
+    b += 24.0 * (double)t->sys->ncorners * t->S * t->L;
+    return b;
 }
 
 void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)

@@ -70,6 +70,9 @@ void wt_tomography_layers(wt_tomography *t, const double *c, double *phi);
  * for tests of the probing. diag: ncoef values. */
 int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
 
+/* Bytes the object holds (operators, prior, preconditioner, workspace): for reports. */
+double wt_tomography_bytes(const wt_tomography *t);
+
 /* Work per application of M: floating-point operations and bytes moved (estimates for reports). */
 void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes);
 

@@ -1,0 +1,150 @@
+/* tests/test_cli.c: the wavetomo commands as a user runs them: the comparison report on the demo
+ * system, the build → run chain, and clear refusals with non-zero exits. Uses $BIN/wavetomo (make test
+ * builds it first). */
+#include <stdarg.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include "testutil.h"
+
+static char dir[64], wt[512];
+
+static int run(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static int run(const char *fmt, ...)
+{
+    char cmd[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = snprintf(cmd, sizeof cmd, "%s ", wt);
+    vsnprintf(cmd + n, sizeof cmd - n, fmt, ap);
+    va_end(ap);
+    strncat(cmd, " > /dev/null 2> /tmp/wt_cli_stderr.txt", sizeof cmd - strlen(cmd) - 1);
+    int st = system(cmd);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static int stderr_has(const char *text)
+{
+    FILE *f = fopen("/tmp/wt_cli_stderr.txt", "r");
+    char buf[8192] = {0};
+    if (!f) return 0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return strstr(buf, text) != NULL;
+}
+
+static long file_size(const char *d, const char *name)
+{
+    char p[256];
+    struct stat sb;
+    snprintf(p, sizeof p, "%s/%s", d, name);
+    return stat(p, &sb) == 0 ? (long)sb.st_size : -1;
+}
+
+static int is_png(const char *d, const char *name)
+{
+    char p[256];
+    unsigned char sig[8] = {0};
+    snprintf(p, sizeof p, "%s/%s", d, name);
+    FILE *f = fopen(p, "rb");
+    if (!f) return 0;
+    size_t n = fread(sig, 1, 8, f);
+    fclose(f);
+    return n == 8 && !memcmp(sig, "\x89PNG\r\n\x1a\n", 8);
+}
+
+static void setup(void)
+{
+    const char *bin = getenv("BIN");
+    snprintf(wt, sizeof wt, "%s/wavetomo", bin ? bin : "bin");
+    snprintf(dir, sizeof dir, "/tmp/wt_cli_XXXXXX");
+    ck_assert_ptr_nonnull(mkdtemp(dir));
+}
+
+static void teardown(void)
+{
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
+}
+
+START_TEST(test_compare_writes_the_report)
+{
+    /* issue #4: compare on the demo preset writes every file of the report; the plots are non-empty PNGs */
+    char out[128];
+    snprintf(out, sizeof out, "%s/cmp", dir);
+    ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm,pcg3,cg9 --sweep lgs.wfs.photons=50,100 "
+                         "--frames 40 --out %s --quiet",
+                         out),
+                     0);
+    const char *files[] = {"results.h5", "summary.csv", "report.md"};
+    for (int i = 0; i < 3; i++) ck_assert_msg(file_size(out, files[i]) > 100, "%s missing or empty", files[i]);
+    const char *pngs[] = {"strehl_vs_sweep.png", "time_per_frame.png", "map_mvm_0.png", "map_pcg3_0.png", "map_cg9_0.png",
+                          "map_mvm_1.png", "map_pcg3_1.png", "map_cg9_1.png"};
+    for (int i = 0; i < 8; i++) {
+        ck_assert_msg(is_png(out, pngs[i]), "%s is not a PNG", pngs[i]);
+        ck_assert_msg(file_size(out, pngs[i]) > 2000, "%s is (nearly) empty", pngs[i]);
+    }
+    /* summary.csv: a header and one row per method and sweep value */
+    char p[256], line[512];
+    snprintf(p, sizeof p, "%s/summary.csv", out);
+    FILE *f = fopen(p, "r");
+    ck_assert_ptr_nonnull(f);
+    int rows = 0;
+    while (fgets(line, sizeof line, f)) rows++;
+    fclose(f);
+    ck_assert_int_eq(rows, 1 + 3 * 2);
+    /* a second run reuses the cached MVM (same hash) */
+    ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm --frames 20 --sweep lgs.wfs.photons=50 "
+                         "--out %s",
+                         out),
+                     0);
+    ck_assert(stderr_has("mvm from the cache"));
+}
+END_TEST
+
+START_TEST(test_build_run_chain_and_refusals)
+{
+    char tel[128], mat[128], cmd[128];
+    snprintf(tel, sizeof tel, "%s/tel.h5", dir);
+    snprintf(mat, sizeof mat, "%s/M.h5", dir);
+    snprintf(cmd, sizeof cmd, "%s/c.h5", dir);
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --frames 12 --out %s/r.h5 --telemetry %s", dir, tel), 0);
+    ck_assert_int_eq(run("build --config data/presets/demo.cfg --out %s", mat), 0);
+    ck_assert_int_eq(run("run --matrix %s --telemetry %s --out %s", mat, tel, cmd), 0);
+    ck_assert_int_eq(run("run --recon pcg3 --telemetry %s --out %s/c2.h5", tel, dir), 0);
+    /* a matrix from another configuration is refused by run and by sim */
+    ck_assert_int_eq(run("build --config data/presets/demo.cfg --set recon.alpha=3.0 --out %s/M3.h5", dir), 0);
+    ck_assert_int_ne(run("run --matrix %s/M3.h5 --telemetry %s --out %s/c3.h5", dir, tel, dir), 0);
+    ck_assert(stderr_has("built for another system"));
+    ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s/M3.h5 --out %s/r3.h5", dir, dir), 0);
+    ck_assert(stderr_has("built for another system"));
+    /* an output that cannot be written is found before the run */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --out /nonexistent-dir/r.h5"), 1);
+    ck_assert(stderr_has("/nonexistent-dir"));
+    /* usage errors exit 2, config errors 1, with the key named */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --frames abc --out %s/x.h5", dir), 2);
+    ck_assert_int_eq(run("info data/presets/demo.cfg --set loop.gain=1.5"), 1);
+    ck_assert(stderr_has("loop.gain"));
+    ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm,foo --out %s/z", dir), 2);
+    ck_assert(stderr_has("foo"));
+    /* every command answers --help */
+    const char *cmds[] = {"info", "sim", "build", "run", "compare", "bench"};
+    for (int i = 0; i < 6; i++) ck_assert_int_eq(run("%s --help", cmds[i]), 0);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("cli");
+    TCase *tc = tcase_create("commands");
+    tcase_add_checked_fixture(tc, setup, teardown);
+    tcase_set_timeout(tc, 300);
+    tcase_add_test(tc, test_compare_writes_the_report);
+    tcase_add_test(tc, test_build_run_chain_and_refusals);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN

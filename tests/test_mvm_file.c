@@ -1,0 +1,128 @@
+/* tests/test_mvm_file.c: MATRIX.h5 (SPEC §9): round trip, and the refusals — a matrix from another
+ * configuration, a truncated file, a build killed before it finished. */
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/io/mvm_file.h"
+#include "core/model/mvm.h"
+#include "core/model/system.h"
+#include "core/model/tomography.h"
+#include "testutil.h"
+
+static char dir[64];
+
+static void make_dir(void)
+{
+    snprintf(dir, sizeof dir, "/tmp/wt_mvmfile_XXXXXX");
+    ck_assert_ptr_nonnull(mkdtemp(dir));
+}
+
+/* Build the demo pcg3 matrix for cfg. */
+static wt_mvm *build(wt_context *ctx, wt_config *cfg)
+{
+    wt_system *sys;
+    wt_tomography *t;
+    wt_mvm *m;
+    wt_mvm_options o;
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &t), WT_OK);
+    wt_mvm_options_default(&o);
+    ck_assert_msg(wt_mvm_build(ctx, t, &o, &m) == WT_OK, "%s", wt_error_message(ctx));
+    wt_tomography_free(t);
+    wt_system_free(sys);
+    return m;
+}
+
+/* Write m to path; commit = 0 models a build killed before its commit: the process dies right after
+ * writing (only in a child process, which does no BLAS: OpenBLAS's thread pool does not survive fork). */
+static void write_matrix(wt_context *ctx, const wt_mvm *m, wt_config *cfg, const char *path, int commit)
+{
+    wt_h5_writer *w;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    ck_assert_int_eq(wt_mvm_file_write(w, m, cfg, "pcg3"), WT_OK);
+    if (!commit) {
+        wt_h5_flush(w);
+        _exit(0);
+    }
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+}
+
+START_TEST(test_round_trip_and_refusals)
+{
+    make_dir();
+    char path[128], trunc[128];
+    snprintf(path, sizeof path, "%s/M.h5", dir);
+    snprintf(trunc, sizeof trunc, "%s/T.h5", dir);
+    wt_context *ctx = tu_context();
+    wt_config *cfg, *other;
+    wt_system *sys;
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
+    wt_mvm *built = build(ctx, cfg);
+    write_matrix(ctx, built, cfg, path, 1);
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    wt_mvm *m;
+    char variant[16];
+    ck_assert_msg(wt_mvm_file_read(ctx, path, cfg, sys, &m, variant) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_str_eq(variant, "pcg3");
+    ck_assert_int_eq(m->nact, sys->nact);
+    ck_assert_int_eq(m->nslopes, sys->nslopes);
+    double norm = 0;
+    for (int64_t i = 0; i < m->nact * m->nslopes; i++) norm += (double)m->R[i] * m->R[i];
+    ck_assert(norm > 0 && isfinite(norm));
+    wt_mvm_free(m);
+
+    /* another system (α = 2): refused, naming the file and the reason */
+    const char *set[] = {"recon.alpha=2.0"};
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 1, set, &other), WT_OK);
+    ck_assert_int_eq(wt_mvm_file_read(ctx, path, other, sys, &m, NULL), WT_ERR_FORMAT);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "built for another system"));
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), path));
+    ck_assert_ptr_null(m);
+
+    /* truncated: refused cleanly */
+    struct stat sb;
+    ck_assert_int_eq(stat(path, &sb), 0);
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "cp %s %s && truncate -s %lld %s", path, trunc, (long long)sb.st_size / 2, trunc);
+    ck_assert_int_eq(system(cmd), 0);
+    int st = wt_mvm_file_read(ctx, trunc, cfg, sys, &m, NULL);
+    ck_assert_msg(st == WT_ERR_FORMAT || st == WT_ERR_IO, "truncated file gave %d", st);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), trunc));
+
+    /* killed before the commit: no file at the target; the temporary is refused */
+    char killed[128];
+    snprintf(killed, sizeof killed, "%s/K.h5", dir);
+    pid_t pid = fork();
+    ck_assert_int_ge(pid, 0);
+    if (pid == 0) write_matrix(ctx, built, cfg, killed, 0);
+    int status;
+    waitpid(pid, &status, 0);
+    ck_assert_int_ne(access(killed, F_OK), 0);
+    snprintf(cmd, sizeof cmd, "ls %s/K.h5.tmp-* >/dev/null 2>&1", dir);
+    ck_assert_int_eq(system(cmd), 0); /* the half-written temporary is there … */
+    snprintf(cmd, sizeof cmd, "cp %s/K.h5.tmp-* %s/K2.h5", dir, dir);
+    ck_assert_int_eq(system(cmd), 0);
+    snprintf(killed, sizeof killed, "%s/K2.h5", dir);
+    ck_assert_int_eq(wt_mvm_file_read(ctx, killed, cfg, sys, &m, NULL), WT_ERR_FORMAT); /* … and never passes */
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    ck_assert_int_eq(system(cmd), 0);
+    wt_mvm_free(built);
+    wt_system_free(sys);
+    wt_config_free(ctx, other);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("mvm_file");
+    TCase *tc = tcase_create("io");
+    tcase_set_timeout(tc, 120);
+    tcase_add_test(tc, test_round_trip_and_refusals);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
