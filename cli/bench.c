@@ -13,11 +13,13 @@
 #include "core/model/fitting.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
+#include "core/model/mvm.h"
 #include "core/sim/loop.h"
+#include <sys/resource.h>
 
 static void help(void)
 {
-    printf("usage: wavetomo bench [CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--threads N]\n"
+    printf("usage: wavetomo bench [CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--no-build] [--threads N]\n"
            "                      [--set key=value]...\n"
            "\n"
            "Times, on CONFIG (default data/presets/eelt-mcao.cfg): one application of the normal operator M\n"
@@ -27,7 +29,9 @@ static void help(void)
            "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
            "operand traffic; the working sets (~1 MB for pcg3) live in cache, so the implied GB/s can exceed\n"
            "the DRAM triad figure. Then the closed-loop simulation speed with pcg3 (--loop-frames, default\n"
-           "20, after 3 warm-up frames; --no-loop skips it).\n");
+           "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size)\n"
+           "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
+           "memory (--no-build skips it; ~4 minutes at E-ELT size).\n");
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -235,7 +239,7 @@ static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
 typedef struct {
     const char *path;
     long reps, loop_frames;
-    int skip_loop;
+    int skip_loop, skip_build;
 } bench_args;
 
 static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -243,6 +247,7 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     bench_args *a = user;
     const char *o = argv[*i], *v;
     if (!strcmp(o, "--no-loop")) a->skip_loop = 1;
+    else if (!strcmp(o, "--no-build")) a->skip_build = 1;
     else if (!strcmp(o, "--reps") || !strcmp(o, "--loop-frames")) {
         if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
         if (wt_cli_int(cli, o, v, 3, 100000, o[2] == 'r' ? &a->reps : &a->loop_frames) < 0) return -1;
@@ -251,11 +256,80 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     return 1;
 }
 
+/* MVM apply at the system's size against the memory bound, measured side by side: R (n_act x n_slopes
+ * float32) must be streamed once per frame, so a STREAM copy of the same byte count (read + write of
+ * R's size) sets the scale. Values do not change the time of a GEMV, so R is filled with a pattern. */
+static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
+{
+    const int64_t na = sys->nact, ns = sys->nslopes;
+    const size_t n = (size_t)na * (size_t)ns;
+    float *R = malloc(n * sizeof *R), *C = malloc(n * sizeof *C), *x = malloc((size_t)ns * sizeof *x),
+          *y = malloc((size_t)na * sizeof *y);
+    double *tg = malloc((size_t)reps * sizeof *tg), *tc = malloc((size_t)reps * sizeof *tc);
+    int st = WT_OK;
+    if (!R || !C || !x || !y || !tg || !tc) {
+        st = wt_error_set(cli->ctx, WT_ERR_NOMEM, __FILE__, __LINE__, "bench: out of memory for a %.2f GB matrix",
+                          2.0 * n * 4.0 / 1e9);
+        goto out;
+    }
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < n; i++) R[i] = C[i] = (float)((i * 2654435761u) % 1000) * 1e-3f;
+    for (int64_t i = 0; i < ns; i++) x[i] = (float)(i % 7) * 1e-6f;
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        cblas_sgemv(CblasRowMajor, CblasNoTrans, (int)na, (int)ns, 1.0f, R, (int)ns, x, 1, 0.0f, y, 1);
+        tg[r] = wt_time_now() - a;
+        a = wt_time_now();
+#pragma omp parallel for schedule(static)
+        for (size_t i = 0; i < n; i++) C[i] = R[i];
+        tc[r] = wt_time_now() - a;
+    }
+    stats g = summarise(tg, reps), c = summarise(tc, reps);
+    double bytes = 4.0 * (double)n;
+    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS threads, %d repetitions side by side:\n",
+           (long long)na, (long long)ns, bytes / 1e9, openblas_get_num_threads(), reps);
+    printf("  sgemv          %8.2f ms  [%.2f, %.2f]  reads R once: %.1f GB/s\n", g.med * 1e3, g.p10 * 1e3, g.p90 * 1e3,
+           bytes / g.med / 1e9);
+    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the same bytes (read + write): %.1f GB/s\n", c.med * 1e3,
+           c.p10 * 1e3, c.p90 * 1e3, 2.0 * bytes / c.med / 1e9);
+    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s\n",
+           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9);
+out:
+    free(R), free(C), free(x), free(y), free(tg), free(tc);
+    return st;
+}
+
+/* The offline build of the pcg3 control matrix, timed with its peak memory. */
+static int bench_mvm_build(wt_cli *cli, const wt_system *sys)
+{
+    wt_tomography *t = NULL;
+    wt_mvm *m = NULL;
+    double t0 = wt_time_now();
+    int st = wt_tomography_alloc(cli->ctx, sys, &sys->cfg->pcg3, "pcg3", &t);
+    if (st < 0) return st;
+    wt_mvm_options o;
+    wt_mvm_options_default(&o);
+    st = wt_mvm_build(cli->ctx, t, &o, &m);
+    double el = wt_time_now() - t0;
+    if (st >= 0) {
+        struct rusage ru;
+        getrusage(RUSAGE_SELF, &ru);
+        const wt_mvm_stats *s = &m->stats;
+        printf("\nMVM build, pcg3: %.1f s (assemble %.1f, normal %.1f, analyse %.1f, factorise %.1f, solve %.1f); "
+               "factor %.3g non-zeros; peak memory %.2f GB (estimate %.2f GB)\n",
+               el, s->t_assemble, s->t_normal, s->t_analyze, s->t_factorize, s->t_solve, s->nnz_factor,
+               ru.ru_maxrss / 1048576.0, s->peak_estimate / 1e9);
+    }
+    wt_mvm_free(m);
+    wt_tomography_free(t);
+    return st;
+}
+
 int wt_cmd_bench(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo bench", help)) return 1;
-    bench_args args = {NULL, 50, 20, 0};
+    bench_args args = {NULL, 50, 20, 0, 0};
     int rc = wt_cli_parse(&cli, argc, argv, bench_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -280,8 +354,10 @@ int wt_cmd_bench(int argc, char **argv)
     st = bench_variant(&cli, sys, &cfg->pcg3, "pcg3", reps);
     if (st < 0) goto out;
     st = bench_variant(&cli, sys, &cfg->cg9, "cg9", reps < 20 ? reps : 20);
-    if (st < 0 || skip_loop) goto out;
-    st = bench_loop(&cli, sys, loop_frames);
+    if (st < 0) goto out;
+    if (!skip_loop && (st = bench_loop(&cli, sys, loop_frames)) < 0) goto out;
+    if ((st = bench_mvm_apply(&cli, sys, reps < 10 ? reps : 10)) < 0) goto out;
+    if (!args.skip_build) st = bench_mvm_build(&cli, sys);
 out:
     if (st < 0) rc = wt_cli_fail(&cli, st);
     wt_system_free(sys);
