@@ -47,50 +47,6 @@ const char *wt_reconstructor_name(int kind)
     }
 }
 
-/* pcg3: every DM must coincide with a reconstruction layer (altitude and pitch) and its actuators with
- * layer points; build the actuator → layer-point map. */
-static int map_actuators(wt_reconstructor *r)
-{
-    int st = WT_OK;
-    const wt_system *sys = r->sys;
-    wt_context *ctx = r->ctx;
-    WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
-    int64_t q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        int l = -1;
-        for (int i = 0; i < wt_tomography_nlayers(r->tomo); i++)
-            if (fabs(wt_tomography_layer_altitude(r->tomo, i) - sys->dm_altitude[k]) < 1e-6) l = i;
-        const wt_grid *g = &sys->dm_grid[k];
-        if (l < 0)
-            return WT_ERROR(ctx, WT_ERR_CONFIG,
-                            "%s: pcg3 has no reconstruction layer at the altitude of DM %d (%g m); "
-                            "recon.pcg3.layer_altitudes_m must list every dm.altitudes_m",
-                            sys->cfg->path, k + 1, sys->dm_altitude[k]);
-        const wt_grid *lg = wt_tomography_layer_grid(r->tomo, l);
-        if (fabs(lg->dx - g->dx) > 1e-9 * g->dx)
-            return WT_ERROR(ctx, WT_ERR_CONFIG,
-                            "%s: pcg3 layer %d spacing %g m differs from the pitch %g m of DM %d "
-                            "(recon.pcg3.layer_spacing_m[%d] must equal dm.pitch_m[%d])",
-                            sys->cfg->path, l + 1, lg->dx, g->dx, k + 1, l, k);
-        for (int iy = 0; iy < g->ny; iy++)
-            for (int ix = 0; ix < g->nx; ix++) {
-                if (!sys->dm_active[k][ix + (int64_t)g->nx * iy]) continue;
-                double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
-                double u = (x - lg->x0) / lg->dx, v = (y - lg->y0) / lg->dx;
-                long lx = lround(u), ly = lround(v);
-                if (fabs(u - lx) > 1e-6 || fabs(v - ly) > 1e-6 || lx < 0 || ly < 0 || lx >= lg->nx || ly >= lg->ny)
-                    return WT_ERROR(ctx, WT_ERR_CONFIG,
-                                    "%s: actuator (%d, %d) of DM %d at (%g, %g) m is not a point of pcg3 layer %d "
-                                    "(%dx%d, spacing %g m)",
-                                    sys->cfg->path, ix, iy, k + 1, x, y, l + 1, lg->nx, lg->ny, lg->dx);
-                r->act_index[q++] = wt_tomography_layer_offset(r->tomo, l) + lx + (int64_t)lg->nx * ly;
-            }
-    }
-    return WT_OK;
-fail:
-    return st;
-}
-
 int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out)
 {
     int st = WT_OK;
@@ -117,7 +73,9 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
     if (kind == WT_RECON_PCG3) {
-        WT_TRY(map_actuators(r));
+        /* the commands are the layer values at the actuators: the same map as the MVM builder's */
+        WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
+        WT_TRY(wt_mvm_actuator_points(ctx, r->tomo, r->act_index));
     } else {
         wt_grid grids[WT_MAX_LAYERS];
         double alts[WT_MAX_LAYERS];
