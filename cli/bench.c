@@ -167,14 +167,8 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_varia
                v->iterations, fs.med * 1e3, fs.med / 2e-3);
 
     if (v->fit_iterations > 0) {
-        wt_grid grids[WT_MAX_LAYERS];
-        double alts[WT_MAX_LAYERS];
-        for (int l = 0; l < v->nlayers; l++) {
-            grids[l] = *wt_tomography_layer_grid(t, l);
-            alts[l] = wt_tomography_layer_altitude(t, l);
-        }
         wt_fitting *f = NULL;
-        st = wt_fitting_alloc(cli->ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &f);
+        st = wt_fitting_alloc_for(cli->ctx, t, v->fit_regularization, &f);
         if (st < 0) goto out;
         double *a = calloc((size_t)sys->nact, sizeof *a), *phi = malloc((size_t)n * sizeof *phi);
         if (a && phi) {

@@ -63,14 +63,8 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
         printf("  %-6s %14lld %16lld  (%.2f GB as CSC with 64-bit indices)\n", "total", tg, ta, ta * 16.0 / 1e9);
     }
     if (v->fit_iterations > 0) {
-        wt_grid grids[WT_MAX_LAYERS];
-        double alts[WT_MAX_LAYERS];
-        for (int l = 0; l < v->nlayers; l++) {
-            grids[l] = *wt_tomography_layer_grid(t, l);
-            alts[l] = wt_tomography_layer_altitude(t, l);
-        }
         wt_fitting *f = NULL;
-        st = wt_fitting_alloc(cli->ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &f);
+        st = wt_fitting_alloc_for(cli->ctx, t, v->fit_regularization, &f);
         if (st < 0) {
             *st_out = st;
             wt_tomography_free(t);

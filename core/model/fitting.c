@@ -7,6 +7,7 @@
 #endif
 
 #include "../la/vec.h"
+#include "tomography.h"
 #include "../op/projection.h"
 
 struct wt_fitting {
@@ -195,6 +196,18 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
 fail:
     wt_fitting_free(f);
     return st;
+}
+
+int wt_fitting_alloc_for(wt_context *ctx, const wt_tomography *t, double regularization, wt_fitting **out)
+{
+    wt_grid grids[WT_MAX_LAYERS];
+    double alts[WT_MAX_LAYERS];
+    const int L = wt_tomography_nlayers(t);
+    for (int l = 0; l < L; l++) {
+        grids[l] = *wt_tomography_layer_grid(t, l);
+        alts[l] = wt_tomography_layer_altitude(t, l);
+    }
+    return wt_fitting_alloc(ctx, wt_tomography_system(t), L, grids, alts, regularization, out);
 }
 
 void wt_fitting_free(wt_fitting *f)

@@ -21,6 +21,9 @@ typedef struct wt_fitting wt_fitting;
 /* layers: the reconstruction layer grids and altitudes (the tomography's); regularization: relative ε. */
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
                      const double *altitudes, double regularization, wt_fitting **out);
+/* The fitting of a tomography's reconstruction layers (its grids and altitudes). */
+struct wt_tomography;
+int wt_fitting_alloc_for(wt_context *ctx, const struct wt_tomography *t, double regularization, wt_fitting **out);
 void wt_fitting_free(wt_fitting *f);
 
 /* y = (Σ H_jᵀ H_j + ε I) a   (a, y: sys->nact active actuators) */

@@ -77,13 +77,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
         WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
         WT_TRY(wt_mvm_actuator_points(ctx, r->tomo, r->act_index));
     } else {
-        wt_grid grids[WT_MAX_LAYERS];
-        double alts[WT_MAX_LAYERS];
-        for (int l = 0; l < v->nlayers; l++) {
-            grids[l] = *wt_tomography_layer_grid(r->tomo, l);
-            alts[l] = wt_tomography_layer_altitude(r->tomo, l);
-        }
-        WT_TRY(wt_fitting_alloc(ctx, sys, v->nlayers, grids, alts, v->fit_regularization, &r->fit));
+        WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, v->fit_regularization, &r->fit));
         WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
     }
     *out = r;
