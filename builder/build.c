@@ -123,7 +123,10 @@ int wt_cmd_build(int argc, char **argv)
     double rbytes = 4.0 * (double)sys->nact * ((double)sys->nslopes + (double)sys->nact);
     if ((st = wt_h5_check_writable(cli.ctx, args.out, (int64_t)(rbytes * 1.05))) < 0) goto fail;
     double t0 = wt_time_now();
-    if ((st = wt_tomography_alloc(cli.ctx, sys, cg9 ? &cfg->cg9 : &cfg->pcg3, args.recon, &t)) < 0) goto fail;
+    /* the builder factorises M exactly: the iterative solver's Jacobi diagonal is not needed */
+    wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3;
+    var.jacobi = 0;
+    if ((st = wt_tomography_alloc(cli.ctx, sys, &var, args.recon, &t)) < 0) goto fail;
     wt_mvm_options o;
     wt_mvm_options_default(&o);
     o.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;

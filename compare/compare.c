@@ -143,7 +143,9 @@ static int get_mvm(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys,
     wt_h5_writer *w = NULL;
     double t0 = wt_time_now();
     if (!cli->quiet) fprintf(stderr, "wavetomo compare: building the MVM for %s (hash %.16s)\n", cfg->path, cfg->matrix_sha256);
-    if ((st = wt_tomography_alloc(cli->ctx, sys, &cfg->pcg3, "pcg3", &t)) < 0) return st;
+    wt_recon_variant_config var = cfg->pcg3;
+    var.jacobi = 0; /* not needed by the exact factorisation */
+    if ((st = wt_tomography_alloc(cli->ctx, sys, &var, "pcg3", &t)) < 0) return st;
     wt_mvm_options o;
     wt_mvm_options_default(&o);
     st = wt_mvm_build(cli->ctx, t, &o, out);
