@@ -113,13 +113,26 @@ typedef struct {
 
 static const char *part_names[NPART] = {"atmosphere", "sensors", "reconstruction", "fitting", "control", "evaluation"};
 
+/* mkdir -p: create the directory and its missing parents */
 static int ensure_dir(wt_context *ctx, const char *path)
 {
-    if (mkdir(path, 0777) == 0 || errno == EEXIST) {
-        struct stat sb;
-        if (stat(path, &sb) == 0 && S_ISDIR(sb.st_mode)) return WT_OK;
+    char buf[2048];
+    snprintf(buf, sizeof buf, "%s", path);
+    for (char *p = buf + 1;; p++) {
+        int end = *p == '\0';
+        if (*p == '/' || end) {
+            char c = *p;
+            *p = '\0';
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+                return WT_ERROR(ctx, WT_ERR_IO, "cannot create the output directory '%s': %s", buf, strerror(errno));
+            *p = c;
+        }
+        if (end) break;
     }
-    return WT_ERROR(ctx, WT_ERR_IO, "cannot create the output directory '%s': %s", path, strerror(errno));
+    struct stat sb;
+    if (stat(path, &sb) != 0 || !S_ISDIR(sb.st_mode))
+        return WT_ERROR(ctx, WT_ERR_IO, "'%s' is not a directory", path);
+    return WT_OK;
 }
 
 /* The MVM for this configuration: read from the cache when its hash matches, else build and cache it. */

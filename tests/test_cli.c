@@ -73,7 +73,7 @@ START_TEST(test_compare_writes_the_report)
 {
     /* issue #4: compare on the demo preset writes every file of the report; the plots are non-empty PNGs */
     char out[128];
-    snprintf(out, sizeof out, "%s/cmp", dir);
+    snprintf(out, sizeof out, "%s/cmp/nested", dir); /* parents are created like mkdir -p */
     ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm,pcg3,cg9 --sweep lgs.wfs.photons=50,100 "
                          "--frames 40 --out %s --quiet",
                          out),
