@@ -616,7 +616,8 @@ static int build_lowrank(wt_mvm_normal *nm)
     size_t ws = wt_mvm_priv_wavelet_work(nm->t);
     WT_ALLOC(ctx, work, (size_t)nm->nth * ws, "wavelet workspace");
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nm->nth)
-    for (int k = 0; k < r; k++) adjoint_column(nm, zs + (size_t)k * ns, nm->B + (size_t)k * n, work + wt_mvm_priv_thread() * ws);
+    for (int k = 0; k < r; k++)
+        adjoint_column(nm, zs + (size_t)k * ns, nm->B + (size_t)k * n, work + wt_mvm_priv_thread() * ws);
 
     /* Z = N⁻¹ B, K = I + Q (Bᵀ Z), LU */
     WT_TRY(wt_chol_solve(nm->chol, r, nm->B, n, nm->Z, n));
@@ -714,10 +715,12 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     double g_bytes = wt_mvm_priv_sparse_bytes(S->nnz_a, n), f_bytes = pair_transpose_bytes(S->nnz_a, npairs);
     snprintf(detail, sizeof detail, "Γ P %.3g GB, Lᵀ Ã_LGS %.3g GB (%lld non-zeros) and its transpose %.3g GB",
              gp_bytes / 1e9, g_bytes / 1e9, (long long)S->nnz_a, f_bytes / 1e9);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "assembling Ã", gp_bytes + g_bytes + f_bytes, detail));
+    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "assembling Ã", gp_bytes + g_bytes + f_bytes,
+                                    detail));
     snprintf(detail, sizeof detail, "at least: the %.3g GB reserved for R, RÂ and the block workspace, Γ P, low rank",
              reserve / 1e9);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "solving", reserve + gp_bytes + lowrank_bytes, detail));
+    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "solving", reserve + gp_bytes + lowrank_bytes,
+                                    detail));
     WT_TRY(wt_sparse_alloc(ctx, nl, n, S->nnz_a, &G));
     memcpy(G->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
     fill_columns(&pool, G, atilde_column, &ac, &opt, "assemble", n, 2 * n);
@@ -735,13 +738,14 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     double n_bytes = wt_mvm_priv_sparse_bytes(S->nnz_normal, n);
     snprintf(detail, sizeof detail, "Γ P %.3g GB, Lᵀ Ã_LGS and transpose %.3g GB, N %.3g GB (%lld non-zeros)",
              gp_bytes / 1e9, (g_bytes + f_bytes) / 1e9, n_bytes / 1e9, (long long)S->nnz_normal);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "forming N", gp_bytes + g_bytes + f_bytes + n_bytes, detail));
+    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "forming N",
+                                    gp_bytes + g_bytes + f_bytes + n_bytes, detail));
     /* the factor holds at least the pattern of N's upper triangle, and CHOLMOD copies N once */
     snprintf(detail, sizeof detail,
              "at least: N %.3g GB, CHOLMOD's permuted copy of it, a factor of ≥ %lld non-zeros %.3g GB, Γ P %.3g GB",
              n_bytes / 1e9, (long long)S->nnz_normal, 8.0 * S->nnz_normal / 1e9, gp_bytes / 1e9);
     WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
-                        gp_bytes + 2.0 * n_bytes + 8.0 * S->nnz_normal, detail));
+                                    gp_bytes + 2.0 * n_bytes + 8.0 * S->nnz_normal, detail));
     WT_TRY(wt_sparse_alloc(ctx, n, n, S->nnz_normal, &N));
     memcpy(N->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
     fill_columns(&pool, N, normal_column, &nc, &opt, "normal", n, 2 * n);
@@ -767,7 +771,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
              "N %.3g GB, CHOLMOD's factorisation %.3g GB (factor %.3g GB of %.4g non-zeros, %s ordering, plus its "
              "permuted copy of N and workspace), Γ P %.3g GB",
              n_bytes / 1e9, ci.factorize_bytes / 1e9, ci.factor_bytes / 1e9, ci.nnz_factor, ci.ordering, gp_bytes / 1e9);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N", gp_bytes + n_bytes + ci.factorize_bytes, detail));
+    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
+                                    gp_bytes + n_bytes + ci.factorize_bytes, detail));
     double solve_ws = wt_chol_solve_bytes(n, opt.block > rank ? opt.block : rank) + 16.0 * rank * opt.block;
     double final_bytes = reserve + gp_bytes + ci.factor_bytes + lowrank_bytes + solve_ws + (keep_matrix ? n_bytes : 0.0);
     snprintf(detail, sizeof detail,
