@@ -2,7 +2,10 @@
  * `wavetomo sim --recon mvm` (SPEC §9). */
 #include "mvm_file.h"
 
+#include <cblas.h>
 #include <string.h>
+
+#include "../la/chol.h"
 
 int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const char *variant)
 {
@@ -30,6 +33,8 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, co
     if ((st = wt_h5_attr_write_string(w, "/", "variant", variant)) < 0) return st;
     if ((st = wt_h5_attr_write_double(w, "/", "alpha", cfg->alpha)) < 0) return st;
     if ((st = wt_h5_attr_write_double(w, "/", "tau", cfg->tau)) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "cholmod_version", wt_chol_version())) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "openblas_config", openblas_get_config())) < 0) return st;
     const wt_mvm_stats *s = &m->stats;
     if ((st = wt_h5_write_int64(w, "build/unknowns", s->nunknowns, "", "wavelet coefficients of the MAP problem")) < 0)
         return st;
