@@ -2,7 +2,7 @@
 # build/libwavetomo.a and bin/wavetomo.  `make test`, `make demo`, `make bench`, `make debug`.
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
-                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo check
+                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check
 
 CC      ?= gcc
 PKGS    := openblas lapacke hdf5-serial fftw3 libconfig plplot
