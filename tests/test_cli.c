@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include "core/io/h5.h"
 #include "testutil.h"
 
 static char dir[64], wt[512];
@@ -95,6 +96,20 @@ START_TEST(test_compare_writes_the_report)
     while (fgets(line, sizeof line, f)) rows++;
     fclose(f);
     ck_assert_int_eq(rows, 1 + 3 * 2);
+    /* results.h5: [method, sweep value, direction] and [method, sweep value, part] */
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r;
+    snprintf(p, sizeof p, "%s/results.h5", out);
+    ck_assert_msg(wt_h5_open(ctx, p, &r) == WT_OK, "%s", wt_error_message(ctx));
+    int64_t e1[3] = {3, 2, 25}, e2[3] = {3, 2, 6}, e3[2] = {3, 2};
+    ck_assert_msg(wt_h5_check_shape(r, "strehl_le", 3, e1, NULL) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_h5_check_shape(r, "time_parts", 3, e2, NULL) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_h5_check_shape(r, "strehl_le_field", 2, e3, NULL) == WT_OK, "%s", wt_error_message(ctx));
+    double fs[6];
+    ck_assert_int_eq(wt_h5_read(r, "strehl_le_field", WT_H5_F64, 2, e3, NULL, fs, 6), WT_OK);
+    for (int i = 0; i < 6; i++) ck_assert(fs[i] > 0.0 && fs[i] < 1.0);
+    wt_h5_close(r);
+    wt_context_free(ctx);
     /* a second run reuses the cached MVM (same hash) */
     ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm --frames 20 --sweep lgs.wfs.photons=50 "
                          "--out %s",

@@ -1,13 +1,13 @@
 /* core/io/config.c: libconfig text -> wt_config, driven by one schema table.
  *
  * Implements the system description of SPEC §1 (every key of the presets) and the canonical text
- * that the MVM builder hashes (SPEC §9). One static table lists every key with its type, range,
- * unit, description and destination; reading, override, validation, the canonical text and the
+ * that the MVM builder hashes (SPEC §9). One table (config_schema.c) lists every key with its type,
+ * range, unit, description and destination; reading, override, validation, the canonical text and the
  * printed reference all walk that table, so a key cannot be documented one way and read another.
  * Order of work: syntax -> unknown keys -> --set overrides -> typed keys in schema order ->
  * cross-key consistency -> canonical text.
  */
-#include "config.h"
+#include "config_private.h"
 
 #include "../base/sha256.h"
 
@@ -19,175 +19,19 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS };
-enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32 };
-
-typedef struct key_spec {
-    const char *path;    /* dotted libconfig path */
-    int type;            /* K_* */
-    int flags;           /* F_* */
-    double lo, hi;       /* accepted range in file units (of each element for lists) */
-    const char *unit;    /* unit of the file value, "" if none */
-    double scale;        /* file unit -> internal unit (arcsec -> rad, nm -> m, ...) */
-    size_t off;          /* destination in wt_config */
-    size_t count_off;    /* lists: int element count in wt_config; lists sharing it have equal lengths */
-    int minlen, maxlen;  /* lists: accepted lengths */
-    const char *choices; /* enums: "a|b|c"; the stored int is the index */
-    double def;          /* optional keys: value stored when absent */
-    const char *desc;
-} key_spec;
-
-#define CF(f) offsetof(wt_config, f)
-#define NOCOUNT ((size_t)-1)
-#define INF HUGE_VAL
-#define ARCSEC WT_ARCSEC
-#define DEG (M_PI / 180.0)
-#define MAS (1e-3 * WT_ARCSEC)
-#define GT0 F_LO_OPEN, 0.0, INF /* > 0 */
-#define GE0 0, 0.0, INF         /* >= 0 */
-#define ANYANGLE 0, -360.0, 360.0
-
-/* the wrappers expand GT0/GE0/ANYANGLE into their three arguments before the real macro sees them */
-#define KF(...) KF_(__VA_ARGS__)
-#define KI(...) KI_(__VA_ARGS__)
-#define KFL(...) KFL_(__VA_ARGS__)
-#define KIL(...) KIL_(__VA_ARGS__)
-#define KF_(p, fl, lo, hi, u, sc, dst, d) {p, K_FLOAT, fl, lo, hi, u, sc, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
-#define KI_(p, fl, lo, hi, dst, d) {p, K_INT, fl, lo, hi, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
-#define KB(p, dst, d) {p, K_BOOL, 0, 0, 1, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, 0, d}
-#define KE(p, ch, dst, d) {p, K_ENUM, 0, 0, 0, "", 1, CF(dst), NOCOUNT, 0, 0, ch, 0, d}
-#define KFL_(p, fl, lo, hi, u, sc, dst, cnt, mn, mx, d) {p, K_FLOATS, fl, lo, hi, u, sc, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
-#define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
-
-#define SENSOR(pre, w)                                                                                     \
-    KF(pre ".photons", GT0, "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
-    KF(pre ".read_noise_e", GE0, "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
-    KF(pre ".spot_fwhm_arcsec", GT0, "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
-    KF(pre ".pixel_arcsec", GT0, "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
-    KI(pre ".pixels", 0, 1, INF, w.pixels, "pixels across a subaperture (Ns)"),                            \
-    {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, INF, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
-     "noise-equivalent angle per axis (rms); when given it replaces the photon/read-noise model"}
-
-#define VARIANT(pre, v)                                                                                    \
-    KFL(pre ".layer_altitudes_m", F_INCR, 0.0, INF, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
-        "reconstruction layer altitudes, strictly increasing"),                                            \
-    KFL(pre ".layer_spacing_m", GT0, "m", 1, v.spacing, v.nlayers, 1, WT_MAX_LAYERS,                       \
-        "grid spacing of each reconstruction layer"),                                                      \
-    KIL(pre ".layer_size", F_POW2, 4, 1 << 30, v.size, v.nlayers, 1, WT_MAX_LAYERS,                        \
-        "grid points per side of each layer; >= 2^recon.wavelet_levels"),                                  \
-    KI(pre ".iterations", 0, 1, INF, v.iterations, "(P)CG iterations per frame"),                          \
-    KF(pre ".tolerance", GE0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
-    KE(pre ".preconditioner", "none|jacobi", v.jacobi, "jacobi = modified Jacobi PCG, none = plain CG")
-
-static const key_spec keys[] = {
-    KF("telescope.diameter_m", GT0, "m", 1, diameter, "pupil diameter D"),
-    KF("telescope.obstruction", F_HI_OPEN, 0.0, 1.0, "", 1, obstruction, "central obstruction, fraction of D"),
-
-    KF("atmosphere.r0_m", GT0, "m", 1, r0, "Fried parameter r0 at 500 nm"),
-    KF("atmosphere.L0_m", GT0, "m", 1, L0, "von Karman outer scale L0"),
-    KFL("atmosphere.altitudes_m", F_INCR, 0.0, INF, "m", 1, layer_altitude, nlayers, 1, WT_MAX_LAYERS,
-        "altitude of each layer, strictly increasing"),
-    KFL("atmosphere.cn2_fractions", 0, 0.0, 1.0, "", 1, layer_fraction, nlayers, 1, WT_MAX_LAYERS,
-        "Cn2 fraction of each layer; the sum must be 1 within 1 % (then normalised to 1)"),
-    KFL("atmosphere.wind_speed_mps", GE0, "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
-    KFL("atmosphere.wind_direction_deg", ANYANGLE, "deg", DEG, wind_direction, nlayers, 1, WT_MAX_LAYERS,
-        "direction each layer moves towards, from +x towards +y"),
-
-    KI("lgs.count", 0, 0, WT_MAX_GS, nlgs, "number of laser guide stars, evenly spaced in azimuth"),
-    KF("lgs.radius_arcsec", GE0, "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
-    KF("lgs.azimuth0_deg", ANYANGLE, "deg", DEG, lgs_azimuth0, "azimuth of the first LGS; the others follow every 360/count deg"),
-    KF("lgs.altitude_m", GT0, "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
-    KF("lgs.sodium_fwhm_m", GE0, "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation"),
-    KF("lgs.launch_radius_m", GE0, "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
-    KF("lgs.tt_jitter_arcsec", GE0, "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
-    KI("lgs.wfs.subapertures", 0, 1, INF, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
-    KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
-       "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
-    SENSOR("lgs.wfs", lgs_wfs),
-
-    KF("ngs.radius_arcsec", GE0, "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
-    KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
-    KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
-        "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
-    SENSOR("ngs.wfs", ngs_wfs),
-
-    KFL("dm.altitudes_m", GE0, "m", 1, dm_altitude, ndms, 1, WT_MAX_DMS, "conjugation altitude of each DM"),
-    KFL("dm.pitch_m", GT0, "m", 1, dm_pitch, ndms, 1, WT_MAX_DMS, "actuator pitch of each DM"),
-    KIL("dm.actuators", 0, 2, INF, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
-    KF("dm.field_radius_arcsec", GE0, "arcsec", ARCSEC, dm_field_radius,
-       "theta_c: an actuator is active within D/2 + h tan(theta_c) of the centre"),
-
-    KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
-    KF("evaluation.spacing_arcsec", GE0, "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
-    KF("evaluation.wavelength_nm", GT0, "nm", 1e-9, eval_wavelength, "wavelength of the Strehl ratios"),
-    KI("evaluation.settle_frames", 0, 0, INF, settle_frames, "frames left out of the long-exposure averages; < loop.frames"),
-
-    KF("loop.rate_hz", GT0, "Hz", 1, rate, "frame rate"),
-    KI("loop.frames", 0, 1, INF, frames, "frames to run"),
-    KI("loop.delay_frames", 0, 1, 2, delay, "frames between measurement and application"),
-    KF("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, "integrator gain g"),
-
-    KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
-    {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
-     "seed of the turbulence and noise generators (above 2147483647 add the L suffix: 5000000000L)"},
-    KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
-
-    KF("recon.alpha", GT0, "", 1, alpha, "prior weight alpha"),
-    KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
-    KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
-    KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
-    KE("recon.prior", "paper|exact", exact_prior, "prior diagonal: paper = scale-only D of the paper, exact = diag(W C W^T)"),
-    KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
-    VARIANT("recon.pcg3", pcg3),
-    VARIANT("recon.cg9", cg9),
-    KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),
-    KF("recon.cg9.fit_regularization", GE0, "", 1, cg9.fit_regularization,
-       "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
-};
-#define NKEYS ((int)(sizeof keys / sizeof keys[0]))
-
 /* ---------------------------------------------------------------- text helpers */
 
-/* Shortest %g text that reads back as the same double. */
-static const char *fmt_num(double v, char *buf, size_t n)
-{
-    for (int p = 15; p <= 17; p++) {
-        snprintf(buf, n, "%.*g", p, v);
-        if (strtod(buf, NULL) == v) break;
-    }
-    return buf;
-}
-
-static int is_list_type(int t) { return t == K_FLOATS || t == K_INTS; }
-static int is_int_type(int t) { return t == K_INT || t == K_INT64 || t == K_INTS; }
-
-/* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
-static void range_core(const key_spec *ks, char *buf, size_t n)
-{
-    char a[40], b[40];
-    int lo = isfinite(ks->lo), hi = isfinite(ks->hi) && !(ks->flags & F_POW2);
-    fmt_num(ks->lo, a, sizeof a);
-    fmt_num(ks->hi, b, sizeof b);
-    if (ks->type == K_BOOL) snprintf(buf, n, "true|false");
-    else if (ks->type == K_ENUM) snprintf(buf, n, "%s", ks->choices);
-    else if (lo && hi)
-        snprintf(buf, n, "in %c%s, %s%c", ks->flags & F_LO_OPEN ? '(' : '[', a, b, ks->flags & F_HI_OPEN ? ')' : ']');
-    else if (lo) snprintf(buf, n, "%s %s", ks->flags & F_LO_OPEN ? ">" : ">=", a);
-    else if (hi) snprintf(buf, n, "%s %s", ks->flags & F_HI_OPEN ? "<" : "<=", b);
-    else snprintf(buf, n, "any");
-}
-
 /* "a number", "an integer", "an odd integer", "a power of two" */
-static const char *noun(const key_spec *ks)
+static const char *noun(const wt_config_priv_key_spec *ks)
 {
     return ks->flags & F_POW2 ? "a power of two"
            : ks->flags & F_ODD ? "an odd integer"
-           : is_int_type(ks->type) ? "an integer"
-                                   : "a number";
+           : wt_config_priv_is_int(ks->type) ? "an integer"
+                                             : "a number";
 }
 
 /* What a (scalar or element) value must be: "a number > 0 [m]", "one of \"paper\", \"exact\"". */
-static void expected_text(const key_spec *ks, char *buf, size_t n)
+static void expected_text(const wt_config_priv_key_spec *ks, char *buf, size_t n)
 {
     char r[96];
     if (ks->type == K_BOOL) {
@@ -204,7 +48,7 @@ static void expected_text(const key_spec *ks, char *buf, size_t n)
         }
         return;
     }
-    range_core(ks, r, sizeof r);
+    wt_config_priv_range(ks, r, sizeof r);
     snprintf(buf, n, "%s%s%s%s%s%s", noun(ks), strcmp(r, "any") ? " " : "",
              strcmp(r, "any") ? r : "", *ks->unit ? " [" : "", ks->unit, *ks->unit ? "]" : "");
 }
@@ -229,7 +73,7 @@ static void describe(const config_setting_t *s, char *buf, size_t n)
     switch (config_setting_type(s)) {
     case CONFIG_TYPE_INT:
     case CONFIG_TYPE_INT64: snprintf(buf, n, "an integer %lld", config_setting_get_int64(s)); break;
-    case CONFIG_TYPE_FLOAT: snprintf(buf, n, "a number %s", fmt_num(num(s), v, sizeof v)); break;
+    case CONFIG_TYPE_FLOAT: snprintf(buf, n, "a number %s", wt_config_priv_fmt_num(num(s), v, sizeof v)); break;
     case CONFIG_TYPE_STRING: snprintf(buf, n, "a string \"%s\"", config_setting_get_string(s)); break;
     case CONFIG_TYPE_BOOL: snprintf(buf, n, "a boolean %s", config_setting_get_bool(s) ? "true" : "false"); break;
     case CONFIG_TYPE_GROUP: snprintf(buf, n, "a group { ... }"); break;
@@ -249,8 +93,8 @@ static const char *syntax_hint(const char *e)
 
 static int find_key(const char *path)
 {
-    for (int k = 0; k < NKEYS; k++)
-        if (!strcmp(keys[k].path, path)) return k;
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
+        if (!strcmp(wt_config_priv_keys[k].path, path)) return k;
     return -1;
 }
 
@@ -258,8 +102,8 @@ static int find_key(const char *path)
 static int is_group_path(const char *path)
 {
     size_t n = strlen(path);
-    for (int k = 0; k < NKEYS; k++)
-        if (!strncmp(keys[k].path, path, n) && keys[k].path[n] == '.') return 1;
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
+        if (!strncmp(wt_config_priv_keys[k].path, path, n) && wt_config_priv_keys[k].path[n] == '.') return 1;
     return 0;
 }
 
@@ -291,8 +135,8 @@ static void suggest(const char *path, char *buf, size_t n)
     size_t bestlen = 0;
     int bestd = INT_MAX;
     leaf = leaf ? leaf + 1 : path;
-    for (int k = 0; k < NKEYS; k++) {
-        const char *p = keys[k].path;
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) {
+        const char *p = wt_config_priv_keys[k].path;
         for (size_t len = 0;; len++) { /* the key itself and each of its group prefixes */
             if (p[len] == '.' || p[len] == '\0') {
                 int d = edit_distance(path, np, p, len);
@@ -303,14 +147,14 @@ static void suggest(const char *path, char *buf, size_t n)
     }
     if (bestd > 2) {
         int alt = 0;
-        for (int k = 0; k < NKEYS && !alt; k++)
-            if (!strncmp(keys[k].path, path, np) && keys[k].path[np] == '_')
-                alt = 1, best = keys[k].path, bestlen = strlen(best);
+        for (int k = 0; k < WT_CONFIG_PRIV_NKEYS && !alt; k++)
+            if (!strncmp(wt_config_priv_keys[k].path, path, np) && wt_config_priv_keys[k].path[np] == '_')
+                alt = 1, best = wt_config_priv_keys[k].path, bestlen = strlen(best);
         if (!alt && (size_t)bestd > np / 4) {
             best = NULL;
-            for (int k = 0; k < NKEYS && !best; k++) {
-                const char *l = strrchr(keys[k].path, '.');
-                if (l && !strcmp(l + 1, leaf)) best = keys[k].path, bestlen = strlen(best);
+            for (int k = 0; k < WT_CONFIG_PRIV_NKEYS && !best; k++) {
+                const char *l = strrchr(wt_config_priv_keys[k].path, '.');
+                if (l && !strcmp(l + 1, leaf)) best = wt_config_priv_keys[k].path, bestlen = strlen(best);
             }
         }
     }
@@ -325,8 +169,8 @@ typedef struct pstate {
     const char *name;
     config_t *cf;
     const char *const *ov;
-    int ovidx[NKEYS];                 /* override that set key k last, or -1 */
-    const config_setting_t *set[NKEYS];
+    int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
+    const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
 } pstate;
 
 static int fail_at(pstate *ps, const char *loc, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -449,7 +293,7 @@ static int apply_override(pstate *ps, int i)
     config_t tmp;
     int st = WT_OK, ok = 0;
     /* a bare word is retried as a string for string keys (recon.prior=exact) */
-    for (int quoted = 0; !ok && quoted < 1 + (keys[k].type == K_ENUM && !memchr(v, '"', vl)); quoted++) {
+    for (int quoted = 0; !ok && quoted < 1 + (wt_config_priv_keys[k].type == K_ENUM && !memchr(v, '"', vl)); quoted++) {
         if (quoted) config_destroy(&tmp);
         snprintf(text, cap, quoted ? "v = \"%.*s\";" : "v = %.*s;", (int)vl, v);
         config_init(&tmp);
@@ -477,7 +321,7 @@ static int apply_override(pstate *ps, int i)
 
 /* ---------------------------------------------------------------- typed keys */
 
-static int in_range(const key_spec *ks, double v)
+static int in_range(const wt_config_priv_key_spec *ks, double v)
 {
     if (!isfinite(v)) return 0;
     if ((ks->flags & F_LO_OPEN) ? v <= ks->lo : v < ks->lo) return 0;
@@ -489,18 +333,19 @@ static int in_range(const key_spec *ks, double v)
 /* One scalar (or list element, elem >= 0): type and range in file units; value returned in *out. */
 static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, double *out)
 {
-    const key_spec *ks = &keys[k];
+    const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
     char loc[512], want[160], got[200], v[40], ix[32] = "";
     if (elem >= 0) snprintf(ix, sizeof ix, ", element [%d]", elem);
-    int ok = is_int_type(ks->type) ? is_int_setting(s) : config_setting_is_number(s);
+    int ok = wt_config_priv_is_int(ks->type) ? is_int_setting(s) : config_setting_is_number(s);
     expected_text(ks, want, sizeof want);
     if (!ok) {
         describe(s, got, sizeof got);
-        return FAIL(ps, k, s, "key '%s'%s: expected %s, got %s", ks->path, ix, is_int_type(ks->type) ? "an integer" : "a number", got);
+        return FAIL(ps, k, s, "key '%s'%s: expected %s, got %s", ks->path, ix,
+                    wt_config_priv_is_int(ks->type) ? "an integer" : "a number", got);
     }
     double x = num(s);
     if (is_int_setting(s)) snprintf(v, sizeof v, "%lld", config_setting_get_int64(s));
-    else fmt_num(x, v, sizeof v);
+    else wt_config_priv_fmt_num(x, v, sizeof v);
     if (!in_range(ks, x))
         return FAIL(ps, k, s, "key '%s'%s: value %s is out of range; expected %s", ks->path, ix, v, want);
     long long iv = is_int_setting(s) ? config_setting_get_int64(s) : 0;
@@ -514,7 +359,7 @@ static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, d
 
 static int load_key(pstate *ps, wt_config *cfg, int k)
 {
-    const key_spec *ks = &keys[k];
+    const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
     char loc[512], want[160], got[200], a[40], b[40];
     char *dst = (char *)cfg + ks->off;
     const config_setting_t *s = config_lookup(ps->cf, ks->path);
@@ -525,7 +370,7 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
             *(double *)dst = ks->def;
             return WT_OK;
         }
-        if (is_list_type(ks->type)) {
+        if (wt_config_priv_is_list(ks->type)) {
             return FAIL(ps, k, NULL, "missing key '%s' (a list of %d..%d elements, each %s: %s)", ks->path, ks->minlen,
                         ks->maxlen, want, ks->desc);
         }
@@ -583,18 +428,18 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
         if ((st = read_scalar(ps, k, e, i, &x)) < 0) return st;
         if ((ks->flags & F_INCR) && i > 0 && !(x > num(config_setting_get_elem(s, (unsigned)i - 1))))
             return FAIL(ps, k, e, "key '%s', element [%d]: value %s is not above the previous element %s; the list "
-                        "must be strictly increasing", ks->path, i, fmt_num(x, a, sizeof a),
-                        fmt_num(num(config_setting_get_elem(s, (unsigned)i - 1)), b, sizeof b));
+                        "must be strictly increasing", ks->path, i, wt_config_priv_fmt_num(x, a, sizeof a),
+                        wt_config_priv_fmt_num(num(config_setting_get_elem(s, (unsigned)i - 1)), b, sizeof b));
         if (ks->type == K_INTS) ((int *)dst)[i] = (int)x;
         else ((double *)dst)[i] = x * ks->scale;
     }
     int first = k;
-    while (first > 0 && keys[first - 1].count_off == ks->count_off) first--;
+    while (first > 0 && wt_config_priv_keys[first - 1].count_off == ks->count_off) first--;
     int *count = (int *)((char *)cfg + ks->count_off);
     if (first == k) *count = n;
     else if (*count != n)
         return FAIL(ps, k, s, "key '%s' has %d elements but '%s' has %d; they must have the same length", ks->path, n,
-                    keys[first].path, *count);
+                    wt_config_priv_keys[first].path, *count);
     return WT_OK;
 }
 
@@ -616,8 +461,8 @@ static int check_below_lgs(pstate *ps, const wt_config *cfg, const char *path, c
         if (!(alt[i] < cfg->lgs_altitude))
             return FAIL(ps, kl, ps->set[kl], "key 'lgs.altitude_m': value %s is not above '%s' element [%d] = %s "
                         "(%s): an LGS below a layer; the sodium layer must be above every atmosphere, DM and "
-                        "reconstruction layer", fmt_num(cfg->lgs_altitude, a, sizeof a), path, i,
-                        fmt_num(alt[i], b, sizeof b), where_elem(ps, kk, i, oth, sizeof oth));
+                        "reconstruction layer", wt_config_priv_fmt_num(cfg->lgs_altitude, a, sizeof a), path, i,
+                        wt_config_priv_fmt_num(alt[i], b, sizeof b), where_elem(ps, kk, i, oth, sizeof oth));
     return WT_OK;
 }
 
@@ -702,8 +547,8 @@ static int build_text(pstate *ps, int matrix_only, char **text)
     config_init(&out);
     config_set_options(&out, CONFIG_OPTION_SEMICOLON_SEPARATORS);
     config_set_tab_width(&out, 2);
-    for (int k = 0; k < NKEYS && st == WT_OK; k++) {
-        const key_spec *ks = &keys[k];
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS && st == WT_OK; k++) {
+        const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
         const config_setting_t *s = ps->set[k];
         if (!s || (matrix_only && !affects_matrix(ks->path))) continue;
         const char *leaf;
@@ -764,7 +609,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     config_t cf;
     pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides};
     *out = NULL;
-    for (int k = 0; k < NKEYS; k++) ps.ovidx[k] = -1;
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) ps.ovidx[k] = -1;
     config_init(&cf);
     if (incdir) config_set_include_dir(&cf, incdir);
     if (!text) {
@@ -785,7 +630,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     for (int i = 0; i < noverrides; i++) WT_TRY(apply_override(&ps, i));
     WT_ALLOC(ctx, cfg, 1, "the configuration");
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
-    for (int k = 0; k < NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
     WT_TRY(check_consistency(&ps, cfg));
     WT_TRY(build_canonical(&ps, cfg));
     config_destroy(&cf);
@@ -851,23 +696,4 @@ void wt_config_free(wt_context *ctx, wt_config *cfg)
     wt_free(ctx, cfg->canonical);
     wt_free(ctx, cfg->matrix_text);
     wt_free(ctx, cfg);
-}
-
-void wt_config_print_reference(FILE *f)
-{
-    static const char *tname[] = {"int", "int", "float", "bool", "string", "float[]", "int[]"};
-    char rng[128], unit[32];
-    for (int k = 0; k < NKEYS; k++) {
-        const key_spec *ks = &keys[k];
-        char core[96];
-        range_core(ks, core, sizeof core);
-        snprintf(rng, sizeof rng, "%s%s", ks->flags & F_POW2 ? "pow2, " : ks->flags & F_ODD ? "odd, " : "", core);
-        if (is_list_type(ks->type)) {
-            size_t l = strlen(rng);
-            snprintf(rng + l, sizeof rng - l, "; %d..%d values", ks->minlen, ks->maxlen);
-        }
-        snprintf(unit, sizeof unit, *ks->unit ? "[%s]" : "-", ks->unit);
-        fprintf(f, "%-36s %-8s %-38s %-10s %s%s\n", ks->path, tname[ks->type], rng, unit, ks->desc,
-                ks->flags & F_OPT ? " (optional)" : "");
-    }
 }

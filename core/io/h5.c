@@ -1,12 +1,12 @@
-/* core/io/h5.c: the HDF5 layer's shared helpers and the atomic writer: datasets, attributes,
- * row-block matrices, appendable series, commit.
+/* core/io/h5.c: the HDF5 layer's shared helpers and the atomic writer: datasets, attributes, groups,
+ * commit (the row-block matrices and appendable series it also writes are in h5_stream.c).
  *
  * Implements the file side of SPEC §9 (R and RÂ as float32, written to a temporary and renamed so an
  * interrupted build never leaves a file that looks complete) and the telemetry/result files of the
  * simulator. Every public function brackets its HDF5 calls with quiet_on/quiet_off: HDF5's automatic
  * stack printing is off inside, restored on return, and the innermost HDF5 error description is
  * folded into our message (H5ERR). Writers remember their first failure and refuse to commit.
- * The reader is h5_read.c; what both use is declared in h5_private.h.
+ * The reader is h5_read.c; what the three files share is declared in h5_private.h.
  */
 #include "h5_private.h"
 
@@ -19,38 +19,6 @@
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
-
-#define CHUNK_BYTES ((size_t)1 << 20)        /* fixed-size datasets: ~1 MiB bands of rows */
-#define SERIES_CHUNK_BYTES ((size_t)1 << 16) /* series: the last chunk is allocated whole, keep it small */
-#define PROBE_FRAMES ((hsize_t)1 << 24)      /* stands for "many frames" when sizing series chunks */
-
-struct wt_h5_writer {
-    wt_context *ctx;
-    hid_t file, lcpl;
-    char *target, *temp;
-    int created; /* the temporary is ours to unlink */
-    int status;  /* first failure; commit refuses when < 0 */
-    char first_error[512];
-    wt_h5_matrix *matrices; /* still open, closed by commit/abort */
-    wt_h5_series *series;
-};
-
-struct wt_h5_matrix {
-    wt_h5_writer *w;
-    hid_t dset;
-    char *name;
-    int64_t rows, cols, ndone;
-    uint8_t *done; /* rows written: commit refuses a matrix with holes */
-    wt_h5_matrix *next;
-};
-
-struct wt_h5_series {
-    wt_h5_writer *w;
-    hid_t dset;
-    char *name;
-    int64_t n, len;
-    wt_h5_series *next;
-};
 
 /* ---- HDF5 error handling ------------------------------------------------------------------------ */
 
@@ -88,16 +56,7 @@ int wt_h5_priv_error(wt_context *ctx, int status, const char *src, int line, con
     return wt_error_set(ctx, status, src, line, "%s", msg);
 }
 
-/* Body of the public writer calls: quiet HDF5 around the work; the writer remembers its first failure. */
-#define WRITER_CALL(handle, writer, expr)     \
-    do {                                      \
-        int st;                               \
-        if (!(handle)) return WT_ERR_INVALID; \
-        QUIET(expr);                          \
-        return poison((writer), st);          \
-    } while (0)
-
-static int poison(wt_h5_writer *w, int st)
+int wt_h5_priv_poison(wt_h5_writer *w, int st)
 {
     if (st < 0 && w->status >= 0) {
         w->status = st;
@@ -132,7 +91,7 @@ const char *wt_h5_priv_type_name(int t)
     return wt_h5_priv_type_ok(t) ? names[t] : "?";
 }
 
-static size_t type_size(int t)
+size_t wt_h5_priv_type_size(int t)
 {
     static const size_t sizes[] = {0, 8, 4, 4, 8, 1};
     return wt_h5_priv_type_ok(t) ? sizes[t] : 0;
@@ -150,7 +109,7 @@ hid_t wt_h5_priv_mem_type(int t)
     }
 }
 
-static hid_t file_type(int t)
+hid_t wt_h5_priv_file_type(int t)
 {
     switch (t) {
     case WT_H5_F64: return H5T_IEEE_F64LE;
@@ -210,8 +169,8 @@ static void choose_chunk(int rank, const hsize_t *dims, size_t elem, size_t targ
 
 /* Creation properties of a numeric dataset: chunked (see choose_chunk; `cdims` sizes the chunks) with
  * Fletcher32 when it holds data, contiguous when empty. Fill value 0 for partially written chunks. */
-static hid_t numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
-                          hsize_t *chunk)
+hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
+                              hsize_t *chunk)
 {
     hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
     if (dcpl < 0 || empty) return dcpl;
@@ -325,15 +284,12 @@ const char *wt_h5_library_version(void)
 
 /* ---- writer ------------------------------------------------------------------------------------- */
 
-static int matrix_close_impl(wt_h5_matrix *m, int check);
-static int series_close_impl(wt_h5_series *s);
-
 /* Close everything; unlink the temporary when asked and when it is ours; free w. */
 static void writer_destroy(wt_h5_writer *w, int remove_temp)
 {
     if (!w) return;
-    while (w->matrices) matrix_close_impl(w->matrices, 0);
-    while (w->series) series_close_impl(w->series);
+    while (w->matrices) wt_h5_priv_matrix_close(w->matrices, 0);
+    while (w->series) wt_h5_priv_series_close(w->series);
     wt_h5_priv_drop(w->lcpl);
     wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
@@ -390,8 +346,8 @@ static int commit_impl(wt_h5_writer *w)
     wt_context *ctx = w->ctx;
     int st = WT_OK;
     const int64_t one = 1;
-    while (w->matrices) poison(w, matrix_close_impl(w->matrices, 1));
-    while (w->series) poison(w, series_close_impl(w->series));
+    while (w->matrices) wt_h5_priv_poison(w, wt_h5_priv_matrix_close(w->matrices, 1));
+    while (w->series) wt_h5_priv_poison(w, wt_h5_priv_series_close(w->series));
     if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
     if (put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
@@ -434,7 +390,8 @@ int wt_h5_flush(wt_h5_writer *w)
     if (!w) return WT_ERR_INVALID;
     wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
     if (H5Fflush(w->file, H5F_SCOPE_GLOBAL) < 0)
-        st = poison(w, H5ERR(w->ctx, WT_ERR_IO, "%s: H5Fflush of the temporary '%s' failed", w->target, w->temp));
+        st = wt_h5_priv_poison(w, H5ERR(w->ctx, WT_ERR_IO, "%s: H5Fflush of the temporary '%s' failed", w->target,
+                                        w->temp));
     wt_h5_priv_quiet_off(q);
     return st;
 }
@@ -442,8 +399,7 @@ int wt_h5_flush(wt_h5_writer *w)
 const char *wt_h5_temp_path(const wt_h5_writer *w) { return w ? w->temp : NULL; }
 const char *wt_h5_target_path(const wt_h5_writer *w) { return w ? w->target : NULL; }
 
-/* A new numeric dataset's name and documentation. */
-static int check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units)
+int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units)
 {
     if (!name || !*name) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: empty dataset name", w->target);
     if ((need_units && !units) || !desc || !*desc)
@@ -454,7 +410,7 @@ static int check_new(wt_h5_writer *w, const char *name, const char *units, const
     return WT_OK;
 }
 
-static int check_types(wt_h5_writer *w, const char *name, int ft, int mt)
+int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt)
 {
     if (!wt_h5_priv_type_ok(ft) || !wt_h5_priv_type_ok(mt))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown element type %d", w->target, name,
@@ -465,7 +421,7 @@ static int check_types(wt_h5_writer *w, const char *name, int ft, int mt)
     return WT_OK;
 }
 
-static int set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc)
+int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc)
 {
     if ((units && put_attr_string(obj, "units", units) < 0) || put_attr_string(obj, "description", desc) < 0)
         return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write the units/description of '%s'", w->target, name);
@@ -478,8 +434,8 @@ static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int ran
     int st = WT_OK;
     hid_t space = -1, dcpl = -1, d = -1;
     hsize_t hd[WT_H5_MAX_RANK], chunk[WT_H5_MAX_RANK];
-    WT_TRY(check_new(w, name, units, desc, 1));
-    WT_TRY(check_types(w, name, ft, mt));
+    WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
+    WT_TRY(wt_h5_priv_check_types(w, name, ft, mt));
     if (rank < 1 || rank > WT_H5_MAX_RANK || !dims)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': rank %d, expected 1..%d", w->target, name, rank,
                         WT_H5_MAX_RANK);
@@ -493,12 +449,13 @@ static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int ran
     }
     if (total > 0 && !data) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': data is NULL", w->target, name);
     if ((space = H5Screate_simple(rank, hd, NULL)) < 0 ||
-        (dcpl = numeric_dcpl(rank, hd, type_size(ft), CHUNK_BYTES, rank, total == 0, chunk)) < 0 ||
-        (d = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
+        (dcpl = wt_h5_priv_numeric_dcpl(rank, hd, wt_h5_priv_type_size(ft), WT_H5_PRIV_CHUNK_BYTES, rank, total == 0,
+                                        chunk)) < 0 ||
+        (d = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
     if (total > 0 && H5Dwrite(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
-    WT_TRY(set_doc(w, d, name, units, desc));
+    WT_TRY(wt_h5_priv_set_doc(w, d, name, units, desc));
     if (H5Dclose(d) < 0) st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing dataset '%s' failed", w->target, name);
     d = -1;
 fail:
@@ -521,7 +478,7 @@ static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, co
     int st = WT_OK;
     hid_t space = -1, d = -1, t = -1;
     int is_string = ft < 0;
-    WT_TRY(check_new(w, name, units, desc, !is_string));
+    WT_TRY(wt_h5_priv_check_new(w, name, units, desc, !is_string));
     if (is_string) {
         if (!value) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: string dataset '%s' is NULL", w->target, name);
         if ((t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8)) < 0)
@@ -533,7 +490,7 @@ static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, co
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
     if (H5Dwrite(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, value) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
-    st = set_doc(w, d, name, is_string ? NULL : units, desc);
+    st = wt_h5_priv_set_doc(w, d, name, is_string ? NULL : units, desc);
 fail:
     wt_h5_priv_drop(d);
     wt_h5_priv_drop(space);
@@ -603,246 +560,4 @@ int wt_h5_attr_write_double(wt_h5_writer *w, const char *obj, const char *name, 
 int wt_h5_attr_write_int64(wt_h5_writer *w, const char *obj, const char *name, int64_t value)
 {
     WRITER_CALL(w, w, attr_impl(w, obj, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value));
-}
-
-/* Float data into an integer dataset loses the fraction silently in HDF5: refuse it. */
-static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, const void *data)
-{
-    if (!wt_h5_priv_type_ok(mt) || !data)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown type %d or NULL data", w->target, name, mt);
-    hid_t ft = H5Dget_type(dset);
-    int file_float = ft >= 0 && H5Tget_class(ft) == H5T_FLOAT;
-    wt_h5_priv_drop(ft);
-    if (wt_h5_priv_type_float(mt) && !file_float)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an integer dataset (lossy)",
-                        w->target, name, wt_h5_priv_type_name(mt));
-    return WT_OK;
-}
-
-/* ---- row-block matrices ------------------------------------------------------------------------- */
-
-static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t rows, int64_t cols, const char *units,
-                              const char *desc, wt_h5_matrix **out)
-{
-    int st = WT_OK;
-    wt_h5_matrix *m = NULL;
-    hid_t space = -1, dcpl = -1, dapl = -1;
-    hsize_t hd[2] = {(hsize_t)rows, (hsize_t)cols}, chunk[2];
-    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_matrix_create: out is NULL", w->target);
-    *out = NULL;
-    WT_TRY(check_new(w, name, units, desc, 1));
-    WT_TRY(check_types(w, name, ft, ft));
-    if (rows < 1 || cols < 1)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s' of %lld x %lld, expected positive dims", w->target,
-                        name, (long long)rows, (long long)cols);
-    WT_ALLOC(w->ctx, m, 1, "an HDF5 matrix handle");
-    m->w = w;
-    m->dset = -1;
-    m->rows = rows;
-    m->cols = cols;
-    WT_ALLOC(w->ctx, m->done, rows, "the row map of an HDF5 matrix");
-    if (!(m->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
-    if ((space = H5Screate_simple(2, hd, NULL)) < 0 ||
-        (dcpl = numeric_dcpl(2, hd, type_size(ft), CHUNK_BYTES, 2, 0, chunk)) < 0 ||
-        (dapl = H5Pcreate(H5P_DATASET_ACCESS)) < 0)
-        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot set up matrix '%s'", w->target, name);
-    /* room for two chunks, so the chunk a misaligned block ends in is still cached for the next block */
-    size_t cbytes = (size_t)(chunk[0] * chunk[1]) * type_size(ft);
-    size_t cache = 2 * cbytes + CHUNK_BYTES;
-    if (H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, cache, H5D_CHUNK_CACHE_W0_DEFAULT) < 0 ||
-        (m->dset = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, dapl)) < 0)
-        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create matrix '%s' (H5Dcreate2)", w->target, name);
-    WT_TRY(set_doc(w, m->dset, name, units, desc));
-    m->next = w->matrices;
-    w->matrices = m;
-    *out = m;
-    m = NULL;
-fail:
-    if (m) {
-        wt_h5_priv_drop(m->dset);
-        wt_free(w->ctx, m->name);
-        wt_free(w->ctx, m->done);
-        wt_free(w->ctx, m);
-    }
-    wt_h5_priv_drop(dapl);
-    wt_h5_priv_drop(dcpl);
-    wt_h5_priv_drop(space);
-    return st;
-}
-
-int wt_h5_matrix_create(wt_h5_writer *w, const char *name, int file_type, int64_t rows, int64_t cols, const char *units,
-                        const char *description, wt_h5_matrix **out)
-{
-    WRITER_CALL(w, w, matrix_create_impl(w, name, file_type, rows, cols, units, description, out));
-}
-
-static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mt, const void *data)
-{
-    wt_h5_writer *w = m->w;
-    int st = WT_OK;
-    hid_t fs = -1, ms = -1;
-    WT_TRY(check_data(w, m->name, m->dset, mt, data));
-    if (row0 < 0 || nrows < 1 || row0 > m->rows - nrows)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s': rows %lld..%lld, expected within 0..%lld", w->target,
-                        m->name, (long long)row0, (long long)(row0 + nrows - 1), (long long)(m->rows - 1));
-    hsize_t start[2] = {(hsize_t)row0, 0}, count[2] = {(hsize_t)nrows, (hsize_t)m->cols};
-    if ((fs = H5Dget_space(m->dset)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
-        (ms = H5Screate_simple(2, count, NULL)) < 0)
-        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: matrix '%s': cannot select rows %lld..%lld", w->target, m->name,
-               (long long)row0, (long long)(row0 + nrows - 1));
-    if (H5Dwrite(m->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
-        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing rows %lld..%lld of matrix '%s' failed (H5Dwrite)", w->target,
-               (long long)row0, (long long)(row0 + nrows - 1), m->name);
-    for (int64_t i = row0; i < row0 + nrows; i++) {
-        m->ndone += !m->done[i];
-        m->done[i] = 1;
-    }
-fail:
-    wt_h5_priv_drop(ms);
-    wt_h5_priv_drop(fs);
-    return st;
-}
-
-int wt_h5_matrix_write_rows(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mem_type, const void *data)
-{
-    WRITER_CALL(m, m->w, matrix_write_impl(m, row0, nrows, mem_type, data));
-}
-
-/* Unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
-static int matrix_close_impl(wt_h5_matrix *m, int check)
-{
-    wt_h5_writer *w = m->w;
-    int st = WT_OK;
-    for (wt_h5_matrix **p = &w->matrices; *p; p = &(*p)->next)
-        if (*p == m) {
-            *p = m->next;
-            break;
-        }
-    if (check && m->ndone < m->rows) {
-        int64_t first = 0;
-        while (m->done[first]) first++;
-        st = WT_ERROR(w->ctx, WT_ERR_INVALID,
-                      "%s: matrix '%s' has %lld rows, only %lld were written (first missing: %lld)", w->target, m->name,
-                      (long long)m->rows, (long long)m->ndone, (long long)first);
-    }
-    if (H5Dclose(m->dset) < 0 && st == WT_OK && check)
-        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing matrix '%s' failed (disk full?)", w->target, m->name);
-    wt_free(w->ctx, m->name);
-    wt_free(w->ctx, m->done);
-    wt_free(w->ctx, m);
-    return st;
-}
-
-int wt_h5_matrix_close(wt_h5_matrix *m)
-{
-    int st;
-    if (!m) return WT_OK;
-    wt_h5_writer *w = m->w;
-    QUIET(matrix_close_impl(m, 1));
-    return poison(w, st);
-}
-
-/* ---- appendable series -------------------------------------------------------------------------- */
-
-static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t n, const char *units, const char *desc,
-                              wt_h5_series **out)
-{
-    int st = WT_OK;
-    wt_h5_series *s = NULL;
-    hid_t space = -1, dcpl = -1;
-    int rank = n > 0 ? 2 : 1;
-    hsize_t hd[2] = {0, (hsize_t)n}, maxd[2] = {H5S_UNLIMITED, (hsize_t)n}, cd[2] = {PROBE_FRAMES, (hsize_t)n};
-    hsize_t chunk[2];
-    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_series_create: out is NULL", w->target);
-    *out = NULL;
-    WT_TRY(check_new(w, name, units, desc, 1));
-    WT_TRY(check_types(w, name, ft, ft));
-    if (n < 0)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
-                        (long long)n);
-    WT_ALLOC(w->ctx, s, 1, "an HDF5 series handle");
-    s->w = w;
-    s->dset = -1;
-    s->n = n;
-    if (!(s->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
-    if ((space = H5Screate_simple(rank, hd, maxd)) < 0 ||
-        (dcpl = numeric_dcpl(rank, cd, type_size(ft), SERIES_CHUNK_BYTES, 1, 0, chunk)) < 0 ||
-        (s->dset = H5Dcreate2(w->file, name, file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
-        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create series '%s' (H5Dcreate2)", w->target, name);
-    WT_TRY(set_doc(w, s->dset, name, units, desc));
-    s->next = w->series;
-    w->series = s;
-    *out = s;
-    s = NULL;
-fail:
-    if (s) {
-        wt_h5_priv_drop(s->dset);
-        wt_free(w->ctx, s->name);
-        wt_free(w->ctx, s);
-    }
-    wt_h5_priv_drop(dcpl);
-    wt_h5_priv_drop(space);
-    return st;
-}
-
-int wt_h5_series_create(wt_h5_writer *w, const char *name, int file_type, int64_t n, const char *units,
-                        const char *description, wt_h5_series **out)
-{
-    WRITER_CALL(w, w, series_create_impl(w, name, file_type, n, units, description, out));
-}
-
-static int series_append_impl(wt_h5_series *s, int mt, const void *data)
-{
-    wt_h5_writer *w = s->w;
-    int st = WT_OK;
-    hid_t fs = -1, ms = -1;
-    WT_TRY(check_data(w, s->name, s->dset, mt, data));
-    hsize_t ext[2] = {(hsize_t)s->len + 1, (hsize_t)s->n}, start[2] = {(hsize_t)s->len, 0};
-    hsize_t count[2] = {1, (hsize_t)s->n};
-    int rank = s->n > 0 ? 2 : 1;
-    if (H5Dset_extent(s->dset, ext) < 0 || (fs = H5Dget_space(s->dset)) < 0 ||
-        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
-        (ms = H5Screate_simple(rank, count, NULL)) < 0)
-        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: series '%s': cannot extend to %lld frames", w->target, s->name,
-               (long long)s->len + 1);
-    if (H5Dwrite(s->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
-        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing frame %lld of series '%s' failed (H5Dwrite)", w->target,
-               (long long)s->len, s->name);
-    s->len++;
-fail:
-    wt_h5_priv_drop(ms);
-    wt_h5_priv_drop(fs);
-    return st;
-}
-
-int wt_h5_series_append(wt_h5_series *s, int mem_type, const void *data)
-{
-    WRITER_CALL(s, s->w, series_append_impl(s, mem_type, data));
-}
-
-int64_t wt_h5_series_length(const wt_h5_series *s) { return s ? s->len : 0; }
-
-static int series_close_impl(wt_h5_series *s)
-{
-    wt_h5_writer *w = s->w;
-    int st = WT_OK;
-    for (wt_h5_series **p = &w->series; *p; p = &(*p)->next)
-        if (*p == s) {
-            *p = s->next;
-            break;
-        }
-    if (H5Dclose(s->dset) < 0)
-        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing series '%s' failed (disk full?)", w->target, s->name);
-    wt_free(w->ctx, s->name);
-    wt_free(w->ctx, s);
-    return st;
-}
-
-int wt_h5_series_close(wt_h5_series *s)
-{
-    int st;
-    if (!s) return WT_OK;
-    wt_h5_writer *w = s->w;
-    QUIET(series_close_impl(s));
-    return poison(w, st);
 }

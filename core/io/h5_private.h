@@ -1,10 +1,12 @@
-/* core/io/h5_private.h: helpers shared by the HDF5 writer (h5.c) and reader (h5_read.c).
+/* core/io/h5_private.h: helpers shared by the HDF5 writer (h5.c, with its matrices and series in
+ * h5_stream.c) and reader (h5_read.c).
  *
  * Private to core/io/h5*.c: not installed and included by nothing else, so hdf5.h stays inside the
- * h5 module (SPEC §9 "HDF5 output"). The handle structs are not here: each lives in the one file that
- * uses it. Error convention of both files: every public call brackets its HDF5 calls with
- * wt_h5_priv_quiet_on/off (HDF5's automatic stack printing off inside, restored on return) and folds
- * HDF5's innermost error description into our message (H5ERR).
+ * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5.c and
+ * h5_stream.c both reach into it); each other one lives in the one file that uses it. Error convention
+ * of all three files: every public call brackets its HDF5 calls with wt_h5_priv_quiet_on/off (HDF5's
+ * automatic stack printing off inside, restored on return) and folds HDF5's innermost error
+ * description into our message (H5ERR).
  */
 #ifndef WT_H5_PRIVATE_H
 #define WT_H5_PRIVATE_H
@@ -58,6 +60,8 @@ int wt_h5_priv_type_ok(int t);           /* t is one of WT_H5_F64..WT_H5_U8 */
 int wt_h5_priv_type_float(int t);        /* WT_H5_F64 or WT_H5_F32 */
 const char *wt_h5_priv_type_name(int t); /* "float64", ..., "?" for an unknown t */
 hid_t wt_h5_priv_mem_type(int t);        /* native HDF5 type of t, -1 for an unknown t */
+size_t wt_h5_priv_type_size(int t);      /* bytes of an element of t, 0 for an unknown t */
+hid_t wt_h5_priv_file_type(int t);       /* little-endian file type of t, -1 for an unknown t */
 
 /* A copy of s through ctx's allocator; NULL when out of memory. */
 char *wt_h5_priv_dupstr(wt_context *ctx, const char *s);
@@ -70,5 +74,50 @@ hid_t wt_h5_priv_file_access(void);
 
 /* A fixed-length, NUL-terminated string type of `len` characters; -1 on failure. */
 hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset);
+
+#define WT_H5_PRIV_CHUNK_BYTES ((size_t)1 << 20) /* fixed-size datasets: ~1 MiB bands of rows */
+
+/* Creation properties of a numeric dataset: chunks of at most `target` bytes cut from `cdims` by
+ * shrinking at most its `nshrink` leading dims (dims returned in `chunk`), contiguous when empty; -1 on
+ * failure. */
+hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
+                              hsize_t *chunk);
+
+/* ---- the writer (h5.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
+
+struct wt_h5_writer {
+    wt_context *ctx;
+    hid_t file, lcpl;
+    char *target, *temp;
+    int created; /* the temporary is ours to unlink */
+    int status;  /* first failure; commit refuses when < 0 */
+    char first_error[512];
+    wt_h5_matrix *matrices; /* still open, closed by commit/abort */
+    wt_h5_series *series;
+};
+
+/* Remember st as the writer's first failure (with the context's message) when it is one; returns st. */
+int wt_h5_priv_poison(wt_h5_writer *w, int st);
+
+/* Body of the public writer calls: quiet HDF5 around the work; the writer remembers its first failure. */
+#define WRITER_CALL(handle, writer, expr)       \
+    do {                                        \
+        int st;                                 \
+        if (!(handle)) return WT_ERR_INVALID;   \
+        QUIET(expr);                            \
+        return wt_h5_priv_poison((writer), st); \
+    } while (0)
+
+/* A new numeric dataset's name and documentation (units required when need_units). */
+int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units);
+/* Known element types, and no float data into an integer dataset. */
+int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt);
+/* The units (when not NULL) and description attributes of obj. */
+int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc);
+
+/* Unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
+int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check);
+/* Unlink from the writer, close, free. */
+int wt_h5_priv_series_close(wt_h5_series *s);
 
 #endif

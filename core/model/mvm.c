@@ -1,6 +1,6 @@
 /* core/model/mvm.c: the offline MVM builder (SPEC §9): the command maps E (pcg3 layer values, cg9 exact
  * fitting), then R = E M⁻¹ Ãᵀ Ĉ⁻¹ and RÂ by block solves with the factorised normal matrix M of
- * mvm_normal.c (where Ã and N are assembled and the Woodbury correction lives). */
+ * mvm_assemble.c (Ã) and mvm_normal.c (N, its factorisation and the Woodbury correction). */
 #include "mvm_private.h"
 
 #include <lapacke.h>

@@ -1,396 +1,23 @@
-/* core/model/mvm_normal.c: the sparse Ã = Γ P W⁻¹ and the factorised MAP normal matrix of the MVM
- * builder (SPEC §9, §7; paper eq. eqn_lse): N = Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m + α D assembled column by column
- * and factorised by CHOLMOD, the LGS tip-tilt removal and the NGS as the low-rank B Q Bᵀ, and solves
- * with M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm.h). */
+/* core/model/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
+ * eqn_lse): N = Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m + α D assembled column by column (Ã from mvm_assemble.c) and
+ * factorised by CHOLMOD, the LGS tip-tilt removal and the NGS as the low-rank B Q Bᵀ, and solves with
+ * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm.h). */
 #include "mvm_private.h"
 
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "../la/chol.h"
 #include "../op/noise.h"
-#include "../op/projection.h"
-
-/* ---- wavelet basis templates ------------------------------------------------------------------
- * All basis functions W⁻¹ e_λ of one layer, level and orientation are periodic shifts, by 2^level grid
- * points per coefficient step, of the block's first one (tests/test_wavelet.c, test_shift_property),
- * so one inverse DWT per block gives every column of W⁻¹. */
-
-typedef struct {
-    int npts, step;
-    int32_t *tx, *ty; /* support of the block's (0, 0) basis function, grid indices */
-    double *v;
-} block_tmpl;
-
-typedef struct {
-    int L;
-    int n[WT_MAX_LAYERS], J[WT_MAX_LAYERS];
-    int64_t off[WT_MAX_LAYERS + 1];
-    block_tmpl *blk[WT_MAX_LAYERS]; /* 3J + 1 per layer: (level-1)*3 + orient-1, approximation last */
-} templates;
-
-static void templates_free(wt_context *ctx, templates *tp)
-{
-    if (!tp) return;
-    for (int l = 0; l < tp->L; l++) {
-        if (!tp->blk[l]) continue;
-        for (int b = 0; b < 3 * tp->J[l] + 1; b++) {
-            wt_free(ctx, tp->blk[l][b].tx);
-            wt_free(ctx, tp->blk[l][b].ty);
-            wt_free(ctx, tp->blk[l][b].v);
-        }
-        wt_free(ctx, tp->blk[l]);
-    }
-    wt_free(ctx, tp);
-}
-
-static void block_origin(int n, int level, int orient, int J, int *bx, int *by, int *step)
-{
-    int lev = level > J ? J : level, m = n >> lev;
-    *bx = (orient == 1 || orient == 3) ? m : 0;
-    *by = (orient == 2 || orient == 3) ? m : 0;
-    *step = 1 << lev;
-}
-
-static int templates_alloc(wt_context *ctx, const wt_tomography *t, templates **out)
-{
-    int st = WT_OK;
-    templates *tp = NULL;
-    double *e = NULL, *psi = NULL, *work = NULL;
-    *out = NULL;
-    WT_ALLOC(ctx, tp, 1, "wavelet templates");
-    tp->L = wt_tomography_nlayers(t);
-    for (int l = 0; l < tp->L; l++) {
-        const wt_wavelet *w = wt_tomography_wavelet(t, l);
-        int n = wt_wavelet_n(w), J = wt_wavelet_levels(w);
-        tp->n[l] = n;
-        tp->J[l] = J;
-        tp->off[l] = wt_tomography_layer_offset(t, l);
-        tp->off[l + 1] = tp->off[l] + (int64_t)n * n;
-        WT_ALLOC(ctx, tp->blk[l], 3 * J + 1, "wavelet templates");
-        WT_ALLOC(ctx, e, (size_t)n * n, "template coefficients");
-        WT_ALLOC(ctx, psi, (size_t)n * n, "template basis function");
-        WT_ALLOC(ctx, work, wt_wavelet_work_size(w), "template workspace");
-        for (int b = 0; b < 3 * J + 1; b++) {
-            int level = b < 3 * J ? b / 3 + 1 : J + 1, orient = b < 3 * J ? b % 3 + 1 : 0, bx, by;
-            block_tmpl *bt = &tp->blk[l][b];
-            block_origin(n, level, orient, J, &bx, &by, &bt->step);
-            memset(e, 0, (size_t)n * n * sizeof *e);
-            e[bx + (int64_t)n * by] = 1.0;
-            wt_wavelet_inverse(w, e, psi, work);
-            int cnt = 0;
-            for (int64_t p = 0; p < (int64_t)n * n; p++) cnt += psi[p] != 0.0;
-            bt->npts = cnt;
-            WT_ALLOC(ctx, bt->tx, cnt, "template support");
-            WT_ALLOC(ctx, bt->ty, cnt, "template support");
-            WT_ALLOC(ctx, bt->v, cnt, "template values");
-            cnt = 0;
-            for (int64_t p = 0; p < (int64_t)n * n; p++)
-                if (psi[p] != 0.0) {
-                    bt->tx[cnt] = (int32_t)(p % n);
-                    bt->ty[cnt] = (int32_t)(p / n);
-                    bt->v[cnt++] = psi[p];
-                }
-        }
-        wt_free(ctx, e);
-        wt_free(ctx, psi);
-        wt_free(ctx, work);
-        e = psi = work = NULL;
-    }
-    *out = tp;
-    return WT_OK;
-fail:
-    wt_free(ctx, e);
-    wt_free(ctx, psi);
-    wt_free(ctx, work);
-    templates_free(ctx, tp);
-    return st;
-}
-
-/* The template of coefficient j (global index) and the shift (sx, sy) that moves it there. */
-static const block_tmpl *locate(const templates *tp, int64_t j, int *layer, int *sx, int *sy)
-{
-    int l = 0;
-    while (j >= tp->off[l + 1]) l++;
-    int64_t lam = j - tp->off[l];
-    int n = tp->n[l], J = tp->J[l], ix = (int)(lam % n), iy = (int)(lam / n);
-    int m = n / 2, level = J + 1, orient = 0;
-    for (int lv = 1; lv <= J; lv++, m /= 2)
-        if (ix >= m || iy >= m) {
-            level = lv;
-            orient = (ix >= m) + 2 * (iy >= m);
-            break;
-        }
-    int bx, by, step;
-    block_origin(n, level, orient, J, &bx, &by, &step);
-    *layer = l;
-    *sx = (ix - bx) * step;
-    *sy = (iy - by) * step;
-    return &tp->blk[l][level <= J ? (level - 1) * 3 + orient - 1 : 3 * J];
-}
-
-/* ---- parallel two-pass CSC construction -------------------------------------------------------- */
-
-typedef struct {
-    double *acc, *out;
-    int64_t *mark, *list;
-} col_work;
-
-/* Computes column j: with rows == NULL only its non-zero count, else its sorted rows and values. */
-typedef int64_t (*col_fn)(const void *c, int64_t j, col_work *w, int64_t *rows, double *vals);
-
-static int cmp_i64(const void *a, const void *b)
-{
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return (x > y) - (x < y);
-}
-
-/* Emit the cnt touched rows (tagged j in mark) in increasing order with their values src[row]. */
-static int64_t emit(col_work *w, int64_t j, int64_t cnt, int64_t *rows, double *vals, const double *src)
-{
-    if (!rows) return cnt;
-    int64_t lo = INT64_MAX, hi = -1;
-    for (int64_t k = 0; k < cnt; k++) {
-        if (w->list[k] < lo) lo = w->list[k];
-        if (w->list[k] > hi) hi = w->list[k];
-    }
-    if (cnt > 0 && 8 * cnt >= hi - lo + 1) { /* dense enough: scan the marks instead of sorting */
-        int64_t q = 0;
-        for (int64_t r = lo; r <= hi; r++)
-            if (w->mark[r] == j) rows[q++] = r;
-    } else {
-        memcpy(rows, w->list, (size_t)cnt * sizeof *rows);
-        qsort(rows, (size_t)cnt, sizeof *rows, cmp_i64);
-    }
-    for (int64_t k = 0; k < cnt; k++) vals[k] = src[rows[k]];
-    return cnt;
-}
-
-typedef struct {
-    wt_context *ctx;
-    int nth;
-    int64_t nrow;
-    col_work *w;
-    void *store;
-} col_pool;
-
-/* Columns are tagged by their index in the marks: clear them before every pass. */
-static void pool_reset(col_pool *p)
-{
-    for (int k = 0; k < p->nth; k++)
-        for (int64_t r = 0; r < p->nrow; r++) p->w[k].mark[r] = -1;
-}
-
-static void pool_free(col_pool *p)
-{
-    if (p->store) wt_free(p->ctx, p->store);
-    wt_free(p->ctx, p->w);
-    memset(p, 0, sizeof *p);
-}
-
-static int pool_alloc(wt_context *ctx, int nth, int64_t nrow, col_pool *p)
-{
-    int st = WT_OK;
-    memset(p, 0, sizeof *p);
-    p->ctx = ctx;
-    p->nth = nth;
-    WT_ALLOC(ctx, p->w, nth, "column workspaces");
-    p->store = wt_malloc(ctx, (size_t)nth * 4, (size_t)nrow * 8);
-    if (!p->store && nrow > 0) {
-        st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating column workspaces (%zu bytes)",
-                      (size_t)nth * 32 * (size_t)nrow);
-        goto fail;
-    }
-    p->nrow = nrow;
-    for (int k = 0; k < nth; k++) {
-        char *b = (char *)p->store + (size_t)k * 32 * (size_t)nrow;
-        p->w[k].acc = (double *)b;
-        p->w[k].out = (double *)(b + 8 * (size_t)nrow);
-        p->w[k].mark = (int64_t *)(b + 16 * (size_t)nrow);
-        p->w[k].list = (int64_t *)(b + 24 * (size_t)nrow);
-    }
-    return WT_OK;
-fail:
-    pool_free(p);
-    return st;
-}
-
-enum { COL_CHUNK = 2048 };
-
-/* Pass 1: colptr[j + 1] = count of column j, then prefix sums. */
-static void count_columns(col_pool *p, int64_t ncol, col_fn fn, const void *c, int64_t *colptr,
-                          const wt_mvm_options *opt, const char *phase, int64_t done0, int64_t total)
-{
-    pool_reset(p);
-    colptr[0] = 0;
-    for (int64_t j0 = 0; j0 < ncol; j0 += COL_CHUNK) {
-        int64_t j1 = j0 + COL_CHUNK < ncol ? j0 + COL_CHUNK : ncol;
-#pragma omp parallel for schedule(dynamic, 16) num_threads(p->nth)
-        for (int64_t j = j0; j < j1; j++) colptr[j + 1] = fn(c, j, &p->w[wt_mvm_priv_thread()], NULL, NULL);
-        wt_mvm_priv_progress(opt, phase, done0 + j1, total);
-    }
-    for (int64_t j = 0; j < ncol; j++) colptr[j + 1] += colptr[j];
-}
-
-/* Pass 2: fill the columns of a (colptr already set). */
-static void fill_columns(col_pool *p, wt_sparse *a, col_fn fn, const void *c, const wt_mvm_options *opt,
-                         const char *phase, int64_t done0, int64_t total)
-{
-    pool_reset(p);
-    for (int64_t j0 = 0; j0 < a->ncol; j0 += COL_CHUNK) {
-        int64_t j1 = j0 + COL_CHUNK < a->ncol ? j0 + COL_CHUNK : a->ncol;
-#pragma omp parallel for schedule(dynamic, 16) num_threads(p->nth)
-        for (int64_t j = j0; j < j1; j++)
-            fn(c, j, &p->w[wt_mvm_priv_thread()], a->rowind + a->colptr[j], a->val + a->colptr[j]);
-        wt_mvm_priv_progress(opt, phase, done0 + j1, total);
-    }
-}
-
-/* ---- Γ P (all sensors, all layers) and Ã = Γ P W⁻¹ ---------------------------------------------- */
-
-/* GP: nslopes x n (layer points in the order of the coefficients), rows in system slope order. */
-static int assemble_gp(wt_context *ctx, wt_tomography *t, wt_sparse **out)
-{
-    int st = WT_OK;
-    const wt_system *sys = wt_tomography_system(t);
-    const int S = sys->nsensors, L = wt_tomography_nlayers(t);
-    wt_sparse **part = NULL, *G = NULL, *P = NULL, *gp = NULL;
-    *out = NULL;
-    WT_ALLOC(ctx, part, (size_t)S * L, "Γ P blocks");
-    for (int m = 0; m < S; m++) {
-        WT_TRY(wt_shack_hartmann_assemble(sys->sensors[m].sh, &G));
-        for (int l = 0; l < L; l++) {
-            WT_TRY(wt_projection_assemble(wt_tomography_projection(t, m, l), &P));
-            WT_TRY(wt_sparse_multiply(G, P, &part[m * L + l]));
-            wt_sparse_free(P);
-            P = NULL;
-        }
-        wt_sparse_free(G);
-        G = NULL;
-    }
-    int64_t n = wt_tomography_nunknowns(t), nnz = 0;
-    for (int i = 0; i < S * L; i++) nnz += wt_sparse_nnz(part[i]);
-    WT_TRY(wt_sparse_alloc(ctx, sys->nslopes, n, nnz, &gp));
-    int64_t q = 0;
-    for (int l = 0; l < L; l++) {
-        int64_t off = wt_tomography_layer_offset(t, l), nl = wt_grid_size(wt_tomography_layer_grid(t, l));
-        for (int64_t p = 0; p < nl; p++) {
-            for (int m = 0; m < S; m++) {
-                const wt_sparse *a = part[m * L + l];
-                for (int64_t k = a->colptr[p]; k < a->colptr[p + 1]; k++) {
-                    gp->rowind[q] = sys->sensors[m].offset + a->rowind[k];
-                    gp->val[q++] = a->val[k];
-                }
-            }
-            gp->colptr[off + p + 1] = q;
-        }
-    }
-    *out = gp;
-    gp = NULL;
-fail:
-    if (part)
-        for (int i = 0; i < S * L; i++) wt_sparse_free(part[i]);
-    wt_free(ctx, part);
-    wt_sparse_free(G);
-    wt_sparse_free(P);
-    wt_sparse_free(gp);
-    return st;
-}
-
-typedef struct {
-    const wt_sparse *gp;
-    const templates *tp;
-    int64_t nrows;      /* rows produced: every slope, or the LGS slopes (weighted) */
-    int weighted;       /* 1: rows of Lᵀ Ã with C̃⁻¹ = L Lᵀ per subaperture */
-    const double *w11, *w21, *w22; /* Lᵀ = [[w11, w21], [0, w22]], indexed by the x-row */
-    const int64_t *partner;        /* x-row <-> y-row of the same subaperture */
-    const uint8_t *is_x;
-} acol_ctx;
-
-static int64_t atilde_column(const void *cv, int64_t j, col_work *w, int64_t *rows, double *vals)
-{
-    const acol_ctx *c = cv;
-    const wt_sparse *gp = c->gp;
-    int l, sx, sy;
-    const block_tmpl *b = locate(c->tp, j, &l, &sx, &sy);
-    const int n = c->tp->n[l], mask = n - 1;
-    const int64_t off = c->tp->off[l], nrows = c->nrows;
-    int64_t cnt = 0;
-    for (int q = 0; q < b->npts; q++) {
-        int64_t p = off + ((b->tx[q] + sx) & mask) + (int64_t)n * ((b->ty[q] + sy) & mask);
-        double v = b->v[q];
-        for (int64_t k = gp->colptr[p]; k < gp->colptr[p + 1]; k++) {
-            int64_t r = gp->rowind[k];
-            if (r >= nrows) break; /* rows are sorted: the rest belong to sensors left out */
-            if (w->mark[r] != j) {
-                w->mark[r] = j;
-                w->list[cnt++] = r;
-                w->acc[r] = 0.0;
-            }
-            if (vals) w->acc[r] += v * gp->val[k];
-        }
-    }
-    if (!c->weighted) return emit(w, j, cnt, rows, vals, w->acc);
-    /* Lᵀ mixes the x and y slope of a subaperture: both rows of a touched pair are produced */
-    int64_t c0 = cnt;
-    for (int64_t k = 0; k < c0; k++) {
-        int64_t pr = c->partner[w->list[k]];
-        if (w->mark[pr] != j) {
-            w->mark[pr] = j;
-            w->list[cnt++] = pr;
-            w->acc[pr] = 0.0;
-        }
-    }
-    if (vals)
-        for (int64_t k = 0; k < cnt; k++) {
-            int64_t r = w->list[k];
-            if (!c->is_x[r]) continue;
-            double x = w->acc[r], y = w->acc[c->partner[r]];
-            w->out[r] = c->w11[r] * x + c->w21[r] * y;
-            w->out[c->partner[r]] = c->w22[r] * y;
-        }
-    return emit(w, j, cnt, rows, vals, w->out);
-}
-
-int wt_mvm_assemble_atilde(wt_context *ctx, wt_tomography *t, wt_sparse **out)
-{
-    int st = WT_OK;
-    wt_sparse *gp = NULL, *a = NULL;
-    templates *tp = NULL;
-    col_pool pool = {0};
-    const wt_system *sys = wt_tomography_system(t);
-    const int64_t n = wt_tomography_nunknowns(t);
-    *out = NULL;
-    WT_TRY(assemble_gp(ctx, t, &gp));
-    WT_TRY(templates_alloc(ctx, t, &tp));
-    WT_TRY(pool_alloc(ctx, wt_context_threads(ctx), sys->nslopes, &pool));
-    acol_ctx c = {gp, tp, sys->nslopes, 0, NULL, NULL, NULL, NULL, NULL};
-    int64_t *colptr = NULL;
-    WT_ALLOC(ctx, colptr, n + 1, "column counts");
-    count_columns(&pool, n, atilde_column, &c, colptr, NULL, NULL, 0, 0);
-    st = wt_sparse_alloc(ctx, sys->nslopes, n, colptr[n], &a);
-    if (st == WT_OK) memcpy(a->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
-    wt_free(ctx, colptr);
-    if (st < 0) goto fail;
-    fill_columns(&pool, a, atilde_column, &c, NULL, NULL, 0, 0);
-    *out = a;
-    a = NULL;
-fail:
-    pool_free(&pool);
-    templates_free(ctx, tp);
-    wt_sparse_free(gp);
-    wt_sparse_free(a);
-    return st;
-}
 
 /* ---- N = Gᵀ G + α D (upper triangle) ------------------------------------------------------------
- * The two rows of G of one subaperture (x and y, mixed by Lᵀ) have the same pattern (atilde_column
- * emits both of a touched pair), so Gᵀ is stored by pairs: one row list, two value arrays. The
- * product then walks each index list once for both rows, halving the index traffic of both passes. */
+ * The two rows of G of one subaperture (x and y, mixed by Lᵀ) have the same pattern
+ * (wt_mvm_priv_atilde_column emits both of a touched pair), so Gᵀ is stored by pairs: one row list, two
+ * value arrays. The product then walks each index list once for both rows, halving the index traffic
+ * of both passes. */
 
 typedef struct {
     int64_t npairs;
@@ -457,7 +84,7 @@ typedef struct {
     const double *alpha_d;
 } ncol_ctx;
 
-static int64_t normal_column(const void *cv, int64_t j, col_work *w, int64_t *rows, double *vals)
+static int64_t normal_column(const void *cv, int64_t j, wt_mvm_priv_col_work *w, int64_t *rows, double *vals)
 {
     const ncol_ctx *c = cv;
     const wt_sparse *G = c->G;
@@ -484,7 +111,7 @@ static int64_t normal_column(const void *cv, int64_t j, col_work *w, int64_t *ro
             if (vals) w->acc[i] += gx * F->vx[q] + gy * F->vy[q];
         }
     }
-    return emit(w, j, cnt, rows, vals, w->acc);
+    return wt_mvm_priv_emit(w, j, cnt, rows, vals, w->acc);
 }
 
 /* ---- the normal object -------------------------------------------------------------------------- */
@@ -648,8 +275,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     else wt_mvm_options_default(&opt);
     if (opt.block <= 0) opt.block = 256;
     wt_mvm_normal *nm = NULL;
-    templates *tp = NULL;
-    col_pool pool = {0};
+    wt_mvm_priv_templates *tp = NULL;
+    wt_mvm_priv_col_pool pool = {0};
     wt_sparse *G = NULL, *N = NULL;
     pair_transpose F = {0};
     double *w3 = NULL;
@@ -679,8 +306,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
 
     /* Γ P, the basis templates, and the 2x2 Cholesky factors of the LGS weights */
     wt_mvm_priv_progress(&opt, "assemble", 0, 2 * n);
-    WT_TRY(assemble_gp(ctx, t, &nm->gp));
-    WT_TRY(templates_alloc(ctx, t, &tp));
+    WT_TRY(wt_mvm_priv_assemble_gp(ctx, t, &nm->gp));
+    WT_TRY(wt_mvm_priv_templates_alloc(ctx, t, &tp));
     const int64_t nl = sys->nlgs > 0 ? sys->sensors[sys->nlgs - 1].offset + sys->sensors[sys->nlgs - 1].nslopes : 0;
     WT_ALLOC(ctx, w3, 3 * (size_t)(nl > 0 ? nl : 1), "LGS weight factors");
     WT_ALLOC(ctx, partner, nl > 0 ? nl : 1, "slope partners");
@@ -707,10 +334,10 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     const double gp_bytes = wt_mvm_priv_sparse_bytes(wt_sparse_nnz(nm->gp), n);
 
     /* G = Lᵀ Ã_LGS: count, check, fill */
-    WT_TRY(pool_alloc(ctx, nm->nth, nl > n ? nl : n, &pool));
-    acol_ctx ac = {nm->gp, tp, nl, 1, w3, w3 + nl, w3 + 2 * nl, partner, is_x};
+    WT_TRY(wt_mvm_priv_pool_alloc(ctx, nm->nth, nl > n ? nl : n, &pool));
+    wt_mvm_priv_acol_ctx ac = {nm->gp, tp, nl, 1, w3, w3 + nl, w3 + 2 * nl, partner, is_x};
     WT_ALLOC(ctx, colptr, n + 1, "column counts");
-    count_columns(&pool, n, atilde_column, &ac, colptr, &opt, "assemble", 0, 2 * n);
+    wt_mvm_priv_count_columns(&pool, n, wt_mvm_priv_atilde_column, &ac, colptr, &opt, "assemble", 0, 2 * n);
     S->nnz_a = colptr[n];
     double g_bytes = wt_mvm_priv_sparse_bytes(S->nnz_a, n), f_bytes = pair_transpose_bytes(S->nnz_a, npairs);
     snprintf(detail, sizeof detail, "Γ P %.3g GB, Lᵀ Ã_LGS %.3g GB (%lld non-zeros) and its transpose %.3g GB",
@@ -723,8 +350,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
                                     detail));
     WT_TRY(wt_sparse_alloc(ctx, nl, n, S->nnz_a, &G));
     memcpy(G->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
-    fill_columns(&pool, G, atilde_column, &ac, &opt, "assemble", n, 2 * n);
-    templates_free(ctx, tp);
+    wt_mvm_priv_fill_columns(&pool, G, wt_mvm_priv_atilde_column, &ac, &opt, "assemble", n, 2 * n);
+    wt_mvm_priv_templates_free(ctx, tp);
     tp = NULL;
     WT_TRY(pair_transpose_alloc(ctx, G, pair_of, partner, npairs, &F));
     S->t_assemble = wt_time_now() - tt;
@@ -733,7 +360,7 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     /* N = Gᵀ G + α D, upper triangle */
     ncol_ctx nc = {G, &F, pair_of, partner, wt_tomography_alpha_prior(t)};
     wt_mvm_priv_progress(&opt, "normal", 0, 2 * n);
-    count_columns(&pool, n, normal_column, &nc, colptr, &opt, "normal", 0, 2 * n);
+    wt_mvm_priv_count_columns(&pool, n, normal_column, &nc, colptr, &opt, "normal", 0, 2 * n);
     S->nnz_normal = colptr[n];
     double n_bytes = wt_mvm_priv_sparse_bytes(S->nnz_normal, n);
     snprintf(detail, sizeof detail, "Γ P %.3g GB, Lᵀ Ã_LGS and transpose %.3g GB, N %.3g GB (%lld non-zeros)",
@@ -748,8 +375,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
                                     gp_bytes + 2.0 * n_bytes + 8.0 * S->nnz_normal, detail));
     WT_TRY(wt_sparse_alloc(ctx, n, n, S->nnz_normal, &N));
     memcpy(N->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
-    fill_columns(&pool, N, normal_column, &nc, &opt, "normal", n, 2 * n);
-    pool_free(&pool);
+    wt_mvm_priv_fill_columns(&pool, N, normal_column, &nc, &opt, "normal", n, 2 * n);
+    wt_mvm_priv_pool_free(&pool);
     wt_sparse_free(G);
     G = NULL;
     pair_transpose_free(ctx, &F);
@@ -801,8 +428,8 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     *out = nm;
     nm = NULL;
 fail:
-    pool_free(&pool);
-    templates_free(ctx, tp);
+    wt_mvm_priv_pool_free(&pool);
+    wt_mvm_priv_templates_free(ctx, tp);
     wt_sparse_free(G);
     pair_transpose_free(ctx, &F);
     wt_sparse_free(N);

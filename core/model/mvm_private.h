@@ -1,6 +1,7 @@
 /* core/model/mvm_private.h: what the two files of the MVM builder share (SPEC §9; see mvm.h).
  *
- * Private to core/model/mvm.c (the command maps E, R and RÂ) and core/model/mvm_normal.c (Ã, N and
+ * Private to core/model/mvm.c (the command maps E, R and RÂ), core/model/mvm_assemble.c (Γ P, the
+ * wavelet basis templates, the column-by-column construction of Ã) and core/model/mvm_normal.c (N and
  * the factorised normal matrix M = N + B Q Bᵀ); included by nothing else. The normal object stays
  * opaque here too: the builder reaches the two things it needs from it through accessors.
  */
@@ -10,6 +11,7 @@
 #include "mvm.h"
 
 #include <stddef.h>
+#include <stdint.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -47,5 +49,65 @@ size_t wt_mvm_priv_wavelet_work(const wt_tomography *t);
 const wt_sparse *wt_mvm_priv_normal_gp(const wt_mvm_normal *nm);
 /* CHOLMOD's peak allocation so far [bytes] (it grows with the block solves). */
 double wt_mvm_priv_normal_cholmod_peak(const wt_mvm_normal *nm);
+
+/* ---- mvm_assemble.c -------------------------------------------------------------------------------- */
+
+/* Γ P: nslopes x n (layer points in the order of the coefficients), rows in system slope order. */
+int wt_mvm_priv_assemble_gp(wt_context *ctx, wt_tomography *t, wt_sparse **out);
+
+/* The basis functions W⁻¹ e_λ of every layer, one template per level and orientation. */
+typedef struct wt_mvm_priv_templates wt_mvm_priv_templates;
+int wt_mvm_priv_templates_alloc(wt_context *ctx, const wt_tomography *t, wt_mvm_priv_templates **out);
+void wt_mvm_priv_templates_free(wt_context *ctx, wt_mvm_priv_templates *tp);
+
+/* Per-thread workspace of the column construction: acc, out, mark and list of nrow entries each. */
+typedef struct {
+    double *acc, *out;
+    int64_t *mark, *list;
+} wt_mvm_priv_col_work;
+
+/* Computes column j: with rows == NULL only its non-zero count, else its sorted rows and values. */
+typedef int64_t (*wt_mvm_priv_col_fn)(const void *c, int64_t j, wt_mvm_priv_col_work *w, int64_t *rows,
+                                      double *vals);
+
+/* Emit the cnt touched rows (tagged j in mark) in increasing order with their values src[row]; with
+ * rows == NULL only return cnt. */
+int64_t wt_mvm_priv_emit(wt_mvm_priv_col_work *w, int64_t j, int64_t cnt, int64_t *rows, double *vals,
+                         const double *src);
+
+/* One column workspace per thread, in one allocation. */
+typedef struct {
+    wt_context *ctx;
+    int nth;
+    int64_t nrow;
+    wt_mvm_priv_col_work *w;
+    void *store;
+} wt_mvm_priv_col_pool;
+
+int wt_mvm_priv_pool_alloc(wt_context *ctx, int nth, int64_t nrow, wt_mvm_priv_col_pool *p);
+void wt_mvm_priv_pool_free(wt_mvm_priv_col_pool *p);
+
+/* Pass 1: colptr[j + 1] = count of column j, then prefix sums (progress reported under phase, offset by
+ * done0 out of total). */
+void wt_mvm_priv_count_columns(wt_mvm_priv_col_pool *p, int64_t ncol, wt_mvm_priv_col_fn fn, const void *c,
+                               int64_t *colptr, const wt_mvm_options *opt, const char *phase, int64_t done0,
+                               int64_t total);
+/* Pass 2: fill the columns of a (colptr already set). */
+void wt_mvm_priv_fill_columns(wt_mvm_priv_col_pool *p, wt_sparse *a, wt_mvm_priv_col_fn fn, const void *c,
+                              const wt_mvm_options *opt, const char *phase, int64_t done0, int64_t total);
+
+/* The context of wt_mvm_priv_atilde_column: columns of Ã, or of Lᵀ Ã_LGS when weighted. */
+typedef struct {
+    const wt_sparse *gp;
+    const wt_mvm_priv_templates *tp;
+    int64_t nrows;      /* rows produced: every slope, or the LGS slopes (weighted) */
+    int weighted;       /* 1: rows of Lᵀ Ã with C̃⁻¹ = L Lᵀ per subaperture */
+    const double *w11, *w21, *w22; /* Lᵀ = [[w11, w21], [0, w22]], indexed by the x-row */
+    const int64_t *partner;        /* x-row <-> y-row of the same subaperture */
+    const uint8_t *is_x;
+} wt_mvm_priv_acol_ctx;
+
+/* A wt_mvm_priv_col_fn over a wt_mvm_priv_acol_ctx. */
+int64_t wt_mvm_priv_atilde_column(const void *cv, int64_t j, wt_mvm_priv_col_work *w, int64_t *rows, double *vals);
 
 #endif

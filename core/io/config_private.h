@@ -1,0 +1,46 @@
+/* core/io/config_private.h: what the two files of the configuration reader share (SPEC §1, §9; see
+ * config.h).
+ *
+ * Private to core/io/config_schema.c (the key table and the printed reference) and core/io/config.c
+ * (reading, --set overrides, validation, the canonical text); included by nothing else.
+ */
+#ifndef WT_CONFIG_PRIVATE_H
+#define WT_CONFIG_PRIVATE_H
+
+#include "config.h"
+
+#include <stddef.h>
+
+enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS };
+enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32 };
+
+typedef struct wt_config_priv_key_spec {
+    const char *path;    /* dotted libconfig path */
+    int type;            /* K_* */
+    int flags;           /* F_* */
+    double lo, hi;       /* accepted range in file units (of each element for lists) */
+    const char *unit;    /* unit of the file value, "" if none */
+    double scale;        /* file unit -> internal unit (arcsec -> rad, nm -> m, ...) */
+    size_t off;          /* destination in wt_config */
+    size_t count_off;    /* lists: int element count in wt_config; lists sharing it have equal lengths */
+    int minlen, maxlen;  /* lists: accepted lengths */
+    const char *choices; /* enums: "a|b|c"; the stored int is the index */
+    double def;          /* optional keys: value stored when absent */
+    const char *desc;
+} wt_config_priv_key_spec;
+
+/* The keys in schema order (the order of the canonical text). The count is a constant because the parse
+ * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
+enum { WT_CONFIG_PRIV_NKEYS = 67 };
+extern const wt_config_priv_key_spec wt_config_priv_keys[];
+
+static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
+static inline int wt_config_priv_is_int(int t) { return t == K_INT || t == K_INT64 || t == K_INTS; }
+
+/* Shortest %g text that reads back as the same double; returns buf. */
+const char *wt_config_priv_fmt_num(double v, char *buf, size_t n);
+
+/* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
+void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n);
+
+#endif

@@ -1,0 +1,268 @@
+/* core/io/h5_stream.c: the HDF5 datasets written piece by piece through the atomic writer of h5.c:
+ * row-block matrices (R and RÂ of SPEC §9, written a block of rows at a time, a matrix with unwritten
+ * rows refused at commit) and appendable series (the simulator's telemetry, one frame per call).
+ * Same conventions as h5.c (h5_private.h): every public call is a WRITER_CALL, so HDF5 is quiet
+ * inside and the writer remembers its first failure.
+ */
+#include "h5_private.h"
+
+#define SERIES_CHUNK_BYTES ((size_t)1 << 16) /* series: the last chunk is allocated whole, keep it small */
+#define PROBE_FRAMES ((hsize_t)1 << 24)      /* stands for "many frames" when sizing series chunks */
+
+struct wt_h5_matrix {
+    wt_h5_writer *w;
+    hid_t dset;
+    char *name;
+    int64_t rows, cols, ndone;
+    uint8_t *done; /* rows written: commit refuses a matrix with holes */
+    wt_h5_matrix *next;
+};
+
+struct wt_h5_series {
+    wt_h5_writer *w;
+    hid_t dset;
+    char *name;
+    int64_t n, len;
+    wt_h5_series *next;
+};
+
+/* Float data into an integer dataset loses the fraction silently in HDF5: refuse it. */
+static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, const void *data)
+{
+    if (!wt_h5_priv_type_ok(mt) || !data)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown type %d or NULL data", w->target, name, mt);
+    hid_t ft = H5Dget_type(dset);
+    int file_float = ft >= 0 && H5Tget_class(ft) == H5T_FLOAT;
+    wt_h5_priv_drop(ft);
+    if (wt_h5_priv_type_float(mt) && !file_float)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an integer dataset (lossy)",
+                        w->target, name, wt_h5_priv_type_name(mt));
+    return WT_OK;
+}
+
+/* ---- row-block matrices ------------------------------------------------------------------------- */
+
+static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t rows, int64_t cols, const char *units,
+                              const char *desc, wt_h5_matrix **out)
+{
+    int st = WT_OK;
+    wt_h5_matrix *m = NULL;
+    hid_t space = -1, dcpl = -1, dapl = -1;
+    hsize_t hd[2] = {(hsize_t)rows, (hsize_t)cols}, chunk[2];
+    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_matrix_create: out is NULL", w->target);
+    *out = NULL;
+    WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
+    WT_TRY(wt_h5_priv_check_types(w, name, ft, ft));
+    if (rows < 1 || cols < 1)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s' of %lld x %lld, expected positive dims", w->target,
+                        name, (long long)rows, (long long)cols);
+    WT_ALLOC(w->ctx, m, 1, "an HDF5 matrix handle");
+    m->w = w;
+    m->dset = -1;
+    m->rows = rows;
+    m->cols = cols;
+    WT_ALLOC(w->ctx, m->done, rows, "the row map of an HDF5 matrix");
+    if (!(m->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if ((space = H5Screate_simple(2, hd, NULL)) < 0 ||
+        (dcpl = wt_h5_priv_numeric_dcpl(2, hd, wt_h5_priv_type_size(ft), WT_H5_PRIV_CHUNK_BYTES, 2, 0, chunk)) < 0 ||
+        (dapl = H5Pcreate(H5P_DATASET_ACCESS)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot set up matrix '%s'", w->target, name);
+    /* room for two chunks, so the chunk a misaligned block ends in is still cached for the next block */
+    size_t cbytes = (size_t)(chunk[0] * chunk[1]) * wt_h5_priv_type_size(ft);
+    size_t cache = 2 * cbytes + WT_H5_PRIV_CHUNK_BYTES;
+    if (H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, cache, H5D_CHUNK_CACHE_W0_DEFAULT) < 0 ||
+        (m->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, dapl)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create matrix '%s' (H5Dcreate2)", w->target, name);
+    WT_TRY(wt_h5_priv_set_doc(w, m->dset, name, units, desc));
+    m->next = w->matrices;
+    w->matrices = m;
+    *out = m;
+    m = NULL;
+fail:
+    if (m) {
+        wt_h5_priv_drop(m->dset);
+        wt_free(w->ctx, m->name);
+        wt_free(w->ctx, m->done);
+        wt_free(w->ctx, m);
+    }
+    wt_h5_priv_drop(dapl);
+    wt_h5_priv_drop(dcpl);
+    wt_h5_priv_drop(space);
+    return st;
+}
+
+int wt_h5_matrix_create(wt_h5_writer *w, const char *name, int file_type, int64_t rows, int64_t cols, const char *units,
+                        const char *description, wt_h5_matrix **out)
+{
+    WRITER_CALL(w, w, matrix_create_impl(w, name, file_type, rows, cols, units, description, out));
+}
+
+static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mt, const void *data)
+{
+    wt_h5_writer *w = m->w;
+    int st = WT_OK;
+    hid_t fs = -1, ms = -1;
+    WT_TRY(check_data(w, m->name, m->dset, mt, data));
+    if (row0 < 0 || nrows < 1 || row0 > m->rows - nrows)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s': rows %lld..%lld, expected within 0..%lld", w->target,
+                        m->name, (long long)row0, (long long)(row0 + nrows - 1), (long long)(m->rows - 1));
+    hsize_t start[2] = {(hsize_t)row0, 0}, count[2] = {(hsize_t)nrows, (hsize_t)m->cols};
+    if ((fs = H5Dget_space(m->dset)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(2, count, NULL)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: matrix '%s': cannot select rows %lld..%lld", w->target, m->name,
+               (long long)row0, (long long)(row0 + nrows - 1));
+    if (H5Dwrite(m->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing rows %lld..%lld of matrix '%s' failed (H5Dwrite)", w->target,
+               (long long)row0, (long long)(row0 + nrows - 1), m->name);
+    for (int64_t i = row0; i < row0 + nrows; i++) {
+        m->ndone += !m->done[i];
+        m->done[i] = 1;
+    }
+fail:
+    wt_h5_priv_drop(ms);
+    wt_h5_priv_drop(fs);
+    return st;
+}
+
+int wt_h5_matrix_write_rows(wt_h5_matrix *m, int64_t row0, int64_t nrows, int mem_type, const void *data)
+{
+    WRITER_CALL(m, m->w, matrix_write_impl(m, row0, nrows, mem_type, data));
+}
+
+int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check)
+{
+    wt_h5_writer *w = m->w;
+    int st = WT_OK;
+    for (wt_h5_matrix **p = &w->matrices; *p; p = &(*p)->next)
+        if (*p == m) {
+            *p = m->next;
+            break;
+        }
+    if (check && m->ndone < m->rows) {
+        int64_t first = 0;
+        while (m->done[first]) first++;
+        st = WT_ERROR(w->ctx, WT_ERR_INVALID,
+                      "%s: matrix '%s' has %lld rows, only %lld were written (first missing: %lld)", w->target, m->name,
+                      (long long)m->rows, (long long)m->ndone, (long long)first);
+    }
+    if (H5Dclose(m->dset) < 0 && st == WT_OK && check)
+        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing matrix '%s' failed (disk full?)", w->target, m->name);
+    wt_free(w->ctx, m->name);
+    wt_free(w->ctx, m->done);
+    wt_free(w->ctx, m);
+    return st;
+}
+
+int wt_h5_matrix_close(wt_h5_matrix *m)
+{
+    int st;
+    if (!m) return WT_OK;
+    wt_h5_writer *w = m->w;
+    QUIET(wt_h5_priv_matrix_close(m, 1));
+    return wt_h5_priv_poison(w, st);
+}
+
+/* ---- appendable series -------------------------------------------------------------------------- */
+
+static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t n, const char *units, const char *desc,
+                              wt_h5_series **out)
+{
+    int st = WT_OK;
+    wt_h5_series *s = NULL;
+    hid_t space = -1, dcpl = -1;
+    int rank = n > 0 ? 2 : 1;
+    hsize_t hd[2] = {0, (hsize_t)n}, maxd[2] = {H5S_UNLIMITED, (hsize_t)n}, cd[2] = {PROBE_FRAMES, (hsize_t)n};
+    hsize_t chunk[2];
+    if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_series_create: out is NULL", w->target);
+    *out = NULL;
+    WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
+    WT_TRY(wt_h5_priv_check_types(w, name, ft, ft));
+    if (n < 0)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
+                        (long long)n);
+    WT_ALLOC(w->ctx, s, 1, "an HDF5 series handle");
+    s->w = w;
+    s->dset = -1;
+    s->n = n;
+    if (!(s->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
+    if ((space = H5Screate_simple(rank, hd, maxd)) < 0 ||
+        (dcpl = wt_h5_priv_numeric_dcpl(rank, cd, wt_h5_priv_type_size(ft), SERIES_CHUNK_BYTES, 1, 0, chunk)) < 0 ||
+        (s->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create series '%s' (H5Dcreate2)", w->target, name);
+    WT_TRY(wt_h5_priv_set_doc(w, s->dset, name, units, desc));
+    s->next = w->series;
+    w->series = s;
+    *out = s;
+    s = NULL;
+fail:
+    if (s) {
+        wt_h5_priv_drop(s->dset);
+        wt_free(w->ctx, s->name);
+        wt_free(w->ctx, s);
+    }
+    wt_h5_priv_drop(dcpl);
+    wt_h5_priv_drop(space);
+    return st;
+}
+
+int wt_h5_series_create(wt_h5_writer *w, const char *name, int file_type, int64_t n, const char *units,
+                        const char *description, wt_h5_series **out)
+{
+    WRITER_CALL(w, w, series_create_impl(w, name, file_type, n, units, description, out));
+}
+
+static int series_append_impl(wt_h5_series *s, int mt, const void *data)
+{
+    wt_h5_writer *w = s->w;
+    int st = WT_OK;
+    hid_t fs = -1, ms = -1;
+    WT_TRY(check_data(w, s->name, s->dset, mt, data));
+    hsize_t ext[2] = {(hsize_t)s->len + 1, (hsize_t)s->n}, start[2] = {(hsize_t)s->len, 0};
+    hsize_t count[2] = {1, (hsize_t)s->n};
+    int rank = s->n > 0 ? 2 : 1;
+    if (H5Dset_extent(s->dset, ext) < 0 || (fs = H5Dget_space(s->dset)) < 0 ||
+        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
+        (ms = H5Screate_simple(rank, count, NULL)) < 0)
+        H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: series '%s': cannot extend to %lld frames", w->target, s->name,
+               (long long)s->len + 1);
+    if (H5Dwrite(s->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+        H5FAIL(w->ctx, WT_ERR_IO, "%s: writing frame %lld of series '%s' failed (H5Dwrite)", w->target,
+               (long long)s->len, s->name);
+    s->len++;
+fail:
+    wt_h5_priv_drop(ms);
+    wt_h5_priv_drop(fs);
+    return st;
+}
+
+int wt_h5_series_append(wt_h5_series *s, int mem_type, const void *data)
+{
+    WRITER_CALL(s, s->w, series_append_impl(s, mem_type, data));
+}
+
+int64_t wt_h5_series_length(const wt_h5_series *s) { return s ? s->len : 0; }
+
+int wt_h5_priv_series_close(wt_h5_series *s)
+{
+    wt_h5_writer *w = s->w;
+    int st = WT_OK;
+    for (wt_h5_series **p = &w->series; *p; p = &(*p)->next)
+        if (*p == s) {
+            *p = s->next;
+            break;
+        }
+    if (H5Dclose(s->dset) < 0)
+        st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing series '%s' failed (disk full?)", w->target, s->name);
+    wt_free(w->ctx, s->name);
+    wt_free(w->ctx, s);
+    return st;
+}
+
+int wt_h5_series_close(wt_h5_series *s)
+{
+    int st;
+    if (!s) return WT_OK;
+    wt_h5_writer *w = s->w;
+    QUIET(wt_h5_priv_series_close(s));
+    return wt_h5_priv_poison(w, st);
+}
