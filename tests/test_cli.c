@@ -4,7 +4,9 @@
 #include <stdarg.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include "core/io/config.h"
 #include "core/io/h5.h"
 #include "testutil.h"
 
@@ -150,6 +152,62 @@ START_TEST(test_build_run_chain_and_refusals)
 }
 END_TEST
 
+/* A telemetry file whose frame 2 holds a NaN slope, and one whose frames have the wrong length: both are
+ * refused by `wavetomo run`, naming the frame or the shape. */
+static void write_telemetry(const char *path, const char *config_text, int64_t nslopes, int64_t nact, int nan_frame)
+{
+    wt_context *ctx = tu_context();
+    wt_h5_writer *w;
+    wt_h5_series *s, *so, *c;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    ck_assert_int_eq(wt_h5_write_string(w, "config", config_text, "configuration"), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "slopes", WT_H5_F32, nslopes, "rad", "slopes", &s), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "slopes_ol", WT_H5_F32, nslopes, "rad", "slopes", &so), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "commands", WT_H5_F32, nact, "m", "commands", &c), WT_OK);
+    float *buf = calloc((size_t)(nslopes > nact ? nslopes : nact), sizeof *buf);
+    for (int t = 0; t < 4; t++) {
+        for (int64_t i = 0; i < nslopes; i++) buf[i] = 1e-7f * (float)((i + t) % 13);
+        if (t == nan_frame) buf[5] = NAN;
+        ck_assert_int_eq(wt_h5_series_append(s, WT_H5_F32, buf), WT_OK);
+        ck_assert_int_eq(wt_h5_series_append(so, WT_H5_F32, buf), WT_OK);
+        memset(buf, 0, (size_t)nact * sizeof *buf);
+        ck_assert_int_eq(wt_h5_series_append(c, WT_H5_F32, buf), WT_OK);
+    }
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    free(buf);
+    wt_context_free(ctx);
+}
+
+START_TEST(test_run_rejects_bad_frames)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg;
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
+    const int64_t nslopes = 1548, nact = 571; /* the demo system (wavetomo info) */
+    char nanp[128], widep[128], mat[128];
+    snprintf(nanp, sizeof nanp, "%s/nan.h5", dir);
+    snprintf(widep, sizeof widep, "%s/wide.h5", dir);
+    snprintf(mat, sizeof mat, "%s/M.h5", dir);
+    write_telemetry(nanp, cfg->canonical, nslopes, nact, 2);
+    write_telemetry(widep, cfg->canonical, nslopes + 1, nact, -1);
+    ck_assert_int_eq(run("run --recon pcg3 --telemetry %s --out %s/o1.h5", nanp, dir), 1);
+    ck_assert(stderr_has("frame 2"));
+    ck_assert(stderr_has("NaN"));
+    ck_assert_int_eq(run("build --config data/presets/demo.cfg --out %s", mat), 0);
+    ck_assert_int_eq(run("run --matrix %s --telemetry %s --out %s/o2.h5", mat, nanp, dir), 1);
+    ck_assert(stderr_has("frame 2"));
+    ck_assert_int_eq(run("run --matrix %s --telemetry %s --out %s/o3.h5", mat, widep, dir), 1);
+    ck_assert(stderr_has("1549"));
+    ck_assert(stderr_has("expected"));
+    /* nothing half-written at the refused outputs */
+    char o[160];
+    snprintf(o, sizeof o, "%s/o1.h5", dir);
+    ck_assert_int_ne(access(o, F_OK), 0);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("cli");
@@ -158,6 +216,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, test_compare_writes_the_report);
     tcase_add_test(tc, test_build_run_chain_and_refusals);
+    tcase_add_test(tc, test_run_rejects_bad_frames);
     suite_add_tcase(s, tc);
     return s;
 }
