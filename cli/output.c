@@ -12,8 +12,8 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
 {
     (void)cli;
     int st;
-    char cmd[4096] = "";
-    size_t used = 0;
+    char cmd[4096] = "wavetomo ";
+    size_t used = strlen(cmd); /* argv[0] is the subcommand */
     for (int i = 0; i < argc && used + 2 < sizeof cmd; i++) {
         int k = snprintf(cmd + used, sizeof cmd - used, "%s%s", i ? " " : "", argv[i]);
         if (k < 0) break;

@@ -328,7 +328,7 @@ static int write_text_reports(wt_cli *cli, const cmp_args *a, const wt_config *c
             cfg->path, cfg->matrix_sha256, cfg->frames, cfg->rate, cfg->settle_frames, (unsigned long long)cfg->seed,
             cfg->eval_wavelength * 1e9);
     fprintf(f, "Command:\n\n```\nwavetomo");
-    for (int i = 1; i < argc; i++) fprintf(f, " %s", argv[i]);
+    for (int i = 0; i < argc; i++) fprintf(f, " %s", argv[i]); /* argv[0] is the subcommand */
     fprintf(f, "\n```\n\nEvery run uses the same turbulence and noise (same seed). LE = long exposure.\n\n");
     fprintf(f, "| method | %s | LE Strehl on-axis | LE Strehl field | WFE field [nm] | ms/frame | reconstruction ms | "
                "reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|\n",
