@@ -351,18 +351,7 @@ START_TEST(test_allocation)
             wt_projection_apply(p, 1.0, x, y);
             wt_projection_apply_t(p, 1.0, y, x);
             ck_assert_int_eq(fa.nalloc, before);
-            for (int b = 0; b < 20; b++) {
-                wt_sparse *A = (wt_sparse *)&A;
-                tu_alloc_budget(&fa, b);
-                int sa = wt_projection_assemble(p, &A);
-                if (sa == WT_OK) {
-                    wt_sparse_free(A);
-                    break;
-                }
-                ck_assert_int_eq(sa, WT_ERR_NOMEM);
-                ck_assert_ptr_null(A);
-            }
-            tu_alloc_budget(&fa, -1);
+            TU_ASSEMBLE_UNDER_BUDGETS(&fa, A, wt_projection_assemble(p, &A));
             wt_projection_free(p);
             free(x), free(y);
         } else {

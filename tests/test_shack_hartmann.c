@@ -276,18 +276,7 @@ START_TEST(test_allocation)
                 wt_shack_hartmann_apply(s, 1.0, phi, sl);
                 wt_shack_hartmann_apply_t(s, 1.0, sl, phi);
                 ck_assert_int_eq(fa.nalloc, before);
-                for (int b = 0; b < 20; b++) {
-                    wt_sparse *A = (wt_sparse *)&A;
-                    tu_alloc_budget(&fa, b);
-                    int sa = wt_shack_hartmann_assemble(s, &A);
-                    if (sa == WT_OK) {
-                        wt_sparse_free(A);
-                        break;
-                    }
-                    ck_assert_int_eq(sa, WT_ERR_NOMEM);
-                    ck_assert_ptr_null(A);
-                }
-                tu_alloc_budget(&fa, -1);
+                TU_ASSEMBLE_UNDER_BUDGETS(&fa, A, wt_shack_hartmann_assemble(s, &A));
                 wt_shack_hartmann_free(s);
                 free(phi), free(sl);
             } else {

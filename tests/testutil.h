@@ -111,6 +111,25 @@ static inline void tu_alloc_fail_nth(tu_alloc *a, long k)
     a->once = 1;
 }
 
+/* Assemble an operator under allocation budgets 0, 1, 2, … until it succeeds: every refused attempt
+ * must report WT_ERR_NOMEM and leave its output NULL. `call` uses the wt_sparse * named A, e.g.
+ * TU_ASSEMBLE_UNDER_BUDGETS(&fa, A, wt_projection_assemble(p, &A)). Lifts the budget afterwards. */
+#define TU_ASSEMBLE_UNDER_BUDGETS(fa, A, call)                 \
+    do {                                                       \
+        for (int b_ = 0; b_ < 20; b_++) {                      \
+            wt_sparse *A = (wt_sparse *)&A;                    \
+            tu_alloc_budget((fa), b_);                         \
+            int sa_ = (call);                                  \
+            if (sa_ == WT_OK) {                                \
+                wt_sparse_free(A);                             \
+                break;                                         \
+            }                                                  \
+            ck_assert_int_eq(sa_, WT_ERR_NOMEM);               \
+            ck_assert_ptr_null(A);                             \
+        }                                                      \
+        tu_alloc_budget((fa), -1);                             \
+    } while (0)
+
 /* Every suite file defines `Suite *make_suite(void)` and ends with TU_MAIN. */
 #define TU_MAIN                                              \
     int main(void)                                           \
