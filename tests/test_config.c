@@ -468,6 +468,38 @@ static const struct bad_case {
     {"duplicate key", "r0_m = 0.129;", "r0_m = 0.129; r0_m = 0.2;", 1, NULL, {"syntax error", "duplicate", ""}},
 };
 
+/* A file may carry its own overrides (a preset that @includes another): they apply after the file's
+ * settings and before the command line's, and a bad one is refused naming the file and the override. */
+START_TEST(test_file_overrides)
+{
+    wt_context *ctx = tu_context();
+    size_t n = strlen(VALID) + 256;
+    char *text = malloc(n);
+    snprintf(text, n, "%soverrides = [\"loop.gain = 0.7\", \"sim.seed = 5\"];\n", VALID);
+    const char *ov[] = {"sim.seed=9"};
+    wt_config *c = parse_ok(ctx, text, 1, ov);
+    ck_assert_rel(c->gain, 0.7, ULP2, 0);
+    ck_assert_uint_eq(c->seed, 9); /* the command line wins */
+    ck_assert(strstr(c->canonical, "overrides") == NULL);
+    wt_config_free(ctx, c);
+    static const char *const bad[] = {"overrides = [\"loop.gain = 7.0\"];\n", "overrides = 3;\n",
+                                      "overrides = [\"no.such.key = 1\"];\n"};
+    static const char *const what[] = {"overrides \"loop.gain = 7.0\"", "'overrides' must be a list",
+                                       "unknown key 'no.such.key'"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(text, n, "%s%s", VALID, bad[i]);
+        wt_config *cfg = NULL;
+        int st = wt_config_parse(ctx, text, NAME, 0, NULL, &cfg);
+        ck_assert_int_eq(st, WT_ERR_CONFIG);
+        ck_assert_ptr_null(cfg);
+        ck_assert_msg(strstr(wt_error_message(ctx), what[i]) && strstr(wt_error_message(ctx), NAME), "%s",
+                      wt_error_message(ctx));
+    }
+    free(text);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_bad_inputs)
 {
     const struct bad_case *b = &bad_cases[_i];
@@ -621,6 +653,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_canonical);
     tcase_add_test(tc, test_matrix_hash);
     tcase_add_test(tc, test_overrides);
+    tcase_add_test(tc, test_file_overrides);
     tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));
     tcase_add_test(tc, test_files);
     tcase_add_test(tc, test_reference);

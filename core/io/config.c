@@ -169,6 +169,7 @@ typedef struct pstate {
     const char *name;
     config_t *cf;
     const char *const *ov;
+    int nfile_ov;                                    /* the first nfile_ov of ov come from the file */
     int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
     const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
 } pstate;
@@ -187,7 +188,9 @@ static int fail_at(pstate *ps, const char *loc, const char *fmt, ...)
 /* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent. */
 static const char *where(const pstate *ps, int k, const config_setting_t *s, char *buf, size_t n)
 {
-    if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
+    if (k >= 0 && ps->ovidx[k] >= 0 && ps->ovidx[k] < ps->nfile_ov)
+        snprintf(buf, n, "%s: overrides \"%s\"", ps->name, ps->ov[ps->ovidx[k]]);
+    else if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
     else if (s && config_setting_source_line(s) > 0)
         snprintf(buf, n, "%s:%u", config_setting_source_file(s) ? config_setting_source_file(s) : ps->name,
                  (unsigned)config_setting_source_line(s));
@@ -267,7 +270,8 @@ static int apply_override(pstate *ps, int i)
 {
     char loc[512], key[128], sg[160];
     const char *o = ps->ov[i], *eq = o ? strchr(o, '=') : NULL;
-    snprintf(loc, sizeof loc, "--set %s", o ? o : "(null)");
+    if (i < ps->nfile_ov) snprintf(loc, sizeof loc, "%s: overrides \"%s\"", ps->name, o ? o : "(null)");
+    else snprintf(loc, sizeof loc, "--set %s", o ? o : "(null)");
     if (!eq) return fail_at(ps, loc, "expected key=value, e.g. --set atmosphere.r0_m=0.15");
     while (*o == ' ' || *o == '\t') o++;
     size_t kl = (size_t)(eq - o);
@@ -601,11 +605,19 @@ static int build_canonical(pstate *ps, wt_config *cfg)
 
 /* ---------------------------------------------------------------- public */
 
+static void free_file_overrides(wt_context *ctx, const char **allov, int nfile)
+{
+    if (!allov) return;
+    for (int i = 0; i < nfile; i++) wt_free(ctx, (void *)allov[i]);
+    wt_free(ctx, (void *)allov);
+}
+
 static int parse_text(wt_context *ctx, const char *text, const char *name, const char *incdir, int noverrides,
                       const char *const *overrides, wt_config **out)
 {
     int st = WT_OK;
     wt_config *cfg = NULL;
+    const char **allov = NULL;
     config_t cf;
     pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides};
     *out = NULL;
@@ -626,18 +638,50 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
                       config_error_file(&cf) ? config_error_file(&cf) : ps.name, config_error_line(&cf), e, syntax_hint(e));
         goto fail;
     }
+    /* A file may carry its own overrides (a preset that @includes another and changes a few keys:
+     * libconfig refuses a setting defined twice); they apply before the command line's. */
+    const config_setting_t *fo = config_setting_get_member(config_root_setting(&cf), "overrides");
+    int nfile = 0;
+    if (fo) {
+        if (!config_setting_is_aggregate(fo) || config_setting_is_group(fo)) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%u: 'overrides' must be a list of \"key=value\" strings",
+                          ps.name, (unsigned)config_setting_source_line(fo));
+            goto fail;
+        }
+        nfile = config_setting_length(fo);
+    }
+    if (nfile > 0) {
+        WT_ALLOC(ctx, allov, (size_t)(nfile + noverrides), "the overrides");
+        for (int i = 0; i < nfile; i++) {
+            const config_setting_t *e = config_setting_get_elem(fo, (unsigned)i);
+            allov[i] = config_setting_get_string(e);
+            if (!allov[i]) {
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%u: overrides[%d] must be a \"key=value\" string", ps.name,
+                              (unsigned)config_setting_source_line(e), i);
+                goto fail;
+            }
+            WT_ALLOC(ctx, allov[i], strlen(config_setting_get_string(e)) + 1, "an override");
+            strcpy((char *)allov[i], config_setting_get_string(e));
+        }
+        for (int i = 0; i < noverrides; i++) allov[nfile + i] = overrides[i];
+        ps.ov = allov;
+        ps.nfile_ov = nfile;
+    }
+    if (fo) config_setting_remove(config_root_setting(&cf), "overrides");
     WT_TRY(check_unknown(&ps, config_root_setting(&cf), ""));
-    for (int i = 0; i < noverrides; i++) WT_TRY(apply_override(&ps, i));
+    for (int i = 0; i < nfile + noverrides; i++) WT_TRY(apply_override(&ps, i));
     WT_ALLOC(ctx, cfg, 1, "the configuration");
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
     WT_TRY(check_consistency(&ps, cfg));
     WT_TRY(build_canonical(&ps, cfg));
     config_destroy(&cf);
+    free_file_overrides(ctx, allov, nfile);
     *out = cfg;
     return WT_OK;
 fail:
     config_destroy(&cf);
+    free_file_overrides(ctx, allov, nfile);
     wt_config_free(ctx, cfg);
     return st;
 }
