@@ -131,6 +131,7 @@ int wt_cmd_build(int argc, char **argv)
     wt_mvm_options_default(&o);
     o.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
     o.fit_regularization = cfg->cg9.fit_regularization;
+    o.fit_sampling = cfg->cg9.fit_sampling;
     o.memory_budget = args.memory_gb > 0 ? args.memory_gb * 1e9 : 0.9 * mem_available();
     build_progress bp = {.phase = "", .quiet = cli.quiet};
     o.progress = on_progress;

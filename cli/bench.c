@@ -168,7 +168,8 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_varia
 
     if (v->fit_iterations > 0) {
         wt_fitting *f = NULL;
-        st = wt_fitting_alloc_for(cli->ctx, t, v->fit_regularization, &f);
+        wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
+        st = wt_fitting_alloc_for(cli->ctx, t, &fp, &f);
         if (st < 0) goto out;
         double *a = calloc((size_t)sys->nact, sizeof *a), *phi = malloc((size_t)n * sizeof *phi);
         if (a && phi) {

@@ -64,7 +64,8 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
     }
     if (v->fit_iterations > 0) {
         wt_fitting *f = NULL;
-        st = wt_fitting_alloc_for(cli->ctx, t, v->fit_regularization, &f);
+        wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
+        st = wt_fitting_alloc_for(cli->ctx, t, &fp, &f);
         if (st < 0) {
             *st_out = st;
             wt_tomography_free(t);

@@ -50,6 +50,7 @@ static void build(fixture *f, int cg9, wt_mvm **mv)
     wt_mvm_options_default(&opt);
     opt.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
     opt.fit_regularization = f->cfg->cg9.fit_regularization;
+    opt.fit_sampling = f->cfg->cg9.fit_sampling;
     opt.block = 100; /* several blocks, the last one partial: the block loop's bookkeeping is exercised */
     ck_assert_msg(wt_mvm_build(f->ctx, f->t, &opt, mv) == WT_OK, "%s", wt_error_message(f->ctx));
 }
@@ -247,7 +248,8 @@ static void check_r_matches(int cg9)
                 grids[l] = *wt_tomography_layer_grid(f.t, l);
                 alts[l] = wt_tomography_layer_altitude(f.t, l);
             }
-            ck_assert_int_eq(wt_fitting_alloc(f.ctx, f.sys, L, grids, alts, f.cfg->cg9.fit_regularization, &fit), WT_OK);
+            wt_fitting_params fp = {.regularization = f.cfg->cg9.fit_regularization, .sampling = f.cfg->cg9.fit_sampling};
+            ck_assert_int_eq(wt_fitting_alloc(f.ctx, f.sys, L, grids, alts, &fp, &fit), WT_OK);
             double *phi = malloc(f.n * sizeof *phi);
             wt_tomography_layers(f.t, c, phi);
             memset(a, 0, f.na * sizeof *a);

@@ -361,6 +361,41 @@ static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, d
     return WT_OK;
 }
 
+/* Keys with a default that the file leaves out are added to it with that value, so that they are read,
+ * checked and written to the canonical text like any other. */
+static int fill_defaults(pstate *ps)
+{
+    char loc[512], num_[40];
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) {
+        const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
+        if (!(ks->flags & F_DEFAULT) || config_lookup(ps->cf, ks->path)) continue;
+        const char *leaf;
+        config_setting_t *g = ensure_parent(ps->cf, ks->path, &leaf), *d = NULL;
+        static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
+                                    CONFIG_TYPE_STRING};
+        if (g && !wt_config_priv_is_list(ks->type)) d = config_setting_add(g, leaf, ctype[ks->type]);
+        int ok = d != NULL;
+        if (ok) switch (ks->type) {
+            case K_INT: ok = config_setting_set_int(d, (int)ks->def); break;
+            case K_INT64: ok = config_setting_set_int64(d, (long long)ks->def); break;
+            case K_FLOAT: ok = config_setting_set_float(d, ks->def); break;
+            case K_BOOL: ok = config_setting_set_bool(d, ks->def != 0.0); break;
+            default: {
+                const char *c = ks->choices;
+                for (int i = 0; i < (int)ks->def && c; i++) c = strchr(c, '|') ? strchr(c, '|') + 1 : NULL;
+                size_t w = c ? strcspn(c, "|") : 0;
+                snprintf(num_, sizeof num_, "%.*s", (int)w, c ? c : "");
+                ok = c && config_setting_set_string(d, num_);
+            }
+            }
+        if (!ok) {
+            snprintf(loc, sizeof loc, "%s", ps->name);
+            return fail_at(ps, loc, "cannot add the default of '%s'", ks->path);
+        }
+    }
+    return WT_OK;
+}
+
 static int load_key(pstate *ps, wt_config *cfg, int k)
 {
     const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
@@ -670,6 +705,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     if (fo) config_setting_remove(config_root_setting(&cf), "overrides");
     WT_TRY(check_unknown(&ps, config_root_setting(&cf), ""));
     for (int i = 0; i < nfile + noverrides; i++) WT_TRY(apply_override(&ps, i));
+    WT_TRY(fill_defaults(&ps));
     WT_ALLOC(ctx, cfg, 1, "the configuration");
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));

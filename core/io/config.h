@@ -41,6 +41,7 @@ typedef struct wt_recon_variant_config {
     int jacobi;                      /* 1: modified Jacobi preconditioner (PCG), 0: plain CG */
     int fit_iterations;              /* fitting CG iterations (cg9 only; 0 for pcg3) */
     double fit_regularization;       /* fitting Tikhonov weight, relative to the mean diagonal of H^T H */
+    int fit_sampling;                /* fitting sample points per subaperture side (1: Fried corners) */
 } wt_recon_variant_config;
 
 typedef struct wt_config {

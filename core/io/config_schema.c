@@ -115,6 +115,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),
     KF("recon.cg9.fit_regularization", GE0, "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
+    {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 1,
+     "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
+     "q > 1 = every point of the d/q grid inside the pupil (optional, default 1)"},
 };
 _Static_assert(sizeof wt_config_priv_keys / sizeof wt_config_priv_keys[0] == WT_CONFIG_PRIV_NKEYS,
                "WT_CONFIG_PRIV_NKEYS (config_private.h) must be the number of keys of the table");

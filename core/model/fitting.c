@@ -9,11 +9,14 @@
 #include "../la/vec.h"
 #include "tomography.h"
 #include "../op/projection.h"
+#include "../op/pupil.h"
 
 struct wt_fitting {
     wt_context *ctx;
     const wt_system *sys;
     int ndir, L;
+    wt_grid sample;         /* the pupil-plane grid the fit is sampled on */
+    uint8_t *mask;          /* its sample points */
     wt_projection **dm;     /* ndir: H_j (all DM grids, concatenated) */
     wt_projection **layer;  /* ndir: P_j (all layers, concatenated) */
     int64_t nlayer_pts, ndm_pts, ncg;
@@ -87,13 +90,56 @@ void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
     for (int64_t i = 0; i < f->sys->nact; i++) y[i] += f->eps * a[i];
 }
 
+static void apply_cb(void *user, const double *x, double *y) { wt_fitting_apply((wt_fitting *)user, x, y); }
+
 void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
 {
     project_back(f, f->layer, phi, f->grids);
     wt_dm_restrict(f->sys, f->grids, b);
 }
 
-static void apply_cb(void *user, const double *x, double *y) { wt_fitting_apply((wt_fitting *)user, x, y); }
+void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
+{
+    const int64_t nd = f->ndm_pts;
+#pragma omp parallel for schedule(static) num_threads(f->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        double *acc = f->acc + (size_t)g * nd;
+        memset(acc, 0, (size_t)nd * sizeof *acc);
+        for (int j = 0; j < f->ndir; j++)
+            if (f->group[j] == g) wt_projection_apply_t(f->dm[j], 1.0, maps + (size_t)j * f->ncg, acc);
+    }
+    wt_vec_sum_groups(f->acc, nd, f->grids);
+    wt_dm_restrict(f->sys, f->grids, b);
+}
+
+int wt_fitting_solve_maps(wt_fitting *f, const double *maps, double *a, int max_iter, double rtol,
+                          wt_pcg_result *res)
+{
+    wt_fitting_rhs_maps(f, maps, f->b);
+    return wt_pcg_solve(f->pcg, apply_cb, f, NULL, f->b, a, max_iter, rtol, NULL, res);
+}
+
+const wt_grid *wt_fitting_sample_grid(const wt_fitting *f) { return &f->sample; }
+const uint8_t *wt_fitting_sample_mask(const wt_fitting *f) { return f->mask; }
+
+int wt_fitting_sampling(wt_context *ctx, const wt_system *sys, int q, wt_grid *grid, uint8_t **mask)
+{
+    int st = WT_OK;
+    *mask = NULL;
+    if (q < 1) return WT_ERROR(ctx, WT_ERR_INVALID, "fitting sampling %d: expected >= 1 point per subaperture", q);
+    /* q = 1: the Fried corners of the valid subapertures (the sensors' own sample points); q > 1: the
+     * points of the d/q grid inside the pupil annulus, the points the evaluation weights */
+    *grid = q == 1 ? sys->corner_grid : wt_grid_centred(sys->n * q + 1, sys->d / q);
+    uint8_t *m = NULL;
+    WT_ALLOC(ctx, m, wt_grid_size(grid), "fitting sample mask");
+    if (q == 1) memcpy(m, sys->corner_mask, (size_t)wt_grid_size(grid));
+    else wt_pupil_mask_points(sys->cfg->diameter, sys->cfg->obstruction, grid, m);
+    *mask = m;
+    return WT_OK;
+fail:
+    return st;
+}
+
 
 int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
                      wt_pcg_result *res)
@@ -105,8 +151,9 @@ int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, 
 double wt_fitting_epsilon(const wt_fitting *f) { return f->eps; }
 
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
-                     const double *altitudes, double regularization, wt_fitting **out)
+                     const double *altitudes, const wt_fitting_params *par, wt_fitting **out)
 {
+    const double regularization = par->regularization;
     int st = WT_OK;
     wt_fitting *f = NULL;
     *out = NULL;
@@ -115,7 +162,8 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     f->sys = sys;
     f->ndir = sys->neval;
     f->L = nlayers;
-    f->ncg = wt_grid_size(&sys->corner_grid);
+    WT_TRY(wt_fitting_sampling(ctx, sys, par->sampling, &f->sample, &f->mask));
+    f->ncg = wt_grid_size(&f->sample);
     f->ndm_pts = wt_dm_grid_points(sys);
     for (int l = 0; l < nlayers; l++) f->nlayer_pts += wt_grid_size(&layers[l]);
     /* small DM sets: serial is faster than a parallel region (see core/model/tomography.c) */
@@ -125,9 +173,10 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     for (int j = 0; j < f->ndir; j++) {
         /* DMs may be seen beyond their actuator grid at the field corners: zero influence there */
         WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j],
-                                   sys->eval_y[j], &sys->corner_grid, sys->corner_mask, 1, &f->dm[j]));
+                                   sys->eval_y[j], &f->sample, f->mask, 1, &f->dm[j]));
+        if (nlayers == 0) continue; /* a fit of given maps only (wt_fitting_solve_maps) */
         st = wt_projection_alloc(ctx, nlayers, layers, altitudes, 0.0, sys->eval_x[j], sys->eval_y[j],
-                                 &sys->corner_grid, sys->corner_mask, 0, &f->layer[j]);
+                                 &f->sample, f->mask, 0, &f->layer[j]);
         if (st < 0) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG,
                           "%s: the cg9 reconstruction layers do not cover evaluation direction %d (%.1f\", %.1f\"): %s",
@@ -198,7 +247,7 @@ fail:
     return st;
 }
 
-int wt_fitting_alloc_for(wt_context *ctx, const wt_tomography *t, double regularization, wt_fitting **out)
+int wt_fitting_alloc_for(wt_context *ctx, const wt_tomography *t, const wt_fitting_params *par, wt_fitting **out)
 {
     wt_grid grids[WT_MAX_LAYERS];
     double alts[WT_MAX_LAYERS];
@@ -207,7 +256,7 @@ int wt_fitting_alloc_for(wt_context *ctx, const wt_tomography *t, double regular
         grids[l] = *wt_tomography_layer_grid(t, l);
         alts[l] = wt_tomography_layer_altitude(t, l);
     }
-    return wt_fitting_alloc(ctx, wt_tomography_system(t), L, grids, alts, regularization, out);
+    return wt_fitting_alloc(ctx, wt_tomography_system(t), L, grids, alts, par, out);
 }
 
 void wt_fitting_free(wt_fitting *f)
@@ -220,6 +269,7 @@ void wt_fitting_free(wt_fitting *f)
     }
     wt_free(ctx, f->dm);
     wt_free(ctx, f->layer);
+    wt_free(ctx, f->mask);
     wt_free(ctx, f->grids);
     wt_free(ctx, f->ygrid);
     wt_free(ctx, f->acc);

@@ -106,7 +106,8 @@ static void direction_ops_clear(direction_ops *d)
 /* cg9: F = Σ_j H_jᵀ H_j + ε I on the active actuators (dense, Cholesky-factorised in place) and
  * A = Σ_j H_jᵀ P_j (nact x n layer points), with the operators of core/model/fitting.c (same
  * projections, same ε: taken from the wt_fitting of the tomography's layers). */
-static int fitting_operators(wt_context *ctx, wt_tomography *t, double reg, double **Fout, wt_sparse **Aout)
+static int fitting_operators(wt_context *ctx, wt_tomography *t, const wt_fitting_params *fp, double **Fout,
+                             wt_sparse **Aout)
 {
     int st = WT_OK;
     const wt_system *sys = wt_tomography_system(t);
@@ -125,7 +126,9 @@ static int fitting_operators(wt_context *ctx, wt_tomography *t, double reg, doub
         grids[l] = *wt_tomography_layer_grid(t, l);
         alts[l] = wt_tomography_layer_altitude(t, l);
     }
-    WT_TRY(wt_fitting_alloc_for(ctx, t, reg, &fit));
+    WT_TRY(wt_fitting_alloc_for(ctx, t, fp, &fit));
+    const wt_grid *sg = wt_fitting_sample_grid(fit);
+    const uint8_t *smask = wt_fitting_sample_mask(fit);
     const double eps = wt_fitting_epsilon(fit);
     WT_ALLOC(ctx, act, ndm, "actuator map");
     {
@@ -137,9 +140,8 @@ static int fitting_operators(wt_context *ctx, wt_tomography *t, double reg, doub
     WT_TRY(wt_triplet_alloc(ctx, nact, n, 1 << 16, &tr));
     for (int j = 0; j < sys->neval; j++) {
         WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j], sys->eval_y[j],
-                                   &sys->corner_grid, sys->corner_mask, 1, &d.hd));
-        WT_TRY(wt_projection_alloc(ctx, L, grids, alts, 0.0, sys->eval_x[j], sys->eval_y[j], &sys->corner_grid,
-                                   sys->corner_mask, 0, &d.pl));
+                                   sg, smask, 1, &d.hd));
+        WT_TRY(wt_projection_alloc(ctx, L, grids, alts, 0.0, sys->eval_x[j], sys->eval_y[j], sg, smask, 0, &d.pl));
         WT_TRY(wt_projection_assemble(d.hd, &d.H));
         WT_TRY(wt_projection_assemble(d.pl, &d.P));
         WT_TRY(wt_sparse_transpose(d.H, &d.Ht));
@@ -247,7 +249,9 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     if (opt.commands == WT_MVM_FITTING) {
         tt = wt_time_now();
         wt_mvm_priv_progress(&opt, "fitting", 0, 1);
-        WT_TRY(fitting_operators(ctx, t, opt.fit_regularization, &Fc, &Afit));
+        wt_fitting_params fp = {.regularization = opt.fit_regularization,
+                                .sampling = opt.fit_sampling > 0 ? opt.fit_sampling : 1};
+        WT_TRY(fitting_operators(ctx, t, &fp, &Fc, &Afit));
         reserve += wt_mvm_priv_sparse_bytes(wt_sparse_nnz(Afit), n);
         mv->stats.t_fitting = wt_time_now() - tt;
         wt_mvm_priv_progress(&opt, "fitting", 1, 1);

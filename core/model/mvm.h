@@ -53,6 +53,7 @@ typedef void (*wt_mvm_progress_fn)(void *user, const char *phase, int64_t done, 
 typedef struct wt_mvm_options {
     int commands;              /* WT_MVM_LAYER_VALUES (pcg3) or WT_MVM_FITTING (cg9) */
     double fit_regularization; /* relative ε of the fitting step (WT_MVM_FITTING; cfg->cg9.fit_regularization) */
+    int fit_sampling;          /* fitting sample points per subaperture side (cfg->cg9.fit_sampling; ≤ 0: 1) */
     double memory_budget;      /* bytes the build may hold at its peak; ≤ 0: no limit */
     int block;                 /* right-hand sides per solve block; ≤ 0: 256 */
     wt_mvm_progress_fn progress; /* NULL: none */

@@ -77,7 +77,8 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
         WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
         WT_TRY(wt_mvm_actuator_points(ctx, r->tomo, r->act_index));
     } else {
-        WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, v->fit_regularization, &r->fit));
+        wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
+        WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &fp, &r->fit));
         WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
     }
     *out = r;
