@@ -237,6 +237,68 @@ START_TEST(test_averaged_is_mean)
 }
 END_TEST
 
+/* The lit-area average model (SPEC §4, recon.sensor_model = "lit"): adjoint and assembly; a tilt is
+ * measured exactly in every subaperture, the partly lit ones included (each lit cell's gradient is the
+ * tilt, and the weights sum to one); on a bilinear phase of the coarse grid sampled q times finer, a
+ * fully lit subaperture gives the Fried slope (the mean gradient of a bilinear cell is its Fried
+ * difference, and the q² sub-cells of a lit square have equal weights). */
+START_TEST(test_lit_model)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    for (int q = 1; q <= 3; q++)
+        for (int m = 0; m <= 2; m++) {
+            wt_shack_hartmann *s = NULL;
+            ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, m, &s), WT_OK);
+            ck_assert_int_eq(wt_shack_hartmann_nsub(s), m == 0 ? 5112 : m * m);
+            ck_assert_int_eq(wt_shack_hartmann_ncorners(s), (N * q + 1) * (N * q + 1));
+            check_adjoint_assembly(s, 400 + 10 * q + m);
+            const int nq = N * q, nc = (nq + 1) * (nq + 1), ns = wt_shack_hartmann_nslopes(s), nsub = ns / 2;
+            double *phi = malloc(nc * sizeof *phi), *sl = calloc(ns, sizeof *sl);
+            fill_phase(nq, D_SUB / q, phi, 3e-6, -2e-6, 0, 0, 0, 1e-6);
+            wt_shack_hartmann_apply(s, 1.0, phi, sl);
+            for (int k = 0; k < nsub; k++) {
+                ck_assert_double_eq_tol(sl[k], 3e-6, 1e-15);
+                ck_assert_double_eq_tol(sl[nsub + k], -2e-6, 1e-15);
+            }
+            free(phi), free(sl);
+            wt_shack_hartmann_free(s);
+        }
+    /* fully lit subapertures: lit(q) of the q-refined bilinear interpolant = Fried on the corners */
+    wt_shack_hartmann *f = make(ctx, N, D_SUB, v, 0), *l = NULL;
+    const int q = 2, nq = N * q;
+    ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, 0, &l), WT_OK);
+    double *pc = malloc((N + 1) * (N + 1) * sizeof *pc), *pf = malloc((nq + 1) * (nq + 1) * sizeof *pf);
+    double *sf = calloc(2 * 5112, sizeof *sf), *sl = calloc(2 * 5112, sizeof *sl);
+    tu_randn(pc, (N + 1) * (N + 1), 77);
+    for (int j = 0; j <= nq; j++)
+        for (int i = 0; i <= nq; i++) {
+            int I = i / q < N ? i / q : N - 1, J = j / q < N ? j / q : N - 1;
+            double u = (double)(i - I * q) / q, w = (double)(j - J * q) / q;
+            const double *c = pc + I + (N + 1) * J;
+            pf[i + (nq + 1) * j] = (1 - u) * (1 - w) * c[0] + u * (1 - w) * c[1] + (1 - u) * w * c[N + 1] + u * w * c[N + 2];
+        }
+    wt_shack_hartmann_apply(f, 1.0, pc, sf);
+    wt_shack_hartmann_apply(l, 1.0, pf, sl);
+    int full = 0;
+    for (int k = 0; k < 5112; k++) {
+        double x, y;
+        wt_shack_hartmann_centre(f, k, &x, &y);
+        double rmax = hypot(fabs(x) + 0.25, fabs(y) + 0.25), rmin = hypot(fmax(fabs(x) - 0.25, 0), fmax(fabs(y) - 0.25, 0));
+        if (rmax > 21.0 || rmin < 0.28 * 21.0) continue; /* partly lit: the models differ there, by design */
+        full++;
+        ck_assert_double_eq_tol(sl[k], sf[k], 1e-12 * (fabs(sf[k]) + 1));
+        ck_assert_double_eq_tol(sl[5112 + k], sf[5112 + k], 1e-12 * (fabs(sf[5112 + k]) + 1));
+    }
+    ck_assert_int_gt(full, 4000);
+    free(pc), free(pf), free(sf), free(sl);
+    wt_shack_hartmann_free(f);
+    wt_shack_hartmann_free(l);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_errors)
 {
     wt_context *ctx = tu_context();
@@ -299,6 +361,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_adjoint_and_assembly);
     tcase_add_test(tc, test_linear_and_quadratic_phase);
     tcase_add_test(tc, test_averaged_is_mean);
+    tcase_add_test(tc, test_lit_model);
     tcase_add_test(tc, test_errors);
     tcase_add_test(tc, test_allocation);
     suite_add_tcase(s, tc);

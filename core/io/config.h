@@ -85,7 +85,8 @@ typedef struct wt_config {
     double dm_altitude[WT_MAX_DMS];  /* [m] */
     double dm_pitch[WT_MAX_DMS];     /* [m] */
     int dm_actuators[WT_MAX_DMS];    /* actuators per side */
-    double dm_field_radius;          /* θc: actuator active within D/2 + h tan(θc) of the centre [rad] */
+    double dm_field_radius;
+    int dm_guard_rings;              /* rings of guard actuators outside the active radius (SPEC §5) */          /* θc: actuator active within D/2 + h tan(θc) of the centre [rad] */
 
     /* evaluation */
     int eval_grid;                   /* directions per side of the square grid */
@@ -105,6 +106,8 @@ typedef struct wt_config {
     int noise;                       /* 0: noise-free sensors (the truth adds no noise) */
 
     /* reconstructor */
+    int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */
+    int sensor_points;               /* lit model: sample points per subaperture side */
     double alpha;                    /* prior weight α */
     double tau;                      /* elongation weight τ of the reconstructor's noise model */
     int wavelet_order;               /* Daubechies order N (2N taps) */

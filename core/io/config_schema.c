@@ -88,6 +88,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KIL("dm.actuators", 0, 2, INF, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
     KF("dm.field_radius_arcsec", GE0, "arcsec", ARCSEC, dm_field_radius,
        "theta_c: an actuator is active within D/2 + h tan(theta_c) of the centre"),
+    {"dm.guard_rings", K_INT, F_DEFAULT, 0, 4, "", 1, CF(dm_guard_rings), NOCOUNT, 0, 0, NULL, 0,
+     "rings of guard actuators: also active when within this many pitches (square support) of that disk; "
+     "the grid grows by this many actuators on each side (optional, default 0)"},
 
     KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
     KF("evaluation.spacing_arcsec", GE0, "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
@@ -110,6 +113,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
     KE("recon.prior", "paper|exact", exact_prior, "prior diagonal: paper = scale-only D of the paper, exact = diag(W C W^T)"),
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
+    {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 0,
+     "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
+     "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default fried)"},
+    {"recon.sensor_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(sensor_points), NOCOUNT, 0, 0, NULL, 1,
+     "lit model: layer sample points per subaperture side (optional, default 1)"},
     VARIANT("recon.pcg3", pcg3),
     VARIANT("recon.cg9", cg9),
     KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),

@@ -23,13 +23,13 @@ int wt_interaction_alloc(wt_context *ctx, const wt_system *sys, wt_interaction *
     WT_ALLOC(ctx, ia, 1, "interaction");
     ia->ctx = ctx;
     ia->sys = sys;
-    ia->ncg = wt_grid_size(&sys->corner_grid);
+    ia->ncg = wt_grid_size(&sys->sense_grid);
     ia->ndm = wt_dm_grid_points(sys);
     WT_ALLOC(ctx, ia->h, sys->nsensors, "interaction projections");
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
         WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, s->altitude, s->theta_x, s->theta_y,
-                                   &sys->corner_grid, wt_shack_hartmann_corner_mask(s->sh), 1, &ia->h[m]));
+                                   &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), 1, &ia->h[m]));
     }
     WT_ALLOC(ctx, ia->grids, ia->ndm, "interaction grids");
     WT_ALLOC(ctx, ia->phase, (size_t)sys->nsensors * ia->ncg, "interaction phase");

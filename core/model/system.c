@@ -26,7 +26,10 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
         double az = atan2(ty, tx);
         s->launch_x = cfg->launch_radius * cos(az);
         s->launch_y = cfg->launch_radius * sin(az);
-        WT_TRY(wt_shack_hartmann_alloc(ctx, sys->n, sys->d, sys->valid, &s->sh));
+        if (cfg->lit_sensor_model)
+            WT_TRY(wt_shack_hartmann_alloc_lit(ctx, cfg->diameter, cfg->obstruction, sys->n, sys->d, sys->sense_q,
+                                               sys->valid, 0, &s->sh));
+        else WT_TRY(wt_shack_hartmann_alloc(ctx, sys->n, sys->d, sys->valid, &s->sh));
     } else {
         s->altitude = 0.0;
         s->subapertures = m;
@@ -35,7 +38,10 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
                             "%s: ngs.subapertures = %d does not divide lgs.wfs.subapertures = %d (the NGS sensor "
                             "averages the fine Fried cells)",
                             cfg->path, m, sys->n);
-        WT_TRY(wt_shack_hartmann_alloc_averaged(ctx, sys->n, sys->d, sys->valid, m, &s->sh));
+        if (cfg->lit_sensor_model)
+            WT_TRY(wt_shack_hartmann_alloc_lit(ctx, cfg->diameter, cfg->obstruction, sys->n, sys->d, sys->sense_q,
+                                               sys->valid, m, &s->sh));
+        else WT_TRY(wt_shack_hartmann_alloc_averaged(ctx, sys->n, sys->d, sys->valid, m, &s->sh));
     }
     s->nsub = wt_shack_hartmann_nsub(s->sh);
     s->nslopes = wt_shack_hartmann_nslopes(s->sh);
@@ -86,6 +92,10 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
     WT_ALLOC(ctx, sys->corner_mask, (size_t)(sys->n + 1) * (sys->n + 1), "corner mask");
     wt_pupil_corner_mask(sys->n, sys->valid, sys->corner_mask);
     for (int64_t i = 0; i < wt_grid_size(&sys->corner_grid); i++) sys->ncorners += sys->corner_mask[i];
+    /* the reconstructor's sensor model samples the layers on this grid (SPEC §4): the Fried corners, or
+     * q points per subaperture side for the lit-area average model */
+    sys->sense_q = cfg->lit_sensor_model ? cfg->sensor_points : 1;
+    sys->sense_grid = wt_grid_centred(sys->n * sys->sense_q + 1, sys->d / sys->sense_q);
 
     for (int k = 0; k < cfg->nlgs; k++) {
         double az = cfg->lgs_azimuth0 + 2.0 * M_PI * k / cfg->nlgs;
@@ -99,10 +109,15 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
         sys->nngs++;
     }
 
-    /* DMs: an actuator is active within D/2 + h tan θc of the centre (SPEC §1). */
+    /* DMs: an actuator is active within R = D/2 + h tan θc of the centre (SPEC §1). With G guard rings
+     * (SPEC §5) an actuator is also active when the square of half-width G·pitch around it reaches inside
+     * that disk: G = 1 adds every actuator whose bilinear influence touches the metapupil, which pupil
+     * points near the rim need (without them the DM is pinned to zero between the last active actuator
+     * and the edge). The grid grows by G actuators on each side to hold them. */
     sys->ndms = cfg->ndms;
     for (int k = 0; k < cfg->ndms; k++) {
-        wt_grid g = wt_grid_centred(cfg->dm_actuators[k], cfg->dm_pitch[k]);
+        const int G = cfg->dm_guard_rings;
+        wt_grid g = wt_grid_centred(cfg->dm_actuators[k] + 2 * G, cfg->dm_pitch[k]);
         sys->dm_grid[k] = g;
         sys->dm_altitude[k] = cfg->dm_altitude[k];
         WT_ALLOC(ctx, sys->dm_active[k], wt_grid_size(&g), "DM active mask");
@@ -113,6 +128,10 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
                 double x = g.x0 + ix * g.dx, y = g.y0 + iy * g.dx;
                 /* a tiny tolerance keeps actuators exactly on the circle in, whatever the rounding */
                 int on = x * x + y * y <= rmax * rmax * (1.0 + 1e-12);
+                if (G > 0 && !on) {
+                    double h = G * g.dx * (1.0 - 1e-12), ex = fmax(0.0, fabs(x) - h), ey = fmax(0.0, fabs(y) - h);
+                    on = ex * ex + ey * ey < rmax * rmax;
+                }
                 sys->dm_active[k][ix + (int64_t)g.nx * iy] = (uint8_t)on;
                 count += on;
             }

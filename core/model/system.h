@@ -47,6 +47,8 @@ typedef struct wt_system {
     wt_grid corner_grid;        /* (n+1)² Fried corner grid */
     uint8_t *corner_mask;       /* corners of valid subapertures */
     int64_t ncorners;           /* set corners */
+    wt_grid sense_grid;         /* the sensor model's sample grid: (n q + 1)² of spacing d/q (q = 1: corner_grid) */
+    int sense_q;                /* q */
 
     int nsensors, nlgs, nngs;
     wt_sensor sensors[2 * WT_MAX_GS];

@@ -127,14 +127,14 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     }
 
     t->S = sys->nsensors;
-    t->ncg = wt_grid_size(&sys->corner_grid);
+    t->ncg = wt_grid_size(&sys->sense_grid);
     WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
     WT_ALLOC(ctx, t->noise, t->S, "noise models");
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {
             st = wt_projection_alloc(ctx, 1, &t->grid[l], &t->alt[l], s->altitude, s->theta_x, s->theta_y,
-                                     &sys->corner_grid, wt_shack_hartmann_corner_mask(s->sh), 0,
+                                     &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), 0,
                                      &t->proj[m * t->L + l]);
             if (st < 0) {
                 char detail[1024];

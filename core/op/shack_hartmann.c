@@ -21,12 +21,17 @@
 
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
+
+#include "pupil.h"
 
 struct wt_shack_hartmann {
     wt_context *ctx;
     int n;          /* fine subapertures per side; corner grid (n+1) x (n+1) */
     double d;       /* fine subaperture side [m] */
-    int m;          /* big subapertures per side (averaged sensor); 0 for the plain Fried sensor */
+    int m;          /* big subapertures per side (averaged and lit sensors); 0 for the plain Fried sensor */
+    int q;          /* sample points per subaperture side: the corner grid is (n q + 1)² of spacing d/q */
+    int lit;        /* 1: lit-area average sensor (wt_shack_hartmann_alloc_lit) */
     int nsub;       /* valid (big) subapertures */
     int32_t *cell;  /* [nsub] index i + side*j of valid subaperture k, side = n (Fried) or m */
     int32_t nrun;    /* Fried: runs of consecutive valid subapertures within a row */
@@ -81,6 +86,7 @@ int wt_shack_hartmann_alloc(wt_context *ctx, int n, double d, const uint8_t *val
     s->n = n;
     s->d = d;
     s->m = 0;
+    s->q = 1;
     s->nsub = nsub;
     int nrun = 0;
     for (int j = 0; j < n; j++)
@@ -139,6 +145,7 @@ int wt_shack_hartmann_alloc_averaged(wt_context *ctx, int n, double d, const uin
     s->n = n;
     s->d = d;
     s->m = m;
+    s->q = 1;
     s->nsub = nsub;
     /* each row has at most (f+1)^2 entries */
     const size_t cap = (size_t)nsub * fc * fc;
@@ -210,9 +217,192 @@ fail:
     return st;
 }
 
+/* the lit sensor: keeps the sample grid index (n q + 1)² and the coefficient count within int32 */
+#define MAX_FINE 16384
+
+/* Illuminated fraction of the fine cell [x0, x0+s] x [y0, y0+s] of the annulus (radii ro, ri). */
+static double cell_weight(double D, double obstruction, double ro, double ri, double x0, double y0, double s)
+{
+    const double x1 = x0 + s, y1 = y0 + s;
+    const double nx = x0 > 0.0 ? x0 : (x1 < 0.0 ? x1 : 0.0), ny = y0 > 0.0 ? y0 : (y1 < 0.0 ? y1 : 0.0);
+    const double fx = fmax(fabs(x0), fabs(x1)), fy = fmax(fabs(y0), fabs(y1));
+    const double dmin2 = nx * nx + ny * ny, dmax2 = fx * fx + fy * fy;
+    if (dmin2 >= ro * ro || dmax2 <= ri * ri) return 0.0;
+    if (dmax2 <= ro * ro && dmin2 >= ri * ri) return 1.0;
+    return wt_pupil_fraction(D, obstruction, x0, y0, s);
+}
+
+/* Accumulate the corner coefficients (in units of 1/(2 δf)) of big subaperture (I, J) into ax, ay
+ * [(F+1)²] (F fine cells per side, local corner a + (F+1) b); returns Σ w. */
+static double accumulate(const double *wcell, int nf, int F, int I, int J, double *ax, double *ay)
+{
+    const int L = F + 1;
+    memset(ax, 0, sizeof *ax * (size_t)L * L);
+    memset(ay, 0, sizeof *ay * (size_t)L * L);
+    double W = 0.0;
+    for (int b = 0; b < F; b++) {
+        const double *wrow = wcell + (size_t)nf * (J * F + b) + (size_t)I * F;
+        for (int a = 0; a < F; a++) {
+            const double w = wrow[a];
+            if (w == 0.0) continue;
+            const int c = a + L * b;
+            /* g_x = [(φ(a+1,b) + φ(a+1,b+1)) − (φ(a,b) + φ(a,b+1))] / (2 δf), g_y likewise */
+            ax[c + 1] += w, ax[c + L + 1] += w, ax[c] -= w, ax[c + L] -= w;
+            ay[c + L] += w, ay[c + L + 1] += w, ay[c] -= w, ay[c + 1] -= w;
+            W += w;
+        }
+    }
+    return W;
+}
+
+static int check_lit_args(wt_context *ctx, double D, double obstruction, int n, double d, int p, const uint8_t *valid,
+                      int m)
+{
+    if (!(D > 0.0) || !isfinite(D))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): pupil diameter D = %g m: need a finite D > 0", D);
+    if (!(obstruction >= 0.0 && obstruction < 1.0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): central obstruction %g of the diameter: need 0 <= obstruction < 1",
+                        obstruction);
+    if (n < 1 || n > MAX_FINE)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): n = %d subapertures per side: need 1 <= n <= %d", n, MAX_FINE);
+    if (!(d > 0.0) || !(fabs(n * d - D) <= 1e-9 * D))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): subaperture side d = %g m with n = %d: need n d = D = %g m", d, n,
+                        D);
+    if (p < 1 || p > MAX_FINE / n)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): p = %d fine points per subaperture side: need 1 <= p <= %d "
+                        "(n p <= %d)", p, MAX_FINE / n, MAX_FINE);
+    if (m < 0 || m > n || (m > 0 && n % m != 0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): m = %d big subapertures per side must divide n = %d (or be 0 for "
+                        "the %d x %d sensor itself)", m, n, n, n);
+    if (!valid) return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): the valid-subaperture mask is NULL");
+    int64_t nvalid = 0;
+    for (int64_t k = 0; k < (int64_t)n * n; k++) nvalid += valid[k] != 0;
+    if (nvalid == 0) return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): none of the %d x %d subapertures is valid", n, n);
+    return WT_OK;
+}
+
+int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruction, int n, double d, int p,
+                                const uint8_t *valid, int m, wt_shack_hartmann **out)
+{
+    int st = WT_OK;
+    wt_shack_hartmann *w = NULL;
+    double *wcell = NULL, *ax = NULL, *ay = NULL;
+    uint8_t *bigvalid = NULL;
+    *out = NULL;
+    WT_TRY(check_lit_args(ctx, diameter, obstruction, n, d, p, valid, m));
+    const int M = m ? m : n, f = n / M; /* big subapertures per side; fine subapertures per big side */
+    const int nf = n * p, F = f * p, L = F + 1, ng = nf + 1;
+    const double df = d / p;
+
+    WT_ALLOC(ctx, w, 1, "shack_hartmann (lit)");
+    w->ctx = ctx;
+    w->n = n;
+    w->q = p;
+    w->m = M;
+    w->d = d;
+    w->lit = 1;
+    const wt_grid grid = wt_grid_centred(ng, df);
+    WT_ALLOC(ctx, wcell, (size_t)nf * nf, "sensor cell weights (work space)");
+    WT_ALLOC(ctx, ax, (size_t)L * L, "sensor coefficients (work space)");
+    WT_ALLOC(ctx, ay, (size_t)L * L, "sensor coefficients (work space)");
+    WT_ALLOC(ctx, bigvalid, (size_t)M * M, "sensor subaperture mask (work space)");
+
+    /* Cell corners from the grid's own coordinates, so that cell edges are exactly the points the OPD
+     * is sampled at. */
+    const double ro = 0.5 * diameter, ri = 0.5 * obstruction * diameter;
+    for (int b = 0; b < nf; b++)
+        for (int a = 0; a < nf; a++)
+            wcell[a + (size_t)nf * b] =
+                cell_weight(diameter, obstruction, ro, ri, grid.x0 + a * df, grid.y0 + b * df, df);
+
+    int nsub = 0;
+    for (int J = 0; J < M; J++)
+        for (int I = 0; I < M; I++) {
+            int any = 0;
+            for (int j = J * f; j < (J + 1) * f && !any; j++)
+                for (int i = I * f; i < (I + 1) * f && !any; i++) any = valid[i + (size_t)n * j] != 0;
+            bigvalid[I + M * J] = (uint8_t)any;
+            nsub += any;
+        }
+    w->nsub = nsub;
+    WT_ALLOC(ctx, w->cell, nsub, "sensor subaperture list");
+    WT_ALLOC(ctx, w->rowptr, 2 * (size_t)nsub + 1, "sensor rows");
+    WT_ALLOC(ctx, w->corner_mask, (size_t)ng * ng, "sensor sample mask");
+
+    /* pass 1: row lengths (and the illumination check); pass 2: fill */
+    int64_t nnz_x = 0, nnz_y = 0;
+    int k = 0;
+    for (int J = 0; J < M; J++)
+        for (int I = 0; I < M; I++) {
+            if (!bigvalid[I + M * J]) continue;
+            const double W = accumulate(wcell, nf, F, I, J, ax, ay);
+            if (!(W > 0.0)) {
+                st = WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): subaperture (%d, %d) of the %d x %d sensor is valid but "
+                              "not illuminated (obstruction %g, D = %g m)", I, J, M, M, obstruction, diameter);
+                goto fail;
+            }
+            int cx = 0, cy = 0;
+            for (int q = 0; q < L * L; q++) cx += ax[q] != 0.0, cy += ay[q] != 0.0;
+            w->rowptr[k + 1] = cx;
+            w->rowptr[nsub + k + 1] = cy;
+            nnz_x += cx, nnz_y += cy;
+            w->cell[k++] = I + M * J;
+        }
+    if (nnz_x + nnz_y > INT32_MAX) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): %lld coefficients exceed the int32 index range (n = %d, p = %d)",
+                      (long long)(nnz_x + nnz_y), n, p);
+        goto fail;
+    }
+    for (int r = 0; r < 2 * nsub; r++) w->rowptr[r + 1] += w->rowptr[r];
+    WT_ALLOC(ctx, w->colind, nnz_x + nnz_y, "sensor coefficient indices");
+    WT_ALLOC(ctx, w->val, nnz_x + nnz_y, "sensor coefficients");
+    for (k = 0; k < nsub; k++) {
+        const int I = w->cell[k] % M, J = w->cell[k] / M;
+        const double W = accumulate(wcell, nf, F, I, J, ax, ay);
+        const double scale = 1.0 / (2.0 * df * W);
+        int32_t qx = w->rowptr[k], qy = w->rowptr[nsub + k];
+        for (int b = 0; b < L; b++)
+            for (int a = 0; a < L; a++) {
+                const int q = a + L * b;
+                const int32_t g = (I * F + a) + ng * (J * F + b);
+                if (ax[q] != 0.0) {
+                    w->colind[qx] = g;
+                    w->val[qx++] = ax[q] * scale;
+                    w->corner_mask[g] = 1;
+                }
+                if (ay[q] != 0.0) {
+                    w->colind[qy] = g;
+                    w->val[qy++] = ay[q] * scale;
+                    w->corner_mask[g] = 1;
+                }
+            }
+    }
+    wt_free(ctx, wcell);
+    wt_free(ctx, ax);
+    wt_free(ctx, ay);
+    wt_free(ctx, bigvalid);
+    *out = w;
+    return WT_OK;
+fail:
+    wt_free(ctx, wcell);
+    wt_free(ctx, ax);
+    wt_free(ctx, ay);
+    wt_free(ctx, bigvalid);
+    wt_shack_hartmann_free(w);
+    return st;
+}
+
 int wt_shack_hartmann_nsub(const wt_shack_hartmann *s) { return s->nsub; }
 int wt_shack_hartmann_nslopes(const wt_shack_hartmann *s) { return 2 * s->nsub; }
-int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s) { return (s->n + 1) * (s->n + 1); }
+int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s) { return (s->n * s->q + 1) * (s->n * s->q + 1); }
+int wt_shack_hartmann_sampling(const wt_shack_hartmann *s) { return s->q; }
+void wt_shack_hartmann_csr(const wt_shack_hartmann *s, const int32_t **rowptr, const int32_t **col,
+                           const double **val)
+{
+    *rowptr = s->m ? s->rowptr : NULL;
+    *col = s->m ? s->colind : NULL;
+    *val = s->m ? s->val : NULL;
+}
 const uint8_t *wt_shack_hartmann_corner_mask(const wt_shack_hartmann *s) { return s->corner_mask; }
 
 void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, double *y)
@@ -221,7 +411,7 @@ void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, doub
         *x = *y = NAN;
         return;
     }
-    const int side = s->m ? s->m : s->n;
+    const int side = s->m ? s->m : s->n; /* the lit sensor of n x n subapertures has m = n */
     const double w = s->d * s->n / side; /* (big) subaperture side [m] */
     const int i = s->cell[k] % side, j = s->cell[k] / side;
     *x = -0.5 * s->n * s->d + (i + 0.5) * w;
@@ -292,7 +482,7 @@ int wt_shack_hartmann_assemble(const wt_shack_hartmann *s, wt_sparse **out)
     int st = WT_OK;
     wt_triplet *t = NULL;
     *out = NULL;
-    const int nsub = s->nsub, nc = s->n + 1;
+    const int nsub = s->nsub, nc = s->n * s->q + 1;
     const int64_t nnz = s->m ? s->rowptr[2 * nsub] : 8 * (int64_t)nsub;
     WT_TRY(wt_triplet_alloc(s->ctx, 2 * (int64_t)nsub, (int64_t)nc * nc, nnz, &t));
     if (s->m == 0) {

@@ -26,11 +26,24 @@ int wt_shack_hartmann_alloc(wt_context *ctx, int n, double d, const uint8_t *val
 /* Averaged low-order sensor with m x m subapertures (n divisible by m) over fine cells `valid`. */
 int wt_shack_hartmann_alloc_averaged(wt_context *ctx, int n, double d, const uint8_t *valid, int m,
                                      wt_shack_hartmann **out);
+/* Lit-area average sensor (SPEC §4; the simulator's truth sensor, and the reconstructor's model when
+ * recon.sensor_model = "lit"): on the sample grid (n q + 1)² of spacing δ = d/q covering [−D/2, D/2]²,
+ *   s = Σ_c w_c g_c / Σ_c w_c   over the q x q sample cells c of each subaperture (the (n/m q)² of each
+ * big subaperture when 1 ≤ m < n), g_c the Fried gradient of cell c and w_c its illuminated fraction of
+ * the annulus (D, obstruction). Validity as the averaged sensor's (m = 0 or n: `valid` itself). With
+ * q = 1 and a fully lit subaperture it is the Fried slope. Corners in the layout of a (n q + 1)² grid. */
+int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruction, int n, double d, int q,
+                                const uint8_t *valid, int m, wt_shack_hartmann **out);
 void wt_shack_hartmann_free(wt_shack_hartmann *s);
 
 int wt_shack_hartmann_nsub(const wt_shack_hartmann *s);         /* valid (big) subapertures */
 int wt_shack_hartmann_nslopes(const wt_shack_hartmann *s);      /* 2 * nsub */
-int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s);     /* (n+1)^2 */
+int wt_shack_hartmann_ncorners(const wt_shack_hartmann *s);     /* (n q + 1)^2 */
+int wt_shack_hartmann_sampling(const wt_shack_hartmann *s);     /* q: sample points per subaperture side */
+/* The CSR rows of an averaged or lit sensor ([2 nsub + 1] row pointers, columns, coefficients [1/m]);
+ * NULLs for the plain Fried sensor. */
+void wt_shack_hartmann_csr(const wt_shack_hartmann *s, const int32_t **rowptr, const int32_t **col,
+                           const double **val);
 const uint8_t *wt_shack_hartmann_corner_mask(const wt_shack_hartmann *s); /* corners with a non-zero coefficient in Γ (for averaged sensors mostly the rim of the lit region) */
 /* Centre of valid subaperture k in pupil coordinates [m] (the pupil spans [-n d/2, n d/2]²). */
 void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, double *y);

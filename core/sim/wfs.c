@@ -28,6 +28,7 @@
 #include <string.h>
 
 #include "../op/pupil.h"
+#include "../op/shack_hartmann.h"
 
 struct wt_wfs {
     wt_context *ctx;
@@ -35,88 +36,19 @@ struct wt_wfs {
     double d;           /* subaperture side [m] */
     wt_grid grid;       /* fine grid (n p + 1)² of spacing d / p */
     int nsub;           /* valid (big) subapertures */
-    int32_t *cell;      /* [nsub] index I + m J of valid big subaperture k */
-    int32_t *rowptr;    /* [2 nsub + 1] CSR rows: s_x rows, then s_y rows */
-    int32_t *col;       /* fine-grid point indices */
-    double *val;        /* coefficients [1/m] */
-    uint8_t *mask;      /* [(n p + 1)²] points read */
+    wt_shack_hartmann *sh; /* the lit-area average sensor on the fine grid (q = p); the arrays below are its */
+    const int32_t *rowptr; /* [2 nsub + 1] CSR rows: s_x rows, then s_y rows */
+    const int32_t *col;    /* fine-grid point indices */
+    const double *val;     /* coefficients [1/m] */
+    const uint8_t *mask;   /* [(n p + 1)²] points read */
     int64_t npoints;
 };
 
 void wt_wfs_free(wt_wfs *w)
 {
     if (!w) return;
-    wt_context *ctx = w->ctx;
-    wt_free(ctx, w->cell);
-    wt_free(ctx, w->rowptr);
-    wt_free(ctx, w->col);
-    wt_free(ctx, w->val);
-    wt_free(ctx, w->mask);
-    wt_free(ctx, w);
-}
-
-/* keeps the fine grid index (n p + 1)² and the coefficient count within int32 */
-#define MAX_FINE 16384
-
-/* Illuminated fraction of the fine cell [x0, x0+s] x [y0, y0+s] of the annulus (radii ro, ri). */
-static double cell_weight(double D, double obstruction, double ro, double ri, double x0, double y0, double s)
-{
-    const double x1 = x0 + s, y1 = y0 + s;
-    const double nx = x0 > 0.0 ? x0 : (x1 < 0.0 ? x1 : 0.0), ny = y0 > 0.0 ? y0 : (y1 < 0.0 ? y1 : 0.0);
-    const double fx = fmax(fabs(x0), fabs(x1)), fy = fmax(fabs(y0), fabs(y1));
-    const double dmin2 = nx * nx + ny * ny, dmax2 = fx * fx + fy * fy;
-    if (dmin2 >= ro * ro || dmax2 <= ri * ri) return 0.0;
-    if (dmax2 <= ro * ro && dmin2 >= ri * ri) return 1.0;
-    return wt_pupil_fraction(D, obstruction, x0, y0, s);
-}
-
-/* Accumulate the corner coefficients (in units of 1/(2 δf)) of big subaperture (I, J) into ax, ay
- * [(F+1)²] (F fine cells per side, local corner a + (F+1) b); returns Σ w. */
-static double accumulate(const double *wcell, int nf, int F, int I, int J, double *ax, double *ay)
-{
-    const int L = F + 1;
-    memset(ax, 0, sizeof *ax * (size_t)L * L);
-    memset(ay, 0, sizeof *ay * (size_t)L * L);
-    double W = 0.0;
-    for (int b = 0; b < F; b++) {
-        const double *wrow = wcell + (size_t)nf * (J * F + b) + (size_t)I * F;
-        for (int a = 0; a < F; a++) {
-            const double w = wrow[a];
-            if (w == 0.0) continue;
-            const int c = a + L * b;
-            /* g_x = [(φ(a+1,b) + φ(a+1,b+1)) − (φ(a,b) + φ(a,b+1))] / (2 δf), g_y likewise */
-            ax[c + 1] += w, ax[c + L + 1] += w, ax[c] -= w, ax[c + L] -= w;
-            ay[c + L] += w, ay[c + L + 1] += w, ay[c] -= w, ay[c + 1] -= w;
-            W += w;
-        }
-    }
-    return W;
-}
-
-static int check_args(wt_context *ctx, double D, double obstruction, int n, double d, int p, const uint8_t *valid,
-                      int m)
-{
-    if (!(D > 0.0) || !isfinite(D))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: pupil diameter D = %g m: need a finite D > 0", D);
-    if (!(obstruction >= 0.0 && obstruction < 1.0))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: central obstruction %g of the diameter: need 0 <= obstruction < 1",
-                        obstruction);
-    if (n < 1 || n > MAX_FINE)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: n = %d subapertures per side: need 1 <= n <= %d", n, MAX_FINE);
-    if (!(d > 0.0) || !(fabs(n * d - D) <= 1e-9 * D))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: subaperture side d = %g m with n = %d: need n d = D = %g m", d, n,
-                        D);
-    if (p < 1 || p > MAX_FINE / n)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: p = %d fine points per subaperture side: need 1 <= p <= %d "
-                        "(n p <= %d)", p, MAX_FINE / n, MAX_FINE);
-    if (m < 0 || m > n || (m > 0 && n % m != 0))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: m = %d big subapertures per side must divide n = %d (or be 0 for "
-                        "the %d x %d sensor itself)", m, n, n, n);
-    if (!valid) return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: the valid-subaperture mask is NULL");
-    int64_t nvalid = 0;
-    for (int64_t k = 0; k < (int64_t)n * n; k++) nvalid += valid[k] != 0;
-    if (nvalid == 0) return WT_ERROR(ctx, WT_ERR_INVALID, "wfs: none of the %d x %d subapertures is valid", n, n);
-    return WT_OK;
+    wt_shack_hartmann_free(w->sh);
+    wt_free(w->ctx, w);
 }
 
 int wt_wfs_alloc(wt_context *ctx, double diameter, double obstruction, int n, double d, int p,
@@ -124,108 +56,26 @@ int wt_wfs_alloc(wt_context *ctx, double diameter, double obstruction, int n, do
 {
     int st = WT_OK;
     wt_wfs *w = NULL;
-    double *wcell = NULL, *ax = NULL, *ay = NULL;
-    uint8_t *bigvalid = NULL;
     *out = NULL;
-    WT_TRY(check_args(ctx, diameter, obstruction, n, d, p, valid, m));
-    const int M = m ? m : n, f = n / M; /* big subapertures per side; fine subapertures per big side */
-    const int nf = n * p, F = f * p, L = F + 1, ng = nf + 1;
-    const double df = d / p;
-
     WT_ALLOC(ctx, w, 1, "wfs");
     w->ctx = ctx;
     w->n = n;
     w->p = p;
-    w->m = M;
     w->d = d;
-    w->grid = wt_grid_centred(ng, df);
-    WT_ALLOC(ctx, wcell, (size_t)nf * nf, "wfs cell weights (work space)");
-    WT_ALLOC(ctx, ax, (size_t)L * L, "wfs coefficients (work space)");
-    WT_ALLOC(ctx, ay, (size_t)L * L, "wfs coefficients (work space)");
-    WT_ALLOC(ctx, bigvalid, (size_t)M * M, "wfs subaperture mask (work space)");
-
-    /* Cell corners from the grid's own coordinates, so that cell edges are exactly the points the OPD
-     * is sampled at. */
-    const double ro = 0.5 * diameter, ri = 0.5 * obstruction * diameter;
-    for (int b = 0; b < nf; b++)
-        for (int a = 0; a < nf; a++)
-            wcell[a + (size_t)nf * b] =
-                cell_weight(diameter, obstruction, ro, ri, w->grid.x0 + a * df, w->grid.y0 + b * df, df);
-
-    int nsub = 0;
-    for (int J = 0; J < M; J++)
-        for (int I = 0; I < M; I++) {
-            int any = 0;
-            for (int j = J * f; j < (J + 1) * f && !any; j++)
-                for (int i = I * f; i < (I + 1) * f && !any; i++) any = valid[i + (size_t)n * j] != 0;
-            bigvalid[I + M * J] = (uint8_t)any;
-            nsub += any;
-        }
-    w->nsub = nsub;
-    WT_ALLOC(ctx, w->cell, nsub, "wfs subaperture list");
-    WT_ALLOC(ctx, w->rowptr, 2 * (size_t)nsub + 1, "wfs rows");
-    WT_ALLOC(ctx, w->mask, (size_t)ng * ng, "wfs fine mask");
-
-    /* pass 1: row lengths (and the illumination check); pass 2: fill */
-    int64_t nnz_x = 0, nnz_y = 0;
-    int k = 0;
-    for (int J = 0; J < M; J++)
-        for (int I = 0; I < M; I++) {
-            if (!bigvalid[I + M * J]) continue;
-            const double W = accumulate(wcell, nf, F, I, J, ax, ay);
-            if (!(W > 0.0)) {
-                st = WT_ERROR(ctx, WT_ERR_INVALID, "wfs: subaperture (%d, %d) of the %d x %d sensor is valid but "
-                              "not illuminated (obstruction %g, D = %g m)", I, J, M, M, obstruction, diameter);
-                goto fail;
-            }
-            int cx = 0, cy = 0;
-            for (int q = 0; q < L * L; q++) cx += ax[q] != 0.0, cy += ay[q] != 0.0;
-            w->rowptr[k + 1] = cx;
-            w->rowptr[nsub + k + 1] = cy;
-            nnz_x += cx, nnz_y += cy;
-            w->cell[k++] = I + M * J;
-        }
-    if (nnz_x + nnz_y > INT32_MAX) {
-        st = WT_ERROR(ctx, WT_ERR_INVALID, "wfs: %lld coefficients exceed the int32 index range (n = %d, p = %d)",
-                      (long long)(nnz_x + nnz_y), n, p);
+    st = wt_shack_hartmann_alloc_lit(ctx, diameter, obstruction, n, d, p, valid, m, &w->sh);
+    if (st < 0) {
+        st = WT_ERROR(ctx, st, "wfs: %s", wt_error_message(ctx));
         goto fail;
     }
-    for (int r = 0; r < 2 * nsub; r++) w->rowptr[r + 1] += w->rowptr[r];
-    WT_ALLOC(ctx, w->col, nnz_x + nnz_y, "wfs coefficient indices");
-    WT_ALLOC(ctx, w->val, nnz_x + nnz_y, "wfs coefficients");
-    for (k = 0; k < nsub; k++) {
-        const int I = w->cell[k] % M, J = w->cell[k] / M;
-        const double W = accumulate(wcell, nf, F, I, J, ax, ay);
-        const double scale = 1.0 / (2.0 * df * W);
-        int32_t qx = w->rowptr[k], qy = w->rowptr[nsub + k];
-        for (int b = 0; b < L; b++)
-            for (int a = 0; a < L; a++) {
-                const int q = a + L * b;
-                const int32_t g = (I * F + a) + ng * (J * F + b);
-                if (ax[q] != 0.0) {
-                    w->col[qx] = g;
-                    w->val[qx++] = ax[q] * scale;
-                    w->mask[g] = 1;
-                }
-                if (ay[q] != 0.0) {
-                    w->col[qy] = g;
-                    w->val[qy++] = ay[q] * scale;
-                    w->mask[g] = 1;
-                }
-            }
-    }
-    for (int64_t q = 0; q < (int64_t)ng * ng; q++) w->npoints += w->mask[q];
-    wt_free(ctx, wcell);
-    wt_free(ctx, ax);
-    wt_free(ctx, ay);
-    wt_free(ctx, bigvalid);
+    w->m = m ? m : n;
+    w->grid = wt_grid_centred(n * p + 1, d / p);
+    w->nsub = wt_shack_hartmann_nsub(w->sh);
+    wt_shack_hartmann_csr(w->sh, &w->rowptr, &w->col, &w->val);
+    w->mask = wt_shack_hartmann_corner_mask(w->sh);
+    for (int64_t q = 0; q < wt_grid_size(&w->grid); q++) w->npoints += w->mask[q];
     *out = w;
     return WT_OK;
 fail:
-    wt_free(ctx, wcell);
-    wt_free(ctx, ax);
-    wt_free(ctx, ay);
-    wt_free(ctx, bigvalid);
     wt_wfs_free(w);
     return st;
 }
@@ -240,7 +90,7 @@ int64_t wt_wfs_nnz(const wt_wfs *w) { return w->rowptr[2 * w->nsub]; }
 size_t wt_wfs_bytes(const wt_wfs *w)
 {
     const size_t nnz = (size_t)w->rowptr[2 * w->nsub];
-    return sizeof *w + (size_t)w->nsub * sizeof *w->cell + (2 * (size_t)w->nsub + 1) * sizeof *w->rowptr +
+    return sizeof *w + (size_t)w->nsub * sizeof(int32_t) + (2 * (size_t)w->nsub + 1) * sizeof *w->rowptr +
            nnz * (sizeof *w->col + sizeof *w->val) + (size_t)wt_grid_size(&w->grid);
 }
 
