@@ -262,7 +262,7 @@ START_TEST(test_bad_input)
     expect_reject(ctx, w, 0.5, R0, 0.5, -25.0, WT_PRIOR_PAPER, "L0");
     expect_reject(ctx, w, 0.5, R0, 0.5, INFINITY, WT_PRIOR_PAPER, "L0");
     expect_reject(ctx, w, 0.0, R0, 0.5, L0, WT_PRIOR_PAPER, "spacing");
-    expect_reject(ctx, w, 0.5, R0, 0.5, L0, 2, "kind");
+    expect_reject(ctx, w, 0.5, R0, 0.5, L0, 4, "kind"); /* 2 is the WT_PRIOR_ALIASED flag */
     expect_reject(ctx, w, 0.5, R0, 0.5, L0, -1, "kind");
     expect_reject(ctx, NULL, 0.5, R0, 0.5, L0, WT_PRIOR_PAPER, "wavelet");
     wt_prior_free(NULL);

@@ -245,7 +245,8 @@ START_TEST(test_fitting_recovers_dm_shape)
         off[k + 1] = off[k] + wt_grid_size(&layers[k]);
     }
     wt_fitting *fit;
-    ck_assert_int_eq(wt_fitting_alloc(f.ctx, sys, sys->ndms, layers, alts, 1e-9, &fit), WT_OK);
+    const wt_fitting_params fp = {.regularization = 1e-9, .sampling = 1};
+    ck_assert_int_eq(wt_fitting_alloc(f.ctx, sys, sys->ndms, layers, alts, &fp, &fit), WT_OK);
     int64_t na = sys->nact;
     double *a0 = malloc(na * sizeof *a0), *a = calloc(na, sizeof *a), *grid = calloc(wt_dm_grid_points(sys), sizeof *grid);
     double *phi = calloc(off[sys->ndms], sizeof *phi);

@@ -106,6 +106,7 @@ typedef struct wt_config {
     int noise;                       /* 0: noise-free sensors (the truth adds no noise) */
 
     /* reconstructor */
+    int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */
     int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */
     int sensor_points;               /* lit model: sample points per subaperture side */
     double alpha;                    /* prior weight α */

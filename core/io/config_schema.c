@@ -112,6 +112,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
     KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
     KE("recon.prior", "paper|exact", exact_prior, "prior diagonal: paper = scale-only D of the paper, exact = diag(W C W^T)"),
+    {"recon.prior_aliasing", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(prior_aliasing), NOCOUNT, 0, 0, NULL, 0,
+     "prior variances of grid samples: the power above the layer grid's Nyquist frequency folded back "
+     "(optional, default false)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 0,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "

@@ -119,7 +119,9 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         int levels = cfg->wavelet_levels;
         WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, cfg->wavelet_order, levels, &t->wav[l]));
         WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, cfg->r0, t->frac[l], cfg->L0,
-                              cfg->exact_prior ? WT_PRIOR_EXACT : WT_PRIOR_PAPER, &t->prior[l]));
+                              (cfg->exact_prior ? WT_PRIOR_EXACT : WT_PRIOR_PAPER) |
+                                  (cfg->prior_aliasing ? WT_PRIOR_ALIASED : 0),
+                              &t->prior[l]));
         const double *d = wt_prior_diag(t->prior[l]);
         for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = cfg->alpha * d[i];
         size_t ws = wt_wavelet_work_size(t->wav[l]);

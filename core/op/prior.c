@@ -71,7 +71,7 @@ void wt_prior_free(wt_prior *p)
  * The r2c transform keeps kx = 0 … n/2; the other half of the spectrum is the conjugate mirror, so the
  * columns 0 < kx < n/2 count twice. */
 static int exact_variances(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction,
-                           double L0, double *var)
+                           double L0, int aliased, double *var)
 {
     int st = WT_OK;
     const int n = wt_wavelet_n(w), J = wt_wavelet_levels(w), nh = n / 2 + 1;
@@ -88,9 +88,14 @@ static int exact_variances(wt_context *ctx, const wt_wavelet *w, double spacing,
     for (int iy = 0; iy < n; iy++) {
         int ky = iy <= n / 2 ? iy : iy - n;
         for (int kx = 0; kx < nh; kx++) {
-            double kappa = sqrt((double)kx * kx + (double)ky * ky) / L;
-            double mult = (kx == 0 || 2 * kx == n) ? 1.0 : 2.0;
-            spec[(size_t)iy * nh + kx] = mult * wt_von_karman_psd(kappa, r0, fraction, L0) / (L * L);
+            double mult = (kx == 0 || 2 * kx == n) ? 1.0 : 2.0, psd = 0.0;
+            const int A = aliased ? 4 : 0;
+            for (int b = -A; b <= A; b++)
+                for (int a = -A; a <= A; a++) {
+                    double fx = (double)kx + (double)a * n, fy = (double)ky + (double)b * n;
+                    psd += wt_von_karman_psd(sqrt(fx * fx + fy * fy) / L, r0, fraction, L0);
+                }
+            spec[(size_t)iy * nh + kx] = mult * psd / (L * L);
         }
     }
     /* The planner is FFTW's one global (non-thread-safe) state: plan with FFTW_ESTIMATE, which neither
@@ -146,6 +151,8 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
                         fraction);
     if (!(L0 > 0.0) || !isfinite(L0))
         return WT_ERROR(ctx, WT_ERR_INVALID, "prior: outer scale L0 = %g m, expected finite and > 0", L0);
+    const int aliased = (kind & WT_PRIOR_ALIASED) != 0;
+    kind &= ~WT_PRIOR_ALIASED;
     if (kind != WT_PRIOR_PAPER && kind != WT_PRIOR_EXACT)
         return WT_ERROR(ctx, WT_ERR_INVALID,
                         "prior: kind = %d, expected WT_PRIOR_PAPER (%d) or WT_PRIOR_EXACT (%d)", kind,
@@ -162,7 +169,7 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
     WT_ALLOC(ctx, p->var, (size_t)(J + 2) * 4, "prior variance table");
     for (int i = 0; i < (J + 2) * 4; i++) p->var[i] = NAN;
     WT_ALLOC(ctx, p->diag, (size_t)n * n, "prior diagonal");
-    WT_TRY(exact_variances(ctx, w, spacing, r0, fraction, L0, p->var));
+    WT_TRY(exact_variances(ctx, w, spacing, r0, fraction, L0, aliased, p->var));
 
     /* c_ℓ: geometric-mean fit of var · profile over the 3J detail blocks, i.e. the least-squares fit of
      * log D⁻¹ to log var; the approximation block is left out because its variance is dominated by the

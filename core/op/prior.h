@@ -22,6 +22,11 @@
 #include "wavelet.h"
 
 enum { WT_PRIOR_PAPER = 0, WT_PRIOR_EXACT = 1 };
+/* Flag or-ed into kind: the variances are those of grid SAMPLES of the continuous screen, whose
+ * spectrum carries the power above the grid's Nyquist frequency folded back (aliased):
+ *   Φ_δ(κ) = Σ_{a,b} Φ(κ + (a, b)/δ),  |a|, |b| ≤ 4 (the rest of the sum is below 0.5 % at the finest level).
+ * Without it the finest level's variance is the band-limited one, ~0.4 of what simulated screens show. */
+enum { WT_PRIOR_ALIASED = 2 };
 
 typedef struct wt_prior wt_prior;
 
