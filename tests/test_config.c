@@ -216,10 +216,15 @@ START_TEST(test_eelt_preset)
         ck_assert_rel(c->cg9.spacing[i], c->layer_altitude[i] < 3000.0 ? 0.5 : 1.0, ULP2, 0);
         ck_assert_int_eq(c->cg9.size[i], c->layer_altitude[i] < 3000.0 ? 128 : 64);
     }
-    ck_assert_int_eq(c->cg9.iterations, 10);
-    ck_assert_int_eq(c->cg9.jacobi, 0);
-    ck_assert_int_eq(c->cg9.fit_iterations, 4);
+    ck_assert_int_eq(c->cg9.iterations, 20);
+    ck_assert_int_eq(c->cg9.jacobi, 1);
+    ck_assert_int_eq(c->cg9.fit_iterations, 10);
     ck_assert_rel(c->cg9.fit_regularization, 1e-3, ULP2, 0);
+    ck_assert_int_eq(c->cg9.fit_sampling, 2);
+    ck_assert_int_eq(c->dm_guard_rings, 1);
+    ck_assert_int_eq(c->lit_sensor_model, 1);
+    ck_assert_int_eq(c->sensor_points, 1);
+    ck_assert_int_eq(c->prior_aliasing, 0);
     wt_config_free(ctx, c);
     wt_context_free(ctx);
 }

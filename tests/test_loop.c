@@ -248,12 +248,12 @@ END_TEST
 /* E-ELT size, a few frames: sizes and finite Strehl values in [0, 1]. */
 START_TEST(test_eelt_smoke)
 {
-    const char *set[] = {"loop.frames=3", "evaluation.settle_frames=1"};
+    const char *set[] = {"loop.frames=3", "evaluation.settle_frames=1", "dm.guard_rings=0"};
     wt_context *ctx = tu_context();
     wt_config *cfg;
     wt_system *sys;
     wt_loop *lp;
-    ck_assert_int_eq(wt_config_read(ctx, "data/presets/eelt-mcao.cfg", 2, set, &cfg), WT_OK);
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/eelt-mcao.cfg", 3, set, &cfg), WT_OK);
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     ck_assert_int_eq(sys->nslopes, 61356);
     ck_assert_int_eq(sys->nact, 9295);

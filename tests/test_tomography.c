@@ -40,9 +40,11 @@ static void teardown(fixture *f)
 
 START_TEST(test_eelt_sizes)
 {
-    /* SPEC §1: 5112 valid subapertures per LGS, 5525 + 1609 + 2161 = 9295 actuators, 61356 slopes */
+    /* SPEC §1: 5112 valid subapertures per LGS, 5525 + 1609 + 2161 = 9295 actuators, 61356 slopes (no guard
+     * ring: the paper's active set) */
     fixture f;
-    setup(&f, EELT, -1, 0, NULL);
+    const char *paper[] = {"dm.guard_rings=0"};
+    setup(&f, EELT, -1, 1, paper);
     ck_assert_int_eq(f.sys->nlgs, 6);
     ck_assert_int_eq(f.sys->nngs, 3);
     for (int m = 0; m < f.sys->nlgs; m++) ck_assert_int_eq(f.sys->sensors[m].nsub, 5112);
@@ -56,6 +58,24 @@ START_TEST(test_eelt_sizes)
     ck_assert_int_eq(f.sys->neval, 25);
     ck_assert_double_eq(f.sys->eval_x[f.sys->eval_centre], 0.0);
     ck_assert_double_eq(f.sys->eval_y[f.sys->eval_centre], 0.0);
+    teardown(&f);
+    /* the preset's guard ring (SPEC §5): grids 87, 49, 55; an actuator is active when its influence square
+     * (half-width one pitch) reaches inside the metapupil disk: counted independently of the library */
+    setup(&f, EELT, -1, 0, NULL);
+    int want[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++) {
+        const int n = f.cfg->dm_actuators[k] + 2;
+        const double p = f.cfg->dm_pitch[k], R = 21.0 + f.cfg->dm_altitude[k] * tan(84.853 * WT_ARCSEC);
+        ck_assert_int_eq(f.sys->dm_grid[k].nx, n);
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) {
+                double x = (ix - 0.5 * (n - 1)) * p, y = (iy - 0.5 * (n - 1)) * p;
+                double ex = fmax(0.0, fabs(x) - p), ey = fmax(0.0, fabs(y) - p);
+                want[k] += ex * ex + ey * ey < R * R;
+            }
+        ck_assert_int_eq(f.sys->dm_nactive[k], want[k]);
+    }
+    ck_assert_int_eq(want[0] + want[1] + want[2], 10027);
     teardown(&f);
 }
 END_TEST

@@ -88,9 +88,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KIL("dm.actuators", 0, 2, INF, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
     KF("dm.field_radius_arcsec", GE0, "arcsec", ARCSEC, dm_field_radius,
        "theta_c: an actuator is active within D/2 + h tan(theta_c) of the centre"),
-    {"dm.guard_rings", K_INT, F_DEFAULT, 0, 4, "", 1, CF(dm_guard_rings), NOCOUNT, 0, 0, NULL, 0,
+    {"dm.guard_rings", K_INT, F_DEFAULT, 0, 4, "", 1, CF(dm_guard_rings), NOCOUNT, 0, 0, NULL, 1,
      "rings of guard actuators: also active when within this many pitches (square support) of that disk; "
-     "the grid grows by this many actuators on each side (optional, default 0)"},
+     "the grid grows by this many actuators on each side; 0 = the paper's active set (optional, default 1)"},
 
     KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
     KF("evaluation.spacing_arcsec", GE0, "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
@@ -116,9 +116,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "prior variances of grid samples: the power above the layer grid's Nyquist frequency folded back "
      "(optional, default false)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
-    {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 0,
+    {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
-     "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default fried)"},
+     "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},
     {"recon.sensor_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(sensor_points), NOCOUNT, 0, 0, NULL, 1,
      "lit model: layer sample points per subaperture side (optional, default 1)"},
     VARIANT("recon.pcg3", pcg3),
@@ -126,9 +126,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),
     KF("recon.cg9.fit_regularization", GE0, "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
-    {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 1,
+    {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
      "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
-     "q > 1 = every point of the d/q grid inside the pupil (optional, default 1)"},
+     "q > 1 = every point of the d/q grid inside the pupil (optional, default 2)"},
 };
 _Static_assert(sizeof wt_config_priv_keys / sizeof wt_config_priv_keys[0] == WT_CONFIG_PRIV_NKEYS,
                "WT_CONFIG_PRIV_NKEYS (config_private.h) must be the number of keys of the table");
