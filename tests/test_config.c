@@ -208,7 +208,7 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->pcg3.size[2], 64);
     ck_assert_rel(c->pcg3.spacing[1], 1.0, ULP2, 0);
     ck_assert_int_eq(c->pcg3.iterations, 4);
-    ck_assert_int_eq(c->pcg3.jacobi, 1);
+    ck_assert_int_eq(c->pcg3.jacobi, 2); /* jacobi_ngs */
     ck_assert_int_eq(c->pcg3.fit_iterations, 0);
     ck_assert_int_eq(c->cg9.nlayers, 9);
     for (int i = 0; i < 9; i++) {
@@ -217,7 +217,7 @@ START_TEST(test_eelt_preset)
         ck_assert_int_eq(c->cg9.size[i], c->layer_altitude[i] < 3000.0 ? 128 : 64);
     }
     ck_assert_int_eq(c->cg9.iterations, 20);
-    ck_assert_int_eq(c->cg9.jacobi, 1);
+    ck_assert_int_eq(c->cg9.jacobi, 2);
     ck_assert_int_eq(c->cg9.fit_iterations, 10);
     ck_assert_rel(c->cg9.fit_regularization, 1e-3, ULP2, 0);
     ck_assert_int_eq(c->cg9.fit_sampling, 2);
@@ -467,7 +467,7 @@ static const struct bad_case {
     {"layer size below 2^J", "wavelet_levels = 3;", "wavelet_levels = 5;", 1, "layer_size = [32, 16, 32];",
      {"key 'recon.pcg3.layer_size', element [1]: value 16 is smaller than 2^recon.wavelet_levels = 2^5 = 32", "t.cfg:", ""}},
     {"unknown prior", "prior = \"paper\";", "prior = \"papr\";", 1, NULL, {"key 'recon.prior': value \"papr\" is not accepted", "\"paper\", \"exact\"", ""}},
-    {"unknown preconditioner", "preconditioner = \"jacobi\";", "preconditioner = \"ilu\";", 1, NULL, {"key 'recon.pcg3.preconditioner': value \"ilu\"", "\"none\", \"jacobi\"", ""}},
+    {"unknown preconditioner", "preconditioner = \"jacobi\";", "preconditioner = \"ilu\";", 1, NULL, {"key 'recon.pcg3.preconditioner': value \"ilu\"", "\"none\", \"jacobi\", \"jacobi_ngs\"", ""}},
     {"settle past the end", "settle_frames = 20;", "settle_frames = 200;", 1, NULL, {"key 'evaluation.settle_frames': value 200 is not below 'loop.frames' = 200", "", ""}},
     {"negative seed", "seed = 1;", "seed = -3;", 1, NULL, {"key 'sim.seed': value -3 is out of range", ">= 0", ""}},
     {"duplicate key", "r0_m = 0.129;", "r0_m = 0.129; r0_m = 0.2;", 1, NULL, {"syntax error", "duplicate", ""}},

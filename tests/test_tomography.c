@@ -38,6 +38,50 @@ static void teardown(fixture *f)
     wt_context_free(f->ctx);
 }
 
+/* The NGS low-rank term of the preconditioner (jacobi_ngs): at low noise (NGS NEA 0.05 mas against LGS
+ * 20 mas) the NGS part of M weighs ~10^5 times the LGS part along a dozen global modes; the Woodbury
+ * correction makes them exact in P, so PCG-3 reduces the residual far more in its 4 iterations than the
+ * diagonal does (M-norm error after 4 iterations from a random layer state: 3.9x smaller here; the test
+ * asks for 2x), and both converge to the same solution (the preconditioner changes the path only). */
+START_TEST(test_ngs_lowrank_preconditioner)
+{
+    const char *low[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.preconditioner=jacobi"};
+    const char *lowr[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.preconditioner=jacobi_ngs"};
+    fixture a, b;
+    setup(&a, DEMO, 0, 4, low);
+    setup(&b, DEMO, 0, 4, lowr);
+    const int64_t n = wt_tomography_nunknowns(a.t), ns = a.sys->nslopes;
+    double *s = malloc(ns * sizeof *s), *ca = calloc(n, sizeof *ca), *cb = calloc(n, sizeof *cb);
+    double ha[5], hb[5];
+    tu_randn(ca, n, 5); /* slopes of a random layer state: what the sensors would see */
+    wt_tomography_slopes(a.t, ca, s);
+    memset(ca, 0, n * sizeof *ca);
+    wt_pcg_result ra, rb;
+    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 4, 0.0, ha, &ra), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(b.t, s, cb, 4, 0.0, hb, &rb), WT_OK);
+    /* the converged solution x*, then the M-norm errors of the two 4-iteration iterates */
+    double *xs = calloc(n, sizeof *xs), *e = malloc(n * sizeof *e), *me = malloc(n * sizeof *me), err[2];
+    ck_assert_int_ge(wt_tomography_solve(b.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK);
+    for (int k = 0; k < 2; k++) {
+        const double *c = k ? cb : ca;
+        for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
+        wt_tomography_apply(a.t, e, me);
+        err[k] = sqrt(tu_dot(e, me, n));
+    }
+    wt_tomography_apply(a.t, xs, me);
+    const double xn = sqrt(tu_dot(xs, me, n));
+    ck_assert_msg(err[1] < 0.5 * err[0], "4 iterations: M-norm error %g with the NGS term, %g with Jacobi alone (|x*| %g)",
+                  err[1], err[0], xn);
+    /* converged: the same solution by either preconditioner */
+    ck_assert_int_ge(wt_tomography_solve(a.t, s, ca, 3000, 1e-12, NULL, &ra), WT_OK);
+    ck_assert_double_le(tu_rel_diff(ca, xs, n), 1e-6);
+    free(xs), free(e), free(me);
+    free(s), free(ca), free(cb);
+    teardown(&a);
+    teardown(&b);
+}
+END_TEST
+
 START_TEST(test_eelt_sizes)
 {
     /* SPEC §1: 5112 valid subapertures per LGS, 5525 + 1609 + 2161 = 9295 actuators, 61356 slopes (no guard
@@ -324,6 +368,7 @@ Suite *make_suite(void)
     TCase *tc = tcase_create("core");
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, test_eelt_sizes);
+    tcase_add_test(tc, test_ngs_lowrank_preconditioner);
     tcase_add_test(tc, test_normal_operator_consistency);
     tcase_add_test(tc, test_pcg_matches_dense_solve);
     tcase_add_test(tc, test_jacobi_beats_cg);

@@ -49,7 +49,9 @@
         "grid points per side of each layer; >= 2^recon.wavelet_levels"),                                  \
     KI(pre ".iterations", 0, 1, INF, v.iterations, "(P)CG iterations per frame"),                          \
     KF(pre ".tolerance", GE0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
-    KE(pre ".preconditioner", "none|jacobi", v.jacobi, "jacobi = modified Jacobi PCG, none = plain CG")
+    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs", v.jacobi,                                          \
+       "jacobi = modified Jacobi PCG, jacobi_ngs = the same plus the exact rank-r NGS term (Woodbury), "   \
+       "none = plain CG")
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("telescope.diameter_m", GT0, "m", 1, diameter, "pupil diameter D"),

@@ -49,8 +49,23 @@ double wt_pcg_flops_per_iteration(int64_t n, int preconditioned)
 
 static double dot(const double *a, const double *b, int64_t n) { return wt_vec_dot(a, b, n); }
 
+static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                 const double *b, double *x, int max_iter, double rtol, double *history, wt_pcg_result *res);
+
 int wt_pcg_solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
                  int max_iter, double rtol, double *history, wt_pcg_result *res)
+{
+    return solve(w, A, user, inv_diag, NULL, NULL, b, x, max_iter, rtol, history, res);
+}
+
+int wt_pcg_solve_precond(wt_pcg *w, wt_linop_fn A, void *user, wt_precond_fn P, void *puser, const double *b,
+                         double *x, int max_iter, double rtol, double *history, wt_pcg_result *res)
+{
+    return solve(w, A, user, NULL, P, puser, b, x, max_iter, rtol, history, res);
+}
+
+static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                 const double *b, double *x, int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
     const int64_t n = w->n;
     double *r = w->r, *z = w->z, *p = w->p, *q = w->q;
@@ -78,7 +93,8 @@ int wt_pcg_solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, c
 
     if (inv_diag)
         for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
-    const double *zz = inv_diag ? z : r;
+    else if (P) P(puser, r, z);
+    const double *zz = (inv_diag || P) ? z : r;
     for (int64_t i = 0; i < n; i++) p[i] = zz[i];
     double rz = dot(r, zz, n);
 
@@ -104,6 +120,7 @@ int wt_pcg_solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, c
         if (k + 1 == max_iter) break;
         if (inv_diag)
             for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
+        else if (P) P(puser, r, z);
         double rz_new = dot(r, zz, n);
         double beta = rz_new / rz;
         rz = rz_new;

@@ -31,6 +31,11 @@ typedef struct wt_pcg_result {
 int wt_pcg_solve(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
                  int max_iter, double rtol, double *history, wt_pcg_result *res);
 
+/* z = P⁻¹ r for a symmetric positive definite preconditioner P (z fully overwritten). */
+typedef void (*wt_precond_fn)(void *user, const double *r, double *z);
+/* The same with a general preconditioner P⁻¹ given as a callback. */
+int wt_pcg_solve_precond(wt_pcg *p, wt_linop_fn A, void *user, wt_precond_fn P, void *puser, const double *b,
+                         double *x, int max_iter, double rtol, double *history, wt_pcg_result *res);
 /* Flops of one iteration outside the operator (vector updates, dots, preconditioner): for reports. */
 double wt_pcg_flops_per_iteration(int64_t n, int preconditioned);
 
