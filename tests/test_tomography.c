@@ -61,7 +61,7 @@ START_TEST(test_ngs_lowrank_preconditioner)
     ck_assert_int_eq(wt_tomography_solve(b.t, s, cb, 4, 0.0, hb, &rb), WT_OK);
     /* the converged solution x*, then the M-norm errors of the two 4-iteration iterates */
     double *xs = calloc(n, sizeof *xs), *e = malloc(n * sizeof *e), *me = malloc(n * sizeof *me), err[2];
-    ck_assert_int_ge(wt_tomography_solve(b.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(b.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK); /* reached 1e-12 */
     for (int k = 0; k < 2; k++) {
         const double *c = k ? cb : ca;
         for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
@@ -72,9 +72,10 @@ START_TEST(test_ngs_lowrank_preconditioner)
     const double xn = sqrt(tu_dot(xs, me, n));
     ck_assert_msg(err[1] < 0.5 * err[0], "4 iterations: M-norm error %g with the NGS term, %g with Jacobi alone (|x*| %g)",
                   err[1], err[0], xn);
-    /* converged: the same solution by either preconditioner */
-    ck_assert_int_ge(wt_tomography_solve(a.t, s, ca, 3000, 1e-12, NULL, &ra), WT_OK);
-    ck_assert_double_le(tu_rel_diff(ca, xs, n), 1e-6);
+    /* the same fixed point: Jacobi alone, continued from the low-rank solution, finds nothing to change */
+    memcpy(ca, xs, n * sizeof *ca);
+    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 10, 1e-11, NULL, &ra), WT_OK);
+    ck_assert_int_eq(ra.iterations, 0);
     free(xs), free(e), free(me);
     free(s), free(ca), free(cb);
     teardown(&a);
