@@ -130,6 +130,38 @@ START_TEST(test_noise_covariance_matches_model)
 }
 END_TEST
 
+/* Mean square of the DWT coefficients per (level, orientation) of `nscreens` single-layer screens made
+ * by the simulator (FFT + subharmonics on a periodic grid of n·up points at δ/up, seeds seed0, seed0 + 1,
+ * …) and sampled on the n x n layer grid of spacing δ: var[level][orientation] (NaN where none). */
+static void screen_level_variances(wt_context *ctx, const wt_wavelet *w, int n, double delta, int up, double r0,
+                                   double L0, int nscreens, uint64_t seed0, double var[8][4])
+{
+    double sum[8][4] = {{0}};
+    long cnt[8][4] = {{0}};
+    double *x = malloc(n * n * sizeof *x), *c = malloc(n * n * sizeof *c), *work = malloc(wt_wavelet_work_size(w) * sizeof *work);
+    wt_grid g = wt_grid_layer(n, delta);
+    for (int k = 0; k < nscreens; k++) {
+        double h = 0.0, f = 1.0, v = 0.0, dir = 0.0;
+        wt_atmosphere_params ap = {1, &h, &f, &v, &dir, r0, L0, n * up, delta / up, seed0 + (uint64_t)k, 0};
+        wt_atmosphere *atm;
+        ck_assert_int_eq(wt_atmosphere_alloc(ctx, &ap, &atm), WT_OK);
+        memset(x, 0, n * n * sizeof *x);
+        ck_assert_int_eq(wt_atmosphere_project(atm, 0.0, 0.0, 0.0, 0.0, &g, NULL, 1.0, x), WT_OK);
+        wt_wavelet_forward(w, x, c, work);
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) {
+                int lev, o;
+                wt_wavelet_classify(w, ix, iy, &lev, &o);
+                sum[lev][o] += c[ix + n * iy] * c[ix + n * iy];
+                cnt[lev][o]++;
+            }
+        wt_atmosphere_free(atm);
+    }
+    for (int l = 0; l < 8; l++)
+        for (int o = 0; o < 4; o++) var[l][o] = cnt[l][o] ? sum[l][o] / cnt[l][o] : NAN;
+    free(x), free(c), free(work);
+}
+
 /* SPEC §6: per level and orientation, the variance of the DWT coefficients of simulated screens
  * matches D⁻¹ (α = 1 is the physical prior) within a factor 2. A single layer (fraction 1) on the
  * reconstruction grid of the E-ELT ground layer (128 x 128 at 0.5 m, db3, J = 5), 24 screens. The
@@ -145,40 +177,20 @@ START_TEST(test_prior_matches_simulated_screens)
     wt_prior *p;
     ck_assert_int_eq(wt_wavelet_alloc(ctx, n, 3, J, &w), WT_OK);
     ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_PAPER, &p), WT_OK);
-    double sum[8][4] = {{0}};
-    long cnt[8][4] = {{0}};
-    double *x = malloc(n * n * sizeof *x), *c = malloc(n * n * sizeof *c), *work = malloc(wt_wavelet_work_size(w) * sizeof *work);
-    wt_grid g = wt_grid_layer(n, delta);
-    for (int k = 0; k < nscreens; k++) {
-        double h = 0.0, f = 1.0, v = 0.0, dir = 0.0;
-        /* the simulator's own screens: FFT + subharmonics on a larger periodic grid, sampled here */
-        wt_atmosphere_params ap = {1, &h, &f, &v, &dir, r0, L0, n, delta, (uint64_t)(100 + k), 0};
-        wt_atmosphere *atm;
-        ck_assert_int_eq(wt_atmosphere_alloc(ctx, &ap, &atm), WT_OK);
-        memset(x, 0, n * n * sizeof *x);
-        ck_assert_int_eq(wt_atmosphere_project(atm, 0.0, 0.0, 0.0, 0.0, &g, NULL, 1.0, x), WT_OK);
-        wt_wavelet_forward(w, x, c, work);
-        for (int iy = 0; iy < n; iy++)
-            for (int ix = 0; ix < n; ix++) {
-                int lev, o;
-                wt_wavelet_classify(w, ix, iy, &lev, &o);
-                sum[lev][o] += c[ix + n * iy] * c[ix + n * iy];
-                cnt[lev][o]++;
-            }
-        wt_atmosphere_free(atm);
-    }
+    double vars[8][4];
+    /* the simulator's own screens: FFT + subharmonics on a periodic grid, sampled here */
+    screen_level_variances(ctx, w, n, delta, 1, r0, L0, nscreens, 100, vars);
     const double *d = wt_prior_diag(p);
     for (int lev = 1; lev <= J + 1; lev++)
         for (int o = 0; o < 4; o++) {
-            if (!cnt[lev][o]) continue;
-            double var = sum[lev][o] / cnt[lev][o];
+            double var = vars[lev][o];
+            if (isnan(var)) continue;
             /* D of any coefficient of this block */
             int m = n >> (lev > J ? J : lev), bx = (o == 1 || o == 3) ? m : 0, by = (o == 2 || o == 3) ? m : 0;
             double model = 1.0 / d[bx + n * by];
             ck_assert_msg(var / model > 0.5 && var / model < 2.0, "level %d orientation %d: simulated %g vs D^-1 %g",
                           lev, o, var, model);
         }
-    free(x), free(c), free(work);
     wt_prior_free(p);
     wt_wavelet_free(w);
     wt_context_free(ctx);
@@ -204,31 +216,12 @@ START_TEST(test_prior_aliasing_finest_level)
     ck_assert_int_eq(wt_wavelet_alloc(ctx, n, 3, J, &w), WT_OK);
     ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT, &pb), WT_OK);
     ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT | WT_PRIOR_ALIASED, &pa), WT_OK);
-    double sum[8][4] = {{0}};
-    long cnt[8][4] = {{0}};
-    double *x = malloc(n * n * sizeof *x), *c = malloc(n * n * sizeof *c), *work = malloc(wt_wavelet_work_size(w) * sizeof *work);
-    wt_grid g = wt_grid_layer(n, delta);
-    for (int k = 0; k < nscreens; k++) {
-        double h = 0.0, f = 1.0, v = 0.0, dir = 0.0;
-        wt_atmosphere_params ap = {1, &h, &f, &v, &dir, r0, L0, n * up, delta / up, (uint64_t)(300 + k), 0};
-        wt_atmosphere *atm;
-        ck_assert_int_eq(wt_atmosphere_alloc(ctx, &ap, &atm), WT_OK);
-        memset(x, 0, n * n * sizeof *x);
-        ck_assert_int_eq(wt_atmosphere_project(atm, 0.0, 0.0, 0.0, 0.0, &g, NULL, 1.0, x), WT_OK);
-        wt_wavelet_forward(w, x, c, work);
-        for (int iy = 0; iy < n; iy++)
-            for (int ix = 0; ix < n; ix++) {
-                int lev, o;
-                wt_wavelet_classify(w, ix, iy, &lev, &o);
-                sum[lev][o] += c[ix + n * iy] * c[ix + n * iy];
-                cnt[lev][o]++;
-            }
-        wt_atmosphere_free(atm);
-    }
+    double vars[8][4];
+    screen_level_variances(ctx, w, n, delta, up, r0, L0, nscreens, 300, vars);
     for (int lev = 1; lev <= J + 1; lev++)
         for (int o = 0; o < 4; o++) {
-            if (!cnt[lev][o]) continue;
-            double var = sum[lev][o] / cnt[lev][o];
+            double var = vars[lev][o];
+            if (isnan(var)) continue;
             double ra = var / wt_prior_level_variance(pa, lev, o), rb = var / wt_prior_level_variance(pb, lev, o);
             if (lev == 1) {
                 ck_assert_msg(ra > 0.85 && ra < 1.15, "finest level, orientation %d: simulated / aliased %.3f", o, ra);
@@ -237,7 +230,6 @@ START_TEST(test_prior_aliasing_finest_level)
                 ck_assert_msg(ra > 0.5 && ra < 2.0, "level %d orientation %d: simulated / aliased %.3f", lev, o, ra);
             }
         }
-    free(x), free(c), free(work);
     wt_prior_free(pa);
     wt_prior_free(pb);
     wt_wavelet_free(w);

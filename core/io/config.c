@@ -653,6 +653,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     int st = WT_OK;
     wt_config *cfg = NULL;
     const char **allov = NULL;
+    int nfile = 0; /* overrides the file carries (before any goto fail) */
     config_t cf;
     pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides};
     *out = NULL;
@@ -676,7 +677,6 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     /* A file may carry its own overrides (a preset that @includes another and changes a few keys:
      * libconfig refuses a setting defined twice); they apply before the command line's. */
     const config_setting_t *fo = config_setting_get_member(config_root_setting(&cf), "overrides");
-    int nfile = 0;
     if (fo) {
         if (!config_setting_is_aggregate(fo) || config_setting_is_group(fo)) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%u: 'overrides' must be a list of \"key=value\" strings",
