@@ -22,7 +22,7 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug debug-test clean
+.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo
 
@@ -67,6 +67,21 @@ $(BUILD)/tests/%: tests/%.c tests/testutil.h $(LIB)
 	@$(if $(V),,echo "  CC/LD   $@")
 	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) $(shell pkg-config --cflags check) -o $@ $< $(filter %.o,$^) $(LIB) \
 	    $(PKG_LIBS) $(shell pkg-config --libs check) $(LDLIBS)
+
+# The bit-identity guard of a refactor: SHA-256 of the exact per-frame commands of short closed loops of
+# every reconstructor against tests/regress/commands.sha256 (tests/regress/commands.sh says how).
+$(BUILD)/tests/regress_commands: tests/regress/commands.c $(LIB)
+	@mkdir -p $(dir $@)
+	@$(if $(V),,echo "  CC/LD   $@")
+	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+regress-commands: deps
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(BUILD)/tests/regress_commands
+	@BUILD=$(BUILD) BIN=$(BIN) bash tests/regress/commands.sh
+
+regress-commands-update: deps
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(BUILD)/tests/regress_commands
+	@BUILD=$(BUILD) BIN=$(BIN) bash tests/regress/commands.sh --update
 
 test: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
