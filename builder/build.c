@@ -7,8 +7,7 @@
 
 #include "cli/cli.h"
 #include "core/io/h5.h"
-#include "core/io/mvm_file.h"
-#include "core/model/mvm.h"
+#include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 
@@ -112,7 +111,6 @@ int wt_cmd_build(int argc, char **argv)
     }
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
-    wt_tomography *t = NULL;
     wt_mvm *m = NULL;
     wt_h5_writer *w = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
@@ -122,33 +120,27 @@ int wt_cmd_build(int argc, char **argv)
     /* check the output before hours of work: R is n_act x n_slopes float32 */
     double rbytes = 4.0 * (double)sys->nact * ((double)sys->nslopes + (double)sys->nact);
     if ((st = wt_h5_check_writable(cli.ctx, args.out, (int64_t)(rbytes * 1.05))) < 0) goto fail;
-    double t0 = wt_time_now();
-    /* the builder factorises M exactly: the iterative solver's Jacobi diagonal is not needed */
-    wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3;
-    var.jacobi = 0;
-    if ((st = wt_tomography_alloc(cli.ctx, sys, &var, args.recon, &t)) < 0) goto fail;
+    const wt_recon_variant_config *var = cg9 ? &cfg->cg9 : &cfg->pcg3;
+    int64_t nunknowns = 0; /* a coefficient per layer grid point */
+    for (int l = 0; l < var->nlayers; l++) nunknowns += (int64_t)var->size[l] * var->size[l];
     wt_mvm_options o;
     wt_mvm_options_default(&o);
-    o.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
-    o.fit_regularization = cfg->cg9.fit_regularization;
-    o.fit_sampling = cfg->cg9.fit_sampling;
     o.memory_budget = args.memory_gb > 0 ? args.memory_gb * 1e9 : 0.9 * mem_available();
     build_progress bp = {.phase = "", .quiet = cli.quiet};
     o.progress = on_progress;
     o.progress_user = &bp;
     if (!cli.quiet)
         fprintf(stderr, "wavetomo build: %s, %s: %lld unknowns, R %lld x %lld (%.2f GB float32), memory budget %.1f GB\n",
-                cfg->path, args.recon, (long long)wt_tomography_nunknowns(t), (long long)sys->nact,
+                cfg->path, args.recon, (long long)nunknowns, (long long)sys->nact,
                 (long long)sys->nslopes, 4.0 * sys->nact * (double)sys->nslopes / 1e9, o.memory_budget / 1e9);
-    st = wt_mvm_build(cli.ctx, t, &o, &m);
+    st = wt_mvm_build_variant(cli.ctx, sys, var, args.recon, &o, &m);
     if (bp.phase[0]) wt_progress_end(&bp.pr);
     if (st < 0) goto fail;
-    m->stats.t_total = wt_time_now() - t0;
     double tw0 = wt_time_now();
     if ((st = wt_h5_create(cli.ctx, args.out, &w)) < 0) goto fail;
     if ((st = wt_cli_write_provenance(&cli, w, cfg, argc, argv)) < 0) goto fail;
     if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
-    if ((st = wt_mvm_file_write(w, m, cfg, args.recon)) < 0) goto fail;
+    if ((st = wt_mvm_write(w, m, cfg, args.recon)) < 0) goto fail;
     st = wt_h5_commit(w);
     w = NULL;
     if (st < 0) goto fail;
@@ -172,7 +164,6 @@ fail:
 cleanup:
     wt_h5_abort(w);
     wt_mvm_free(m);
-    wt_tomography_free(t);
     wt_system_free(sys);
     wt_config_free(cli.ctx, cfg);
     wt_cli_done(&cli);

@@ -11,8 +11,7 @@
 #include "cli/cli.h"
 #include "compare/plot.h"
 #include "core/io/h5.h"
-#include "core/io/mvm_file.h"
-#include "core/model/mvm.h"
+#include "core/build/mvm_build.h"
 #include "core/model/tomography.h"
 #include "core/sim/loop.h"
 
@@ -146,28 +145,19 @@ static int get_mvm(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys,
     FILE *f = fopen(path, "rb");
     if (f) {
         fclose(f);
-        if (wt_mvm_file_read(cli->ctx, path, cfg, sys, out, NULL) == WT_OK) {
+        if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK) {
             if (!cli->quiet) fprintf(stderr, "wavetomo compare: mvm from the cache %s\n", path);
             return WT_OK;
         }
         if (!cli->quiet) fprintf(stderr, "wavetomo compare: rebuilding the stale or damaged %s\n", path);
     }
-    wt_tomography *t = NULL;
     wt_h5_writer *w = NULL;
-    double t0 = wt_time_now();
     if (!cli->quiet) fprintf(stderr, "wavetomo compare: building the MVM for %s (hash %.16s)\n", cfg->path, cfg->matrix_sha256);
-    wt_recon_variant_config var = cfg->pcg3;
-    var.jacobi = 0; /* not needed by the exact factorisation */
-    if ((st = wt_tomography_alloc(cli->ctx, sys, &var, "pcg3", &t)) < 0) return st;
-    wt_mvm_options o;
-    wt_mvm_options_default(&o);
-    st = wt_mvm_build(cli->ctx, t, &o, out);
-    wt_tomography_free(t);
-    if (st < 0) return st;
-    (*out)->stats.t_total = *build_s = wt_time_now() - t0;
+    if ((st = wt_mvm_build_variant(cli->ctx, sys, &cfg->pcg3, "pcg3", NULL, out)) < 0) return st;
+    *build_s = (*out)->stats.t_total;
     if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
     if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 && (st = wt_cli_write_layout(w, sys)) >= 0 &&
-        (st = wt_mvm_file_write(w, *out, cfg, "pcg3")) >= 0) {
+        (st = wt_mvm_write(w, *out, cfg, "pcg3")) >= 0) {
         st = wt_h5_commit(w);
         w = NULL;
     }

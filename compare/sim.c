@@ -7,7 +7,7 @@
 
 #include "cli/cli.h"
 #include "core/io/h5.h"
-#include "core/io/mvm_file.h"
+#include "core/solve/mvm.h"
 #include "core/sim/atmosphere.h"
 #include "core/sim/loop.h"
 
@@ -239,7 +239,7 @@ int wt_cmd_sim(int argc, char **argv)
         int64_t bytes = (int64_t)frames * (2 * sys->nslopes + sys->nact) * 4;
         if ((st = wt_h5_check_writable(cli.ctx, tel, bytes)) < 0) goto fail;
     }
-    if (kind == WT_RECON_MVM && (st = wt_mvm_file_read(cli.ctx, args.matrix, cfg, sys, &mvm, NULL)) < 0) goto fail;
+    if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;

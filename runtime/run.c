@@ -1,6 +1,5 @@
 /* runtime/run.c: `wavetomo run`: apply a stored MVM (float32 GEMV, POLC form) or the matrix-free
  * wavelet reconstructor to every frame of a telemetry file, and time it (SPEC §7, §9). */
-#include <cblas.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,7 +7,7 @@
 
 #include "cli/cli.h"
 #include "core/io/h5.h"
-#include "core/io/mvm_file.h"
+#include "core/solve/mvm.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 
@@ -123,7 +122,7 @@ int wt_cmd_run(int argc, char **argv)
                           (long long)F, (long long)dims[0]);
             goto fail;
         }
-        if ((st = wt_mvm_file_read(cli.ctx, args.matrix, use, sys, &m, NULL)) < 0) goto fail;
+        if ((st = wt_mvm_read(cli.ctx, args.matrix, use, sys->nact, sys->nslopes, &m, NULL)) < 0) goto fail;
     } else {
         if ((st = wt_reconstructor_alloc(cli.ctx, sys, kind, (int)args.iters, &rec)) < 0) goto fail;
     }
@@ -158,10 +157,7 @@ int wt_cmd_run(int argc, char **argv)
             if ((st = wt_h5_read_rows(tr, "commands", WT_H5_F32, t, 1, af)) < 0) goto fail;
             double t0 = wt_time_now();
             /* R s_ol = R s + (R Â) a: the stored POLC form, no Â needed at run time */
-            cblas_sgemv(CblasRowMajor, CblasNoTrans, (int)sys->nact, (int)sys->nslopes, 1.0f, m->R, (int)sys->nslopes, sf,
-                        1, 0.0f, rf, 1);
-            cblas_sgemv(CblasRowMajor, CblasNoTrans, (int)sys->nact, (int)sys->nact, 1.0f, m->RA, (int)sys->nact, af, 1,
-                        1.0f, rf, 1);
+            wt_mvm_apply(m, sf, af, rf);
             times[t] = wt_time_now() - t0;
         } else {
             for (int64_t i = 0; i < sys->nslopes; i++) sd[i] = sf[i];

@@ -7,7 +7,7 @@
 #include "core/la/chol.h"
 #include "core/model/fitting.h"
 #include "core/model/interaction.h"
-#include "core/model/mvm.h"
+#include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 #include "core/op/shack_hartmann.h"

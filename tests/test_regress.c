@@ -7,7 +7,7 @@
  * row's own seed, so an unchanged code reproduces the reference to its printed resolution; a change
  * larger than one realisation sigma, in either direction, fails, and the table is then updated in a
  * commit that says why. A malformed table fails too. */
-#include "core/model/mvm.h"
+#include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 #include "core/sim/loop.h"
@@ -72,14 +72,8 @@ static void run_row(char **f, int row)
     ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "row %d: %s", row, wt_error_message(ctx));
     if (kind == WT_RECON_MVM) {
         /* as `wavetomo build` and `compare` do: the exact MAP of the pcg3 system */
-        wt_recon_variant_config var = cfg->pcg3;
-        var.jacobi = 0;
-        wt_tomography *t = NULL;
-        ck_assert_msg(wt_tomography_alloc(ctx, sys, &var, "pcg3", &t) == WT_OK, "%s", wt_error_message(ctx));
-        wt_mvm_options o;
-        wt_mvm_options_default(&o);
-        ck_assert_msg(wt_mvm_build(ctx, t, &o, &mvm) == WT_OK, "row %d: %s", row, wt_error_message(ctx));
-        wt_tomography_free(t);
+        ck_assert_msg(wt_mvm_build_variant(ctx, sys, &cfg->pcg3, "pcg3", NULL, &mvm) == WT_OK, "row %d: %s", row,
+                      wt_error_message(ctx));
     }
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = (uint64_t)seed, .noise = cfg->noise};
     ck_assert_msg(wt_loop_alloc(ctx, sys, &o, &lp) == WT_OK, "row %d: %s", row, wt_error_message(ctx));

@@ -5,24 +5,23 @@
 #include <cblas.h>
 #include <string.h>
 
-#include "../la/chol.h"
-
-int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const char *variant)
+int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const float *Rm,
+                      const float *RA, const wt_mvm_file_record *rec)
 {
     int st;
     wt_h5_matrix *R = NULL;
     const int64_t block = 256;
-    if ((st = wt_h5_matrix_create(w, "R", WT_H5_F32, m->nact, m->nslopes, "m/rad",
+    if ((st = wt_h5_matrix_create(w, "R", WT_H5_F32, nact, nslopes, "m/rad",
                                   "control matrix: commands [m] = R x slopes [rad]; row = actuator (layout/actuator_index), "
                                   "column = slope (layout/sensor_slope_offset)",
                                   &R)) < 0)
         return st;
-    for (int64_t r = 0; r < m->nact; r += block) {
-        int64_t nr = m->nact - r < block ? m->nact - r : block;
-        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, m->R + (size_t)r * m->nslopes)) < 0) return st;
+    for (int64_t r = 0; r < nact; r += block) {
+        int64_t nr = nact - r < block ? nact - r : block;
+        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * nslopes)) < 0) return st;
     }
-    int64_t d[2] = {m->nact, m->nact};
-    if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, m->RA, "",
+    int64_t d[2] = {nact, nact};
+    if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, RA, "",
                           "R A^: R times the DM-to-slope interaction, so that R s_ol = R s + RA a (POLC)")) < 0)
         return st;
     if ((st = wt_h5_attr_write_string(w, "/", "config_sha256", cfg->matrix_sha256)) < 0) return st;
@@ -30,36 +29,33 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, co
                                  "the configuration keys that define R (their SHA-256 is the root attribute "
                                  "config_sha256)")) < 0)
         return st;
-    if ((st = wt_h5_attr_write_string(w, "/", "variant", variant)) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "variant", rec->variant)) < 0) return st;
     if ((st = wt_h5_attr_write_double(w, "/", "alpha", cfg->alpha)) < 0) return st;
     if ((st = wt_h5_attr_write_double(w, "/", "tau", cfg->tau)) < 0) return st;
-    if ((st = wt_h5_attr_write_string(w, "/", "cholmod_version", wt_chol_version())) < 0) return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "cholmod_version", rec->cholmod_version)) < 0) return st;
     if ((st = wt_h5_attr_write_string(w, "/", "openblas_config", openblas_get_config())) < 0) return st;
-    const wt_mvm_stats *s = &m->stats;
-    if ((st = wt_h5_write_int64(w, "build/unknowns", s->nunknowns, "", "wavelet coefficients of the MAP problem")) < 0)
+    if ((st = wt_h5_write_int64(w, "build/unknowns", rec->nunknowns, "", "wavelet coefficients of the MAP problem")) < 0)
         return st;
-    if ((st = wt_h5_write_double(w, "build/factor_nonzeros", s->nnz_factor, "",
+    if ((st = wt_h5_write_double(w, "build/factor_nonzeros", rec->nnz_factor, "",
                                  "non-zeros of the CHOLMOD Cholesky factor of the sparse part N")) < 0)
         return st;
-    if ((st = wt_h5_write_int64(w, "build/lowrank_rank", s->rank, "",
+    if ((st = wt_h5_write_int64(w, "build/lowrank_rank", rec->rank, "",
                                 "rank of the Woodbury correction (LGS tip-tilt removal and NGS rows)")) < 0)
         return st;
-    if ((st = wt_h5_write_double(w, "build/time", s->t_total, "s", "wall time of the build")) < 0) return st;
-    if ((st = wt_h5_write_double(w, "build/peak_memory_estimate", s->peak_estimate / 1e9, "GB",
+    if ((st = wt_h5_write_double(w, "build/time", rec->build_time, "s", "wall time of the build")) < 0) return st;
+    if ((st = wt_h5_write_double(w, "build/peak_memory_estimate", rec->peak_estimate / 1e9, "GB",
                                  "estimated peak memory of the build")) < 0)
         return st;
-    return wt_h5_write_string(w, "build/ordering", s->ordering ? s->ordering : "?",
+    return wt_h5_write_string(w, "build/ordering", rec->ordering ? rec->ordering : "?",
                               "fill-reducing ordering CHOLMOD chose");
 }
 
-int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, const wt_system *sys, wt_mvm **out,
-                     char *variant_out)
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, float *R,
+                     float *RA, char *variant_out)
 {
     int st;
     wt_h5_reader *r = NULL;
-    wt_mvm *m = NULL;
     char *hash = NULL, *variant = NULL;
-    *out = NULL;
     if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
     if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
     if (strcmp(hash, cfg->matrix_sha256) != 0) {
@@ -70,31 +66,16 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, co
         goto fail;
     }
     if ((st = wt_h5_attr_read_string(r, "/", "variant", &variant)) < 0) goto fail;
-    WT_ALLOC(ctx, m, 1, "MVM");
-    m->ctx = ctx;
-    m->nact = sys->nact;
-    m->nslopes = sys->nslopes;
-    m->commands = !strcmp(variant, "cg9") ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
-    int64_t er[2] = {sys->nact, sys->nslopes}, ea[2] = {sys->nact, sys->nact};
+    int64_t er[2] = {nact, nslopes}, ea[2] = {nact, nact};
     if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
     if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
-    WT_ALLOC(ctx, m->R, (size_t)sys->nact * sys->nslopes, "the control matrix R");
-    WT_ALLOC(ctx, m->RA, (size_t)sys->nact * sys->nact, "the POLC matrix RA");
-    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, m->R, (size_t)sys->nact * sys->nslopes)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, m->RA, (size_t)sys->nact * sys->nact)) < 0) goto fail;
-    if (variant_out) {
-        strncpy(variant_out, variant, 15);
-        variant_out[15] = '\0';
-    }
-    wt_free(ctx, hash);
-    wt_free(ctx, variant);
-    wt_h5_close(r);
-    *out = m;
-    return WT_OK;
+    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * nslopes)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * nact)) < 0) goto fail;
+    strncpy(variant_out, variant, 15);
+    variant_out[15] = '\0';
 fail:
     wt_free(ctx, hash);
     wt_free(ctx, variant);
     wt_h5_close(r);
-    wt_mvm_free(m);
     return st;
 }

@@ -5,21 +5,38 @@
  * configuration keys that can change R, wt_config.matrix_sha256) and the dataset "matrix_config" (that
  * text), plus the variant, α, τ and the build statistics. A reader refuses a file built for another
  * system, of the wrong shape, truncated or incomplete — before any frame is processed.
+ *
+ * Plain data in and out (float arrays, sizes, a record of strings and numbers): the container and its
+ * conversion are core/solve/mvm.h's (wt_mvm_read / wt_mvm_write).
  */
 #ifndef WT_MVM_FILE_H
 #define WT_MVM_FILE_H
 
-#include "../model/mvm.h"
+#include "config.h"
 #include "h5.h"
 
-/* Write R, RA, the identity and the statistics into an open writer (the caller adds provenance and
- * layout and commits). variant: "pcg3" or "cg9". */
-int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const char *variant);
+/* What is written beside the matrices: the variant and the record of the build. */
+typedef struct wt_mvm_file_record {
+    const char *variant;         /* "pcg3" or "cg9" */
+    int64_t nunknowns;           /* wavelet coefficients of the MAP problem */
+    double nnz_factor;           /* non-zeros of the Cholesky factor of N */
+    int rank;                    /* rank of the Woodbury correction */
+    double build_time;           /* wall time of the build [s] */
+    double peak_estimate;        /* estimated peak memory of the build [bytes] */
+    const char *ordering;        /* fill-reducing ordering (NULL: unknown) */
+    const char *cholmod_version; /* the CHOLMOD that factorised */
+} wt_mvm_file_record;
 
-/* Read MATRIX.h5 for the system `sys` (built from cfg). Refuses (WT_ERR_FORMAT, naming the file) a
- * matrix whose config_sha256 differs from cfg->matrix_sha256, or whose shapes differ from the system's
- * n_act x n_slopes. variant_out: NULL or 16 bytes for the stored variant. [out] *out (wt_mvm_free). */
-int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, const wt_system *sys, wt_mvm **out,
-                     char *variant_out);
+/* Write R (nact x nslopes) and RA (nact x nact), float32 row-major, the identity of cfg and the record
+ * into an open writer (the caller adds provenance and layout and commits). */
+int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const float *R,
+                      const float *RA, const wt_mvm_file_record *rec);
+
+/* Read MATRIX.h5 for a system of nact actuators and nslopes slopes described by cfg into the caller's
+ * R (nact * nslopes floats) and RA (nact * nact). Refuses (WT_ERR_FORMAT, naming the file) a matrix whose
+ * config_sha256 differs from cfg->matrix_sha256, or whose shapes differ. variant_out: 16 bytes for the
+ * stored variant. Allocates only transiently. */
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, float *R,
+                     float *RA, char *variant_out);
 
 #endif

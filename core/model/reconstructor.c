@@ -1,9 +1,8 @@
 /* core/model/reconstructor.c: the pcg3 / cg9 / none reconstructors as one slopes → commands map. */
 #include "reconstructor.h"
 
-#include "mvm.h"
+#include "../solve/mvm.h"
 
-#include <cblas.h>
 #include <math.h>
 #include <string.h>
 
@@ -26,6 +25,45 @@ struct wt_reconstructor {
     double t_tomo, t_fit;
     wt_pcg_result last;
 };
+
+int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t);
+    int64_t q = 0;
+    for (int k = 0; k < sys->ndms; k++) {
+        const wt_grid *dg = &sys->dm_grid[k];
+        double h = sys->dm_altitude[k];
+        int l = -1;
+        for (int i = 0; i < L && l < 0; i++) {
+            const wt_grid *lg = wt_tomography_layer_grid(t, i);
+            double hl = wt_tomography_layer_altitude(t, i);
+            if (fabs(hl - h) <= 1e-6 * fmax(1.0, h) && fabs(lg->dx - dg->dx) <= 1e-9 * dg->dx) l = i;
+        }
+        if (l < 0)
+            return WT_ERROR(ctx, WT_ERR_CONFIG,
+                            "pcg3: the commands are the layer values at the actuators, but DM %d (altitude %g m, "
+                            "pitch %g m) has no reconstruction layer at its altitude with spacing equal to its pitch; "
+                            "set recon.pcg3.layer_altitudes_m and layer_spacing_m to the DM altitudes and pitches",
+                            k + 1, h, dg->dx);
+        const wt_grid *lg = wt_tomography_layer_grid(t, l);
+        int64_t off = wt_tomography_layer_offset(t, l);
+        for (int iy = 0; iy < dg->ny; iy++)
+            for (int ix = 0; ix < dg->nx; ix++) {
+                if (!sys->dm_active[k][ix + (int64_t)dg->nx * iy]) continue;
+                double gx = (dg->x0 + ix * dg->dx - lg->x0) / lg->dx, gy = (dg->y0 + iy * dg->dx - lg->y0) / lg->dx;
+                double rx = round(gx), ry = round(gy);
+                if (fabs(gx - rx) > 1e-6 || fabs(gy - ry) > 1e-6 || rx < 0 || ry < 0 || rx >= lg->nx || ry >= lg->ny)
+                    return WT_ERROR(ctx, WT_ERR_CONFIG,
+                                    "pcg3: actuator (%d, %d) of DM %d sits at layer %d grid position (%.4f, %.4f), not "
+                                    "on a point of its %d x %d grid; an odd actuator count of the layer's pitch "
+                                    "inside the layer grid is needed",
+                                    ix, iy, k + 1, l + 1, gx, gy, lg->nx, lg->ny);
+                points[q++] = off + (int64_t)rx + (int64_t)lg->nx * (int64_t)ry;
+            }
+    }
+    return WT_OK;
+}
 
 int wt_reconstructor_kind(const char *name)
 {
@@ -75,7 +113,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
     if (kind == WT_RECON_PCG3) {
         /* the commands are the layer values at the actuators: the same map as the MVM builder's */
         WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
-        WT_TRY(wt_mvm_actuator_points(ctx, r->tomo, r->act_index));
+        WT_TRY(wt_reconstructor_actuator_points(ctx, r->tomo, r->act_index));
     } else {
         wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
         WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &fp, &r->fit));
@@ -146,7 +184,7 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
                 return WT_ERROR(r->ctx, WT_ERR_NUMERIC, "mvm: slope %lld is %g (NaN or Inf)", (long long)i, s_ol[i]);
             r->sf[i] = (float)s_ol[i];
         }
-        cblas_sgemv(CblasRowMajor, CblasNoTrans, (int)na, (int)ns, 1.0f, r->mvm->R, (int)ns, r->sf, 1, 0.0f, r->af, 1);
+        wt_mvm_apply(r->mvm, r->sf, NULL, r->af);
         for (int64_t i = 0; i < na; i++) a[i] = r->af[i];
         r->t_tomo = wt_time_now() - t0;
         return WT_OK;

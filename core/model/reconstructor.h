@@ -6,7 +6,7 @@
  *  cg9:  layers at the atmosphere altitudes, CG (recon.cg9), then the fitting step by CG over the
  *        evaluation directions (recon.cg9.fit_iterations).
  *  none: commands 0 (the uncorrected baseline).
- *  mvm:  a stored control matrix (core/model/mvm.h): a = R s_ol, one float32 GEMV through OpenBLAS
+ *  mvm:  a stored control matrix (core/solve/mvm.h): a = R s_ol, one float32 GEMV through OpenBLAS
  *        (memory-bound: it streams n_act x n_slopes x 4 bytes per frame).
  * Both iterative variants warm-start from the previous frame's solution (recon.warm_start).
  */
@@ -32,6 +32,10 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
 /* The MVM reconstructor around a matrix built for sys (not owned: it must outlive the reconstructor). */
 int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const struct wt_mvm *m, wt_reconstructor **out);
 void wt_reconstructor_free(wt_reconstructor *r);
+/* The pcg3 command map (also the MVM builder's): index (into the concatenated layer vector) of the layer point under each active actuator
+ * (points: nact). WT_ERR_CONFIG naming the DM when a DM has no layer at its altitude and pitch, or an
+ * actuator falls off the layer points. */
+int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points);
 
 /* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). */
 int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);

@@ -7,7 +7,8 @@
  *       one line per method: "lib-<method> <SHA-256 of the applied commands a_t of every frame, as
  *       float64, frame after frame>" — every bit of the doubles counts;
  *   regress_commands tel FILE...              prints "<file name> <SHA-256 of the dataset 'commands'>"
- *       of each telemetry file (`wavetomo sim --telemetry`, float32 as stored), which covers the drivers.
+ *       of each telemetry file (`wavetomo sim --telemetry`, float32 as stored), or of 'reconstruction'
+ *       of a `wavetomo run` output, which covers the drivers.
  *
  * tests/regress/commands.sh runs both and compares with tests/regress/commands.sha256 (`make
  * regress-commands`). Not a Check suite: a changed hash is a finding to explain, not a tolerance. */
@@ -17,7 +18,7 @@
 
 #include "core/base/sha256.h"
 #include "core/io/h5.h"
-#include "core/model/mvm.h"
+#include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 #include "core/sim/loop.h"
@@ -31,19 +32,7 @@ static int fail(wt_context *ctx, const char *what)
 /* The MVM of a variant, as `wavetomo build` makes it (exact factorisation, no Jacobi diagonal). */
 static int build_mvm(wt_context *ctx, const wt_config *cfg, const wt_system *sys, int cg9, wt_mvm **out)
 {
-    wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3;
-    var.jacobi = 0;
-    wt_tomography *t = NULL;
-    int st = wt_tomography_alloc(ctx, sys, &var, cg9 ? "cg9" : "pcg3", &t);
-    if (st < 0) return st;
-    wt_mvm_options o;
-    wt_mvm_options_default(&o);
-    o.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
-    o.fit_regularization = cfg->cg9.fit_regularization;
-    o.fit_sampling = cfg->cg9.fit_sampling;
-    st = wt_mvm_build(ctx, t, &o, out);
-    wt_tomography_free(t);
-    return st;
+    return wt_mvm_build_variant(ctx, sys, cg9 ? &cfg->cg9 : &cfg->pcg3, cg9 ? "cg9" : "pcg3", NULL, out);
 }
 
 static int run_lib(wt_context *ctx, const char *preset, const char *frames, const char *seed)
@@ -88,10 +77,11 @@ static int run_tel(wt_context *ctx, const char *path)
     wt_h5_reader *r = NULL;
     int rank;
     int64_t dims[8];
-    if (wt_h5_open(ctx, path, &r) < 0 || wt_h5_dims(r, "commands", &rank, dims) < 0 || rank != 2)
-        return fail(ctx, path);
+    if (wt_h5_open(ctx, path, &r) < 0) return fail(ctx, path);
+    const char *name = wt_h5_exists(r, "commands") ? "commands" : "reconstruction";
+    if (wt_h5_dims(r, name, &rank, dims) < 0 || rank != 2) return fail(ctx, path);
     float *buf = malloc((size_t)(dims[0] * dims[1]) * sizeof *buf + 1);
-    if (!buf || wt_h5_read_rows(r, "commands", WT_H5_F32, 0, dims[0], buf) < 0) return fail(ctx, path);
+    if (!buf || wt_h5_read_rows(r, name, WT_H5_F32, 0, dims[0], buf) < 0) return fail(ctx, path);
     char hex[65];
     wt_sha256_hex(buf, (size_t)(dims[0] * dims[1]) * sizeof *buf, hex);
     const char *base = strrchr(path, '/');

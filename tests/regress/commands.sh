@@ -2,8 +2,9 @@
 # tests/regress/commands.sh: `make regress-commands`: the bit-identity guard of a refactor (issue 8 §0).
 #
 # Runs short closed loops on the demo preset (FRAMES frames, seed SEED) of every reconstructor — none,
-# pcg3, cg9, and the MVM of `wavetomo build` for pcg3 and for cg9 (sim --matrix) — once through the
-# wavetomo executable with --telemetry (SHA-256 of the stored float32 commands) and once in process
+# pcg3, cg9, and the MVM of `wavetomo build` for pcg3 and for cg9 (sim --matrix, then the same frames
+# through `wavetomo run --matrix`) — once through the wavetomo executable with --telemetry (SHA-256 of
+# the stored float32 commands / reconstructions) and once in process
 # (SHA-256 of the exact float64 commands, build/tests/regress_commands), and compares the hashes with
 # tests/regress/commands.sha256. One thread everywhere (OpenMP, OpenBLAS), so that the reference does not
 # depend on the machine's core count. A difference must be explained (which reduction order changed
@@ -30,8 +31,12 @@ COMMON=(--config "$PRESET" --frames $FRAMES --seed $SEED --threads 1 --quiet)
     "$BIN" build --config "$PRESET" --recon $v --threads 1 --quiet --out "$TMP/matrix-$v.h5" >/dev/null
     "$BIN" sim "${COMMON[@]}" --recon mvm --matrix "$TMP/matrix-$v.h5" --out "$TMP/mvm-$v.h5" \
       --telemetry "$TMP/tel-mvm-$v.h5" >/dev/null
+    # the same frames replayed by `wavetomo run` (R s + RA a from the telemetry)
+    "$BIN" run --matrix "$TMP/matrix-$v.h5" --telemetry "$TMP/tel-mvm-$v.h5" --out "$TMP/run-mvm-$v.h5" \
+      --threads 1 --quiet >/dev/null
   done
-  "$TOOL" tel "$TMP"/tel-none.h5 "$TMP"/tel-pcg3.h5 "$TMP"/tel-cg9.h5 "$TMP"/tel-mvm-pcg3.h5 "$TMP"/tel-mvm-cg9.h5
+  "$TOOL" tel "$TMP"/tel-none.h5 "$TMP"/tel-pcg3.h5 "$TMP"/tel-cg9.h5 "$TMP"/tel-mvm-pcg3.h5 "$TMP"/tel-mvm-cg9.h5 \
+    "$TMP"/run-mvm-pcg3.h5 "$TMP"/run-mvm-cg9.h5
   "$TOOL" lib "$PRESET" $FRAMES $SEED
 } >"$TMP/now.txt"
 if [ "${1:-}" = --update ]; then

@@ -1,4 +1,4 @@
-/* core/model/mvm.c: the offline MVM builder (SPEC §9): the command maps E (pcg3 layer values, cg9 exact
+/* core/build/mvm.c: the offline MVM builder (SPEC §9): the command maps E (pcg3 layer values, cg9 exact
  * fitting), then R = E M⁻¹ Ãᵀ Ĉ⁻¹ and RÂ by block solves with the factorised normal matrix M of
  * mvm_assemble.c (Ã) and mvm_normal.c (N, its factorisation and the Woodbury correction). */
 #include "mvm_private.h"
@@ -10,8 +10,9 @@
 
 #include "../op/noise.h"
 #include "../op/projection.h"
-#include "fitting.h"
-#include "interaction.h"
+#include "../model/fitting.h"
+#include "../model/interaction.h"
+#include "../model/reconstructor.h"
 
 void wt_mvm_options_default(wt_mvm_options *opt)
 {
@@ -44,45 +45,6 @@ size_t wt_mvm_priv_wavelet_work(const wt_tomography *t)
 }
 
 /* ---- command maps E ------------------------------------------------------------------------------ */
-
-int wt_mvm_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points)
-{
-    const wt_system *sys = wt_tomography_system(t);
-    const int L = wt_tomography_nlayers(t);
-    int64_t q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        const wt_grid *dg = &sys->dm_grid[k];
-        double h = sys->dm_altitude[k];
-        int l = -1;
-        for (int i = 0; i < L && l < 0; i++) {
-            const wt_grid *lg = wt_tomography_layer_grid(t, i);
-            double hl = wt_tomography_layer_altitude(t, i);
-            if (fabs(hl - h) <= 1e-6 * fmax(1.0, h) && fabs(lg->dx - dg->dx) <= 1e-9 * dg->dx) l = i;
-        }
-        if (l < 0)
-            return WT_ERROR(ctx, WT_ERR_CONFIG,
-                            "mvm: the pcg3 commands are the layer values at the actuators, but DM %d (altitude %g m, "
-                            "pitch %g m) has no reconstruction layer at its altitude with spacing equal to its pitch; "
-                            "set recon.pcg3.layer_altitudes_m and layer_spacing_m to the DM altitudes and pitches",
-                            k + 1, h, dg->dx);
-        const wt_grid *lg = wt_tomography_layer_grid(t, l);
-        int64_t off = wt_tomography_layer_offset(t, l);
-        for (int iy = 0; iy < dg->ny; iy++)
-            for (int ix = 0; ix < dg->nx; ix++) {
-                if (!sys->dm_active[k][ix + (int64_t)dg->nx * iy]) continue;
-                double gx = (dg->x0 + ix * dg->dx - lg->x0) / lg->dx, gy = (dg->y0 + iy * dg->dx - lg->y0) / lg->dx;
-                double rx = round(gx), ry = round(gy);
-                if (fabs(gx - rx) > 1e-6 || fabs(gy - ry) > 1e-6 || rx < 0 || ry < 0 || rx >= lg->nx || ry >= lg->ny)
-                    return WT_ERROR(ctx, WT_ERR_CONFIG,
-                                    "mvm: actuator (%d, %d) of DM %d sits at layer %d grid position (%.4f, %.4f), not "
-                                    "on a point of its %d x %d grid; an odd actuator count of the layer's pitch "
-                                    "inside the layer grid is needed",
-                                    ix, iy, k + 1, l + 1, gx, gy, lg->nx, lg->ny);
-                points[q++] = off + (int64_t)rx + (int64_t)lg->nx * (int64_t)ry;
-            }
-    }
-    return WT_OK;
-}
 
 /* The operators of one evaluation direction in fitting_operators: H_j, P_j and the products formed
  * from them, dropped after each direction (and on failure). */
@@ -181,14 +143,6 @@ fail:
 
 /* ---- the builder -------------------------------------------------------------------------------- */
 
-void wt_mvm_free(wt_mvm *m)
-{
-    if (!m) return;
-    wt_free(m->ctx, m->R);
-    wt_free(m->ctx, m->RA);
-    wt_free(m->ctx, m);
-}
-
 static int layer_of(const wt_tomography *t, int64_t p)
 {
     int l = 0;
@@ -208,6 +162,7 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     const int L = wt_tomography_nlayers(t), nth = wt_context_threads(ctx);
     const int nb = (int)(opt.block < nact ? opt.block : (nact > 0 ? nact : 1));
     wt_mvm *mv = NULL;
+    wt_mvm_stats stats = {0};
     wt_mvm_normal *nm = NULL;
     wt_interaction *ia = NULL;
     wt_sparse *Ahat = NULL, *Afit = NULL;
@@ -220,16 +175,11 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     if (opt.commands != WT_MVM_LAYER_VALUES && opt.commands != WT_MVM_FITTING)
         return WT_ERROR(ctx, WT_ERR_INVALID, "wt_mvm_build: commands = %d, expected WT_MVM_LAYER_VALUES or WT_MVM_FITTING",
                         opt.commands);
-    WT_ALLOC(ctx, mv, 1, "MVM result");
-    mv->ctx = ctx;
-    mv->commands = opt.commands;
-    mv->nact = nact;
-    mv->nslopes = ns;
 
     /* the command map first: a pcg3 layer/DM mismatch is a configuration error, found in milliseconds */
     if (opt.commands == WT_MVM_LAYER_VALUES) {
         WT_ALLOC(ctx, pts, nact, "actuator layer points");
-        WT_TRY(wt_mvm_actuator_points(ctx, t, pts));
+        WT_TRY(wt_reconstructor_actuator_points(ctx, t, pts));
     }
     WT_TRY(wt_interaction_alloc(ctx, sys, &ia));
     WT_TRY(wt_interaction_assemble(ia, &Ahat));
@@ -253,21 +203,20 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
                                 .sampling = opt.fit_sampling > 0 ? opt.fit_sampling : 1};
         WT_TRY(fitting_operators(ctx, t, &fp, &Fc, &Afit));
         reserve += wt_mvm_priv_sparse_bytes(wt_sparse_nnz(Afit), n);
-        mv->stats.t_fitting = wt_time_now() - tt;
+        stats.t_fitting = wt_time_now() - tt;
         wt_mvm_priv_progress(&opt, "fitting", 1, 1);
     }
 
     WT_TRY(wt_mvm_normal_alloc(ctx, t, &opt, reserve, 0, &nm));
     {
-        double tf = mv->stats.t_fitting;
-        wt_mvm_normal_stats(nm, &mv->stats);
-        mv->stats.t_fitting = tf;
-        if (peak > mv->stats.peak_estimate) mv->stats.peak_estimate = peak;
+        double tf = stats.t_fitting;
+        wt_mvm_normal_stats(nm, &stats);
+        stats.t_fitting = tf;
+        if (peak > stats.peak_estimate) stats.peak_estimate = peak;
     }
 
     tt = wt_time_now();
-    WT_ALLOC(ctx, mv->R, (size_t)nact * ns, "the control matrix R");
-    WT_ALLOC(ctx, mv->RA, (size_t)nact * nact, "R Â");
+    WT_TRY(wt_mvm_alloc(ctx, opt.commands, nact, ns, &mv));
     size_t ws = wt_mvm_priv_wavelet_work(t);
     WT_ALLOC(ctx, X, (size_t)n * nb, "right-hand side block");
     WT_ALLOC(ctx, Zs, (size_t)ns * nb, "slope block");
@@ -347,9 +296,10 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
         }
         wt_mvm_priv_progress(&opt, "solve", i0 + cb, nact);
     }
-    mv->stats.t_solve = wt_time_now() - tt;
-    mv->stats.t_total = wt_time_now() - t0;
-    mv->stats.cholmod_peak = wt_mvm_priv_normal_cholmod_peak(nm);
+    stats.t_solve = wt_time_now() - tt;
+    stats.t_total = wt_time_now() - t0;
+    stats.cholmod_peak = wt_mvm_priv_normal_cholmod_peak(nm);
+    mv->stats = stats;
     *out = mv;
     mv = NULL;
 fail:
@@ -365,5 +315,28 @@ fail:
     wt_free(ctx, Wt);
     wt_free(ctx, Fb);
     wt_free(ctx, work);
+    return st;
+}
+
+int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var_in, const char *name,
+                         const wt_mvm_options *opt_in, wt_mvm **out)
+{
+    const double t0 = wt_time_now();
+    const int cg9 = !strcmp(name, "cg9");
+    wt_recon_variant_config var = *var_in;
+    var.jacobi = 0; /* the factorisation is exact: no Jacobi diagonal */
+    wt_mvm_options opt;
+    if (opt_in) opt = *opt_in;
+    else wt_mvm_options_default(&opt);
+    opt.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
+    opt.fit_regularization = var.fit_regularization;
+    opt.fit_sampling = var.fit_sampling;
+    wt_tomography *t = NULL;
+    *out = NULL;
+    int st = wt_tomography_alloc(ctx, sys, &var, name, &t);
+    if (st < 0) return st;
+    st = wt_mvm_build(ctx, t, &opt, out);
+    wt_tomography_free(t);
+    if (st >= 0) (*out)->stats.t_total = wt_time_now() - t0;
     return st;
 }

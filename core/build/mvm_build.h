@@ -1,4 +1,4 @@
-/* core/model/mvm.h: the offline MVM control matrix of the wavelet MAP tomography (SPEC §9, §7; paper
+/* core/build/mvm_build.h: the offline MVM control matrix of the wavelet MAP tomography (SPEC §9, §7; paper
  * eq. eqn_lse solved once for every actuator instead of once per frame).
  *
  *   commands = E c,   c = M⁻¹ Ãᵀ Ĉ⁻¹ s,   M = Σ_m Ã_mᵀ Ĉ_m⁻¹ Ã_m + α D            (wt_tomography)
@@ -39,13 +39,12 @@
  * factorisation and solves run in the BLAS (OpenBLAS threads). Everything here allocates: it is the
  * offline planner, not a per-frame path.
  */
-#ifndef WT_MVM_H
-#define WT_MVM_H
+#ifndef WT_MVM_BUILD_H
+#define WT_MVM_BUILD_H
 
 #include "../la/sparse.h"
-#include "tomography.h"
-
-enum { WT_MVM_LAYER_VALUES = 0, WT_MVM_FITTING = 1 };
+#include "../model/tomography.h"
+#include "../solve/mvm.h"
 
 /* Progress: phase name ("assemble", "normal", "factorize", "solve", …), work done out of total. */
 typedef void (*wt_mvm_progress_fn)(void *user, const char *phase, int64_t done, int64_t total);
@@ -62,21 +61,6 @@ typedef struct wt_mvm_options {
 
 /* commands = WT_MVM_LAYER_VALUES, no budget, block 256, no progress. */
 void wt_mvm_options_default(wt_mvm_options *opt);
-
-typedef struct wt_mvm_stats {
-    int64_t nunknowns, nslopes, nact;
-    int64_t nnz_a;             /* non-zeros of the sparse LGS part of Ã */
-    int64_t nnz_normal;        /* non-zeros of the upper triangle of N */
-    int rank;                  /* r of the low-rank correction */
-    double nnz_factor;         /* non-zeros of the Cholesky factor L */
-    double factor_bytes;       /* bytes of the numeric factor */
-    double factor_flops;       /* flops of the factorisation (CHOLMOD's count) */
-    const char *ordering;      /* fill-reducing ordering CHOLMOD chose */
-    double peak_estimate;      /* estimated peak memory of the build [bytes] */
-    double cholmod_peak;       /* CHOLMOD's own peak allocation [bytes] */
-    /* wall-clock seconds per phase */
-    double t_assemble, t_normal, t_analyze, t_factorize, t_lowrank, t_fitting, t_solve, t_total;
-} wt_mvm_stats;
 
 /* ---- the factorised normal matrix M = N + B Q Bᵀ ------------------------------------------------ */
 
@@ -102,21 +86,8 @@ int wt_mvm_normal_solve(wt_mvm_normal *nm, int64_t nrhs, const double *b, double
 
 /* Ã = Γ P W⁻¹ of every sensor, stacked in system slope order: nslopes x nunknowns, CSC. */
 int wt_mvm_assemble_atilde(wt_context *ctx, wt_tomography *t, wt_sparse **out);
-/* pcg3: index (into the concatenated layer vector) of the layer point under each active actuator
- * (points: nact). WT_ERR_CONFIG naming the DM when a DM has no layer at its altitude and pitch, or an
- * actuator falls off the layer points. */
-int wt_mvm_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points);
 
-/* ---- the control matrix ------------------------------------------------------------------------- */
-
-typedef struct wt_mvm {
-    wt_context *ctx;
-    int commands;              /* WT_MVM_LAYER_VALUES or WT_MVM_FITTING */
-    int64_t nact, nslopes;
-    float *R;                  /* nact x nslopes, row-major: R[i * nslopes + j] (actuator i, slope j) */
-    float *RA;                 /* nact x nact, row-major: (R Â)[i * nact + k] */
-    wt_mvm_stats stats;
-} wt_mvm;
+/* ---- the control matrix (the container and its apply: core/solve/mvm.h) ------------------------- */
 
 /* Build R and RÂ for the tomography t (its variant's layers, α, τ, prior) with the command map of
  * opt->commands. Slope order: the system's (LGS first, then NGS; [s_x…, s_y…] per sensor); actuator
@@ -124,6 +95,12 @@ typedef struct wt_mvm {
  * opt->memory_budget (the message names both), WT_ERR_CONFIG for a pcg3 layer/DM mismatch,
  * WT_ERR_NUMERIC / WT_ERR_LIBRARY from the factorisations. */
 int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt, wt_mvm **out);
-void wt_mvm_free(wt_mvm *m);
+
+/* The MVM of a reconstruction variant as `wavetomo build`, `compare` and the tests make it: the
+ * tomography of var (named "pcg3" or "cg9") without its Jacobi diagonal (the factorisation is exact),
+ * the command map of the variant (cg9: the fitting with var's ε and sampling), then wt_mvm_build with
+ * opt (NULL: defaults; its commands and fitting fields are set here). stats.t_total covers it all. */
+int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var, const char *name,
+                         const wt_mvm_options *opt, wt_mvm **out);
 
 #endif

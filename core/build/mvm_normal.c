@@ -1,7 +1,7 @@
-/* core/model/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
+/* core/build/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
  * eqn_lse): N = Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m + α D assembled column by column (Ã from mvm_assemble.c) and
  * factorised by CHOLMOD, the LGS tip-tilt removal and the NGS as the low-rank B Q Bᵀ, and solves with
- * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm.h). */
+ * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm_build.h). */
 #include "mvm_private.h"
 
 #include <cblas.h>
@@ -179,7 +179,7 @@ static void adjoint_column(const wt_mvm_normal *nm, const double *z, double *c, 
     }
 }
 
-/* B = [Ãᵀ U_m, Ãᵀ V_m per LGS, Ã_ngsᵀ], Q block-diagonal (see mvm.h). */
+/* B = [Ãᵀ U_m, Ãᵀ V_m per LGS, Ã_ngsᵀ], Q block-diagonal (see mvm_build.h). */
 static int build_lowrank(wt_mvm_normal *nm)
 {
     int st = WT_OK;

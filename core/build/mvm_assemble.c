@@ -1,6 +1,6 @@
-/* core/model/mvm_assemble.c: the sparse Ã = Γ P W⁻¹ of the MVM builder (SPEC §9, §7; paper eq. eqn_lse):
+/* core/build/mvm_assemble.c: the sparse Ã = Γ P W⁻¹ of the MVM builder (SPEC §9, §7; paper eq. eqn_lse):
  * Γ P over all sensors and layers, the wavelet basis templates that give every column of W⁻¹, and the
- * parallel two-pass CSC construction that core/model/mvm_normal.c reuses for G = Lᵀ Ã_LGS and N. */
+ * parallel two-pass CSC construction that core/build/mvm_normal.c reuses for G = Lᵀ Ã_LGS and N. */
 #include "mvm_private.h"
 
 #include <stdlib.h>

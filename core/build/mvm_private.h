@@ -1,14 +1,14 @@
-/* core/model/mvm_private.h: what the two files of the MVM builder share (SPEC §9; see mvm.h).
+/* core/build/mvm_private.h: what the two files of the MVM builder share (SPEC §9; see mvm.h).
  *
- * Private to core/model/mvm.c (the command maps E, R and RÂ), core/model/mvm_assemble.c (Γ P, the
- * wavelet basis templates, the column-by-column construction of Ã) and core/model/mvm_normal.c (N and
+ * Private to core/build/mvm.c (the command maps E, R and RÂ), core/build/mvm_assemble.c (Γ P, the
+ * wavelet basis templates, the column-by-column construction of Ã) and core/build/mvm_normal.c (N and
  * the factorised normal matrix M = N + B Q Bᵀ); included by nothing else. The normal object stays
  * opaque here too: the builder reaches the two things it needs from it through accessors.
  */
 #ifndef WT_MVM_PRIVATE_H
 #define WT_MVM_PRIVATE_H
 
-#include "mvm.h"
+#include "mvm_build.h"
 
 #include <stddef.h>
 #include <stdint.h>
