@@ -137,10 +137,10 @@ int wt_cmd_info(int argc, char **argv)
     printf("total slopes: %lld (Fried corner points used: %lld)\n", (long long)sys->nslopes, (long long)sys->ncorners);
 
     printf("\n%-4s %10s %8s %10s %8s\n", "DM", "altitude_m", "pitch_m", "grid", "active");
-    for (int k = 0; k < sys->ndms; k++) {
+    for (int k = 0; k < sys->dm->ndms; k++) {
         char g[16];
-        snprintf(g, sizeof g, "%dx%d", sys->dm_grid[k].nx, sys->dm_grid[k].ny);
-        printf("%-4d %10.0f %8.3g %10s %8d\n", k + 1, sys->dm_altitude[k], sys->dm_grid[k].dx, g, sys->dm_nactive[k]);
+        snprintf(g, sizeof g, "%dx%d", sys->dm->grid[k].nx, sys->dm->grid[k].ny);
+        printf("%-4d %10.0f %8.3g %10s %8d\n", k + 1, sys->dm->altitude[k], sys->dm->grid[k].dx, g, sys->dm->nactive[k]);
     }
     printf("total active actuators: %lld\n", (long long)sys->nact);
     printf("evaluation: %d directions (%dx%d, %.1f arcsec spacing) at %.0f nm\n", sys->neval, cfg->eval_grid,

@@ -53,11 +53,11 @@ int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys)
         if (m + 1 < ns) strcat(names, ",");
     }
     int64_t q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        const wt_grid *g = &sys->dm_grid[k];
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        const wt_grid *g = &sys->dm->grid[k];
         for (int iy = 0; iy < g->ny; iy++)
             for (int ix = 0; ix < g->nx; ix++) {
-                if (!sys->dm_active[k][ix + (int64_t)g->nx * iy]) continue;
+                if (!sys->dm->active[k][ix + (int64_t)g->nx * iy]) continue;
                 act[3 * q] = k;
                 act[3 * q + 1] = ix;
                 act[3 * q + 2] = iy;

@@ -48,13 +48,13 @@ START_TEST(test_ground_dm_ramp)
     ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     ck_assert_int_eq(wt_interaction_alloc(ctx, sys, &ia), WT_OK);
-    ck_assert_double_eq(sys->dm_altitude[0], 0.0);
-    ck_assert_double_eq(sys->dm_grid[0].dx, sys->d); /* ground DM on the Fried corner grid */
-    double *grid = calloc(wt_dm_grid_points(sys), sizeof *grid), *a = calloc(sys->nact, sizeof *a);
-    const wt_grid *g = &sys->dm_grid[0];
+    ck_assert_double_eq(sys->dm->altitude[0], 0.0);
+    ck_assert_double_eq(sys->dm->grid[0].dx, sys->d); /* ground DM on the Fried corner grid */
+    double *grid = calloc(wt_dm_grid_points(sys->dm), sizeof *grid), *a = calloc(sys->nact, sizeof *a);
+    const wt_grid *g = &sys->dm->grid[0];
     for (int iy = 0; iy < g->ny; iy++)
         for (int ix = 0; ix < g->nx; ix++) grid[ix + g->nx * iy] = g->x0 + ix * g->dx;
-    wt_dm_restrict(sys, grid, a);
+    wt_dm_restrict(sys->dm, grid, a);
     double *s = calloc(sys->nslopes, sizeof *s);
     wt_interaction_apply(ia, 1.0, a, s);
     const wt_sensor *lgs = &sys->sensors[0];

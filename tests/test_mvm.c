@@ -200,14 +200,14 @@ static void pcg3_commands(fixture *f, const double *c, double *a)
     double *phi = malloc(f->n * sizeof *phi);
     wt_tomography_layers(f->t, c, phi);
     int64_t q = 0;
-    for (int k = 0; k < f->sys->ndms; k++) {
+    for (int k = 0; k < f->sys->dm->ndms; k++) {
         int l = 0;
-        while (wt_tomography_layer_altitude(f->t, l) != f->sys->dm_altitude[k]) l++;
-        const wt_grid *lg = wt_tomography_layer_grid(f->t, l), *dg = &f->sys->dm_grid[k];
+        while (wt_tomography_layer_altitude(f->t, l) != f->sys->dm->altitude[k]) l++;
+        const wt_grid *lg = wt_tomography_layer_grid(f->t, l), *dg = &f->sys->dm->grid[k];
         const double *layer = phi + wt_tomography_layer_offset(f->t, l);
         for (int iy = 0; iy < dg->ny; iy++)
             for (int ix = 0; ix < dg->nx; ix++) {
-                if (!f->sys->dm_active[k][ix + dg->nx * iy]) continue;
+                if (!f->sys->dm->active[k][ix + dg->nx * iy]) continue;
                 int gx = (int)lround((dg->x0 + ix * dg->dx - lg->x0) / lg->dx);
                 int gy = (int)lround((dg->y0 + iy * dg->dx - lg->y0) / lg->dx);
                 a[q++] = layer[gx + lg->nx * gy];
@@ -328,13 +328,13 @@ START_TEST(test_orderings)
     build(&f, 0, &mv);
     ck_assert_int_eq(mv->nact, f.sys->nact);
     ck_assert_int_eq(mv->nslopes, f.sys->nslopes);
-    const wt_grid *dg = &f.sys->dm_grid[0];
+    const wt_grid *dg = &f.sys->dm->grid[0];
     const double rin = 0.5 * f.cfg->obstruction * f.cfg->diameter + 1.0, rout = 0.5 * f.cfg->diameter - 1.0;
     int good = 0, total = 0;
     int64_t q = 0;
     for (int iy = 0; iy < dg->ny; iy++)
         for (int ix = 0; ix < dg->nx; ix++) {
-            if (!f.sys->dm_active[0][ix + dg->nx * iy]) continue;
+            if (!f.sys->dm->active[0][ix + dg->nx * iy]) continue;
             int64_t i = q++;
             double x = dg->x0 + ix * dg->dx, y = dg->y0 + iy * dg->dx, r = hypot(x, y);
             if (r < rin || r > rout) continue;

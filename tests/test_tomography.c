@@ -96,9 +96,9 @@ START_TEST(test_eelt_sizes)
     ck_assert_int_eq(f.sys->sensors[6].nslopes, 8);
     ck_assert_int_eq(f.sys->sensors[7].nslopes, 2);
     ck_assert_int_eq(f.sys->nslopes, 61356);
-    ck_assert_int_eq(f.sys->dm_nactive[0], 5525);
-    ck_assert_int_eq(f.sys->dm_nactive[1], 1609);
-    ck_assert_int_eq(f.sys->dm_nactive[2], 2161);
+    ck_assert_int_eq(f.sys->dm->nactive[0], 5525);
+    ck_assert_int_eq(f.sys->dm->nactive[1], 1609);
+    ck_assert_int_eq(f.sys->dm->nactive[2], 2161);
     ck_assert_int_eq(f.sys->nact, 9295);
     ck_assert_int_eq(f.sys->neval, 25);
     ck_assert_double_eq(f.sys->eval_x[f.sys->eval_centre], 0.0);
@@ -111,14 +111,14 @@ START_TEST(test_eelt_sizes)
     for (int k = 0; k < 3; k++) {
         const int n = f.cfg->dm_actuators[k] + 2;
         const double p = f.cfg->dm_pitch[k], R = 21.0 + f.cfg->dm_altitude[k] * tan(84.853 * WT_ARCSEC);
-        ck_assert_int_eq(f.sys->dm_grid[k].nx, n);
+        ck_assert_int_eq(f.sys->dm->grid[k].nx, n);
         for (int iy = 0; iy < n; iy++)
             for (int ix = 0; ix < n; ix++) {
                 double x = (ix - 0.5 * (n - 1)) * p, y = (iy - 0.5 * (n - 1)) * p;
                 double ex = fmax(0.0, fabs(x) - p), ey = fmax(0.0, fabs(y) - p);
                 want[k] += ex * ex + ey * ey < R * R;
             }
-        ck_assert_int_eq(f.sys->dm_nactive[k], want[k]);
+        ck_assert_int_eq(f.sys->dm->nactive[k], want[k]);
     }
     ck_assert_int_eq(want[0] + want[1] + want[2], 10027);
     teardown(&f);
@@ -302,24 +302,24 @@ START_TEST(test_fitting_recovers_dm_shape)
     wt_grid layers[WT_MAX_DMS];
     double alts[WT_MAX_DMS];
     int64_t off[WT_MAX_DMS + 1] = {0};
-    for (int k = 0; k < sys->ndms; k++) {
+    for (int k = 0; k < sys->dm->ndms; k++) {
         /* a layer grid at the DM pitch, large enough to hold the actuator grid */
         int n = 64;
-        layers[k] = wt_grid_layer(n, sys->dm_grid[k].dx);
-        alts[k] = sys->dm_altitude[k];
+        layers[k] = wt_grid_layer(n, sys->dm->grid[k].dx);
+        alts[k] = sys->dm->altitude[k];
         off[k + 1] = off[k] + wt_grid_size(&layers[k]);
     }
     wt_fitting *fit;
     const wt_fitting_params fp = {.regularization = 1e-9, .sampling = 1};
-    ck_assert_int_eq(wt_fitting_alloc(f.ctx, sys, sys->ndms, layers, alts, &fp, &fit), WT_OK);
+    ck_assert_int_eq(wt_fitting_alloc(f.ctx, sys, sys->dm->ndms, layers, alts, &fp, &fit), WT_OK);
     int64_t na = sys->nact;
-    double *a0 = malloc(na * sizeof *a0), *a = calloc(na, sizeof *a), *grid = calloc(wt_dm_grid_points(sys), sizeof *grid);
-    double *phi = calloc(off[sys->ndms], sizeof *phi);
+    double *a0 = malloc(na * sizeof *a0), *a = calloc(na, sizeof *a), *grid = calloc(wt_dm_grid_points(sys->dm), sizeof *grid);
+    double *phi = calloc(off[sys->dm->ndms], sizeof *phi);
     tu_randn(a0, na, 41);
-    wt_dm_expand(sys, a0, grid);
+    wt_dm_expand(sys->dm, a0, grid);
     int64_t p = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        const wt_grid *g = &sys->dm_grid[k];
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        const wt_grid *g = &sys->dm->grid[k];
         for (int iy = 0; iy < g->ny; iy++)
             for (int ix = 0; ix < g->nx; ix++) {
                 double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
@@ -338,12 +338,12 @@ START_TEST(test_fitting_recovers_dm_shape)
     wt_pcg_result r;
     wt_fitting_solve(fit, phi, a, 2000, 1e-12, NULL, &r);
     /* compare H_j a with H_j a0 in every direction */
-    double *ga = calloc(wt_dm_grid_points(sys), sizeof *ga);
-    wt_dm_expand(sys, a, ga);
+    double *ga = calloc(wt_dm_grid_points(sys->dm), sizeof *ga);
+    wt_dm_expand(sys->dm, a, ga);
     double worst = 0.0;
     for (int j = 0; j < sys->neval; j++) {
         wt_projection *h;
-        ck_assert_int_eq(wt_projection_alloc(f.ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j],
+        ck_assert_int_eq(wt_projection_alloc(f.ctx, sys->dm->ndms, sys->dm->grid, sys->dm->altitude, 0.0, sys->eval_x[j],
                                              sys->eval_y[j], &sys->corner_grid, sys->corner_mask, 1, &h),
                          WT_OK);
         int64_t nc = wt_grid_size(&sys->corner_grid);

@@ -74,7 +74,7 @@ static int fitting_operators(wt_context *ctx, wt_tomography *t, const wt_fitting
     int st = WT_OK;
     const wt_system *sys = wt_tomography_system(t);
     const int L = wt_tomography_nlayers(t);
-    const int64_t nact = sys->nact, n = wt_tomography_nunknowns(t), ndm = wt_dm_grid_points(sys);
+    const int64_t nact = sys->nact, n = wt_tomography_nunknowns(t), ndm = wt_dm_grid_points(sys->dm);
     wt_grid grids[WT_MAX_LAYERS]; /* the layer projections P_j take the grids and altitudes as arrays */
     double alts[WT_MAX_LAYERS];
     wt_fitting *fit = NULL;
@@ -93,16 +93,12 @@ static int fitting_operators(wt_context *ctx, wt_tomography *t, const wt_fitting
     const uint8_t *smask = wt_fitting_sample_mask(fit);
     const double eps = wt_fitting_epsilon(fit);
     WT_ALLOC(ctx, act, ndm, "actuator map");
-    {
-        int64_t p = 0, q = 0;
-        for (int k = 0; k < sys->ndms; k++)
-            for (int64_t i = 0; i < wt_grid_size(&sys->dm_grid[k]); i++) act[p++] = sys->dm_active[k][i] ? q++ : -1;
-    }
+    wt_dm_actuator_index(sys->dm, act);
     WT_ALLOC(ctx, F, (size_t)nact * nact, "fitting matrix F");
     WT_TRY(wt_triplet_alloc(ctx, nact, n, 1 << 16, &tr));
     for (int j = 0; j < sys->neval; j++) {
-        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j], sys->eval_y[j],
-                                   sg, smask, 1, &d.hd));
+        WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, 0.0, sys->eval_x[j], sys->eval_y[j],
+                                   sg, smask, &d.hd));
         WT_TRY(wt_projection_alloc(ctx, L, grids, alts, 0.0, sys->eval_x[j], sys->eval_y[j], sg, smask, 0, &d.pl));
         WT_TRY(wt_projection_assemble(d.hd, &d.H));
         WT_TRY(wt_projection_assemble(d.pl, &d.P));

@@ -31,35 +31,6 @@ struct wt_fitting {
     wt_pcg *pcg;
 };
 
-int64_t wt_dm_grid_points(const wt_system *sys)
-{
-    int64_t n = 0;
-    for (int k = 0; k < sys->ndms; k++) n += wt_grid_size(&sys->dm_grid[k]);
-    return n;
-}
-
-void wt_dm_expand(const wt_system *sys, const double *a, double *grids)
-{
-    int64_t p = 0, q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        int64_t np = wt_grid_size(&sys->dm_grid[k]);
-        for (int64_t i = 0; i < np; i++) grids[p + i] = sys->dm_active[k][i] ? a[q++] : 0.0;
-        p += np;
-    }
-}
-
-void wt_dm_restrict(const wt_system *sys, const double *grids, double *a)
-{
-    int64_t p = 0, q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        int64_t np = wt_grid_size(&sys->dm_grid[k]);
-        for (int64_t i = 0; i < np; i++)
-            if (sys->dm_active[k][i]) a[q++] = grids[p + i];
-        p += np;
-    }
-}
-
-
 /* out = Σ_j H_jᵀ S_j in, on the full DM grids: S_j = H_j (normal operator, in = DM grids) or P_j
  * (right-hand side, in = layers). Fixed groups of directions keep the sum's order (core/la/vec.h). */
 static void project_back(wt_fitting *f, wt_projection *const *src, const double *in, double *out)
@@ -84,9 +55,9 @@ static void normal_grids(wt_fitting *f, const double *grids, double *out) { proj
 
 void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
 {
-    wt_dm_expand(f->sys, a, f->grids);
+    wt_dm_expand(f->sys->dm, a, f->grids);
     normal_grids(f, f->grids, f->ygrid);
-    wt_dm_restrict(f->sys, f->ygrid, y);
+    wt_dm_restrict(f->sys->dm, f->ygrid, y);
     for (int64_t i = 0; i < f->sys->nact; i++) y[i] += f->eps * a[i];
 }
 
@@ -95,7 +66,7 @@ static void apply_cb(void *user, const double *x, double *y) { wt_fitting_apply(
 void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
 {
     project_back(f, f->layer, phi, f->grids);
-    wt_dm_restrict(f->sys, f->grids, b);
+    wt_dm_restrict(f->sys->dm, f->grids, b);
 }
 
 void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
@@ -109,7 +80,7 @@ void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
             if (f->group[j] == g) wt_projection_apply_t(f->dm[j], 1.0, maps + (size_t)j * f->ncg, acc);
     }
     wt_vec_sum_groups(f->acc, nd, f->grids);
-    wt_dm_restrict(f->sys, f->grids, b);
+    wt_dm_restrict(f->sys->dm, f->grids, b);
 }
 
 int wt_fitting_solve_maps(wt_fitting *f, const double *maps, double *a, int max_iter, double rtol,
@@ -164,7 +135,7 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     f->L = nlayers;
     WT_TRY(wt_fitting_sampling(ctx, sys, par->sampling, &f->sample, &f->mask));
     f->ncg = wt_grid_size(&f->sample);
-    f->ndm_pts = wt_dm_grid_points(sys);
+    f->ndm_pts = wt_dm_grid_points(sys->dm);
     for (int l = 0; l < nlayers; l++) f->nlayer_pts += wt_grid_size(&layers[l]);
     /* small DM sets: serial is faster than a parallel region (see core/model/tomography.c) */
     f->nthreads = f->ndm_pts < 4096 ? 1 : wt_context_threads(ctx);
@@ -172,8 +143,8 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     WT_ALLOC(ctx, f->layer, f->ndir, "fitting layer projections");
     for (int j = 0; j < f->ndir; j++) {
         /* DMs may be seen beyond their actuator grid at the field corners: zero influence there */
-        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, 0.0, sys->eval_x[j],
-                                   sys->eval_y[j], &f->sample, f->mask, 1, &f->dm[j]));
+        WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, 0.0, sys->eval_x[j],
+                                   sys->eval_y[j], &f->sample, f->mask, &f->dm[j]));
         if (nlayers == 0) continue; /* a fit of given maps only (wt_fitting_solve_maps) */
         st = wt_projection_alloc(ctx, nlayers, layers, altitudes, 0.0, sys->eval_x[j], sys->eval_y[j],
                                  &f->sample, f->mask, 0, &f->layer[j]);
@@ -218,14 +189,14 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
          * on the same DM never share a pupil point; different DMs are probed separately */
         double sum = 0.0;
         int64_t p0 = 0;
-        for (int k = 0; k < sys->ndms; k++) {
-            const wt_grid *g = &sys->dm_grid[k];
+        for (int k = 0; k < sys->dm->ndms; k++) {
+            const wt_grid *g = &sys->dm->grid[k];
             for (int oy = 0; oy < 3; oy++)
                 for (int ox = 0; ox < 3; ox++) {
                     memset(f->grids, 0, (size_t)f->ndm_pts * sizeof *f->grids);
                     for (int iy = oy; iy < g->ny; iy += 3)
                         for (int ix = ox; ix < g->nx; ix += 3)
-                            if (sys->dm_active[k][ix + (int64_t)g->nx * iy]) f->grids[p0 + ix + (int64_t)g->nx * iy] = 1.0;
+                            if (sys->dm->active[k][ix + (int64_t)g->nx * iy]) f->grids[p0 + ix + (int64_t)g->nx * iy] = 1.0;
                     /* ⟨e_i, Hᵀ H e_i⟩ = ‖H e_i‖²; with non-overlapping probes Hᵀ H (Σ e_i) at i gives it */
                     normal_grids(f, f->grids, y);
                     for (int64_t i = 0; i < wt_grid_size(g); i++)
@@ -233,7 +204,7 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
                 }
             p0 += wt_grid_size(g);
         }
-        wt_dm_restrict(sys, diag_grid, a);
+        wt_dm_restrict(sys->dm, diag_grid, a);
         for (int64_t i = 0; i < sys->nact; i++) sum += a[i];
         f->eps = regularization * sum / (double)sys->nact;
         wt_free(ctx, a);

@@ -52,9 +52,4 @@ const uint8_t *wt_fitting_sample_mask(const wt_fitting *f);
 /* The sample grid and a new mask (*mask allocated with the context's allocator) of sampling q. */
 int wt_fitting_sampling(wt_context *ctx, const wt_system *sys, int q, wt_grid *grid, uint8_t **mask);
 
-/* Scatter active-actuator commands onto the full DM grids (concatenated) and back. */
-void wt_dm_expand(const wt_system *sys, const double *a, double *grids);
-void wt_dm_restrict(const wt_system *sys, const double *grids, double *a);
-int64_t wt_dm_grid_points(const wt_system *sys);
-
 #endif

@@ -24,12 +24,12 @@ int wt_interaction_alloc(wt_context *ctx, const wt_system *sys, wt_interaction *
     ia->ctx = ctx;
     ia->sys = sys;
     ia->ncg = wt_grid_size(&sys->sense_grid);
-    ia->ndm = wt_dm_grid_points(sys);
+    ia->ndm = wt_dm_grid_points(sys->dm);
     WT_ALLOC(ctx, ia->h, sys->nsensors, "interaction projections");
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
-        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, s->altitude, s->theta_x, s->theta_y,
-                                   &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), 1, &ia->h[m]));
+        WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, s->altitude, s->theta_x, s->theta_y,
+                                   &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), &ia->h[m]));
     }
     WT_ALLOC(ctx, ia->grids, ia->ndm, "interaction grids");
     WT_ALLOC(ctx, ia->phase, (size_t)sys->nsensors * ia->ncg, "interaction phase");
@@ -54,7 +54,7 @@ void wt_interaction_free(wt_interaction *ia)
 void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, double *s)
 {
     const wt_system *sys = ia->sys;
-    wt_dm_expand(sys, a, ia->grids);
+    wt_dm_expand(sys->dm, a, ia->grids);
 #pragma omp parallel for schedule(dynamic, 1) if (sys->nslopes > 16384)
     for (int m = 0; m < sys->nsensors; m++) {
         double *ph = ia->phase + (size_t)m * ia->ncg;
@@ -77,10 +77,10 @@ void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, d
     }
     /* a += restriction of the grids to the active actuators */
     int64_t p = 0, q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        int64_t np = wt_grid_size(&sys->dm_grid[k]);
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        int64_t np = wt_grid_size(&sys->dm->grid[k]);
         for (int64_t i = 0; i < np; i++)
-            if (sys->dm_active[k][i]) a[q++] += ia->grids[p + i];
+            if (sys->dm->active[k][i]) a[q++] += ia->grids[p + i];
         p += np;
     }
 }
@@ -96,14 +96,7 @@ int wt_interaction_assemble(wt_interaction *ia, wt_sparse **out)
     *out = NULL;
     /* grid point → active actuator column, or −1 */
     WT_ALLOC(ctx, col_of_grid, ia->ndm, "actuator map");
-    {
-        int64_t p = 0, q = 0;
-        for (int k = 0; k < sys->ndms; k++) {
-            int64_t np = wt_grid_size(&sys->dm_grid[k]);
-            for (int64_t i = 0; i < np; i++) col_of_grid[p + i] = sys->dm_active[k][i] ? q++ : -1;
-            p += np;
-        }
-    }
+    wt_dm_actuator_index(sys->dm, col_of_grid);
     WT_TRY(wt_triplet_alloc(ctx, sys->nslopes, sys->nact, 1 << 20, &tr));
     for (int m = 0; m < sys->nsensors; m++) {
         WT_TRY(wt_shack_hartmann_assemble(sys->sensors[m].sh, &G));

@@ -31,9 +31,9 @@ int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, in
     const wt_system *sys = wt_tomography_system(t);
     const int L = wt_tomography_nlayers(t);
     int64_t q = 0;
-    for (int k = 0; k < sys->ndms; k++) {
-        const wt_grid *dg = &sys->dm_grid[k];
-        double h = sys->dm_altitude[k];
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        const wt_grid *dg = &sys->dm->grid[k];
+        double h = sys->dm->altitude[k];
         int l = -1;
         for (int i = 0; i < L && l < 0; i++) {
             const wt_grid *lg = wt_tomography_layer_grid(t, i);
@@ -50,7 +50,7 @@ int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, in
         int64_t off = wt_tomography_layer_offset(t, l);
         for (int iy = 0; iy < dg->ny; iy++)
             for (int ix = 0; ix < dg->nx; ix++) {
-                if (!sys->dm_active[k][ix + (int64_t)dg->nx * iy]) continue;
+                if (!sys->dm->active[k][ix + (int64_t)dg->nx * iy]) continue;
                 double gx = (dg->x0 + ix * dg->dx - lg->x0) / lg->dx, gy = (dg->y0 + iy * dg->dx - lg->y0) / lg->dx;
                 double rx = round(gx), ry = round(gy);
                 if (fabs(gx - rx) > 1e-6 || fabs(gy - ry) > 1e-6 || rx < 0 || ry < 0 || rx >= lg->nx || ry >= lg->ny)

@@ -67,6 +67,8 @@ fail:
     return st;
 }
 
+_Static_assert(WT_DM_MAX == WT_MAX_DMS, "core/op/dm.h and core/io/config.h must agree on the DM count");
+
 int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
 {
     int st = WT_OK;
@@ -109,40 +111,24 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
         sys->nngs++;
     }
 
-    /* DMs: an actuator is active within R = D/2 + h tan θc of the centre (SPEC §1). With G guard rings
-     * (SPEC §5) an actuator is also active when the square of half-width G·pitch around it reaches inside
-     * that disk: G = 1 adds every actuator whose bilinear influence touches the metapupil, which pupil
-     * points near the rim need (without them the DM is pinned to zero between the last active actuator
-     * and the edge). The grid grows by G actuators on each side to hold them. */
-    sys->ndms = cfg->ndms;
-    for (int k = 0; k < cfg->ndms; k++) {
-        const int G = cfg->dm_guard_rings;
-        wt_grid g = wt_grid_centred(cfg->dm_actuators[k] + 2 * G, cfg->dm_pitch[k]);
-        sys->dm_grid[k] = g;
-        sys->dm_altitude[k] = cfg->dm_altitude[k];
-        WT_ALLOC(ctx, sys->dm_active[k], wt_grid_size(&g), "DM active mask");
-        double rmax = 0.5 * cfg->diameter + cfg->dm_altitude[k] * tan(cfg->dm_field_radius);
-        int count = 0;
-        for (int iy = 0; iy < g.ny; iy++)
-            for (int ix = 0; ix < g.nx; ix++) {
-                double x = g.x0 + ix * g.dx, y = g.y0 + iy * g.dx;
-                /* a tiny tolerance keeps actuators exactly on the circle in, whatever the rounding */
-                int on = x * x + y * y <= rmax * rmax * (1.0 + 1e-12);
-                if (G > 0 && !on) {
-                    double h = G * g.dx * (1.0 - 1e-12), ex = fmax(0.0, fabs(x) - h), ey = fmax(0.0, fabs(y) - h);
-                    on = ex * ex + ey * ey < rmax * rmax;
-                }
-                sys->dm_active[k][ix + (int64_t)g.nx * iy] = (uint8_t)on;
-                count += on;
-            }
-        if (count == 0) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: DM %d (dm.altitudes_m[%d] = %g) has no active actuator", cfg->path,
-                          k + 1, k, cfg->dm_altitude[k]);
+    /* DMs (core/op/dm.h: grids, active actuators with the guard rings) */
+    {
+        wt_dm_params dp = {.ndms = cfg->ndms,
+                           .guard_rings = cfg->dm_guard_rings,
+                           .field_radius = cfg->dm_field_radius,
+                           .diameter = cfg->diameter};
+        for (int k = 0; k < cfg->ndms; k++) {
+            dp.altitude[k] = cfg->dm_altitude[k];
+            dp.pitch[k] = cfg->dm_pitch[k];
+            dp.actuators[k] = cfg->dm_actuators[k];
+        }
+        if ((st = wt_dm_alloc(ctx, &dp, &sys->dm)) < 0) {
+            char detail[1024];
+            snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
+            st = WT_ERROR(ctx, st, "%s: %s", cfg->path, detail);
             goto fail;
         }
-        sys->dm_nactive[k] = count;
-        sys->dm_offset[k] = sys->nact;
-        sys->nact += count;
+        sys->nact = sys->dm->nact;
     }
 
     int g = cfg->eval_grid;
@@ -173,7 +159,7 @@ void wt_system_free(wt_system *sys)
         wt_shack_hartmann_free(sys->sensors[sys->nsensors].sh);
         wt_free(ctx, sys->sensors[sys->nsensors].beta);
     }
-    for (int k = 0; k < WT_MAX_DMS; k++) wt_free(ctx, sys->dm_active[k]);
+    wt_dm_free(sys->dm);
     wt_free(ctx, sys->valid);
     wt_free(ctx, sys->corner_mask);
     wt_free(ctx, sys);

@@ -1,8 +1,8 @@
 /* core/model/system.h: the MCAO system of a configuration, as geometry (SPEC §1, §3–§5, §8).
  *
  * Derived once from a wt_config: guide-star directions, the Shack–Hartmann operators and noise
- * parameters of every sensor, the valid-subaperture and Fried-corner masks, the DM actuator grids
- * and their active masks (|r| ≤ D/2 + h tan θc), and the evaluation directions.
+ * parameters of every sensor, the valid-subaperture and Fried-corner masks, the DMs (core/op/dm.h:
+ * actuator grids and active masks, |r| ≤ D/2 + h tan θc plus guard rings), and the evaluation directions.
  *
  * Sensor order: the nlgs LGS first, then the NGS; slopes are concatenated in that order, each sensor's
  * block laid out as in core/op/shack_hartmann.h ([s_x…, s_y…] over its valid subapertures).
@@ -14,6 +14,7 @@
 #define WT_SYSTEM_H
 
 #include "../io/config.h"
+#include "../op/dm.h"
 #include "../op/grid.h"
 #include "../op/shack_hartmann.h"
 
@@ -54,13 +55,8 @@ typedef struct wt_system {
     wt_sensor sensors[2 * WT_MAX_GS];
     int64_t nslopes;            /* all sensors */
 
-    int ndms;
-    wt_grid dm_grid[WT_MAX_DMS];   /* actuator grids (centred) */
-    double dm_altitude[WT_MAX_DMS];
-    uint8_t *dm_active[WT_MAX_DMS];
-    int dm_nactive[WT_MAX_DMS];
-    int64_t dm_offset[WT_MAX_DMS]; /* first actuator of DM k in the command vector */
-    int64_t nact;               /* active actuators, all DMs */
+    wt_dm *dm;                  /* the DMs: grids, altitudes, active masks, offsets (owned) */
+    int64_t nact;               /* active actuators, all DMs (= dm->nact) */
 
     int neval;                  /* evaluation directions, index i + g*j of the g x g grid */
     double eval_x[WT_MAX_EVAL], eval_y[WT_MAX_EVAL]; /* [rad] */

@@ -123,11 +123,11 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
     for (int i = 0; i < lp->nlos; i++) {
         double tx, ty;
         los_direction(lp, i, &tx, &ty);
-        WT_TRY(wt_projection_alloc(ctx, sys->ndms, sys->dm_grid, sys->dm_altitude, los_altitude(lp, i), tx, ty,
-                                   &lp->fine, los_mask(lp, i), 1, &lp->dm[i]));
+        WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, los_altitude(lp, i), tx, ty,
+                                   &lp->fine, los_mask(lp, i), &lp->dm[i]));
     }
     WT_ALLOC(ctx, lp->opd, (size_t)lp->nlos * lp->nfine, "OPD maps");
-    WT_ALLOC(ctx, lp->dm_grids, wt_dm_grid_points(sys), "DM grids");
+    WT_ALLOC(ctx, lp->dm_grids, wt_dm_grid_points(sys->dm), "DM grids");
     WT_TRY(wt_interaction_alloc(ctx, sys, &lp->ia));
     if (opt->recon == WT_RECON_MVM) {
         if (!opt->mvm) {
@@ -195,7 +195,7 @@ int wt_loop_step(wt_loop *lp)
 
     /* a_t: the commands applied during this frame */
     memcpy(lp->applied, lp->ring[t % D1], (size_t)sys->nact * sizeof *lp->applied);
-    wt_dm_expand(sys, lp->applied, lp->dm_grids);
+    wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
 
     /* 1.–3. every line of sight in one parallel region: turbulence minus the DMs, then the truth
      * sensor with its noise, or the residual rms of an evaluation direction. Per-part CPU times are
