@@ -1,0 +1,62 @@
+/* tests/test_strehl.c: image quality of a residual (SPEC §8; core/sim/strehl.h): the piston-removed
+ * rms of a known OPD, the Maréchal Strehl exp(−(2πσ/λ)²), and the long-exposure averages. */
+#include "core/sim/strehl.h"
+#include "testutil.h"
+
+/* φ = c + b sin(2π x / P) over whole periods: the mean is c, the piston-removed rms b/√2; points
+ * outside the mask carry garbage that must be ignored. */
+START_TEST(test_rms_of_known_opd)
+{
+    const int n = 64, periods = 4;
+    const double b = 150e-9, c = 3e-6;
+    double opd[64 * 64];
+    uint8_t mask[64 * 64];
+    for (int iy = 0; iy < n; iy++)
+        for (int ix = 0; ix < n; ix++) {
+            int i = ix + n * iy, in = iy < n / 2; /* the lower half of the rows */
+            mask[i] = (uint8_t)in;
+            opd[i] = in ? c + b * sin(2.0 * M_PI * periods * ix / n) : 1e3;
+        }
+    const double rms = wt_strehl_rms(opd, mask, n * n);
+    ck_assert_rel(rms, b / sqrt(2.0), 1e-12, 0.0);
+    /* Maréchal at 2.2 µm */
+    const double lambda = 2.2e-6, s = wt_strehl_marechal(rms, lambda);
+    ck_assert_rel(s, exp(-pow(2.0 * M_PI * b / sqrt(2.0) / lambda, 2)), 1e-12, 0.0);
+    ck_assert_double_eq(wt_strehl_marechal(0.0, lambda), 1.0);
+    /* a pure piston has no error */
+    for (int i = 0; i < n * n; i++) opd[i] = mask[i] ? c : opd[i];
+    ck_assert_double_le(wt_strehl_rms(opd, mask, n * n), 1e-12 * c);
+}
+END_TEST
+
+/* LE Strehl = mean of the short-exposure Strehl; WFE = √(mean σ²), per direction. */
+START_TEST(test_long_exposure)
+{
+    wt_strehl_le le;
+    wt_strehl_le_init(&le, 2);
+    const double lambda = 1.65e-6, f1[2] = {100e-9, 0.0}, f2[2] = {200e-9, 50e-9};
+    ck_assert_double_eq(wt_strehl_le_strehl(&le, 0), 0.0);
+    wt_strehl_le_add(&le, f1, lambda);
+    wt_strehl_le_add(&le, f2, lambda);
+    ck_assert_int_eq(le.frames, 2);
+    for (int j = 0; j < 2; j++) {
+        double s = 0.5 * (wt_strehl_marechal(f1[j], lambda) + wt_strehl_marechal(f2[j], lambda));
+        ck_assert_rel(wt_strehl_le_strehl(&le, j), s, 1e-14, 0.0);
+        ck_assert_rel(wt_strehl_le_wfe(&le, j), sqrt(0.5 * (f1[j] * f1[j] + f2[j] * f2[j])), 1e-14, 0.0);
+    }
+    /* the mean of the Strehls is not the Strehl of the mean error (Jensen): the LE Strehl is the larger */
+    ck_assert_double_gt(wt_strehl_le_strehl(&le, 0), wt_strehl_marechal(wt_strehl_le_wfe(&le, 0), lambda));
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("strehl");
+    TCase *tc = tcase_create("core");
+    tcase_add_test(tc, test_rms_of_known_opd);
+    tcase_add_test(tc, test_long_exposure);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
