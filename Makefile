@@ -22,7 +22,7 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update
+.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo
 
@@ -83,7 +83,11 @@ regress-commands-update: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(BUILD)/tests/regress_commands
 	@BUILD=$(BUILD) BIN=$(BIN) bash tests/regress/commands.sh --update
 
-test: deps
+# The one-way module order of docs/design.md and no include circle, from `$(CC) -MM` (tests/check_deps.sh).
+check-deps:
+	@CC="$(CC)" CPPFLAGS_EXTRA="$(PKG_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
+
+test: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
 	@BUILD=$(BUILD) BIN=$(BIN) bash tests/run.sh $(TEST_BIN)
 

@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# tests/check_deps.sh: `make check-deps` (part of `make test`): the one-way module order of docs/design.md,
+# checked from the compiler's own dependency lists (gcc -MM), and no include circle between files.
+#
+#   base ← io            (the file layer: plain data, no numerical module)
+#   base ← la ← op ← solve ← model ← {build, sim} ← drivers (cli, builder, runtime, compare)
+#   solve and above may use io.
+#
+# Every source and header of core/ and the drivers is passed to `$CC -MM`; every project file in its
+# (transitive) dependency list must belong to its own module or one the table below allows. Circles:
+# the direct #include edges between files (and between modules) go through tsort, which refuses a loop.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+CC=${CC:-gcc}
+CPPFLAGS_EXTRA=${CPPFLAGS_EXTRA:-}
+declare -A ALLOW=(
+  [base]="base"
+  [io]="base io"
+  [la]="base la"
+  [op]="base la op"
+  [solve]="base la op io solve"
+  [model]="base la op io solve model"
+  [build]="base la op io solve model build"
+  [sim]="base la op io solve model sim"
+  [driver]="base la op io solve model build sim driver"
+)
+module() { # path relative to the root -> module name
+  case "$1" in
+    core/*/*) local m=${1#core/}; echo "${m%%/*}" ;;
+    cli/* | builder/* | runtime/* | compare/*) echo driver ;;
+    *) echo external ;;
+  esac
+}
+bad=0
+files=$(ls core/*/*.c core/*/*.h cli/*.c cli/*.h builder/*.c runtime/*.c compare/*.c compare/*.h 2>/dev/null)
+for f in $files; do
+  mf=$(module "$f")
+  [ -n "${ALLOW[$mf]:-}" ] || { echo "check-deps: $f: unknown module '$mf'"; bad=1; continue; }
+  deps=$($CC -MM -std=c11 -D_DEFAULT_SOURCE -I. $CPPFLAGS_EXTRA "$f" 2>&1) || { echo "check-deps: $CC -MM $f failed: $deps"; bad=1; continue; }
+  rels=$(echo "$deps" | tr -d '\\' | tr ' ' '\n' | grep -v ':$' | grep -v '^$' | grep -v '^/' | xargs -r realpath -m --relative-to=.)
+  for rel in $rels; do
+    [ "$rel" = "$f" ] && continue
+    md=$(module "$rel")
+    [ "$md" = external ] && continue
+    case " ${ALLOW[$mf]} " in
+      *" $md "*) ;;
+      *) echo "check-deps: $f ($mf) depends on $rel ($md): against the order of docs/design.md"; bad=1 ;;
+    esac
+  done
+done
+# direct include edges, file level and module level, through tsort (a loop is an error)
+edges=$(for f in $files; do
+  for i in $(grep -o '^#include "[^"]*"' "$f" | sed 's/#include "//; s/"$//'); do
+    if [ -e "$(dirname "$f")/$i" ]; then t=$(realpath -m --relative-to=. "$(dirname "$f")/$i"); else t=$i; fi
+    echo "$f $t"
+  done
+done)
+if ! echo "$edges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
+  echo "check-deps: include circle between files:"; cat /tmp/check_deps.$$; bad=1
+fi
+medges=$(echo "$edges" | while read -r a b; do ma=$(module "$a"); mb=$(module "$b"); [ "$ma" != "$mb" ] && [ "$mb" != external ] && echo "$ma $mb"; done | sort -u)
+if [ -n "$medges" ] && ! echo "$medges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
+  echo "check-deps: circle between modules:"; cat /tmp/check_deps.$$; bad=1
+fi
+rm -f /tmp/check_deps.$$
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow base ← la ← op ← solve ← model ← {build, sim} ← drivers, io on base only; no include circle"; fi
+exit $bad
