@@ -133,7 +133,7 @@ int wt_cmd_build(int argc, char **argv)
         fprintf(stderr, "wavetomo build: %s, %s: %lld unknowns, R %lld x %lld (%.2f GB float32), memory budget %.1f GB\n",
                 cfg->path, args.recon, (long long)nunknowns, (long long)sys->nact,
                 (long long)sys->nslopes, 4.0 * sys->nact * (double)sys->nslopes / 1e9, o.memory_budget / 1e9);
-    st = wt_mvm_build_variant(cli.ctx, sys, var, args.recon, &o, &m);
+    st = wt_mvm_build_variant(cli.ctx, sys, cfg, args.recon, &o, &m);
     if (bp.phase[0]) wt_progress_end(&bp.pr);
     if (st < 0) goto fail;
     double tw0 = wt_time_now();

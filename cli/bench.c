@@ -12,6 +12,7 @@
 #include "core/base/rng.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
+#include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/build/mvm_build.h"
 #include "core/sim/loop.h"
@@ -106,7 +107,9 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_varia
 {
     wt_tomography *t = NULL;
     double t0 = wt_time_now();
-    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &t);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(sys->cfg, &tp);
+    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &tp, &t);
     if (st < 0) return st;
     double setup = wt_time_now() - t0;
     int64_t n = wt_tomography_nunknowns(t);
@@ -301,7 +304,7 @@ static int bench_mvm_build(wt_cli *cli, const wt_system *sys)
 {
     wt_mvm *m = NULL;
     double t0 = wt_time_now();
-    int st = wt_mvm_build_variant(cli->ctx, sys, &sys->cfg->pcg3, "pcg3", NULL, &m);
+    int st = wt_mvm_build_variant(cli->ctx, sys, sys->cfg, "pcg3", NULL, &m);
     double el = wt_time_now() - t0;
     if (st >= 0) {
         struct rusage ru;

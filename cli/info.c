@@ -5,6 +5,7 @@
 #include "cli.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
+#include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/op/noise.h"
 
@@ -27,7 +28,9 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
                           int count_nnz, int *st_out)
 {
     wt_tomography *t = NULL;
-    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &t);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(sys->cfg, &tp);
+    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &tp, &t);
     if (st < 0) {
         *st_out = st;
         return;

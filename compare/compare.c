@@ -153,7 +153,7 @@ static int get_mvm(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys,
     }
     wt_h5_writer *w = NULL;
     if (!cli->quiet) fprintf(stderr, "wavetomo compare: building the MVM for %s (hash %.16s)\n", cfg->path, cfg->matrix_sha256);
-    if ((st = wt_mvm_build_variant(cli->ctx, sys, &cfg->pcg3, "pcg3", NULL, out)) < 0) return st;
+    if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", NULL, out)) < 0) return st;
     *build_s = (*out)->stats.t_total;
     if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
     if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 && (st = wt_cli_write_layout(w, sys)) >= 0 &&

@@ -9,6 +9,7 @@
 #include "core/model/interaction.h"
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
+#include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/op/shack_hartmann.h"
 #include "testutil.h"
@@ -28,8 +29,10 @@ static void setup(fixture *f, int cg9, int nset, const char *const *set)
     f->ctx = tu_context();
     ck_assert_msg(wt_config_read(f->ctx, DEMO, nset, set, &f->cfg) == WT_OK, "%s", wt_error_message(f->ctx));
     ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
-    ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3", &f->t) ==
-                      WT_OK,
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f->cfg, &tp);
+    ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3", &tp,
+                                      &f->t) == WT_OK,
                   "%s", wt_error_message(f->ctx));
     f->n = wt_tomography_nunknowns(f->t);
     f->ns = f->sys->nslopes;

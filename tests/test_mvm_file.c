@@ -22,7 +22,7 @@ static wt_mvm *build(wt_context *ctx, wt_config *cfg)
     wt_system *sys;
     wt_mvm *m;
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
-    ck_assert_msg(wt_mvm_build_variant(ctx, sys, &cfg->pcg3, "pcg3", NULL, &m) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_mvm_build_variant(ctx, sys, cfg, "pcg3", NULL, &m) == WT_OK, "%s", wt_error_message(ctx));
     wt_system_free(sys);
     return m;
 }

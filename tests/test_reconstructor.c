@@ -98,7 +98,7 @@ START_TEST(test_mvm_and_none)
     setup(&f, 0, NULL);
     const int64_t ns = f.sys->nslopes, na = f.sys->nact;
     wt_mvm *m;
-    ck_assert_int_eq(wt_mvm_build_variant(f.ctx, f.sys, &f.cfg->pcg3, "pcg3", NULL, &m), WT_OK);
+    ck_assert_int_eq(wt_mvm_build_variant(f.ctx, f.sys, f.cfg, "pcg3", NULL, &m), WT_OK);
     wt_reconstructor *r, *z;
     ck_assert_int_eq(wt_reconstructor_alloc_mvm(f.ctx, f.sys, m, &r), WT_OK);
     ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_NONE, -1, &z), WT_OK);

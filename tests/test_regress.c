@@ -72,7 +72,7 @@ static void run_row(char **f, int row)
     ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "row %d: %s", row, wt_error_message(ctx));
     if (kind == WT_RECON_MVM) {
         /* as `wavetomo build` and `compare` do: the exact MAP of the pcg3 system */
-        ck_assert_msg(wt_mvm_build_variant(ctx, sys, &cfg->pcg3, "pcg3", NULL, &mvm) == WT_OK, "row %d: %s", row,
+        ck_assert_msg(wt_mvm_build_variant(ctx, sys, cfg, "pcg3", NULL, &mvm) == WT_OK, "row %d: %s", row,
                       wt_error_message(ctx));
     }
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = (uint64_t)seed, .noise = cfg->noise};

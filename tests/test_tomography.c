@@ -4,6 +4,7 @@
 
 #include "core/model/fitting.h"
 #include "core/model/system.h"
+#include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/op/projection.h"
 #include "testutil.h"
@@ -24,9 +25,11 @@ static void setup(fixture *f, const char *path, int cg9, int nset, const char *c
     ck_assert_msg(wt_config_read(f->ctx, path, nset, set, &f->cfg) == WT_OK, "%s", wt_error_message(f->ctx));
     ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
     f->t = NULL;
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f->cfg, &tp);
     if (cg9 >= 0)
         ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3",
-                                          &f->t) == WT_OK,
+                                          &tp, &f->t) == WT_OK,
                       "%s", wt_error_message(f->ctx));
 }
 
@@ -281,7 +284,9 @@ START_TEST(test_layer_grid_too_small_rejected)
     wt_tomography *t;
     ck_assert_int_eq(wt_config_read(ctx, DEMO, 2, set, &cfg), WT_OK);
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
-    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &t), WT_ERR_CONFIG);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &tp, &t), WT_ERR_CONFIG);
     ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "recon.pcg3 layer 1"));
     ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "does not cover"));
     wt_system_free(sys);

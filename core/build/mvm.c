@@ -12,6 +12,7 @@
 #include "../op/projection.h"
 #include "../model/fitting.h"
 #include "../model/interaction.h"
+#include "../model/params.h"
 #include "../model/reconstructor.h"
 
 void wt_mvm_options_default(wt_mvm_options *opt)
@@ -314,12 +315,12 @@ fail:
     return st;
 }
 
-int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var_in, const char *name,
+int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt_in, wt_mvm **out)
 {
     const double t0 = wt_time_now();
     const int cg9 = !strcmp(name, "cg9");
-    wt_recon_variant_config var = *var_in;
+    wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3;
     var.jacobi = 0; /* the factorisation is exact: no Jacobi diagonal */
     wt_mvm_options opt;
     if (opt_in) opt = *opt_in;
@@ -327,9 +328,11 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_recon_v
     opt.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
     opt.fit_regularization = var.fit_regularization;
     opt.fit_sampling = var.fit_sampling;
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
     wt_tomography *t = NULL;
     *out = NULL;
-    int st = wt_tomography_alloc(ctx, sys, &var, name, &t);
+    int st = wt_tomography_alloc(ctx, sys, &var, name, &tp, &t);
     if (st < 0) return st;
     st = wt_mvm_build(ctx, t, &opt, out);
     wt_tomography_free(t);

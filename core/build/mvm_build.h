@@ -96,11 +96,12 @@ int wt_mvm_assemble_atilde(wt_context *ctx, wt_tomography *t, wt_sparse **out);
  * WT_ERR_NUMERIC / WT_ERR_LIBRARY from the factorisations. */
 int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt, wt_mvm **out);
 
-/* The MVM of a reconstruction variant as `wavetomo build`, `compare` and the tests make it: the
- * tomography of var (named "pcg3" or "cg9") without its Jacobi diagonal (the factorisation is exact),
- * the command map of the variant (cg9: the fitting with var's ε and sampling), then wt_mvm_build with
- * opt (NULL: defaults; its commands and fitting fields are set here). stats.t_total covers it all. */
-int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var, const char *name,
+/* The MVM of the reconstruction variant `name` ("pcg3" or "cg9") of cfg, as `wavetomo build`, `compare`
+ * and the tests make it: the tomography of cfg->pcg3 or cfg->cg9 with cfg's α, τ, wavelet and prior
+ * (core/model/params.h), without its Jacobi diagonal (the factorisation is exact), the command map of the
+ * variant (cg9: the fitting with the variant's ε and sampling), then wt_mvm_build with opt (NULL:
+ * defaults; its commands and fitting fields are set here). stats.t_total covers it all. */
+int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt, wt_mvm **out);
 
 #endif

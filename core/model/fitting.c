@@ -1,6 +1,7 @@
 /* core/model/fitting.c: DM fitting over the evaluation directions by CG (paper eq. fit_step_min). */
 #include "fitting.h"
 
+#include <stdio.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -104,7 +105,7 @@ int wt_fitting_sampling(wt_context *ctx, const wt_system *sys, int q, wt_grid *g
     uint8_t *m = NULL;
     WT_ALLOC(ctx, m, wt_grid_size(grid), "fitting sample mask");
     if (q == 1) memcpy(m, sys->corner_mask, (size_t)wt_grid_size(grid));
-    else wt_pupil_mask_points(sys->cfg->diameter, sys->cfg->obstruction, grid, m);
+    else wt_pupil_mask_points(sys->diameter, sys->obstruction, grid, m);
     *mask = m;
     return WT_OK;
 fail:
@@ -149,10 +150,11 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
         st = wt_projection_alloc(ctx, nlayers, layers, altitudes, 0.0, sys->eval_x[j], sys->eval_y[j],
                                  &f->sample, f->mask, 0, &f->layer[j]);
         if (st < 0) {
+            char detail[1024]; /* the message is formatted into the buffer it quotes: copy it first */
+            snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
             st = WT_ERROR(ctx, WT_ERR_CONFIG,
                           "%s: the cg9 reconstruction layers do not cover evaluation direction %d (%.1f\", %.1f\"): %s",
-                          sys->cfg->path, j + 1, sys->eval_x[j] / WT_ARCSEC, sys->eval_y[j] / WT_ARCSEC,
-                          wt_error_message(ctx));
+                          sys->source, j + 1, sys->eval_x[j] / WT_ARCSEC, sys->eval_y[j] / WT_ARCSEC, detail);
             goto fail;
         }
     }

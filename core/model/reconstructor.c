@@ -2,6 +2,8 @@
 #include "reconstructor.h"
 
 #include "../solve/mvm.h"
+#include "params.h"
+#include "../solve/mvm.h"
 
 #include <math.h>
 #include <string.h>
@@ -106,7 +108,9 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
     r->iterations = iterations >= 0 ? iterations : v->iterations;
     r->tol = v->tolerance;
     r->fit_iterations = v->fit_iterations;
-    WT_TRY(wt_tomography_alloc(ctx, sys, v, wt_reconstructor_name(kind), &r->tomo));
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    WT_TRY(wt_tomography_alloc(ctx, sys, v, wt_reconstructor_name(kind), &tp, &r->tomo));
     int64_t n = wt_tomography_nunknowns(r->tomo);
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
@@ -115,7 +119,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
         WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
         WT_TRY(wt_reconstructor_actuator_points(ctx, r->tomo, r->act_index));
     } else {
-        wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
+        wt_fitting_params fp = wt_fitting_params_from_variant(v);
         WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &fp, &r->fit));
         WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
     }

@@ -77,6 +77,9 @@ int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
     WT_ALLOC(ctx, sys, 1, "system");
     sys->ctx = ctx;
     sys->cfg = cfg;
+    sys->source = cfg->path;
+    sys->diameter = cfg->diameter;
+    sys->obstruction = cfg->obstruction;
 
     /* Fine Shack–Hartmann sampling: the LGS sensor's; a config without LGS still needs a grid for the
      * NGS averaging, and uses lgs.wfs.subapertures for it. */

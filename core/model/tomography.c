@@ -62,11 +62,11 @@ static int thread_id(void)
 
 /* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (linear split between the two
  * nearest reconstruction layers). */
-static void bin_profile(const wt_config *cfg, int L, const double *alt, double *frac)
+static void bin_profile(const wt_tomography_params *par, int L, const double *alt, double *frac)
 {
     for (int l = 0; l < L; l++) frac[l] = 0.0;
-    for (int k = 0; k < cfg->nlayers; k++) {
-        double h = cfg->layer_altitude[k], f = cfg->layer_fraction[k];
+    for (int k = 0; k < par->natm; k++) {
+        double h = par->atm_altitude[k], f = par->atm_fraction[k];
         /* reconstruction altitudes are increasing (validated in config) */
         if (h <= alt[0]) frac[0] += f;
         else if (h >= alt[L - 1]) frac[L - 1] += f;
@@ -99,10 +99,9 @@ static int compute_jacobi(wt_tomography *t);
 static int compute_lowrank(wt_tomography *t);
 
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
-                        const char *variant_name, wt_tomography **out)
+                        const char *variant_name, const wt_tomography_params *par, wt_tomography **out)
 {
     int st = WT_OK;
-    const wt_config *cfg = sys->cfg;
     wt_tomography *t = NULL;
     *out = NULL;
     WT_ALLOC(ctx, t, 1, "tomography");
@@ -118,18 +117,16 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         t->off[l + 1] = t->off[l] + wt_grid_size(&t->grid[l]);
     }
     t->n = t->off[t->L];
-    bin_profile(cfg, t->L, t->alt, t->frac);
+    bin_profile(par, t->L, t->alt, t->frac);
 
     WT_ALLOC(ctx, t->alpha_d, t->n, "prior diagonal");
     for (int l = 0; l < t->L; l++) {
-        int levels = cfg->wavelet_levels;
-        WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, cfg->wavelet_order, levels, &t->wav[l]));
-        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, cfg->r0, t->frac[l], cfg->L0,
-                              (cfg->exact_prior ? WT_PRIOR_EXACT : WT_PRIOR_PAPER) |
-                                  (cfg->prior_aliasing ? WT_PRIOR_ALIASED : 0),
+        int levels = par->wavelet_levels;
+        WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, par->wavelet_order, levels, &t->wav[l]));
+        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, par->r0, t->frac[l], par->L0, par->prior_flags,
                               &t->prior[l]));
         const double *d = wt_prior_diag(t->prior[l]);
-        for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = cfg->alpha * d[i];
+        for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = par->alpha * d[i];
         size_t ws = wt_wavelet_work_size(t->wav[l]);
         if (ws > t->wsize) t->wsize = ws;
     }
@@ -151,12 +148,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                               "%s: recon.%s layer %d (layer_altitudes_m[%d] = %g m, layer_size[%d] = %d, "
                               "layer_spacing_m[%d] = %g m, i.e. %g m across) does not cover the footprint of "
                               "%s at that altitude; enlarge the layer grid. (%s)",
-                              cfg->path, variant_name, l + 1, l, t->alt[l], l, t->grid[l].nx, l, t->grid[l].dx,
+                              par->source ? par->source : "tomography", variant_name, l + 1, l, t->alt[l], l, t->grid[l].nx, l, t->grid[l].dx,
                               t->grid[l].nx * t->grid[l].dx, s->name, detail);
                 goto fail;
             }
         }
-        WT_TRY(wt_noise_alloc(ctx, s->nsub, s->sigma2, s->spot_fwhm, s->beta, cfg->tau, s->kind == WT_SENSOR_LGS,
+        WT_TRY(wt_noise_alloc(ctx, s->nsub, s->sigma2, s->spot_fwhm, s->beta, par->tau, s->kind == WT_SENSOR_LGS,
                               &t->noise[m]));
     }
 

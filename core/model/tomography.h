@@ -30,11 +30,27 @@
 
 typedef struct wt_tomography wt_tomography;
 
-/* var: the reconstructor variant (cfg->pcg3 or cfg->cg9); α, τ, the wavelet and the prior come from
- * sys->cfg. A layer grid that does not cover some sensor's footprint is a WT_ERR_CONFIG naming the
- * variant, the layer and the sensor. */
+/* What the MAP problem takes besides the system and the variant's layers: passed in, never looked up
+ * (wt_tomography_params_from_config in core/model/params.h fills it from a configuration). */
+typedef struct wt_tomography_params {
+    double alpha;          /* prior weight α */
+    double tau;            /* elongation weight τ of the reconstructor's noise model C̃ */
+    int wavelet_order;     /* Daubechies order N (2N taps) */
+    int wavelet_levels;    /* J */
+    int prior_flags;       /* WT_PRIOR_PAPER or WT_PRIOR_EXACT, | WT_PRIOR_ALIASED (core/op/prior.h) */
+    double r0;             /* Fried parameter at 500 nm [m] */
+    double L0;             /* outer scale [m] */
+    int natm;              /* the atmosphere's Cn² profile, binned onto the reconstruction layers: */
+    double atm_altitude[WT_MAX_LAYERS]; /* [m] */
+    double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
+    const char *source;    /* where the parameters came from, for messages (the configuration file) */
+} wt_tomography_params;
+
+/* var: the reconstructor variant (cfg->pcg3 or cfg->cg9): layers, iterations, preconditioner; par: α,
+ * τ, the wavelet, the prior. A layer grid that does not cover some sensor's footprint is a
+ * WT_ERR_CONFIG naming the variant, the layer and the sensor. */
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
-                        const char *variant_name, wt_tomography **out);
+                        const char *variant_name, const wt_tomography_params *par, wt_tomography **out);
 void wt_tomography_free(wt_tomography *t);
 
 int64_t wt_tomography_nunknowns(const wt_tomography *t);

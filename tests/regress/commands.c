@@ -32,7 +32,7 @@ static int fail(wt_context *ctx, const char *what)
 /* The MVM of a variant, as `wavetomo build` makes it (exact factorisation, no Jacobi diagonal). */
 static int build_mvm(wt_context *ctx, const wt_config *cfg, const wt_system *sys, int cg9, wt_mvm **out)
 {
-    return wt_mvm_build_variant(ctx, sys, cg9 ? &cfg->cg9 : &cfg->pcg3, cg9 ? "cg9" : "pcg3", NULL, out);
+    return wt_mvm_build_variant(ctx, sys, cfg, cg9 ? "cg9" : "pcg3", NULL, out);
 }
 
 static int run_lib(wt_context *ctx, const char *preset, const char *frames, const char *seed)
