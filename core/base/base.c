@@ -84,12 +84,21 @@ int wt_context_threads(const wt_context *ctx)
 int wt_error_set(wt_context *ctx, int status, const char *file, int line, const char *fmt, ...)
 {
     if (!ctx) return status;
+    /* Formatted into a local buffer first: a message may quote the previous one
+     * (WT_ERROR(ctx, st, "%s: %s", path, wt_error_message(ctx))), and a thread inside a parallel region
+     * must not write the shared buffer while another does: the copy and the hook are one critical
+     * section, so the context holds one whole message (the last one written). */
+    char buf[sizeof ctx->message];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(ctx->message, sizeof ctx->message, fmt, ap);
+    vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    ctx->last_status = status;
-    if (ctx->error_hook) ctx->error_hook(ctx->error_user, status, file, line, ctx->message);
+#pragma omp critical(wt_context_error)
+    {
+        memcpy(ctx->message, buf, sizeof buf);
+        ctx->last_status = status;
+        if (ctx->error_hook) ctx->error_hook(ctx->error_user, status, file, line, ctx->message);
+    }
     return status;
 }
 

@@ -55,7 +55,7 @@ void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, dou
 {
     const wt_system *sys = ia->sys;
     wt_dm_expand(sys->dm, a, ia->grids);
-#pragma omp parallel for schedule(dynamic, 1) if (sys->nslopes > 16384)
+#pragma omp parallel for schedule(dynamic, 1) if (sys->nslopes > 16384) num_threads(wt_context_threads(ia->ctx))
     for (int m = 0; m < sys->nsensors; m++) {
         double *ph = ia->phase + (size_t)m * ia->ncg;
         memset(ph, 0, (size_t)ia->ncg * sizeof *ph);

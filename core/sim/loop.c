@@ -202,7 +202,8 @@ int wt_loop_step(wt_loop *lp)
      * summed over the threads and the region's wall time is split in their proportion. */
     double t0 = wt_time_now(), c_atm = 0.0, c_sens = 0.0, c_eval = 0.0;
     int err = WT_OK;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_atm, c_sens, c_eval) reduction(min : err)
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_atm, c_sens, c_eval) reduction(min : err) \
+    num_threads(wt_context_threads(lp->ctx))
     for (int i = 0; i < lp->nlos; i++) {
         double a0 = wt_time_now(), tx, ty;
         los_direction(lp, i, &tx, &ty);

@@ -8,6 +8,7 @@
 struct wt_pcg {
     wt_context *ctx;
     int64_t n;
+    int nthreads; /* the context's thread count, for the vector updates */
     double *r, *z, *p, *q;
 };
 
@@ -20,6 +21,7 @@ int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out)
     WT_ALLOC(ctx, p, 1, "pcg");
     p->ctx = ctx;
     p->n = n;
+    p->nthreads = wt_context_threads(ctx);
     WT_ALLOC(ctx, p->r, n, "pcg residual");
     WT_ALLOC(ctx, p->z, n, "pcg preconditioned residual");
     WT_ALLOC(ctx, p->p, n, "pcg direction");
@@ -106,7 +108,7 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
             return WT_ERROR(w->ctx, isfinite(pq) ? WT_ERR_NUMERIC : WT_ERR_NUMERIC,
                             "pcg: pᵀAp = %g at iteration %d (operator not positive definite or NaN)", pq, k + 1);
         double a = rz / pq;
-#pragma omp parallel for schedule(static) if (n > 32768)
+#pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)
         for (int64_t i = 0; i < n; i++) {
             x[i] += a * p[i];
             r[i] -= a * q[i];
@@ -124,7 +126,7 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
         double rz_new = dot(r, zz, n);
         double beta = rz_new / rz;
         rz = rz_new;
-#pragma omp parallel for schedule(static) if (n > 32768)
+#pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)
         for (int64_t i = 0; i < n; i++) p[i] = zz[i] + beta * p[i];
     }
     return rtol > 0.0 ? WT_WARN_MAXITER : WT_OK;
