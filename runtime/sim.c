@@ -1,4 +1,4 @@
-/* compare/sim.c: `wavetomo sim`: the closed-loop end-to-end simulation of one reconstructor
+/* runtime/sim.c: `wavetomo sim`: the closed-loop end-to-end simulation of one reconstructor
  * (core/sim/loop), with its result file, optional telemetry and screen dumps. */
 #include <math.h>
 #include <stdio.h>
