@@ -5,11 +5,15 @@
 
 #include "../op/projection.h"
 #include "fitting.h"
+#include "stack.h"
+
+static const int64_t zero_offset = 0;
 
 struct wt_interaction {
     wt_context *ctx;
     const wt_system *sys;
     wt_projection **h;  /* per sensor: DM grids → corner grid */
+    wt_sensor_stack stack; /* Σ_m Γ_m H_m over h (one input: the concatenated DM grids) */
     int64_t ncg, ndm;
     double *grids;      /* ndm */
     double *phase;      /* nsensors x ncg */
@@ -31,6 +35,7 @@ int wt_interaction_alloc(wt_context *ctx, const wt_system *sys, wt_interaction *
         WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, s->altitude, s->theta_x, s->theta_y,
                                    &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), &ia->h[m]));
     }
+    ia->stack = (wt_sensor_stack){.sys = sys, .nin = 1, .proj = ia->h, .in_offset = &zero_offset};
     WT_ALLOC(ctx, ia->grids, ia->ndm, "interaction grids");
     WT_ALLOC(ctx, ia->phase, (size_t)sys->nsensors * ia->ncg, "interaction phase");
     *out = ia;
@@ -55,13 +60,7 @@ void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, dou
 {
     const wt_system *sys = ia->sys;
     wt_dm_expand(sys->dm, a, ia->grids);
-#pragma omp parallel for schedule(dynamic, 1) if (sys->nslopes > 16384) num_threads(wt_context_threads(ia->ctx))
-    for (int m = 0; m < sys->nsensors; m++) {
-        double *ph = ia->phase + (size_t)m * ia->ncg;
-        memset(ph, 0, (size_t)ia->ncg * sizeof *ph);
-        wt_projection_apply(ia->h[m], 1.0, ia->grids, ph);
-        wt_shack_hartmann_apply(sys->sensors[m].sh, alpha, ph, s + sys->sensors[m].offset);
-    }
+    wt_sensor_stack_apply(&ia->stack, alpha, ia->grids, s, ia->phase, sys->nslopes > 16384 ? wt_context_threads(ia->ctx) : 1);
 }
 
 void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, double *a)
@@ -69,12 +68,8 @@ void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, d
     const wt_system *sys = ia->sys;
     /* serial over sensors: every sensor scatters into the same DM grids */
     memset(ia->grids, 0, (size_t)ia->ndm * sizeof *ia->grids);
-    for (int m = 0; m < sys->nsensors; m++) {
-        double *ph = ia->phase + (size_t)m * ia->ncg;
-        memset(ph, 0, (size_t)ia->ncg * sizeof *ph);
-        wt_shack_hartmann_apply_t(sys->sensors[m].sh, alpha, s + sys->sensors[m].offset, ph);
-        wt_projection_apply_t(ia->h[m], 1.0, ph, ia->grids);
-    }
+    for (int m = 0; m < sys->nsensors; m++)
+        wt_sensor_stack_apply_t_sensor(&ia->stack, m, alpha, s + sys->sensors[m].offset, ia->grids, ia->phase);
     /* a += restriction of the grids to the active actuators */
     int64_t p = 0, q = 0;
     for (int k = 0; k < sys->dm->ndms; k++) {

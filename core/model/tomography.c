@@ -36,6 +36,7 @@ struct wt_tomography {
     double tol;
     int S;                    /* sensors */
     wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
+    wt_sensor_stack stack;    /* Σ_m Γ_m P_m over proj (a view) */
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
     int64_t ncg;              /* corner grid points */
     int nthreads;
@@ -157,6 +158,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                               &t->noise[m]));
     }
 
+    t->stack = (wt_sensor_stack){.sys = sys, .nin = t->L, .proj = t->proj, .in_offset = t->off};
+
     /* A parallel region costs a few µs on an idle machine and a scheduler time slice when a thread is
      * descheduled: below ~16k unknowns (an apply of well under 0.1 ms) threads do not pay. */
     t->nthreads = t->n < 16384 ? 1 : wt_context_threads(ctx);
@@ -230,17 +233,8 @@ static void forward_dwt(wt_tomography *t, const double *phi, double *c)
 /* slopes = Γ P φ for every sensor */
 static void forward_slopes(wt_tomography *t, const double *phi, double *slopes)
 {
-    const wt_system *sys = t->sys;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-    for (int m = 0; m < t->S; m++) {
-        const wt_sensor *s = &sys->sensors[m];
-        double *ph = t->phase + (size_t)m * t->ncg;
-        memset(ph, 0, (size_t)t->ncg * sizeof *ph);
-        for (int l = 0; l < t->L; l++) wt_projection_apply(t->proj[m * t->L + l], 1.0, phi + t->off[l], ph);
-        double *sl = slopes + s->offset;
-        memset(sl, 0, (size_t)s->nslopes * sizeof *sl);
-        wt_shack_hartmann_apply(s->sh, 1.0, ph, sl);
-    }
+    memset(slopes, 0, (size_t)t->sys->nslopes * sizeof *slopes);
+    wt_sensor_stack_apply(&t->stack, 1.0, phi, slopes, t->phase, t->nthreads);
 }
 
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m. Each accumulator group takes its sensors in index order and the
@@ -259,10 +253,7 @@ static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
             double *w = t->weighted + s->offset;
             memset(w, 0, (size_t)s->nslopes * sizeof *w);
             wt_noise_apply_weight(t->noise[m], 1.0, slopes + s->offset, w);
-            double *ph = t->phase + (size_t)m * t->ncg;
-            memset(ph, 0, (size_t)t->ncg * sizeof *ph);
-            wt_shack_hartmann_apply_t(s->sh, 1.0, w, ph);
-            for (int l = 0; l < t->L; l++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, ph, acc + t->off[l]);
+            wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w, acc, t->phase + (size_t)m * t->ncg);
         }
     }
     wt_vec_sum_groups(t->acc, n, t->phi);

@@ -26,6 +26,7 @@
 #include "../op/grid.h"
 #include "../op/wavelet.h"
 #include "../solve/pcg.h"
+#include "stack.h"
 #include "system.h"
 
 typedef struct wt_tomography wt_tomography;

@@ -1,0 +1,28 @@
+/* core/model/stack.c: Σ over sensors of Γ_m P_m and one sensor's transpose (see stack.h). */
+#include "stack.h"
+
+#include <string.h>
+
+void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
+                           int nthreads)
+{
+    const wt_system *sys = st->sys;
+    const int64_t ncg = wt_grid_size(&sys->sense_grid);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads > 0 ? nthreads : 1)
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        double *ph = phase + (size_t)m * ncg;
+        memset(ph, 0, (size_t)ncg * sizeof *ph);
+        for (int l = 0; l < st->nin; l++) wt_projection_apply(st->proj[m * st->nin + l], 1.0, x + st->in_offset[l], ph);
+        wt_shack_hartmann_apply(s->sh, alpha, ph, y + s->offset);
+    }
+}
+
+void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,
+                                    double *phase)
+{
+    const wt_system *sys = st->sys;
+    memset(phase, 0, (size_t)wt_grid_size(&sys->sense_grid) * sizeof *phase);
+    wt_shack_hartmann_apply_t(sys->sensors[m].sh, alpha, y_m, phase);
+    for (int l = 0; l < st->nin; l++) wt_projection_apply_t(st->proj[m * st->nin + l], 1.0, phase, x + st->in_offset[l]);
+}
