@@ -62,7 +62,7 @@ $(BIN)/wavetomo: $(CLI_OBJ) $(LIB)
 # is only for the report driver).
 $(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o
 
-$(BUILD)/tests/%: tests/%.c tests/testutil.h $(LIB)
+$(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  CC/LD   $@")
 	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) $(shell pkg-config --cflags check) -o $@ $< $(filter %.o,$^) $(LIB) \

@@ -128,10 +128,10 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_varia
     printf("\n%s: %lld unknowns in %d layers, %d sensors, %lld slopes (set-up %.2f s%s)\n", name, (long long)n,
            v->nlayers, sys->nsensors, (long long)sys->nslopes, setup, v->jacobi ? ", incl. the exact Jacobi diagonal" : "");
 
-    wt_tomography_apply(t, c, y); /* warm caches and pages */
+    wt_tomography_apply(t, 1.0, c, y); /* warm caches and pages */
     for (int r = 0; r < reps; r++) {
         double a = wt_time_now();
-        wt_tomography_apply(t, c, y);
+        wt_tomography_apply(t, 1.0, c, y);
         times[r] = wt_time_now() - a;
     }
     char label[64];

@@ -3,7 +3,9 @@
  * that computes it must not let two probes share a sample point), and a shape the DMs can make is
  * fitted exactly, on both the Fried-corner and the finer pupil sampling. */
 #include "core/model/fitting.h"
+#include "core/model/params.h"
 #include "core/model/system.h"
+#include "testmodel.h"
 #include "testutil.h"
 
 /* ε against the brute-force diagonal: F e_i = (Σ H_jᵀ H_j + ε I) e_i, so F_ii − ε is the diagonal. */
@@ -23,7 +25,7 @@ static void check_epsilon(int sampling)
     double *e = calloc(na, sizeof *e), *y = malloc(na * sizeof *y), sum = 0.0;
     for (int64_t i = 0; i < na; i++) {
         e[i] = 1.0;
-        wt_fitting_apply(fit, e, y);
+        tu_fitting_apply(fit, na, e, y);
         e[i] = 0.0;
         sum += y[i] - eps; /* a guard-ring actuator may see no sample point: 0, and ε holds it */
     }
@@ -89,6 +91,54 @@ START_TEST(test_representable_maps)
 }
 END_TEST
 
+/* The model operators accumulate like core/op's: y ← y + α A x leaves y's old value in (fitting F,
+ * tomography M, Ã and the right-hand side). */
+START_TEST(test_operators_accumulate)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg;
+    wt_system *sys;
+    wt_fitting *fit;
+    wt_tomography *t;
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    const wt_fitting_params fp = {.regularization = 1e-3, .sampling = 1};
+    ck_assert_int_eq(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &fit), WT_OK);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &tp, &t), WT_OK);
+    const int64_t na = sys->nact, n = wt_tomography_nunknowns(t), ns = sys->nslopes, big = n > ns ? n : ns;
+    double *x = malloc(big * sizeof *x), *y0 = malloc(big * sizeof *y0), *ax = malloc(big * sizeof *ax),
+           *y = malloc(big * sizeof *y);
+    tu_randn(x, big, 11);
+    tu_randn(y0, big, 12);
+    /* fitting: y0 − 0.5 F x */
+    tu_fitting_apply(fit, na, x, ax);
+    memcpy(y, y0, na * sizeof *y);
+    wt_fitting_apply(fit, -0.5, x, y);
+    for (int64_t i = 0; i < na; i++) ck_assert_double_eq(y[i], y0[i] + -0.5 * ax[i]);
+    /* tomography M, Ã, rhs */
+    tu_tomo_apply(t, x, ax);
+    memcpy(y, y0, n * sizeof *y);
+    wt_tomography_apply(t, 2.0, x, y);
+    for (int64_t i = 0; i < n; i++) ck_assert_double_eq(y[i], y0[i] + 2.0 * ax[i]);
+    tu_tomo_slopes(t, x, ax);
+    memcpy(y, y0, ns * sizeof *y);
+    wt_tomography_slopes(t, 3.0, x, y);
+    for (int64_t i = 0; i < ns; i++) ck_assert_double_eq_tol(y[i], y0[i] + 3.0 * ax[i], 1e-12 * (fabs(y0[i]) + 3.0 * fabs(ax[i])));
+    tu_tomo_rhs(t, x, ax);
+    memcpy(y, y0, n * sizeof *y);
+    wt_tomography_rhs(t, 1.0, x, y);
+    for (int64_t i = 0; i < n; i++) ck_assert_double_eq(y[i], y0[i] + ax[i]);
+    free(x), free(y0), free(ax), free(y);
+    wt_tomography_free(t);
+    wt_fitting_free(fit);
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("fitting");
@@ -97,6 +147,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_epsilon_fried);
     tcase_add_test(tc, test_epsilon_pupil_grid);
     tcase_add_test(tc, test_representable_maps);
+    tcase_add_test(tc, test_operators_accumulate);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -12,6 +12,7 @@
 #include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/op/shack_hartmann.h"
+#include "testmodel.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -75,7 +76,7 @@ static void test_slopes(fixture *f, double *s, unsigned long seed)
     double *c = malloc(f->n * sizeof *c), *e = malloc(f->ns * sizeof *e);
     tu_randn(c, f->n, seed);
     for (int64_t i = 0; i < f->n; i++) c[i] *= 1e-7;
-    wt_tomography_slopes(f->t, c, s);
+    tu_tomo_slopes(f->t, c, s);
     double rms = tu_norm(s, f->ns) / sqrt((double)f->ns);
     tu_randn(e, f->ns, seed + 1);
     for (int64_t i = 0; i < f->ns; i++) s[i] += 0.3 * rms * e[i];
@@ -98,7 +99,7 @@ START_TEST(test_atilde_matches_slopes)
         double *c = malloc(f.n * sizeof *c), *y1 = calloc(f.ns, sizeof *y1), *y2 = malloc(f.ns * sizeof *y2);
         tu_randn(c, f.n, 21 + v);
         wt_sparse_apply(A, 1.0, c, y1);
-        wt_tomography_slopes(f.t, c, y2);
+        tu_tomo_slopes(f.t, c, y2);
         ck_assert_double_gt(tu_norm(y2, f.ns), 0.0);
         ck_assert_double_le(tu_rel_diff(y1, y2, f.ns), 1e-12);
         /* per sensor too, so that a small sensor (the NGS) cannot hide in the norm of the LGS */
@@ -142,7 +143,7 @@ START_TEST(test_normal_apply_matches)
         for (int trial = 0; trial < 2; trial++) {
             tu_randn(x, f.n, 31 + trial);
             ck_assert_int_eq(wt_mvm_normal_apply(nm, x, y1), WT_OK);
-            wt_tomography_apply(f.t, x, y2);
+            tu_tomo_apply(f.t, x, y2);
             ck_assert_double_le(tu_rel_diff(y1, y2, f.n), 1e-12);
         }
         wt_mvm_stats st;
@@ -173,11 +174,11 @@ START_TEST(test_normal_solve_matches_pcg)
                *xp = calloc(f.n, sizeof *xp), *r = malloc(f.n * sizeof *r);
         for (int j = 0; j < k; j++) {
             test_slopes(&f, s, 41 + 7 * j);
-            wt_tomography_rhs(f.t, s, b + j * f.n);
+            tu_tomo_rhs(f.t, s, b + j * f.n);
         }
         ck_assert_int_eq(wt_mvm_normal_solve(nm, k, b, x), WT_OK);
         for (int j = 0; j < k; j++) {
-            wt_tomography_apply(f.t, x + j * f.n, r);
+            tu_tomo_apply(f.t, x + j * f.n, r);
             ck_assert_double_le(tu_rel_diff(r, b + j * f.n, f.n), 1e-10);
         }
         test_slopes(&f, s, 41 + 7 * (k - 1));

@@ -7,6 +7,7 @@
 #include "core/model/params.h"
 #include "core/model/tomography.h"
 #include "core/op/projection.h"
+#include "testmodel.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -57,7 +58,7 @@ START_TEST(test_ngs_lowrank_preconditioner)
     double *s = malloc(ns * sizeof *s), *ca = calloc(n, sizeof *ca), *cb = calloc(n, sizeof *cb);
     double ha[5], hb[5];
     tu_randn(ca, n, 5); /* slopes of a random layer state: what the sensors would see */
-    wt_tomography_slopes(a.t, ca, s);
+    tu_tomo_slopes(a.t, ca, s);
     memset(ca, 0, n * sizeof *ca);
     wt_pcg_result ra, rb;
     ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 4, 0.0, ha, &ra), WT_OK);
@@ -68,10 +69,10 @@ START_TEST(test_ngs_lowrank_preconditioner)
     for (int k = 0; k < 2; k++) {
         const double *c = k ? cb : ca;
         for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
-        wt_tomography_apply(a.t, e, me);
+        tu_tomo_apply(a.t, e, me);
         err[k] = sqrt(tu_dot(e, me, n));
     }
-    wt_tomography_apply(a.t, xs, me);
+    tu_tomo_apply(a.t, xs, me);
     const double xn = sqrt(tu_dot(xs, me, n));
     ck_assert_msg(err[1] < 0.5 * err[0], "4 iterations: M-norm error %g with the NGS term, %g with Jacobi alone (|x*| %g)",
                   err[1], err[0], xn);
@@ -146,15 +147,15 @@ START_TEST(test_normal_operator_consistency)
         tu_randn(s, ns, 13);
         /* ⟨c, b(Ã c2)⟩ = ⟨c2, b(Ã c)⟩: b(Ã·) = Ãᵀ Ĉ⁻¹ Ã is symmetric only if rhs is the exact adjoint
          * of slopes with a symmetric weight */
-        wt_tomography_slopes(f.t, c2, as);
-        wt_tomography_rhs(f.t, as, b);
+        tu_tomo_slopes(f.t, c2, as);
+        tu_tomo_rhs(f.t, as, b);
         double lhs = tu_dot(c, b, n);
-        wt_tomography_slopes(f.t, c, as);
-        wt_tomography_rhs(f.t, as, y2);
+        tu_tomo_slopes(f.t, c, as);
+        tu_tomo_rhs(f.t, as, y2);
         double rhs = tu_dot(c2, y2, n);
         ck_assert_rel(lhs, rhs, 1e-12, 0.0);
         /* M c = b(Ã c) + α D c */
-        wt_tomography_apply(f.t, c, y);
+        tu_tomo_apply(f.t, c, y);
         const double *ad = wt_tomography_alpha_prior(f.t);
         for (int64_t i = 0; i < n; i++) y2[i] += ad[i] * c[i];
         ck_assert_double_le(tu_rel_diff(y, y2, n), 1e-13);
@@ -162,8 +163,8 @@ START_TEST(test_normal_operator_consistency)
         ck_assert_double_gt(tu_dot(c, y, n), 0.0);
         /* linearity of the right-hand side */
         for (int64_t i = 0; i < ns; i++) as[i] = 2.0 * s[i];
-        wt_tomography_rhs(f.t, s, b);
-        wt_tomography_rhs(f.t, as, y2);
+        tu_tomo_rhs(f.t, s, b);
+        tu_tomo_rhs(f.t, as, y2);
         for (int64_t i = 0; i < n; i++) b[i] *= 2.0;
         ck_assert_double_le(tu_rel_diff(y2, b, n), 1e-14);
         free(c), free(c2), free(y), free(y2), free(s), free(as), free(b);
@@ -177,7 +178,7 @@ static double *dense_normal(wt_tomography *t, int64_t n)
     double *A = malloc((size_t)n * n * sizeof *A), *e = calloc((size_t)n, sizeof *e);
     for (int64_t j = 0; j < n; j++) {
         e[j] = 1.0;
-        wt_tomography_apply(t, e, A + (size_t)j * n);
+        tu_tomo_apply(t, e, A + (size_t)j * n);
         e[j] = 0.0;
     }
     free(e);
@@ -201,7 +202,7 @@ START_TEST(test_pcg_matches_dense_solve)
     double *s = malloc(ns * sizeof *s), *b = malloc(n * sizeof *b), *x = calloc(n, sizeof *x);
     tu_randn(s, ns, 21);
     for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6; /* slope scale of real data [rad] */
-    wt_tomography_rhs(f.t, s, b);
+    tu_tomo_rhs(f.t, s, b);
     double *xd = malloc(n * sizeof *xd);
     memcpy(xd, b, n * sizeof *xd);
     ck_assert_int_eq(LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', n, 1, A, n, xd, n), 0);
@@ -337,8 +338,8 @@ START_TEST(test_fitting_recovers_dm_shape)
     double *u = malloc(na * sizeof *u), *v = malloc(na * sizeof *v), *fu = malloc(na * sizeof *fu), *fv = malloc(na * sizeof *fv);
     tu_randn(u, na, 42);
     tu_randn(v, na, 43);
-    wt_fitting_apply(fit, u, fu);
-    wt_fitting_apply(fit, v, fv);
+    tu_fitting_apply(fit, na, u, fu);
+    tu_fitting_apply(fit, na, v, fv);
     ck_assert_rel(tu_dot(u, fv, na), tu_dot(v, fu, na), 1e-12, 0.0);
     wt_pcg_result r;
     wt_fitting_solve(fit, phi, a, 2000, 1e-12, NULL, &r);

@@ -54,7 +54,8 @@ static void project_back(wt_fitting *f, wt_projection *const *src, const double 
 
 static void normal_grids(wt_fitting *f, const double *grids, double *out) { project_back(f, f->dm, grids, out); }
 
-void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
+/* y = (Σ H_jᵀ H_j + ε I) a, overwritten: the operator of the CG */
+static void normal(wt_fitting *f, const double *a, double *y)
 {
     wt_dm_expand(f->sys->dm, a, f->grids);
     normal_grids(f, f->grids, f->ygrid);
@@ -62,12 +63,25 @@ void wt_fitting_apply(wt_fitting *f, const double *a, double *y)
     for (int64_t i = 0; i < f->sys->nact; i++) y[i] += f->eps * a[i];
 }
 
-static void apply_cb(void *user, const double *x, double *y) { wt_fitting_apply((wt_fitting *)user, x, y); }
+static void apply_cb(void *user, const double *x, double *y) { normal((wt_fitting *)user, x, y); }
 
-void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b)
+/* The public forms accumulate (y ← y + α A x); f->b, the solve's right-hand side, is their scratch. */
+void wt_fitting_apply(wt_fitting *f, double alpha, const double *a, double *y)
+{
+    normal(f, a, f->b);
+    for (int64_t i = 0; i < f->sys->nact; i++) y[i] += alpha * f->b[i];
+}
+
+static void rhs(wt_fitting *f, const double *phi, double *b)
 {
     project_back(f, f->layer, phi, f->grids);
     wt_dm_restrict(f->sys->dm, f->grids, b);
+}
+
+void wt_fitting_rhs(wt_fitting *f, double alpha, const double *phi, double *b)
+{
+    rhs(f, phi, f->b);
+    for (int64_t i = 0; i < f->sys->nact; i++) b[i] += alpha * f->b[i];
 }
 
 void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
@@ -116,7 +130,7 @@ fail:
 int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
                      wt_pcg_result *res)
 {
-    wt_fitting_rhs(f, phi, f->b);
+    rhs(f, phi, f->b);
     return wt_pcg_solve(f->pcg, apply_cb, f, NULL, f->b, a, max_iter, rtol, history, res);
 }
 

@@ -33,10 +33,10 @@ struct wt_tomography;
 int wt_fitting_alloc_for(wt_context *ctx, const struct wt_tomography *t, const wt_fitting_params *par, wt_fitting **out);
 void wt_fitting_free(wt_fitting *f);
 
-/* y = (Σ H_jᵀ H_j + ε I) a   (a, y: sys->nact active actuators) */
-void wt_fitting_apply(wt_fitting *f, const double *a, double *y);
-/* b = Σ H_jᵀ P_j φ  (φ: spatial layers concatenated) */
-void wt_fitting_rhs(wt_fitting *f, const double *phi, double *b);
+/* y ← y + α (Σ H_jᵀ H_j + ε I) a   (a, y: sys->nact active actuators; uses the object's workspace) */
+void wt_fitting_apply(wt_fitting *f, double alpha, const double *a, double *y);
+/* b ← b + α Σ H_jᵀ P_j φ  (φ: spatial layers concatenated) */
+void wt_fitting_rhs(wt_fitting *f, double alpha, const double *phi, double *b);
 /* CG on the normal equations, warm-started from a. max_iter ≥ 0, rtol ≥ 0. */
 int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
                      wt_pcg_result *res);

@@ -260,7 +260,8 @@ static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
     forward_dwt(t, t->phi, c);
 }
 
-void wt_tomography_apply(wt_tomography *t, const double *c, double *y)
+/* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
+static void normal(wt_tomography *t, const double *c, double *y)
 {
     inverse_dwt(t, c, t->phi);
     forward_slopes(t, t->phi, t->slopes);
@@ -268,17 +269,29 @@ void wt_tomography_apply(wt_tomography *t, const double *c, double *y)
     for (int64_t i = 0; i < t->n; i++) y[i] += t->alpha_d[i] * c[i];
 }
 
-void wt_tomography_rhs(wt_tomography *t, const double *s, double *b) { adjoint_slopes(t, s, b); }
+/* The public forms accumulate (y ← y + α A x, as core/op does); t->b, the solve's right-hand side, is
+ * their scratch (it is recomputed by every solve). */
+void wt_tomography_apply(wt_tomography *t, double alpha, const double *c, double *y)
+{
+    normal(t, c, t->b);
+    for (int64_t i = 0; i < t->n; i++) y[i] += alpha * t->b[i];
+}
 
-void wt_tomography_slopes(wt_tomography *t, const double *c, double *s)
+void wt_tomography_rhs(wt_tomography *t, double alpha, const double *s, double *b)
+{
+    adjoint_slopes(t, s, t->b);
+    for (int64_t i = 0; i < t->n; i++) b[i] += alpha * t->b[i];
+}
+
+void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s)
 {
     inverse_dwt(t, c, t->phi);
-    forward_slopes(t, t->phi, s);
+    wt_sensor_stack_apply(&t->stack, alpha, t->phi, s, t->phase, t->nthreads);
 }
 
 void wt_tomography_layers(wt_tomography *t, const double *c, double *phi) { inverse_dwt(t, c, phi); }
 
-static void apply_cb(void *user, const double *x, double *y) { wt_tomography_apply((wt_tomography *)user, x, y); }
+static void apply_cb(void *user, const double *x, double *y) { normal((wt_tomography *)user, x, y); }
 
 /* ---- NGS low-rank correction of the Jacobi preconditioner ----------------------------------------
  *
@@ -339,7 +352,7 @@ static int compute_lowrank(wt_tomography *t)
     WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
     for (int k = 0; k < q; k++) {
         e[o0 + k] = 1.0;
-        wt_tomography_rhs(t, e, R + (size_t)k * n);
+        adjoint_slopes(t, e, R + (size_t)k * n);
         /* column k of Ĉ⁻¹_NGS: the noise weight of each NGS sensor applied to e_k */
         memset(we, 0, (size_t)ns * sizeof *we);
         for (int m = first; m < sys->nsensors; m++) {
@@ -387,7 +400,7 @@ int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_it
     for (int64_t i = 0; i < t->sys->nslopes; i++)
         if (!isfinite(s[i]))
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
-    wt_tomography_rhs(t, s, t->b);
+    adjoint_slopes(t, s, t->b);
     if (t->nlr > 0)
         return wt_pcg_solve_precond(t->pcg, apply_cb, t, lowrank_precond, t, t->b, c,
                                     max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);

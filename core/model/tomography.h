@@ -71,12 +71,14 @@ const wt_system *wt_tomography_system(const wt_tomography *t);
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
 const double *wt_tomography_jacobi_inverse(const wt_tomography *t);
 
-/* y = M c */
-void wt_tomography_apply(wt_tomography *t, const double *c, double *y);
-/* s = Ã c: the model slopes of every sensor (system order) */
-void wt_tomography_slopes(wt_tomography *t, const double *c, double *s);
-/* b = Σ Ã_mᵀ Ĉ_m⁻¹ s_m (s: all slopes, system order) */
-void wt_tomography_rhs(wt_tomography *t, const double *s, double *b);
+/* The operators accumulate, y ← y + α A x, as core/op does (they use the object's workspace: one
+ * object is not applied from two threads at once). */
+/* y ← y + α M c */
+void wt_tomography_apply(wt_tomography *t, double alpha, const double *c, double *y);
+/* s ← s + α Ã c: the model slopes of every sensor (system order) */
+void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s);
+/* b ← b + α Σ Ã_mᵀ Ĉ_m⁻¹ s_m (s: all slopes, system order) */
+void wt_tomography_rhs(wt_tomography *t, double alpha, const double *s, double *b);
 /* Solve M c = b(s) by CG or Jacobi PCG (per the variant), warm-started from c.
  * max_iter / rtol override the variant's when ≥ 0. history: NULL or max_iter + 1 doubles. */
 int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
