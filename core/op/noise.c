@@ -122,28 +122,27 @@ fail:
 
 int wt_noise_nslopes(const wt_noise *n) { return 2 * n->nsub; }
 
-void wt_noise_apply_cov(const wt_noise *n, double alpha, const double *x, double *y)
+/* y ← y + α B x for the m symmetric 2x2 blocks B_i = [[a_i, b_i], [b_i, c_i]] acting on (x_i, x_{m+i}) */
+static void apply_blocks(int m, const double *a, const double *b, const double *c, double alpha, const double *x,
+                         double *y)
 {
-    const int m = n->nsub;
     const double *xx = x, *xy = x + m;
     double *yx = y, *yy = y + m;
     for (int i = 0; i < m; i++) {
         double u = xx[i], v = xy[i];
-        yx[i] += alpha * (n->ca[i] * u + n->cb[i] * v);
-        yy[i] += alpha * (n->cb[i] * u + n->cc[i] * v);
+        yx[i] += alpha * (a[i] * u + b[i] * v);
+        yy[i] += alpha * (b[i] * u + c[i] * v);
     }
+}
+
+void wt_noise_apply_cov(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    apply_blocks(n->nsub, n->ca, n->cb, n->cc, alpha, x, y);
 }
 
 void wt_noise_apply_inv(const wt_noise *n, double alpha, const double *x, double *y)
 {
-    const int m = n->nsub;
-    const double *xx = x, *xy = x + m;
-    double *yx = y, *yy = y + m;
-    for (int i = 0; i < m; i++) {
-        double u = xx[i], v = xy[i];
-        yx[i] += alpha * (n->ia[i] * u + n->ib[i] * v);
-        yy[i] += alpha * (n->ib[i] * u + n->ic[i] * v);
-    }
+    apply_blocks(n->nsub, n->ia, n->ib, n->ic, alpha, x, y);
 }
 
 /* T x puts the mean of the x-slopes in every x entry and the mean of the y-slopes in every y entry:
