@@ -131,6 +131,7 @@ static inline void tu_alloc_fail_nth(tu_alloc *a, long k)
     } while (0)
 
 /* Every suite file defines `Suite *make_suite(void)` and ends with TU_MAIN. */
+Suite *make_suite(void);
 #define TU_MAIN                                              \
     int main(void)                                           \
     {                                                        \
