@@ -1,0 +1,190 @@
+/* tests/test_badinput.c: the bad-input suite of issue 10, one table per class: each row is an input, the
+ * status (library) or exit code (command line) expected, the texts the message must hold (the key, file,
+ * dataset or frame it names) and, for commands, that no output file is left behind.
+ *
+ * Classes: A (extreme but in-range values, derived sizes), B (integers that do not fit their C type),
+ * E/D (non-finite or absurd floats, named at load), L (@include), F (command-line numbers), G/H/I/J
+ * (HDF5 inputs: dtype, NaN/Inf, frame counts, provenance), K (an output that is an input). */
+#include <stdarg.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/io/config.h"
+#include "testutil.h"
+
+#define DEMO "data/presets/demo.cfg"
+
+static char dir[64], wt[512];
+
+static void setup(void)
+{
+    const char *bin = getenv("BIN");
+    snprintf(wt, sizeof wt, "%s/wavetomo", bin ? bin : "bin");
+    snprintf(dir, sizeof dir, "/tmp/wt_bad_XXXXXX");
+    ck_assert_ptr_nonnull(mkdtemp(dir));
+}
+
+static void teardown(void)
+{
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
+}
+
+static void write_file(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    ck_assert_ptr_nonnull(f);
+    fputs(text, f);
+    ck_assert_int_eq(fclose(f), 0);
+}
+
+/* ---------------------------------------------------------------- config: one --set on the demo */
+
+typedef struct ov_case {
+    const char *set[2];  /* the overrides (the second may be NULL) */
+    const char *want[3]; /* texts the message must hold ("" = none) */
+} ov_case;
+
+static const ov_case ov_cases[] = {
+    /* B: integers beyond their C type, never wrapped */
+    {{"loop.frames=4294967317"}, {"key 'loop.frames'", "4294967317", "does not fit a 32-bit integer"}},
+    {{"loop.frames=-4294967295"}, {"key 'loop.frames'", "-4294967295", "32-bit"}},
+    {{"loop.frames=0x100000015"}, {"key 'loop.frames'", "4294967317", "32-bit"}},
+    {{"sim.seed=99999999999999999999"}, {"key 'sim.seed'", "1e+20", "does not fit a 64-bit integer"}},
+    {{"sim.seed=18446744073709551617L"}, {"key 'sim.seed'", "64-bit", ""}},
+    {{"sim.seed=-1"}, {"key 'sim.seed'", "-1", "out of range"}},
+    {{"dm.actuators=[17, 13, 4294967317]"}, {"key 'dm.actuators', element [2]", "4294967317", "32-bit"}},
+    {{"recon.cg9.iterations=2147483648"}, {"key 'recon.cg9.iterations'", "2147483648", "32-bit"}},
+    /* E/D: floats that are finite but absurd, refused at load naming the key */
+    {{"atmosphere.r0_m=1e308"}, {"key 'atmosphere.r0_m'", "1e+308", "out of range"}},
+    {{"atmosphere.L0_m=1e308"}, {"key 'atmosphere.L0_m'", "1e+308", ""}},
+    {{"recon.alpha=1e308"}, {"key 'recon.alpha'", "", ""}},
+    {{"lgs.wfs.photons=1e308"}, {"key 'lgs.wfs.photons'", "", ""}},
+    {{"evaluation.wavelength_nm=1e308"}, {"key 'evaluation.wavelength_nm'", "", ""}},
+    {{"telescope.diameter_m=1e308"}, {"key 'telescope.diameter_m'", "", ""}},
+    {{"dm.field_radius_arcsec=1e308"}, {"key 'dm.field_radius_arcsec'", "", ""}},
+    {{"lgs.altitude_m=1e308"}, {"key 'lgs.altitude_m'", "", ""}},
+    {{"recon.cg9.layer_spacing_m=[1e308, 0.5, 0.5, 1.0, 1.0]"}, {"key 'recon.cg9.layer_spacing_m', element [0]", "", ""}},
+    {{"recon.pcg3.tolerance=1.0"}, {"key 'recon.pcg3.tolerance'", "", ""}},
+    {{"ngs.wfs.nea_mas=1e300"}, {"key 'ngs.wfs.nea_mas'", "", ""}},
+    {{"atmosphere.r0_m=1e-300"}, {"key 'atmosphere.r0_m'", "", ""}},
+    /* A: extreme values and derived quantities, naming every key involved */
+    {{"atmosphere.wind_speed_mps=[1e22, 10.0, 12.0, 18.0, 25.0]"}, {"key 'atmosphere.wind_speed_mps', element [0]", "", ""}},
+    {{"loop.rate_hz=1e-20"}, {"key 'loop.rate_hz'", "", ""}},
+    {{"loop.rate_hz=2.0"}, {"'atmosphere.wind_speed_mps' element [3] = 18 m/s", "'loop.rate_hz' = 2 Hz", "telescope.diameter_m"}},
+    {{"atmosphere.wind_speed_mps=[8.0, 10.0, 12.0, 18.0, 999.0]", "loop.rate_hz=100.0"}, {"'atmosphere.wind_speed_mps' element [4] = 999 m/s", "'loop.rate_hz' = 100 Hz", "9.99 m per frame"}},
+    {{"recon.cg9.layer_size=[8192, 8192, 8192, 8192, 8192]"}, {"recon.cg9.layer_size", "unknowns", ""}},
+    {{"recon.pcg3.layer_size=[32, 16, 16384]"}, {"key 'recon.pcg3.layer_size', element [2]", "", ""}},
+    {{"lgs.wfs.subapertures=2000"}, {"key 'lgs.wfs.subapertures'", "", ""}},
+    {{"dm.actuators=[17, 13, 100000]"}, {"key 'dm.actuators', element [2]", "", ""}},
+    {{"lgs.wfs.subapertures=1024", "sim.points_per_subaperture=16"}, {"phase screens", "'lgs.wfs.subapertures' = 1024", "'sim.points_per_subaperture' = 16"}},
+    {{"lgs.wfs.subapertures=512", "evaluation.spacing_arcsec=1000.0"}, {"phase screens", "evaluation.spacing_arcsec", "atmosphere.altitudes_m"}},
+};
+
+START_TEST(test_config_override)
+{
+    const ov_case *c = &ov_cases[_i];
+    wt_context *ctx = tu_context();
+    wt_config *cfg = (wt_config *)1;
+    int st = wt_config_read(ctx, DEMO, c->set[1] ? 2 : 1, c->set, &cfg);
+    const char *m = wt_error_message(ctx);
+    ck_assert_msg(st == WT_ERR_CONFIG, "%s: status %d (%s)", c->set[0], st, m);
+    ck_assert_ptr_null(cfg);
+    for (int i = 0; i < 3; i++)
+        ck_assert_msg(strstr(m, c->want[i]), "%s: message \"%s\" lacks \"%s\"", c->set[0], m, c->want[i]);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The largest values that must still load (the bounds are not too tight for a real system). */
+START_TEST(test_config_extremes_accepted)
+{
+    const char *ok[] = {"sim.seed=5000000000", "sim.seed=9223372036854775807", "atmosphere.r0_m=1000.0",
+                        "atmosphere.wind_speed_mps=[8.0, 10.0, 12.0, 18.0, 1000.0]", "loop.frames=2147483647",
+                        "atmosphere.L0_m=10000.0", "recon.alpha=1e-12"};
+    wt_context *ctx = tu_context();
+    for (size_t i = 0; i < sizeof ok / sizeof *ok; i++) {
+        wt_config *cfg = NULL;
+        ck_assert_msg(wt_config_read(ctx, DEMO, 1, &ok[i], &cfg) == WT_OK, "%s: %s", ok[i], wt_error_message(ctx));
+        if (i == 0) ck_assert(cfg->seed == 5000000000ULL); /* not wrapped to 705032704 */
+        if (i == 1) ck_assert(cfg->seed == 9223372036854775807ULL);
+        if (i == 4) ck_assert_int_eq(cfg->frames, 2147483647);
+        wt_config_free(ctx, cfg);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* ---------------------------------------------------------------- config: files (B in a file, L) */
+
+typedef struct file_case {
+    const char *main;    /* main file text; %s = the demo preset's absolute path */
+    const char *want[3];
+} file_case;
+
+static const file_case file_cases[] = {
+    /* B: literals in the file itself and in an included file */
+    {"@include \"%s\"\noverrides = [\"loop.frames=4294967317\"];\n", {"loop.frames", "4294967317", "32-bit"}},
+    {"@include \"inc_frames.cfg\"\n", {"inc_frames.cfg:", "key 'loop.frames'", "32-bit"}},
+    /* L: includes that cannot be read, naming the including file, its line, the include and why */
+    {"# a comment\n@include \"sub\"\n", {"main.cfg:2: @include \"sub\"", "directory", ""}},
+    {"@include \"missing.cfg\"\n", {"main.cfg:1: @include \"missing.cfg\"", "No such file", ""}},
+    {"@include \"main.cfg\"\n", {"main.cfg:1: @include \"main.cfg\"", "nested deeper", ""}},
+    {"@include \"/dev/null\"\n", {"@include \"/dev/null\"", "not a regular file", ""}},
+    {"@include missing.cfg\n", {"main.cfg:1", "quoted file name", ""}},
+    /* a syntax error in an included file names that file and its line */
+    {"@include \"inc_syntax.cfg\"\n", {"inc_syntax.cfg:2: syntax error", "", ""}},
+};
+
+START_TEST(test_config_file)
+{
+    const file_case *c = &file_cases[_i];
+    char path[256], text[4096], demo[1024], sub[256];
+    ck_assert_ptr_nonnull(realpath(DEMO, demo));
+    snprintf(sub, sizeof sub, "%s/sub", dir);
+    ck_assert_int_eq(mkdir(sub, 0700), 0);
+    /* an included copy of the demo whose loop.frames wraps modulo 2^32 to 21 in libconfig 1.5 */
+    FILE *f = fopen(DEMO, "r");
+    ck_assert_ptr_nonnull(f);
+    static char body[1 << 16];
+    size_t n = fread(body, 1, sizeof body - 1, f);
+    body[n] = '\0';
+    fclose(f);
+    char *fr = strstr(body, "frames = 200;");
+    ck_assert_ptr_nonnull(fr);
+    snprintf(path, sizeof path, "%s/inc_frames.cfg", dir);
+    f = fopen(path, "w");
+    ck_assert_ptr_nonnull(f);
+    fprintf(f, "%.*sframes = 4294967317;%s", (int)(fr - body), body, fr + strlen("frames = 200;"));
+    ck_assert_int_eq(fclose(f), 0);
+    snprintf(path, sizeof path, "%s/inc_syntax.cfg", dir);
+    write_file(path, "a = 1;\nb = = 2;\n");
+    snprintf(path, sizeof path, "%s/main.cfg", dir);
+    snprintf(text, sizeof text, c->main, demo);
+    write_file(path, text);
+    wt_context *ctx = tu_context();
+    wt_config *cfg = (wt_config *)1;
+    int st = wt_config_read(ctx, path, 0, NULL, &cfg);
+    const char *m = wt_error_message(ctx);
+    ck_assert_msg(st == WT_ERR_CONFIG, "case %d: status %d (%s)", _i, st, m);
+    ck_assert_ptr_null(cfg);
+    for (int i = 0; i < 3; i++) ck_assert_msg(strstr(m, c->want[i]), "case %d: message \"%s\" lacks \"%s\"", _i, m, c->want[i]);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("badinput");
+    TCase *tc = tcase_create("config");
+    tcase_add_checked_fixture(tc, setup, teardown);
+    tcase_add_loop_test(tc, test_config_override, 0, (int)(sizeof ov_cases / sizeof *ov_cases));
+    tcase_add_test(tc, test_config_extremes_accepted);
+    tcase_add_loop_test(tc, test_config_file, 0, (int)(sizeof file_cases / sizeof *file_cases));
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
