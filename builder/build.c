@@ -45,13 +45,7 @@ static int build_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         else a->out = v;
     } else if (!strcmp(o, "--memory")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
-        char *end = NULL;
-        if (!v) return -1;
-        a->memory_gb = strtod(v, &end);
-        if (*end || !(a->memory_gb > 0)) {
-            wt_cli_usage_error(cli, "--memory expects a positive number of GB, got '%s'", v);
-            return -1;
-        }
+        if (!v || wt_cli_double(cli, o, v, 1e-3, 1e6, &a->memory_gb) < 0) return -1;
     } else
         return 0;
     return 1;

@@ -1,8 +1,12 @@
 /* cli/cli.c: shared driver plumbing: options, error reporting, progress. */
 #include "cli.h"
 
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
+#include <limits.h>
 #include <string.h>
 #include <unistd.h>
 #ifdef _OPENMP
@@ -84,12 +88,8 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
         }
         cli->set[cli->nset++] = val;
     } else {
-        char *end = NULL;
-        long t = strtol(val, &end, 10);
-        if (!end || *end || t < 0 || t > 1024) {
-            wt_cli_usage_error(cli, "--threads expects a non-negative integer, got '%s'", val);
-            return -1;
-        }
+        long t;
+        if (wt_cli_int(cli, "--threads", val, 0, 1024, &t) < 0) return -1;
         cli->threads = (int)t;
         wt_context_set_threads(cli->ctx, (int)t);
 #ifdef _OPENMP
@@ -127,16 +127,53 @@ const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i)
     return argv[++*i];
 }
 
+/* Strict numbers (issue 10, F): the whole text is the number, no blank before it, no overflow clamped
+ * by strtol/strtoll/strtod, nothing empty. */
 int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out)
 {
     char *end = NULL;
-    long v = strtol(text, &end, 10);
-    if (!text[0] || *end || v < lo || v > hi) {
-        wt_cli_usage_error(cli, "%s expects an integer in [%ld, %ld], got '%s'", name, lo, hi, text);
+    errno = 0;
+    long v = text && isdigit((unsigned char)text[text[0] == '-' || text[0] == '+']) ? strtol(text, &end, 10) : 0;
+    if (!end || *end || errno == ERANGE || v < lo || v > hi) {
+        wt_cli_usage_error(cli, "%s expects an integer in [%ld, %ld], got '%s'%s", name, lo, hi, text ? text : "",
+                           errno == ERANGE ? " (too large)" : "");
         return -1;
     }
     *out = v;
     return 0;
+}
+
+int wt_cli_double(wt_cli *cli, const char *name, const char *text, double lo, double hi, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    double v = text && text[0] && !isspace((unsigned char)text[0]) ? strtod(text, &end) : NAN;
+    if (!end || *end || errno == ERANGE || !isfinite(v) || v < lo || v > hi) {
+        wt_cli_usage_error(cli, "%s expects a number in [%g, %g], got '%s'", name, lo, hi, text ? text : "");
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max)
+{
+    int n = 0;
+    for (char *p = s;; n++) {
+        char *c = strchr(p, ',');
+        if (c) *c = '\0';
+        if (!*p) {
+            wt_cli_usage_error(cli, "%s: item %d of the comma-separated list is empty", name, n + 1);
+            return -1;
+        }
+        if (n == max) {
+            wt_cli_usage_error(cli, "%s: more than %d items", name, max);
+            return -1;
+        }
+        items[n] = p;
+        if (!c) return n + 1;
+        p = c + 1;
+    }
 }
 
 int wt_cli_fail(wt_cli *cli, int status)
@@ -155,9 +192,12 @@ int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed)
         cli->set[cli->nset++] = cli->frames_set;
     }
     if (seed) {
-        char *end;
-        long long s = strtoll(seed, &end, 10);
-        if (!seed[0] || *end || s < 0) return wt_cli_usage_error(cli, "--seed expects a non-negative integer, got '%s'", seed);
+        char *end = NULL;
+        errno = 0;
+        long long s = isdigit((unsigned char)seed[0]) ? strtoll(seed, &end, 10) : -1;
+        if (!end || *end || errno == ERANGE || s < 0)
+            return wt_cli_usage_error(cli, "--seed expects an integer in [0, %lld], got '%s'%s", LLONG_MAX, seed,
+                                      errno == ERANGE ? " (too large: seeds are 63-bit)" : "");
         snprintf(cli->seed_set, sizeof cli->seed_set, "sim.seed=%lldL", s);
         cli->set[cli->nset++] = cli->seed_set;
     }

@@ -43,6 +43,12 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
 const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i);
 /* Parse an integer in [lo, hi] for option `name`; reports a usage error and returns -1 when it is not. */
 int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out);
+/* A finite number in [lo, hi], the whole text (no overflow to Inf, no trailing text); -1 after a usage
+ * error naming the option. */
+int wt_cli_double(wt_cli *cli, const char *name, const char *text, double lo, double hi, double *out);
+/* Split s in place at commas into items (at most max); an empty item ("1,,3", a trailing comma) or too
+ * many items is a usage error naming the option: returns -1, else the number of items. */
+int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max);
 /* Print "PROG: error: <message>" for a failed status and return the process exit code (1). */
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */

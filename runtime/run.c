@@ -75,8 +75,10 @@ int wt_cmd_run(int argc, char **argv)
         return rc;
     }
     int kind = args.recon ? wt_reconstructor_kind(args.recon) : WT_RECON_MVM;
-    if (kind != WT_RECON_MVM && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) {
-        rc = wt_cli_usage_error(&cli, "--recon expects pcg3 or cg9, got '%s'", args.recon);
+    if (args.recon && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) {
+        rc = wt_cli_usage_error(&cli, kind == WT_RECON_MVM ? "--recon mvm: give the stored matrix with --matrix MATRIX.h5 "
+                                "instead (run takes --matrix for the MVM, or --recon pcg3|cg9), got '%s'"
+                                : "--recon expects pcg3 or cg9 (or --matrix MATRIX.h5 for the MVM), got '%s'", args.recon);
         wt_cli_done(&cli);
         return rc;
     }

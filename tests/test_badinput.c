@@ -175,6 +175,75 @@ START_TEST(test_config_file)
 }
 END_TEST
 
+/* ---------------------------------------------------------------- command lines */
+
+/* Run `wavetomo ARGS` (%1$s in args = the scratch directory); returns the exit code, stderr in err. */
+static int run_cli(const char *args, char *err, size_t n)
+{
+    char cmd[4096], a[2048], ep[128];
+    snprintf(a, sizeof a, args, dir, dir, dir);
+    snprintf(ep, sizeof ep, "%s/stderr.txt", dir);
+    snprintf(cmd, sizeof cmd, "%s %s > /dev/null 2> %s", wt, a, ep);
+    int st = system(cmd);
+    FILE *f = fopen(ep, "r");
+    size_t k = f ? fread(err, 1, n - 1, f) : 0;
+    err[k] = '\0';
+    if (f) fclose(f);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+typedef struct cli_case {
+    const char *args;    /* %1$s = scratch directory */
+    int exit;            /* expected exit code: 2 usage error, 1 refused input */
+    const char *want[2];
+    const char *absent;  /* output that must not exist afterwards (relative to the scratch directory) */
+} cli_case;
+
+static const cli_case cli_cases[] = {
+    /* F: every number parsed strictly */
+    {"sim --config " DEMO " --seed 18446744073709551617 --out %1$s/x.h5", 2, {"--seed", "18446744073709551617"}, "x.h5"},
+    {"sim --config " DEMO " --seed 9223372036854775808 --out %1$s/x.h5", 2, {"--seed", "63-bit"}, "x.h5"},
+    {"sim --config " DEMO " --seed -3 --out %1$s/x.h5", 2, {"--seed", "-3"}, "x.h5"},
+    {"sim --config " DEMO " --seed 12abc --out %1$s/x.h5", 2, {"--seed", "12abc"}, "x.h5"},
+    {"sim --config " DEMO " --seed '' --out %1$s/x.h5", 2, {"--seed", ""}, "x.h5"},
+    {"sim --config " DEMO " --frames 99999999999999999999 --out %1$s/x.h5", 2, {"--frames", "too large"}, "x.h5"},
+    {"sim --config " DEMO " --frames ' 12' --out %1$s/x.h5", 2, {"--frames", "' 12'"}, "x.h5"},
+    {"sim --config " DEMO " --frames 0x10 --out %1$s/x.h5", 2, {"--frames", "0x10"}, "x.h5"},
+    {"sim --config " DEMO " --threads= --out %1$s/x.h5", 2, {"--threads", "''"}, "x.h5"},
+    {"sim --config " DEMO " --threads 4.5 --out %1$s/x.h5", 2, {"--threads", "4.5"}, "x.h5"},
+    {"sim --config " DEMO " --iters -1 --out %1$s/x.h5", 2, {"--iters", "-1"}, "x.h5"},
+    {"compare --config " DEMO " --sweep recon.alpha=1,,3 --out %1$s/c", 2, {"--sweep", "item 2"}, "c"},
+    {"compare --config " DEMO " --sweep recon.alpha=1,3, --out %1$s/c", 2, {"--sweep", "item 3"}, "c"},
+    {"compare --config " DEMO " --sweep recon.alpha= --out %1$s/c", 2, {"--sweep", "item 1"}, "c"},
+    {"compare --config " DEMO " --recon mvm,,cg9 --out %1$s/c", 2, {"--recon", "empty"}, "c"},
+    {"compare --config " DEMO " --frames 1e3 --out %1$s/c", 2, {"--frames", "1e3"}, "c"},
+    {"build --config " DEMO " --memory inf --out %1$s/M.h5", 2, {"--memory", "inf"}, "M.h5"},
+    {"build --config " DEMO " --memory 1e400 --out %1$s/M.h5", 2, {"--memory", "1e400"}, "M.h5"},
+    {"build --config " DEMO " --memory nan --out %1$s/M.h5", 2, {"--memory", "nan"}, "M.h5"},
+    {"run --recon mvm --telemetry %1$s/t.h5 --out %1$s/o.h5", 2, {"--recon mvm", "--matrix MATRIX.h5"}, "o.h5"},
+    {"run --recon pcg9 --telemetry %1$s/t.h5 --out %1$s/o.h5", 2, {"pcg9", "pcg3 or cg9"}, "o.h5"},
+    {"bench " DEMO " --reps 10junk", 2, {"--reps", "10junk"}, NULL},
+    /* B and L through the command line: the key or the include named, exit 1, nothing written */
+    {"sim --config " DEMO " --set loop.frames=4294967317 --out %1$s/x.h5", 1, {"loop.frames", "32-bit"}, "x.h5"},
+    {"sim --config " DEMO " --set 'atmosphere.wind_speed_mps=[1e22, 10.0, 12.0, 18.0, 25.0]' --out %1$s/x.h5", 1,
+     {"atmosphere.wind_speed_mps", "out of range"}, "x.h5"},
+    {"sim --config %1$s --out %1$s/x.h5", 1, {"cannot", ""}, "x.h5"},
+};
+
+START_TEST(test_cli)
+{
+    const cli_case *c = &cli_cases[_i];
+    char err[8192], p[256];
+    int rc = run_cli(c->args, err, sizeof err);
+    ck_assert_msg(rc == c->exit, "%s: exit %d, expected %d (%s)", c->args, rc, c->exit, err);
+    for (int i = 0; i < 2; i++) ck_assert_msg(strstr(err, c->want[i]), "%s: stderr \"%s\" lacks \"%s\"", c->args, err, c->want[i]);
+    if (c->absent) {
+        snprintf(p, sizeof p, "%s/%s", dir, c->absent);
+        ck_assert_msg(access(p, F_OK) != 0, "%s: %s was left behind", c->args, p);
+    }
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("badinput");
@@ -184,6 +253,11 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_config_extremes_accepted);
     tcase_add_loop_test(tc, test_config_file, 0, (int)(sizeof file_cases / sizeof *file_cases));
     suite_add_tcase(s, tc);
+    TCase *tcl = tcase_create("command line");
+    tcase_add_checked_fixture(tcl, setup, teardown);
+    tcase_set_timeout(tcl, 120);
+    tcase_add_loop_test(tcl, test_cli, 0, (int)(sizeof cli_cases / sizeof *cli_cases));
+    suite_add_tcase(s, tcl);
     return s;
 }
 
