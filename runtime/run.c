@@ -117,6 +117,8 @@ int wt_cmd_run(int argc, char **argv)
     const char *sname = kind == WT_RECON_MVM ? "slopes" : "slopes_ol";
     if ((st = wt_h5_check_shape(tr, sname, 2, es, dims)) < 0) goto fail;
     F = dims[0];
+    if (F < 1) st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s: dataset '%s' holds 0 frames: nothing to run", args.tel, sname);
+    if (st < 0) goto fail;
     if (kind == WT_RECON_MVM) {
         if ((st = wt_h5_check_shape(tr, "commands", 2, ea, dims)) < 0) goto fail;
         if (dims[0] != F) {

@@ -10,7 +10,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <hdf5.h>
+
 #include "core/io/config.h"
+#include "core/io/h5.h"
+#include "core/model/system.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -244,6 +248,146 @@ START_TEST(test_cli)
 }
 END_TEST
 
+/* ---------------------------------------------------------------- HDF5 inputs of `wavetomo run` */
+
+enum { TEL_OK, TEL_I32, TEL_F64, TEL_NAN_CMD, TEL_INF_SOL, TEL_ZERO, TEL_HUGE };
+enum { MAT_OK, MAT_F64, MAT_I32, MAT_NAN, MAT_INF_RA, MAT_EDITED, MAT_VARIANT };
+
+/* A telemetry file of the demo system: 4 frames of slopes, slopes_ol (open loop) and commands. */
+static void write_tel(const char *path, const wt_config *cfg, const wt_system *sys, int kind)
+{
+    wt_context *ctx = tu_context();
+    wt_h5_writer *w;
+    wt_h5_series *s, *so, *c;
+    int64_t ns = sys->nslopes, na = sys->nact;
+    int st_type = kind == TEL_I32 ? WT_H5_I32 : kind == TEL_F64 ? WT_H5_F64 : WT_H5_F32;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    ck_assert_int_eq(wt_h5_write_string(w, "config", cfg->canonical, "configuration"), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "slopes", st_type, ns, "rad", "slopes", &s), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "slopes_ol", st_type, ns, "rad", "slopes", &so), WT_OK);
+    ck_assert_int_eq(wt_h5_series_create(w, "commands", WT_H5_F32, na, "m", "commands", &c), WT_OK);
+    float *buf = calloc((size_t)(ns > na ? ns : na), sizeof *buf);
+    for (int t = 0; kind != TEL_ZERO && t < 4; t++) {
+        for (int64_t i = 0; i < ns; i++) buf[i] = 1e-7f * (float)((i + t) % 13);
+        if (kind == TEL_INF_SOL && t == 3) buf[9] = INFINITY;
+        if (kind == TEL_I32) { /* integer slopes (e.g. raw centroids in pixels) */
+            int32_t *ib = (int32_t *)buf;
+            for (int64_t i = 0; i < ns; i++) ib[i] = (int32_t)((i + t) % 3);
+        }
+        int mt = kind == TEL_I32 ? WT_H5_I32 : WT_H5_F32;
+        ck_assert_int_eq(wt_h5_series_append(s, mt, buf), WT_OK);
+        ck_assert_int_eq(wt_h5_series_append(so, mt, buf), WT_OK);
+        memset(buf, 0, (size_t)na * sizeof *buf);
+        if (kind == TEL_NAN_CMD && t == 1) buf[5] = NAN;
+        ck_assert_int_eq(wt_h5_series_append(c, WT_H5_F32, buf), WT_OK);
+    }
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    free(buf);
+    wt_context_free(ctx);
+    if (kind == TEL_HUGE) { /* the header claims 10^9 frames of slopes; 4 are stored */
+        hid_t f = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+        ck_assert(f >= 0);
+        const char *names[] = {"slopes", "slopes_ol", "commands"};
+        for (int i = 0; i < 3; i++) {
+            hid_t d = H5Dopen2(f, names[i], H5P_DEFAULT);
+            hsize_t dims[2] = {1000000000ULL, (hsize_t)(i < 2 ? ns : na)};
+            ck_assert(d >= 0 && H5Dset_extent(d, dims) >= 0);
+            H5Dclose(d);
+        }
+        H5Fclose(f);
+    }
+}
+
+/* A control matrix file for the demo system as `wavetomo build` writes it (zeros), then spoiled by kind. */
+static void write_mat(const char *path, const wt_config *cfg, const wt_system *sys, int kind)
+{
+    wt_context *ctx = tu_context();
+    wt_h5_writer *w;
+    int64_t na = sys->nact, ns = sys->nslopes, dr[2] = {na, ns}, da[2] = {na, na};
+    float *R = calloc((size_t)(na * ns), sizeof *R), *RA = calloc((size_t)(na * na), sizeof *RA);
+    if (kind == MAT_NAN) R[3 * ns + 7] = NAN;
+    if (kind == MAT_INF_RA) RA[2 * na + 1] = -INFINITY;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    ck_assert_int_eq(wt_h5_write(w, "R", kind == MAT_F64 ? WT_H5_F64 : WT_H5_F32, WT_H5_F32, 2, dr, R, "m/rad", "R"), WT_OK);
+    int32_t *ia = calloc((size_t)(na * na), sizeof *ia);
+    if (kind == MAT_I32) ck_assert_int_eq(wt_h5_write(w, "RA", WT_H5_I32, WT_H5_I32, 2, da, ia, "", "RA"), WT_OK);
+    else ck_assert_int_eq(wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, da, RA, "", "RA"), WT_OK);
+    ck_assert_int_eq(wt_h5_attr_write_string(w, "/", "config_sha256", cfg->matrix_sha256), WT_OK);
+    char *text = malloc(strlen(cfg->matrix_text) + 32);
+    strcpy(text, cfg->matrix_text);
+    if (kind == MAT_EDITED) { /* one digit of recon.alpha changed, the hash kept */
+        char *al = strstr(text, "alpha = 1.0");
+        ck_assert_ptr_nonnull(al);
+        al[8] = '2';
+    }
+    ck_assert_int_eq(wt_h5_write_string(w, "matrix_config", text, "config"), WT_OK);
+    ck_assert_int_eq(wt_h5_attr_write_string(w, "/", "variant", kind == MAT_VARIANT ? "pcg33;rm -rf" : "pcg3"), WT_OK);
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    free(text), free(R), free(RA), free(ia);
+    wt_context_free(ctx);
+}
+
+typedef struct h5_case {
+    int tel, mat;     /* the inputs: t.h5 and M.h5 in the scratch directory */
+    const char *args; /* %1$s = scratch directory */
+    const char *want[3];
+} h5_case;
+
+#define RUN_MVM "run --matrix %1$s/M.h5 --telemetry %1$s/t.h5 --out %1$s/o.h5"
+#define RUN_PCG "run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/o.h5"
+static const h5_case h5_cases[] = {
+    /* G: dtypes outside the documented set, naming the dataset and the type found */
+    {TEL_I32, MAT_OK, RUN_MVM, {"t.h5", "dataset 'slopes' is int32, refused as float32", ""}},
+    {TEL_I32, MAT_OK, RUN_PCG, {"t.h5", "dataset 'slopes_ol' is int32", ""}},
+    {TEL_F64, MAT_OK, RUN_PCG, {"dataset 'slopes_ol' is float64, refused as float32", "", ""}},
+    {TEL_OK, MAT_F64, RUN_MVM, {"M.h5", "dataset 'R' is float64, refused as float32", ""}},
+    {TEL_OK, MAT_I32, RUN_MVM, {"M.h5", "dataset 'RA' is int32", ""}},
+    /* H: NaN/Inf in what is read, naming the dataset and the first bad element */
+    {TEL_NAN_CMD, MAT_OK, RUN_MVM, {"dataset 'commands' holds NaN", "frame 1", "column 5"}},
+    {TEL_INF_SOL, MAT_OK, RUN_PCG, {"dataset 'slopes_ol' holds Inf", "frame 3", "column 9"}},
+    {TEL_OK, MAT_NAN, RUN_MVM, {"M.h5: dataset 'R' holds NaN", "row 3", "column 7"}},
+    {TEL_OK, MAT_INF_RA, RUN_MVM, {"dataset 'RA' holds Inf", "row 2", "column 1"}},
+    /* I: no frames, and a header that claims 10^9 frames, refused before anything is allocated for them */
+    {TEL_ZERO, MAT_OK, RUN_MVM, {"t.h5", "'slopes' holds 0 frames", ""}},
+    {TEL_ZERO, MAT_OK, RUN_PCG, {"t.h5", "'slopes_ol' holds 0 frames", ""}},
+    {TEL_HUGE, MAT_OK, RUN_MVM, {"dataset 'slopes' claims", "stores", ""}},
+    {TEL_HUGE, MAT_OK, RUN_PCG, {"dataset 'slopes_ol' claims 1548000000000 elements", "", ""}},
+    /* J: provenance: an edited configuration text, a variant the builder never writes */
+    {TEL_OK, MAT_EDITED, RUN_MVM, {"M.h5", "'matrix_config' hashes to", "edited"}},
+    {TEL_OK, MAT_VARIANT, RUN_MVM, {"M.h5", "'variant' is \"pcg33;rm -rf\"", "\"pcg3\" or \"cg9\""}},
+    /* the unspoiled inputs run (so the cases above fail for their own reason) */
+    {TEL_OK, MAT_OK, RUN_MVM, {NULL, NULL, NULL}},
+};
+
+START_TEST(test_h5_inputs)
+{
+    const h5_case *c = &h5_cases[_i];
+    wt_context *ctx = tu_context();
+    wt_config *cfg;
+    wt_system *sys;
+    char p[256], err[8192];
+    ck_assert_int_eq(wt_config_read(ctx, DEMO, 0, NULL, &cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    snprintf(p, sizeof p, "%s/t.h5", dir);
+    write_tel(p, cfg, sys, c->tel);
+    snprintf(p, sizeof p, "%s/M.h5", dir);
+    write_mat(p, cfg, sys, c->mat);
+    int rc = run_cli(c->args, err, sizeof err);
+    snprintf(p, sizeof p, "%s/o.h5", dir);
+    if (!c->want[0]) {
+        ck_assert_msg(rc == 0, "case %d: exit %d (%s)", _i, rc, err);
+        ck_assert_int_eq(access(p, F_OK), 0);
+    } else {
+        ck_assert_msg(rc == 1, "case %d: exit %d, expected 1 (%s)", _i, rc, err);
+        for (int i = 0; i < 3; i++) ck_assert_msg(strstr(err, c->want[i]), "case %d: stderr \"%s\" lacks \"%s\"", _i, err, c->want[i]);
+        ck_assert_msg(access(p, F_OK) != 0, "case %d: %s was left behind", _i, p);
+    }
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("badinput");
@@ -257,6 +401,7 @@ Suite *make_suite(void)
     tcase_add_checked_fixture(tcl, setup, teardown);
     tcase_set_timeout(tcl, 120);
     tcase_add_loop_test(tcl, test_cli, 0, (int)(sizeof cli_cases / sizeof *cli_cases));
+    tcase_add_loop_test(tcl, test_h5_inputs, 0, (int)(sizeof h5_cases / sizeof *h5_cases));
     suite_add_tcase(s, tcl);
     return s;
 }

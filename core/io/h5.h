@@ -40,8 +40,11 @@
 
 #define WT_H5_MAX_RANK 3
 
-/* Element types, for the file and for memory. Reading converts between any two numeric types except
- * floating point in the file to integers in memory (refused as lossy). */
+/* Element types, for the file and for memory. Reading accepts only conversions that are exact for every
+ * value of the file's type (float32 -> float32/float64, float64 -> float64, integers into a type that holds
+ * them exactly); the rest (int32 slopes as float32, a float64 matrix as float32, float -> integer) is
+ * refused naming the dataset and its type. Float data read is checked for NaN/Inf, and a dataset whose
+ * stored bytes cannot hold its extent is refused (see h5_read.c). */
 enum { WT_H5_F64 = 1, WT_H5_F32 = 2, WT_H5_I32 = 3, WT_H5_I64 = 4, WT_H5_U8 = 5 };
 
 typedef struct wt_h5_writer wt_h5_writer;
