@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "core/io/h5.h"
 
 static void usage(FILE *f)
 {
@@ -27,6 +28,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
+    wt_h5_process_init(); /* before any HDF5 use: see core/io/h5.h (a full disk must not crash the exit) */
     if (argc < 2) {
         usage(stderr);
         return 2;

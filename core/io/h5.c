@@ -8,6 +8,7 @@
  * folded into our message (H5ERR). Writers remember their first failure and refuse to commit.
  * The reader is h5_read.c; what the three files share is declared in h5_private.h.
  */
+#define _GNU_SOURCE /* memfd_create (discard_writes) */
 #include "h5_private.h"
 
 #include <errno.h>
@@ -16,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -282,12 +284,39 @@ const char *wt_h5_library_version(void)
     return WT_H5_STR(H5_VERS_MAJOR) "." WT_H5_STR(H5_VERS_MINOR) "." WT_H5_STR(H5_VERS_RELEASE);
 }
 
+void wt_h5_process_init(void)
+{
+    /* HDF5 1.10.8: once a metadata flush has failed (disk full), every later flush of that file fails
+     * ("slist already enabled?"), so the file can never be closed, and the library's atexit clean-up then
+     * crashes on it (SIGSEGV in H5F__close_cb). Without that clean-up the process exits normally; files
+     * that matter were closed explicitly (commit), the temporaries are unlinked by abort. */
+    H5dont_atexit();
+}
+
 /* ---- writer ------------------------------------------------------------------------------------- */
+
+/* A temporary that is being thrown away after a write error (disk full, file too large): HDF5 1.10 still
+ * flushes its metadata cache on H5Fclose, that flush fails again, the close fails and leaves the file in
+ * HDF5's table, and the library's own clean-up at exit then crashes inside H5F__close_cb (issue 10, A').
+ * Pointing the file's descriptor at an anonymous memory file first lets that last flush and truncate
+ * succeed into memory that is freed with it (/dev/null would refuse the truncate), so the close completes
+ * once and releases everything; the temporary is unlinked right after. Only on the discard path, and only
+ * the descriptor of our sec2 file. */
+static void discard_writes(hid_t file)
+{
+    void *handle = NULL;
+    if (file < 0 || H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle) return;
+    int fd = *(int *)handle, mem = memfd_create("wavetomo-discard", MFD_CLOEXEC);
+    if (mem < 0) return;
+    if (fd >= 0) dup2(mem, fd);
+    close(mem);
+}
 
 /* Close everything; unlink the temporary when asked and when it is ours; free w. */
 static void writer_destroy(wt_h5_writer *w, int remove_temp)
 {
     if (!w) return;
+    if (remove_temp) discard_writes(w->file); /* the file is thrown away: nothing of it needs to reach the disk */
     while (w->matrices) wt_h5_priv_matrix_close(w->matrices, 0);
     while (w->series) wt_h5_priv_series_close(w->series);
     wt_h5_priv_drop(w->lcpl);
@@ -351,6 +380,12 @@ static int commit_impl(wt_h5_writer *w)
     if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
     if (put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
+    /* Flush first: a failure here (disk full) goes to the discard path, which closes the file cleanly. A
+     * failed H5Fclose instead leaves a half-destroyed file in HDF5's table that even a second close (or
+     * the library's exit-time clean-up) crashes on: after this flush the close has next to nothing left
+     * to write. */
+    if (H5Fflush(w->file, H5F_SCOPE_LOCAL) < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: writing the temporary '%s' failed (H5Fflush; disk full?)", w->target, w->temp);
     herr_t r = H5Fclose(w->file);
     w->file = -1;
     if (r < 0)

@@ -52,6 +52,11 @@ typedef struct wt_h5_reader wt_h5_reader;
 typedef struct wt_h5_matrix wt_h5_matrix; /* a 2-D dataset written by blocks of rows */
 typedef struct wt_h5_series wt_h5_series; /* a dataset that grows by one frame per append */
 
+/* Call first in a program's main, before any other HDF5 use (it has no effect later): turns off HDF5's
+ * exit-time clean-up, which crashes (HDF5 1.10.8) on a file whose metadata flush failed on a full disk.
+ * A long-running process that hits that case keeps the broken file's memory until it exits. */
+void wt_h5_process_init(void);
+
 /* "1.10.8": the HDF5 version this was built against (the library refuses to run with another). */
 const char *wt_h5_library_version(void);
 
