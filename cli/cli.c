@@ -8,7 +8,10 @@
 #include <stdlib.h>
 #include <limits.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include "core/io/h5.h"
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -62,6 +65,10 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
     }
     int takes_value = !strcmp(name, "--config") || !strcmp(name, "--set") || !strcmp(name, "--threads");
     if (!takes_value) {
+        if (!strcmp(a, "--force")) {
+            cli->force = 1;
+            return 1;
+        }
         if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) {
             cli->quiet = 1;
             wt_context_set_log_hook(cli->ctx, log_to_stderr, NULL, WT_LOG_ERROR);
@@ -174,6 +181,47 @@ int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max)
         if (!c) return n + 1;
         p = c + 1;
     }
+}
+
+/* The absolute path `p` names, its directory resolved when the file itself does not exist yet. */
+static void resolve_path(const char *p, char *out, size_t n)
+{
+    char buf[PATH_MAX], dir[PATH_MAX];
+    if (realpath(p, buf)) {
+        snprintf(out, n, "%s", buf);
+        return;
+    }
+    const char *slash = strrchr(p, '/');
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - p) : 1, slash ? (slash == p ? "/" : p) : ".");
+    if (realpath(dir, buf) && strlen(buf) + strlen(p) + 2 <= n) {
+        strcpy(out, buf);
+        strcat(out, "/");
+        strcat(out, slash ? slash + 1 : p);
+    } else
+        snprintf(out, n, "%s", p);
+}
+
+int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2)
+{
+    const char *ins[3] = {cli->config_path, in1, in2};
+    char rp[4096], ri[4096];
+    struct stat so, si;
+    int have = stat(path, &so) == 0;
+    resolve_path(path, rp, sizeof rp);
+    for (int k = 0; k < 3; k++) {
+        if (!ins[k]) continue;
+        resolve_path(ins[k], ri, sizeof ri);
+        int same = (have && stat(ins[k], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino) || !strcmp(rp, ri);
+        if (same)
+            return WT_ERROR(cli->ctx, WT_ERR_IO, "the output '%s' is the input '%s' (%s): writing it would destroy the "
+                            "input; choose another output name", path, ins[k], !strcmp(rp, ri) ? rp : "same file");
+    }
+    for (int k = 0; k < cli->noutputs; k++)
+        if (!strcmp(cli->outputs[k], rp))
+            return WT_ERROR(cli->ctx, WT_ERR_IO, "'%s' is given as two outputs (%s): one would replace the other", path, rp);
+    if (cli->noutputs < 4) snprintf(cli->outputs[cli->noutputs++], sizeof cli->outputs[0], "%s", rp);
+    int st = wt_h5_check_replaceable(cli->ctx, path, cli->force);
+    return st < 0 ? st : wt_h5_check_writable(cli->ctx, path, bytes);
 }
 
 int wt_cli_fail(wt_cli *cli, int status)

@@ -417,7 +417,7 @@ int wt_cmd_compare(int argc, char **argv)
     {
         char probe[2200];
         snprintf(probe, sizeof probe, "%s/results.h5", a.out);
-        if ((st = wt_h5_check_writable(cli.ctx, probe, 0)) < 0) goto fail;
+        if ((st = wt_cli_check_output(&cli, probe, 0, NULL, NULL)) < 0) goto fail;
     }
     for (int v = 0; v < nv; v++) {
         cli.nset = base_nset; /* drops the previous value's sweep (and settle) overrides */

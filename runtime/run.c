@@ -93,7 +93,7 @@ int wt_cmd_run(int argc, char **argv)
     float *sf = NULL, *af = NULL, *rf = NULL;
     double *sd = NULL, *ad = NULL, *times = NULL;
     int st;
-    if ((st = wt_h5_check_writable(cli.ctx, args.out, 0)) < 0) goto fail;
+    if ((st = wt_cli_check_output(&cli, args.out, 0, args.tel, args.matrix)) < 0) goto fail;
     if ((st = wt_h5_open(cli.ctx, args.tel, &tr)) < 0) goto fail;
     /* the telemetry's own system, and the one asked for on the command line */
     if ((st = wt_h5_read_string(tr, "config", &ttext)) < 0) goto fail;

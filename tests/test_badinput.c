@@ -5,6 +5,8 @@
  * Classes: A (extreme but in-range values, derived sizes), B (integers that do not fit their C type),
  * E/D (non-finite or absurd floats, named at load), L (@include), F (command-line numbers), G/H/I/J
  * (HDF5 inputs: dtype, NaN/Inf, frame counts, provenance), K (an output that is an input). */
+#include <fcntl.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -435,6 +437,121 @@ START_TEST(test_disk_full)
 }
 END_TEST
 
+/* ---------------------------------------------------------------- K: nothing lost */
+
+typedef struct out_case {
+    const char *args;    /* %1$s = scratch directory, holding c.cfg, t.h5 (telemetry), M.h5, notes.txt */
+    int exit;
+    const char *want[2];
+    const char *intact;  /* an input that must be unchanged afterwards (same size and first bytes) */
+} out_case;
+
+static const out_case out_cases[] = {
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/t.h5", 1, {"is the input", "t.h5"}, "t.h5"},
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/sub/.././t.h5", 1, {"is the input", ""}, "t.h5"},
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/hard.h5", 1, {"is the input", "same file"}, "t.h5"},
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/link.h5", 1, {"is the input", ""}, "t.h5"},
+    {"run --matrix %1$s/M.h5 --telemetry %1$s/t.h5 --out %1$s/M.h5", 1, {"is the input", "M.h5"}, "M.h5"},
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --config %1$s/c.cfg --out %1$s/c.cfg", 1, {"is the input", "c.cfg"}, "c.cfg"},
+    {"build --config %1$s/c.cfg --out %1$s/c.cfg", 1, {"is the input", "c.cfg"}, "c.cfg"},
+    {"build --config %1$s/c.cfg --out %1$s/notes.txt", 1, {"notes.txt' exists and is not a wavetomo output", "--force"}, "notes.txt"},
+    {"sim --config %1$s/c.cfg --frames 4 --out %1$s/notes.txt", 1, {"not a wavetomo output", ""}, "notes.txt"},
+    {"sim --config %1$s/c.cfg --frames 4 --out %1$s/x.h5 --telemetry %1$s/x.h5", 1, {"given as two outputs", ""}, NULL},
+    {"sim --config %1$s/c.cfg --frames 4 --out %1$s/x.h5 --telemetry %1$s/c.cfg", 1, {"is the input", "c.cfg"}, "c.cfg"},
+    {"sim --config %1$s/c.cfg --recon mvm --matrix %1$s/M.h5 --frames 4 --out %1$s/M.h5", 1, {"is the input", ""}, "M.h5"},
+    {"compare --config %1$s/c.cfg --recon pcg3 --frames 4 --out %1$s/t.h5", 1, {"t.h5", ""}, "t.h5"},
+    /* ours may be replaced, and anything with --force */
+    {"run --recon pcg3 --telemetry %1$s/t.h5 --out %1$s/M2.h5", 0, {"", ""}, "t.h5"},
+    {"build --config %1$s/c.cfg --out %1$s/notes.txt --force", 0, {"", ""}, "c.cfg"},
+};
+
+static long fsize(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
+}
+
+/* The inputs, made once for all cases (an unchecked fixture: in the parent, before the cases fork); the
+ * cases that succeed replace only M2.h5 (ours) and, last, notes.txt (--force). */
+static void setup_outputs(void)
+{
+    char p[512], q[512], err[8192];
+    setup();
+    snprintf(p, sizeof p, "cp " DEMO " %1$s/c.cfg && echo 'my notes' > %1$s/notes.txt && mkdir %1$s/sub", dir);
+    if (system(p) != 0 ||
+        run_cli("sim --config %1$s/c.cfg --frames 4 --out %1$s/r.h5 --telemetry %1$s/t.h5", err, sizeof err) != 0 ||
+        run_cli("build --config %1$s/c.cfg --out %1$s/M.h5", err, sizeof err) != 0 ||
+        run_cli("build --config %1$s/c.cfg --out %1$s/M2.h5", err, sizeof err) != 0)
+        fprintf(stderr, "setup_outputs failed: %s\n", err);
+    snprintf(p, sizeof p, "%s/t.h5", dir);
+    snprintf(q, sizeof q, "%s/hard.h5", dir);
+    if (link(p, q) != 0) perror("link");
+    snprintf(q, sizeof q, "%s/link.h5", dir);
+    if (symlink(p, q) != 0) perror("symlink");
+}
+
+START_TEST(test_outputs)
+{
+    const out_case *c = &out_cases[_i];
+    char p[512], err[8192];
+    long before = -1;
+    if (c->intact) {
+        snprintf(p, sizeof p, "%s/%s", dir, c->intact);
+        before = fsize(p);
+    }
+    int rc = run_cli(c->args, err, sizeof err);
+    ck_assert_msg(rc == c->exit, "%s: exit %d, expected %d (%s)", c->args, rc, c->exit, err);
+    for (int i = 0; i < 2; i++) ck_assert_msg(strstr(err, c->want[i]), "%s: stderr \"%s\" lacks \"%s\"", c->args, err, c->want[i]);
+    if (c->intact && c->exit != 0) ck_assert_msg(fsize(p) == before, "%s: %s changed", c->args, p);
+    snprintf(p, sizeof p, "ls %s | grep -q 'tmp-'", dir);
+    ck_assert_msg(system(p) != 0, "%s: a temporary was left", c->args);
+}
+END_TEST
+
+/* SIGINT/SIGTERM in the middle of a run remove the temporaries; a stale temporary of a dead process is
+ * removed by the next run, one of a live process is not. */
+START_TEST(test_signals_and_stale_temporaries)
+{
+    const int sigs[2] = {SIGINT, SIGTERM};
+    char out[256], tel[256], cmd[512];
+    snprintf(out, sizeof out, "%s/s.h5", dir);
+    snprintf(tel, sizeof tel, "%s/st.h5", dir);
+    for (int k = 0; k < 2; k++) {
+        pid_t pid = fork();
+        ck_assert(pid >= 0);
+        if (pid == 0) {
+            int nul = open("/dev/null", O_WRONLY);
+            dup2(nul, 1), dup2(nul, 2);
+            execl(wt, wt, "sim", "--config", DEMO, "--frames", "100000", "--out", out, "--telemetry", tel, (char *)NULL);
+            _exit(127);
+        }
+        char tmp[320];
+        snprintf(tmp, sizeof tmp, "%s.tmp-%ld", tel, (long)pid);
+        for (int w = 0; w < 400 && access(tmp, F_OK) != 0; w++) usleep(50000); /* up to 20 s of set-up */
+        ck_assert_msg(access(tmp, F_OK) == 0, "no temporary %s appeared", tmp);
+        ck_assert_int_eq(kill(pid, sigs[k]), 0);
+        int status;
+        ck_assert_int_eq(waitpid(pid, &status, 0), pid);
+        ck_assert_msg(WIFSIGNALED(status) && WTERMSIG(status) == sigs[k], "status %d", status);
+        snprintf(cmd, sizeof cmd, "ls %s | grep -q 's'", dir);
+        ck_assert_msg(system(cmd) != 0, "signal %d left a file in %s", sigs[k], dir);
+    }
+    /* stale: the pid of a child that has exited (dead), and our own pid (alive) */
+    pid_t dead = fork();
+    if (dead == 0) _exit(0);
+    waitpid(dead, NULL, 0);
+    char stale[320], live[320];
+    snprintf(stale, sizeof stale, "%s.tmp-%ld", out, (long)dead);
+    snprintf(live, sizeof live, "%s.tmp-%ld", out, (long)getpid());
+    write_file(stale, "half a file");
+    write_file(live, "being written");
+    char err[8192];
+    ck_assert_int_eq(run_cli("sim --config " DEMO " --frames 4 --out %1$s/s.h5", err, sizeof err), 0);
+    ck_assert_msg(access(stale, F_OK) != 0, "the stale %s was not removed", stale);
+    ck_assert_msg(access(live, F_OK) == 0, "%s of a live process was removed", live);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("badinput");
@@ -450,7 +567,13 @@ Suite *make_suite(void)
     tcase_add_loop_test(tcl, test_cli, 0, (int)(sizeof cli_cases / sizeof *cli_cases));
     tcase_add_loop_test(tcl, test_h5_inputs, 0, (int)(sizeof h5_cases / sizeof *h5_cases));
     tcase_add_test(tcl, test_disk_full);
+    tcase_add_test(tcl, test_signals_and_stale_temporaries);
     suite_add_tcase(s, tcl);
+    TCase *tco = tcase_create("outputs");
+    tcase_add_unchecked_fixture(tco, setup_outputs, teardown);
+    tcase_set_timeout(tco, 120);
+    tcase_add_loop_test(tco, test_outputs, 0, (int)(sizeof out_cases / sizeof *out_cases));
+    suite_add_tcase(s, tco);
     return s;
 }
 

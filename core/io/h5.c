@@ -277,20 +277,45 @@ fail:
     return st;
 }
 
+/* 1 when `path` is an HDF5 file whose root attribute "creator" starts with "wavetomo". */
+static int is_ours(const char *path)
+{
+    if (H5Fis_hdf5(path) <= 0) return 0;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1;
+    int ours = 0;
+    char buf[64] = {0};
+    if (f >= 0 && H5Aexists(f, "creator") > 0 && (a = H5Aopen(f, "creator", H5P_DEFAULT)) >= 0 &&
+        (t = H5Aget_type(a)) >= 0 && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) &&
+        H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
+        ours = !strncmp(buf, "wavetomo", 8);
+    wt_h5_priv_drop(t);
+    wt_h5_priv_drop(a);
+    wt_h5_priv_drop(f);
+    return ours;
+}
+
+int wt_h5_check_replaceable(wt_context *ctx, const char *path, int force)
+{
+    struct stat sb;
+    if (!path || force || lstat(path, &sb) != 0) return WT_OK;
+    if (S_ISDIR(sb.st_mode)) return WT_ERROR(ctx, WT_ERR_IO, "cannot write '%s': it is a directory", path);
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    int ours = S_ISREG(sb.st_mode) && is_ours(path);
+    wt_h5_priv_quiet_off(q);
+    if (!ours)
+        return WT_ERROR(ctx, WT_ERR_IO,
+                        "'%s' exists and is not a wavetomo output (%s); refusing to replace it: choose another "
+                        "name, or give --force", path,
+                        S_ISLNK(sb.st_mode) ? "a symbolic link" : !S_ISREG(sb.st_mode) ? "not a regular file"
+                                                                                     : "no HDF5 root attribute creator = \"wavetomo ...\"");
+    return WT_OK;
+}
+
 const char *wt_h5_library_version(void)
 {
 #define WT_H5_STR_(x) #x
 #define WT_H5_STR(x) WT_H5_STR_(x)
     return WT_H5_STR(H5_VERS_MAJOR) "." WT_H5_STR(H5_VERS_MINOR) "." WT_H5_STR(H5_VERS_RELEASE);
-}
-
-void wt_h5_process_init(void)
-{
-    /* HDF5 1.10.8: once a metadata flush has failed (disk full), every later flush of that file fails
-     * ("slist already enabled?"), so the file can never be closed, and the library's atexit clean-up then
-     * crashes on it (SIGSEGV in H5F__close_cb). Without that clean-up the process exits normally; files
-     * that matter were closed explicitly (commit), the temporaries are unlinked by abort. */
-    H5dont_atexit();
 }
 
 /* ---- writer ------------------------------------------------------------------------------------- */
@@ -322,6 +347,7 @@ static void writer_destroy(wt_h5_writer *w, int remove_temp)
     wt_h5_priv_drop(w->lcpl);
     wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
+    wt_h5_priv_temp_unregister(w->temp_slot);
     wt_free(w->ctx, w->temp);
     wt_free(w->ctx, w->target);
     wt_free(w->ctx, w);
@@ -338,16 +364,19 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     WT_ALLOC(ctx, w, 1, "an HDF5 writer");
     w->ctx = ctx;
     w->file = w->lcpl = -1;
+    w->temp_slot = -1;
     size_t tn = strlen(path) + 32;
     w->target = wt_h5_priv_dupstr(ctx, path);
     w->temp = wt_malloc(ctx, tn, 1);
     if (!w->target || !w->temp) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file names of '%s'", path);
     snprintf(w->temp, tn, "%s.tmp-%ld", path, (long)getpid());
+    wt_h5_priv_remove_stale(path); /* temporaries of earlier runs that were killed (SIGKILL) */
     if ((fapl = wt_h5_priv_file_access()) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
     if ((w->file = H5Fcreate(w->temp, H5F_ACC_TRUNC, H5P_DEFAULT, fapl)) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot create the temporary file '%s' (H5Fcreate)", path, w->temp);
     w->created = 1;
+    w->temp_slot = wt_h5_priv_temp_register(w->temp); /* unlinked on SIGINT/SIGTERM (h5_temp.c) */
     if ((w->lcpl = H5Pcreate(H5P_LINK_CREATE)) < 0 || H5Pset_create_intermediate_group(w->lcpl, 1) < 0 ||
         H5Pset_char_encoding(w->lcpl, H5T_CSET_UTF8) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up link creation properties", path);

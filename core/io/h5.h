@@ -52,10 +52,18 @@ typedef struct wt_h5_reader wt_h5_reader;
 typedef struct wt_h5_matrix wt_h5_matrix; /* a 2-D dataset written by blocks of rows */
 typedef struct wt_h5_series wt_h5_series; /* a dataset that grows by one frame per append */
 
-/* Call first in a program's main, before any other HDF5 use (it has no effect later): turns off HDF5's
- * exit-time clean-up, which crashes (HDF5 1.10.8) on a file whose metadata flush failed on a full disk.
- * A long-running process that hits that case keeps the broken file's memory until it exits. */
+/* Call first in a program's main, before any other HDF5 use (h5_temp.c):
+ *  - turns off HDF5's exit-time clean-up, which crashes (HDF5 1.10.8) on a file whose metadata flush
+ *    failed on a full disk (a long-running process that hits that case keeps its memory until exit);
+ *  - installs SIGINT/SIGTERM/SIGHUP handlers that unlink the temporaries of the writers still open, then
+ *    die of the signal as before (signals the caller ignores stay ignored).
+ * Every wt_h5_create also removes "TARGET.tmp-<pid>" files left by processes that no longer exist. */
 void wt_h5_process_init(void);
+
+/* Before writing `path`: WT_OK when it does not exist, is a wavetomo output (an HDF5 file whose root
+ * attribute "creator" starts with "wavetomo"), or force is set; else WT_ERR_IO naming it: a file that is
+ * not ours (a configuration, someone's data, a symbolic link) is never replaced without --force. */
+int wt_h5_check_replaceable(wt_context *ctx, const char *path, int force);
 
 /* "1.10.8": the HDF5 version this was built against (the library refuses to run with another). */
 const char *wt_h5_library_version(void);
