@@ -12,6 +12,8 @@
 #include <unistd.h>
 
 #include "core/io/h5.h"
+
+#include <cblas.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -102,6 +104,9 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
 #ifdef _OPENMP
         if (t > 0) omp_set_num_threads((int)t);
 #endif
+        /* OpenBLAS keeps its own pool: without this the MVM's GEMVs and the builder's BLAS use every core
+         * whatever --threads says (issue 10) */
+        if (t > 0) openblas_set_num_threads((int)t);
     }
     return 1;
 }

@@ -22,7 +22,8 @@ static void usage(FILE *f)
             "  compare          side-by-side closed-loop comparison (MVM, PCG-3, CG-9) with a report\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
             "\n"
-            "Every command takes --set key=value (any config key, repeatable) and --help.\n"
+            "Every command takes --set key=value (any config key, repeatable), --threads N (OpenMP and OpenBLAS),\n"
+            "--force (replace an existing file that is not a wavetomo output) and --help.\n"
             "Presets: data/presets/eelt-mcao.cfg (the paper's E-ELT system), data/presets/demo.cfg.\n");
 }
 

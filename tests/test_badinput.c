@@ -552,6 +552,45 @@ START_TEST(test_signals_and_stale_temporaries)
 }
 END_TEST
 
+/* ---------------------------------------------------------------- --threads */
+
+/* --threads N also sets OpenBLAS's pool (issue 10): `run` with the stored MVM and with pcg3 gives the
+ * same bits with 1 and 2 threads (each command of the GEMV is one dot product computed by one thread; the
+ * PCG's reductions have a fixed static split). The build is not bit-identical (README). */
+static void read_all(const char *path, const char *name, float *out, size_t n)
+{
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r;
+    ck_assert_msg(wt_h5_open(ctx, path, &r) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_h5_read(r, name, WT_H5_F32, 2, NULL, NULL, out, n) == WT_OK, "%s", wt_error_message(ctx));
+    wt_h5_close(r);
+    wt_context_free(ctx);
+}
+
+START_TEST(test_threads_bit_identical)
+{
+    char err[8192], a[256], b[256];
+    ck_assert_int_eq(run_cli("sim --config " DEMO " --frames 8 --out %1$s/r.h5 --telemetry %1$s/t.h5", err, sizeof err), 0);
+    ck_assert_int_eq(run_cli("build --config " DEMO " --out %1$s/M.h5", err, sizeof err), 0);
+    const char *how[2] = {"--matrix %1$s/M.h5", "--recon pcg3"};
+    for (int k = 0; k < 2; k++) {
+        char cmd[512];
+        for (int n = 1; n <= 2; n++) {
+            snprintf(cmd, sizeof cmd, "run %s --telemetry %%1$s/t.h5 --threads %d --out %%1$s/o%d.h5", how[k], n, n);
+            ck_assert_msg(run_cli(cmd, err, sizeof err) == 0, "%s", err);
+        }
+        size_t n = 8 * 759; /* frames x actuators of the demo */
+        float *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y);
+        snprintf(a, sizeof a, "%s/o1.h5", dir);
+        snprintf(b, sizeof b, "%s/o2.h5", dir);
+        read_all(a, "reconstruction", x, n);
+        read_all(b, "reconstruction", y, n);
+        ck_assert_msg(!memcmp(x, y, n * sizeof *x), "%s: 1 and 2 threads differ", how[k]);
+        free(x), free(y);
+    }
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("badinput");
@@ -568,6 +607,7 @@ Suite *make_suite(void)
     tcase_add_loop_test(tcl, test_h5_inputs, 0, (int)(sizeof h5_cases / sizeof *h5_cases));
     tcase_add_test(tcl, test_disk_full);
     tcase_add_test(tcl, test_signals_and_stale_temporaries);
+    tcase_add_test(tcl, test_threads_bit_identical);
     suite_add_tcase(s, tcl);
     TCase *tco = tcase_create("outputs");
     tcase_add_unchecked_fixture(tco, setup_outputs, teardown);
