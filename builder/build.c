@@ -45,13 +45,7 @@ static int build_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         else a->out = v;
     } else if (!strcmp(o, "--memory")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
-        char *end = NULL;
-        if (!v) return -1;
-        a->memory_gb = strtod(v, &end);
-        if (*end || !(a->memory_gb > 0)) {
-            wt_cli_usage_error(cli, "--memory expects a positive number of GB, got '%s'", v);
-            return -1;
-        }
+        if (!v || wt_cli_double(cli, o, v, 1e-3, 1e6, &a->memory_gb) < 0) return -1;
     } else
         return 0;
     return 1;
@@ -119,7 +113,7 @@ int wt_cmd_build(int argc, char **argv)
     int cg9 = !strcmp(args.recon, "cg9");
     /* check the output before hours of work: R is n_act x n_slopes float32 */
     double rbytes = 4.0 * (double)sys->nact * ((double)sys->nslopes + (double)sys->nact);
-    if ((st = wt_h5_check_writable(cli.ctx, args.out, (int64_t)(rbytes * 1.05))) < 0) goto fail;
+    if ((st = wt_cli_check_output(&cli, args.out, (int64_t)(rbytes * 1.05), NULL, NULL)) < 0) goto fail;
     const wt_recon_variant_config *var = cg9 ? &cfg->cg9 : &cfg->pcg3;
     int64_t nunknowns = 0; /* a coefficient per layer grid point */
     for (int l = 0; l < var->nlayers; l++) nunknowns += (int64_t)var->size[l] * var->size[l];

@@ -1,10 +1,19 @@
 /* cli/cli.c: shared driver plumbing: options, error reporting, progress. */
 #include "cli.h"
 
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
+#include <limits.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include "core/io/h5.h"
+
+#include <cblas.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -58,6 +67,10 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
     }
     int takes_value = !strcmp(name, "--config") || !strcmp(name, "--set") || !strcmp(name, "--threads");
     if (!takes_value) {
+        if (!strcmp(a, "--force")) {
+            cli->force = 1;
+            return 1;
+        }
         if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) {
             cli->quiet = 1;
             wt_context_set_log_hook(cli->ctx, log_to_stderr, NULL, WT_LOG_ERROR);
@@ -84,17 +97,16 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
         }
         cli->set[cli->nset++] = val;
     } else {
-        char *end = NULL;
-        long t = strtol(val, &end, 10);
-        if (!end || *end || t < 0 || t > 1024) {
-            wt_cli_usage_error(cli, "--threads expects a non-negative integer, got '%s'", val);
-            return -1;
-        }
+        long t;
+        if (wt_cli_int(cli, "--threads", val, 0, 1024, &t) < 0) return -1;
         cli->threads = (int)t;
         wt_context_set_threads(cli->ctx, (int)t);
 #ifdef _OPENMP
         if (t > 0) omp_set_num_threads((int)t);
 #endif
+        /* OpenBLAS keeps its own pool: without this the MVM's GEMVs and the builder's BLAS use every core
+         * whatever --threads says (issue 10) */
+        if (t > 0) openblas_set_num_threads((int)t);
     }
     return 1;
 }
@@ -127,16 +139,94 @@ const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i)
     return argv[++*i];
 }
 
+/* Strict numbers (issue 10, F): the whole text is the number, no blank before it, no overflow clamped
+ * by strtol/strtoll/strtod, nothing empty. */
 int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out)
 {
     char *end = NULL;
-    long v = strtol(text, &end, 10);
-    if (!text[0] || *end || v < lo || v > hi) {
-        wt_cli_usage_error(cli, "%s expects an integer in [%ld, %ld], got '%s'", name, lo, hi, text);
+    errno = 0;
+    long v = text && isdigit((unsigned char)text[text[0] == '-' || text[0] == '+']) ? strtol(text, &end, 10) : 0;
+    if (!end || *end || errno == ERANGE || v < lo || v > hi) {
+        wt_cli_usage_error(cli, "%s expects an integer in [%ld, %ld], got '%s'%s", name, lo, hi, text ? text : "",
+                           errno == ERANGE ? " (too large)" : "");
         return -1;
     }
     *out = v;
     return 0;
+}
+
+int wt_cli_double(wt_cli *cli, const char *name, const char *text, double lo, double hi, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    double v = text && text[0] && !isspace((unsigned char)text[0]) ? strtod(text, &end) : NAN;
+    if (!end || *end || errno == ERANGE || !isfinite(v) || v < lo || v > hi) {
+        wt_cli_usage_error(cli, "%s expects a number in [%g, %g], got '%s'", name, lo, hi, text ? text : "");
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max)
+{
+    int n = 0;
+    for (char *p = s;; n++) {
+        char *c = strchr(p, ',');
+        if (c) *c = '\0';
+        if (!*p) {
+            wt_cli_usage_error(cli, "%s: item %d of the comma-separated list is empty", name, n + 1);
+            return -1;
+        }
+        if (n == max) {
+            wt_cli_usage_error(cli, "%s: more than %d items", name, max);
+            return -1;
+        }
+        items[n] = p;
+        if (!c) return n + 1;
+        p = c + 1;
+    }
+}
+
+/* The absolute path `p` names, its directory resolved when the file itself does not exist yet. */
+static void resolve_path(const char *p, char *out, size_t n)
+{
+    char buf[PATH_MAX], dir[PATH_MAX];
+    if (realpath(p, buf)) {
+        snprintf(out, n, "%s", buf);
+        return;
+    }
+    const char *slash = strrchr(p, '/');
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - p) : 1, slash ? (slash == p ? "/" : p) : ".");
+    if (realpath(dir, buf) && strlen(buf) + strlen(p) + 2 <= n) {
+        strcpy(out, buf);
+        strcat(out, "/");
+        strcat(out, slash ? slash + 1 : p);
+    } else
+        snprintf(out, n, "%s", p);
+}
+
+int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2)
+{
+    const char *ins[3] = {cli->config_path, in1, in2};
+    char rp[4096], ri[4096];
+    struct stat so, si;
+    int have = stat(path, &so) == 0;
+    resolve_path(path, rp, sizeof rp);
+    for (int k = 0; k < 3; k++) {
+        if (!ins[k]) continue;
+        resolve_path(ins[k], ri, sizeof ri);
+        int same = (have && stat(ins[k], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino) || !strcmp(rp, ri);
+        if (same)
+            return WT_ERROR(cli->ctx, WT_ERR_IO, "the output '%s' is the input '%s' (%s): writing it would destroy the "
+                            "input; choose another output name", path, ins[k], !strcmp(rp, ri) ? rp : "same file");
+    }
+    for (int k = 0; k < cli->noutputs; k++)
+        if (!strcmp(cli->outputs[k], rp))
+            return WT_ERROR(cli->ctx, WT_ERR_IO, "'%s' is given as two outputs (%s): one would replace the other", path, rp);
+    if (cli->noutputs < 4) snprintf(cli->outputs[cli->noutputs++], sizeof cli->outputs[0], "%s", rp);
+    int st = wt_h5_check_replaceable(cli->ctx, path, cli->force);
+    return st < 0 ? st : wt_h5_check_writable(cli->ctx, path, bytes);
 }
 
 int wt_cli_fail(wt_cli *cli, int status)
@@ -155,9 +245,12 @@ int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed)
         cli->set[cli->nset++] = cli->frames_set;
     }
     if (seed) {
-        char *end;
-        long long s = strtoll(seed, &end, 10);
-        if (!seed[0] || *end || s < 0) return wt_cli_usage_error(cli, "--seed expects a non-negative integer, got '%s'", seed);
+        char *end = NULL;
+        errno = 0;
+        long long s = isdigit((unsigned char)seed[0]) ? strtoll(seed, &end, 10) : -1;
+        if (!end || *end || errno == ERANGE || s < 0)
+            return wt_cli_usage_error(cli, "--seed expects an integer in [0, %lld], got '%s'%s", LLONG_MAX, seed,
+                                      errno == ERANGE ? " (too large: seeds are 63-bit)" : "");
         snprintf(cli->seed_set, sizeof cli->seed_set, "sim.seed=%lldL", s);
         cli->set[cli->nset++] = cli->seed_set;
     }

@@ -22,6 +22,9 @@ typedef struct wt_cli {
     int quiet;
     long frames;                /* --frames of the run commands (0: the config's) */
     char frames_set[64], seed_set[64], settle_set[64]; /* storage of the overrides they become */
+    int force;                  /* --force: replace an existing file that is not a wavetomo output */
+    int noutputs;               /* outputs checked so far (wt_cli_check_output) */
+    char outputs[4][4096];      /* their resolved paths */
 } wt_cli;
 
 /* Create the context (log to stderr unless quiet). Non-zero on allocation failure (message printed). */
@@ -43,6 +46,17 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
 const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i);
 /* Parse an integer in [lo, hi] for option `name`; reports a usage error and returns -1 when it is not. */
 int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out);
+/* A finite number in [lo, hi], the whole text (no overflow to Inf, no trailing text); -1 after a usage
+ * error naming the option. */
+int wt_cli_double(wt_cli *cli, const char *name, const char *text, double lo, double hi, double *out);
+/* Split s in place at commas into items (at most max); an empty item ("1,,3", a trailing comma) or too
+ * many items is a usage error naming the option: returns -1, else the number of items. */
+int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max);
+/* Before writing output `path` (issue 10, K): refuse when it is the configuration (--config) or in1/in2
+ * (other inputs, may be NULL) — same device and inode, or the same resolved path — or an output checked
+ * before; refuse to replace an existing file that is not a wavetomo output unless --force; then
+ * wt_h5_check_writable(path, bytes). Returns a status (message in the context), like the library. */
+int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2);
 /* Print "PROG: error: <message>" for a failed status and return the process exit code (1). */
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */

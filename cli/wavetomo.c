@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "core/io/h5.h"
 
 static void usage(FILE *f)
 {
@@ -21,12 +22,14 @@ static void usage(FILE *f)
             "  compare          side-by-side closed-loop comparison (MVM, PCG-3, CG-9) with a report\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
             "\n"
-            "Every command takes --set key=value (any config key, repeatable) and --help.\n"
+            "Every command takes --set key=value (any config key, repeatable), --threads N (OpenMP and OpenBLAS),\n"
+            "--force (replace an existing file that is not a wavetomo output) and --help.\n"
             "Presets: data/presets/eelt-mcao.cfg (the paper's E-ELT system), data/presets/demo.cfg.\n");
 }
 
 int main(int argc, char **argv)
 {
+    wt_h5_process_init(); /* before any HDF5 use: see core/io/h5.h (a full disk must not crash the exit) */
     if (argc < 2) {
         usage(stderr);
         return 2;

@@ -50,16 +50,6 @@ typedef struct {
     long frames;
 } cmp_args;
 
-static int split(char *s, char **items, int max)
-{
-    int n = 0;
-    for (char *tok = strtok(s, ","); tok; tok = strtok(NULL, ",")) {
-        if (n == max) return -1;
-        items[n++] = tok;
-    }
-    return n;
-}
-
 static int cmp_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
     cmp_args *a = user;
@@ -75,7 +65,7 @@ static int cmp_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         if (wt_cli_int(cli, o, v, 1, 10000000, &a->frames) < 0) return -1;
     } else if (!strcmp(o, "--recon")) {
         snprintf(a->list, sizeof a->list, "%s", v);
-        a->nm = split(a->list, a->methods, MAXM);
+        if ((a->nm = wt_cli_split(cli, o, a->list, a->methods, MAXM)) < 0) return -1;
         for (int k = 0; k < a->nm; k++)
             if (wt_reconstructor_kind(a->methods[k]) < 0) {
                 wt_cli_usage_error(cli, "--recon: unknown reconstructor '%s' (mvm, pcg3, cg9, none)", a->methods[k]);
@@ -94,7 +84,7 @@ static int cmp_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         memcpy(a->key, v, (size_t)(eq - v));
         a->key[eq - v] = '\0';
         snprintf(a->sweep, sizeof a->sweep, "%s", eq + 1);
-        a->nv = split(a->sweep, a->values, MAXV);
+        if ((a->nv = wt_cli_split(cli, o, a->sweep, a->values, MAXV)) < 0) return -1;
         if (a->nv <= 0) {
             wt_cli_usage_error(cli, "--sweep: 1 to %d values expected after '%s='", MAXV, a->key);
             return -1;
@@ -396,7 +386,7 @@ int wt_cmd_compare(int argc, char **argv)
     memset(&a, 0, sizeof a);
     a.frames = -1;
     snprintf(a.list, sizeof a.list, "mvm,pcg3,cg9");
-    a.nm = split(a.list, a.methods, MAXM);
+    a.nm = wt_cli_split(&cli, "--recon", a.list, a.methods, MAXM);
     int rc = wt_cli_parse(&cli, argc, argv, cmp_option, &a);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -427,7 +417,7 @@ int wt_cmd_compare(int argc, char **argv)
     {
         char probe[2200];
         snprintf(probe, sizeof probe, "%s/results.h5", a.out);
-        if ((st = wt_h5_check_writable(cli.ctx, probe, 0)) < 0) goto fail;
+        if ((st = wt_cli_check_output(&cli, probe, 0, NULL, NULL)) < 0) goto fail;
     }
     for (int v = 0; v < nv; v++) {
         cli.nset = base_nset; /* drops the previous value's sweep (and settle) overrides */

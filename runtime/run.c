@@ -75,8 +75,10 @@ int wt_cmd_run(int argc, char **argv)
         return rc;
     }
     int kind = args.recon ? wt_reconstructor_kind(args.recon) : WT_RECON_MVM;
-    if (kind != WT_RECON_MVM && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) {
-        rc = wt_cli_usage_error(&cli, "--recon expects pcg3 or cg9, got '%s'", args.recon);
+    if (args.recon && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) {
+        rc = wt_cli_usage_error(&cli, kind == WT_RECON_MVM ? "--recon mvm: give the stored matrix with --matrix MATRIX.h5 "
+                                "instead (run takes --matrix for the MVM, or --recon pcg3|cg9), got '%s'"
+                                : "--recon expects pcg3 or cg9 (or --matrix MATRIX.h5 for the MVM), got '%s'", args.recon);
         wt_cli_done(&cli);
         return rc;
     }
@@ -91,7 +93,7 @@ int wt_cmd_run(int argc, char **argv)
     float *sf = NULL, *af = NULL, *rf = NULL;
     double *sd = NULL, *ad = NULL, *times = NULL;
     int st;
-    if ((st = wt_h5_check_writable(cli.ctx, args.out, 0)) < 0) goto fail;
+    if ((st = wt_cli_check_output(&cli, args.out, 0, args.tel, args.matrix)) < 0) goto fail;
     if ((st = wt_h5_open(cli.ctx, args.tel, &tr)) < 0) goto fail;
     /* the telemetry's own system, and the one asked for on the command line */
     if ((st = wt_h5_read_string(tr, "config", &ttext)) < 0) goto fail;
@@ -115,6 +117,8 @@ int wt_cmd_run(int argc, char **argv)
     const char *sname = kind == WT_RECON_MVM ? "slopes" : "slopes_ol";
     if ((st = wt_h5_check_shape(tr, sname, 2, es, dims)) < 0) goto fail;
     F = dims[0];
+    if (F < 1) st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s: dataset '%s' holds 0 frames: nothing to run", args.tel, sname);
+    if (st < 0) goto fail;
     if (kind == WT_RECON_MVM) {
         if ((st = wt_h5_check_shape(tr, "commands", 2, ea, dims)) < 0) goto fail;
         if (dims[0] != F) {

@@ -232,12 +232,12 @@ int wt_cmd_sim(int argc, char **argv)
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     /* find an unwritable output before the run, not after it */
-    if ((st = wt_h5_check_writable(cli.ctx, out, 0)) < 0) goto fail;
+    if ((st = wt_cli_check_output(&cli, out, 0, args.matrix, NULL)) < 0) goto fail;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;
     long frames = cfg->frames;
     if (tel) {
         int64_t bytes = (int64_t)frames * (2 * sys->nslopes + sys->nact) * 4;
-        if ((st = wt_h5_check_writable(cli.ctx, tel, bytes)) < 0) goto fail;
+        if ((st = wt_cli_check_output(&cli, tel, bytes, args.matrix, NULL)) < 0) goto fail;
     }
     if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};

@@ -21,14 +21,19 @@ static int run(const char *fmt, ...)
     int n = snprintf(cmd, sizeof cmd, "%s ", wt);
     vsnprintf(cmd + n, sizeof cmd - n, fmt, ap);
     va_end(ap);
-    strncat(cmd, " > /dev/null 2> /tmp/wt_cli_stderr.txt", sizeof cmd - strlen(cmd) - 1);
+    /* stderr in the case's own directory: a fixed /tmp name is shared with every other `make test` running
+     * on the machine (other worktrees, make debug-test), which made this suite flaky */
+    size_t l = strlen(cmd);
+    snprintf(cmd + l, sizeof cmd - l, " > /dev/null 2> %s/stderr.txt", dir);
     int st = system(cmd);
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
 static int stderr_has(const char *text)
 {
-    FILE *f = fopen("/tmp/wt_cli_stderr.txt", "r");
+    char path[128];
+    snprintf(path, sizeof path, "%s/stderr.txt", dir);
+    FILE *f = fopen(path, "r");
     char buf[8192] = {0};
     if (!f) return 0;
     size_t n = fread(buf, 1, sizeof buf - 1, f);

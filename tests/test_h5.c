@@ -151,8 +151,12 @@ START_TEST(test_roundtrip_types)
             ck_assert_int_eq(wt_h5_dims(r, name, &grank, dims), WT_OK);
             ck_assert_int_eq(grank, rank);
             for (int k = 0; k < rank; k++) ck_assert_int_eq(dims[k], shapes[rank - 1][k]);
-            ck_assert_int_eq(wt_h5_read(r, name, WT_H5_F64, rank, shapes[rank - 1], NULL, back, 24), WT_OK);
-            for (int64_t i = 0; i < n; i++) ck_assert_msg(back[i] == rt_value(t, i), "%s[%lld]", name, (long long)i);
+            /* as double: exact for every type but int64, which is refused (issue 10, class G) */
+            int sd = wt_h5_read(r, name, WT_H5_F64, rank, shapes[rank - 1], NULL, back, 24);
+            ck_assert_int_eq(sd, t == 3 ? WT_ERR_FORMAT : WT_OK);
+            if (t == 3) assert_contains(wt_error_message(ctx), "is int64, refused as float64");
+            for (int64_t i = 0; t != 3 && i < n; i++)
+                ck_assert_msg(back[i] == rt_value(t, i), "%s[%lld]", name, (long long)i);
             const size_t esize[5] = {8, 4, 4, 8, 1};
             memset(bufs[t], 0xff, 24 * esize[t]); /* so a read that writes nothing cannot pass */
             ck_assert_int_eq(wt_h5_read(r, name, types[t], rank, NULL, NULL, bufs[t], 24), WT_OK);
@@ -416,7 +420,7 @@ START_TEST(test_shape_mismatch)
     ck_assert_int_eq(wt_h5_read(r, "R", WT_H5_F32, 2, e4, NULL, buf, 599), WT_ERR_INVALID); /* buffer too small */
     assert_contains(wt_error_message(ctx), "600 elements, the buffer holds 599");
     ck_assert_int_eq(wt_h5_read(r, "R", WT_H5_I32, 2, e4, NULL, ib, 600), WT_ERR_FORMAT); /* float -> int */
-    assert_contains(wt_error_message(ctx), "floating point, refused as int32");
+    assert_contains(wt_error_message(ctx), "is float32, refused as int32");
     ck_assert_int_eq(wt_h5_read(r, "Rhat", WT_H5_F32, 2, e4, NULL, buf, 600), WT_ERR_FORMAT);
     snprintf(want, sizeof want, "%s: no dataset 'Rhat'", p);
     ck_assert_str_eq(wt_error_message(ctx), want);

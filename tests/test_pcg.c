@@ -133,11 +133,51 @@ START_TEST(test_rejects_indefinite_and_nan)
 }
 END_TEST
 
+/* Issue 10: tolerance 0 and thousands of iterations. Past convergence the residual sits at rounding level
+ * and rᵀz or pᵀAp stops being > 0 (formerly "pᵀAp = NaN", an error); now the solve stops cleanly with
+ * WT_OK or WT_WARN_BREAKDOWN, keeps a converged x and reports a finite residual. */
+START_TEST(test_tolerance_zero_stops_cleanly)
+{
+    const int n = 400;
+    double d[400], xs[400], b[400], x[400], inv[400];
+    make(n, d);
+    for (int i = 0; i < n; i++) inv[i] = 1.0 / d[i];
+    tri t = {n, d};
+    tu_randn(xs, n, 3);
+    tri_apply(&t, xs, b);
+    wt_context *ctx = tu_context();
+    wt_pcg *p;
+    ck_assert_int_eq(wt_pcg_alloc(ctx, n, &p), WT_OK);
+    int broke = 0;
+    for (int pre = 0; pre < 2; pre++) {
+        wt_pcg_result r;
+        memset(x, 0, sizeof x);
+        int st = wt_pcg_solve(p, tri_apply, &t, pre ? inv : NULL, b, x, 20000, 0.0, NULL, &r);
+        ck_assert_msg(st == WT_OK || st == WT_WARN_BREAKDOWN, "status %d: %s", st, wt_error_message(ctx));
+        broke += st == WT_WARN_BREAKDOWN;
+        if (st == WT_WARN_BREAKDOWN) ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "relative residual"));
+        ck_assert(isfinite(r.rel_resid));
+        ck_assert_double_le(r.rel_resid, 1e-12); /* converged to rounding level (κ ≈ 1e4, ε = 2e-16) */
+        ck_assert_double_le(tu_rel_diff(x, xs, n), 1e-9);
+        ck_assert_int_lt(r.iterations, 20000);   /* it stopped, rather than running on rounding noise */
+    }
+    ck_assert_int_ge(broke, 1); /* the case this guards against does happen here */
+    /* an operator that is not positive definite is still an error at the first iteration */
+    for (int i = 0; i < n; i++) d[i] = -d[i] - 4.0;
+    memset(x, 0, sizeof x);
+    ck_assert_int_eq(wt_pcg_solve(p, tri_apply, &t, NULL, b, x, 10, 0.0, NULL, NULL), WT_ERR_NUMERIC);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "not positive definite"));
+    wt_pcg_free(p);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("pcg");
     TCase *tc = tcase_create("core");
     tcase_add_test(tc, test_converges_to_known_solution);
+    tcase_add_test(tc, test_tolerance_zero_stops_cleanly);
     tcase_add_test(tc, test_jacobi_needs_fewer_iterations);
     tcase_add_test(tc, test_warm_start_history_and_cap);
     tcase_add_test(tc, test_rejects_indefinite_and_nan);

@@ -28,6 +28,7 @@ const char *wt_strerror(int status)
     switch (status) {
     case WT_OK: return "success";
     case WT_WARN_MAXITER: return "iteration cap reached";
+    case WT_WARN_BREAKDOWN: return "iterative solver stopped at a breakdown (residual reported)";
     case WT_ERR_NOMEM: return "out of memory";
     case WT_ERR_INVALID: return "invalid argument";
     case WT_ERR_CONFIG: return "configuration error";

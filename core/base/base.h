@@ -20,6 +20,8 @@ enum {
     WT_OK = 0,
     /* warnings (> 0): the result is usable */
     WT_WARN_MAXITER = 1,   /* an iterative solver stopped at its iteration cap before its tolerance */
+    WT_WARN_BREAKDOWN = 2, /* an iterative solver stopped early at a breakdown at rounding level (pᵀAp or rᵀz
+                              no longer > 0): the last iterate is kept and its residual reported */
     /* errors (< 0) */
     WT_ERR_NOMEM = -1,     /* an allocation failed */
     WT_ERR_INVALID = -2,   /* a bad argument or inconsistent sizes */

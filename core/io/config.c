@@ -170,6 +170,7 @@ typedef struct pstate {
     config_t *cf;
     const char *const *ov;
     int nfile_ov;                                    /* the first nfile_ov of ov come from the file */
+    const wt_config_priv_text *src;                  /* the expanded text: its lines map to FILE:LINE */
     int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
     const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
 } pstate;
@@ -185,15 +186,22 @@ static int fail_at(pstate *ps, const char *loc, const char *fmt, ...)
     return WT_ERROR(ps->ctx, WT_ERR_CONFIG, "%s: %s", loc, msg);
 }
 
+/* "FILE:LINE" of line `line` of the text libconfig read (an included file names itself). */
+static const char *src_line(const pstate *ps, int line, char *buf, size_t n)
+{
+    int l = line;
+    const char *f = ps->src ? wt_config_priv_src(ps->src, line, &l) : NULL;
+    snprintf(buf, n, "%s:%d", f ? f : ps->name, l);
+    return buf;
+}
+
 /* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent. */
 static const char *where(const pstate *ps, int k, const config_setting_t *s, char *buf, size_t n)
 {
     if (k >= 0 && ps->ovidx[k] >= 0 && ps->ovidx[k] < ps->nfile_ov)
         snprintf(buf, n, "%s: overrides \"%s\"", ps->name, ps->ov[ps->ovidx[k]]);
     else if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
-    else if (s && config_setting_source_line(s) > 0)
-        snprintf(buf, n, "%s:%u", config_setting_source_file(s) ? config_setting_source_file(s) : ps->name,
-                 (unsigned)config_setting_source_line(s));
+    else if (s && config_setting_source_line(s) > 0) src_line(ps, (int)config_setting_source_line(s), buf, n);
     else snprintf(buf, n, "%s", ps->name);
     return buf;
 }
@@ -298,12 +306,20 @@ static int apply_override(pstate *ps, int i)
     int st = WT_OK, ok = 0;
     /* a bare word is retried as a string for string keys (recon.prior=exact) */
     for (int quoted = 0; !ok && quoted < 1 + (wt_config_priv_keys[k].type == K_ENUM && !memchr(v, '"', vl)); quoted++) {
+        wt_config_priv_text vt;
         if (quoted) config_destroy(&tmp);
         snprintf(text, cap, quoted ? "v = \"%.*s\";" : "v = %.*s;", (int)vl, v);
         config_init(&tmp);
-        ok = config_read_string(&tmp, text);
+        /* the value's integers read exactly, as in the file (config_text.c) */
+        if ((st = wt_config_priv_text_make(ps->ctx, text, loc, NULL, &vt)) < 0) break;
+        ok = config_read_string(&tmp, vt.text);
+        wt_config_priv_text_free(&vt);
     }
     wt_free(ps->ctx, text);
+    if (st < 0) {
+        config_destroy(&tmp);
+        return st;
+    }
     const char *leaf, *e = config_error_text(&tmp);
     config_setting_t *parent = NULL;
     if (!ok)
@@ -342,6 +358,10 @@ static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, d
     if (elem >= 0) snprintf(ix, sizeof ix, ", element [%d]", elem);
     int ok = wt_config_priv_is_int(ks->type) ? is_int_setting(s) : config_setting_is_number(s);
     expected_text(ks, want, sizeof want);
+    if (!ok && wt_config_priv_is_int(ks->type) && config_setting_type(s) == CONFIG_TYPE_FLOAT &&
+        fabs(num(s)) >= 0x1p63 && num(s) == floor(num(s)))
+        return FAIL(ps, k, s, "key '%s'%s: value %s does not fit a 64-bit integer; expected %s", ks->path, ix,
+                    wt_config_priv_fmt_num(num(s), v, sizeof v), want);
     if (!ok) {
         describe(s, got, sizeof got);
         return FAIL(ps, k, s, "key '%s'%s: expected %s, got %s", ks->path, ix,
@@ -350,6 +370,9 @@ static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, d
     double x = num(s);
     if (is_int_setting(s)) snprintf(v, sizeof v, "%lld", config_setting_get_int64(s));
     else wt_config_priv_fmt_num(x, v, sizeof v);
+    if ((ks->type == K_INT || ks->type == K_INTS) && (x > INT_MAX || x < INT_MIN))
+        return FAIL(ps, k, s, "key '%s'%s: value %s does not fit a 32-bit integer (%d..%d); expected %s", ks->path, ix,
+                    v, INT_MIN, INT_MAX, want);
     if (!in_range(ks, x))
         return FAIL(ps, k, s, "key '%s'%s: value %s is out of range; expected %s", ks->path, ix, v, want);
     long long iv = is_int_setting(s) ? config_setting_get_int64(s) : 0;
@@ -651,15 +674,15 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
                       const char *const *overrides, wt_config **out)
 {
     int st = WT_OK;
+    wt_config_priv_text src = {0};
     wt_config *cfg = NULL;
     const char **allov = NULL;
     int nfile = 0; /* overrides the file carries (before any goto fail) */
     config_t cf;
-    pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides};
+    pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides, .src = &src};
     *out = NULL;
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) ps.ovidx[k] = -1;
     config_init(&cf);
-    if (incdir) config_set_include_dir(&cf, incdir);
     if (!text) {
         st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: no configuration text", ps.name);
         goto fail;
@@ -668,10 +691,12 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
         st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: %d overrides but no override array", ps.name, noverrides);
         goto fail;
     }
-    if (!config_read_string(&cf, text)) {
+    WT_TRY(wt_config_priv_text_make(ctx, text, ps.name, incdir, &src));
+    if (!config_read_string(&cf, src.text)) {
         const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
-        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: syntax error: %s%s",
-                      config_error_file(&cf) ? config_error_file(&cf) : ps.name, config_error_line(&cf), e, syntax_hint(e));
+        char at[1100];
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", src_line(&ps, config_error_line(&cf), at, sizeof at),
+                      e, syntax_hint(e));
         goto fail;
     }
     /* A file may carry its own overrides (a preset that @includes another and changes a few keys:
@@ -679,8 +704,9 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     const config_setting_t *fo = config_setting_get_member(config_root_setting(&cf), "overrides");
     if (fo) {
         if (!config_setting_is_aggregate(fo) || config_setting_is_group(fo)) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%u: 'overrides' must be a list of \"key=value\" strings",
-                          ps.name, (unsigned)config_setting_source_line(fo));
+            char at[1100];
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: 'overrides' must be a list of \"key=value\" strings",
+                          src_line(&ps, (int)config_setting_source_line(fo), at, sizeof at));
             goto fail;
         }
         nfile = config_setting_length(fo);
@@ -691,8 +717,9 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
             const config_setting_t *e = config_setting_get_elem(fo, (unsigned)i);
             allov[i] = config_setting_get_string(e);
             if (!allov[i]) {
-                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%u: overrides[%d] must be a \"key=value\" string", ps.name,
-                              (unsigned)config_setting_source_line(e), i);
+                char at[1100];
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: overrides[%d] must be a \"key=value\" string",
+                              src_line(&ps, (int)config_setting_source_line(e), at, sizeof at), i);
                 goto fail;
             }
             WT_ALLOC(ctx, allov[i], strlen(config_setting_get_string(e)) + 1, "an override");
@@ -710,13 +737,16 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
     WT_TRY(check_consistency(&ps, cfg));
+    WT_TRY(wt_config_priv_check_derived(ctx, cfg));
     WT_TRY(build_canonical(&ps, cfg));
     config_destroy(&cf);
+    wt_config_priv_text_free(&src);
     free_file_overrides(ctx, allov, nfile);
     *out = cfg;
     return WT_OK;
 fail:
     config_destroy(&cf);
+    wt_config_priv_text_free(&src);
     free_file_overrides(ctx, allov, nfile);
     wt_config_free(ctx, cfg);
     return st;

@@ -46,4 +46,39 @@ const char *wt_config_priv_fmt_num(double v, char *buf, size_t n);
 /* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
 void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n);
 
+/* ---------------------------------------------------------------- config_derived.c */
+
+/* Quantities derived from several keys (shift per frame, screen size, unknowns) against what the code
+ * can run; the message names every key involved. */
+int wt_config_priv_check_derived(wt_context *ctx, const wt_config *cfg);
+
+/* ---------------------------------------------------------------- config_text.c */
+
+/* The text handed to libconfig: @include lines replaced by the files' text and integer literals made
+ * exact (L appended beyond 32 bits, a float literal beyond 64 bits); see config_text.c. */
+#define WT_CONFIG_PRIV_MAX_FILES 32
+typedef struct wt_config_priv_linemap {
+    int line;     /* first line of the expanded text of this run */
+    int file;     /* index into files */
+    int src_line; /* its line in that file */
+} wt_config_priv_linemap;
+
+typedef struct wt_config_priv_text {
+    wt_context *ctx;
+    char *text;                                  /* the expanded text (owned) */
+    char *files[WT_CONFIG_PRIV_MAX_FILES];       /* [0] = the name given, then each included path (owned) */
+    int nfiles;
+    wt_config_priv_linemap *map;                 /* runs of lines, in order of the expanded text (owned) */
+    int nmap, capmap;
+    int line;                                    /* current line of the expanded text while building */
+} wt_config_priv_text;
+
+/* Expand `text` (read from `name`; @include names resolve against incdir when relative, the working
+ * directory when incdir is NULL). On error *t is left empty and the message names FILE:LINE. */
+int wt_config_priv_text_make(wt_context *ctx, const char *text, const char *name, const char *incdir,
+                             wt_config_priv_text *t);
+void wt_config_priv_text_free(wt_config_priv_text *t);
+/* The file (NULL if unknown) and line that expanded line `line` came from. */
+const char *wt_config_priv_src(const wt_config_priv_text *t, int line, int *src_line);
+
 #endif

@@ -15,9 +15,14 @@
 #define ARCSEC WT_ARCSEC
 #define DEG (M_PI / 180.0)
 #define MAS (1e-3 * WT_ARCSEC)
-#define GT0 F_LO_OPEN, 0.0, INF /* > 0 */
-#define GE0 0, 0.0, INF         /* >= 0 */
+/* Every float key has finite bounds that the code can run (issue 10, classes A/E): a value of 1e308
+ * gives Inf/NaN deep inside a computation, and an extreme one overflows an index. The bounds are wide
+ * (well beyond any telescope or atmosphere) and derived sizes are checked after loading (config_derived.c). */
+#define GT0(hi) F_LO_OPEN, 0.0, (hi) /* in (0, hi] */
+#define GE0(hi) 0, 0.0, (hi)         /* in [0, hi] */
 #define ANYANGLE 0, -360.0, 360.0
+#define MAXALT 1e6     /* [m]: any altitude, well above a sodium layer at 90 km */
+#define MAXFIELD 3600  /* [arcsec]: one degree, far beyond any AO field */
 
 /* the wrappers expand GT0/GE0/ANYANGLE into their three arguments before the real macro sees them */
 #define KF(...) KF_(__VA_ARGS__)
@@ -32,84 +37,84 @@
 #define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 
 #define SENSOR(pre, w)                                                                                     \
-    KF(pre ".photons", GT0, "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
-    KF(pre ".read_noise_e", GE0, "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
-    KF(pre ".spot_fwhm_arcsec", GT0, "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
-    KF(pre ".pixel_arcsec", GT0, "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
-    KI(pre ".pixels", 0, 1, INF, w.pixels, "pixels across a subaperture (Ns)"),                            \
-    {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, INF, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
+    KF(pre ".photons", GT0(1e12), "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
+    KF(pre ".read_noise_e", GE0(1e6), "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
+    KF(pre ".spot_fwhm_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
+    KF(pre ".pixel_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
+    KI(pre ".pixels", 0, 1, 1024, w.pixels, "pixels across a subaperture (Ns)"),                            \
+    {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
      "noise-equivalent angle per axis (rms); when given it replaces the photon/read-noise model"}
 
 #define VARIANT(pre, v)                                                                                    \
-    KFL(pre ".layer_altitudes_m", F_INCR, 0.0, INF, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
+    KFL(pre ".layer_altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
         "reconstruction layer altitudes, strictly increasing"),                                            \
-    KFL(pre ".layer_spacing_m", GT0, "m", 1, v.spacing, v.nlayers, 1, WT_MAX_LAYERS,                       \
+    KFL(pre ".layer_spacing_m", GT0(100.0), "m", 1, v.spacing, v.nlayers, 1, WT_MAX_LAYERS,                       \
         "grid spacing of each reconstruction layer"),                                                      \
-    KIL(pre ".layer_size", F_POW2, 4, 1 << 30, v.size, v.nlayers, 1, WT_MAX_LAYERS,                        \
+    KIL(pre ".layer_size", F_POW2, 4, 8192, v.size, v.nlayers, 1, WT_MAX_LAYERS,                        \
         "grid points per side of each layer; >= 2^recon.wavelet_levels"),                                  \
-    KI(pre ".iterations", 0, 1, INF, v.iterations, "(P)CG iterations per frame"),                          \
-    KF(pre ".tolerance", GE0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
+    KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
+    KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
     KE(pre ".preconditioner", "none|jacobi|jacobi_ngs", v.jacobi,                                          \
        "jacobi = modified Jacobi PCG, jacobi_ngs = the same plus the exact rank-r NGS term (Woodbury), "   \
        "none = plain CG")
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
-    KF("telescope.diameter_m", GT0, "m", 1, diameter, "pupil diameter D"),
+    KF("telescope.diameter_m", GT0(100.0), "m", 1, diameter, "pupil diameter D"),
     KF("telescope.obstruction", F_HI_OPEN, 0.0, 1.0, "", 1, obstruction, "central obstruction, fraction of D"),
 
-    KF("atmosphere.r0_m", GT0, "m", 1, r0, "Fried parameter r0 at 500 nm"),
-    KF("atmosphere.L0_m", GT0, "m", 1, L0, "von Karman outer scale L0"),
-    KFL("atmosphere.altitudes_m", F_INCR, 0.0, INF, "m", 1, layer_altitude, nlayers, 1, WT_MAX_LAYERS,
+    KF("atmosphere.r0_m", 0, 1e-3, 1e4, "m", 1, r0, "Fried parameter r0 at 500 nm"),
+    KF("atmosphere.L0_m", 0, 1.0, 1e4, "m", 1, L0, "von Karman outer scale L0"),
+    KFL("atmosphere.altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, layer_altitude, nlayers, 1, WT_MAX_LAYERS,
         "altitude of each layer, strictly increasing"),
     KFL("atmosphere.cn2_fractions", 0, 0.0, 1.0, "", 1, layer_fraction, nlayers, 1, WT_MAX_LAYERS,
         "Cn2 fraction of each layer; the sum must be 1 within 1 % (then normalised to 1)"),
-    KFL("atmosphere.wind_speed_mps", GE0, "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
+    KFL("atmosphere.wind_speed_mps", GE0(1000.0), "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
     KFL("atmosphere.wind_direction_deg", ANYANGLE, "deg", DEG, wind_direction, nlayers, 1, WT_MAX_LAYERS,
         "direction each layer moves towards, from +x towards +y"),
 
     KI("lgs.count", 0, 0, WT_MAX_GS, nlgs, "number of laser guide stars, evenly spaced in azimuth"),
-    KF("lgs.radius_arcsec", GE0, "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
+    KF("lgs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
     KF("lgs.azimuth0_deg", ANYANGLE, "deg", DEG, lgs_azimuth0, "azimuth of the first LGS; the others follow every 360/count deg"),
-    KF("lgs.altitude_m", GT0, "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
-    KF("lgs.sodium_fwhm_m", GE0, "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation"),
-    KF("lgs.launch_radius_m", GE0, "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
-    KF("lgs.tt_jitter_arcsec", GE0, "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
-    KI("lgs.wfs.subapertures", 0, 1, INF, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
+    KF("lgs.altitude_m", GT0(MAXALT), "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
+    KF("lgs.sodium_fwhm_m", GE0(1e5), "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation"),
+    KF("lgs.launch_radius_m", GE0(1000.0), "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
+    KF("lgs.tt_jitter_arcsec", GE0(100.0), "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
+    KI("lgs.wfs.subapertures", 0, 1, 1024, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
     KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
        "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
     SENSOR("lgs.wfs", lgs_wfs),
 
-    KF("ngs.radius_arcsec", GE0, "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
+    KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
     KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
         "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
     SENSOR("ngs.wfs", ngs_wfs),
 
-    KFL("dm.altitudes_m", GE0, "m", 1, dm_altitude, ndms, 1, WT_MAX_DMS, "conjugation altitude of each DM"),
-    KFL("dm.pitch_m", GT0, "m", 1, dm_pitch, ndms, 1, WT_MAX_DMS, "actuator pitch of each DM"),
-    KIL("dm.actuators", 0, 2, INF, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
-    KF("dm.field_radius_arcsec", GE0, "arcsec", ARCSEC, dm_field_radius,
+    KFL("dm.altitudes_m", GE0(MAXALT), "m", 1, dm_altitude, ndms, 1, WT_MAX_DMS, "conjugation altitude of each DM"),
+    KFL("dm.pitch_m", GT0(100.0), "m", 1, dm_pitch, ndms, 1, WT_MAX_DMS, "actuator pitch of each DM"),
+    KIL("dm.actuators", 0, 2, 4096, dm_actuators, ndms, 1, WT_MAX_DMS, "actuators per side of each DM"),
+    KF("dm.field_radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, dm_field_radius,
        "theta_c: an actuator is active within D/2 + h tan(theta_c) of the centre"),
     {"dm.guard_rings", K_INT, F_DEFAULT, 0, 4, "", 1, CF(dm_guard_rings), NOCOUNT, 0, 0, NULL, 1,
      "rings of guard actuators: also active when within this many pitches (square support) of that disk; "
      "the grid grows by this many actuators on each side; 0 = the paper's active set (optional, default 1)"},
 
     KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
-    KF("evaluation.spacing_arcsec", GE0, "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
-    KF("evaluation.wavelength_nm", GT0, "nm", 1e-9, eval_wavelength, "wavelength of the Strehl ratios"),
+    KF("evaluation.spacing_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
+    KF("evaluation.wavelength_nm", 0, 10.0, 1e6, "nm", 1e-9, eval_wavelength, "wavelength of the Strehl ratios"),
     KI("evaluation.settle_frames", 0, 0, INF, settle_frames, "frames left out of the long-exposure averages; < loop.frames"),
 
-    KF("loop.rate_hz", GT0, "Hz", 1, rate, "frame rate"),
+    KF("loop.rate_hz", 0, 1.0, 1e6, "Hz", 1, rate, "frame rate"),
     KI("loop.frames", 0, 1, INF, frames, "frames to run"),
     KI("loop.delay_frames", 0, 1, 2, delay, "frames between measurement and application"),
     KF("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, "integrator gain g"),
 
     KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
     {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
-     "seed of the turbulence and noise generators (above 2147483647 add the L suffix: 5000000000L)"},
+     "seed of the turbulence and noise generators, up to 2^63 - 1 (read as 64 bits, no L suffix needed)"},
     KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
 
-    KF("recon.alpha", GT0, "", 1, alpha, "prior weight alpha"),
+    KF("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, "prior weight alpha"),
     KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
     KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
     KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
@@ -125,8 +130,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "lit model: layer sample points per subaperture side (optional, default 1)"},
     VARIANT("recon.pcg3", pcg3),
     VARIANT("recon.cg9", cg9),
-    KI("recon.cg9.fit_iterations", 0, 1, INF, cg9.fit_iterations, "fitting CG iterations per frame"),
-    KF("recon.cg9.fit_regularization", GE0, "", 1, cg9.fit_regularization,
+    KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
+    KF("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
     {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
      "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
@@ -149,7 +154,7 @@ const char *wt_config_priv_fmt_num(double v, char *buf, size_t n)
 void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n)
 {
     char a[40], b[40];
-    int lo = isfinite(ks->lo), hi = isfinite(ks->hi) && !(ks->flags & F_POW2);
+    int lo = isfinite(ks->lo), hi = isfinite(ks->hi);
     wt_config_priv_fmt_num(ks->lo, a, sizeof a);
     wt_config_priv_fmt_num(ks->hi, b, sizeof b);
     if (ks->type == K_BOOL) snprintf(buf, n, "true|false");

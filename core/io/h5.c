@@ -8,6 +8,7 @@
  * folded into our message (H5ERR). Writers remember their first failure and refuse to commit.
  * The reader is h5_read.c; what the three files share is declared in h5_private.h.
  */
+#define _GNU_SOURCE /* memfd_create (discard_writes) */
 #include "h5_private.h"
 
 #include <errno.h>
@@ -16,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -275,6 +277,40 @@ fail:
     return st;
 }
 
+/* 1 when `path` is an HDF5 file whose root attribute "creator" starts with "wavetomo". */
+static int is_ours(const char *path)
+{
+    if (H5Fis_hdf5(path) <= 0) return 0;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1;
+    int ours = 0;
+    char buf[64] = {0};
+    if (f >= 0 && H5Aexists(f, "creator") > 0 && (a = H5Aopen(f, "creator", H5P_DEFAULT)) >= 0 &&
+        (t = H5Aget_type(a)) >= 0 && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) &&
+        H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
+        ours = !strncmp(buf, "wavetomo", 8);
+    wt_h5_priv_drop(t);
+    wt_h5_priv_drop(a);
+    wt_h5_priv_drop(f);
+    return ours;
+}
+
+int wt_h5_check_replaceable(wt_context *ctx, const char *path, int force)
+{
+    struct stat sb;
+    if (!path || force || lstat(path, &sb) != 0) return WT_OK;
+    if (S_ISDIR(sb.st_mode)) return WT_ERROR(ctx, WT_ERR_IO, "cannot write '%s': it is a directory", path);
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    int ours = S_ISREG(sb.st_mode) && is_ours(path);
+    wt_h5_priv_quiet_off(q);
+    if (!ours)
+        return WT_ERROR(ctx, WT_ERR_IO,
+                        "'%s' exists and is not a wavetomo output (%s); refusing to replace it: choose another "
+                        "name, or give --force", path,
+                        S_ISLNK(sb.st_mode) ? "a symbolic link" : !S_ISREG(sb.st_mode) ? "not a regular file"
+                                                                                     : "no HDF5 root attribute creator = \"wavetomo ...\"");
+    return WT_OK;
+}
+
 const char *wt_h5_library_version(void)
 {
 #define WT_H5_STR_(x) #x
@@ -284,15 +320,34 @@ const char *wt_h5_library_version(void)
 
 /* ---- writer ------------------------------------------------------------------------------------- */
 
+/* A temporary that is being thrown away after a write error (disk full, file too large): HDF5 1.10 still
+ * flushes its metadata cache on H5Fclose, that flush fails again, the close fails and leaves the file in
+ * HDF5's table, and the library's own clean-up at exit then crashes inside H5F__close_cb (issue 10, A').
+ * Pointing the file's descriptor at an anonymous memory file first lets that last flush and truncate
+ * succeed into memory that is freed with it (/dev/null would refuse the truncate), so the close completes
+ * once and releases everything; the temporary is unlinked right after. Only on the discard path, and only
+ * the descriptor of our sec2 file. */
+static void discard_writes(hid_t file)
+{
+    void *handle = NULL;
+    if (file < 0 || H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle) return;
+    int fd = *(int *)handle, mem = memfd_create("wavetomo-discard", MFD_CLOEXEC);
+    if (mem < 0) return;
+    if (fd >= 0) dup2(mem, fd);
+    close(mem);
+}
+
 /* Close everything; unlink the temporary when asked and when it is ours; free w. */
 static void writer_destroy(wt_h5_writer *w, int remove_temp)
 {
     if (!w) return;
+    if (remove_temp) discard_writes(w->file); /* the file is thrown away: nothing of it needs to reach the disk */
     while (w->matrices) wt_h5_priv_matrix_close(w->matrices, 0);
     while (w->series) wt_h5_priv_series_close(w->series);
     wt_h5_priv_drop(w->lcpl);
     wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
+    wt_h5_priv_temp_unregister(w->temp_slot);
     wt_free(w->ctx, w->temp);
     wt_free(w->ctx, w->target);
     wt_free(w->ctx, w);
@@ -309,16 +364,19 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     WT_ALLOC(ctx, w, 1, "an HDF5 writer");
     w->ctx = ctx;
     w->file = w->lcpl = -1;
+    w->temp_slot = -1;
     size_t tn = strlen(path) + 32;
     w->target = wt_h5_priv_dupstr(ctx, path);
     w->temp = wt_malloc(ctx, tn, 1);
     if (!w->target || !w->temp) FAIL(ctx, WT_ERR_NOMEM, "out of memory for the file names of '%s'", path);
     snprintf(w->temp, tn, "%s.tmp-%ld", path, (long)getpid());
+    wt_h5_priv_remove_stale(path); /* temporaries of earlier runs that were killed (SIGKILL) */
     if ((fapl = wt_h5_priv_file_access()) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
     if ((w->file = H5Fcreate(w->temp, H5F_ACC_TRUNC, H5P_DEFAULT, fapl)) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot create the temporary file '%s' (H5Fcreate)", path, w->temp);
     w->created = 1;
+    w->temp_slot = wt_h5_priv_temp_register(w->temp); /* unlinked on SIGINT/SIGTERM (h5_temp.c) */
     if ((w->lcpl = H5Pcreate(H5P_LINK_CREATE)) < 0 || H5Pset_create_intermediate_group(w->lcpl, 1) < 0 ||
         H5Pset_char_encoding(w->lcpl, H5T_CSET_UTF8) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up link creation properties", path);
@@ -351,6 +409,12 @@ static int commit_impl(wt_h5_writer *w)
     if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
     if (put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
+    /* Flush first: a failure here (disk full) goes to the discard path, which closes the file cleanly. A
+     * failed H5Fclose instead leaves a half-destroyed file in HDF5's table that even a second close (or
+     * the library's exit-time clean-up) crashes on: after this flush the close has next to nothing left
+     * to write. */
+    if (H5Fflush(w->file, H5F_SCOPE_LOCAL) < 0)
+        H5FAIL(ctx, WT_ERR_IO, "%s: writing the temporary '%s' failed (H5Fflush; disk full?)", w->target, w->temp);
     herr_t r = H5Fclose(w->file);
     w->file = -1;
     if (r < 0)

@@ -40,14 +40,30 @@
 
 #define WT_H5_MAX_RANK 3
 
-/* Element types, for the file and for memory. Reading converts between any two numeric types except
- * floating point in the file to integers in memory (refused as lossy). */
+/* Element types, for the file and for memory. Reading accepts only conversions that are exact for every
+ * value of the file's type (float32 -> float32/float64, float64 -> float64, integers into a type that holds
+ * them exactly); the rest (int32 slopes as float32, a float64 matrix as float32, float -> integer) is
+ * refused naming the dataset and its type. Float data read is checked for NaN/Inf, and a dataset whose
+ * stored bytes cannot hold its extent is refused (see h5_read.c). */
 enum { WT_H5_F64 = 1, WT_H5_F32 = 2, WT_H5_I32 = 3, WT_H5_I64 = 4, WT_H5_U8 = 5 };
 
 typedef struct wt_h5_writer wt_h5_writer;
 typedef struct wt_h5_reader wt_h5_reader;
 typedef struct wt_h5_matrix wt_h5_matrix; /* a 2-D dataset written by blocks of rows */
 typedef struct wt_h5_series wt_h5_series; /* a dataset that grows by one frame per append */
+
+/* Call first in a program's main, before any other HDF5 use (h5_temp.c):
+ *  - turns off HDF5's exit-time clean-up, which crashes (HDF5 1.10.8) on a file whose metadata flush
+ *    failed on a full disk (a long-running process that hits that case keeps its memory until exit);
+ *  - installs SIGINT/SIGTERM/SIGHUP handlers that unlink the temporaries of the writers still open, then
+ *    die of the signal as before (signals the caller ignores stay ignored).
+ * Every wt_h5_create also removes "TARGET.tmp-<pid>" files left by processes that no longer exist. */
+void wt_h5_process_init(void);
+
+/* Before writing `path`: WT_OK when it does not exist, is a wavetomo output (an HDF5 file whose root
+ * attribute "creator" starts with "wavetomo"), or force is set; else WT_ERR_IO naming it: a file that is
+ * not ours (a configuration, someone's data, a symbolic link) is never replaced without --force. */
+int wt_h5_check_replaceable(wt_context *ctx, const char *path, int force);
 
 /* "1.10.8": the HDF5 version this was built against (the library refuses to run with another). */
 const char *wt_h5_library_version(void);

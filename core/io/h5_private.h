@@ -90,11 +90,18 @@ struct wt_h5_writer {
     hid_t file, lcpl;
     char *target, *temp;
     int created; /* the temporary is ours to unlink */
+    int temp_slot; /* its slot in the signal-time registry (h5_temp.c), -1 if none */
     int status;  /* first failure; commit refuses when < 0 */
     char first_error[512];
     wt_h5_matrix *matrices; /* still open, closed by commit/abort */
     wt_h5_series *series;
 };
+
+/* h5_temp.c: the temporaries unlinked on SIGINT/SIGTERM; register returns a slot (-1: table full). */
+int wt_h5_priv_temp_register(const char *path);
+void wt_h5_priv_temp_unregister(int slot);
+/* Remove "TARGET.tmp-<pid>" files of processes that no longer exist. */
+void wt_h5_priv_remove_stale(const char *target);
 
 /* Remember st as the writer's first failure (with the context's message) when it is one; returns st. */
 int wt_h5_priv_poison(wt_h5_writer *w, int st);

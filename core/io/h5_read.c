@@ -5,10 +5,22 @@
  * file or a copied temporary is refused; every dataset is checked against the shape and element type
  * the caller expects, and a Fletcher32 checksum failure is an error rather than a wrong number.
  * HDF5's printing is off during every call (wt_h5_priv_quiet_on/off, see h5_private.h).
+ *
+ * Bad-input policy (issue 10, classes G, H, I):
+ *  - G: a numeric read accepts only a conversion that is exact for every value of the file's type:
+ *    float32 -> float32/float64, float64 -> float64, an integer into a float whose mantissa holds it
+ *    (up to 24 bits into float32, 32 into float64), an integer into an integer type that holds its whole
+ *    range. The rest (int32 slopes read as float32, a float64 matrix read as float32, any float into an
+ *    integer, non-IEEE sizes) is refused naming the dataset and the type found;
+ *  - H: every float array read is scanned once for NaN/Inf, naming the dataset and the first bad
+ *    element (row and column for a matrix or a series: the row is the frame);
+ *  - I: a dataset whose stored bytes cannot hold its extent (a header that claims 10^9 frames; unwritten
+ *    chunks would read back as zeros) is refused by the shape check, before anyone allocates for it.
  */
 #include "h5_private.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -216,6 +228,29 @@ int wt_h5_dims(wt_h5_reader *r, const char *name, int *rank, int64_t *dims)
     return st;
 }
 
+/* I: a numeric dataset stores at least the bytes its extent claims (a header that claims 10^9 frames is
+ * refused before anyone allocates for them; unwritten chunks would read back as zeros). */
+static int check_stored(wt_h5_reader *r, const char *name, hid_t d)
+{
+    hid_t ft = H5Dget_type(d), space = H5Dget_space(d);
+    H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
+    int st = WT_OK;
+    if (c == H5T_FLOAT || c == H5T_INTEGER) {
+        hssize_t np = space < 0 ? -1 : H5Sget_simple_extent_npoints(space);
+        double need = (double)np * (double)H5Tget_size(ft), have = (double)H5Dget_storage_size(d);
+        if (np < 0)
+            st = WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s': cannot read its extent", r->path, name);
+        else if (have < need)
+            st = WT_ERROR(r->ctx, WT_ERR_FORMAT,
+                          "%s: dataset '%s' claims %lld elements (%.0f bytes) but the file stores %.0f bytes of it: "
+                          "a header edited or a write cut short (unwritten parts would read as zeros)",
+                          r->path, name, (long long)np, need, have);
+    }
+    wt_h5_priv_drop(space);
+    wt_h5_priv_drop(ft);
+    return st;
+}
+
 static int shape_impl(wt_h5_reader *r, const char *name, hid_t *dset, int rank, const int64_t *expect, int64_t *dims)
 {
     int nd = 0, st;
@@ -229,6 +264,11 @@ static int shape_impl(wt_h5_reader *r, const char *name, hid_t *dset, int rank, 
         *dset = -1;
         return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has shape %s, expected %s", r->path, name,
                         shape_text(a, sizeof a, nd, got), shape_text(b, sizeof b, rank, expect));
+    }
+    if ((st = check_stored(r, name, *dset)) < 0) {
+        wt_h5_priv_drop(*dset);
+        *dset = -1;
+        return st;
     }
     if (dims)
         for (int i = 0; i < rank; i++) dims[i] = got[i];
@@ -244,20 +284,74 @@ int wt_h5_check_shape(wt_h5_reader *r, const char *name, int rank, const int64_t
     return st;
 }
 
-/* Numbers only, and no floating point into integers. */
+/* "float32", "int16", "uint64", "float16", "a string", ...: the file type as a user would name it. */
+static const char *file_type_text(hid_t ft, char *buf, size_t n)
+{
+    H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
+    size_t bits = ft < 0 ? 0 : 8 * H5Tget_size(ft);
+    if (c == H5T_FLOAT) snprintf(buf, n, "float%zu", bits);
+    else if (c == H5T_INTEGER) snprintf(buf, n, "%sint%zu", H5Tget_sign(ft) == H5T_SGN_NONE ? "u" : "", bits);
+    else if (c == H5T_STRING) snprintf(buf, n, "a string");
+    else snprintf(buf, n, "HDF5 type class %d", (int)c);
+    return buf;
+}
+
+/* The conversions accepted (G in the file comment): exact for every value of the file type. */
+static int exact_conversion(hid_t ft, int mt)
+{
+    H5T_class_t c = H5Tget_class(ft);
+    size_t fs = H5Tget_size(ft), ms = wt_h5_priv_type_size(mt);
+    int fsigned = c == H5T_INTEGER && H5Tget_sign(ft) != H5T_SGN_NONE;
+    if (c == H5T_FLOAT) return (fs == 4 || fs == 8) && wt_h5_priv_type_float(mt) && fs <= ms;
+    if (c != H5T_INTEGER) return 0;
+    size_t bits = 8 * fs - (size_t)fsigned; /* magnitude bits */
+    if (mt == WT_H5_F32) return bits <= 24;
+    if (mt == WT_H5_F64) return bits <= 53;
+    if (mt == WT_H5_U8) return !fsigned && fs == 1;
+    /* signed memory types: an unsigned file type needs one more bit */
+    return fsigned ? fs <= ms : fs < ms;
+}
+
+/* Numbers only, with an exact conversion. */
 static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
 {
+    char tn[64];
     if (!wt_h5_priv_type_ok(mt))
         return WT_ERROR(r->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown memory type %d", r->path, name, mt);
-    hid_t ft = H5Dget_type(d);
+    hid_t ft = H5Dget_type(d), space = -1;
     H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
-    wt_h5_priv_drop(ft);
+    int st = WT_OK;
     if (c != H5T_FLOAT && c != H5T_INTEGER)
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' does not hold numbers (HDF5 type class %d)", r->path,
-                        name, (int)c);
-    if (c == H5T_FLOAT && !wt_h5_priv_type_float(mt))
-        return WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' is floating point, refused as %s (lossy)", r->path,
-                        name, wt_h5_priv_type_name(mt));
+        st = WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' holds %s, not numbers", r->path, name,
+                      file_type_text(ft, tn, sizeof tn));
+    else if (!exact_conversion(ft, mt))
+        st = WT_ERROR(r->ctx, WT_ERR_FORMAT,
+                      "%s: dataset '%s' is %s, refused as %s: the conversion is not exact for every value (accepted: "
+                      "float32 or float64 for float64, float32 for float32, integers that the memory type holds "
+                      "exactly)", r->path, name, file_type_text(ft, tn, sizeof tn), wt_h5_priv_type_name(mt));
+    wt_h5_priv_drop(space);
+    wt_h5_priv_drop(ft);
+    return st;
+}
+
+/* H: the first NaN/Inf of n values of type mt read from dataset `name`, whose rows hold `cols` values
+ * each (cols = 0: a vector) and whose first row is row0. */
+static int check_finite(wt_h5_reader *r, const char *name, int mt, const void *data, int64_t n, int64_t cols,
+                        int64_t row0)
+{
+    if (!wt_h5_priv_type_float(mt)) return WT_OK;
+    for (int64_t i = 0; i < n; i++) {
+        double v = mt == WT_H5_F32 ? (double)((const float *)data)[i] : ((const double *)data)[i];
+        if (isfinite(v)) continue;
+        const char *what = isnan(v) ? "NaN" : "Inf";
+        if (cols > 0)
+            return WT_ERROR(r->ctx, WT_ERR_NUMERIC,
+                            "%s: dataset '%s' holds %s at row %lld (frame %lld of a time series), column %lld",
+                            r->path, name, what, (long long)(row0 + i / cols), (long long)(row0 + i / cols),
+                            (long long)(i % cols));
+        return WT_ERROR(r->ctx, WT_ERR_NUMERIC, "%s: dataset '%s' holds %s at element %lld", r->path, name, what,
+                        (long long)i);
+    }
     return WT_OK;
 }
 
@@ -277,6 +371,7 @@ static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const 
     if (total > 0 && H5Dread(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
         H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading dataset '%s' failed: corrupt data (checksum) or truncated file "
                "(H5Dread)", r->path, name);
+    WT_TRY(check_finite(r, name, mt, data, (int64_t)total, rank >= 2 && got[0] > 0 ? (int64_t)(total / (uint64_t)got[0]) : 0, 0));
     if (dims)
         for (int i = 0; i < rank; i++) dims[i] = got[i];
 fail:
@@ -298,6 +393,7 @@ static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row
     hsize_t start[WT_H5_MAX_RANK] = {0}, count[WT_H5_MAX_RANK];
     WT_TRY(open_dataset(r, name, &d, &nd, got));
     WT_TRY(check_readable(r, name, d, mt));
+    WT_TRY(check_stored(r, name, d));
     if (nd < 1 || !data || row0 < 0 || nrows < 1 || row0 > got[0] - nrows)
         FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %lld rows, rows %lld..%lld requested", r->path, name,
              nd < 1 ? 0LL : (long long)got[0], (long long)row0, (long long)(row0 + nrows - 1));
@@ -311,6 +407,11 @@ static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row
     if (H5Dread(d, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
                "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
+    {
+        int64_t cols = 1;
+        for (int i = 1; i < nd; i++) cols *= got[i];
+        WT_TRY(check_finite(r, name, mt, data, nrows * cols, cols, row0));
+    }
 fail:
     wt_h5_priv_drop(ms);
     wt_h5_priv_drop(fs);

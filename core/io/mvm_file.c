@@ -5,6 +5,8 @@
 #include <cblas.h>
 #include <string.h>
 
+#include "../base/sha256.h"
+
 int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const float *Rm,
                       const float *RA, const wt_mvm_file_record *rec)
 {
@@ -55,7 +57,7 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, in
 {
     int st;
     wt_h5_reader *r = NULL;
-    char *hash = NULL, *variant = NULL;
+    char *hash = NULL, *variant = NULL, *text = NULL, own[65];
     if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
     if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
     if (strcmp(hash, cfg->matrix_sha256) != 0) {
@@ -65,7 +67,22 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, in
                       path, hash, cfg->matrix_sha256, cfg->path);
         goto fail;
     }
+    /* provenance (issue 10, J): the stored configuration text must still give the stored hash (an edited
+     * file is refused), and the variant must be one the builder writes */
+    if ((st = wt_h5_read_string(r, "matrix_config", &text)) < 0) goto fail;
+    wt_sha256_hex(text, strlen(text), own);
+    if (strcmp(own, hash) != 0) {
+        st = WT_ERROR(ctx, WT_ERR_FORMAT,
+                      "%s: dataset 'matrix_config' hashes to %.12s…, not to the root attribute config_sha256 %.12s…: "
+                      "the file was edited after it was built; rebuild it with `wavetomo build`", path, own, hash);
+        goto fail;
+    }
     if ((st = wt_h5_attr_read_string(r, "/", "variant", &variant)) < 0) goto fail;
+    if (strcmp(variant, "pcg3") != 0 && strcmp(variant, "cg9") != 0) {
+        st = WT_ERROR(ctx, WT_ERR_FORMAT, "%s: root attribute 'variant' is \"%.40s\", expected \"pcg3\" or \"cg9\"",
+                      path, variant);
+        goto fail;
+    }
     int64_t er[2] = {nact, nslopes}, ea[2] = {nact, nact};
     if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
     if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
@@ -75,6 +92,7 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, in
     variant_out[15] = '\0';
 fail:
     wt_free(ctx, hash);
+    wt_free(ctx, text);
     wt_free(ctx, variant);
     wt_h5_close(r);
     return st;

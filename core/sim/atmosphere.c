@@ -418,11 +418,13 @@ void wt_atmosphere_layer_render(const wt_atmosphere *atm, int layer, double *out
 /* ---------------------------------------------------------------------------------------------- */
 /* Line-of-sight projection */
 
-/* u mod n in [0, n). */
+/* u mod n in [0, n). fmod is exact, where u − n floor(u / n) loses the result for |u| ≫ n and then
+ * indexes outside the screen (issue 10: a wind of 1e22 m/s); a non-finite u maps to 0. */
 static inline double wrap(double u, int n)
 {
-    u -= n * floor(u / n);
-    return u >= n ? u - n : u; /* u = −tiny rounds up to n */
+    u = fmod(u, n);
+    if (u < 0.0) u += n;
+    return u >= 0.0 && u < n ? u : 0.0; /* u = −tiny rounds up to n; NaN */
 }
 
 /* What every target row shares for one layer in one call. */

@@ -1,4 +1,10 @@
-/* core/solve/pcg.c: (P)CG, Hestenes–Stiefel form with the recursive residual. */
+/* core/solve/pcg.c: (P)CG, Hestenes–Stiefel form with the recursive residual (paper §6.1).
+ *
+ * Breakdown (issue 10): in exact arithmetic pᵀAp > 0 and rᵀz > 0 until the residual is 0. In floating
+ * point, with rtol = 0 and many iterations, the residual reaches rounding level and rᵀz underflows to 0
+ * (then β = 0/0 = NaN poisons p) or pᵀAp rounds to ≤ 0. That is convergence, not a fault: the iteration
+ * stops there with WT_WARN_BREAKDOWN, keeps the last iterate and reports the residual reached. Only a
+ * pᵀAp ≤ 0 at the first iteration (A not positive definite) or a non-finite value is an error. */
 #include "pcg.h"
 
 #include <math.h>
@@ -66,6 +72,14 @@ int wt_pcg_solve_precond(wt_pcg *w, wt_linop_fn A, void *user, wt_precond_fn P, 
     return solve(w, A, user, NULL, P, puser, b, x, max_iter, rtol, history, res);
 }
 
+/* Stop at a breakdown after `done` iterations: x holds the last iterate, res its residual. */
+static int breakdown(wt_pcg *w, const char *what, double v, int done, const wt_pcg_result *res)
+{
+    return WT_ERROR(w->ctx, WT_WARN_BREAKDOWN,
+                    "pcg: stopped after %d iterations: %s = %g, no longer > 0 (rounding level reached); relative "
+                    "residual %.3g kept", done, what, v, res->rel_resid);
+}
+
 static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
                  const double *b, double *x, int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
@@ -104,9 +118,12 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
     for (k = 0; k < max_iter; k++) {
         A(user, p, q);
         double pq = dot(p, q, n);
+        if (!isfinite(pq))
+            return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration %d (the operator returned NaN or Inf)",
+                            pq, k + 1);
+        if (!(pq > 0.0) && k > 0) return breakdown(w, "pᵀAp", pq, k, res);
         if (!(pq > 0.0))
-            return WT_ERROR(w->ctx, isfinite(pq) ? WT_ERR_NUMERIC : WT_ERR_NUMERIC,
-                            "pcg: pᵀAp = %g at iteration %d (operator not positive definite or NaN)", pq, k + 1);
+            return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration 1 (operator not positive definite)", pq);
         double a = rz / pq;
 #pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)
         for (int64_t i = 0; i < n; i++) {
@@ -119,11 +136,18 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
         if (history) history[k + 1] = rnorm / bnorm;
         if (!isfinite(rnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: residual became non-finite at iteration %d", k + 1);
         if (rtol > 0.0 && rnorm <= rtol * bnorm) return WT_OK;
+        if (rnorm == 0.0) return WT_OK; /* exact solution: nothing left to do (rtol = 0 included) */
         if (k + 1 == max_iter) break;
         if (inv_diag)
             for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
         else if (P) P(puser, r, z);
         double rz_new = dot(r, zz, n);
+        if (!(rz_new > 0.0)) { /* rounding level reached (or a preconditioner that is not SPD: first iteration) */
+            if (!isfinite(rz_new))
+                return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: rᵀz = %g at iteration %d (the preconditioner returned NaN "
+                                "or Inf)", rz_new, k + 1);
+            return breakdown(w, "rᵀz", rz_new, k + 1, res);
+        }
         double beta = rz_new / rz;
         rz = rz_new;
 #pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)

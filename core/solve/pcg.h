@@ -26,8 +26,11 @@ typedef struct wt_pcg_result {
  *   inv_diag: NULL for plain CG, else the inverse of the Jacobi diagonal (preconditioner M⁻¹ = diag).
  *   max_iter: iteration cap (≥ 0); rtol: stop when ‖r‖/‖b‖ ≤ rtol (0: always run max_iter).
  *   history: NULL or max_iter + 1 doubles: ‖r_k‖/‖b‖ for k = 0 … iterations.
- * Returns WT_OK, WT_WARN_MAXITER when rtol > 0 was not reached, WT_ERR_NUMERIC on a non-finite value
- * or pᵀAp ≤ 0 (A not positive definite). b = 0 gives x = 0. */
+ * Returns WT_OK (also when the residual becomes exactly 0), WT_WARN_MAXITER when rtol > 0 was not
+ * reached, WT_WARN_BREAKDOWN when after the first iteration pᵀAp or rᵀz stops being > 0 (the iteration
+ * has converged to rounding level, e.g. rtol = 0 and thousands of iterations): x is the last iterate and
+ * res->rel_resid its residual; WT_ERR_NUMERIC on a non-finite value or pᵀAp ≤ 0 at the first iteration
+ * (A not positive definite). b = 0 gives x = 0. */
 int wt_pcg_solve(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
                  int max_iter, double rtol, double *history, wt_pcg_result *res);
 
