@@ -118,6 +118,8 @@ static int write_h5(wt_cli *cli, const budget_args *a, const wt_config *cfg, con
             if (st >= 0) st = wt_h5_attr_write_int64(w, name, "frames", u->frames);
             if (st >= 0) st = wt_h5_attr_write_double(w, name, "seconds", u->seconds);
         }
+        snprintf(name, sizeof name, "%s/servo", a->methods[m]);
+        if (st >= 0) st = wt_h5_attr_write_double(w, name, "analytic_band_limited_nm", r->servo_band);
         snprintf(name, sizeof name, "%s/closure", a->methods[m]);
         if (st >= 0) st = wt_h5_write_double(w, name, r->closure, "", "quadrature sum of the terms / total - 1 (core/sim/budget.h)");
         snprintf(name, sizeof name, "%s/fitting_analytic_ground", a->methods[m]);

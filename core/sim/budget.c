@@ -91,6 +91,29 @@ double wt_budget_servo_analytic(const wt_config *cfg)
     return rad2_to_nm(cfg, pow(r, 5.0 / 3.0));
 }
 
+double wt_budget_servo_band_limited(const wt_config *cfg)
+{
+    enum { N = 400 }; /* midpoint rule; the integrand ~ κ^(−5/3) near 0 (|E|² ~ κ²) is integrable */
+    const double r0 = r0_at(cfg), a = 0.0229 * pow(r0, -5.0 / 3.0), k0 = 1.0 / (cfg->L0 * cfg->L0);
+    double s = 0.0;
+    for (int l = 0; l < cfg->nlayers; l++) {
+        int k = 0;
+        for (int q = 1; q < cfg->ndms; q++)
+            if (fabs(cfg->dm_altitude[q] - cfg->layer_altitude[l]) < fabs(cfg->dm_altitude[k] - cfg->layer_altitude[l])) k = q;
+        const double kc = 0.5 / cfg->dm_pitch[k], h = 2.0 * kc / N;
+        const double vx = cfg->wind_speed[l] * cos(cfg->wind_direction[l]), vy = cfg->wind_speed[l] * sin(cfg->wind_direction[l]);
+        double sl = 0.0;
+        for (int iy = 0; iy < N; iy++)
+            for (int ix = 0; ix < N; ix++) {
+                double kx = -kc + (ix + 0.5) * h, ky = -kc + (iy + 0.5) * h, f = fabs(kx * vx + ky * vy);
+                double e = f > 0.0 ? rejection(cfg->gain, cfg->rate, cfg->delay, fmin(f, 0.5 * cfg->rate)) : 0.0;
+                sl += pow(kx * kx + ky * ky + k0, -11.0 / 6.0) * e * e;
+            }
+        s += cfg->layer_fraction[l] * a * sl * h * h;
+    }
+    return rad2_to_nm(cfg, s);
+}
+
 double wt_budget_noise_gain(double gain, int delay)
 {
     /* impulse response of the loop to a unit measurement at t = 0; it decays geometrically for the
@@ -258,7 +281,7 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
                           .perfect_fit = opt->fit_iterations, .first_frame = first};
     if ((st = run_loop(ctx, sys, &fo, first, frames, "fitting (true turbulence)", &ps, &fit)) < 0) return st;
 
-    const double gain_n = wt_budget_noise_gain(cfg->gain, cfg->delay);
+    const double gain_n = wt_budget_noise_gain(cfg->gain, cfg->delay), servo_band = wt_budget_servo_band_limited(cfg);
     for (int m = 0; m < nmethods; m++) {
         wt_budget_result *r = &res[m];
         memset(r, 0, sizeof *r);
@@ -306,6 +329,7 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         for (int k = 0; k < WT_BUDGET_NTERMS; k++)
             if (k != WT_BUDGET_FITTING) r->analytic_hi[k] = r->analytic[k];
         r->fitting_ground = wt_budget_fitting_analytic(cfg, 0.23, 1);
+        r->servo_band = servo_band;
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +
                     signed_square(r->term[WT_BUDGET_SERVO]) + signed_square(r->term[WT_BUDGET_NOISE_OL]) * gain_n;
         r->sum = copysign(sqrt(fabs(s2)), s2);
@@ -372,11 +396,12 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     const wt_budget_result *r0 = &res[0];
     fprintf(f, "\nAnalytic inputs: r0 = %.3f m at %.0f nm; fitting κ Σ_ℓ f_ℓ (p/r0)^(5/3) with each layer on the DM "
                "nearest in altitude, κ 0.23–0.28 (ground DM alone, κ 0.23: %.1f nm) — a single-direction estimate "
-               "that leaves out the field's generalised fitting; Greenwood f_G = %.2f Hz, integrator f_3dB = %.2f Hz "
-               "(g %g, %g Hz, delay %d); noise: the DM shape of %ld pure-noise reconstructions (%s).\n\n",
+               "that leaves out the field's generalised fitting; servo: Greenwood (f_G/f_3dB)^(5/3) with f_G = %.2f Hz, "
+               "integrator f_3dB = %.2f Hz (g %g, %g Hz, delay %d), and band-limited to the DMs' corrected "
+               "frequencies %.1f nm (Greenwood counts the lag of all spatial frequencies); noise: the DM shape of %ld pure-noise reconstructions (%s).\n\n",
             cfg->r0 * pow(cfg->eval_wavelength / 500e-9, 1.2), cfg->eval_wavelength * 1e9, r0->fitting_ground,
             wt_budget_greenwood(cfg), wt_budget_f3db(cfg->gain, cfg->rate, cfg->delay), cfg->gain, cfg->rate,
-            cfg->delay, r0->run[WT_BUDGET_RUN_NOISE].frames, cfg->noise ? "per method" : "noise off: none");
+            cfg->delay, r0->servo_band, r0->run[WT_BUDGET_RUN_NOISE].frames, cfg->noise ? "per method" : "noise off: none");
     fprintf(f, "Runs (field WFE / tip-tilt / rim part, nm; frames averaged):\n\n| run |");
     for (int m = 0; m < nmethods; m++) fprintf(f, " %s |", methods[m]);
     fprintf(f, "\n|---|");

@@ -25,7 +25,9 @@
  *            wt_budget_noise_gain, exact for the configured delay)
  *   servo    σ² = (f_G/f_3dB)^(5/3) rad², f_G = 0.427 v_eff / r0_λ, v_eff = (Σ_ℓ f_ℓ |v_ℓ|^(5/3))^(3/5),
  *            f_3dB the frequency where the rejection |E| = |1/(1 + g z^−d/(1 − z^−1))|, z = e^(2πi f/f_s),
- *            first reaches 1/√2 (the loop a_{t+d} = a_{t+d−1} + g (φ_t − a_t) of core/sim/loop.h).
+ *            first reaches 1/√2 (the loop a_{t+d} = a_{t+d−1} + g (φ_t − a_t) of core/sim/loop.h); and the
+ *            band-limited form (wt_budget_servo_band_limited): the same rejection applied to the spectrum
+ *            of the frequencies the DMs correct.
  */
 #ifndef WT_BUDGET_H
 #define WT_BUDGET_H
@@ -71,6 +73,7 @@ typedef struct wt_budget_result {
     double analytic[WT_BUDGET_NTERMS];  /* analytic [nm], NaN where none */
     double analytic_hi[WT_BUDGET_NTERMS]; /* upper end of a range (fitting: κ = 0.28), else = analytic */
     double fitting_ground;              /* ground-DM-only analytic fitting, κ = 0.23 [nm] */
+    double servo_band;                  /* band-limited servo estimate (wt_budget_servo_band_limited) [nm] */
     double sum;                         /* the closure's quadrature sum [nm] */
     double closure;                     /* sum / total − 1 */
 } wt_budget_result;
@@ -112,6 +115,11 @@ double wt_budget_fitting_analytic(const wt_config *cfg, double kappa, int ground
 double wt_budget_greenwood(const wt_config *cfg);
 double wt_budget_f3db(double gain, double rate, int delay);
 double wt_budget_servo_analytic(const wt_config *cfg);
+/* The servo error of the spatial frequencies the DMs correct only: Σ_ℓ ∫_{|κx|,|κy| < 1/(2 p_k(ℓ))}
+ * Φ_ℓ(κ) |E(κ·v_ℓ)|² d²κ, Φ_ℓ the von Kármán spectrum of layer ℓ (0.0229 f_ℓ r0_λ^(−5/3) (κ² + L0^−2)^(−11/6)
+ * rad² per (cycles/m)²), E the rejection above: Greenwood's formula counts the lag of all frequencies,
+ * most of which no DM corrects (they are in the fitting term). */
+double wt_budget_servo_band_limited(const wt_config *cfg);
 /* Σ_k h_k²: the variance gain of white measurement noise through the loop's integrator with delay d
  * (impulse response h of a_{t+d} = a_{t+d−1} + g (n_t − a_t)); g/(2−g) for d = 1. */
 double wt_budget_noise_gain(double gain, int delay);
