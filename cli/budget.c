@@ -38,6 +38,8 @@ typedef struct {
     long frames;
     int quiet;
     double start;
+    wt_progress pr; /* the current run's progress line */
+    char text[192];
 } budget_args;
 
 static int option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -66,70 +68,35 @@ static int option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 }
 
 /* stderr: a progress line per run on a terminal, and a line when each run ends with the time left */
-static void progress(void *user, int run, int nruns, const char *label, long done, long total)
+static void progress(void *user, int run, int nruns, const char *label, long done, long total, double wfe)
 {
     budget_args *a = user;
-    static wt_progress pr;
-    static char text[192];
     if (a->quiet) return;
     if (done == 1) {
-        snprintf(text, sizeof text, "run %d/%d %s", run + 1, nruns, label);
-        wt_progress_start(&pr, text, "frames", total);
+        snprintf(a->text, sizeof a->text, "run %d/%d %s", run + 1, nruns, label);
+        wt_progress_start(&a->pr, a->text, "frames", total);
     }
-    wt_progress_update(&pr, done, NULL);
+    wt_progress_update(&a->pr, done, NULL);
     if (done == total) {
-        wt_progress_end(&pr);
+        wt_progress_end(&a->pr);
         double el = wt_time_now() - a->start;
-        fprintf(stderr, "wavetomo budget: run %d/%d (%s, %ld frames) done, %.0f s elapsed, ~%.0f s left\n", run + 1,
-                nruns, label, total, el, el / (run + 1) * (nruns - run - 1));
+        fprintf(stderr, "wavetomo budget: run %d/%d (%s, %ld frames): field WFE %.1f nm; %.0f s elapsed, ~%.0f s left\n",
+                run + 1, nruns, label, total, wfe, el, el / (run + 1) * (nruns - run - 1));
     }
 }
 
 static int write_h5(wt_cli *cli, const budget_args *a, const wt_config *cfg, const wt_budget_result *R, int argc,
                     char **argv)
 {
-    char path[2048], name[256], desc[512];
+    char path[2048];
     wt_h5_writer *w = NULL;
     snprintf(path, sizeof path, "%s/results.h5", a->out);
     int st = wt_h5_create(cli->ctx, path, &w);
-    if (st < 0) return st;
-    char methods[128] = "";
-    for (int m = 0; m < a->nm; m++) snprintf(methods + strlen(methods), sizeof methods - strlen(methods), "%s%s", m ? "," : "", a->methods[m]);
-    st = wt_cli_write_provenance(cli, w, cfg, argc, argv);
-    if (st >= 0) st = wt_h5_attr_write_string(w, "/", "methods", methods);
-    for (int m = 0; m < a->nm && st >= 0; m++) {
-        const wt_budget_result *r = &R[m];
-        for (int k = 0; k < WT_BUDGET_NTERMS && st >= 0; k++) {
-            snprintf(name, sizeof name, "%s/%s", a->methods[m], wt_budget_term_names[k]);
-            st = wt_h5_write_double(w, name, r->term[k], "nm", wt_budget_term_desc[k]);
-            if (st >= 0 && isfinite(r->analytic[k]))
-                st = wt_h5_attr_write_double(w, name, "analytic_nm", r->analytic[k]);
-            if (st >= 0 && isfinite(r->analytic[k]) && r->analytic_hi[k] != r->analytic[k])
-                st = wt_h5_attr_write_double(w, name, "analytic_hi_nm", r->analytic_hi[k]);
-        }
-        for (int k = 0; k < WT_BUDGET_NRUNS && st >= 0; k++) {
-            const wt_budget_run *u = &r->run[k];
-            snprintf(name, sizeof name, "%s/runs/%s", a->methods[m], wt_budget_run_names[k]);
-            snprintf(desc, sizeof desc, "field WFE of the run '%s' (attributes: tip-tilt and rim parts [nm], frames, s)",
-                     wt_budget_run_names[k]);
-            st = wt_h5_write_double(w, name, u->wfe * 1e9, "nm", desc);
-            if (st >= 0) st = wt_h5_attr_write_double(w, name, "tiptilt_nm", u->tiptilt * 1e9);
-            if (st >= 0) st = wt_h5_attr_write_double(w, name, "rim_nm", u->rim * 1e9);
-            if (st >= 0) st = wt_h5_attr_write_int64(w, name, "frames", u->frames);
-            if (st >= 0) st = wt_h5_attr_write_double(w, name, "seconds", u->seconds);
-        }
-        snprintf(name, sizeof name, "%s/servo", a->methods[m]);
-        if (st >= 0) st = wt_h5_attr_write_double(w, name, "analytic_band_limited_nm", r->servo_band);
-        snprintf(name, sizeof name, "%s/closure", a->methods[m]);
-        if (st >= 0) st = wt_h5_write_double(w, name, r->closure, "", "quadrature sum of the terms / total - 1 (core/sim/budget.h)");
-        snprintf(name, sizeof name, "%s/fitting_analytic_ground", a->methods[m]);
-        if (st >= 0) st = wt_h5_write_double(w, name, r->fitting_ground, "nm", "kappa (p0/r0)^(5/3), ground DM only, kappa 0.23");
-    }
-    if (st < 0) {
-        wt_h5_abort(w);
-        return st;
-    }
-    return wt_h5_commit(w);
+    if (st >= 0 && (st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 &&
+        (st = wt_budget_write_h5(w, a->nm, (const char *const *)a->methods, R)) >= 0)
+        return wt_h5_commit(w);
+    wt_h5_abort(w);
+    return st;
 }
 
 int wt_cmd_budget(int argc, char **argv)

@@ -8,6 +8,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "../io/h5.h"
 #include "../model/reconstructor.h"
 #include "loop.h"
 
@@ -230,7 +231,8 @@ static int run_loop(wt_context *ctx, const wt_system *sys, const wt_loop_options
             frame_stats(lp, sys->neval, &g, &rim, &tt);
             n++;
         }
-        if (ps->opt->progress) ps->opt->progress(ps->opt->user, ps->run, ps->nruns, label, t - first + 1, last - first);
+        if (ps->opt->progress && t + 1 < last)
+            ps->opt->progress(ps->opt->user, ps->run, ps->nruns, label, t - first + 1, last - first, NAN);
     }
     if (st >= 0) {
         const wt_strehl_le *le = wt_loop_le(lp);
@@ -245,6 +247,7 @@ static int run_loop(wt_context *ctx, const wt_system *sys, const wt_loop_options
         for (int64_t i = 0; i < g.n; i++) nr += g.rim[i];
         out->rim_area = (double)nr / (double)g.n;
         out->seconds = wt_time_now() - t0;
+        if (ps->opt->progress) ps->opt->progress(ps->opt->user, ps->run, ps->nruns, label, last - first, last - first, out->wfe * 1e9);
     }
     ps->run++;
     geom_free(ctx, &g);
@@ -421,4 +424,42 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
             100.0 * cl->rim_area, cl->wfe > 0 ? 100.0 * pow(cl->rim / cl->wfe, 2) : 0.0, methods[0]);
     if (fclose(f) != 0 || rename(tmp, path) != 0) return WT_ERROR(ctx, WT_ERR_IO, "cannot write '%s'", path);
     return WT_OK;
+}
+
+int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *methods, const wt_budget_result *res)
+{
+    char name[256], desc[512], list[512] = "";
+    int st = WT_OK;
+    for (int m = 0; m < nmethods; m++) snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", m ? "," : "", methods[m]);
+    st = wt_h5_attr_write_string(w, "/", "methods", list);
+    for (int m = 0; m < nmethods && st >= 0; m++) {
+        const wt_budget_result *r = &res[m];
+        for (int k = 0; k < WT_BUDGET_NTERMS && st >= 0; k++) {
+            snprintf(name, sizeof name, "%s/%s", methods[m], wt_budget_term_names[k]);
+            st = wt_h5_write_double(w, name, r->term[k], "nm", wt_budget_term_desc[k]);
+            if (st >= 0 && isfinite(r->analytic[k])) st = wt_h5_attr_write_double(w, name, "analytic_nm", r->analytic[k]);
+            if (st >= 0 && isfinite(r->analytic[k]) && r->analytic_hi[k] != r->analytic[k])
+                st = wt_h5_attr_write_double(w, name, "analytic_hi_nm", r->analytic_hi[k]);
+        }
+        snprintf(name, sizeof name, "%s/servo", methods[m]);
+        if (st >= 0) st = wt_h5_attr_write_double(w, name, "analytic_band_limited_nm", r->servo_band);
+        for (int k = 0; k < WT_BUDGET_NRUNS && st >= 0; k++) {
+            const wt_budget_run *u = &r->run[k];
+            snprintf(name, sizeof name, "%s/runs/%s", methods[m], wt_budget_run_names[k]);
+            snprintf(desc, sizeof desc, "field WFE of the run '%s' (attributes: its tip-tilt and rim parts [nm], frames, s)",
+                     wt_budget_run_names[k]);
+            st = wt_h5_write_double(w, name, u->wfe * 1e9, "nm", desc);
+            if (st >= 0) st = wt_h5_attr_write_double(w, name, "tiptilt_nm", u->tiptilt * 1e9);
+            if (st >= 0) st = wt_h5_attr_write_double(w, name, "rim_nm", u->rim * 1e9);
+            if (st >= 0) st = wt_h5_attr_write_double(w, name, "rim_area_fraction", u->rim_area);
+            if (st >= 0) st = wt_h5_attr_write_int64(w, name, "frames", u->frames);
+            if (st >= 0) st = wt_h5_attr_write_double(w, name, "seconds", u->seconds);
+        }
+        snprintf(name, sizeof name, "%s/closure", methods[m]);
+        if (st >= 0) st = wt_h5_write_double(w, name, r->closure, "", "quadrature sum of the terms / total - 1 (core/sim/budget.h)");
+        snprintf(name, sizeof name, "%s/fitting_analytic_ground", methods[m]);
+        if (st >= 0)
+            st = wt_h5_write_double(w, name, r->fitting_ground, "nm", "kappa (p0/r0)^(5/3), the ground DM alone, kappa 0.23");
+    }
+    return st;
 }

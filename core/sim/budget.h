@@ -78,8 +78,10 @@ typedef struct wt_budget_result {
     double closure;                     /* sum / total − 1 */
 } wt_budget_result;
 
-/* Progress of run `run` (0-based) of `nruns`: `done` of `total` frames; called after each frame. */
-typedef void (*wt_budget_progress_fn)(void *user, int run, int nruns, const char *label, long done, long total);
+/* Progress of run `run` (0-based) of `nruns`: `done` of `total` frames, called after each frame; the call
+ * with done = total comes when the run is complete, with its field WFE [nm] (NaN before). */
+typedef void (*wt_budget_progress_fn)(void *user, int run, int nruns, const char *label, long done, long total,
+                                      double wfe_nm);
 
 typedef struct wt_budget_options {
     uint64_t seed;
@@ -109,6 +111,11 @@ int wt_budget_nruns(const wt_system *sys, int nmethods);
  * method), the runs, the closure against WT_BUDGET_CLOSURE_TOL, the analytic inputs; argv: the command. */
 int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *cfg, int nmethods,
                            const char *const *methods, const wt_budget_result *res, int argc, char **argv);
+
+/* The datasets of results.h5 (README "Error budget"): per method "<method>/<term>" [nm] with the analytic
+ * values as attributes, "<method>/runs/<run>", "<method>/closure"; the root attribute "methods". */
+struct wt_h5_writer;
+int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *methods, const wt_budget_result *res);
 
 /* Analytic pieces (units: nm at the evaluation wavelength, Hz). */
 double wt_budget_fitting_analytic(const wt_config *cfg, double kappa, int ground_only);
