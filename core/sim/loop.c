@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "../model/fitting.h"
+#include "../model/params.h"
 #include "../model/interaction.h"
 #include "../op/noise.h"
 #include "../op/projection.h"
@@ -156,7 +157,7 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
     }
     lp->t = opt->first_frame;
     if (opt->perfect_fit > 0) {
-        wt_fitting_params fp = {.regularization = cfg->cg9.fit_regularization, .sampling = cfg->cg9.fit_sampling};
+        wt_fitting_params fp = wt_fitting_params_from_variant(&cfg->cg9);
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &lp->fit));
         WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
     }
