@@ -96,7 +96,16 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
 /* The slope and actuator orderings: group "layout". */
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 
+/* mkdir -p: the directory and its missing parents (in compare/compare.c). */
+int wt_cli_ensure_dir(wt_context *ctx, const char *path);
+/* The MVM (pcg3 layers) of cfg: read from DIR/cache/mvm-pcg3-<hash>.h5 when it matches, else built and
+ * cached there (DIR/cache must exist); *build_s: the build time (0 from the cache). In compare/compare.c. */
+struct wt_mvm;
+int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, struct wt_system *sys, int argc, char **argv,
+                      struct wt_mvm **out, double *build_s);
+
 int wt_cmd_sim(int argc, char **argv);
+int wt_cmd_budget(int argc, char **argv);
 int wt_cmd_build(int argc, char **argv);
 int wt_cmd_run(int argc, char **argv);
 int wt_cmd_compare(int argc, char **argv);

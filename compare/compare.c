@@ -102,8 +102,7 @@ typedef struct {
 
 static const char *part_names[NPART] = {"atmosphere", "sensors", "reconstruction", "fitting", "control", "evaluation"};
 
-/* mkdir -p: create the directory and its missing parents */
-static int ensure_dir(wt_context *ctx, const char *path)
+int wt_cli_ensure_dir(wt_context *ctx, const char *path)
 {
     char buf[2048];
     snprintf(buf, sizeof buf, "%s", path);
@@ -124,9 +123,8 @@ static int ensure_dir(wt_context *ctx, const char *path)
     return WT_OK;
 }
 
-/* The MVM for this configuration: read from the cache when its hash matches, else build and cache it. */
-static int get_mvm(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys, int argc, char **argv, wt_mvm **out,
-                   double *build_s)
+int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys, int argc, char **argv,
+                      wt_mvm **out, double *build_s)
 {
     char path[2048];
     int st;
@@ -136,13 +134,13 @@ static int get_mvm(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys,
     if (f) {
         fclose(f);
         if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK) {
-            if (!cli->quiet) fprintf(stderr, "wavetomo compare: mvm from the cache %s\n", path);
+            if (!cli->quiet) fprintf(stderr, "%s: mvm from the cache %s\n", cli->prog, path);
             return WT_OK;
         }
-        if (!cli->quiet) fprintf(stderr, "wavetomo compare: rebuilding the stale or damaged %s\n", path);
+        if (!cli->quiet) fprintf(stderr, "%s: rebuilding the stale or damaged %s\n", cli->prog, path);
     }
     wt_h5_writer *w = NULL;
-    if (!cli->quiet) fprintf(stderr, "wavetomo compare: building the MVM for %s (hash %.16s)\n", cfg->path, cfg->matrix_sha256);
+    if (!cli->quiet) fprintf(stderr, "%s: building the MVM for %s (hash %.16s)\n", cli->prog, cfg->path, cfg->matrix_sha256);
     if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", NULL, out)) < 0) return st;
     *build_s = (*out)->stats.t_total;
     if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
@@ -163,7 +161,7 @@ static int run_one(wt_cli *cli, const cmp_args *a, int mi, int vi, wt_config *cf
     wt_loop *lp = NULL;
     double build = 0.0;
     memset(res, 0, sizeof *res);
-    if (kind == WT_RECON_MVM && (st = get_mvm(cli, a->out, cfg, sys, argc, argv, &mvm, &build)) < 0) return st;
+    if (kind == WT_RECON_MVM && (st = wt_cli_mvm_cached(cli, a->out, cfg, sys, argc, argv, &mvm, &build)) < 0) return st;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = cfg->seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli->ctx, sys, &o, &lp)) < 0) goto out;
@@ -413,7 +411,7 @@ int wt_cmd_compare(int argc, char **argv)
         goto fail;
     }
     snprintf(cache, sizeof cache, "%s/cache", a.out);
-    if ((st = ensure_dir(cli.ctx, a.out)) < 0 || (st = ensure_dir(cli.ctx, cache)) < 0) goto fail;
+    if ((st = wt_cli_ensure_dir(cli.ctx, a.out)) < 0 || (st = wt_cli_ensure_dir(cli.ctx, cache)) < 0) goto fail;
     {
         char probe[2200];
         snprintf(probe, sizeof probe, "%s/results.h5", a.out);

@@ -580,3 +580,89 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
              NULL, NULL, NULL, NULL);
     return job_end(&j);
 }
+
+int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, const char *ylabel, int ngroups,
+                         const char *const *groups, int nseries, const char *const *series, const double *values,
+                         const double *marks)
+{
+    if (ngroups < 1 || ngroups > MAX_SERIES || nseries < 1 || nseries > MAX_SERIES)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': bars of %d groups x %d series; expected 1..%d x 1..%d",
+                        pname(path), ngroups, nseries, MAX_SERIES, MAX_SERIES);
+    if (!groups || !series || !values)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': grouped bars with a NULL array", pname(path));
+    for (int k = 0; k < ngroups; k++)
+        if (!groups[k]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': group name %d is NULL", pname(path), k);
+    for (int s = 0; s < nseries; s++)
+        if (!series[s]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': series name %d is NULL", pname(path), s);
+    double vmax = 0.0;
+    for (int i = 0; i < ngroups * nseries; i++) {
+        if (isfinite(values[i])) vmax = fmax(vmax, fabs(values[i]));
+        if (marks && isfinite(marks[i])) vmax = fmax(vmax, fabs(marks[i]));
+    }
+    double ymax = vmax > 0.0 ? 1.12 * vmax : 1.0;
+    double xmin = 0.4, xmax = ngroups + 0.6, w = 0.8 / nseries;
+
+    plot_job j;
+    int st = job_begin(&j, ctx, path);
+    if (st < 0) return st;
+    plvpor(0.10, 0.78, 0.16, 0.90);
+    plwind(xmin, xmax, 0.0, ymax);
+    draw_axes("bc", "bcnstv", "", "g");
+    draw_labels("", ylabel, title);
+    char txt[LABEL_MAX];
+    plschr(0.0, 0.8);
+    for (int k = 0; k < ngroups; k++) {
+        for (int s = 0; s < nseries; s++) {
+            double v = values[k * nseries + s], x0 = k + 1.0 - 0.4 + s * w;
+            if (isfinite(v) && v != 0.0) {
+                /* a negative quadrature difference is drawn as its magnitude, hatched */
+                PLFLT fx[5] = {x0, x0 + w, x0 + w, x0, x0}, fy[5] = {0, 0, fabs(v), fabs(v), 0};
+                plcol0(C_PAL + s % N_PAL);
+                if (v < 0.0) plpsty(3);
+                plfill(4, fx, fy);
+                plpsty(0);
+                plcol0(C_FG);
+                plline(5, fx, fy);
+                snprintf(txt, sizeof txt, "%.0f", v);
+                plptex(x0 + 0.5 * w, fabs(v) + 0.03 * ymax, 1.0, 0.0, 0.5, txt);
+            }
+            double m = marks ? marks[k * nseries + s] : NAN;
+            if (isfinite(m)) {
+                PLFLT mx[2] = {x0, x0 + w}, my[2] = {fabs(m), fabs(m)};
+                plcol0(C_FG);
+                plwidth(3.0);
+                plline(2, mx, my);
+                plwidth(1.0);
+            }
+        }
+    }
+    plschr(0.0, 1.15);
+    plcol0(C_FG);
+    for (int k = 0; k < ngroups; k++)
+        plmtex("b", 1.8 + 1.2 * (k % 2), (k + 1.0 - xmin) / (xmax - xmin), 0.5, escape_text(txt, sizeof txt, groups[k]));
+
+    PLINT opt[MAX_SERIES + 1], tcol[MAX_SERIES + 1], bcol[MAX_SERIES + 1], bpat[MAX_SERIES + 1], lcol[MAX_SERIES + 1],
+        lsty[MAX_SERIES + 1];
+    PLFLT bscale[MAX_SERIES + 1], bwid[MAX_SERIES + 1], lwid[MAX_SERIES + 1];
+    const char *text[MAX_SERIES + 1];
+    char buf[MAX_SERIES][LABEL_MAX];
+    int n = 0;
+    for (int s = 0; s < nseries; s++, n++) {
+        opt[n] = PL_LEGEND_COLOR_BOX;
+        tcol[n] = C_FG, bcol[n] = C_PAL + s % N_PAL, bpat[n] = 0, bscale[n] = 0.9, bwid[n] = 1.0;
+        lcol[n] = C_FG, lsty[n] = 1, lwid[n] = 1.0;
+        text[n] = escape_text(buf[s], LABEL_MAX, series[s]);
+    }
+    if (marks) {
+        opt[n] = PL_LEGEND_LINE;
+        tcol[n] = C_FG, bcol[n] = C_FG, bpat[n] = 0, bscale[n] = 0.9, bwid[n] = 1.0;
+        lcol[n] = C_FG, lsty[n] = 1, lwid[n] = 3.0;
+        text[n++] = "analytic";
+    }
+    PLFLT lw, lh;
+    pllegend(&lw, &lh, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
+             PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.06, C_BG, C_GRID, 1, 0, 0,
+             n, opt, 1.0, 0.95, 2.0, 0.0, tcol, text, bcol, bpat, bscale, bwid, lcol, lsty, lwid, NULL, NULL, NULL,
+             NULL);
+    return job_end(&j);
+}

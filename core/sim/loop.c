@@ -4,6 +4,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "../model/fitting.h"
+#include "../model/params.h"
 #include "../model/interaction.h"
 #include "../op/noise.h"
 #include "../op/projection.h"
@@ -39,6 +41,8 @@ struct wt_loop {
     wt_strehl_le le;
     long t;
     wt_loop_times times;
+    wt_fitting *fit;              /* perfect_fit: the fitting of given maps */
+    double *maps;                 /* perfect_fit: true OPD along each evaluation direction on its samples */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -146,6 +150,17 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
     WT_ALLOC(ctx, lp->applied, sys->nact, "applied commands");
     WT_ALLOC(ctx, lp->rms, sys->neval, "residual rms");
     wt_strehl_le_init(&lp->le, sys->neval);
+    if (opt->first_frame < 0 || (opt->first_frame > 0 && !opt->open_loop) || (opt->perfect_fit && !opt->open_loop)) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "first_frame %ld / perfect_fit %d: open-loop options without open_loop",
+                      opt->first_frame, opt->perfect_fit);
+        goto fail;
+    }
+    lp->t = opt->first_frame;
+    if (opt->perfect_fit > 0) {
+        wt_fitting_params fp = wt_fitting_params_from_variant(&cfg->cg9);
+        WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &lp->fit));
+        WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
+    }
     *out = lp;
     return WT_OK;
 fail:
@@ -180,11 +195,112 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->a_rec);
     wt_free(ctx, lp->applied);
     wt_free(ctx, lp->rms);
+    wt_fitting_free(lp->fit);
+    wt_free(ctx, lp->maps);
     wt_free(ctx, lp);
+}
+
+
+/* o = the turbulence along line of sight i at `time` on the fine grid (masked points; zero without it) */
+static int turbulence(const wt_loop *lp, int i, double time, double *o)
+{
+    double tx, ty;
+    los_direction(lp, i, &tx, &ty);
+    const uint8_t *mask = los_mask(lp, i);
+    for (int64_t k = 0; k < lp->nfine; k++)
+        if (mask[k]) o[k] = 0.0;
+    if (lp->opt.no_turbulence) return WT_OK;
+    return wt_atmosphere_project(lp->atm, time, los_altitude(lp, i), tx, ty, &lp->fine, mask, 1.0, o);
+}
+
+/* Sensor i measures the OPD o of frame t: its slopes in lp->s, with noise and LGS tip-tilt when on */
+static void sense(wt_loop *lp, int i, long t, const double *o)
+{
+    const wt_sensor *s = &lp->sys->sensors[i];
+    double *sl = lp->s + s->offset;
+    wt_wfs_measure(lp->wfs[i], o, sl);
+    if (lp->opt.noise) {
+        wt_rng rng;
+        wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
+        wt_noise_sample(lp->noise[i], &rng, sl);
+        if (s->kind == WT_SENSOR_LGS && lp->cfg->lgs_tt_jitter > 0.0)
+            wt_wfs_add_tiptilt(lp->wfs[i], &rng, lp->cfg->lgs_tt_jitter, sl);
+    }
+}
+
+/* Evaluation of a frame: field Strehl, and the long-exposure sums after the settle period */
+static void evaluate(wt_loop *lp)
+{
+    const wt_system *sys = lp->sys;
+    double fs = 0.0;
+    for (int j = 0; j < sys->neval; j++) fs += wt_strehl_marechal(lp->rms[j], lp->cfg->eval_wavelength);
+    lp->field_strehl = fs / sys->neval;
+    if (lp->t >= lp->cfg->settle_frames) wt_strehl_le_add(&lp->le, lp->rms, lp->cfg->eval_wavelength);
+}
+
+/* Instantaneous open loop (budget modes): the sensors see the turbulence of frame t with the DMs flat;
+ * a_t = R s_t, or the fit of the true turbulence along the evaluation directions, is applied to the
+ * evaluation of the same frame. */
+static int step_open_loop(wt_loop *lp)
+{
+    const wt_system *sys = lp->sys;
+    const long t = lp->t;
+    const double time = (double)t / lp->cfg->rate;
+    const int64_t nf = lp->nfine;
+    const int nsens = lp->opt.perfect_fit ? 0 : sys->nsensors;
+    int err = WT_OK;
+    double t0 = wt_time_now();
+#pragma omp parallel for schedule(dynamic, 1) reduction(min : err)
+    for (int i = 0; i < lp->nlos; i++) {
+        if (i < sys->nsensors && i >= nsens) continue;
+        double *o = lp->opd + (size_t)i * nf;
+        int e = turbulence(lp, i, time, o);
+        if (e < err) err = e;
+        if (i < nsens) sense(lp, i, t, o);
+    }
+    if (err < 0) return err;
+    double t1 = wt_time_now();
+    lp->times.sensors += t1 - t0;
+    if (lp->opt.perfect_fit) {
+        const wt_grid *g = wt_fitting_sample_grid(lp->fit);
+        const uint8_t *m = wt_fitting_sample_mask(lp->fit);
+        const int64_t ng = wt_grid_size(g);
+#pragma omp parallel for schedule(dynamic, 1) reduction(min : err)
+        for (int j = 0; j < sys->neval; j++) {
+            double *o = lp->maps + (size_t)j * ng;
+            memset(o, 0, (size_t)ng * sizeof *o);
+            int e = lp->opt.no_turbulence ? WT_OK
+                                          : wt_atmosphere_project(lp->atm, time, 0.0, sys->eval_x[j], sys->eval_y[j], g, m, 1.0, o);
+            if (e < err) err = e;
+        }
+        if (err < 0) return err;
+        /* warm start: a_rec still holds the previous frame's fit */
+        err = wt_fitting_solve_maps(lp->fit, lp->maps, lp->a_rec, lp->opt.perfect_fit, 0.0, NULL);
+        lp->times.fitting += wt_time_now() - t1;
+    } else {
+        memcpy(lp->s_ol, lp->s, (size_t)sys->nslopes * sizeof *lp->s_ol);
+        err = wt_reconstructor_apply(lp->rec, lp->s_ol, lp->a_rec);
+        lp->times.reconstruction += wt_time_now() - t1;
+    }
+    if (err < 0) return err;
+    double t2 = wt_time_now();
+    memcpy(lp->applied, lp->a_rec, (size_t)sys->nact * sizeof *lp->applied);
+    wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int j = 0; j < sys->neval; j++) {
+        double *o = lp->opd + (size_t)(sys->nsensors + j) * nf;
+        wt_projection_apply(lp->dm[sys->nsensors + j], -1.0, lp->dm_grids, o);
+        lp->rms[j] = wt_strehl_rms(o, lp->pupil, nf);
+    }
+    evaluate(lp);
+    lp->times.evaluation += wt_time_now() - t2;
+    lp->t++;
+    return WT_OK;
 }
 
 int wt_loop_step(wt_loop *lp)
 {
+    if (lp->opt.open_loop) return step_open_loop(lp);
     const wt_system *sys = lp->sys;
     const wt_config *cfg = lp->cfg;
     const int D1 = lp->delay + 1;
@@ -205,28 +321,15 @@ int wt_loop_step(wt_loop *lp)
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_atm, c_sens, c_eval) reduction(min : err) \
     num_threads(wt_context_threads(lp->ctx))
     for (int i = 0; i < lp->nlos; i++) {
-        double a0 = wt_time_now(), tx, ty;
-        los_direction(lp, i, &tx, &ty);
+        double a0 = wt_time_now();
         double *o = lp->opd + (size_t)i * nf;
-        const uint8_t *mask = los_mask(lp, i);
-        for (int64_t k = 0; k < nf; k++)
-            if (mask[k]) o[k] = 0.0;
-        int e = wt_atmosphere_project(lp->atm, time, los_altitude(lp, i), tx, ty, &lp->fine, mask, 1.0, o);
+        int e = turbulence(lp, i, time, o);
         if (e < err) err = e;
         double a1 = wt_time_now();
         c_atm += a1 - a0;
         wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
         if (i < sys->nsensors) {
-            const wt_sensor *s = &sys->sensors[i];
-            double *sl = lp->s + s->offset;
-            wt_wfs_measure(lp->wfs[i], o, sl);
-            if (lp->opt.noise) {
-                wt_rng rng;
-                wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
-                wt_noise_sample(lp->noise[i], &rng, sl);
-                if (s->kind == WT_SENSOR_LGS && cfg->lgs_tt_jitter > 0.0)
-                    wt_wfs_add_tiptilt(lp->wfs[i], &rng, cfg->lgs_tt_jitter, sl);
-            }
+            sense(lp, i, t, o);
             c_sens += wt_time_now() - a1;
         } else {
             lp->rms[i - sys->nsensors] = wt_strehl_rms(o, lp->pupil, nf);
@@ -241,10 +344,7 @@ int wt_loop_step(wt_loop *lp)
         lp->times.evaluation += (t2 - t0) * c_eval / csum;
     }
 
-    double fs = 0.0;
-    for (int j = 0; j < sys->neval; j++) fs += wt_strehl_marechal(lp->rms[j], cfg->eval_wavelength);
-    lp->field_strehl = fs / sys->neval;
-    if (t >= cfg->settle_frames) wt_strehl_le_add(&lp->le, lp->rms, cfg->eval_wavelength);
+    evaluate(lp);
     double t2e = wt_time_now();
     lp->times.evaluation += t2e - t2;
 

@@ -8,6 +8,9 @@
  * OPD and its Strehl (SPEC §8). Pseudo-open-loop control with a delay of d frames (d = 2 in the paper):
  *   s_ol = s_t + Â a_t,   a_{t+d} = a_{t+d−1} + g (R s_ol − a_t).
  *
+ * Budget modes (wt_loop_options.open_loop …): the instantaneous open loop evaluates a_t = R s_t (or the
+ * best fit to the true turbulence) in the frame it was measured; the closed-loop path does not change.
+ *
  * Randomness: the atmosphere draws from wt_rng streams (seed, layer); the noise of sensor m in frame t
  * from stream (seed, 2^32 + 64 t + m). The same seed gives bit-identical results for any thread count.
  */
@@ -26,6 +29,16 @@ typedef struct wt_loop_options {
     int iterations;     /* (P)CG iterations override, < 0: the config's */
     uint64_t seed;      /* random seed (the driver passes the config's unless overridden) */
     int noise;          /* 0: noise-free sensors (no photon/read noise, no LGS tip-tilt) */
+    /* Error-budget modes (core/sim/budget.h); all zero: the closed loop above. */
+    int open_loop;      /* 1: instantaneous open loop: the sensors see the turbulence alone (DMs flat), and
+                         * the commands reconstructed from them are applied to the same frame's evaluation
+                         * (no delay, no integrator, no POLC) */
+    int perfect_fit;    /* > 0 (open loop only): no sensors, no reconstructor: the DMs are fitted to the
+                         * true turbulence along the evaluation directions by the cg9 fitting (its sampling,
+                         * ε and the guard ring) with this many CG iterations, warm-started */
+    int no_turbulence;  /* 1: no atmosphere (the reconstruction of pure noise) */
+    long first_frame;   /* open loop: the first frame run (frames before the settle period carry nothing
+                         * to later open-loop frames but the warm start) */
 } wt_loop_options;
 
 /* Cumulative wall time per part [s]. */

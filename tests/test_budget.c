@@ -1,0 +1,132 @@
+/* tests/test_budget.c: the error budget (core/sim/budget.h) on demo-scale systems: the fitting term of a
+ * single ground layer against κ (p/r0)^(5/3), the terms non-negative and adding up in quadrature to the
+ * total, no noise term without noise, the same numbers for the same seed, and the analytic pieces. */
+#include "core/model/reconstructor.h"
+#include "core/model/system.h"
+#include "core/sim/budget.h"
+#include "testutil.h"
+
+#define DEMO "data/presets/demo.cfg"
+
+/* The demo system at 3 x 3 directions, pcg3, with the given overrides; returns the budget. */
+static wt_budget_result budget(int nset, const char *const *set_extra)
+{
+    wt_context *ctx = tu_context();
+    const char *set[32] = {"evaluation.grid=3", "loop.frames=18", "evaluation.settle_frames=10"};
+    int n = 3;
+    for (int i = 0; i < nset; i++) set[n++] = set_extra[i];
+    wt_config *cfg;
+    wt_system *sys;
+    ck_assert_msg(wt_config_read(ctx, DEMO, n, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+    wt_budget_options o;
+    wt_budget_options_default(&o, cfg->seed);
+    o.warmup = 4;
+    o.noise_draws = 4;
+    int kind = WT_RECON_PCG3;
+    wt_budget_result r;
+    ck_assert_msg(wt_budget_compute(ctx, sys, &o, 1, &kind, NULL, &r) == WT_OK, "%s", wt_error_message(ctx));
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+    return r;
+}
+
+/* One ground layer seen on axis: the fitting term is the DM's own fitting error σ² = κ (p/r0)^(5/3), κ
+ * 0.23–0.28 for a bilinear DM of pitch p. The run samples the residual on the 0.125 m grid of a screen
+ * sampled there too (the power above 4 cycles/m, (4/1)^(−5/3) ≈ 10 % of the fitting error's above the
+ * DM's 1 cycle/m, is not simulated, and the screen's bilinear interpolation smooths it further), the
+ * 25 m outer scale, and 8 frames of an 8 m pupil (≈ 200 pitch² cells: a few % scatter): κ in
+ * [0.17, 0.31] allows all of them (measured: 0.201). */
+START_TEST(test_fitting_single_layer)
+{
+    const char *set[] = {"atmosphere.altitudes_m=[0.0]",       "atmosphere.cn2_fractions=[1.0]",
+                         "atmosphere.wind_speed_mps=[10.0]",   "atmosphere.wind_direction_deg=[0.0]",
+                         "recon.cg9.layer_altitudes_m=[0.0]", "recon.cg9.layer_spacing_m=[0.5]",
+                         "recon.cg9.layer_size=[32]",          "evaluation.grid=1",
+                         "sim.noise=false"};
+    wt_budget_result r = budget(9, set);
+    double p = 0.5, r0 = 0.129 * pow(2200.0 / 500.0, 1.2), lam = 2200e-9;
+    double unit = pow(p / r0, 5.0 / 3.0); /* rad² per unit κ */
+    double rad = r.term[WT_BUDGET_FITTING] * 1e-9 * 2.0 * M_PI / lam;
+    double kappa = rad * rad / unit;
+    ck_assert_msg(kappa > 0.17 && kappa < 0.31, "fitting %.1f nm: kappa %.3f", r.term[WT_BUDGET_FITTING], kappa);
+    /* the analytic value of a single ground layer is the same formula */
+    ck_assert_rel(r.analytic[WT_BUDGET_FITTING], sqrt(0.23 * unit) * lam / (2.0 * M_PI) * 1e9, 1e-12, 0.0);
+    ck_assert_rel(r.analytic_hi[WT_BUDGET_FITTING], sqrt(0.28 * unit) * lam / (2.0 * M_PI) * 1e9, 1e-12, 0.0);
+}
+END_TEST
+
+/* The full demo atmosphere with noise: every term positive, the tip-tilt and rim parts below the total,
+ * rim² + interior² = total², and the closure within its stated tolerance; the same seed again gives
+ * bit-identical numbers. The frame rate is lowered to 200 Hz so that the servo term stands clear of
+ * zero (at 500 Hz it is a few nm: a difference of two runs). */
+START_TEST(test_terms_add_up)
+{
+    const char *set[] = {"loop.rate_hz=200.0"};
+    wt_budget_result r = budget(1, set);
+    for (int k = 0; k < WT_BUDGET_NTERMS; k++)
+        ck_assert_msg(isfinite(r.term[k]) && r.term[k] > 0.0, "term %s = %g nm", wt_budget_term_names[k], r.term[k]);
+    const double total = r.term[WT_BUDGET_TOTAL];
+    ck_assert(r.term[WT_BUDGET_TIPTILT] < total && r.term[WT_BUDGET_RIM] < total);
+    ck_assert_rel(hypot(r.term[WT_BUDGET_RIM], r.term[WT_BUDGET_INTERIOR]), total, 1e-9, 0.0);
+    ck_assert_msg(fabs(r.closure) <= WT_BUDGET_CLOSURE_TOL, "quadrature sum %.1f nm vs total %.1f nm", r.sum, total);
+    /* the open-loop noise estimate from pure-noise reconstructions against the measured one: the
+     * turbulence changes only the warm starts, so they agree to the scatter of 4 vs 8 draws (~25 %) */
+    ck_assert_rel(r.analytic[WT_BUDGET_NOISE_OL], r.term[WT_BUDGET_NOISE_OL], 0.3, 0.0);
+    wt_budget_result again = budget(1, set);
+    ck_assert(memcmp(r.term, again.term, sizeof r.term) == 0);
+    ck_assert(memcmp(r.analytic, again.analytic, sizeof r.analytic) == 0);
+}
+END_TEST
+
+START_TEST(test_noise_off)
+{
+    const char *set[] = {"sim.noise=false"};
+    wt_budget_result r = budget(1, set);
+    ck_assert(r.term[WT_BUDGET_NOISE_OL] == 0.0 && r.term[WT_BUDGET_NOISE_CL] == 0.0);
+    ck_assert(r.analytic[WT_BUDGET_NOISE_OL] == 0.0 && r.analytic[WT_BUDGET_NOISE_CL] == 0.0);
+    ck_assert(r.term[WT_BUDGET_TOTAL] == r.run[WT_BUDGET_RUN_CL_NF].wfe * 1e9);
+    ck_assert(r.term[WT_BUDGET_FITTING] > 0.0 && r.term[WT_BUDGET_TOTAL] > r.term[WT_BUDGET_FITTING]);
+}
+END_TEST
+
+/* The analytic pieces against closed forms. */
+START_TEST(test_analytic)
+{
+    /* delay 1: Σ h² = g/(2−g); delay 2 is larger (the loop rings) */
+    for (double g = 0.1; g < 1.0; g += 0.2) {
+        ck_assert_rel(wt_budget_noise_gain(g, 1), g / (2.0 - g), 1e-9, 0.0);
+        ck_assert(wt_budget_noise_gain(g, 2) > g / (2.0 - g));
+    }
+    /* small gain, delay 1: the integrator's rejection crosses 1/√2 near g f_s / (2π) */
+    ck_assert_rel(wt_budget_f3db(0.01, 1000.0, 1), 0.01 * 1000.0 / (2.0 * M_PI), 0.01, 0.0);
+    ck_assert(wt_budget_f3db(0.4, 500.0, 2) < wt_budget_f3db(0.4, 500.0, 1));
+    /* Greenwood of one layer: 0.427 v / r0_λ */
+    wt_context *ctx = tu_context();
+    const char *set[] = {"atmosphere.altitudes_m=[0.0]", "atmosphere.cn2_fractions=[1.0]", "atmosphere.wind_speed_mps=[10.0]",
+                         "atmosphere.wind_direction_deg=[0.0]", "recon.cg9.layer_altitudes_m=[0.0]",
+                         "recon.cg9.layer_spacing_m=[0.5]", "recon.cg9.layer_size=[32]"};
+    wt_config *cfg;
+    ck_assert_msg(wt_config_read(ctx, DEMO, 7, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_rel(wt_budget_greenwood(cfg), 0.427 * 10.0 / (0.129 * pow(2200.0 / 500.0, 1.2)), 1e-12, 0.0);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void);
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("budget");
+    TCase *tc = tcase_create("budget");
+    tcase_set_timeout(tc, 300);
+    tcase_add_test(tc, test_analytic);
+    tcase_add_test(tc, test_fitting_single_layer);
+    tcase_add_test(tc, test_noise_off);
+    tcase_add_test(tc, test_terms_add_up);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
