@@ -100,7 +100,17 @@ int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys)
         if ((st = wt_h5_attr_write_double(w, name, "theta_x_arcsec", s->theta_x / WT_ARCSEC)) < 0) goto out;
         if ((st = wt_h5_attr_write_double(w, name, "theta_y_arcsec", s->theta_y / WT_ARCSEC)) < 0) goto out;
         if ((st = wt_h5_attr_write_double(w, name, "source_altitude_m", s->altitude)) < 0) goto out;
+        /* noise_sigma_mas: σ of the config (NEA or photon model) of a fully lit subaperture, per axis, for the
+         * unelongated spot; noise_rms_mas: the rms of the simulated noise over all slopes, with the
+         * elongation (τ = 1) and the lit-fraction factors (SPEC §4) */
         if ((st = wt_h5_attr_write_double(w, name, "noise_sigma_mas", sqrt(s->sigma2) / WT_ARCSEC * 1e3)) < 0)
+            goto out;
+        double v = 0.0;
+        for (int k = 0; k < s->nsub; k++) {
+            double b2 = s->beta ? s->beta[k] * s->beta[k] + s->beta[s->nsub + k] * s->beta[s->nsub + k] : 0.0;
+            v += (s->noise_scale ? s->noise_scale[k] : 1.0) * (1.0 + 0.5 * b2 / (s->spot_fwhm * s->spot_fwhm));
+        }
+        if ((st = wt_h5_attr_write_double(w, name, "noise_rms_mas", sqrt(s->sigma2 * v / s->nsub) / WT_ARCSEC * 1e3)) < 0)
             goto out;
     }
     st = WT_OK;

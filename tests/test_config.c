@@ -213,8 +213,10 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->cg9.nlayers, 9);
     for (int i = 0; i < 9; i++) {
         ck_assert_rel(c->cg9.altitudes[i], c->layer_altitude[i], ULP2, 0);
-        ck_assert_rel(c->cg9.spacing[i], c->layer_altitude[i] < 3000.0 ? 0.5 : 1.0, ULP2, 0);
-        ck_assert_int_eq(c->cg9.size[i], c->layer_altitude[i] < 3000.0 ? 128 : 64);
+        /* 0.5 m at every altitude (docs/results.md §0b; the paper's 1 m above 3 km is coarser than the
+         * subapertures' footprints there) */
+        ck_assert_rel(c->cg9.spacing[i], 0.5, ULP2, 0);
+        ck_assert_int_eq(c->cg9.size[i], 128);
     }
     ck_assert_int_eq(c->cg9.iterations, 20);
     ck_assert_int_eq(c->cg9.jacobi, 2);
@@ -604,7 +606,7 @@ START_TEST(test_reference)
         const char *u = strrchr(path, '_');
         if (u && strcmp(u, "_e") && strcmp(u, "_fractions") && !strstr(path, "warm_start") && !strstr(path, "_size") &&
             !strstr(path, "_order") && !strstr(path, "_levels") && !strstr(path, "_frames") && !strstr(path, "_fraction") &&
-            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model")) {
+            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];

@@ -355,6 +355,66 @@ static void expect_reject(wt_context *ctx, int nsub, double s2, double fwhm, con
                   wt_error_message(ctx));
 }
 
+START_TEST(test_nea_is_short_axis)
+{
+    /* The NEA is the per-axis noise of the unelongated spot (SPEC §4, README): with elongation the
+     * variance across β stays NEA² (times the lit factor c) and along β grows to NEA² c (1 + |β|²/θf²)
+     * in the truth (τ = 1). 200000 draws: the sample variances have standard error √(2/N) var, each
+     * checked within 6 of it (a wrong meaning, e.g. NEA of the elongated spot, misses by a factor ~2). */
+    wt_context *ctx = tu_context();
+    const double nea = 30e-3 * ARCSEC;
+    /* the NEA replaces the photon model whatever the photons */
+    ck_assert_double_eq(wt_noise_variance(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, nea), nea * nea);
+    ck_assert_double_eq(wt_noise_variance(1.0, 30.0, LGS_FWHM, LGS_PIXEL, 4, nea), nea * nea);
+    /* subaperture 0 fully lit and elongated at 30° (|β| = 1.5 θf), 1 lit at 40 % and elongated at 120° */
+    const double b0 = 1.5 * LGS_FWHM, b1 = 0.8 * LGS_FWHM, lit1 = 0.4;
+    double beta[4] = {b0 * cos(M_PI / 6), b1 * cos(2 * M_PI / 3), b0 * sin(M_PI / 6), b1 * sin(2 * M_PI / 3)};
+    double scale[2] = {wt_noise_lit_factor(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, nea, 1.0),
+                       wt_noise_lit_factor(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, nea, lit1)};
+    ck_assert_double_eq(scale[0], 1.0);
+    ck_assert_rel(scale[1], 1.0 / lit1, 1e-15, 0);
+    wt_noise *n = NULL;
+    ck_assert_int_eq(wt_noise_alloc_scaled(ctx, 2, nea * nea, scale, LGS_FWHM, beta, 1.0, 0, &n), WT_OK);
+    const int N = 200000;
+    double along[2] = {0, 0}, across[2] = {0, 0};
+    wt_rng rng;
+    wt_rng_init(&rng, 777, 1);
+    for (int k = 0; k < N; k++) {
+        double x[4] = {0, 0, 0, 0};
+        wt_noise_sample(n, &rng, x);
+        for (int i = 0; i < 2; i++) {
+            double b = hypot(beta[i], beta[2 + i]), ux = beta[i] / b, uy = beta[2 + i] / b;
+            double a = x[i] * ux + x[2 + i] * uy, c = -x[i] * uy + x[2 + i] * ux;
+            along[i] += a * a;
+            across[i] += c * c;
+        }
+    }
+    double mean_var = 0.0;
+    for (int i = 0; i < 2; i++) {
+        double b2 = beta[i] * beta[i] + beta[2 + i] * beta[2 + i];
+        double va = nea * nea * scale[i] * (1.0 + b2 / (LGS_FWHM * LGS_FWHM)), vc = nea * nea * scale[i];
+        mean_var += 0.5 * (va + vc) / 2;
+        ck_assert_msg(fabs(across[i] / N - vc) <= 6.0 * sqrt(2.0 / N) * vc, "sub %d across: %g vs %g", i,
+                      across[i] / N, vc);
+        ck_assert_msg(fabs(along[i] / N - va) <= 6.0 * sqrt(2.0 / N) * va, "sub %d along: %g vs %g", i,
+                      along[i] / N, va);
+    }
+    /* (tr C̃)/2 averaged over subapertures: what the result file reports as noise_rms_mas² */
+    ck_assert_rel(wt_noise_mean_variance(n), mean_var, 1e-14, 0);
+    /* the photon model: f N photons, σ² = θf²/(8 ln2 f N) + p² σe² Ns⁴/(12 f² N²) */
+    double f = 0.3, v1 = wt_noise_variance(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, 0.0);
+    double vf = LGS_FWHM * LGS_FWHM / (8 * log(2.0) * 30.0) + LGS_PIXEL * LGS_PIXEL * 9.0 * 256.0 / (12.0 * 900.0);
+    ck_assert_rel(wt_noise_lit_factor(100.0, 3.0, LGS_FWHM, LGS_PIXEL, 4, 0.0, f), vf / v1, 1e-14, 0);
+    /* a bad factor is refused */
+    wt_noise *bad = NULL;
+    scale[1] = 0.0;
+    ck_assert_int_eq(wt_noise_alloc_scaled(ctx, 2, nea * nea, scale, LGS_FWHM, beta, 1.0, 0, &bad), WT_ERR_INVALID);
+    ck_assert_ptr_null(bad);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_bad_input)
 {
     wt_context *ctx = tu_context();
@@ -425,6 +485,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_variance_formula);
     tcase_add_test(tc, test_elongation_hand);
     tcase_add_test(tc, test_sampling);
+    tcase_add_test(tc, test_nea_is_short_axis);
     tcase_add_test(tc, test_bad_input);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);

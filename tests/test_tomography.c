@@ -6,7 +6,9 @@
 #include "core/model/system.h"
 #include "core/model/params.h"
 #include "core/model/tomography.h"
+#include "core/op/noise.h"
 #include "core/op/projection.h"
+#include "core/op/pupil.h"
 #include "testmodel.h"
 #include "testutil.h"
 
@@ -296,6 +298,60 @@ START_TEST(test_layer_grid_too_small_rejected)
 }
 END_TEST
 
+/* The noise of a sensor given by an NEA with elongation on, and of partly lit subapertures
+ * (lgs.wfs.lit_noise): σ² is NEA² (not widened by the elongation), each subaperture's variance factor
+ * is 1/f with f its lit fraction of the annulus (f = 1: factor 1), the NGS sensors keep factor 1 (their
+ * quadrants are alike), and the reconstructor's weight of a subaperture is the inverse of the truth's
+ * covariance block at τ = 1 (here τ = 1 too, so model and truth agree block by block). */
+START_TEST(test_nea_and_lit_noise)
+{
+    const char *set[] = {"lgs.wfs.nea_mas=30.0", "lgs.wfs.lit_noise=true", "ngs.wfs.lit_noise=true",
+                         "recon.tau=1.0", "lgs.wfs.valid_fraction=0.3"};
+    const double nea = 30e-3 * M_PI / (180.0 * 3600.0);
+    wt_context *ctx = tu_context();
+    wt_config *cfg;
+    wt_system *sys;
+    wt_tomography *t;
+    ck_assert_int_eq(wt_config_read(ctx, DEMO, 5, set, &cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &tp, &t), WT_OK);
+    int partial = 0;
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        ck_assert_ptr_nonnull(s->noise_scale);
+        if (s->kind == WT_SENSOR_NGS) {
+            for (int k = 0; k < s->nsub; k++) ck_assert_rel(s->noise_scale[k], 1.0, 1e-12, 0);
+            continue;
+        }
+        ck_assert_rel(s->sigma2, nea * nea, 1e-14, 0);
+        ck_assert_ptr_nonnull(s->beta);
+        const double d = cfg->diameter / s->subapertures;
+        for (int k = 0; k < s->nsub; k++) {
+            double x, y, a, b, c;
+            wt_shack_hartmann_centre(s->sh, k, &x, &y);
+            double f = wt_pupil_fraction(cfg->diameter, cfg->obstruction, x - d / 2, y - d / 2, d);
+            ck_assert_double_ge(f, 0.3 - 1e-12);
+            ck_assert_rel(s->noise_scale[k], 1.0 / f, 1e-9, 0);
+            partial += f < 0.999;
+            /* model block × truth block = I: C̃_k = NEA²/f (I + ββᵀ/θf²) */
+            double bx = s->beta[k], by = s->beta[s->nsub + k], g = 1.0 / (s->spot_fwhm * s->spot_fwhm);
+            double v = nea * nea / f, ca = v * (1 + g * bx * bx), cb = v * g * bx * by, cc = v * (1 + g * by * by);
+            wt_noise_inv_block(wt_tomography_noise(t, m), k, &a, &b, &c);
+            ck_assert_rel(a * ca + b * cb, 1.0, 1e-10, 0);
+            ck_assert_double_le(fabs(a * cb + b * cc), 1e-10);
+            ck_assert_rel(b * cb + c * cc, 1.0, 1e-10, 0);
+        }
+    }
+    ck_assert_int_gt(partial, 8); /* the rims of the 8 m demo pupil */
+    wt_tomography_free(t);
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* Fitting: layers at the DM altitudes on grids whose points include the actuators, filled with a DM
  * shape, are fitted exactly (up to ε and the unseen modes): compare the pupil-plane phase along every
  * evaluation direction. */
@@ -382,6 +438,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_jacobi_probing_is_exact);
     tcase_add_test(tc, test_nan_slopes_rejected);
     tcase_add_test(tc, test_layer_grid_too_small_rejected);
+    tcase_add_test(tc, test_nea_and_lit_noise);
     tcase_add_test(tc, test_fitting_recovers_dm_shape);
     suite_add_tcase(s, tc);
     return s;

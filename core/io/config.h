@@ -29,6 +29,7 @@ typedef struct wt_sensor_config {
     double pixel;            /* pixel scale [rad] */
     int pixels;              /* pixels across a subaperture (Ns) */
     double nea;              /* noise-equivalent angle per axis [rad]; < 0: use the photon/read model */
+    int lit_noise;           /* 1: a partly lit subaperture collects its lit fraction of the photons (more noise) */
 } wt_sensor_config;
 
 typedef struct wt_recon_variant_config {

@@ -43,7 +43,12 @@
     KF(pre ".pixel_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
     KI(pre ".pixels", 0, 1, 1024, w.pixels, "pixels across a subaperture (Ns)"),                            \
     {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
-     "noise-equivalent angle per axis (rms); when given it replaces the photon/read-noise model"}
+     "noise-equivalent angle per axis (rms) of the unelongated spot (the short axis of an elongated one); when "  \
+     "given it replaces the photon/read-noise model"},                                                     \
+    {pre ".lit_noise", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(w.lit_noise), NOCOUNT, 0, 0, NULL, 0,              \
+     "a partly lit subaperture collects its lit fraction f of a full one's photons: the per-axis variance " \
+     "is that of f N photons (NEA^2 / f with nea_mas), in the simulated noise and the reconstructor's "      \
+     "weights (optional, default false)"}
 
 #define VARIANT(pre, v)                                                                                    \
     KFL(pre ".layer_altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \

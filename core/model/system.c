@@ -48,6 +48,22 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
     s->offset = sys->nslopes;
     sys->nslopes += s->nslopes;
     sys->nsensors++;
+    if (w->lit_noise) {
+        /* f relative to the sensor's best-lit subaperture: 1 for a fully lit LGS subaperture, and for the NGS
+         * quadrants or the whole pupil (their photons are the star's, whatever the pupil's shape) */
+        const double side = cfg->diameter / s->subapertures;
+        double fmax = 0.0;
+        WT_ALLOC(ctx, s->noise_scale, s->nsub, "noise variance factors");
+        for (int k = 0; k < s->nsub; k++) {
+            double x, y;
+            wt_shack_hartmann_centre(s->sh, k, &x, &y);
+            s->noise_scale[k] = wt_pupil_fraction(cfg->diameter, cfg->obstruction, x - 0.5 * side, y - 0.5 * side, side);
+            if (s->noise_scale[k] > fmax) fmax = s->noise_scale[k];
+        }
+        for (int k = 0; k < s->nsub; k++)
+            s->noise_scale[k] = wt_noise_lit_factor(w->photons, w->read_noise_e, w->spot_fwhm, w->pixel, w->pixels,
+                                                    w->nea, s->noise_scale[k] / fmax);
+    }
     if (kind == WT_SENSOR_LGS && cfg->sodium_fwhm > 0.0) {
         double *cx = NULL, *cy = NULL;
         WT_ALLOC(ctx, s->beta, 2 * s->nsub, "elongation vectors");
@@ -156,11 +172,13 @@ void wt_system_free(wt_system *sys)
     for (int k = 0; k < sys->nsensors; k++) {
         wt_shack_hartmann_free(sys->sensors[k].sh);
         wt_free(ctx, sys->sensors[k].beta);
+        wt_free(ctx, sys->sensors[k].noise_scale);
     }
     /* a sensor that failed half-way was not counted: free its parts too */
     if (sys->nsensors < 2 * WT_MAX_GS) {
         wt_shack_hartmann_free(sys->sensors[sys->nsensors].sh);
         wt_free(ctx, sys->sensors[sys->nsensors].beta);
+        wt_free(ctx, sys->sensors[sys->nsensors].noise_scale);
     }
     wt_dm_free(sys->dm);
     wt_free(ctx, sys->valid);

@@ -33,6 +33,7 @@ typedef struct wt_sensor {
     int nsub;                   /* valid subapertures */
     int nslopes;                /* 2 nsub */
     int64_t offset;             /* first slope of this sensor in the concatenated vector */
+    double *noise_scale;        /* per-axis variance factor of each subaperture (lit_noise), nsub; NULL = all 1 */
     double *beta;               /* LGS elongation vectors [rad], 2*nsub ([βx…, βy…]); NULL for NGS or Δh = 0 */
     char name[16];              /* "LGS1", "NGS2", … for messages */
 } wt_sensor;

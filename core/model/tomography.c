@@ -154,8 +154,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                 goto fail;
             }
         }
-        WT_TRY(wt_noise_alloc(ctx, s->nsub, s->sigma2, s->spot_fwhm, s->beta, par->tau, s->kind == WT_SENSOR_LGS,
-                              &t->noise[m]));
+        WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s->sigma2, s->noise_scale, s->spot_fwhm, s->beta, par->tau,
+                                     s->kind == WT_SENSOR_LGS, &t->noise[m]));
     }
 
     t->stack = (wt_sensor_stack){.sys = sys, .nin = t->L, .proj = t->proj, .in_offset = t->off};

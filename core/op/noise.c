@@ -53,8 +53,22 @@ void wt_noise_free(wt_noise *n)
     wt_free(ctx, n);
 }
 
+double wt_noise_lit_factor(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
+                           double nea, double lit)
+{
+    if (nea > 0.0) return 1.0 / lit; /* photon-noise limited: σ² ∝ 1/N */
+    return wt_noise_variance(photons * lit, read_noise_e, spot_fwhm, pixel, pixels, nea) /
+           wt_noise_variance(photons, read_noise_e, spot_fwhm, pixel, pixels, nea);
+}
+
 int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, const double *beta, double tau,
                    int remove_tt, wt_noise **out)
+{
+    return wt_noise_alloc_scaled(ctx, nsub, sigma2, NULL, spot_fwhm, beta, tau, remove_tt, out);
+}
+
+int wt_noise_alloc_scaled(wt_context *ctx, int nsub, double sigma2, const double *scale, double spot_fwhm,
+                          const double *beta, double tau, int remove_tt, wt_noise **out)
 {
     int st = WT_OK;
     wt_noise *n = NULL;
@@ -69,6 +83,12 @@ int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, c
         return WT_ERROR(ctx, WT_ERR_INVALID, "noise: elongation weight tau = %g, expected in [0, 1]", tau);
     if (!(spot_fwhm > 0.0) || !isfinite(spot_fwhm))
         return WT_ERROR(ctx, WT_ERR_INVALID, "noise: spot FWHM = %g rad, expected finite and > 0", spot_fwhm);
+    if (scale) {
+        for (int i = 0; i < nsub; i++)
+            if (!(scale[i] > 0.0) || !isfinite(scale[i]))
+                return WT_ERROR(ctx, WT_ERR_INVALID, "noise: variance factor of subaperture %d is %g, expected finite and > 0",
+                                i, scale[i]);
+    }
     if (beta) {
         for (int i = 0; i < 2 * nsub; i++)
             if (!isfinite(beta[i]))
@@ -97,21 +117,22 @@ int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, c
 
     double g = tau / (spot_fwhm * spot_fwhm);
     for (int i = 0; i < nsub; i++) {
+        const double s2 = scale ? sigma2 * scale[i] : sigma2;
         double bx = beta ? beta[i] : 0.0, by = beta ? beta[nsub + i] : 0.0;
         double gxx = g * bx * bx, gxy = g * bx * by, gyy = g * by * by;
         double q = 1.0 + gxx + gyy; /* det(C̃_i) / σ⁴ = 1 + γ|β|² >= 1 */
-        n->ca[i] = sigma2 * (1.0 + gxx);
-        n->cb[i] = sigma2 * gxy;
-        n->cc[i] = sigma2 * (1.0 + gyy);
+        n->ca[i] = s2 * (1.0 + gxx);
+        n->cb[i] = s2 * gxy;
+        n->cc[i] = s2 * (1.0 + gyy);
         /* Sherman–Morrison: (I + γββᵀ)⁻¹ = I − γββᵀ / (1 + γ|β|²); no cancellation since q >= 1. */
-        n->ia[i] = (1.0 - gxx / q) / sigma2;
-        n->ib[i] = (-gxy / q) / sigma2;
-        n->ic[i] = (1.0 - gyy / q) / sigma2;
+        n->ia[i] = (1.0 - gxx / q) / s2;
+        n->ib[i] = (-gxy / q) / s2;
+        n->ic[i] = (1.0 - gyy / q) / s2;
         double l11 = sqrt(n->ca[i]);
         n->l11[i] = l11;
         n->l21[i] = n->cb[i] / l11;
         /* l22² = det / C11 exactly, avoiding the cancellation of C22 − l21² for long spots. */
-        n->l22[i] = sqrt(sigma2 * q / (1.0 + gxx));
+        n->l22[i] = sqrt(s2 * q / (1.0 + gxx));
     }
     *out = n;
     return WT_OK;
@@ -121,6 +142,13 @@ fail:
 }
 
 int wt_noise_nslopes(const wt_noise *n) { return 2 * n->nsub; }
+
+double wt_noise_mean_variance(const wt_noise *n)
+{
+    double s = 0.0;
+    for (int i = 0; i < n->nsub; i++) s += 0.5 * (n->ca[i] + n->cc[i]);
+    return s / n->nsub;
+}
 
 /* y ← y + α B x for the m symmetric 2x2 blocks B_i = [[a_i, b_i], [b_i, c_i]] acting on (x_i, x_{m+i}) */
 static void apply_blocks(int m, const double *a, const double *b, const double *c, double alpha, const double *x,

@@ -3,7 +3,10 @@
  *
  * Per-axis variance (Gaussian spot FWHM θf, N photons, read noise σe, Ns x Ns pixels of scale p):
  *     σ² = θf² / (8 ln2 N) + p² σe² Ns⁴ / (12 N²)      [rad²]       (or σ² = NEA² when given)
- * 2x2 block of subaperture i, elongation vector β_i [rad]:  C̃_i = σ² (I + (τ/θf²) β_i β_iᵀ)
+ * 2x2 block of subaperture i, elongation vector β_i [rad]:  C̃_i = σ_i² (I + (τ/θf²) β_i β_iᵀ),
+ * σ_i² = σ² c_i with c_i = 1, or the variance factor of a partly lit subaperture (fewer photons).
+ * σ (NEA) is the per-axis noise of the unelongated spot: the short axis of an elongated one; along the
+ * elongation the variance is σ_i² (1 + τ|β_i|²/θf²).
  * LGS tip-tilt removal:  Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T),  T the orthogonal projection onto the sensor's
  * global tip and tilt, i.e. onto span{(1…1, 0…0), (0…0, 1…1)} in the [s_x…, s_y…] layout.
  * Slope layout as core/op/shack_hartmann.h: block i couples s_x[i] and s_y[i] = slope[nsub + i].
@@ -32,6 +35,15 @@ typedef struct wt_noise wt_noise;
  * copied; NULL: none), τ ∈ [0, 1], remove_tt: 1 for the LGS tip-tilt projection in the weight. */
 int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, const double *beta, double tau,
                    int remove_tt, wt_noise **out);
+/* The same with per-subaperture variance factors c_i (nsub, each finite and > 0; NULL: all 1). */
+int wt_noise_alloc_scaled(wt_context *ctx, int nsub, double sigma2, const double *scale, double spot_fwhm,
+                          const double *beta, double tau, int remove_tt, wt_noise **out);
+/* Per-axis variance factor of a subaperture that collects `lit` (0 < lit ≤ 1) of the photons of a fully
+ * lit one: σ²(N lit)/σ²(N) for the photon/read model (arguments as wt_noise_variance), 1/lit for an NEA. */
+double wt_noise_lit_factor(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
+                           double nea, double lit);
+/* Mean per-axis variance over subapertures and axes, (tr C̃_i)/2 averaged over i [rad²]. */
+double wt_noise_mean_variance(const wt_noise *n);
 void wt_noise_free(wt_noise *n);
 int wt_noise_nslopes(const wt_noise *n);
 

@@ -121,7 +121,8 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
             goto fail;
         }
         /* the truth elongation is the physical one: τ = 1 (SPEC §4) */
-        WT_TRY(wt_noise_alloc(ctx, s->nsub, s->sigma2, s->spot_fwhm, s->beta, 1.0, 0, &lp->noise[m]));
+        WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s->sigma2, s->noise_scale, s->spot_fwhm, s->beta, 1.0, 0,
+                                     &lp->noise[m]));
     }
     WT_ALLOC(ctx, lp->dm, lp->nlos, "DM projections");
     for (int i = 0; i < lp->nlos; i++) {
