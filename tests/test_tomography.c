@@ -425,6 +425,55 @@ START_TEST(test_fitting_recovers_dm_shape)
 }
 END_TEST
 
+/* The layer-binning model error (recon.model_error, core/model/tomography.c): zero when every true layer
+ * sits on a reconstruction altitude (cg9's layers are the atmosphere's), positive for the LGS of PCG-3
+ * (the demo atmosphere has layers at 600, 2000, 6000 m between the DM altitudes), not given to the NGS;
+ * its variance scales as r0^(-5/3) like the prior it is drawn from (the same fixed-seed draws); and it
+ * enters the noise covariance as an isotropic term next to an unchanged elongation term:
+ * C̃_i = (σ² + σ²_e) I + σ² (τ/θf²) β βᵀ. */
+START_TEST(test_model_error)
+{
+    const char *on[] = {"recon.model_error=true"};
+    const char *half_r0[] = {"recon.model_error=true", "atmosphere.r0_m=0.0645"};
+    fixture f9, f3, fr;
+    setup(&f9, DEMO, 1, 1, on);
+    setup(&f3, DEMO, 0, 1, on);
+    setup(&fr, DEMO, 0, 2, half_r0);
+    const wt_system *sys = f3.sys;
+    int nlgs = 0;
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        ck_assert_double_eq(wt_tomography_model_error(f9.t, m), 0.0);
+        const double e2 = wt_tomography_model_error(f3.t, m);
+        if (s->kind != WT_SENSOR_LGS) {
+            ck_assert_double_eq(e2, 0.0);
+            continue;
+        }
+        nlgs++;
+        /* a few tens of mas: more than nothing, less than the slope rms of the whole atmosphere (~200 mas) */
+        ck_assert_double_gt(sqrt(e2) / WT_ARCSEC * 1e3, 5.0);
+        ck_assert_double_lt(sqrt(e2) / WT_ARCSEC * 1e3, 200.0);
+        ck_assert_rel(wt_tomography_model_error(fr.t, m), e2 * pow(2.0, 5.0 / 3.0), 1e-9, 0.0);
+        /* the covariance block of an elongated subaperture */
+        const wt_noise *no = wt_tomography_noise(f3.t, m);
+        const int nsub = s->nsub, i = nsub / 3;
+        ck_assert_ptr_nonnull(s->beta);
+        const double bx = s->beta[i], by = s->beta[nsub + i];
+        const double g = f3.cfg->tau / (s->spot_fwhm * s->spot_fwhm);
+        double *x = calloc((size_t)2 * nsub, sizeof *x), *y = calloc((size_t)2 * nsub, sizeof *y);
+        x[i] = 1.0;
+        wt_noise_apply_cov(no, 1.0, x, y);
+        ck_assert_rel(y[i], s->sigma2 + e2 + s->sigma2 * g * bx * bx, 1e-12, 0.0);
+        ck_assert_rel(y[nsub + i], s->sigma2 * g * bx * by, 1e-12, 1e-30);
+        free(x), free(y);
+    }
+    ck_assert_int_eq(nlgs, f3.cfg->nlgs);
+    teardown(&f9);
+    teardown(&f3);
+    teardown(&fr);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("tomography");
@@ -440,6 +489,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_layer_grid_too_small_rejected);
     tcase_add_test(tc, test_nea_and_lit_noise);
     tcase_add_test(tc, test_fitting_recovers_dm_shape);
+    tcase_add_test(tc, test_model_error);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -108,6 +108,7 @@ typedef struct wt_config {
 
     /* reconstructor */
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */
+    int model_error;                 /* 1: LGS noise variance + the layer-binning model error */
     int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */
     int sensor_points;               /* lit model: sample points per subaperture side */
     double alpha;                    /* prior weight α */

@@ -127,6 +127,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.prior_aliasing", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(prior_aliasing), NOCOUNT, 0, 0, NULL, 0,
      "prior variances of grid samples: the power above the layer grid's Nyquist frequency folded back "
      "(optional, default false)"},
+    {"recon.model_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(model_error), NOCOUNT, 0, 0, NULL, 0,
+     "LGS noise variance plus the slope variance of the layer-binning model error (true layers between "
+     "the reconstruction altitudes; zero for cg9's layers) (optional, default false)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "

@@ -20,6 +20,7 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
         par->atm_altitude[k] = cfg->layer_altitude[k];
         par->atm_fraction[k] = cfg->layer_fraction[k];
     }
+    par->model_error = cfg->model_error;
     par->source = cfg->path;
 }
 

@@ -13,6 +13,8 @@
 #include "../op/noise.h"
 #include "../op/prior.h"
 #include "../op/projection.h"
+#include "../op/wavelet.h"
+#include "../base/rng.h"
 
 struct wt_tomography {
     wt_context *ctx;
@@ -38,6 +40,7 @@ struct wt_tomography {
     wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
     wt_sensor_stack stack;    /* Σ_m Γ_m P_m over proj (a view) */
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
+    double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
     int64_t ncg;              /* corner grid points */
     int nthreads;
     double *phi;              /* n: spatial layers / adjoint sum */
@@ -61,23 +64,32 @@ static int thread_id(void)
 #endif
 }
 
-/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (linear split between the two
- * nearest reconstruction layers). */
+/* Where the Cn² of a true layer at altitude h goes among the reconstruction altitudes alt[0..L-1]
+ * (increasing): fraction 1 − w to layer *l and w to layer *l + 1 (linear split between the two nearest;
+ * all of it to the end layer outside their range, w = 0). */
+static void bin_altitude(int L, const double *alt, double h, int *l, double *w)
+{
+    *l = 0;
+    *w = 0.0;
+    if (h <= alt[0]) return;
+    if (h >= alt[L - 1]) {
+        *l = L - 1;
+        return;
+    }
+    while (!(h >= alt[*l] && h < alt[*l + 1])) (*l)++;
+    *w = (h - alt[*l]) / (alt[*l + 1] - alt[*l]);
+}
+
+/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (bin_altitude); floor 1e-3. */
 static void bin_profile(const wt_tomography_params *par, int L, const double *alt, double *frac)
 {
     for (int l = 0; l < L; l++) frac[l] = 0.0;
     for (int k = 0; k < par->natm; k++) {
-        double h = par->atm_altitude[k], f = par->atm_fraction[k];
-        /* reconstruction altitudes are increasing (validated in config) */
-        if (h <= alt[0]) frac[0] += f;
-        else if (h >= alt[L - 1]) frac[L - 1] += f;
-        else {
-            int l = 0;
-            while (!(h >= alt[l] && h < alt[l + 1])) l++;
-            double w = (h - alt[l]) / (alt[l + 1] - alt[l]);
-            frac[l] += (1.0 - w) * f;
-            frac[l + 1] += w * f;
-        }
+        int l;
+        double w;
+        bin_altitude(L, alt, par->atm_altitude[k], &l, &w);
+        frac[l] += (1.0 - w) * par->atm_fraction[k];
+        if (w > 0.0) frac[l + 1] += w * par->atm_fraction[k];
     }
     for (int l = 0; l < L; l++)
         if (frac[l] < 1e-3) frac[l] = 1e-3;
@@ -88,6 +100,7 @@ int wt_tomography_nlayers(const wt_tomography *t) { return t->L; }
 const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l) { return &t->grid[l]; }
 double wt_tomography_layer_altitude(const wt_tomography *t, int l) { return t->alt[l]; }
 double wt_tomography_layer_fraction(const wt_tomography *t, int l) { return t->frac[l]; }
+double wt_tomography_model_error(const wt_tomography *t, int m) { return t->model_var[m]; }
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
@@ -95,6 +108,111 @@ const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
 const double *wt_tomography_jacobi_inverse(const wt_tomography *t) { return t->jinv; }
+
+/* ---- Layer-binning model error of the LGS slopes (recon.model_error) ---------------------------------
+ *
+ * The prior puts the Cn² of a true layer at altitude h on the two nearest reconstruction layers
+ * (bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
+ * then predicts Γ_m[(1 − w) P_m(h_l) + w P_m(h_{l+1})] φ where it measures Γ_m P_m(h) φ; the difference
+ * (sub-metre structure seen through the shifts (h − h_l)θ_m and the LGS cone (h − h_l) r / H) cannot be
+ * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
+ * structure on the other layers. So it is treated as noise ("tomographic error as noise"): its variance
+ * per slope, averaged over the sensor's slopes with their global tip-tilt removed (the weight removes
+ * it), is added to σ²:
+ *   σ²_e,m = Σ_k E|(I − T) Γ_m [P_m(h_k) − (1 − w_k) P_m(h_l) − w_k P_m(h_{l+1})] φ_k|² / (2 nsub),
+ * φ_k drawn from the layer's exact wavelet prior (Cn² fraction f_k) on the finest reconstruction
+ * spacing, WT_MODEL_ERROR_DRAWS draws per layer with a fixed seed (the reconstructor stays a
+ * deterministic function of the configuration). Zero when every true layer sits on a reconstruction
+ * altitude (cg9's default layers). Only the LGS: the NGS are the only tip-tilt/low-order sensors and
+ * average over 21–42 m, where the linear split is accurate (SPEC §6; docs/design.md). */
+enum { WT_MODEL_ERROR_DRAWS = 4 };
+
+static int model_error(wt_tomography *t, const wt_recon_variant_config *var, const wt_tomography_params *par,
+                       double *var_e)
+{
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    const wt_system *sys = t->sys;
+    wt_wavelet *wav = NULL;
+    wt_prior *prior = NULL;
+    wt_projection *proj[3] = {NULL, NULL, NULL};
+    double *c = NULL, *phi = NULL, *work = NULL, *ph = NULL, *sl = NULL;
+    for (int m = 0; m < t->S; m++) var_e[m] = 0.0;
+    /* one sample grid for every true layer: the finest spacing, as wide as the widest layer */
+    double dx = var->spacing[0], width = 0.0;
+    for (int l = 0; l < t->L; l++) {
+        if (var->spacing[l] < dx) dx = var->spacing[l];
+        if (var->size[l] * var->spacing[l] > width) width = var->size[l] * var->spacing[l];
+    }
+    int n = 1 << par->wavelet_levels;
+    while (n * dx < width - 1e-9) n *= 2;
+    const wt_grid g = wt_grid_layer(n, dx);
+    const int64_t np = wt_grid_size(&g);
+    int nslopes_max = 0;
+    for (int m = 0; m < t->S; m++)
+        if (sys->sensors[m].nslopes > nslopes_max) nslopes_max = sys->sensors[m].nslopes;
+    WT_TRY(wt_wavelet_alloc(ctx, n, par->wavelet_order, par->wavelet_levels, &wav));
+    WT_ALLOC(ctx, c, np, "model-error coefficients");
+    WT_ALLOC(ctx, phi, (size_t)WT_MODEL_ERROR_DRAWS * np, "model-error screens");
+    WT_ALLOC(ctx, work, wt_wavelet_work_size(wav), "model-error wavelet workspace");
+    WT_ALLOC(ctx, ph, t->ncg, "model-error phase");
+    WT_ALLOC(ctx, sl, nslopes_max, "model-error slopes");
+    for (int k = 0; k < par->natm; k++) {
+        const double h = par->atm_altitude[k], f = par->atm_fraction[k];
+        int l;
+        double w;
+        bin_altitude(t->L, t->alt, h, &l, &w);
+        if (f <= 0.0 || (w == 0.0 && fabs(h - t->alt[l]) <= 1e-6 * fmax(1.0, h))) continue;
+        WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, &prior));
+        const double *d = wt_prior_diag(prior);
+        wt_rng rng;
+        wt_rng_init(&rng, 0x6d6f64656c657272ULL, (uint64_t)k); /* fixed: "modelerr", one stream per layer */
+        for (int r = 0; r < WT_MODEL_ERROR_DRAWS; r++) {
+            for (int64_t i = 0; i < np; i++) c[i] = wt_rng_normal(&rng) / sqrt(d[i]);
+            wt_wavelet_inverse(wav, c, phi + (size_t)r * np, work);
+        }
+        wt_prior_free(prior);
+        prior = NULL;
+        const double alt3[3] = {h, t->alt[l], w > 0.0 ? t->alt[l + 1] : t->alt[l]};
+        const double wt3[3] = {1.0, -(1.0 - w), -w};
+        for (int m = 0; m < t->S; m++) {
+            const wt_sensor *s = &sys->sensors[m];
+            if (s->kind != WT_SENSOR_LGS) continue;
+            for (int q = 0; q < 3; q++)
+                WT_TRY(wt_projection_alloc(ctx, 1, &g, &alt3[q], s->altitude, s->theta_x, s->theta_y, &sys->sense_grid,
+                                           wt_shack_hartmann_corner_mask(s->sh), 0, &proj[q]));
+            double sum = 0.0;
+            for (int r = 0; r < WT_MODEL_ERROR_DRAWS; r++) {
+                memset(ph, 0, (size_t)t->ncg * sizeof *ph);
+                for (int q = 0; q < 3; q++)
+                    if (wt3[q] != 0.0) wt_projection_apply(proj[q], wt3[q], phi + (size_t)r * np, ph);
+                memset(sl, 0, (size_t)s->nslopes * sizeof *sl);
+                wt_shack_hartmann_apply(s->sh, 1.0, ph, sl);
+                for (int axis = 0; axis < 2; axis++) { /* (I − T): the global tip and tilt removed */
+                    double *v = sl + (size_t)axis * s->nsub, mean = 0.0;
+                    for (int i = 0; i < s->nsub; i++) mean += v[i];
+                    mean /= s->nsub;
+                    for (int i = 0; i < s->nsub; i++) sum += (v[i] - mean) * (v[i] - mean);
+                }
+            }
+            var_e[m] += sum / ((double)s->nslopes * WT_MODEL_ERROR_DRAWS);
+            for (int q = 0; q < 3; q++) {
+                wt_projection_free(proj[q]);
+                proj[q] = NULL;
+            }
+        }
+    }
+fail:
+    for (int q = 0; q < 3; q++) wt_projection_free(proj[q]);
+    wt_prior_free(prior);
+    wt_wavelet_free(wav);
+    wt_free(ctx, c);
+    wt_free(ctx, phi);
+    wt_free(ctx, work);
+    wt_free(ctx, ph);
+    wt_free(ctx, sl);
+    return st;
+}
 
 static int compute_jacobi(wt_tomography *t);
 static int compute_lowrank(wt_tomography *t);
@@ -136,6 +254,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->ncg = wt_grid_size(&sys->sense_grid);
     WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
     WT_ALLOC(ctx, t->noise, t->S, "noise models");
+    if (par->model_error) WT_TRY(model_error(t, var, par, t->model_var));
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {
@@ -154,8 +273,13 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                 goto fail;
             }
         }
-        WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s->sigma2, s->noise_scale, s->spot_fwhm, s->beta, par->tau,
-                                     s->kind == WT_SENSOR_LGS, &t->noise[m]));
+        /* C̃_i = σ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ σ²/σ²_t / θf²) β βᵀ), σ²_t = σ² + σ²_e: the
+         * model error is isotropic, the elongation term keeps its size. With lit_noise as well, the
+         * per-subaperture factor c_i scales σ²_t whole (the model error of a partly lit subaperture is
+         * taken as larger in the same proportion: both options are off by default). */
+        const double s2t = s->sigma2 + t->model_var[m];
+        WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
+                                     par->tau * (s->sigma2 / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));
     }
 
     t->stack = (wt_sensor_stack){.sys = sys, .nin = t->L, .proj = t->proj, .in_offset = t->off};

@@ -44,6 +44,7 @@ typedef struct wt_tomography_params {
     int natm;              /* the atmosphere's Cn² profile, binned onto the reconstruction layers: */
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
+    int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
 } wt_tomography_params;
 
@@ -59,6 +60,8 @@ int wt_tomography_nlayers(const wt_tomography *t);
 const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l);
 double wt_tomography_layer_altitude(const wt_tomography *t, int l);
 double wt_tomography_layer_fraction(const wt_tomography *t, int l);
+/* The layer-binning model error added to sensor m's noise variance per axis [rad²] (recon.model_error). */
+double wt_tomography_model_error(const wt_tomography *t, int m);
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l);
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
 /* The operators the tomography is built from (for the MVM builder, which assembles the same ones):
