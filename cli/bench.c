@@ -226,10 +226,11 @@ static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
         printf("\nclosed loop, pcg3, %d frames after %d warm-up (set-up %.1f s): median %.1f ms/frame [%.1f, %.1f] = "
                "%.2f frames/s (goal >= 5)\n",
                frames, warm, setup, s.med * 1e3, s.p10 * 1e3, s.p90 * 1e3, 1.0 / s.med);
-        printf("  mean per frame: atmosphere %.1f, sensors %.1f, reconstruction %.1f, control %.1f, evaluation %.1f ms\n",
+        printf("  mean per frame: atmosphere %.1f, sensors %.1f, reconstruction %.1f, fitting %.1f, control %.1f, "
+               "evaluation %.1f ms\n",
                (b.atmosphere - a.atmosphere) / frames * 1e3, (b.sensors - a.sensors) / frames * 1e3,
-               (b.reconstruction - a.reconstruction) / frames * 1e3, (b.control - a.control) / frames * 1e3,
-               (b.evaluation - a.evaluation) / frames * 1e3);
+               (b.reconstruction - a.reconstruction) / frames * 1e3, (b.fitting - a.fitting) / frames * 1e3,
+               (b.control - a.control) / frames * 1e3, (b.evaluation - a.evaluation) / frames * 1e3);
     }
     free(ft);
     wt_loop_free(lp);

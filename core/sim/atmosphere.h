@@ -81,6 +81,12 @@ int wt_atmosphere_project(const wt_atmosphere *atm, double t, double source_alti
                           double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
                           double *out);
 
+/* The same projection computed point by point, the plain form of the arithmetic that
+ * wt_atmosphere_project reorganises: both give the same bits (tests/test_atmosphere.c). For tests. */
+int wt_atmosphere_project_reference(const wt_atmosphere *atm, double t, double source_altitude, double theta_x,
+                                    double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
+                                    double *out);
+
 int wt_atmosphere_nlayers(const wt_atmosphere *atm);
 /* The screen grid wt_grid_layer(n, δ) shared by all layers. */
 wt_grid wt_atmosphere_grid(const wt_atmosphere *atm);
