@@ -541,14 +541,10 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
     const int j = (int)w, j1 = j + 1 == n ? 0 : j + 1;
     const double fy = w - j;
     const double *r0 = lc->ly->screen + (int64_t)n * j, *r1 = lc->ly->screen + (int64_t)n * j1;
-    {   /* Fetch the screen row after r1 (the next target row's) while this one computes: the rows of
-         * a footprint are short runs (~340 doubles) n doubles apart, which the hardware prefetcher
-         * picks up late; this took ~20 % off the E-ELT atmosphere (docs/results.md §3). */
-        const int j2 = j1 + 1 == n ? 0 : j1 + 1, a = (int)u0, e = (int)(u0 + (hi - lo) * b) + 2;
-        const double *r2 = lc->ly->screen + (int64_t)n * j2;
-        for (int x = a; x < (e < n ? e : n); x += 8) __builtin_prefetch(r2 + x);
-        for (int x = 0; x < e - n && x < n; x += 8) __builtin_prefetch(r2 + x);
-    }
+    /* The screen row after r1, which the next target row reads, is fetched block by block while this
+     * row computes: the rows of a footprint are short runs (~340 doubles) n doubles apart, which the
+     * hardware prefetcher picks up late (docs/results.md §3). */
+    const double *r2 = lc->ly->screen + (int64_t)n * (j1 + 1 == n ? 0 : j1 + 1);
     sh_row s;
     if (atm->sh_levels) sh_row_init(lc->ly, atm->sh_levels, 1.0 / (n * atm->delta), py, px0, &s);
     for (int k0 = lo; k0 <= hi; k0 += SH_CHUNK) {
@@ -568,6 +564,7 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
         const int d0 = k0 - lo; /* (ix − lo) of the block's first point */
         const int iu_a = (int)(u0 + d0 * b), iu_b = (int)(u0 + (d0 + m - 1) * b);
         const int q0 = iu_a / n;
+        for (int x = iu_a - q0 * n, xe = x + (iu_b - iu_a) + 2; x < xe && x < n; x += 8) __builtin_prefetch(r2 + x);
         if (4 * cnt >= m && iu_b / n == q0 && iu_b - q0 * n <= n - 2) {
             const int oc = q0 * n;
             double fxv[SH_CHUNK];
