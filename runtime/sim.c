@@ -44,6 +44,18 @@ typedef struct {
     wt_h5_series *slopes, *slopes_ol, *commands;
 } telemetry;
 
+/* Per-stage wall times of one frame [ms] from the loop's cumulative times before (a) and after it, and
+ * the whole step's wall time [s]: the columns of frame/time. */
+#define SIM_NSTAGES 7
+static void stage_times(const wt_loop_times *a, const wt_loop *lp, double step, float *out)
+{
+    const wt_loop_times b = wt_loop_get_times(lp);
+    const double d[SIM_NSTAGES] = {b.atmosphere - a->atmosphere, b.sensors - a->sensors,
+                                   b.reconstruction - a->reconstruction, b.fitting - a->fitting,
+                                   b.control - a->control, b.evaluation - a->evaluation, step};
+    for (int k = 0; k < SIM_NSTAGES; k++) out[k] = (float)(d[k] * 1e3);
+}
+
 static int write_results(wt_cli *cli, wt_h5_writer *w, const wt_config *cfg, const wt_system *sys, wt_loop *lp,
                          const char *recon, long frames, const double *se_field, const double *se_axis,
                          const float *rms_nm, int dump, int argc, char **argv)
@@ -228,7 +240,7 @@ int wt_cmd_sim(int argc, char **argv)
     wt_h5_writer *w = NULL, *tw = NULL;
     telemetry T = {0};
     double *se_field = NULL, *se_axis = NULL;
-    float *rms_nm = NULL, *fbuf = NULL;
+    float *rms_nm = NULL, *fbuf = NULL, *time_ms = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     /* find an unwritable output before the run, not after it */
@@ -247,8 +259,9 @@ int wt_cmd_sim(int argc, char **argv)
     se_field = calloc((size_t)frames, sizeof *se_field);
     se_axis = calloc((size_t)frames, sizeof *se_axis);
     rms_nm = calloc((size_t)frames * sys->neval, sizeof *rms_nm);
+    time_ms = calloc((size_t)frames * SIM_NSTAGES, sizeof *time_ms);
     fbuf = malloc((size_t)(sys->nslopes > sys->nact ? sys->nslopes : sys->nact) * sizeof *fbuf);
-    if (!se_field || !se_axis || !rms_nm || !fbuf) {
+    if (!se_field || !se_axis || !rms_nm || !fbuf || !time_ms) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory for the per-frame results");
         goto fail;
     }
@@ -274,7 +287,10 @@ int wt_cmd_sim(int argc, char **argv)
     wt_progress_start(&pr, "frames", "frames", frames);
     double run0 = wt_time_now(), sum_field = 0.0;
     for (long t = 0; t < frames; t++) {
+        const wt_loop_times ta = wt_loop_get_times(lp);
+        const double f0 = wt_time_now();
         if ((st = wt_loop_step(lp)) < 0) goto fail;
+        stage_times(&ta, lp, wt_time_now() - f0, time_ms + (size_t)t * SIM_NSTAGES);
         const double *rms = wt_loop_rms(lp);
         se_field[t] = wt_loop_field_strehl(lp);
         se_axis[t] = wt_strehl_marechal(rms[sys->eval_centre], cfg->eval_wavelength);
@@ -300,6 +316,15 @@ int wt_cmd_sim(int argc, char **argv)
     if ((st = write_results(&cli, w, cfg, sys, lp, recon, frames, se_field, se_axis, rms_nm, dump, argc, argv)) < 0)
         goto fail;
     if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
+    {
+        int64_t dt[2] = {frames, SIM_NSTAGES};
+        if ((st = wt_h5_write(w, "frame/time", WT_H5_F32, WT_H5_F32, 2, dt, time_ms, "ms",
+                              "wall time of each frame per stage: atmosphere, sensors, reconstruction, fitting, "
+                              "control, evaluation, total (the whole step; attribute columns)")) < 0 ||
+            (st = wt_h5_attr_write_string(w, "frame/time", "columns",
+                                          "atmosphere,sensors,reconstruction,fitting,control,evaluation,total")) < 0)
+            goto fail;
+    }
     if ((st = wt_h5_write_double(w, "timing/setup", setup, "s", "set-up time (atmosphere, operators)")) < 0) goto fail;
     if (tw) {
         if ((st = wt_cli_write_provenance(&cli, tw, cfg, argc, argv)) < 0) goto fail;
@@ -339,6 +364,7 @@ cleanup:
     free(se_field);
     free(se_axis);
     free(rms_nm);
+    free(time_ms);
     free(fbuf);
     wt_loop_free(lp);
     wt_mvm_free(mvm);

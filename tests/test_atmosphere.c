@@ -352,6 +352,56 @@ START_TEST(test_fast_equals_reference)
 }
 END_TEST
 
+/* The batched projection equals one wt_atmosphere_project per line of sight bit for bit: 12 lines of
+ * sight (NGS and two LGS altitudes, different masks, one without), 1 and 2 threads; and with 12 source
+ * altitudes (36 cone factors, over the batch's table) through its fallback. Outputs start nonzero. */
+START_TEST(test_many_equals_single)
+{
+    wt_context *ctx = tu_context();
+    atm_setup s = three_layers(23);
+    wt_atmosphere *atm = make_atm(ctx, &s);
+    const int nt = 81, nlos = 12;
+    const long np = (long)nt * nt;
+    wt_grid tg = wt_grid_centred(nt, 0.125);
+    uint8_t *disc = malloc(np), *sparse = malloc(np);
+    for (int j = 0; j < nt; j++)
+        for (int i = 0; i < nt; i++) {
+            double r = hypot(i - 40.0, j - 40.0);
+            disc[i + nt * j] = r <= 39.0 && r >= 8.0;
+            sparse[i + nt * j] = r <= 39.0 && (i % 4 == 0 || j % 4 == 0);
+        }
+    double *a = malloc(nlos * np * sizeof *a), *b = malloc(nlos * np * sizeof *b);
+    wt_atmosphere_los los[12];
+    for (int many_h = 0; many_h <= 1; many_h++)
+        for (int th = 1; th <= 2; th++) {
+            wt_context_set_threads(ctx, th);
+            for (long k = 0; k < nlos * np; k++) a[k] = b[k] = 1e-8 * (double)(k % 7);
+            for (int i = 0; i < nlos; i++) {
+                double H = many_h ? 20e3 + 5e3 * i : (i % 3 == 0 ? 0.0 : i % 3 == 1 ? 90e3 : 80e3);
+                los[i] = (wt_atmosphere_los){.source_altitude = H,
+                                             .theta_x = 1e-4 * (i % 4 - 1.5),
+                                             .theta_y = 1e-4 * (i / 4 - 1.0),
+                                             .mask = i % 3 == 2 ? NULL : i % 2 ? sparse : disc,
+                                             .out = a + i * np};
+                ck_assert_int_eq(wt_atmosphere_project(atm, 0.29, H, los[i].theta_x, los[i].theta_y, &tg, los[i].mask,
+                                                       0.9, b + i * np),
+                                 WT_OK);
+            }
+            ck_assert_int_eq(wt_atmosphere_project_many(atm, 0.29, nlos, los, &tg, 0.9), WT_OK);
+            ck_assert_msg(memcmp(a, b, nlos * np * sizeof *a) == 0, "many != single: threads %d, altitudes %d", th,
+                          many_h);
+        }
+    /* a bad line of sight: an error, nothing written */
+    los[3].source_altitude = 10e3; /* below the 12 km layer */
+    for (long k = 0; k < nlos * np; k++) b[k] = a[k];
+    ck_assert_int_eq(wt_atmosphere_project_many(atm, 0.29, nlos, los, &tg, 0.9), WT_ERR_INVALID);
+    ck_assert(memcmp(a, b, nlos * np * sizeof *a) == 0);
+    free(disc), free(sparse), free(a), free(b);
+    wt_atmosphere_free(atm);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* Layer ℓ comes from stream (seed, ℓ) alone: with 3 or 5 layers (other fractions) the same seed gives the
  * same unit screen, scaled by √f_ℓ; the grid part is the same with subharmonics on or off. Both are
  * the same products in the same order divided by different √f: agreement to 1e-14. */
@@ -875,6 +925,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_geometry_ground_layer);
     tcase_add_test(tc, test_geometry_cone);
     tcase_add_test(tc, test_fast_equals_reference);
+    tcase_add_test(tc, test_many_equals_single);
     tcase_add_test(tc, test_render_piston);
     tcase_add_test(tc, test_variance_fraction);
     tcase_add_test(tc, test_recommend_size);

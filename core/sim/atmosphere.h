@@ -81,6 +81,22 @@ int wt_atmosphere_project(const wt_atmosphere *atm, double t, double source_alti
                           double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
                           double *out);
 
+/* One line of sight of wt_atmosphere_project_many: its source (as in wt_atmosphere_project), mask
+ * (NULL: all points) and output (target->nx * target->ny values, added to). */
+typedef struct wt_atmosphere_los {
+    double source_altitude, theta_x, theta_y;
+    const uint8_t *mask;
+    double *out;
+} wt_atmosphere_los;
+
+/* wt_atmosphere_project for each of nlos lines of sight at the same t, on the same target grid, bit for
+ * bit, but in one pass over the layers (row bands, all lines of sight per band: each layer's screen is
+ * read from memory once per band instead of once per line of sight). Outputs must not overlap.
+ * Allocates nothing; OpenMP over row bands as wt_atmosphere_project over rows. Errors: WT_ERR_INVALID
+ * (the first bad line of sight; nothing is written then). */
+int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, const wt_atmosphere_los *los,
+                               const wt_grid *target, double alpha);
+
 /* The same projection computed point by point, the plain form of the arithmetic that
  * wt_atmosphere_project reorganises: both give the same bits (tests/test_atmosphere.c). For tests. */
 int wt_atmosphere_project_reference(const wt_atmosphere *atm, double t, double source_altitude, double theta_x,
