@@ -455,30 +455,58 @@ static void layer_call_step(const wt_atmosphere *atm, const wt_grid *tg, double 
     if (atm->sh_levels) sh_step_init(atm->sh_levels, 1.0 / (atm->n * atm->delta), c * tg->dx, q);
 }
 
-/* The reference (point by point, the definition of every bit): target row iy, one layer:
- * out[row] += alpha · screen on the masked points. */
-static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const uint8_t *mask,
-                        double alpha, double *out, int iy)
+/* What both row kernels start from: the span [lo, hi] of masked points of target row iy (the whole row
+ * without a mask), the unwrapped screen position u0 of point lo along x, the screen rows r0, r1 (index
+ * j, j1 = j + 1 mod n) and weight fy along y, and the subharmonic row state. 0: no masked point. */
+typedef struct row_start {
+    int lo, hi, j1;
+    const uint8_t *mk; /* the row's mask (NULL: all points) */
+    double *o;         /* the row's output */
+    double u0, fy;
+    const double *r0, *r1;
+    sh_row s;
+} row_start;
+
+static inline int row_start_init(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg,
+                                 const uint8_t *mask, double *out, int iy, row_start *r)
 {
     const int nx = tg->nx, n = atm->n;
     const int64_t row = (int64_t)iy * nx;
     const uint8_t *mk = mask ? mask + row : NULL;
     int lo = 0, hi = nx - 1;
-    if (mk) { /* sample only the span of masked points; the loop below still skips the holes */
+    if (mk) { /* sample only the span of masked points; the kernels skip the holes */
         while (lo < nx && !mk[lo]) lo++;
-        if (lo == nx) return;
+        if (lo == nx) return 0;
         while (!mk[hi]) hi--;
     }
-    double *o = out + row;
-    const double inv = 1.0 / atm->delta, c = lc->c, b = lc->b;
+    const double inv = 1.0 / atm->delta, c = lc->c;
     const double px0 = c * (tg->x0 + lo * tg->dx) + lc->ax, py = c * (tg->y0 + iy * tg->dx) + lc->ay;
-    const double u0 = wrap((px0 - atm->grid.x0) * inv, n), w = wrap((py - atm->grid.y0) * inv, n);
-    const int j = (int)w, j1 = j + 1 == n ? 0 : j + 1;
-    const double fy = w - j;
-    const double *r0 = lc->ly->screen + (int64_t)n * j, *r1 = lc->ly->screen + (int64_t)n * j1;
+    const double w = wrap((py - atm->grid.y0) * inv, n);
+    const int j = (int)w;
+    r->lo = lo, r->hi = hi, r->mk = mk, r->o = out + row;
+    r->u0 = wrap((px0 - atm->grid.x0) * inv, n);
+    r->j1 = j + 1 == n ? 0 : j + 1;
+    r->fy = w - j;
+    r->r0 = lc->ly->screen + (int64_t)n * j, r->r1 = lc->ly->screen + (int64_t)n * r->j1;
+    if (atm->sh_levels) sh_row_init(lc->ly, atm->sh_levels, 1.0 / (n * atm->delta), py, px0, &r->s);
+    else r->s = (sh_row){0};
+    return 1;
+}
+
+/* The reference (point by point, the definition of every bit): target row iy, one layer:
+ * out[row] += alpha · screen on the masked points. */
+static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const uint8_t *mask,
+                        double alpha, double *out, int iy)
+{
+    const int n = atm->n;
+    row_start r;
+    if (!row_start_init(atm, lc, tg, mask, out, iy, &r)) return;
+    const int lo = r.lo, hi = r.hi;
+    const uint8_t *mk = r.mk;
+    double *o = r.o;
+    const double u0 = r.u0, fy = r.fy, b = lc->b, *r0 = r.r0, *r1 = r.r1;
     int off = 0; /* multiple of n taken off the unwrapped index: u grows monotonically along the row */
-    sh_row s;
-    if (atm->sh_levels) sh_row_init(lc->ly, atm->sh_levels, 1.0 / (n * atm->delta), py, px0, &s);
+    sh_row s = r.s;
     for (int k0 = lo; k0 <= hi; k0 += SH_CHUNK) {
         const int m = hi - k0 + 1 < SH_CHUNK ? hi - k0 + 1 : SH_CHUNK;
         double shv[SH_CHUNK];
@@ -532,28 +560,18 @@ WT_ROW_CLONES
 static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const uint8_t *mask,
                         double alpha, double *out, int iy)
 {
-    const int nx = tg->nx, n = atm->n;
-    const int64_t row = (int64_t)iy * nx;
-    const uint8_t *mk = mask ? mask + row : NULL;
-    int lo = 0, hi = nx - 1;
-    if (mk) {
-        while (lo < nx && !mk[lo]) lo++;
-        if (lo == nx) return;
-        while (!mk[hi]) hi--;
-    }
-    double *o = out + row;
-    const double inv = 1.0 / atm->delta, c = lc->c, b = lc->b;
-    const double px0 = c * (tg->x0 + lo * tg->dx) + lc->ax, py = c * (tg->y0 + iy * tg->dx) + lc->ay;
-    const double u0 = wrap((px0 - atm->grid.x0) * inv, n), w = wrap((py - atm->grid.y0) * inv, n);
-    const int j = (int)w, j1 = j + 1 == n ? 0 : j + 1;
-    const double fy = w - j;
-    const double *r0 = lc->ly->screen + (int64_t)n * j, *r1 = lc->ly->screen + (int64_t)n * j1;
+    const int n = atm->n;
+    row_start r;
+    if (!row_start_init(atm, lc, tg, mask, out, iy, &r)) return;
+    const int lo = r.lo, hi = r.hi, j1 = r.j1;
+    const uint8_t *mk = r.mk;
+    double *o = r.o;
+    const double u0 = r.u0, fy = r.fy, b = lc->b, *r0 = r.r0, *r1 = r.r1;
     /* The screen row after r1, which the next target row reads, is fetched block by block while this
      * row computes: the rows of a footprint are short runs (~340 doubles) n doubles apart, which the
      * hardware prefetcher picks up late (docs/results.md §3). */
     const double *r2 = lc->ly->screen + (int64_t)n * (j1 + 1 == n ? 0 : j1 + 1);
-    sh_row s;
-    if (atm->sh_levels) sh_row_init(lc->ly, atm->sh_levels, 1.0 / (n * atm->delta), py, px0, &s);
+    sh_row s = r.s;
     for (int k0 = lo; k0 <= hi; k0 += SH_CHUNK) {
         const int m = hi - k0 + 1 < SH_CHUNK ? hi - k0 + 1 : SH_CHUNK;
         int cnt = m;
