@@ -74,9 +74,9 @@ int wt_atmosphere_recommend_size(wt_context *ctx, double footprint, double delta
  * other points are left untouched. t [s]; source_altitude H [m] (0: infinity; otherwise H must exceed
  * every layer's altitude); theta_x, theta_y [rad]; out has target->nx * target->ny entries.
  * Allocates nothing. OpenMP over target rows with the context's thread count when called outside a
- * parallel region; serial inside one (the simulator parallelises over lines of sight instead, which
- * needs one parallel region per frame rather than one per call). The result does not depend on the
- * thread count. Errors: WT_ERR_INVALID. */
+ * parallel region; serial inside one (the open-loop budget modes parallelise over lines of sight; the
+ * closed loop uses wt_atmosphere_project_many). The result does not depend on the thread count.
+ * Errors: WT_ERR_INVALID. */
 int wt_atmosphere_project(const wt_atmosphere *atm, double t, double source_altitude, double theta_x,
                           double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
                           double *out);
