@@ -15,14 +15,15 @@ CC=${CC:-gcc}
 CPPFLAGS_EXTRA=${CPPFLAGS_EXTRA:-}
 declare -A ALLOW=(
   [base]="base"
-  [io]="base io"
+  [config]="base config"
+  [io]="base config io"
   [la]="base la"
   [op]="base la op"
-  [solve]="base la op io solve"
-  [model]="base la op io solve model"
-  [build]="base la op io solve model build"
-  [sim]="base la op io solve model sim"
-  [driver]="base la op io solve model build sim driver"
+  [solve]="base la op config io solve"
+  [model]="base la op config io solve model"
+  [build]="base la op config io solve model build"
+  [sim]="base la op config io solve model sim"
+  [driver]="base la op config io solve model build sim driver"
 )
 module() { # path relative to the root -> module name
   case "$1" in

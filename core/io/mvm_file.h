@@ -12,7 +12,7 @@
 #ifndef WT_MVM_FILE_H
 #define WT_MVM_FILE_H
 
-#include "config.h"
+#include "../config/config.h"
 #include "h5.h"
 
 /* What is written beside the matrices: the variant and the record of the build. */

@@ -4,7 +4,7 @@
 #ifndef WT_PARAMS_H
 #define WT_PARAMS_H
 
-#include "../io/config.h"
+#include "../config/config.h"
 #include "fitting.h"
 #include "tomography.h"
 

@@ -13,7 +13,7 @@
 #ifndef WT_SYSTEM_H
 #define WT_SYSTEM_H
 
-#include "../io/config.h"
+#include "../config/config.h"
 #include "../op/dm.h"
 #include "../op/grid.h"
 #include "../op/shack_hartmann.h"

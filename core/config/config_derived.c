@@ -1,4 +1,4 @@
-/* core/io/config_derived.c: load-time checks of the quantities derived from several keys (SPEC §1-§3).
+/* core/config/config_derived.c: load-time checks of the quantities derived from several keys (SPEC §1-§3).
  *
  * Each key is in its own range (config_schema.c), but a combination can still ask for what the code
  * cannot run: a layer that moves farther than the pupil in one frame (frozen flow of SPEC §2 with no

@@ -1,4 +1,4 @@
-/* core/io/config_schema.c: the configuration schema (SPEC §1): every key of the presets with its type,
+/* core/config/config_schema.c: the configuration schema (SPEC §1): every key of the presets with its type,
  * range, unit, scale to internal units, description and destination in wt_config, in the order of the
  * canonical text (SPEC §9), and the reference `wavetomo info --keys` prints from it. config.c reads,
  * overrides, validates and canonicalises by walking the same table, so a key cannot be documented one
