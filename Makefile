@@ -99,9 +99,11 @@ regress-commands-update: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(BUILD)/tests/regress_commands
 	@BUILD=$(BUILD) BIN=$(BIN) bash tests/regress/commands.sh --update
 
-# The one-way module order of docs/design.md and no include circle, from `$(CC) -MM` (tests/check_deps.sh).
-check-deps:
-	@CC="$(CC)" CPPFLAGS_EXTRA="$(PKG_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
+# The one-way module order of docs/design.md and no include circle, from `$(CC) -MM`, and no call circle
+# between the library's files, from `nm` of its objects (tests/check_deps.sh).
+check-deps: deps
+	@$(MAKE) --no-print-directory $(LIB)
+	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="$(PKG_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
 test: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)

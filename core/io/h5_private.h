@@ -1,5 +1,7 @@
-/* core/io/h5_private.h: helpers shared by the HDF5 writer (h5.c, with its matrices and series in
- * h5_stream.c) and reader (h5_read.c).
+/* core/io/h5_private.h: helpers shared by the HDF5 files: h5_common.c (the plumbing: errors, types,
+ * properties, attributes, checks of a new dataset) is called by the reader (h5_read.c), the row-block
+ * matrices and series (h5_stream.c) and the atomic writer (h5.c, which closes the matrices and series
+ * still open at commit); calls go one way: h5_common ← h5_stream ← h5, h5_common ← h5_read, h5_temp ← h5.
  *
  * Private to core/io/h5*.c: not installed and included by nothing else, so hdf5.h stays inside the
  * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5.c and
@@ -83,6 +85,11 @@ hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset);
 hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
                               hsize_t *chunk);
 
+/* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt; < 0 on
+ * failure. The string version stores a fixed-length UTF-8 string. */
+herr_t wt_h5_priv_put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value);
+herr_t wt_h5_priv_put_attr_string(hid_t obj, const char *name, const char *value);
+
 /* ---- the writer (h5.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
 
 struct wt_h5_writer {
@@ -103,7 +110,7 @@ void wt_h5_priv_temp_unregister(int slot);
 /* Remove "TARGET.tmp-<pid>" files of processes that no longer exist. */
 void wt_h5_priv_remove_stale(const char *target);
 
-/* Remember st as the writer's first failure (with the context's message) when it is one; returns st. */
+/* h5_common.c: remember st as the writer's first failure (with the context's message) when it is one; returns st. */
 int wt_h5_priv_poison(wt_h5_writer *w, int st);
 
 /* Body of the public writer calls: quiet HDF5 around the work; the writer remembers its first failure. */
@@ -115,16 +122,16 @@ int wt_h5_priv_poison(wt_h5_writer *w, int st);
         return wt_h5_priv_poison((writer), st); \
     } while (0)
 
-/* A new numeric dataset's name and documentation (units required when need_units). */
+/* h5_common.c: a new numeric dataset's name and documentation (units required when need_units). */
 int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units);
 /* Known element types, and no float data into an integer dataset. */
 int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt);
 /* The units (when not NULL) and description attributes of obj. */
 int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc);
 
-/* Unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
+/* h5_stream.c (called by the writer's commit/abort): unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
 int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check);
-/* Unlink from the writer, close, free. */
+/* h5_stream.c (called by the writer): unlink from the writer, close, free. */
 int wt_h5_priv_series_close(wt_h5_series *s);
 
 #endif
