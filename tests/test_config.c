@@ -1,4 +1,4 @@
-/* tests/test_config.c: the configuration reader (core/config/config.c): presets, canonical text, --set
+/* tests/test_config.c: the configuration reader (core/config/config_read.c): presets, canonical text, --set
  * overrides, and a table of malformed inputs that must each be refused with a precise message. */
 #include "testutil.h"
 

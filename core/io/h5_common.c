@@ -3,7 +3,7 @@
  * dataset, and the writer's first-failure memory.
  *
  * The bottom of the h5 module: it calls no other h5 file, and they call it (h5_read.c: the reader;
- * h5_stream.c: row-block matrices and series; h5.c: the writer, which closes the matrices and series
+ * h5_stream.c: row-block matrices and series; h5_write.c: the writer, which closes the matrices and series
  * still open at commit). Declared in h5_private.h.
  */
 #include "h5_private.h"
@@ -46,6 +46,21 @@ int wt_h5_priv_error(wt_context *ctx, int status, const char *src, int line, con
     H5Eclear2(H5E_DEFAULT);
     if (detail[0]) return wt_error_set(ctx, status, src, line, "%s [HDF5 %s]", msg, detail);
     return wt_error_set(ctx, status, src, line, "%s", msg);
+}
+
+void wt_h5_priv_piece_link(wt_h5_writer *w, wt_h5_priv_piece *p)
+{
+    p->next = w->open;
+    w->open = p;
+}
+
+void wt_h5_priv_piece_unlink(wt_h5_writer *w, wt_h5_priv_piece *p)
+{
+    for (wt_h5_priv_piece **q = &w->open; *q; q = &(*q)->next)
+        if (*q == p) {
+            *q = p->next;
+            break;
+        }
 }
 
 int wt_h5_priv_poison(wt_h5_writer *w, int st)

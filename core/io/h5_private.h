@@ -1,10 +1,11 @@
 /* core/io/h5_private.h: helpers shared by the HDF5 files: h5_common.c (the plumbing: errors, types,
  * properties, attributes, checks of a new dataset) is called by the reader (h5_read.c), the row-block
- * matrices and series (h5_stream.c) and the atomic writer (h5.c, which closes the matrices and series
- * still open at commit); calls go one way: h5_common ← h5_stream ← h5, h5_common ← h5_read, h5_temp ← h5.
+ * matrices and series (h5_stream.c) and the atomic writer (h5_write.c, which closes the matrices and series
+ * still open at commit through a function pointer, wt_h5_priv_piece); calls go one way:
+ * h5_common ← h5_write ← h5_stream, h5_common ← h5_read, h5_temp ← h5_write.
  *
  * Private to core/io/h5*.c: not installed and included by nothing else, so hdf5.h stays inside the
- * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5.c and
+ * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5_write.c and
  * h5_stream.c both reach into it); each other one lives in the one file that uses it. Error convention
  * of all three files: every public call brackets its HDF5 calls with wt_h5_priv_quiet_on/off (HDF5's
  * automatic stack printing off inside, restored on return) and folds HDF5's innermost error
@@ -90,7 +91,16 @@ hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_
 herr_t wt_h5_priv_put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value);
 herr_t wt_h5_priv_put_attr_string(hid_t obj, const char *name, const char *value);
 
-/* ---- the writer (h5.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
+/* ---- the writer (h5_write.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
+
+/* A dataset written piece by piece (h5_stream.c's matrices and series), open in its writer until it is
+ * closed or the writer commits/aborts. The writer knows only this header, so it closes what is open
+ * through `close` without calling into h5_stream.c: calls go one way, h5_stream → h5_write → h5_common. */
+typedef struct wt_h5_priv_piece {
+    struct wt_h5_priv_piece *next;
+    /* unlink from the writer, close (flushing cached chunks), free; check: refuse an unfinished piece */
+    int (*close)(struct wt_h5_priv_piece *p, int check);
+} wt_h5_priv_piece;
 
 struct wt_h5_writer {
     wt_context *ctx;
@@ -100,9 +110,12 @@ struct wt_h5_writer {
     int temp_slot; /* its slot in the signal-time registry (h5_temp.c), -1 if none */
     int status;  /* first failure; commit refuses when < 0 */
     char first_error[512];
-    wt_h5_matrix *matrices; /* still open, closed by commit/abort */
-    wt_h5_series *series;
+    wt_h5_priv_piece *open; /* matrices and series still open, closed by commit/abort */
 };
+
+/* h5_common.c: put p at the head of w's open pieces / take it out (no-op when absent). */
+void wt_h5_priv_piece_link(wt_h5_writer *w, wt_h5_priv_piece *p);
+void wt_h5_priv_piece_unlink(wt_h5_writer *w, wt_h5_priv_piece *p);
 
 /* h5_temp.c: the temporaries unlinked on SIGINT/SIGTERM; register returns a slot (-1: table full). */
 int wt_h5_priv_temp_register(const char *path);
@@ -128,10 +141,5 @@ int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, c
 int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt);
 /* The units (when not NULL) and description attributes of obj. */
 int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc);
-
-/* h5_stream.c (called by the writer's commit/abort): unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
-int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check);
-/* h5_stream.c (called by the writer): unlink from the writer, close, free. */
-int wt_h5_priv_series_close(wt_h5_series *s);
 
 #endif

@@ -1,6 +1,6 @@
-/* core/io/h5.c: the atomic HDF5 writer: datasets, attributes, groups, commit (the row-block matrices
- * and appendable series it also writes are in h5_stream.c, which it closes at commit; the plumbing all
- * h5 files share is h5_common.c).
+/* core/io/h5_write.c: the atomic HDF5 writer: datasets, attributes, groups, commit (the row-block matrices
+ * and appendable series it also writes are in h5_stream.c, registered here as open pieces that commit
+ * closes through a function pointer; the plumbing all h5 files share is h5_common.c).
  *
  * Implements the file side of SPEC §9 (R and RÂ as float32, written to a temporary and renamed so an
  * interrupted build never leaves a file that looks complete) and the telemetry/result files of the
@@ -128,8 +128,7 @@ static void writer_destroy(wt_h5_writer *w, int remove_temp)
 {
     if (!w) return;
     if (remove_temp) discard_writes(w->file); /* the file is thrown away: nothing of it needs to reach the disk */
-    while (w->matrices) wt_h5_priv_matrix_close(w->matrices, 0);
-    while (w->series) wt_h5_priv_series_close(w->series);
+    while (w->open) w->open->close(w->open, 0);
     wt_h5_priv_drop(w->lcpl);
     wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
@@ -190,8 +189,7 @@ static int commit_impl(wt_h5_writer *w)
     wt_context *ctx = w->ctx;
     int st = WT_OK;
     const int64_t one = 1;
-    while (w->matrices) wt_h5_priv_poison(w, wt_h5_priv_matrix_close(w->matrices, 1));
-    while (w->series) wt_h5_priv_poison(w, wt_h5_priv_series_close(w->series));
+    while (w->open) wt_h5_priv_poison(w, w->open->close(w->open, 1));
     if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
     if (wt_h5_priv_put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
