@@ -22,7 +22,7 @@ static int check_variant(wt_context *ctx, const wt_config *cfg, const char *name
         return WT_ERROR(ctx, WT_ERR_CONFIG,
                         "%s: key 'recon.%s.layer_size': the layers hold %ld unknowns in all (sum of size^2), more "
                         "than the %ld accepted (one vector of them would take %.1f GiB)",
-                        cfg->path, name, total, MAX_UNKNOWNS, total * 8.0 / (1 << 30));
+                        cfg->path, name, total, MAX_UNKNOWNS, (double)total * 8.0 / (1 << 30));
     return WT_OK;
 }
 

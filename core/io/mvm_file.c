@@ -20,7 +20,7 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t na
         return st;
     for (int64_t r = 0; r < nact; r += block) {
         int64_t nr = nact - r < block ? nact - r : block;
-        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * nslopes)) < 0) return st;
+        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * (size_t)nslopes)) < 0) return st;
     }
     int64_t d[2] = {nact, nact};
     if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, RA, "",
@@ -86,8 +86,8 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system
     int64_t er[2] = {nact, nslopes}, ea[2] = {nact, nact};
     if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
     if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * nslopes)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * nact)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * (size_t)nslopes)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * (size_t)nact)) < 0) goto fail;
     strncpy(variant_out, variant, 15);
     variant_out[15] = '\0';
 fail:

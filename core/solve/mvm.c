@@ -18,8 +18,8 @@ int wt_mvm_alloc(wt_context *ctx, int commands, int64_t nact, int64_t nslopes, w
     m->commands = commands;
     m->nact = nact;
     m->nslopes = nslopes;
-    WT_ALLOC(ctx, m->R, (size_t)nact * nslopes, "the control matrix R");
-    WT_ALLOC(ctx, m->RA, (size_t)nact * nact, "the POLC matrix RA");
+    WT_ALLOC(ctx, m->R, (size_t)nact * (size_t)nslopes, "the control matrix R");
+    WT_ALLOC(ctx, m->RA, (size_t)nact * (size_t)nact, "the POLC matrix RA");
     *out = m;
     return WT_OK;
 fail:
