@@ -50,10 +50,13 @@ PKG_LIBS   = $(shell pkg-config --libs $(PKGS))
 Q := $(if $(V),,@)
 
 # Objects depend on the flags they were built with: a change of OPT, NATIVE or WARN rebuilds them.
+# The text is expanded once, here: the per-directory WARN += -Wconversion below would otherwise reach the
+# stamp through whichever object asks for it first and rewrite it (and rebuild everything) every time.
 FLAGS_STAMP := $(BUILD)/.cflags
+FLAGS_TEXT  := $(CC) $(CFLAGS)
 $(FLAGS_STAMP): FORCE
 	@mkdir -p $(dir $@)
-	@echo '$(CC) $(CFLAGS)' | cmp -s - $@ || echo '$(CC) $(CFLAGS)' > $@
+	@echo '$(FLAGS_TEXT)' | cmp -s - $@ || echo '$(FLAGS_TEXT)' > $@
 .PHONY: FORCE
 FORCE:
 
