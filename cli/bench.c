@@ -1,22 +1,16 @@
 /* cli/bench.c: `wavetomo bench`: reconstructor kernel timings with flop/byte counts, against the
- * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). */
+ * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). The
+ * timings are core/sim/bench.h's; this file parses, prints and times the MVM build. */
 #include <cblas.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include <sys/resource.h>
 
 #include "cli.h"
-#include "core/base/rng.h"
-#include "core/model/fitting.h"
-#include "core/model/system.h"
-#include "core/model/params.h"
-#include "core/model/tomography.h"
 #include "core/build/mvm_build.h"
-#include "core/sim/loop.h"
-#include <sys/resource.h>
+#include "core/model/params.h"
+#include "core/model/system.h"
+#include "core/sim/bench.h"
 
 static void help(void)
 {
@@ -35,206 +29,85 @@ static void help(void)
            "memory (--no-build skips it; ~4 minutes at E-ELT size).\n");
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-typedef struct {
-    double med, p10, p90, p99;
-} stats;
-
-static stats summarise(double *t, int n)
-{
-    qsort(t, (size_t)n, sizeof *t, cmp_double);
-    stats s = {t[n / 2], t[n / 10], t[(9 * n) / 10], t[(99 * n) / 100]};
-    return s;
-}
-
-static void report(const char *what, stats s, double flops, double bytes)
+static void report(const char *what, wt_bench_stats s, double flops, double bytes)
 {
     printf("%-34s %9.3f ms  [%7.3f, %7.3f, %7.3f]  %7.2f Mflop %7.1f MB  %6.2f GFlop/s %6.2f GB/s\n", what,
            s.med * 1e3, s.p10 * 1e3, s.p90 * 1e3, s.p99 * 1e3, flops / 1e6, bytes / 1e6, flops / s.med / 1e9,
            bytes / s.med / 1e9);
 }
 
-/* STREAM triad a = b + s c over arrays far larger than the caches: 24 bytes per element. */
-static double triad_bandwidth(int reps)
+static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
 {
-    const size_t n = 1 << 25; /* 3 x 256 MB */
-    double *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *c = malloc(n * sizeof *c);
-    if (!a || !b || !c) {
-        free(a), free(b), free(c);
-        return 0.0;
-    }
-#pragma omp parallel for schedule(static)
-    for (size_t i = 0; i < n; i++) a[i] = 0.0, b[i] = 1.0, c[i] = 2.0;
-    double best = 1e30;
-    for (int r = 0; r < reps; r++) {
-        double t0 = wt_time_now();
-#pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < n; i++) a[i] = b[i] + 0.5 * c[i];
-        double t = wt_time_now() - t0;
-        if (t < best) best = t;
-    }
-    double bw = 24.0 * n / best;
-    free(a), free(b), free(c);
-    return bw;
-}
-
-static double dgemm_rate(void)
-{
-    const int n = 2048;
-    double *a = malloc((size_t)n * n * sizeof *a), *b = malloc((size_t)n * n * sizeof *b),
-           *c = calloc((size_t)n * n, sizeof *c);
-    if (!a || !b || !c) {
-        free(a), free(b), free(c);
-        return 0.0;
-    }
-    for (size_t i = 0; i < (size_t)n * n; i++) a[i] = 1.0 / (1.0 + (double)(i % 97)), b[i] = 1.0 / (1.0 + (double)(i % 89));
-    double best = 1e30;
-    for (int r = 0; r < 3; r++) {
-        double t0 = wt_time_now();
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, n, n, 1.0, a, n, b, n, 0.0, c, n);
-        double t = wt_time_now() - t0;
-        if (t < best) best = t;
-    }
-    free(a), free(b), free(c);
-    return 2.0 * n * (double)n * n / best;
-}
-
-static int bench_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name, int reps)
-{
-    wt_tomography *t = NULL;
-    double t0 = wt_time_now();
-    wt_tomography_params tp;
-    wt_tomography_params_from_config(sys->cfg, &tp);
-    int st = wt_tomography_alloc(cli->ctx, sys, v, name, &tp, &t);
+    const char *name = wt_reconstructor_name(kind);
+    wt_reconstructor_params par;
+    wt_reconstructor_params_from_config(sys->cfg, kind, -1, &par);
+    const wt_recon_variant_config *v = par.variant;
+    wt_bench_tomography b;
+    int st = wt_bench_tomography_run(cli->ctx, sys, &par, name, reps, &b);
     if (st < 0) return st;
-    double setup = wt_time_now() - t0;
-    int64_t n = wt_tomography_nunknowns(t);
-    double *c = malloc((size_t)n * sizeof *c), *y = malloc((size_t)n * sizeof *y);
-    double *s = malloc((size_t)sys->nslopes * sizeof *s), *times = malloc((size_t)reps * sizeof *times);
-    if (!c || !y || !s || !times) {
-        st = wt_error_set(cli->ctx, WT_ERR_NOMEM, __FILE__, __LINE__, "bench: out of memory");
-        goto out;
-    }
-    wt_rng rng;
-    wt_rng_init(&rng, 7, 0);
-    for (int64_t i = 0; i < n; i++) c[i] = wt_rng_normal(&rng) * 1e-7;
-    for (int64_t i = 0; i < sys->nslopes; i++) s[i] = wt_rng_normal(&rng) * 1e-6;
-    double flops, bytes;
-    wt_tomography_cost(t, &flops, &bytes);
-    printf("\n%s: %lld unknowns in %d layers, %d sensors, %lld slopes (set-up %.2f s%s)\n", name, (long long)n,
-           v->nlayers, sys->nsensors, (long long)sys->nslopes, setup, v->jacobi ? ", incl. the exact Jacobi diagonal" : "");
-
-    wt_tomography_apply(t, 1.0, c, y); /* warm caches and pages */
-    for (int r = 0; r < reps; r++) {
-        double a = wt_time_now();
-        wt_tomography_apply(t, 1.0, c, y);
-        times[r] = wt_time_now() - a;
-    }
+    printf("\n%s: %lld unknowns in %d layers, %d sensors, %lld slopes (set-up %.2f s%s)\n", name,
+           (long long)b.nunknowns, v->nlayers, sys->nsensors, (long long)sys->nslopes, b.setup,
+           v->jacobi ? ", incl. the exact Jacobi diagonal" : "");
     char label[64];
     snprintf(label, sizeof label, "%s: apply M", name);
-    report(label, summarise(times, reps), flops, bytes);
-
-    double it_flops = flops + wt_pcg_flops_per_iteration(n, v->jacobi);
-    double it_bytes = bytes + 8.0 * n * (v->jacobi ? 12.0 : 11.0);
-    /* one iteration = (time of 9 iterations − time of 1) / 8, from the same starting point: the
-     * right-hand side and the initial residual cancel out */
-    for (int r = 0; r < reps; r++) {
-        memset(c, 0, (size_t)n * sizeof *c);
-        double a = wt_time_now();
-        wt_tomography_solve(t, s, c, 1, 0.0, NULL, NULL);
-        double one = wt_time_now() - a;
-        memset(c, 0, (size_t)n * sizeof *c);
-        a = wt_time_now();
-        wt_tomography_solve(t, s, c, 9, 0.0, NULL, NULL);
-        times[r] = ((wt_time_now() - a) - one) / 8.0;
-    }
+    report(label, b.apply, b.flops, b.bytes);
     snprintf(label, sizeof label, "%s: one %s iteration", name, v->jacobi ? "PCG" : "CG");
-    report(label, summarise(times, reps), it_flops, it_bytes);
-
-    /* a whole frame: right-hand side, the initial residual and the configured iterations, warm-started */
-    for (int r = 0; r < reps; r++) {
-        double a = wt_time_now();
-        wt_tomography_solve(t, s, c, v->iterations, 0.0, NULL, NULL);
-        times[r] = wt_time_now() - a;
-    }
-    snprintf(label, sizeof label, "%s: frame (%d iterations)", name, v->iterations);
-    stats fs = summarise(times, reps);
+    report(label, b.iteration, b.it_flops, b.it_bytes);
+    snprintf(label, sizeof label, "%s: frame (%d iterations)", name, par.iterations);
     /* rhs ≈ half an apply; initial residual = one apply */
-    report(label, fs, flops * 1.5 + it_flops * v->iterations, bytes * 1.5 + it_bytes * v->iterations);
-    if (!strcmp(name, "pcg3"))
+    report(label, b.frame, b.flops * 1.5 + b.it_flops * par.iterations, b.bytes * 1.5 + b.it_bytes * par.iterations);
+    if (kind == WT_RECON_PCG3)
         printf("  real-time goal: a %d-iteration pcg3 frame in 2 ms (500 Hz): measured %.2f ms = %.1fx the budget "
                "(p99 %.2f ms over %d frames)\n",
-               v->iterations, fs.med * 1e3, fs.med / 2e-3, fs.p99 * 1e3, reps);
-
-    if (v->fit_iterations > 0) {
-        wt_fitting *f = NULL;
-        wt_fitting_params fp = {.regularization = v->fit_regularization, .sampling = v->fit_sampling};
-        st = wt_fitting_alloc_for(cli->ctx, t, &fp, &f);
-        if (st < 0) goto out;
-        double *a = calloc((size_t)sys->nact, sizeof *a), *phi = malloc((size_t)n * sizeof *phi);
-        if (a && phi) {
-            wt_tomography_layers(t, c, phi);
-            for (int r = 0; r < reps; r++) {
-                double a0 = wt_time_now();
-                wt_fitting_solve(f, phi, a, v->fit_iterations, 0.0, NULL, NULL);
-                times[r] = wt_time_now() - a0;
-            }
-            snprintf(label, sizeof label, "%s: fitting (%d CG iterations)", name, v->fit_iterations);
-            stats s2 = summarise(times, reps);
-            printf("%-34s %9.3f ms  [%7.3f, %7.3f, %7.3f]\n", label, s2.med * 1e3, s2.p10 * 1e3, s2.p90 * 1e3, s2.p99 * 1e3);
-        }
-        free(a);
-        free(phi);
-        wt_fitting_free(f);
+               par.iterations, b.frame.med * 1e3, b.frame.med / 2e-3, b.frame.p99 * 1e3, reps);
+    if (b.has_fitting) {
+        snprintf(label, sizeof label, "%s: fitting (%d CG iterations)", name, par.fit_iterations);
+        printf("%-34s %9.3f ms  [%7.3f, %7.3f, %7.3f]\n", label, b.fitting.med * 1e3, b.fitting.p10 * 1e3,
+               b.fitting.p90 * 1e3, b.fitting.p99 * 1e3);
     }
-out:
-    free(c);
-    free(y);
-    free(s);
-    free(times);
-    wt_tomography_free(t);
-    return st;
+    return WT_OK;
 }
 
 /* Closed-loop speed (issue #3 goal: >= 5 frames/s at E-ELT size with pcg3): warm-up frames, then
  * timed frames, with the split by part. */
 static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
 {
-    wt_loop *lp = NULL;
     wt_loop_options o = {.recon = WT_RECON_PCG3, .iterations = -1, .seed = sys->cfg->seed, .noise = 1};
-    double t0 = wt_time_now();
-    int st = wt_loop_alloc(cli->ctx, sys, &o, &lp);
-    if (st < 0) return st;
-    double setup = wt_time_now() - t0;
+    wt_loop_params par;
+    wt_loop_params_from_config(sys->cfg, &o, &par);
     const int warm = 3;
-    for (int t = 0; t < warm && st >= 0; t++) st = wt_loop_step(lp);
-    wt_loop_times a = wt_loop_get_times(lp);
-    double *ft = malloc((size_t)frames * sizeof *ft);
-    for (int t = 0; t < frames && st >= 0 && ft; t++) {
-        double f0 = wt_time_now();
-        st = wt_loop_step(lp);
-        ft[t] = wt_time_now() - f0;
-    }
-    if (st >= 0 && ft) {
-        wt_loop_times b = wt_loop_get_times(lp);
-        stats s = summarise(ft, frames);
-        printf("\nclosed loop, pcg3, %d frames after %d warm-up (set-up %.1f s): median %.1f ms/frame [%.1f, %.1f] = "
-               "%.2f frames/s (goal >= 5)\n",
-               frames, warm, setup, s.med * 1e3, s.p10 * 1e3, s.p90 * 1e3, 1.0 / s.med);
-        printf("  mean per frame: atmosphere %.1f, sensors %.1f, reconstruction %.1f, fitting %.1f, control %.1f, "
-               "evaluation %.1f ms\n",
-               (b.atmosphere - a.atmosphere) / frames * 1e3, (b.sensors - a.sensors) / frames * 1e3,
-               (b.reconstruction - a.reconstruction) / frames * 1e3, (b.fitting - a.fitting) / frames * 1e3,
-               (b.control - a.control) / frames * 1e3, (b.evaluation - a.evaluation) / frames * 1e3);
-    }
-    free(ft);
-    wt_loop_free(lp);
-    return st;
+    wt_bench_loop b;
+    int st = wt_bench_loop_run(cli->ctx, sys, &o, &par, warm, frames, &b);
+    if (st < 0) return st;
+    const wt_bench_stats s = b.frame;
+    const wt_loop_times m = b.per_frame;
+    printf("\nclosed loop, pcg3, %d frames after %d warm-up (set-up %.1f s): median %.1f ms/frame [%.1f, %.1f] = "
+           "%.2f frames/s (goal >= 5)\n",
+           frames, warm, b.setup, s.med * 1e3, s.p10 * 1e3, s.p90 * 1e3, 1.0 / s.med);
+    printf("  mean per frame: atmosphere %.1f, sensors %.1f, reconstruction %.1f, fitting %.1f, control %.1f, "
+           "evaluation %.1f ms\n",
+           m.atmosphere * 1e3, m.sensors * 1e3, m.reconstruction * 1e3, m.fitting * 1e3, m.control * 1e3,
+           m.evaluation * 1e3);
+    return WT_OK;
+}
+
+/* MVM apply at the system's size against the memory bound, measured side by side (core/sim/bench.h). */
+static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
+{
+    wt_bench_mvm b;
+    int st = wt_bench_mvm_apply(cli->ctx, sys->nact, sys->nslopes, reps, &b);
+    if (st < 0) return st;
+    const wt_bench_stats g = b.sgemv, c = b.copy;
+    const double bytes = b.bytes;
+    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS threads, %d repetitions side by side:\n",
+           (long long)sys->nact, (long long)sys->nslopes, bytes / 1e9, openblas_get_num_threads(), reps);
+    printf("  sgemv          %8.2f ms  [%.2f, %.2f]  reads R once: %.1f GB/s\n", g.med * 1e3, g.p10 * 1e3, g.p90 * 1e3,
+           bytes / g.med / 1e9);
+    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the same bytes (read + write): %.1f GB/s\n", c.med * 1e3,
+           c.p10 * 1e3, c.p90 * 1e3, 2.0 * bytes / c.med / 1e9);
+    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s\n",
+           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9);
+    return WT_OK;
 }
 
 typedef struct {
@@ -255,51 +128,6 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     } else if (o[0] == '-' || a->path) return 0;
     else a->path = o;
     return 1;
-}
-
-/* MVM apply at the system's size against the memory bound, measured side by side: R (n_act x n_slopes
- * float32) must be streamed once per frame, so a STREAM copy of the same byte count (read + write of
- * R's size) sets the scale. Values do not change the time of a GEMV, so R is filled with a pattern. */
-static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
-{
-    const int64_t na = sys->nact, ns = sys->nslopes;
-    const size_t n = (size_t)na * (size_t)ns;
-    float *R = malloc(n * sizeof *R), *C = malloc(n * sizeof *C), *x = malloc((size_t)ns * sizeof *x),
-          *y = malloc((size_t)na * sizeof *y);
-    double *tg = malloc((size_t)reps * sizeof *tg), *tc = malloc((size_t)reps * sizeof *tc);
-    int st = WT_OK;
-    if (!R || !C || !x || !y || !tg || !tc) {
-        st = wt_error_set(cli->ctx, WT_ERR_NOMEM, __FILE__, __LINE__, "bench: out of memory for a %.2f GB matrix",
-                          2.0 * n * 4.0 / 1e9);
-        goto out;
-    }
-#pragma omp parallel for schedule(static)
-    for (size_t i = 0; i < n; i++) R[i] = C[i] = (float)((i * 2654435761u) % 1000) * 1e-3f;
-    for (int64_t i = 0; i < ns; i++) x[i] = (float)(i % 7) * 1e-6f;
-    /* the runtime's own apply (core/solve/mvm.h) on a container that borrows R */
-    const wt_mvm view = {.ctx = cli->ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns, .R = R};
-    for (int r = 0; r < reps; r++) {
-        double a = wt_time_now();
-        wt_mvm_apply(&view, x, NULL, y);
-        tg[r] = wt_time_now() - a;
-        a = wt_time_now();
-#pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < n; i++) C[i] = R[i];
-        tc[r] = wt_time_now() - a;
-    }
-    stats g = summarise(tg, reps), c = summarise(tc, reps);
-    double bytes = 4.0 * (double)n;
-    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS threads, %d repetitions side by side:\n",
-           (long long)na, (long long)ns, bytes / 1e9, openblas_get_num_threads(), reps);
-    printf("  sgemv          %8.2f ms  [%.2f, %.2f]  reads R once: %.1f GB/s\n", g.med * 1e3, g.p10 * 1e3, g.p90 * 1e3,
-           bytes / g.med / 1e9);
-    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the same bytes (read + write): %.1f GB/s\n", c.med * 1e3,
-           c.p10 * 1e3, c.p90 * 1e3, 2.0 * bytes / c.med / 1e9);
-    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s\n",
-           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9);
-out:
-    free(R), free(C), free(x), free(y), free(tg), free(tc);
-    return st;
 }
 
 /* The offline build of the pcg3 control matrix, timed with its peak memory. */
@@ -346,12 +174,12 @@ int wt_cmd_bench(int argc, char **argv)
     int threads = wt_context_threads(cli.ctx);
     printf("wavetomo bench: %s, %d OpenMP threads, %d OpenBLAS threads, %d repetitions\n", cfg->path, threads,
            openblas_get_num_threads(), reps);
-    double bw = triad_bandwidth(5), gf = dgemm_rate();
+    double bw = wt_bench_triad_bandwidth(cli.ctx, 5), gf = wt_bench_dgemm_rate();
     printf("machine: triad bandwidth %.1f GB/s, DGEMM %.1f GFlop/s (n = 2048, OpenBLAS)\n", bw / 1e9, gf / 1e9);
     printf("%-34s %9s     %s\n", "kernel", "median", "[p10, p90, p99] ms, work per call, implied rates");
-    st = bench_variant(&cli, sys, &cfg->pcg3, "pcg3", reps);
+    st = bench_variant(&cli, sys, WT_RECON_PCG3, reps);
     if (st < 0) goto out;
-    st = bench_variant(&cli, sys, &cfg->cg9, "cg9", reps < 20 ? reps : 20);
+    st = bench_variant(&cli, sys, WT_RECON_CG9, reps < 20 ? reps : 20);
     if (st < 0) goto out;
     /* the build first: its peak memory is read from the process's high-water mark, which the GEMV's
      * 2 x 2.3 GB buffers would otherwise set */

@@ -7,7 +7,7 @@
 #include <stdio.h>
 
 #include "core/base/base.h"
-#include "core/io/config.h"
+#include "core/config/config.h"
 
 #define WT_CLI_MAX_SET 256
 

@@ -8,6 +8,7 @@
 #include "cli/cli.h"
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
+#include "core/model/params.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 
@@ -128,7 +129,9 @@ int wt_cmd_run(int argc, char **argv)
         }
         if ((st = wt_mvm_read(cli.ctx, args.matrix, use, sys->nact, sys->nslopes, &m, NULL)) < 0) goto fail;
     } else {
-        if ((st = wt_reconstructor_alloc(cli.ctx, sys, kind, (int)args.iters, &rec)) < 0) goto fail;
+        wt_reconstructor_params rp;
+        wt_reconstructor_params_from_config(use, kind, (int)args.iters, &rp);
+        if ((st = wt_reconstructor_alloc(cli.ctx, sys, kind, &rp, &rec)) < 0) goto fail;
     }
     sf = malloc((size_t)sys->nslopes * sizeof *sf);
     af = malloc((size_t)sys->nact * sizeof *af);

@@ -1,5 +1,5 @@
 /* runtime/sim.c: `wavetomo sim`: the closed-loop end-to-end simulation of one reconstructor
- * (core/sim/loop), with its result file, optional telemetry and screen dumps. */
+ * (core/sim/loop), with its result file, optional telemetry and screen dumps (core/sim/record). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,8 +8,8 @@
 #include "cli/cli.h"
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
-#include "core/sim/atmosphere.h"
 #include "core/sim/loop.h"
+#include "core/sim/record.h"
 
 static void help(void)
 {
@@ -38,135 +38,6 @@ static void help(void)
            "  --dump-screens   add the layer screens of frame 0 and the residual OPD maps of the last\n"
            "                   frame to RUN.h5\n"
            "A progress line (frames, frames/s, ETA, running field-average Strehl) goes to stderr on a terminal.\n");
-}
-
-typedef struct {
-    wt_h5_series *slopes, *slopes_ol, *commands;
-} telemetry;
-
-/* Per-stage wall times of one frame [ms] from the loop's cumulative times before (a) and after it, and
- * the whole step's wall time [s]: the columns of frame/time. */
-#define SIM_NSTAGES 7
-static void stage_times(const wt_loop_times *a, const wt_loop *lp, double step, float *out)
-{
-    const wt_loop_times b = wt_loop_get_times(lp);
-    const double d[SIM_NSTAGES] = {b.atmosphere - a->atmosphere, b.sensors - a->sensors,
-                                   b.reconstruction - a->reconstruction, b.fitting - a->fitting,
-                                   b.control - a->control, b.evaluation - a->evaluation, step};
-    for (int k = 0; k < SIM_NSTAGES; k++) out[k] = (float)(d[k] * 1e3);
-}
-
-static int write_results(wt_cli *cli, wt_h5_writer *w, const wt_config *cfg, const wt_system *sys, wt_loop *lp,
-                         const char *recon, long frames, const double *se_field, const double *se_axis,
-                         const float *rms_nm, int dump, int argc, char **argv)
-{
-    int st;
-    const wt_strehl_le *le = wt_loop_le(lp);
-    int nd = sys->neval;
-    double sle[WT_MAX_EVAL], wfe[WT_MAX_EVAL], tx[WT_MAX_EVAL], ty[WT_MAX_EVAL], field = 0.0, fwfe = 0.0;
-    for (int j = 0; j < nd; j++) {
-        sle[j] = wt_strehl_le_strehl(le, j);
-        wfe[j] = wt_strehl_le_wfe(le, j) * 1e9;
-        tx[j] = sys->eval_x[j] / WT_ARCSEC;
-        ty[j] = sys->eval_y[j] / WT_ARCSEC;
-        field += sle[j] / nd;
-        fwfe += wfe[j] * wfe[j] / nd;
-    }
-    int64_t dn[1] = {nd}, df[1] = {frames}, dr[2] = {frames, nd};
-    if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) < 0) return st;
-    if ((st = wt_h5_attr_write_string(w, "/", "recon", recon)) < 0) return st;
-    if ((st = wt_h5_write_int64(w, "frames", frames, "", "frames simulated")) < 0) return st;
-    if ((st = wt_h5_write_int64(w, "settle_frames", cfg->settle_frames, "",
-                                "frames left out of the long-exposure averages")) < 0)
-        return st;
-    if ((st = wt_h5_write_double(w, "eval/wavelength", cfg->eval_wavelength * 1e9, "nm",
-                                 "wavelength of the Strehl ratios (Marechal approximation)")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "eval/theta_x", WT_H5_F64, WT_H5_F64, 1, dn, tx, "arcsec",
-                          "evaluation direction x; index i + g*j of the g x g grid")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "eval/theta_y", WT_H5_F64, WT_H5_F64, 1, dn, ty, "arcsec", "evaluation direction y")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "eval/strehl_le", WT_H5_F64, WT_H5_F64, 1, dn, sle, "",
-                          "long-exposure Strehl per evaluation direction (mean of the short-exposure Strehl after "
-                          "the settle frames)")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "eval/wfe_le", WT_H5_F64, WT_H5_F64, 1, dn, wfe, "nm",
-                          "residual wavefront error per direction: sqrt of the mean piston-removed variance after "
-                          "the settle frames")) < 0)
-        return st;
-    if ((st = wt_h5_write_double(w, "strehl_le_on_axis", sle[sys->eval_centre], "",
-                                 "long-exposure Strehl in the central (on-axis) direction")) < 0)
-        return st;
-    if ((st = wt_h5_write_double(w, "strehl_le_field", field, "",
-                                 "long-exposure Strehl averaged over the evaluation directions")) < 0)
-        return st;
-    if ((st = wt_h5_write_double(w, "wfe_le_field", sqrt(fwfe), "nm",
-                                 "residual wavefront error, rms over the evaluation directions")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "frame/strehl_field", WT_H5_F64, WT_H5_F64, 1, df, se_field, "",
-                          "short-exposure Strehl per frame, averaged over the evaluation directions")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "frame/strehl_on_axis", WT_H5_F64, WT_H5_F64, 1, df, se_axis, "",
-                          "short-exposure Strehl per frame in the central direction")) < 0)
-        return st;
-    if ((st = wt_h5_write(w, "frame/rms", WT_H5_F32, WT_H5_F32, 2, dr, rms_nm, "nm",
-                          "piston-removed residual rms per frame and evaluation direction")) < 0)
-        return st;
-    wt_loop_times tm = wt_loop_get_times(lp);
-    const char *names[] = {"atmosphere", "sensors", "reconstruction", "fitting", "control", "evaluation"};
-    double vals[] = {tm.atmosphere, tm.sensors, tm.reconstruction, tm.fitting, tm.control, tm.evaluation};
-    for (int k = 0; k < 6; k++) {
-        char name[64];
-        snprintf(name, sizeof name, "timing/%s", names[k]);
-        if ((st = wt_h5_write_double(w, name, frames ? vals[k] / frames * 1e3 : 0.0, "ms",
-                                     "mean wall time per frame of this part of the simulation")) < 0)
-            return st;
-    }
-    if ((st = wt_cli_write_layout(w, sys)) < 0) return st;
-    if (dump) {
-        const wt_atmosphere *atm = wt_loop_atmosphere(lp);
-        wt_grid g = wt_atmosphere_grid(atm);
-        double *buf = malloc((size_t)wt_grid_size(&g) * sizeof *buf);
-        if (!buf) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory dumping screens");
-        for (int l = 0; l < wt_atmosphere_nlayers(atm); l++) {
-            wt_atmosphere_layer_render(atm, l, buf);
-            char name[64];
-            snprintf(name, sizeof name, "screens/layer%d", l + 1);
-            int64_t d[2] = {g.ny, g.nx};
-            st = wt_h5_write(w, name, WT_H5_F32, WT_H5_F64, 2, d, buf, "m",
-                             "OPD screen of this atmospheric layer at frame 0 on its periodic grid (row = y)");
-            if (st >= 0) st = wt_h5_attr_write_double(w, name, "altitude_m", wt_atmosphere_layer_altitude(atm, l));
-            if (st >= 0) st = wt_h5_attr_write_double(w, name, "spacing_m", g.dx);
-            if (st < 0) {
-                free(buf);
-                return st;
-            }
-        }
-        free(buf);
-        const wt_grid *f = wt_loop_fine_grid(lp);
-        const uint8_t *mask = wt_loop_pupil_mask(lp);
-        int64_t np = wt_grid_size(f);
-        float *res = malloc((size_t)nd * np * sizeof *res);
-        if (!res) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory dumping residuals");
-        for (int j = 0; j < nd; j++) {
-            const double *r = wt_loop_residual(lp, j);
-            double mean = 0.0;
-            int64_t c = 0;
-            for (int64_t i = 0; i < np; i++)
-                if (mask[i]) mean += r[i], c++;
-            mean = c ? mean / c : 0.0;
-            for (int64_t i = 0; i < np; i++) res[(size_t)j * np + i] = mask[i] ? (float)(r[i] - mean) : NAN;
-        }
-        int64_t d[3] = {nd, f->ny, f->nx};
-        st = wt_h5_write(w, "residual", WT_H5_F32, WT_H5_F32, 3, d, res, "m",
-                         "piston-removed residual OPD of the last frame per evaluation direction on the fine "
-                         "pupil grid (row = y; NaN outside the pupil)");
-        if (st >= 0) st = wt_h5_attr_write_double(w, "residual", "spacing_m", f->dx);
-        free(res);
-        if (st < 0) return st;
-    }
-    return WT_OK;
 }
 
 typedef struct {
@@ -238,9 +109,7 @@ int wt_cmd_sim(int argc, char **argv)
     wt_loop *lp = NULL;
     wt_mvm *mvm = NULL;
     wt_h5_writer *w = NULL, *tw = NULL;
-    telemetry T = {0};
-    double *se_field = NULL, *se_axis = NULL;
-    float *rms_nm = NULL, *fbuf = NULL, *time_ms = NULL;
+    wt_sim_record *rec = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     /* find an unwritable output before the run, not after it */
@@ -256,29 +125,8 @@ int wt_cmd_sim(int argc, char **argv)
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;
     double setup = wt_time_now() - t0;
-    se_field = calloc((size_t)frames, sizeof *se_field);
-    se_axis = calloc((size_t)frames, sizeof *se_axis);
-    rms_nm = calloc((size_t)frames * sys->neval, sizeof *rms_nm);
-    time_ms = calloc((size_t)frames * SIM_NSTAGES, sizeof *time_ms);
-    fbuf = malloc((size_t)(sys->nslopes > sys->nact ? sys->nslopes : sys->nact) * sizeof *fbuf);
-    if (!se_field || !se_axis || !rms_nm || !fbuf || !time_ms) {
-        st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory for the per-frame results");
-        goto fail;
-    }
-    if (tel) {
-        if ((st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
-        if ((st = wt_h5_series_create(tw, "slopes", WT_H5_F32, sys->nslopes, "rad",
-                                      "measured slopes s_t per frame (OPD gradient), ordering in layout/", &T.slopes)) < 0)
-            goto fail;
-        if ((st = wt_h5_series_create(tw, "slopes_ol", WT_H5_F32, sys->nslopes, "rad",
-                                      "pseudo-open-loop slopes s_t + A^ a_t per frame", &T.slopes_ol)) < 0)
-            goto fail;
-        if ((st = wt_h5_series_create(tw, "commands", WT_H5_F32, sys->nact, "m",
-                                      "DM commands a_t applied during the frame (actuator OPD), ordering in "
-                                      "layout/actuator_index",
-                                      &T.commands)) < 0)
-            goto fail;
-    }
+    if (tel && (st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
+    if ((st = wt_sim_record_alloc(cli.ctx, sys, frames, cfg->eval_wavelength, tw, &rec)) < 0) goto fail;
     if (!cli.quiet)
         fprintf(stderr, "wavetomo sim: %s, %s, %ld frames, seed %llu, %lld slopes, %lld actuators (set-up %.1f s)\n",
                 cfg->path, recon, frames, (unsigned long long)cfg->seed, (long long)sys->nslopes,
@@ -287,44 +135,24 @@ int wt_cmd_sim(int argc, char **argv)
     wt_progress_start(&pr, "frames", "frames", frames);
     double run0 = wt_time_now(), sum_field = 0.0;
     for (long t = 0; t < frames; t++) {
-        const wt_loop_times ta = wt_loop_get_times(lp);
         const double f0 = wt_time_now();
-        if ((st = wt_loop_step(lp)) < 0) goto fail;
-        stage_times(&ta, lp, wt_time_now() - f0, time_ms + (size_t)t * SIM_NSTAGES);
-        const double *rms = wt_loop_rms(lp);
-        se_field[t] = wt_loop_field_strehl(lp);
-        se_axis[t] = wt_strehl_marechal(rms[sys->eval_centre], cfg->eval_wavelength);
-        for (int j = 0; j < sys->neval; j++) rms_nm[(size_t)t * sys->neval + j] = (float)(rms[j] * 1e9);
-        sum_field += se_field[t];
-        if (tel) {
-            const double *src[3] = {wt_loop_slopes(lp), wt_loop_slopes_ol(lp), wt_loop_applied(lp)};
-            wt_h5_series *dst[3] = {T.slopes, T.slopes_ol, T.commands};
-            for (int k = 0; k < 3; k++) {
-                int64_t n = k < 2 ? sys->nslopes : sys->nact;
-                for (int64_t i = 0; i < n; i++) fbuf[i] = (float)src[k][i];
-                if ((st = wt_h5_series_append(dst[k], WT_H5_F32, fbuf)) < 0) goto fail;
-            }
-        }
+        if ((st = wt_loop_step(lp)) < 0 || (st = wt_sim_record_frame(rec, lp, wt_time_now() - f0)) < 0) goto fail;
+        double se = wt_sim_record_field_strehl(rec, t);
+        sum_field += se;
         char extra[64];
-        snprintf(extra, sizeof extra, "field SE Strehl %.3f (mean %.3f)", se_field[t], sum_field / (t + 1));
+        snprintf(extra, sizeof extra, "field SE Strehl %.3f (mean %.3f)", se, sum_field / (t + 1));
         wt_progress_update(&pr, t + 1, extra);
     }
     wt_progress_end(&pr);
     double run = wt_time_now() - run0;
 
     if ((st = wt_h5_create(cli.ctx, out, &w)) < 0) goto fail;
-    if ((st = write_results(&cli, w, cfg, sys, lp, recon, frames, se_field, se_axis, rms_nm, dump, argc, argv)) < 0)
-        goto fail;
+    if ((st = wt_cli_write_provenance(&cli, w, cfg, argc, argv)) < 0) goto fail;
+    if ((st = wt_h5_attr_write_string(w, "/", "recon", recon)) < 0) goto fail;
+    if ((st = wt_sim_record_write(rec, w, lp, cfg->settle_frames)) < 0) goto fail;
+    if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
+    if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
     if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
-    {
-        int64_t dt[2] = {frames, SIM_NSTAGES};
-        if ((st = wt_h5_write(w, "frame/time", WT_H5_F32, WT_H5_F32, 2, dt, time_ms, "ms",
-                              "wall time of each frame per stage: atmosphere, sensors, reconstruction, fitting, "
-                              "control, evaluation, total (the whole step; attribute columns)")) < 0 ||
-            (st = wt_h5_attr_write_string(w, "frame/time", "columns",
-                                          "atmosphere,sensors,reconstruction,fitting,control,evaluation,total")) < 0)
-            goto fail;
-    }
     if ((st = wt_h5_write_double(w, "timing/setup", setup, "s", "set-up time (atmosphere, operators)")) < 0) goto fail;
     if (tw) {
         if ((st = wt_cli_write_provenance(&cli, tw, cfg, argc, argv)) < 0) goto fail;
@@ -359,13 +187,9 @@ int wt_cmd_sim(int argc, char **argv)
 fail:
     rc = wt_cli_fail(&cli, st);
 cleanup:
+    wt_sim_record_free(rec);
     wt_h5_abort(w);
     wt_h5_abort(tw);
-    free(se_field);
-    free(se_axis);
-    free(rms_nm);
-    free(time_ms);
-    free(fbuf);
     wt_loop_free(lp);
     wt_mvm_free(mvm);
     wt_system_free(sys);

@@ -2,27 +2,30 @@
 # tests/check_deps.sh: `make check-deps` (part of `make test`): the one-way module order of docs/design.md,
 # checked from the compiler's own dependency lists (gcc -MM), and no include circle between files.
 #
-#   base ← io            (the file layer: plain data, no numerical module)
+#   base ← config        (the configuration layer: libconfig text -> wt_config, the schema)
+#   base ← io            (the file layer: HDF5, plain data only, no configuration, no numerical module)
 #   base ← la ← op ← solve ← model ← {build, sim} ← drivers (cli, builder, runtime, compare)
-#   solve and above may use io.
+#   solve and above may use config and io.
 #
 # Every source and header of core/ and the drivers is passed to `$CC -MM`; every project file in its
 # (transitive) dependency list must belong to its own module or one the table below allows. Circles:
-# the direct #include edges between files (and between modules) go through tsort, which refuses a loop.
+# the direct #include edges between files (and between modules) go through tsort, which refuses a loop;
+# so do the calls between the library's object files (nm: a symbol one file uses and another defines).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 CC=${CC:-gcc}
 CPPFLAGS_EXTRA=${CPPFLAGS_EXTRA:-}
 declare -A ALLOW=(
   [base]="base"
+  [config]="base config"
   [io]="base io"
   [la]="base la"
   [op]="base la op"
-  [solve]="base la op io solve"
-  [model]="base la op io solve model"
-  [build]="base la op io solve model build"
-  [sim]="base la op io solve model sim"
-  [driver]="base la op io solve model build sim driver"
+  [solve]="base la op config io solve"
+  [model]="base la op config io solve model"
+  [build]="base la op config io solve model build"
+  [sim]="base la op config io solve model sim"
+  [driver]="base la op config io solve model build sim driver"
 )
 module() { # path relative to the root -> module name
   case "$1" in
@@ -62,6 +65,19 @@ medges=$(echo "$edges" | while read -r a b; do ma=$(module "$a"); mb=$(module "$
 if [ -n "$medges" ] && ! echo "$medges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
   echo "check-deps: circle between modules:"; cat /tmp/check_deps.$$; bad=1
 fi
+# calls between the object files of the library (nm): a function of one file calling into another and
+# back is one module in two files (STYLE.md); the file-level call graph must go through tsort too.
+OBJ=$(for c in core/*/*.c; do o=${BUILD:-build}/${c%.c}.o; [ -f "$o" ] && echo "$o"; done)
+if [ -n "$OBJ" ]; then
+  defs=$(nm -A --defined-only $OBJ 2>/dev/null | awk '$2 ~ /^[TDRB]$/ {split($1, a, ":"); print a[1], $3}')
+  cedges=$(nm -A -u $OBJ 2>/dev/null | awk '{split($1, a, ":"); print a[1], $NF}' |
+    awk 'NR == FNR {def[$2] = $1; next} ($2 in def) && def[$2] != $1 {print $1, def[$2]}' <(echo "$defs") - | sort -u)
+  if [ -n "$cedges" ] && ! echo "$cedges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
+    echo "check-deps: call circle between files of core/:"; cat /tmp/check_deps.$$; bad=1
+  fi
+else
+  echo "check-deps: ${BUILD:-build}/core not built, call circles not checked"
+fi
 rm -f /tmp/check_deps.$$
-if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow base ← la ← op ← solve ← model ← {build, sim} ← drivers, io on base only; no include circle"; fi
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow base ← la ← op ← solve ← model ← {build, sim} ← drivers, config and io on base only; no include or call circle"; fi
 exit $bad

@@ -14,7 +14,7 @@
 
 #include <hdf5.h>
 
-#include "core/io/config.h"
+#include "core/config/config.h"
 #include "core/io/h5.h"
 #include "core/model/system.h"
 #include "testutil.h"

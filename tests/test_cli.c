@@ -6,7 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "core/io/config.h"
+#include "core/config/config.h"
 #include "core/io/h5.h"
 #include "testutil.h"
 

@@ -1,8 +1,8 @@
-/* tests/test_config.c: the configuration reader (core/io/config.c): presets, canonical text, --set
+/* tests/test_config.c: the configuration reader (core/config/config_read.c): presets, canonical text, --set
  * overrides, and a table of malformed inputs that must each be refused with a precise message. */
 #include "testutil.h"
 
-#include "core/io/config.h"
+#include "core/config/config.h"
 
 #define NAME "t.cfg"
 

@@ -1,4 +1,4 @@
-/* tests/test_h5.c: the HDF5 layer (core/io/h5.c): round trips of every type and rank, row-block
+/* tests/test_h5.c: the HDF5 layer (core/io/h5_write.c): round trips of every type and rank, row-block
  * matrices, appendable series, the atomic commit, and files that must be refused (missing, not HDF5,
  * truncated, corrupt, uncommitted, wrong shape), each with a message naming the file. */
 #include "testutil.h"

@@ -3,6 +3,7 @@
  * a power of two commutes with every rounding), a converged one is linear, the MVM reconstructor is the
  * stored matrix's own apply (core/solve/mvm.h), and none is zero. */
 #include "core/build/mvm_build.h"
+#include "core/model/params.h"
 #include "core/model/reconstructor.h"
 #include "testutil.h"
 
@@ -40,7 +41,9 @@ static void check_homogeneous(int kind)
     setup(&f, 1, set);
     const int64_t ns = f.sys->nslopes, na = f.sys->nact;
     wt_reconstructor *r;
-    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, kind, -1, &r), WT_OK);
+    wt_reconstructor_params rp;
+    wt_reconstructor_params_from_config(f.cfg, kind, -1, &rp);
+    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, kind, &rp, &r), WT_OK);
     double *s = malloc(ns * sizeof *s), *s2 = malloc(ns * sizeof *s2), *a = malloc(na * sizeof *a),
            *a2 = malloc(na * sizeof *a2);
     tu_randn(s, ns, 3);
@@ -72,7 +75,9 @@ START_TEST(test_pcg3_converged_linear)
     setup(&f, 2, set);
     const int64_t ns = f.sys->nslopes, na = f.sys->nact;
     wt_reconstructor *r;
-    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_PCG3, 3000, &r), WT_OK);
+    wt_reconstructor_params rp;
+    wt_reconstructor_params_from_config(f.cfg, WT_RECON_PCG3, 3000, &rp);
+    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_PCG3, &rp, &r), WT_OK);
     double *s1 = malloc(ns * sizeof *s1), *s2 = malloc(ns * sizeof *s2), *s3 = malloc(ns * sizeof *s3),
            *a1 = malloc(na * sizeof *a1), *a2 = malloc(na * sizeof *a2), *a3 = malloc(na * sizeof *a3);
     tu_randn(s1, ns, 4);
@@ -101,7 +106,7 @@ START_TEST(test_mvm_and_none)
     ck_assert_int_eq(wt_mvm_build_variant(f.ctx, f.sys, f.cfg, "pcg3", NULL, &m), WT_OK);
     wt_reconstructor *r, *z;
     ck_assert_int_eq(wt_reconstructor_alloc_mvm(f.ctx, f.sys, m, &r), WT_OK);
-    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_NONE, -1, &z), WT_OK);
+    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_NONE, NULL, &z), WT_OK);
     double *s = malloc(ns * sizeof *s), *a = malloc(na * sizeof *a);
     float *sf = malloc(ns * sizeof *sf), *af = malloc(na * sizeof *af);
     tu_randn(s, ns, 6);

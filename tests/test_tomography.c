@@ -1,6 +1,7 @@
 /* tests/test_tomography.c: the MAP normal operator, its right-hand side, the modified Jacobi diagonal,
  * (P)CG against a direct dense solve, the fitting step, and the E-ELT system sizes (SPEC §1, §5, §6). */
 #include <lapacke.h>
+#include <string.h>
 
 #include "core/model/fitting.h"
 #include "core/model/system.h"
@@ -172,6 +173,42 @@ START_TEST(test_normal_operator_consistency)
         free(c), free(c2), free(y), free(y2), free(s), free(as), free(b);
         teardown(&f);
     }
+}
+END_TEST
+
+/* Const operator, caller-owned workspaces: two threads applying one operator at once, each with its
+ * own wt_tomography_work, give bit for bit what one caller gets (a shared scratch buffer would mix the
+ * two inputs' intermediate layers and slopes within the 1000 applies). */
+START_TEST(test_apply_two_threads_one_operator)
+{
+    fixture f;
+    setup(&f, DEMO, 1, 0, NULL);
+    const int64_t n = wt_tomography_nunknowns(f.t);
+    enum { REPS = 500 };
+    double *c[2], *ref[2], *got[2];
+    for (int k = 0; k < 2; k++) {
+        c[k] = malloc(n * sizeof *c[k]), ref[k] = calloc(n, sizeof *ref[k]), got[k] = calloc(n, sizeof *got[k]);
+        tu_randn(c[k], n, 31 + k);
+        wt_tomography_apply(f.t, 1.0, c[k], ref[k]);
+    }
+    wt_tomography_work *w[2];
+    for (int k = 0; k < 2; k++) ck_assert_int_eq(wt_tomography_work_alloc(f.t, &w[k]), WT_OK);
+    const wt_tomography *ct = f.t;
+    int bad = 0;
+#pragma omp parallel for num_threads(2) schedule(static, 1) reduction(+ : bad)
+    for (int k = 0; k < 2; k++)
+        for (int r = 0; r < REPS; r++) {
+            memset(got[k], 0, (size_t)n * sizeof *got[k]);
+            wt_tomography_apply_ws(ct, w[k], 1.0, c[k], got[k]);
+            bad += memcmp(got[k], ref[k], (size_t)n * sizeof *got[k]) != 0;
+        }
+    ck_assert_int_eq(bad, 0);
+    for (int k = 0; k < 2; k++) {
+        wt_tomography_work_free(w[k]);
+        free(c[k]), free(ref[k]), free(got[k]);
+    }
+    wt_tomography_work_free(NULL);
+    teardown(&f);
 }
 END_TEST
 
@@ -482,6 +519,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_eelt_sizes);
     tcase_add_test(tc, test_ngs_lowrank_preconditioner);
     tcase_add_test(tc, test_normal_operator_consistency);
+    tcase_add_test(tc, test_apply_two_threads_one_operator);
     tcase_add_test(tc, test_pcg_matches_dense_solve);
     tcase_add_test(tc, test_jacobi_beats_cg);
     tcase_add_test(tc, test_jacobi_probing_is_exact);

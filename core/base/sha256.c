@@ -47,7 +47,7 @@ void wt_sha256(const void *data, size_t len, uint8_t digest[32])
     tail[n] = 0x80;
     size_t tl = n + 1 + 8 <= 64 ? 64 : 128;
     uint64_t bits = (uint64_t)len * 8;
-    for (int i = 0; i < 8; i++) tail[tl - 1 - i] = (uint8_t)(bits >> (8 * i));
+    for (int i = 0; i < 8; i++) tail[tl - 1 - (size_t)i] = (uint8_t)(bits >> (8 * i));
     block(h, tail);
     if (tl == 128) block(h, tail + 64);
     for (int i = 0; i < 8; i++) {

@@ -15,36 +15,6 @@
 #include "../model/params.h"
 #include "../model/reconstructor.h"
 
-void wt_mvm_options_default(wt_mvm_options *opt)
-{
-    memset(opt, 0, sizeof *opt);
-    opt->commands = WT_MVM_LAYER_VALUES;
-    opt->block = 256;
-}
-
-int wt_mvm_priv_check_budget(wt_context *ctx, const wt_mvm_options *opt, double *peak, const char *phase,
-                             double bytes, const char *detail)
-{
-    if (bytes > *peak) *peak = bytes;
-    double budget = opt ? opt->memory_budget : 0.0;
-    if (budget > 0.0 && bytes > budget)
-        return WT_ERROR(ctx, WT_ERR_NOMEM,
-                        "mvm: %s needs an estimated %.0f bytes (%.2f GB; %s) but only %.0f bytes (%.2f GB) are "
-                        "available to the build",
-                        phase, bytes, bytes / 1e9, detail, budget, budget / 1e9);
-    return WT_OK;
-}
-
-size_t wt_mvm_priv_wavelet_work(const wt_tomography *t)
-{
-    size_t ws = 0;
-    for (int l = 0; l < wt_tomography_nlayers(t); l++) {
-        size_t s = wt_wavelet_work_size(wt_tomography_wavelet(t, l));
-        if (s > ws) ws = s;
-    }
-    return ws;
-}
-
 /* ---- command maps E ------------------------------------------------------------------------------ */
 
 /* The operators of one evaluation direction in fitting_operators: H_j, P_j and the products formed

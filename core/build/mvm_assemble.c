@@ -1,5 +1,5 @@
 /* core/build/mvm_assemble.c: the sparse Ã = Γ P W⁻¹ of the MVM builder (SPEC §9, §7; paper eq. eqn_lse):
- * Γ P over all sensors and layers, the wavelet basis templates that give every column of W⁻¹, and the
+ * the builder's options and memory budget, Γ P over all sensors and layers, the wavelet basis templates that give every column of W⁻¹, and the
  * parallel two-pass CSC construction that core/build/mvm_normal.c reuses for G = Lᵀ Ã_LGS and N. */
 #include "mvm_private.h"
 
@@ -7,6 +7,39 @@
 #include <string.h>
 
 #include "../op/projection.h"
+
+/* ---- options, memory budget, workspace sizes: the builder's bottom layer (mvm.c and mvm_normal.c
+ * call these; this file calls neither of them) ------------------------------------------------------ */
+
+void wt_mvm_options_default(wt_mvm_options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    opt->commands = WT_MVM_LAYER_VALUES;
+    opt->block = 256;
+}
+
+int wt_mvm_priv_check_budget(wt_context *ctx, const wt_mvm_options *opt, double *peak, const char *phase,
+                             double bytes, const char *detail)
+{
+    if (bytes > *peak) *peak = bytes;
+    double budget = opt ? opt->memory_budget : 0.0;
+    if (budget > 0.0 && bytes > budget)
+        return WT_ERROR(ctx, WT_ERR_NOMEM,
+                        "mvm: %s needs an estimated %.0f bytes (%.2f GB; %s) but only %.0f bytes (%.2f GB) are "
+                        "available to the build",
+                        phase, bytes, bytes / 1e9, detail, budget, budget / 1e9);
+    return WT_OK;
+}
+
+size_t wt_mvm_priv_wavelet_work(const wt_tomography *t)
+{
+    size_t ws = 0;
+    for (int l = 0; l < wt_tomography_nlayers(t); l++) {
+        size_t s = wt_wavelet_work_size(wt_tomography_wavelet(t, l));
+        if (s > ws) ws = s;
+    }
+    return ws;
+}
 
 /* ---- wavelet basis templates ------------------------------------------------------------------
  * All basis functions W⁻¹ e_λ of one layer, level and orientation are periodic shifts, by 2^level grid

@@ -1,4 +1,4 @@
-/* core/build/mvm_private.h: what the two files of the MVM builder share (SPEC §9; see mvm.h).
+/* core/build/mvm_private.h: what the three files of the MVM builder share (SPEC §9; see mvm.h).
  *
  * Private to core/build/mvm.c (the command maps E, R and RÂ), core/build/mvm_assemble.c (Γ P, the
  * wavelet basis templates, the column-by-column construction of Ã) and core/build/mvm_normal.c (N and
@@ -37,6 +37,8 @@ static inline double wt_mvm_priv_sparse_bytes(int64_t nnz, int64_t ncol)
     return 16.0 * (double)nnz + 8.0 * (double)(ncol + 1);
 }
 
+/* ---- mvm_assemble.c: the bottom of the builder (calls go one way: mvm_assemble ← mvm_normal ← mvm) -- */
+
 /* Raise *peak to bytes, then refuse with WT_ERR_NOMEM (naming phase, bytes, detail and the budget)
  * when bytes exceeds opt->memory_budget > 0: called before each large allocation. */
 int wt_mvm_priv_check_budget(wt_context *ctx, const wt_mvm_options *opt, double *peak, const char *phase,
@@ -45,12 +47,14 @@ int wt_mvm_priv_check_budget(wt_context *ctx, const wt_mvm_options *opt, double 
 /* The largest wavelet workspace (doubles) over the tomography's layers. */
 size_t wt_mvm_priv_wavelet_work(const wt_tomography *t);
 
+/* ---- mvm_normal.c ----------------------------------------------------------------------------------- */
+
 /* Γ P (nslopes x nunknowns, CSC) kept by the normal object: the builder maps layers to slopes with it. */
 const wt_sparse *wt_mvm_priv_normal_gp(const wt_mvm_normal *nm);
 /* CHOLMOD's peak allocation so far [bytes] (it grows with the block solves). */
 double wt_mvm_priv_normal_cholmod_peak(const wt_mvm_normal *nm);
 
-/* ---- mvm_assemble.c -------------------------------------------------------------------------------- */
+/* ---- mvm_assemble.c: Γ P, the basis templates, the column construction ------------------------------ */
 
 /* Γ P: nslopes x n (layer points in the order of the coefficients), rows in system slope order. */
 int wt_mvm_priv_assemble_gp(wt_context *ctx, wt_tomography *t, wt_sparse **out);

@@ -1,8 +1,11 @@
-/* core/io/h5_private.h: helpers shared by the HDF5 writer (h5.c, with its matrices and series in
- * h5_stream.c) and reader (h5_read.c).
+/* core/io/h5_private.h: helpers shared by the HDF5 files: h5_common.c (the plumbing: errors, types,
+ * properties, attributes, checks of a new dataset) is called by the reader (h5_read.c), the row-block
+ * matrices and series (h5_stream.c) and the atomic writer (h5_write.c, which closes the matrices and series
+ * still open at commit through a function pointer, wt_h5_priv_piece); calls go one way:
+ * h5_common ← h5_write ← h5_stream, h5_common ← h5_read, h5_temp ← h5_write.
  *
  * Private to core/io/h5*.c: not installed and included by nothing else, so hdf5.h stays inside the
- * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5.c and
+ * h5 module (SPEC §9 "HDF5 output"). Of the handle structs only the writer's is here (h5_write.c and
  * h5_stream.c both reach into it); each other one lives in the one file that uses it. Error convention
  * of all three files: every public call brackets its HDF5 calls with wt_h5_priv_quiet_on/off (HDF5's
  * automatic stack printing off inside, restored on return) and folds HDF5's innermost error
@@ -83,7 +86,21 @@ hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset);
 hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
                               hsize_t *chunk);
 
-/* ---- the writer (h5.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
+/* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt; < 0 on
+ * failure. The string version stores a fixed-length UTF-8 string. */
+herr_t wt_h5_priv_put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value);
+herr_t wt_h5_priv_put_attr_string(hid_t obj, const char *name, const char *value);
+
+/* ---- the writer (h5_write.c) and its row-block matrices and series (h5_stream.c) ---------------------- */
+
+/* A dataset written piece by piece (h5_stream.c's matrices and series), open in its writer until it is
+ * closed or the writer commits/aborts. The writer knows only this header, so it closes what is open
+ * through `close` without calling into h5_stream.c: calls go one way, h5_stream → h5_write → h5_common. */
+typedef struct wt_h5_priv_piece {
+    struct wt_h5_priv_piece *next;
+    /* unlink from the writer, close (flushing cached chunks), free; check: refuse an unfinished piece */
+    int (*close)(struct wt_h5_priv_piece *p, int check);
+} wt_h5_priv_piece;
 
 struct wt_h5_writer {
     wt_context *ctx;
@@ -93,9 +110,12 @@ struct wt_h5_writer {
     int temp_slot; /* its slot in the signal-time registry (h5_temp.c), -1 if none */
     int status;  /* first failure; commit refuses when < 0 */
     char first_error[512];
-    wt_h5_matrix *matrices; /* still open, closed by commit/abort */
-    wt_h5_series *series;
+    wt_h5_priv_piece *open; /* matrices and series still open, closed by commit/abort */
 };
+
+/* h5_common.c: put p at the head of w's open pieces / take it out (no-op when absent). */
+void wt_h5_priv_piece_link(wt_h5_writer *w, wt_h5_priv_piece *p);
+void wt_h5_priv_piece_unlink(wt_h5_writer *w, wt_h5_priv_piece *p);
 
 /* h5_temp.c: the temporaries unlinked on SIGINT/SIGTERM; register returns a slot (-1: table full). */
 int wt_h5_priv_temp_register(const char *path);
@@ -103,7 +123,7 @@ void wt_h5_priv_temp_unregister(int slot);
 /* Remove "TARGET.tmp-<pid>" files of processes that no longer exist. */
 void wt_h5_priv_remove_stale(const char *target);
 
-/* Remember st as the writer's first failure (with the context's message) when it is one; returns st. */
+/* h5_common.c: remember st as the writer's first failure (with the context's message) when it is one; returns st. */
 int wt_h5_priv_poison(wt_h5_writer *w, int st);
 
 /* Body of the public writer calls: quiet HDF5 around the work; the writer remembers its first failure. */
@@ -115,16 +135,11 @@ int wt_h5_priv_poison(wt_h5_writer *w, int st);
         return wt_h5_priv_poison((writer), st); \
     } while (0)
 
-/* A new numeric dataset's name and documentation (units required when need_units). */
+/* h5_common.c: a new numeric dataset's name and documentation (units required when need_units). */
 int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units);
 /* Known element types, and no float data into an integer dataset. */
 int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt);
 /* The units (when not NULL) and description attributes of obj. */
 int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc);
-
-/* Unlink from the writer, close (flushing cached chunks), free. check: refuse unwritten rows. */
-int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check);
-/* Unlink from the writer, close, free. */
-int wt_h5_priv_series_close(wt_h5_series *s);
 
 #endif

@@ -1,7 +1,7 @@
 /* core/io/h5_read.c: the checked HDF5 reader: open, shapes, whole datasets, row blocks, scalars, attributes.
  *
  * Implements the reading side of SPEC §9: a file is accepted only when it is HDF5, opens whole and
- * carries the root attribute "complete" = 1 that only a writer's commit (h5.c) sets, so a truncated
+ * carries the root attribute "complete" = 1 that only a writer's commit (h5_write.c) sets, so a truncated
  * file or a copied temporary is refused; every dataset is checked against the shape and element type
  * the caller expects, and a Fletcher32 checksum failure is an error rather than a wrong number.
  * HDF5's printing is off during every call (wt_h5_priv_quiet_on/off, see h5_private.h).

@@ -1,7 +1,8 @@
-/* core/io/h5_stream.c: the HDF5 datasets written piece by piece through the atomic writer of h5.c:
+/* core/io/h5_stream.c: the HDF5 datasets written piece by piece through the atomic writer of h5_write.c
+ * (registered in it as wt_h5_priv_piece, which it closes at commit/abort without calling this file):
  * row-block matrices (R and RÂ of SPEC §9, written a block of rows at a time, a matrix with unwritten
  * rows refused at commit) and appendable series (the simulator's telemetry, one frame per call).
- * Same conventions as h5.c (h5_private.h): every public call is a WRITER_CALL, so HDF5 is quiet
+ * Same conventions as h5_write.c (h5_private.h): every public call is a WRITER_CALL, so HDF5 is quiet
  * inside and the writer remembers its first failure.
  */
 #include "h5_private.h"
@@ -10,21 +11,30 @@
 #define PROBE_FRAMES ((hsize_t)1 << 24)      /* stands for "many frames" when sizing series chunks */
 
 struct wt_h5_matrix {
+    wt_h5_priv_piece piece; /* first: the writer's handle on it */
     wt_h5_writer *w;
     hid_t dset;
     char *name;
     int64_t rows, cols, ndone;
     uint8_t *done; /* rows written: commit refuses a matrix with holes */
-    wt_h5_matrix *next;
 };
 
 struct wt_h5_series {
+    wt_h5_priv_piece piece; /* first: the writer's handle on it */
     wt_h5_writer *w;
     hid_t dset;
     char *name;
     int64_t n, len;
-    wt_h5_series *next;
 };
+
+static int matrix_close(wt_h5_matrix *m, int check);
+static int series_close(wt_h5_series *s);
+static int matrix_piece_close(wt_h5_priv_piece *p, int check) { return matrix_close((wt_h5_matrix *)p, check); }
+static int series_piece_close(wt_h5_priv_piece *p, int check)
+{
+    (void)check; /* a series is complete at any length */
+    return series_close((wt_h5_series *)p);
+}
 
 /* Float data into an integer dataset loses the fraction silently in HDF5: refuse it. */
 static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, const void *data)
@@ -74,8 +84,8 @@ static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
         (m->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, dapl)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create matrix '%s' (H5Dcreate2)", w->target, name);
     WT_TRY(wt_h5_priv_set_doc(w, m->dset, name, units, desc));
-    m->next = w->matrices;
-    w->matrices = m;
+    m->piece.close = matrix_piece_close;
+    wt_h5_priv_piece_link(w, &m->piece);
     *out = m;
     m = NULL;
 fail:
@@ -129,15 +139,11 @@ int wt_h5_matrix_write_rows(wt_h5_matrix *m, int64_t row0, int64_t nrows, int me
     WRITER_CALL(m, m->w, matrix_write_impl(m, row0, nrows, mem_type, data));
 }
 
-int wt_h5_priv_matrix_close(wt_h5_matrix *m, int check)
+static int matrix_close(wt_h5_matrix *m, int check)
 {
     wt_h5_writer *w = m->w;
     int st = WT_OK;
-    for (wt_h5_matrix **p = &w->matrices; *p; p = &(*p)->next)
-        if (*p == m) {
-            *p = m->next;
-            break;
-        }
+    wt_h5_priv_piece_unlink(w, &m->piece);
     if (check && m->ndone < m->rows) {
         int64_t first = 0;
         while (m->done[first]) first++;
@@ -158,7 +164,7 @@ int wt_h5_matrix_close(wt_h5_matrix *m)
     int st;
     if (!m) return WT_OK;
     wt_h5_writer *w = m->w;
-    QUIET(wt_h5_priv_matrix_close(m, 1));
+    QUIET(matrix_close(m, 1));
     return wt_h5_priv_poison(w, st);
 }
 
@@ -190,8 +196,8 @@ static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
         (s->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create series '%s' (H5Dcreate2)", w->target, name);
     WT_TRY(wt_h5_priv_set_doc(w, s->dset, name, units, desc));
-    s->next = w->series;
-    w->series = s;
+    s->piece.close = series_piece_close;
+    wt_h5_priv_piece_link(w, &s->piece);
     *out = s;
     s = NULL;
 fail:
@@ -242,15 +248,11 @@ int wt_h5_series_append(wt_h5_series *s, int mem_type, const void *data)
 
 int64_t wt_h5_series_length(const wt_h5_series *s) { return s ? s->len : 0; }
 
-int wt_h5_priv_series_close(wt_h5_series *s)
+static int series_close(wt_h5_series *s)
 {
     wt_h5_writer *w = s->w;
     int st = WT_OK;
-    for (wt_h5_series **p = &w->series; *p; p = &(*p)->next)
-        if (*p == s) {
-            *p = s->next;
-            break;
-        }
+    wt_h5_priv_piece_unlink(w, &s->piece);
     if (H5Dclose(s->dset) < 0)
         st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing series '%s' failed (disk full?)", w->target, s->name);
     wt_free(w->ctx, s->name);
@@ -263,6 +265,6 @@ int wt_h5_series_close(wt_h5_series *s)
     int st;
     if (!s) return WT_OK;
     wt_h5_writer *w = s->w;
-    QUIET(wt_h5_priv_series_close(s));
+    QUIET(series_close(s));
     return wt_h5_priv_poison(w, st);
 }

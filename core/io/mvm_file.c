@@ -7,7 +7,7 @@
 
 #include "../base/sha256.h"
 
-int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const float *Rm,
+int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, const float *Rm,
                       const float *RA, const wt_mvm_file_record *rec)
 {
     int st;
@@ -20,20 +20,20 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64
         return st;
     for (int64_t r = 0; r < nact; r += block) {
         int64_t nr = nact - r < block ? nact - r : block;
-        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * nslopes)) < 0) return st;
+        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * (size_t)nslopes)) < 0) return st;
     }
     int64_t d[2] = {nact, nact};
     if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, RA, "",
                           "R A^: R times the DM-to-slope interaction, so that R s_ol = R s + RA a (POLC)")) < 0)
         return st;
-    if ((st = wt_h5_attr_write_string(w, "/", "config_sha256", cfg->matrix_sha256)) < 0) return st;
-    if ((st = wt_h5_write_string(w, "matrix_config", cfg->matrix_text,
+    if ((st = wt_h5_attr_write_string(w, "/", "config_sha256", sys->sha256)) < 0) return st;
+    if ((st = wt_h5_write_string(w, "matrix_config", sys->text,
                                  "the configuration keys that define R (their SHA-256 is the root attribute "
                                  "config_sha256)")) < 0)
         return st;
     if ((st = wt_h5_attr_write_string(w, "/", "variant", rec->variant)) < 0) return st;
-    if ((st = wt_h5_attr_write_double(w, "/", "alpha", cfg->alpha)) < 0) return st;
-    if ((st = wt_h5_attr_write_double(w, "/", "tau", cfg->tau)) < 0) return st;
+    if ((st = wt_h5_attr_write_double(w, "/", "alpha", sys->alpha)) < 0) return st;
+    if ((st = wt_h5_attr_write_double(w, "/", "tau", sys->tau)) < 0) return st;
     if ((st = wt_h5_attr_write_string(w, "/", "cholmod_version", rec->cholmod_version)) < 0) return st;
     if ((st = wt_h5_attr_write_string(w, "/", "openblas_config", openblas_get_config())) < 0) return st;
     if ((st = wt_h5_write_int64(w, "build/unknowns", rec->nunknowns, "", "wavelet coefficients of the MAP problem")) < 0)
@@ -52,7 +52,7 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64
                               "fill-reducing ordering CHOLMOD chose");
 }
 
-int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, float *R,
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, float *R,
                      float *RA, char *variant_out)
 {
     int st;
@@ -60,11 +60,11 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, in
     char *hash = NULL, *variant = NULL, *text = NULL, own[65];
     if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
     if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
-    if (strcmp(hash, cfg->matrix_sha256) != 0) {
+    if (strcmp(hash, sys->sha256) != 0) {
         st = WT_ERROR(ctx, WT_ERR_FORMAT,
                       "%s: the matrix was built for another system (config_sha256 %.12s…, this configuration %.12s…); "
                       "rebuild it with `wavetomo build` for %s",
-                      path, hash, cfg->matrix_sha256, cfg->path);
+                      path, hash, sys->sha256, sys->path);
         goto fail;
     }
     /* provenance (issue 10, J): the stored configuration text must still give the stored hash (an edited
@@ -86,8 +86,8 @@ int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, in
     int64_t er[2] = {nact, nslopes}, ea[2] = {nact, nact};
     if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
     if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * nslopes)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * nact)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * (size_t)nslopes)) < 0) goto fail;
+    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * (size_t)nact)) < 0) goto fail;
     strncpy(variant_out, variant, 15);
     variant_out[15] = '\0';
 fail:

@@ -12,8 +12,16 @@
 #ifndef WT_MVM_FILE_H
 #define WT_MVM_FILE_H
 
-#include "config.h"
 #include "h5.h"
+
+/* The identity of the system a matrix is built for, as plain data (the caller copies it from its
+ * configuration: wt_config.matrix_sha256, .matrix_text, .path, .alpha, .tau). */
+typedef struct wt_mvm_file_system {
+    const char *sha256; /* SHA-256 (hex) of the configuration keys that can change R */
+    const char *text;   /* that canonical text (written only) */
+    const char *path;   /* the configuration file, named in messages */
+    double alpha, tau;  /* prior weight α, elongation weight τ of the noise model (written only) */
+} wt_mvm_file_system;
 
 /* What is written beside the matrices: the variant and the record of the build. */
 typedef struct wt_mvm_file_record {
@@ -27,16 +35,16 @@ typedef struct wt_mvm_file_record {
     const char *cholmod_version; /* the CHOLMOD that factorised */
 } wt_mvm_file_record;
 
-/* Write R (nact x nslopes) and RA (nact x nact), float32 row-major, the identity of cfg and the record
+/* Write R (nact x nslopes) and RA (nact x nact), float32 row-major, the identity sys and the record
  * into an open writer (the caller adds provenance and layout and commits). */
-int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const float *R,
+int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, const float *R,
                       const float *RA, const wt_mvm_file_record *rec);
 
-/* Read MATRIX.h5 for a system of nact actuators and nslopes slopes described by cfg into the caller's
+/* Read MATRIX.h5 for a system of nact actuators and nslopes slopes identified by sys into the caller's
  * R (nact * nslopes floats) and RA (nact * nact). Refuses (WT_ERR_FORMAT, naming the file) a matrix whose
- * config_sha256 differs from cfg->matrix_sha256, or whose shapes differ. variant_out: 16 bytes for the
+ * config_sha256 differs from sys->sha256, or whose shapes differ. variant_out: 16 bytes for the
  * stored variant. Allocates only transiently. */
-int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, float *R,
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, float *R,
                      float *RA, char *variant_out);
 
 #endif

@@ -30,3 +30,17 @@ wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *
                             .sampling = var->fit_sampling > 0 ? var->fit_sampling : 1};
     return fp;
 }
+
+void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int iterations, wt_reconstructor_params *par)
+{
+    memset(par, 0, sizeof *par);
+    par->warm_start = cfg->warm_start;
+    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) return;
+    const wt_recon_variant_config *v = kind == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9;
+    par->variant = v;
+    par->iterations = iterations >= 0 ? iterations : v->iterations;
+    par->tolerance = v->tolerance;
+    par->fit_iterations = v->fit_iterations;
+    wt_tomography_params_from_config(cfg, &par->tomography);
+    par->fitting = wt_fitting_params_from_variant(v);
+}

@@ -2,8 +2,6 @@
 #include "reconstructor.h"
 
 #include "../solve/mvm.h"
-#include "params.h"
-#include "../solve/mvm.h"
 
 #include <math.h>
 #include <string.h>
@@ -87,30 +85,29 @@ const char *wt_reconstructor_name(int kind)
     }
 }
 
-int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out)
+int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_reconstructor_params *par,
+                           wt_reconstructor **out)
 {
     int st = WT_OK;
     wt_reconstructor *r = NULL;
-    const wt_config *cfg = sys->cfg;
     *out = NULL;
     if (kind != WT_RECON_NONE && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9)
         return WT_ERROR(ctx, WT_ERR_INVALID, "unknown reconstructor kind %d", kind);
+    if (kind != WT_RECON_NONE && (!par || !par->variant))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "reconstructor %s without its parameters", wt_reconstructor_name(kind));
     WT_ALLOC(ctx, r, 1, "reconstructor");
     r->ctx = ctx;
     r->sys = sys;
     r->kind = kind;
-    r->warm = cfg->warm_start;
+    r->warm = par ? par->warm_start : 0;
     if (kind == WT_RECON_NONE) {
         *out = r;
         return WT_OK;
     }
-    const wt_recon_variant_config *v = kind == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9;
-    r->iterations = iterations >= 0 ? iterations : v->iterations;
-    r->tol = v->tolerance;
-    r->fit_iterations = v->fit_iterations;
-    wt_tomography_params tp;
-    wt_tomography_params_from_config(cfg, &tp);
-    WT_TRY(wt_tomography_alloc(ctx, sys, v, wt_reconstructor_name(kind), &tp, &r->tomo));
+    r->iterations = par->iterations;
+    r->tol = par->tolerance;
+    r->fit_iterations = par->fit_iterations;
+    WT_TRY(wt_tomography_alloc(ctx, sys, par->variant, wt_reconstructor_name(kind), &par->tomography, &r->tomo));
     int64_t n = wt_tomography_nunknowns(r->tomo);
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
@@ -119,8 +116,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int 
         WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
         WT_TRY(wt_reconstructor_actuator_points(ctx, r->tomo, r->act_index));
     } else {
-        wt_fitting_params fp = wt_fitting_params_from_variant(v);
-        WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &fp, &r->fit));
+        WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &par->fitting, &r->fit));
         WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
     }
     *out = r;

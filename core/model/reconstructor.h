@@ -27,8 +27,21 @@ typedef struct wt_reconstructor wt_reconstructor;
 int wt_reconstructor_kind(const char *name);
 const char *wt_reconstructor_name(int kind);
 
-/* iterations: ≥ 0 overrides the variant's (P)CG iteration count. */
-int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, int iterations, wt_reconstructor **out);
+/* What an iterative reconstructor uses, filled from a configuration by wt_reconstructor_params_from_config
+ * (core/model/params.c): the reconstructor reads no configuration. */
+typedef struct wt_reconstructor_params {
+    int warm_start;                         /* 1: each frame starts from the previous frame's solution */
+    int iterations;                         /* (P)CG iterations per frame */
+    double tolerance;                       /* relative residual to stop at [1]; 0: always `iterations` */
+    int fit_iterations;                     /* cg9: CG iterations of the fitting step */
+    const wt_recon_variant_config *variant; /* layers, grids, preconditioner (not owned; read at alloc only) */
+    wt_tomography_params tomography;        /* α, τ, wavelet, prior, profile */
+    wt_fitting_params fitting;              /* cg9: ε and the sampling of the fitting */
+} wt_reconstructor_params;
+
+/* kind WT_RECON_NONE, PCG3 or CG9 (par is not read for NONE except warm_start, and may then be NULL). */
+int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_reconstructor_params *par,
+                           wt_reconstructor **out);
 /* The MVM reconstructor around a matrix built for sys (not owned: it must outlive the reconstructor). */
 int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const struct wt_mvm *m, wt_reconstructor **out);
 void wt_reconstructor_free(wt_reconstructor *r);

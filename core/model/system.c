@@ -83,7 +83,7 @@ fail:
     return st;
 }
 
-_Static_assert(WT_DM_MAX == WT_MAX_DMS, "core/op/dm.h and core/io/config.h must agree on the DM count");
+_Static_assert(WT_DM_MAX == WT_MAX_DMS, "core/op/dm.h and core/config/config.h must agree on the DM count");
 
 int wt_system_alloc(wt_context *ctx, const wt_config *cfg, wt_system **out)
 {

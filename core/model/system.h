@@ -13,7 +13,7 @@
 #ifndef WT_SYSTEM_H
 #define WT_SYSTEM_H
 
-#include "../io/config.h"
+#include "../config/config.h"
 #include "../op/dm.h"
 #include "../op/grid.h"
 #include "../op/shack_hartmann.h"
@@ -40,8 +40,9 @@ typedef struct wt_sensor {
 
 typedef struct wt_system {
     wt_context *ctx;
-    const wt_config *cfg;       /* not owned; must outlive the system (for drivers and the loop: the
-                                   numerical objects take what they need in parameter structs) */
+    const wt_config *cfg;       /* not owned; must outlive the system (for the drivers and the config
+                                   side, params.c / loop_config.c: the numerical objects take what they
+                                   need in parameter structs) */
     const char *source;         /* the configuration file, for messages (cfg->path) */
     double diameter;            /* pupil diameter D [m] */
     double obstruction;         /* central obstruction, fraction of D */

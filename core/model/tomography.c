@@ -43,16 +43,22 @@ struct wt_tomography {
     double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
     int64_t ncg;              /* corner grid points */
     int nthreads;
-    double *phi;              /* n: spatial layers / adjoint sum */
-    double *acc;              /* WT_GROUPS x n adjoint accumulators */
     int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
-    double *phase;            /* S x ncg */
-    double *slopes;           /* nslopes */
-    double *weighted;         /* nslopes */
-    double *wwork;            /* nthreads x wsize wavelet workspace */
-    size_t wsize;
-    double *b;                /* n: right-hand side */
+    size_t wsize;             /* wavelet workspace per thread (doubles) */
+    wt_tomography_work *work; /* the object's own workspace: solve, set-up, the workspace-less applies */
     wt_pcg *pcg;
+};
+
+/* What one application of the operators writes (GSL's workspaces): the operator itself stays const. */
+struct wt_tomography_work {
+    wt_context *ctx;
+    double *phi;      /* n: spatial layers / adjoint sum */
+    double *acc;      /* WT_GROUPS x n adjoint accumulators */
+    double *phase;    /* S x ncg */
+    double *slopes;   /* nslopes */
+    double *weighted; /* nslopes */
+    double *wwork;    /* nthreads x wsize wavelet workspace */
+    double *b;        /* n: the applies' scratch, the solve's right-hand side */
 };
 
 static int thread_id(void)
@@ -287,18 +293,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     /* A parallel region costs a few µs on an idle machine and a scheduler time slice when a thread is
      * descheduled: below ~16k unknowns (an apply of well under 0.1 ms) threads do not pay. */
     t->nthreads = t->n < 16384 ? 1 : wt_context_threads(ctx);
-    WT_ALLOC(ctx, t->phi, t->n, "layer workspace");
-    WT_ALLOC(ctx, t->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
     {
         double cost[2 * WT_MAX_GS];
         for (int m = 0; m < t->S; m++) cost[m] = (double)sys->sensors[m].nslopes + 1.0;
         wt_vec_groups(t->S, cost, t->group);
     }
-    WT_ALLOC(ctx, t->phase, (size_t)t->S * t->ncg, "phase workspace");
-    WT_ALLOC(ctx, t->slopes, sys->nslopes, "slope workspace");
-    WT_ALLOC(ctx, t->weighted, sys->nslopes, "weighted slope workspace");
-    WT_ALLOC(ctx, t->wwork, (size_t)t->nthreads * t->wsize, "wavelet workspace");
-    WT_ALLOC(ctx, t->b, t->n, "right-hand side");
+    WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
     if (var->jacobi) WT_TRY(compute_jacobi(t));
     if (var->jacobi == 2) WT_TRY(compute_lowrank(t));
@@ -328,94 +328,135 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->lr_Y);
     wt_free(ctx, t->lr_K);
     wt_free(ctx, t->lr_w);
-    wt_free(ctx, t->phi);
-    wt_free(ctx, t->acc);
-    wt_free(ctx, t->phase);
-    wt_free(ctx, t->slopes);
-    wt_free(ctx, t->weighted);
-    wt_free(ctx, t->wwork);
-    wt_free(ctx, t->b);
+    wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
     wt_free(ctx, t);
 }
 
-/* phi = W⁻¹ c layer by layer */
-static void inverse_dwt(wt_tomography *t, const double *c, double *phi)
+int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
 {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-    for (int l = 0; l < t->L; l++)
-        wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], t->wwork + (size_t)thread_id() * t->wsize);
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    wt_tomography_work *w = NULL;
+    *out = NULL;
+    WT_ALLOC(ctx, w, 1, "tomography workspace");
+    w->ctx = ctx;
+    WT_ALLOC(ctx, w->phi, t->n, "layer workspace");
+    WT_ALLOC(ctx, w->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
+    WT_ALLOC(ctx, w->phase, (size_t)t->S * t->ncg, "phase workspace");
+    WT_ALLOC(ctx, w->slopes, t->sys->nslopes, "slope workspace");
+    WT_ALLOC(ctx, w->weighted, t->sys->nslopes, "weighted slope workspace");
+    WT_ALLOC(ctx, w->wwork, (size_t)t->nthreads * t->wsize, "wavelet workspace");
+    WT_ALLOC(ctx, w->b, t->n, "right-hand side");
+    *out = w;
+    return WT_OK;
+fail:
+    wt_tomography_work_free(w);
+    return st;
 }
 
-static void forward_dwt(wt_tomography *t, const double *phi, double *c)
+void wt_tomography_work_free(wt_tomography_work *w)
+{
+    if (!w) return;
+    wt_context *ctx = w->ctx;
+    wt_free(ctx, w->phi);
+    wt_free(ctx, w->acc);
+    wt_free(ctx, w->phase);
+    wt_free(ctx, w->slopes);
+    wt_free(ctx, w->weighted);
+    wt_free(ctx, w->wwork);
+    wt_free(ctx, w->b);
+    wt_free(ctx, w);
+}
+
+/* phi = W⁻¹ c layer by layer */
+static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
 {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
     for (int l = 0; l < t->L; l++)
-        wt_wavelet_forward(t->wav[l], phi + t->off[l], c + t->off[l], t->wwork + (size_t)thread_id() * t->wsize);
+        wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)thread_id() * t->wsize);
+}
+
+static void forward_dwt(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *c)
+{
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int l = 0; l < t->L; l++)
+        wt_wavelet_forward(t->wav[l], phi + t->off[l], c + t->off[l], w->wwork + (size_t)thread_id() * t->wsize);
 }
 
 /* slopes = Γ P φ for every sensor */
-static void forward_slopes(wt_tomography *t, const double *phi, double *slopes)
+static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
 {
     memset(slopes, 0, (size_t)t->sys->nslopes * sizeof *slopes);
-    wt_sensor_stack_apply(&t->stack, 1.0, phi, slopes, t->phase, t->nthreads);
+    wt_sensor_stack_apply(&t->stack, 1.0, phi, slopes, w->phase, t->nthreads);
 }
 
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m. Each accumulator group takes its sensors in index order and the
  * groups are summed in order, so the result does not depend on the threads (core/la/vec.h). */
-static void adjoint_slopes(wt_tomography *t, const double *slopes, double *c)
+static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const double *slopes, double *c)
 {
     const wt_system *sys = t->sys;
     const int64_t n = t->n;
 #pragma omp parallel for schedule(static) num_threads(t->nthreads)
     for (int g = 0; g < WT_GROUPS; g++) {
-        double *acc = t->acc + (size_t)g * n;
+        double *acc = w->acc + (size_t)g * n;
         memset(acc, 0, (size_t)n * sizeof *acc);
         for (int m = 0; m < t->S; m++) {
             if (t->group[m] != g) continue;
             const wt_sensor *s = &sys->sensors[m];
-            double *w = t->weighted + s->offset;
-            memset(w, 0, (size_t)s->nslopes * sizeof *w);
-            wt_noise_apply_weight(t->noise[m], 1.0, slopes + s->offset, w);
-            wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w, acc, t->phase + (size_t)m * t->ncg);
+            double *ws = w->weighted + s->offset;
+            memset(ws, 0, (size_t)s->nslopes * sizeof *ws);
+            wt_noise_apply_weight(t->noise[m], 1.0, slopes + s->offset, ws);
+            wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, ws, acc, w->phase + (size_t)m * t->ncg);
         }
     }
-    wt_vec_sum_groups(t->acc, n, t->phi);
-    forward_dwt(t, t->phi, c);
+    wt_vec_sum_groups(w->acc, n, w->phi);
+    forward_dwt(t, w, w->phi, c);
 }
 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
-static void normal(wt_tomography *t, const double *c, double *y)
+static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
-    inverse_dwt(t, c, t->phi);
-    forward_slopes(t, t->phi, t->slopes);
-    adjoint_slopes(t, t->slopes, y);
+    inverse_dwt(t, w, c, w->phi);
+    forward_slopes(t, w, w->phi, w->slopes);
+    adjoint_slopes(t, w, w->slopes, y);
     for (int64_t i = 0; i < t->n; i++) y[i] += t->alpha_d[i] * c[i];
 }
 
-/* The public forms accumulate (y ← y + α A x, as core/op does); t->b, the solve's right-hand side, is
- * their scratch (it is recomputed by every solve). */
+/* The public forms accumulate (y ← y + α A x, as core/op does); w->b is their scratch (in the object's
+ * own workspace it is also the solve's right-hand side, recomputed by every solve). */
+void wt_tomography_apply_ws(const wt_tomography *t, wt_tomography_work *w, double alpha, const double *c, double *y)
+{
+    normal(t, w, c, w->b);
+    for (int64_t i = 0; i < t->n; i++) y[i] += alpha * w->b[i];
+}
+
 void wt_tomography_apply(wt_tomography *t, double alpha, const double *c, double *y)
 {
-    normal(t, c, t->b);
-    for (int64_t i = 0; i < t->n; i++) y[i] += alpha * t->b[i];
+    wt_tomography_apply_ws(t, t->work, alpha, c, y);
 }
 
 void wt_tomography_rhs(wt_tomography *t, double alpha, const double *s, double *b)
 {
-    adjoint_slopes(t, s, t->b);
-    for (int64_t i = 0; i < t->n; i++) b[i] += alpha * t->b[i];
+    wt_tomography_work *w = t->work;
+    adjoint_slopes(t, w, s, w->b);
+    for (int64_t i = 0; i < t->n; i++) b[i] += alpha * w->b[i];
 }
 
 void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s)
 {
-    inverse_dwt(t, c, t->phi);
-    wt_sensor_stack_apply(&t->stack, alpha, t->phi, s, t->phase, t->nthreads);
+    wt_tomography_work *w = t->work;
+    inverse_dwt(t, w, c, w->phi);
+    wt_sensor_stack_apply(&t->stack, alpha, w->phi, s, w->phase, t->nthreads);
 }
 
-void wt_tomography_layers(wt_tomography *t, const double *c, double *phi) { inverse_dwt(t, c, phi); }
+void wt_tomography_layers(wt_tomography *t, const double *c, double *phi) { inverse_dwt(t, t->work, c, phi); }
 
-static void apply_cb(void *user, const double *x, double *y) { normal((wt_tomography *)user, x, y); }
+static void apply_cb(void *user, const double *x, double *y)
+{
+    const wt_tomography *t = user;
+    normal(t, t->work, x, y);
+}
 
 /* ---- NGS low-rank correction of the Jacobi preconditioner ----------------------------------------
  *
@@ -476,7 +517,7 @@ static int compute_lowrank(wt_tomography *t)
     WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
     for (int k = 0; k < q; k++) {
         e[o0 + k] = 1.0;
-        adjoint_slopes(t, e, R + (size_t)k * n);
+        adjoint_slopes(t, t->work, e, R + (size_t)k * n);
         /* column k of Ĉ⁻¹_NGS: the noise weight of each NGS sensor applied to e_k */
         memset(we, 0, (size_t)ns * sizeof *we);
         for (int m = first; m < sys->nsensors; m++) {
@@ -524,11 +565,12 @@ int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_it
     for (int64_t i = 0; i < t->sys->nslopes; i++)
         if (!isfinite(s[i]))
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
-    adjoint_slopes(t, s, t->b);
+    double *b = t->work->b;
+    adjoint_slopes(t, t->work, s, b);
     if (t->nlr > 0)
-        return wt_pcg_solve_precond(t->pcg, apply_cb, t, lowrank_precond, t, t->b, c,
+        return wt_pcg_solve_precond(t->pcg, apply_cb, t, lowrank_precond, t, b, c,
                                     max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
-    return wt_pcg_solve(t->pcg, apply_cb, t, t->jinv, t->b, c, max_iter >= 0 ? max_iter : t->iterations,
+    return wt_pcg_solve(t->pcg, apply_cb, t, t->jinv, b, c, max_iter >= 0 ? max_iter : t->iterations,
                         rtol >= 0 ? rtol : t->tol, history, res);
 }
 
@@ -677,15 +719,15 @@ int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag)
     WT_ALLOC(ctx, z, t->sys->nslopes, "probe slopes");
     for (int64_t i = 0; i < t->n; i++) {
         e[i] = 1.0;
-        inverse_dwt(t, e, phi);
+        inverse_dwt(t, t->work, e, phi);
         e[i] = 0.0;
-        forward_slopes(t, phi, t->slopes);
+        forward_slopes(t, t->work, phi, t->work->slopes);
         double q = 0.0;
         for (int m = 0; m < t->sys->nlgs; m++) {
             const wt_sensor *s = &t->sys->sensors[m];
             memset(z + s->offset, 0, (size_t)s->nslopes * sizeof *z);
-            wt_noise_apply_inv(t->noise[m], 1.0, t->slopes + s->offset, z + s->offset);
-            for (int k = 0; k < s->nslopes; k++) q += t->slopes[s->offset + k] * z[s->offset + k];
+            wt_noise_apply_inv(t->noise[m], 1.0, t->work->slopes + s->offset, z + s->offset);
+            for (int k = 0; k < s->nslopes; k++) q += t->work->slopes[s->offset + k] * z[s->offset + k];
         }
         diag[i] = q;
     }

@@ -17,8 +17,11 @@
  * images Ã_m e_λ with disjoint supports in slope space, so one application per colour gives every
  * entry, attributing each subaperture's 2x2 quadratic form to the nearest probe.
  *
- * Not thread-safe per object: apply and solve use workspace held in the object (they run OpenMP
- * regions inside). Set-up allocates; apply, rhs and solve allocate nothing.
+ * Workspaces (GSL's habit): wt_tomography_apply_ws takes a const operator and a caller-owned
+ * wt_tomography_work, so two threads with one workspace each can apply one operator at once. The other
+ * calls (solve, rhs, slopes, layers, the workspace-less apply) use the object's own workspace and are
+ * not thread-safe per object. All run OpenMP regions inside. Set-up and wt_tomography_work_alloc
+ * allocate; apply, rhs and solve allocate nothing.
  */
 #ifndef WT_TOMOGRAPHY_H
 #define WT_TOMOGRAPHY_H
@@ -74,9 +77,17 @@ const wt_system *wt_tomography_system(const wt_tomography *t);
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
 const double *wt_tomography_jacobi_inverse(const wt_tomography *t);
 
-/* The operators accumulate, y ← y + α A x, as core/op does (they use the object's workspace: one
- * object is not applied from two threads at once). */
-/* y ← y + α M c */
+/* What one application of M writes: one per concurrent caller. Allocates n (2 + WT_GROUPS) + S·ncg +
+ * 2 nslopes + nthreads·wsize doubles; _free(NULL) is a no-op. */
+typedef struct wt_tomography_work wt_tomography_work;
+int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out);
+void wt_tomography_work_free(wt_tomography_work *w);
+
+/* The operators accumulate, y ← y + α A x, as core/op does. */
+/* y ← y + α M c with the caller's workspace w (t is not modified; the result is bit-identical to
+ * wt_tomography_apply's) */
+void wt_tomography_apply_ws(const wt_tomography *t, wt_tomography_work *w, double alpha, const double *c, double *y);
+/* y ← y + α M c with the object's own workspace (one caller at a time) */
 void wt_tomography_apply(wt_tomography *t, double alpha, const double *c, double *y);
 /* s ← s + α Ã c: the model slopes of every sensor (system order) */
 void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s);

@@ -5,7 +5,6 @@
 #include <string.h>
 
 #include "../model/fitting.h"
-#include "../model/params.h"
 #include "../model/interaction.h"
 #include "../op/noise.h"
 #include "../op/projection.h"
@@ -18,7 +17,7 @@
 struct wt_loop {
     wt_context *ctx;
     const wt_system *sys;
-    const wt_config *cfg;
+    wt_loop_params par;
     wt_loop_options opt;
     wt_atmosphere *atm;
     wt_grid fine;                 /* fine simulation grid over the pupil */
@@ -65,27 +64,27 @@ static const uint8_t *los_mask(const wt_loop *lp, int i)
     return i < lp->sys->nsensors ? wt_wfs_fine_mask(lp->wfs[i]) : lp->pupil;
 }
 
-int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out)
+int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
+                         wt_loop **out)
 {
     int st = WT_OK;
-    const wt_config *cfg = sys->cfg;
     wt_loop *lp = NULL;
     *out = NULL;
     WT_ALLOC(ctx, lp, 1, "closed loop");
     lp->ctx = ctx;
     lp->sys = sys;
-    lp->cfg = cfg;
+    lp->par = *par;
     lp->opt = *opt;
-    lp->delay = cfg->delay;
-    lp->gain = cfg->gain;
+    lp->delay = par->delay;
+    lp->gain = par->gain;
     lp->nlos = sys->nsensors + sys->neval;
 
     /* fine grid: p points per subaperture, subaperture corners on fine points */
-    const int p = cfg->points_per_subaperture;
+    const int p = par->points_per_subaperture;
     lp->fine = wt_grid_centred(sys->n * p + 1, sys->d / p);
     lp->nfine = wt_grid_size(&lp->fine);
     WT_ALLOC(ctx, lp->pupil, lp->nfine, "pupil mask");
-    wt_pupil_mask_points(cfg->diameter, cfg->obstruction, &lp->fine, lp->pupil);
+    wt_pupil_mask_points(par->diameter, par->obstruction, &lp->fine, lp->pupil);
 
     /* atmosphere: one periodic screen size for all layers, twice the widest footprint */
     double thmax = 0.0;
@@ -94,27 +93,21 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
         los_direction(lp, i, &tx, &ty);
         thmax = fmax(thmax, hypot(tx, ty));
     }
-    double htop = cfg->layer_altitude[cfg->nlayers - 1];
+    wt_atmosphere_params ap = par->atmosphere;
+    double htop = ap.altitudes[ap.nlayers - 1];
     int n = 0;
-    WT_TRY(wt_atmosphere_recommend_size(ctx, cfg->diameter + 2.0 * htop * thmax + 2.0 * lp->fine.dx, lp->fine.dx, &n));
-    wt_atmosphere_params ap = {.nlayers = cfg->nlayers,
-                               .altitudes = cfg->layer_altitude,
-                               .fractions = cfg->layer_fraction,
-                               .wind_speed = cfg->wind_speed,
-                               .wind_direction = cfg->wind_direction,
-                               .r0 = cfg->r0,
-                               .L0 = cfg->L0,
-                               .n = n,
-                               .delta = lp->fine.dx,
-                               .seed = opt->seed,
-                               .no_subharmonics = 0};
+    WT_TRY(wt_atmosphere_recommend_size(ctx, par->diameter + 2.0 * htop * thmax + 2.0 * lp->fine.dx, lp->fine.dx, &n));
+    ap.n = n;
+    ap.delta = lp->fine.dx;
+    ap.seed = opt->seed;
+    ap.no_subharmonics = 0;
     WT_TRY(wt_atmosphere_alloc(ctx, &ap, &lp->atm));
 
     WT_ALLOC(ctx, lp->wfs, sys->nsensors, "truth sensors");
     WT_ALLOC(ctx, lp->noise, sys->nsensors, "truth noise");
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
-        WT_TRY(wt_wfs_alloc(ctx, cfg->diameter, cfg->obstruction, sys->n, sys->d, p, sys->valid,
+        WT_TRY(wt_wfs_alloc(ctx, par->diameter, par->obstruction, sys->n, sys->d, p, sys->valid,
                             s->kind == WT_SENSOR_LGS ? 0 : s->subapertures, &lp->wfs[m]));
         if (wt_wfs_nslopes(lp->wfs[m]) != s->nslopes) {
             st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: truth sensor has %d slopes, the model %d", s->name,
@@ -150,7 +143,7 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
         }
         WT_TRY(wt_reconstructor_alloc_mvm(ctx, sys, opt->mvm, &lp->rec));
     } else {
-        WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, opt->iterations, &lp->rec));
+        WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, &par->recon, &lp->rec));
     }
     WT_ALLOC(ctx, lp->ring, lp->delay + 1, "command history");
     for (int k = 0; k <= lp->delay; k++) WT_ALLOC(ctx, lp->ring[k], sys->nact, "command history");
@@ -167,8 +160,7 @@ int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *
     }
     lp->t = opt->first_frame;
     if (opt->perfect_fit > 0) {
-        wt_fitting_params fp = wt_fitting_params_from_variant(&cfg->cg9);
-        WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &lp->fit));
+        WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
         WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
     }
     *out = lp;
@@ -234,8 +226,8 @@ static void sense(wt_loop *lp, int i, long t, const double *o)
         wt_rng rng;
         wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
         wt_noise_sample(lp->noise[i], &rng, sl);
-        if (s->kind == WT_SENSOR_LGS && lp->cfg->lgs_tt_jitter > 0.0)
-            wt_wfs_add_tiptilt(lp->wfs[i], &rng, lp->cfg->lgs_tt_jitter, sl);
+        if (s->kind == WT_SENSOR_LGS && lp->par.lgs_tt_jitter > 0.0)
+            wt_wfs_add_tiptilt(lp->wfs[i], &rng, lp->par.lgs_tt_jitter, sl);
     }
 }
 
@@ -244,9 +236,9 @@ static void evaluate(wt_loop *lp)
 {
     const wt_system *sys = lp->sys;
     double fs = 0.0;
-    for (int j = 0; j < sys->neval; j++) fs += wt_strehl_marechal(lp->rms[j], lp->cfg->eval_wavelength);
+    for (int j = 0; j < sys->neval; j++) fs += wt_strehl_marechal(lp->rms[j], lp->par.eval_wavelength);
     lp->field_strehl = fs / sys->neval;
-    if (lp->t >= lp->cfg->settle_frames) wt_strehl_le_add(&lp->le, lp->rms, lp->cfg->eval_wavelength);
+    if (lp->t >= lp->par.settle_frames) wt_strehl_le_add(&lp->le, lp->rms, lp->par.eval_wavelength);
 }
 
 /* Instantaneous open loop (budget modes): the sensors see the turbulence of frame t with the DMs flat;
@@ -256,7 +248,7 @@ static int step_open_loop(wt_loop *lp)
 {
     const wt_system *sys = lp->sys;
     const long t = lp->t;
-    const double time = (double)t / lp->cfg->rate;
+    const double time = (double)t / lp->par.rate;
     const int64_t nf = lp->nfine;
     const int nsens = lp->opt.perfect_fit ? 0 : sys->nsensors;
     int err = WT_OK;
@@ -313,10 +305,9 @@ int wt_loop_step(wt_loop *lp)
 {
     if (lp->opt.open_loop) return step_open_loop(lp);
     const wt_system *sys = lp->sys;
-    const wt_config *cfg = lp->cfg;
     const int D1 = lp->delay + 1;
     const long t = lp->t;
-    const double time = (double)t / cfg->rate;
+    const double time = (double)t / lp->par.rate;
     const int64_t nf = lp->nfine;
     int st = WT_OK;
 

@@ -17,8 +17,10 @@
 #ifndef WT_LOOP_H
 #define WT_LOOP_H
 
+#include "../model/fitting.h"
 #include "../model/reconstructor.h"
 #include "../model/system.h"
+#include "atmosphere.h"
 #include "strehl.h"
 
 typedef struct wt_loop wt_loop;
@@ -46,7 +48,31 @@ typedef struct wt_loop_times {
     double atmosphere, sensors, reconstruction, fitting, control, evaluation;
 } wt_loop_times;
 
-/* Builds the atmosphere, truth sensors, reconstructor and control. sys (and its config) must outlive it. */
+/* What the loop uses of the system description, filled from a configuration by wt_loop_params_from_config
+ * (core/sim/loop_config.c): the loop reads no configuration. */
+typedef struct wt_loop_params {
+    double rate;                     /* frame rate [Hz] */
+    int delay;                       /* frames between measurement and application */
+    double gain;                     /* integrator gain g [1] */
+    int points_per_subaperture;      /* simulation grid points per LGS subaperture side */
+    double diameter;                 /* pupil diameter D [m] */
+    double obstruction;              /* central obstruction, fraction of D */
+    wt_atmosphere_params atmosphere; /* the profile (arrays not owned, read at alloc); the loop sets n, delta
+                                      * and seed */
+    double lgs_tt_jitter;            /* random LGS tip-tilt per axis per frame [rad rms] */
+    double eval_wavelength;          /* Strehl wavelength [m] */
+    int settle_frames;               /* frames left out of the long-exposure averages */
+    wt_reconstructor_params recon;   /* the iterative reconstructor of opt->recon (opt->iterations applied) */
+    wt_fitting_params perfect_fit;   /* the cg9 fitting of the perfect_fit budget mode */
+} wt_loop_params;
+
+/* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
+int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
+                         wt_loop **out);
+
+/* core/sim/loop_config.c, the configuration side of the loop: par from cfg and opt, and
+ * wt_loop_alloc_params with the parameters of sys's configuration (sys and its config must outlive it). */
+void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par);
 int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out);
 void wt_loop_free(wt_loop *lp);
 

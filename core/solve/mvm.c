@@ -18,8 +18,8 @@ int wt_mvm_alloc(wt_context *ctx, int commands, int64_t nact, int64_t nslopes, w
     m->commands = commands;
     m->nact = nact;
     m->nslopes = nslopes;
-    WT_ALLOC(ctx, m->R, (size_t)nact * nslopes, "the control matrix R");
-    WT_ALLOC(ctx, m->RA, (size_t)nact * nact, "the POLC matrix RA");
+    WT_ALLOC(ctx, m->R, (size_t)nact * (size_t)nslopes, "the control matrix R");
+    WT_ALLOC(ctx, m->RA, (size_t)nact * (size_t)nact, "the POLC matrix RA");
     *out = m;
     return WT_OK;
 fail:
@@ -42,6 +42,13 @@ void wt_mvm_apply(const wt_mvm *m, const float *s, const float *a, float *y)
     if (a) cblas_sgemv(CblasRowMajor, CblasNoTrans, na, na, 1.0f, m->RA, na, a, 1, 1.0f, y, 1);
 }
 
+/* The identity of cfg's system as the file layer wants it: plain data. */
+static wt_mvm_file_system file_system(const wt_config *cfg)
+{
+    return (wt_mvm_file_system){.sha256 = cfg->matrix_sha256, .text = cfg->matrix_text, .path = cfg->path,
+                                .alpha = cfg->alpha, .tau = cfg->tau};
+}
+
 int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, wt_mvm **out,
                 char *variant_out)
 {
@@ -50,7 +57,8 @@ int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t
     *out = NULL;
     int st = wt_mvm_alloc(ctx, WT_MVM_LAYER_VALUES, nact, nslopes, &m);
     if (st < 0) return st;
-    if ((st = wt_mvm_file_read(ctx, path, cfg, nact, nslopes, m->R, m->RA, variant)) < 0) {
+    wt_mvm_file_system fs = file_system(cfg);
+    if ((st = wt_mvm_file_read(ctx, path, &fs, nact, nslopes, m->R, m->RA, variant)) < 0) {
         wt_mvm_free(m);
         return st;
     }
@@ -71,5 +79,6 @@ int wt_mvm_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const c
                               .peak_estimate = s->peak_estimate,
                               .ordering = s->ordering,
                               .cholmod_version = wt_chol_version()};
-    return wt_mvm_file_write(w, cfg, m->nact, m->nslopes, m->R, m->RA, &rec);
+    wt_mvm_file_system fs = file_system(cfg);
+    return wt_mvm_file_write(w, &fs, m->nact, m->nslopes, m->R, m->RA, &rec);
 }

@@ -16,7 +16,7 @@
 #define WT_SOLVE_MVM_H
 
 #include "../base/base.h"
-#include "../io/config.h"
+#include "../config/config.h"
 #include "../io/h5.h"
 
 /* What the commands are: pcg3's layer values at the actuators, or cg9's exact fitting of the layers. */

@@ -1,12 +1,13 @@
-/* core/io/h5.c: the HDF5 layer's shared helpers and the atomic writer: datasets, attributes, groups,
- * commit (the row-block matrices and appendable series it also writes are in h5_stream.c).
+/* core/io/h5_write.c: the atomic HDF5 writer: datasets, attributes, groups, commit (the row-block matrices
+ * and appendable series it also writes are in h5_stream.c, registered here as open pieces that commit
+ * closes through a function pointer; the plumbing all h5 files share is h5_common.c).
  *
  * Implements the file side of SPEC §9 (R and RÂ as float32, written to a temporary and renamed so an
  * interrupted build never leaves a file that looks complete) and the telemetry/result files of the
  * simulator. Every public function brackets its HDF5 calls with quiet_on/quiet_off: HDF5's automatic
  * stack printing is off inside, restored on return, and the innermost HDF5 error description is
  * folded into our message (H5ERR). Writers remember their first failure and refuse to commit.
- * The reader is h5_read.c; what the three files share is declared in h5_private.h.
+ * The reader is h5_read.c; what the h5 files share is declared in h5_private.h.
  */
 #define _GNU_SOURCE /* memfd_create (discard_writes) */
 #include "h5_private.h"
@@ -21,221 +22,6 @@
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
-
-/* ---- HDF5 error handling ------------------------------------------------------------------------ */
-
-wt_h5_priv_quiet wt_h5_priv_quiet_on(void)
-{
-    wt_h5_priv_quiet q = {NULL, NULL};
-    H5Eget_auto2(H5E_DEFAULT, &q.func, &q.data);
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    return q;
-}
-
-void wt_h5_priv_quiet_off(wt_h5_priv_quiet q)
-{
-    H5Eclear2(H5E_DEFAULT);
-    H5Eset_auto2(H5E_DEFAULT, q.func, q.data);
-}
-
-static herr_t walk_cb(unsigned n, const H5E_error2_t *e, void *user)
-{
-    if (n == 0 && e->desc) /* upward walk: n == 0 is where the failure was detected */
-        snprintf((char *)user, 400, "%s: %s", e->func_name ? e->func_name : "?", e->desc);
-    return 0;
-}
-
-int wt_h5_priv_error(wt_context *ctx, int status, const char *src, int line, const char *fmt, ...)
-{
-    char msg[1200], detail[400] = "";
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, walk_cb, detail);
-    H5Eclear2(H5E_DEFAULT);
-    if (detail[0]) return wt_error_set(ctx, status, src, line, "%s [HDF5 %s]", msg, detail);
-    return wt_error_set(ctx, status, src, line, "%s", msg);
-}
-
-int wt_h5_priv_poison(wt_h5_writer *w, int st)
-{
-    if (st < 0 && w->status >= 0) {
-        w->status = st;
-        snprintf(w->first_error, sizeof w->first_error, "%s", wt_error_message(w->ctx));
-    }
-    return st;
-}
-
-void wt_h5_priv_drop(hid_t id)
-{
-    if (id < 0) return;
-    switch (H5Iget_type(id)) {
-    case H5I_FILE: H5Fclose(id); break;
-    case H5I_GROUP: H5Gclose(id); break;
-    case H5I_DATASET: H5Dclose(id); break;
-    case H5I_DATASPACE: H5Sclose(id); break;
-    case H5I_DATATYPE: H5Tclose(id); break;
-    case H5I_ATTR: H5Aclose(id); break;
-    case H5I_GENPROP_LST: H5Pclose(id); break;
-    default: break;
-    }
-}
-
-/* ---- types, names, files ------------------------------------------------------------------------ */
-
-int wt_h5_priv_type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_U8; }
-int wt_h5_priv_type_float(int t) { return t == WT_H5_F64 || t == WT_H5_F32; }
-
-const char *wt_h5_priv_type_name(int t)
-{
-    static const char *const names[] = {"?", "float64", "float32", "int32", "int64", "uint8"};
-    return wt_h5_priv_type_ok(t) ? names[t] : "?";
-}
-
-size_t wt_h5_priv_type_size(int t)
-{
-    static const size_t sizes[] = {0, 8, 4, 4, 8, 1};
-    return wt_h5_priv_type_ok(t) ? sizes[t] : 0;
-}
-
-hid_t wt_h5_priv_mem_type(int t)
-{
-    switch (t) {
-    case WT_H5_F64: return H5T_NATIVE_DOUBLE;
-    case WT_H5_F32: return H5T_NATIVE_FLOAT;
-    case WT_H5_I32: return H5T_NATIVE_INT32;
-    case WT_H5_I64: return H5T_NATIVE_INT64;
-    case WT_H5_U8: return H5T_NATIVE_UINT8;
-    default: return -1;
-    }
-}
-
-hid_t wt_h5_priv_file_type(int t)
-{
-    switch (t) {
-    case WT_H5_F64: return H5T_IEEE_F64LE;
-    case WT_H5_F32: return H5T_IEEE_F32LE;
-    case WT_H5_I32: return H5T_STD_I32LE;
-    case WT_H5_I64: return H5T_STD_I64LE;
-    case WT_H5_U8: return H5T_STD_U8LE;
-    default: return -1;
-    }
-}
-
-char *wt_h5_priv_dupstr(wt_context *ctx, const char *s)
-{
-    size_t n = strlen(s);
-    char *p = wt_malloc(ctx, n + 1, 1);
-    if (p) memcpy(p, s, n + 1);
-    return p;
-}
-
-/* 1 when every prefix of `name` is a link (so H5Lexists never sees a missing parent), else 0. */
-int wt_h5_priv_path_exists(hid_t file, const char *name)
-{
-    char buf[1024];
-    size_t n = strlen(name);
-    if (strcmp(name, "/") == 0) return 1;
-    if (n == 0 || n >= sizeof buf) return 0;
-    memcpy(buf, name, n + 1);
-    for (size_t i = 1; i <= n; i++) {
-        if (buf[i] != '/' && buf[i] != '\0') continue;
-        char c = buf[i];
-        buf[i] = '\0';
-        htri_t e = H5Lexists(file, buf, H5P_DEFAULT);
-        buf[i] = c;
-        if (e <= 0) {
-            H5Eclear2(H5E_DEFAULT);
-            return 0;
-        }
-    }
-    return 1;
-}
-
-/* Chunk dims: start from the whole dataset and shrink the leading dims (at most `nshrink` of them)
- * until a chunk holds at most `target` bytes, so a chunk is a band of whole rows whenever a row fits
- * (series pass nshrink = 1: a frame is never split, whatever its size). */
-static void choose_chunk(int rank, const hsize_t *dims, size_t elem, size_t target, int nshrink, hsize_t *chunk)
-{
-    for (int i = 0; i < rank; i++) chunk[i] = dims[i] > 0 ? dims[i] : 1;
-    for (int i = 0; i < nshrink; i++) {
-        hsize_t inner = elem;
-        for (int j = i + 1; j < rank; j++) inner *= chunk[j];
-        if (chunk[i] * inner <= target) break;
-        hsize_t fit = target / inner;
-        chunk[i] = fit > 0 ? fit : 1;
-        if (inner <= target) break;
-    }
-}
-
-/* Creation properties of a numeric dataset: chunked (see choose_chunk; `cdims` sizes the chunks) with
- * Fletcher32 when it holds data, contiguous when empty. Fill value 0 for partially written chunks. */
-hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_t target, int nshrink, int empty,
-                              hsize_t *chunk)
-{
-    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
-    if (dcpl < 0 || empty) return dcpl;
-    const int zero = 0;
-    choose_chunk(rank, cdims, elem, target, nshrink, chunk);
-    if (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_fletcher32(dcpl) < 0 ||
-        H5Pset_fill_value(dcpl, H5T_NATIVE_INT, &zero) < 0) {
-        H5Pclose(dcpl);
-        return -1;
-    }
-    return dcpl;
-}
-
-/* Metadata in the 1.8+ format (checksummed headers), strong close, file locks where supported. */
-hid_t wt_h5_priv_file_access(void)
-{
-    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
-    if (fapl < 0) return -1;
-    if (H5Pset_libver_bounds(fapl, H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0 ||
-        H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG) < 0 || H5Pset_file_locking(fapl, 1, 1) < 0) {
-        H5Pclose(fapl);
-        return -1;
-    }
-    return fapl;
-}
-
-hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset)
-{
-    hid_t t = H5Tcopy(H5T_C_S1);
-    if (t < 0) return -1;
-    if (H5Tset_size(t, len + 1) < 0 || H5Tset_strpad(t, H5T_STR_NULLTERM) < 0 || H5Tset_cset(t, cset) < 0) {
-        H5Tclose(t);
-        return -1;
-    }
-    return t;
-}
-
-/* ---- attributes --------------------------------------------------------------------------------- */
-
-/* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt. */
-static herr_t put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value)
-{
-    hid_t space = -1, a = -1;
-    herr_t r = -1;
-    htri_t e = H5Aexists(obj, name);
-    if (e < 0 || (e > 0 && H5Adelete(obj, name) < 0)) return -1;
-    if ((space = H5Screate(H5S_SCALAR)) < 0) goto out;
-    if ((a = H5Acreate2(obj, name, ft, space, H5P_DEFAULT, H5P_DEFAULT)) < 0) goto out;
-    r = H5Awrite(a, mt, value);
-out:
-    wt_h5_priv_drop(a);
-    wt_h5_priv_drop(space);
-    return r;
-}
-
-static herr_t put_attr_string(hid_t obj, const char *name, const char *value)
-{
-    hid_t t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8);
-    if (t < 0) return -1;
-    herr_t r = put_attr(obj, name, t, t, value);
-    H5Tclose(t);
-    return r;
-}
 
 /* ---- writability probe -------------------------------------------------------------------------- */
 
@@ -342,8 +128,7 @@ static void writer_destroy(wt_h5_writer *w, int remove_temp)
 {
     if (!w) return;
     if (remove_temp) discard_writes(w->file); /* the file is thrown away: nothing of it needs to reach the disk */
-    while (w->matrices) wt_h5_priv_matrix_close(w->matrices, 0);
-    while (w->series) wt_h5_priv_series_close(w->series);
+    while (w->open) w->open->close(w->open, 0);
     wt_h5_priv_drop(w->lcpl);
     wt_h5_priv_drop(w->file);
     if (remove_temp && w->created && w->temp) unlink(w->temp);
@@ -380,8 +165,8 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     if ((w->lcpl = H5Pcreate(H5P_LINK_CREATE)) < 0 || H5Pset_create_intermediate_group(w->lcpl, 1) < 0 ||
         H5Pset_char_encoding(w->lcpl, H5T_CSET_UTF8) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up link creation properties", path);
-    if (put_attr_string(w->file, "creator", "wavetomo " WT_VERSION) < 0 ||
-        put_attr_string(w->file, "hdf5_version", wt_h5_library_version()) < 0)
+    if (wt_h5_priv_put_attr_string(w->file, "creator", "wavetomo " WT_VERSION) < 0 ||
+        wt_h5_priv_put_attr_string(w->file, "hdf5_version", wt_h5_library_version()) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attributes", path);
     wt_h5_priv_drop(fapl);
     *out = w;
@@ -404,10 +189,9 @@ static int commit_impl(wt_h5_writer *w)
     wt_context *ctx = w->ctx;
     int st = WT_OK;
     const int64_t one = 1;
-    while (w->matrices) wt_h5_priv_poison(w, wt_h5_priv_matrix_close(w->matrices, 1));
-    while (w->series) wt_h5_priv_poison(w, wt_h5_priv_series_close(w->series));
+    while (w->open) wt_h5_priv_poison(w, w->open->close(w->open, 1));
     if (w->status < 0) FAIL(ctx, w->status, "%s: not written, an earlier call failed: %s", w->target, w->first_error);
-    if (put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
+    if (wt_h5_priv_put_attr(w->file, "complete", H5T_STD_I64LE, H5T_NATIVE_INT64, &one) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot write the root attribute 'complete'", w->target);
     /* Flush first: a failure here (disk full) goes to the discard path, which closes the file cleanly. A
      * failed H5Fclose instead leaves a half-destroyed file in HDF5's table that even a second close (or
@@ -463,34 +247,6 @@ int wt_h5_flush(wt_h5_writer *w)
 const char *wt_h5_temp_path(const wt_h5_writer *w) { return w ? w->temp : NULL; }
 const char *wt_h5_target_path(const wt_h5_writer *w) { return w ? w->target : NULL; }
 
-int wt_h5_priv_check_new(wt_h5_writer *w, const char *name, const char *units, const char *desc, int need_units)
-{
-    if (!name || !*name) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: empty dataset name", w->target);
-    if ((need_units && !units) || !desc || !*desc)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s' needs %s (every dataset documents itself)", w->target,
-                        name, need_units && !units ? "units (\"\" if dimensionless)" : "a description");
-    if (wt_h5_priv_path_exists(w->file, name))
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: '%s' already exists", w->target, name);
-    return WT_OK;
-}
-
-int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt)
-{
-    if (!wt_h5_priv_type_ok(ft) || !wt_h5_priv_type_ok(mt))
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown element type %d", w->target, name,
-                        wt_h5_priv_type_ok(ft) ? mt : ft);
-    if (wt_h5_priv_type_float(mt) && !wt_h5_priv_type_float(ft))
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an %s dataset (lossy)",
-                        w->target, name, wt_h5_priv_type_name(mt), wt_h5_priv_type_name(ft));
-    return WT_OK;
-}
-
-int wt_h5_priv_set_doc(wt_h5_writer *w, hid_t obj, const char *name, const char *units, const char *desc)
-{
-    if ((units && put_attr_string(obj, "units", units) < 0) || put_attr_string(obj, "description", desc) < 0)
-        return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write the units/description of '%s'", w->target, name);
-    return WT_OK;
-}
 
 static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int rank, const int64_t *dims,
                       const void *data, const char *units, const char *desc)
@@ -605,7 +361,7 @@ static int attr_impl(wt_h5_writer *w, const char *obj, const char *name, hid_t f
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: cannot set attribute '%s' on '%s': no such group or dataset",
                         w->target, name, obj);
     hid_t o = H5Oopen(w->file, obj, H5P_DEFAULT);
-    herr_t r = o < 0 ? -1 : ft < 0 ? put_attr_string(o, name, value) : put_attr(o, name, ft, mt, value);
+    herr_t r = o < 0 ? -1 : ft < 0 ? wt_h5_priv_put_attr_string(o, name, value) : wt_h5_priv_put_attr(o, name, ft, mt, value);
     wt_h5_priv_drop(o);
     if (r < 0) return H5ERR(w->ctx, WT_ERR_IO, "%s: cannot write attribute '%s' of '%s'", w->target, name, obj);
     return WT_OK;

@@ -1,4 +1,4 @@
-/* core/io/config.h: the system description of SPEC §1 as typed values, read from a libconfig file.
+/* core/config/config.h: the system description of SPEC §1 as typed values, read from a libconfig file.
  *
  * wt_config_read parses the file, applies `--set key=value` overrides, validates every key
  * (type, range, consistency) and fills a wt_config. Any failure stops with a message that names the

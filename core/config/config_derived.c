@@ -1,4 +1,4 @@
-/* core/io/config_derived.c: load-time checks of the quantities derived from several keys (SPEC §1-§3).
+/* core/config/config_derived.c: load-time checks of the quantities derived from several keys (SPEC §1-§3).
  *
  * Each key is in its own range (config_schema.c), but a combination can still ask for what the code
  * cannot run: a layer that moves farther than the pupil in one frame (frozen flow of SPEC §2 with no
@@ -22,7 +22,7 @@ static int check_variant(wt_context *ctx, const wt_config *cfg, const char *name
         return WT_ERROR(ctx, WT_ERR_CONFIG,
                         "%s: key 'recon.%s.layer_size': the layers hold %ld unknowns in all (sum of size^2), more "
                         "than the %ld accepted (one vector of them would take %.1f GiB)",
-                        cfg->path, name, total, MAX_UNKNOWNS, total * 8.0 / (1 << 30));
+                        cfg->path, name, total, MAX_UNKNOWNS, (double)total * 8.0 / (1 << 30));
     return WT_OK;
 }
 

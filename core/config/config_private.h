@@ -1,7 +1,7 @@
-/* core/io/config_private.h: what the two files of the configuration reader share (SPEC §1, §9; see
+/* core/config/config_private.h: what the two files of the configuration reader share (SPEC §1, §9; see
  * config.h).
  *
- * Private to core/io/config_schema.c (the key table and the printed reference) and core/io/config.c
+ * Private to core/config/config_schema.c (the key table and the printed reference) and core/config/config_read.c
  * (reading, --set overrides, validation, the canonical text); included by nothing else.
  */
 #ifndef WT_CONFIG_PRIVATE_H

@@ -1,4 +1,4 @@
-/* core/io/config.c: libconfig text -> wt_config, driven by one schema table.
+/* core/config/config_read.c: libconfig text -> wt_config, driven by one schema table.
  *
  * Implements the system description of SPEC §1 (every key of the presets) and the canonical text
  * that the MVM builder hashes (SPEC §9). One table (config_schema.c) lists every key with its type,

@@ -1,4 +1,4 @@
-/* core/io/config_text.c: the configuration text as libconfig must see it (SPEC §1): @include expanded
+/* core/config/config_text.c: the configuration text as libconfig must see it (SPEC §1): @include expanded
  * here, and integer literals made exact.
  *
  * Why not let libconfig do both: libconfig 1.5 reads an integer literal without the L suffix with

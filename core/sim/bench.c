@@ -1,0 +1,233 @@
+/* core/sim/bench.c: kernel timings of the reconstructor and the machine's scale (see bench.h). */
+#include "bench.h"
+
+#include <cblas.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../base/rng.h"
+#include "../model/fitting.h"
+#include "../model/tomography.h"
+#include "../solve/mvm.h"
+#include "../solve/pcg.h"
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+wt_bench_stats wt_bench_summarise(double *t, int n)
+{
+    qsort(t, (size_t)n, sizeof *t, cmp_double);
+    wt_bench_stats s = {t[n / 2], t[n / 10], t[(9 * n) / 10], t[(99 * n) / 100]};
+    return s;
+}
+
+/* STREAM triad: 24 bytes per element, arrays far larger than the caches. */
+double wt_bench_triad_bandwidth(wt_context *ctx, int reps)
+{
+    const size_t n = 1 << 25; /* 3 x 256 MB */
+    const int nth = wt_context_threads(ctx);
+    double *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *c = malloc(n * sizeof *c);
+    if (!a || !b || !c) {
+        free(a), free(b), free(c);
+        return 0.0;
+    }
+#pragma omp parallel for schedule(static) num_threads(nth)
+    for (size_t i = 0; i < n; i++) a[i] = 0.0, b[i] = 1.0, c[i] = 2.0;
+    double best = 1e30;
+    for (int r = 0; r < reps; r++) {
+        double t0 = wt_time_now();
+#pragma omp parallel for schedule(static) num_threads(nth)
+        for (size_t i = 0; i < n; i++) a[i] = b[i] + 0.5 * c[i];
+        double t = wt_time_now() - t0;
+        if (t < best) best = t;
+    }
+    double bw = 24.0 * (double)n / best;
+    free(a), free(b), free(c);
+    return bw;
+}
+
+double wt_bench_dgemm_rate(void)
+{
+    const int n = 2048;
+    double *a = malloc((size_t)n * n * sizeof *a), *b = malloc((size_t)n * n * sizeof *b),
+           *c = calloc((size_t)n * n, sizeof *c);
+    if (!a || !b || !c) {
+        free(a), free(b), free(c);
+        return 0.0;
+    }
+    for (size_t i = 0; i < (size_t)n * n; i++) a[i] = 1.0 / (1.0 + (double)(i % 97)), b[i] = 1.0 / (1.0 + (double)(i % 89));
+    double best = 1e30;
+    for (int r = 0; r < 3; r++) {
+        double t0 = wt_time_now();
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, n, n, 1.0, a, n, b, n, 0.0, c, n);
+        double t = wt_time_now() - t0;
+        if (t < best) best = t;
+    }
+    free(a), free(b), free(c);
+    return 2.0 * n * (double)n * n / best;
+}
+
+/* The cg9 fitting step on the layers of coefficients c, reps times. */
+static int time_fitting(wt_context *ctx, const wt_system *sys, wt_tomography *t, const wt_reconstructor_params *par,
+                        const double *c, int reps, double *times, wt_bench_stats *out)
+{
+    wt_fitting *f = NULL;
+    int st = wt_fitting_alloc_for(ctx, t, &par->fitting, &f);
+    if (st < 0) return st;
+    double *a = calloc((size_t)sys->nact, sizeof *a), *phi = malloc((size_t)wt_tomography_nunknowns(t) * sizeof *phi);
+    if (a && phi) {
+        wt_tomography_layers(t, c, phi);
+        for (int r = 0; r < reps; r++) {
+            double a0 = wt_time_now();
+            wt_fitting_solve(f, phi, a, par->fit_iterations, 0.0, NULL, NULL);
+            times[r] = wt_time_now() - a0;
+        }
+        *out = wt_bench_summarise(times, reps);
+    } else
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for the fitting");
+    free(a);
+    free(phi);
+    wt_fitting_free(f);
+    return st;
+}
+
+int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
+                            const char *name, int reps, wt_bench_tomography *out)
+{
+    const wt_recon_variant_config *v = par->variant;
+    wt_tomography *t = NULL;
+    memset(out, 0, sizeof *out);
+    double t0 = wt_time_now();
+    int st = wt_tomography_alloc(ctx, sys, v, name, &par->tomography, &t);
+    if (st < 0) return st;
+    out->setup = wt_time_now() - t0;
+    int64_t n = wt_tomography_nunknowns(t);
+    out->nunknowns = n;
+    double *c = malloc((size_t)n * sizeof *c), *y = malloc((size_t)n * sizeof *y);
+    double *s = malloc((size_t)sys->nslopes * sizeof *s), *times = malloc((size_t)reps * sizeof *times);
+    if (!c || !y || !s || !times) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory");
+        goto out;
+    }
+    wt_rng rng;
+    wt_rng_init(&rng, 7, 0);
+    for (int64_t i = 0; i < n; i++) c[i] = wt_rng_normal(&rng) * 1e-7;
+    for (int64_t i = 0; i < sys->nslopes; i++) s[i] = wt_rng_normal(&rng) * 1e-6;
+    wt_tomography_cost(t, &out->flops, &out->bytes);
+
+    wt_tomography_apply(t, 1.0, c, y); /* warm caches and pages */
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        wt_tomography_apply(t, 1.0, c, y);
+        times[r] = wt_time_now() - a;
+    }
+    out->apply = wt_bench_summarise(times, reps);
+
+    out->it_flops = out->flops + wt_pcg_flops_per_iteration(n, v->jacobi);
+    out->it_bytes = out->bytes + 8.0 * n * (v->jacobi ? 12.0 : 11.0);
+    /* one iteration = (time of 9 iterations − time of 1) / 8, from the same starting point: the
+     * right-hand side and the initial residual cancel out */
+    for (int r = 0; r < reps; r++) {
+        memset(c, 0, (size_t)n * sizeof *c);
+        double a = wt_time_now();
+        wt_tomography_solve(t, s, c, 1, 0.0, NULL, NULL);
+        double one = wt_time_now() - a;
+        memset(c, 0, (size_t)n * sizeof *c);
+        a = wt_time_now();
+        wt_tomography_solve(t, s, c, 9, 0.0, NULL, NULL);
+        times[r] = ((wt_time_now() - a) - one) / 8.0;
+    }
+    out->iteration = wt_bench_summarise(times, reps);
+
+    /* a whole frame: right-hand side, the initial residual and the configured iterations, warm-started */
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        wt_tomography_solve(t, s, c, par->iterations, 0.0, NULL, NULL);
+        times[r] = wt_time_now() - a;
+    }
+    out->frame = wt_bench_summarise(times, reps);
+
+    if (par->fit_iterations > 0) {
+        if ((st = time_fitting(ctx, sys, t, par, c, reps, times, &out->fitting)) < 0) goto out;
+        out->has_fitting = 1;
+    }
+out:
+    free(c);
+    free(y);
+    free(s);
+    free(times);
+    wt_tomography_free(t);
+    return st;
+}
+
+int wt_bench_loop_run(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
+                      int warm, int frames, wt_bench_loop *out)
+{
+    wt_loop *lp = NULL;
+    memset(out, 0, sizeof *out);
+    double t0 = wt_time_now();
+    int st = wt_loop_alloc_params(ctx, sys, opt, par, &lp);
+    if (st < 0) return st;
+    out->setup = wt_time_now() - t0;
+    for (int t = 0; t < warm && st >= 0; t++) st = wt_loop_step(lp);
+    wt_loop_times a = wt_loop_get_times(lp);
+    double *ft = malloc((size_t)frames * sizeof *ft);
+    if (!ft && st >= 0) st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory");
+    for (int t = 0; t < frames && st >= 0; t++) {
+        double f0 = wt_time_now();
+        st = wt_loop_step(lp);
+        ft[t] = wt_time_now() - f0;
+    }
+    if (st >= 0) {
+        wt_loop_times b = wt_loop_get_times(lp);
+        out->frame = wt_bench_summarise(ft, frames);
+        out->per_frame = (wt_loop_times){(b.atmosphere - a.atmosphere) / frames, (b.sensors - a.sensors) / frames,
+                                         (b.reconstruction - a.reconstruction) / frames,
+                                         (b.fitting - a.fitting) / frames, (b.control - a.control) / frames,
+                                         (b.evaluation - a.evaluation) / frames};
+    }
+    free(ft);
+    wt_loop_free(lp);
+    return st;
+}
+
+/* R (n_act x n_slopes float32) must be streamed once per frame, so a STREAM copy of the same byte count
+ * (read + write of R's size) sets the scale. */
+int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps, wt_bench_mvm *out)
+{
+    const int64_t na = nact, ns = nslopes;
+    const size_t n = (size_t)na * (size_t)ns;
+    const int nth = wt_context_threads(ctx);
+    memset(out, 0, sizeof *out);
+    float *R = malloc(n * sizeof *R), *C = malloc(n * sizeof *C), *x = malloc((size_t)ns * sizeof *x),
+          *y = malloc((size_t)na * sizeof *y);
+    double *tg = malloc((size_t)reps * sizeof *tg), *tc = malloc((size_t)reps * sizeof *tc);
+    int st = WT_OK;
+    if (!R || !C || !x || !y || !tg || !tc) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for a %.2f GB matrix", 2.0 * (double)n * 4.0 / 1e9);
+        goto out;
+    }
+#pragma omp parallel for schedule(static) num_threads(nth)
+    for (size_t i = 0; i < n; i++) R[i] = C[i] = (float)((i * 2654435761u) % 1000) * 1e-3f;
+    for (int64_t i = 0; i < ns; i++) x[i] = (float)(i % 7) * 1e-6f;
+    /* the runtime's own apply (core/solve/mvm.h) on a container that borrows R */
+    const wt_mvm view = {.ctx = ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns, .R = R};
+    for (int r = 0; r < reps; r++) {
+        double a = wt_time_now();
+        wt_mvm_apply(&view, x, NULL, y);
+        tg[r] = wt_time_now() - a;
+        a = wt_time_now();
+#pragma omp parallel for schedule(static) num_threads(nth)
+        for (size_t i = 0; i < n; i++) C[i] = R[i];
+        tc[r] = wt_time_now() - a;
+    }
+    out->bytes = 4.0 * (double)n;
+    out->sgemv = wt_bench_summarise(tg, reps);
+    out->copy = wt_bench_summarise(tc, reps);
+out:
+    free(R), free(C), free(x), free(y), free(tg), free(tc);
+    return st;
+}

@@ -1,0 +1,72 @@
+/* core/sim/bench.h: kernel timings of the reconstructor (`wavetomo bench`, docs/results.md §2), with the
+ * flop and byte counts they imply and the machine's own limits measured the same way.
+ *
+ * What is timed: one application of the tomography normal operator M = Σ Ãᵀ Ĉ⁻¹ Ã + αD (SPEC §6, paper
+ * eq. eqn_lse), one (P)CG iteration, a whole frame (right-hand side + the configured iterations, warm
+ * started), the cg9 fitting step (paper eq. fit_step_min), the closed loop (core/sim/loop.h), and the
+ * MVM apply (core/solve/mvm.h, a float32 GEMV) next to a STREAM copy of the same bytes. The machine's
+ * scale: a STREAM triad (memory bandwidth) and an OpenBLAS DGEMM (flop rate). Every timing is a
+ * distribution over repetitions, summarised by its median and 10th/90th/99th percentiles.
+ *
+ * These functions allocate their own buffers (they are set-up-time tools, not per-frame code), read no
+ * configuration (the caller passes parameter structs) and print nothing: the driver (cli/bench.c) does.
+ */
+#ifndef WT_BENCH_H
+#define WT_BENCH_H
+
+#include "../model/reconstructor.h"
+#include "loop.h"
+
+/* A timing distribution [s]. */
+typedef struct wt_bench_stats {
+    double med, p10, p90, p99;
+} wt_bench_stats;
+
+/* Sorts t[0..n) in place and returns its median and percentiles (n ≥ 1). */
+wt_bench_stats wt_bench_summarise(double *t, int n);
+
+/* STREAM triad a = b + s c over 3 x 256 MB (OpenMP, the context's threads): best of reps [bytes/s];
+ * 0 when out of memory. */
+double wt_bench_triad_bandwidth(wt_context *ctx, int reps);
+/* OpenBLAS DGEMM of n = 2048: best of 3 [flop/s]; 0 when out of memory. */
+double wt_bench_dgemm_rate(void);
+
+/* The tomography kernels of one variant. */
+typedef struct wt_bench_tomography {
+    int64_t nunknowns;        /* wavelet coefficients */
+    double setup;             /* operator set-up incl. the preconditioner [s] */
+    double flops, bytes;      /* work of one apply of M (wt_tomography_cost) */
+    double it_flops, it_bytes; /* work of one (P)CG iteration */
+    wt_bench_stats apply;     /* one apply of M */
+    wt_bench_stats iteration; /* one iteration: (9 iterations − 1) / 8 from the same start */
+    wt_bench_stats frame;     /* rhs + par->iterations iterations, warm started */
+    int has_fitting;          /* cg9: the fitting was timed */
+    wt_bench_stats fitting;   /* par->fit_iterations CG iterations of the fitting */
+} wt_bench_tomography;
+
+/* Times the variant described by par (name "pcg3" or "cg9" labels its operators) reps times on seeded
+ * random coefficients and slopes. */
+int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
+                            const char *name, int reps, wt_bench_tomography *out);
+
+/* The closed loop: warm frames, then `frames` timed frames. */
+typedef struct wt_bench_loop {
+    double setup;            /* wt_loop_alloc_params [s] */
+    wt_bench_stats frame;    /* per timed frame */
+    wt_loop_times per_frame; /* mean time per timed frame of each part [s] */
+} wt_bench_loop;
+
+int wt_bench_loop_run(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
+                      int warm, int frames, wt_bench_loop *out);
+
+/* The MVM apply at nact x nslopes (R filled with a pattern: values do not change a GEMV's time) and a
+ * STREAM copy of R's bytes, alternated reps times. */
+typedef struct wt_bench_mvm {
+    double bytes;        /* bytes of R (float32) */
+    wt_bench_stats sgemv; /* the runtime's apply */
+    wt_bench_stats copy;  /* read + write of R's bytes */
+} wt_bench_mvm;
+
+int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps, wt_bench_mvm *out);
+
+#endif

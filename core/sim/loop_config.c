@@ -1,0 +1,38 @@
+/* core/sim/loop_config.c: the configuration side of the closed loop (see loop.h): wt_config → the
+ * loop's parameters (SPEC §2–§8 keys: rate, delay, gain, simulation sampling, profile, evaluation), so that
+ * the loop itself reads no configuration. Calls go one way: this file → loop.c. */
+#include "loop.h"
+
+#include <string.h>
+
+#include "../model/params.h"
+
+void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par)
+{
+    memset(par, 0, sizeof *par);
+    par->rate = cfg->rate;
+    par->delay = cfg->delay;
+    par->gain = cfg->gain;
+    par->points_per_subaperture = cfg->points_per_subaperture;
+    par->diameter = cfg->diameter;
+    par->obstruction = cfg->obstruction;
+    par->atmosphere = (wt_atmosphere_params){.nlayers = cfg->nlayers,
+                                             .altitudes = cfg->layer_altitude,
+                                             .fractions = cfg->layer_fraction,
+                                             .wind_speed = cfg->wind_speed,
+                                             .wind_direction = cfg->wind_direction,
+                                             .r0 = cfg->r0,
+                                             .L0 = cfg->L0};
+    par->lgs_tt_jitter = cfg->lgs_tt_jitter;
+    par->eval_wavelength = cfg->eval_wavelength;
+    par->settle_frames = cfg->settle_frames;
+    wt_reconstructor_params_from_config(cfg, opt->recon, opt->iterations, &par->recon);
+    par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
+}
+
+int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out)
+{
+    wt_loop_params par;
+    wt_loop_params_from_config(sys->cfg, opt, &par);
+    return wt_loop_alloc_params(ctx, sys, opt, &par, out);
+}
