@@ -578,7 +578,9 @@ END_TEST
  * small cases (the demo, and with 8 points per subaperture so that the screens and OPD maps dominate the
  * process's base): within a factor 1.5 either way. --dry-run of a 1024-subaperture system (tens of GB)
  * allocates nothing big (< 64 MB) and writes nothing. */
-static double run_measured(const char *const *args, char *out, size_t n)
+/* Start `wavetomo ARGS` (args[0] = the binary) with its stdout (which = 1) or stderr (which = 2) into a
+ * pipe whose read end is *rd, the other stream to /dev/null. */
+static pid_t spawn(const char *const *args, int which, int *rd)
 {
     int fd[2];
     ck_assert_int_eq(pipe(fd), 0);
@@ -586,16 +588,24 @@ static double run_measured(const char *const *args, char *out, size_t n)
     ck_assert(pid >= 0);
     if (pid == 0) {
         int nul = open("/dev/null", O_WRONLY);
-        dup2(fd[1], 1), dup2(nul, 2), close(fd[0]);
+        dup2(fd[1], which), dup2(nul, 3 - which), close(fd[0]);
         execv(wt, (char *const *)args);
         _exit(127);
     }
     close(fd[1]);
+    *rd = fd[0];
+    return pid;
+}
+
+static double run_measured(const char *const *args, char *out, size_t n)
+{
+    int rd;
+    pid_t pid = spawn(args, 1, &rd);
     size_t k = 0;
     ssize_t r;
-    while (k + 1 < n && (r = read(fd[0], out + k, n - 1 - k)) > 0) k += (size_t)r;
+    while (k + 1 < n && (r = read(rd, out + k, n - 1 - k)) > 0) k += (size_t)r;
     out[k] = '\0';
-    close(fd[0]);
+    close(rd);
     int status;
     struct rusage ru;
     ck_assert_int_eq(wait4(pid, &status, 0, &ru), pid);
@@ -695,19 +705,11 @@ START_TEST(test_compare_interrupt_resume)
 
     /* the interrupted run: its stderr through a pipe, SIGTERM after the first case's summary line */
     snprintf(cdir, sizeof cdir, "%s/part", dir);
-    int fd[2];
-    ck_assert_int_eq(pipe(fd), 0);
-    pid_t pid = fork();
-    ck_assert(pid >= 0);
-    if (pid == 0) {
-        int nul = open("/dev/null", O_WRONLY);
-        dup2(nul, 1), dup2(fd[1], 2), close(fd[0]);
-        execl(wt, wt, "compare", "--config", DEMO, "--recon", "pcg3,none", "--frames", "120", "--seed", "7", "--out",
-              cdir, (char *)NULL);
-        _exit(127);
-    }
-    close(fd[1]);
-    FILE *f = fdopen(fd[0], "r");
+    const char *args[] = {wt, "compare", "--config", DEMO, "--recon", "pcg3,none", "--frames", "120", "--seed", "7",
+                          "--out", cdir, NULL};
+    int rd;
+    pid_t pid = spawn(args, 2, &rd);
+    FILE *f = fdopen(rd, "r");
     int first = 0;
     while (!first && fgets(line, sizeof line, f)) first = strstr(line, "LE Strehl") != NULL;
     ck_assert_msg(first, "no case finished");
