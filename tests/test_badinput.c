@@ -631,8 +631,10 @@ START_TEST(test_estimate_vs_measured)
         double rss = run_measured(dry, out, sizeof out);
         fprintf(stderr, "estimate %s %s: %.1f MB, measured peak RSS %.1f MB, ratio %.2f\n", recon[k], set[k], est / 1e6,
                 rss / 1e6, est / rss);
+#ifndef __SANITIZE_ADDRESS__ /* ASan's shadow memory and quarantine double the RSS: no size to compare */
         ck_assert_msg(est / rss > 1.0 / 1.5 && est / rss < 1.5, "%s %s: estimate %.1f MB, measured %.1f MB", recon[k],
                       set[k], est / 1e6, rss / 1e6);
+#endif
         unlink(x);
     }
     const char *big[] = {wt, "sim", "--config", DEMO, "--set", "lgs.wfs.subapertures=1024", "--recon", "none",
@@ -641,7 +643,12 @@ START_TEST(test_estimate_vs_measured)
     const char *p = strstr(out, "estimated peak memory ");
     ck_assert_ptr_nonnull(p);
     ck_assert_msg(atof(p + strlen("estimated peak memory ")) > 10.0, "%s", out);
-    ck_assert_msg(rss < 64e6, "--dry-run used %.1f MB", rss / 1e6);
+#ifdef __SANITIZE_ADDRESS__
+    const double small = 256e6;
+#else
+    const double small = 64e6;
+#endif
+    ck_assert_msg(rss < small, "--dry-run used %.1f MB", rss / 1e6);
     ck_assert_msg(access(x, F_OK) != 0, "--dry-run wrote %s", x);
 }
 END_TEST

@@ -12,7 +12,7 @@
 #define SIM_BASE_BYTES 6e6    /* sim on top of that: FFTW plans, OpenMP pools, small arrays (measured) */
 #define NS_POINT 4.0e-9       /* s per bilinear read (fine point x layer x line of sight), one thread */
 #define FLOP_RATE 8.0e9       /* reconstructor flops per s, one thread (stencil-bound; §2: 30 Mflop in 3.2 ms) */
-#define STREAM_RATE 10e9      /* bytes per s of a float32 GEMV */
+#define STREAM_RATE 28e9      /* bytes per s of a float32 GEMV (§2: sgemv of R at 28.1 GB/s, 2 threads) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
 
