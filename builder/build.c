@@ -10,6 +10,8 @@
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
+#include "core/model/estimate.h"
+#include "core/model/reconstructor.h"
 
 static void help(void)
 {
@@ -26,6 +28,8 @@ static void help(void)
            "               (layers at the atmosphere altitudes, then the fitting step solved exactly)\n"
            "  --memory GB  peak memory the build may use (default: 90 %% of the memory available now); the\n"
            "               build estimates its peak first and refuses, saying how much it needs, above it\n"
+           "  --max-memory S  the same limit as a size (4G, 512M); --dry-run  print the estimated peak memory\n"
+           "               and build time (from the configuration alone) and the keys that drive them; stop\n"
            "The file is written to a temporary name and renamed when complete.\n");
 }
 
@@ -49,18 +53,6 @@ static int build_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     } else
         return 0;
     return 1;
-}
-
-static double mem_available(void)
-{
-    FILE *f = fopen("/proc/meminfo", "r");
-    char line[256];
-    double kb = 0.0;
-    if (!f) return 0.0;
-    while (fgets(line, sizeof line, f))
-        if (sscanf(line, "MemAvailable: %lf kB", &kb) == 1) break;
-    fclose(f);
-    return kb * 1024.0;
 }
 
 typedef struct {
@@ -109,6 +101,10 @@ int wt_cmd_build(int argc, char **argv)
     wt_h5_writer *w = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
+    if (args.memory_gb > 0 && !(cli.max_memory > 0)) cli.max_memory = args.memory_gb * 1e9; /* --memory GB */
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_BUILD, strcmp(args.recon, "cg9") ? WT_RECON_PCG3 : WT_RECON_CG9)) >= 0)
+        goto cleanup;
+    rc = 0;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;
     int cg9 = !strcmp(args.recon, "cg9");
     /* check the output before hours of work: R is n_act x n_slopes float32 */
@@ -119,7 +115,7 @@ int wt_cmd_build(int argc, char **argv)
     for (int l = 0; l < var->nlayers; l++) nunknowns += (int64_t)var->size[l] * var->size[l];
     wt_mvm_options o;
     wt_mvm_options_default(&o);
-    o.memory_budget = args.memory_gb > 0 ? args.memory_gb * 1e9 : 0.9 * mem_available();
+    o.memory_budget = cli.max_memory > 0 ? cli.max_memory : 0.9 * wt_memory_available();
     build_progress bp = {.phase = "", .quiet = cli.quiet};
     o.progress = on_progress;
     o.progress_user = &bp;

@@ -10,6 +10,7 @@
 #include "core/solve/mvm.h"
 #include "core/model/reconstructor.h"
 #include "core/sim/budget.h"
+#include "core/model/estimate.h"
 
 #define MAXM 3
 
@@ -28,7 +29,9 @@ static void help(void)
            "\n"
            "  --recon LIST   comma-separated, from cg9, pcg3, mvm (default cg9); mvm is built or read from\n"
            "                 DIR/cache/ as `wavetomo compare` does\n"
-           "  --frames N     frames per closed-loop run (loop.frames)   --seed S   random seed (sim.seed)\n");
+           "  --frames N     frames per closed-loop run (loop.frames)   --seed S   random seed (sim.seed)\n"
+           "  --dry-run      print the estimated peak memory and run time and the keys that drive them; stop\n"
+           "  --max-memory S refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n");
 }
 
 typedef struct {
@@ -99,6 +102,22 @@ static int write_h5(wt_cli *cli, const budget_args *a, const wt_config *cfg, con
     return st;
 }
 
+/* Issue 10, C: per method 5 closed/open-loop runs and one fitting run (an MVM adds its build); -1: go on. */
+static int estimate(wt_cli *cli, const budget_args *a, const wt_config *cfg)
+{
+    wt_estimate total = {0}, e;
+    for (int m = 0; m < a->nm; m++) {
+        int kind = wt_reconstructor_kind(a->methods[m]);
+        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames}, &e);
+        e.seconds *= 6.0;
+        wt_estimate_add(&total, &e);
+        if (kind != WT_RECON_MVM) continue;
+        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0}, &e);
+        wt_estimate_add(&total, &e);
+    }
+    return wt_cli_resources(cli, &total);
+}
+
 int wt_cmd_budget(int argc, char **argv)
 {
     wt_cli cli;
@@ -119,9 +138,9 @@ int wt_cmd_budget(int argc, char **argv)
     a.start = wt_time_now();
     char path[2100];
     snprintf(path, sizeof path, "%s/cache", a.out);
-    if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0 || (st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0 ||
-        (st = wt_cli_ensure_dir(cli.ctx, path)) < 0)
-        goto fail;
+    if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;
+    if ((rc = estimate(&cli, &a, cfg)) >= 0) goto cleanup;
+    if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0 || (st = wt_cli_ensure_dir(cli.ctx, path)) < 0) goto fail;
     for (int m = 0; m < a.nm; m++) {
         double build;
         kinds[m] = wt_reconstructor_kind(a.methods[m]);

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "core/io/h5.h"
+#include "core/model/estimate.h"
 
 #include <cblas.h>
 #ifdef _OPENMP
@@ -52,6 +53,25 @@ int wt_cli_usage_error(wt_cli *cli, const char *fmt, ...)
     return 2;
 }
 
+/* --max-memory SIZE: a number of bytes with an optional suffix K, M, G, T (powers of 1000, "B" allowed
+ * after it: 4G = 4GB = 4e9); finite and at least 1 MB. */
+static int parse_size(wt_cli *cli, const char *text, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    double v = text[0] && (isdigit((unsigned char)text[0]) || text[0] == '.') ? strtod(text, &end) : NAN;
+    const char *units = "KMGT";
+    const char *u = end && *end ? strchr(units, toupper((unsigned char)*end)) : NULL;
+    if (u && *u) v *= pow(1000.0, (double)(u - units + 1)), end++;
+    if (end && (*end == 'B' || *end == 'b')) end++;
+    if (!end || *end || errno == ERANGE || !isfinite(v) || v < 1e6) {
+        wt_cli_usage_error(cli, "--max-memory expects a size of at least 1M (bytes, or with K, M, G, T), got '%s'", text);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
 int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
 {
     const char *a = argv[*i];
@@ -65,8 +85,13 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
     } else {
         snprintf(name, sizeof name, "%s", a);
     }
-    int takes_value = !strcmp(name, "--config") || !strcmp(name, "--set") || !strcmp(name, "--threads");
+    int takes_value = !strcmp(name, "--config") || !strcmp(name, "--set") || !strcmp(name, "--threads") ||
+                      !strcmp(name, "--max-memory");
     if (!takes_value) {
+        if (!strcmp(a, "--dry-run")) {
+            cli->dry_run = 1;
+            return 1;
+        }
         if (!strcmp(a, "--force")) {
             cli->force = 1;
             return 1;
@@ -86,6 +111,7 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
         val = argv[++*i];
     }
     if (!strcmp(name, "--config")) cli->config_path = val;
+    else if (!strcmp(name, "--max-memory")) return parse_size(cli, val, &cli->max_memory) < 0 ? -1 : 1;
     else if (!strcmp(name, "--set")) {
         if (!strchr(val, '=')) {
             wt_cli_usage_error(cli, "--set expects key=value, got '%s'", val);
@@ -206,13 +232,14 @@ static void resolve_path(const char *p, char *out, size_t n)
         snprintf(out, n, "%s", p);
 }
 
-int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2)
+/* K: the output `path` (resolved into rp) is none of the inputs and no earlier output. */
+static int check_not_input(wt_cli *cli, const char *path, const char *in1, const char *in2, char *rp, size_t n)
 {
     const char *ins[3] = {cli->config_path, in1, in2};
-    char rp[4096], ri[4096];
+    char ri[4096];
     struct stat so, si;
     int have = stat(path, &so) == 0;
-    resolve_path(path, rp, sizeof rp);
+    resolve_path(path, rp, n);
     for (int k = 0; k < 3; k++) {
         if (!ins[k]) continue;
         resolve_path(ins[k], ri, sizeof ri);
@@ -225,8 +252,66 @@ int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char
         if (!strcmp(cli->outputs[k], rp))
             return WT_ERROR(cli->ctx, WT_ERR_IO, "'%s' is given as two outputs (%s): one would replace the other", path, rp);
     if (cli->noutputs < 4) snprintf(cli->outputs[cli->noutputs++], sizeof cli->outputs[0], "%s", rp);
-    int st = wt_h5_check_replaceable(cli->ctx, path, cli->force);
+    return WT_OK;
+}
+
+int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2)
+{
+    char rp[4096];
+    int st = check_not_input(cli, path, in1, in2, rp, sizeof rp);
+    if (st >= 0) st = wt_h5_check_replaceable(cli->ctx, path, cli->force);
     return st < 0 ? st : wt_h5_check_writable(cli->ctx, path, bytes);
+}
+
+int wt_cli_check_text_output(wt_cli *cli, const char *path, const char *signature, const char *owner)
+{
+    char rp[4096], head[64] = "";
+    struct stat sb;
+    int st = check_not_input(cli, path, NULL, NULL, rp, sizeof rp);
+    if (st < 0 || cli->force || lstat(path, &sb) != 0) return st;
+    if (S_ISDIR(sb.st_mode)) return WT_ERROR(cli->ctx, WT_ERR_IO, "cannot write '%s': it is a directory", path);
+    size_t len = strlen(signature), got = 0;
+    FILE *f = S_ISREG(sb.st_mode) ? fopen(path, "rb") : NULL;
+    if (f) {
+        got = fread(head, 1, len < sizeof head ? len : sizeof head, f);
+        fclose(f);
+    }
+    /* a file of ours starts with the signature; a PNG also needs `owner` to be a wavetomo output */
+    int ours = f && got == len && !memcmp(head, signature, len);
+    if (ours && owner) ours = access(owner, F_OK) == 0 && wt_h5_check_replaceable(cli->ctx, owner, 0) == WT_OK;
+    if (!ours)
+        return WT_ERROR(cli->ctx, WT_ERR_IO, "'%s' exists and is not a wavetomo output (%s); refusing to replace it: "
+                        "choose another directory, or give --force", path,
+                        S_ISLNK(sb.st_mode) ? "a symbolic link" : !S_ISREG(sb.st_mode) ? "not a regular file"
+                        : owner && got == len ? "no wavetomo results.h5 beside it" : "it does not start as ours");
+    return WT_OK;
+}
+
+int wt_cli_resources(wt_cli *cli, const wt_estimate *e)
+{
+    if (cli->dry_run) {
+        printf("%s --dry-run (nothing allocated, nothing written):\n", cli->prog);
+        wt_estimate_print(stdout, "", e);
+    }
+    double avail = wt_memory_available(), limit = avail;
+    const char *source = "available now (MemAvailable of /proc/meminfo)";
+    if (cli->max_memory > 0 && (!(avail > 0) || cli->max_memory < avail))
+        limit = cli->max_memory, source = "allowed by --max-memory";
+    int st = wt_estimate_check(cli->ctx, cli->config_path ? cli->config_path : cli->prog, e, limit, source);
+    if (cli->dry_run) {
+        if (st < 0) printf("would be refused: %s\n", wt_error_message(cli->ctx));
+        return 0;
+    }
+    if (st < 0) return wt_cli_fail(cli, st);
+    if (!cli->quiet) wt_estimate_print(stderr, "  ", &(wt_estimate){.bytes = e->bytes, .seconds = e->seconds});
+    return -1;
+}
+
+int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon)
+{
+    wt_estimate e;
+    wt_estimate_resources(cfg, &(wt_estimate_request){.task = task, .recon = recon, .frames = cfg->frames}, &e);
+    return wt_cli_resources(cli, &e);
 }
 
 int wt_cli_fail(wt_cli *cli, int status)

@@ -23,6 +23,8 @@ typedef struct wt_cli {
     long frames;                /* --frames of the run commands (0: the config's) */
     char frames_set[64], seed_set[64], settle_set[64]; /* storage of the overrides they become */
     int force;                  /* --force: replace an existing file that is not a wavetomo output */
+    int dry_run;                /* --dry-run: print the resource estimate and stop */
+    double max_memory;          /* --max-memory SIZE [bytes]; 0: the memory available */
     int noutputs;               /* outputs checked so far (wt_cli_check_output) */
     char outputs[4][4096];      /* their resolved paths */
 } wt_cli;
@@ -57,6 +59,17 @@ int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max);
  * before; refuse to replace an existing file that is not a wavetomo output unless --force; then
  * wt_h5_check_writable(path, bytes). Returns a status (message in the context), like the library. */
 int wt_cli_check_output(wt_cli *cli, const char *path, int64_t bytes, const char *in1, const char *in2);
+/* The same for a text or image output (summary.csv, report.md, a PNG): an existing file is replaced only
+ * when it starts with `signature` and, when `owner` is given, that file is a wavetomo HDF5 output. */
+int wt_cli_check_text_output(wt_cli *cli, const char *path, const char *signature, const char *owner);
+/* Issue 10, C: the resource estimate of the command (core/model/estimate.h) before it allocates: with
+ * --dry-run print it to stdout and return 0 (exit code: stop); refuse it (message naming the estimate and
+ * its keys, return 1) when it exceeds --max-memory or the memory available now (MemAvailable); else
+ * print its first line on stderr (unless --quiet) and return -1: go on. */
+struct wt_estimate;
+int wt_cli_resources(wt_cli *cli, const struct wt_estimate *e);
+/* The same for one command: task WT_TASK_* and reconstructor WT_RECON_* on cfg for its loop.frames. */
+int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon);
 /* Print "PROG: error: <message>" for a failed status and return the process exit code (1). */
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */
@@ -96,10 +109,10 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
 /* The slope and actuator orderings: group "layout". */
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 
-/* mkdir -p: the directory and its missing parents (in compare/compare.c). */
+/* mkdir -p: the directory and its missing parents (cli/output.c). */
 int wt_cli_ensure_dir(wt_context *ctx, const char *path);
 /* The MVM (pcg3 layers) of cfg: read from DIR/cache/mvm-pcg3-<hash>.h5 when it matches, else built and
- * cached there (DIR/cache must exist); *build_s: the build time (0 from the cache). In compare/compare.c. */
+ * cached there (DIR/cache must exist); *build_s: the build time (0 from the cache). In cli/output.c. */
 struct wt_mvm;
 int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, struct wt_system *sys, int argc, char **argv,
                       struct wt_mvm **out, double *build_s);

@@ -7,6 +7,8 @@
 #include "core/model/system.h"
 #include "core/model/params.h"
 #include "core/model/tomography.h"
+#include "core/model/estimate.h"
+#include "core/model/reconstructor.h"
 #include "core/op/noise.h"
 
 static void help(void)
@@ -21,7 +23,9 @@ static void help(void)
            "\n"
            "  --keys        print every configuration key with its type, range and unit\n"
            "  --no-nnz      skip the (few-second) symbolic count of the non-zeros of Ã\n"
-           "  --set k=v     override a configuration key (repeatable)\n");
+           "  --set k=v     override a configuration key (repeatable)\n"
+           "  --dry-run     print the estimated peak memory and run time of info itself; stop\n"
+           "  --max-memory S refuse when that estimate exceeds S bytes (4G, 512M; default MemAvailable)\n");
 }
 
 static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name,
@@ -122,6 +126,8 @@ int wt_cmd_info(int argc, char **argv)
     wt_system *sys = NULL;
     int st = wt_cli_read_config(&cli, path, &cfg);
     if (st < 0) goto out;
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE)) >= 0) goto out;
+    rc = 0;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
     if (st < 0) goto out;
 

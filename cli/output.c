@@ -1,11 +1,15 @@
 /* cli/output.c: provenance and layout groups written into every output file, so that a file read
  * years later says what made it and how its vectors are ordered. */
+#include <errno.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <string.h>
 #include <time.h>
 
 #include "cli.h"
 #include "core/io/h5.h"
+#include "core/build/mvm_build.h"
 #include "core/model/system.h"
 
 int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv)
@@ -119,5 +123,57 @@ out:
     free(cnt);
     free(act);
     free(axy);
+    return st;
+}
+
+int wt_cli_ensure_dir(wt_context *ctx, const char *path)
+{
+    char buf[2048];
+    snprintf(buf, sizeof buf, "%s", path);
+    for (char *p = buf + 1;; p++) {
+        int end = *p == '\0';
+        if (*p == '/' || end) {
+            char c = *p;
+            *p = '\0';
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+                return WT_ERROR(ctx, WT_ERR_IO, "cannot create the output directory '%s': %s", buf, strerror(errno));
+            *p = c;
+        }
+        if (end) break;
+    }
+    struct stat sb;
+    if (stat(path, &sb) != 0 || !S_ISDIR(sb.st_mode))
+        return WT_ERROR(ctx, WT_ERR_IO, "'%s' is not a directory", path);
+    return WT_OK;
+}
+
+int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys, int argc, char **argv,
+                      wt_mvm **out, double *build_s)
+{
+    char path[2048];
+    int st;
+    *build_s = 0.0;
+    snprintf(path, sizeof path, "%s/cache/mvm-pcg3-%.16s.h5", dir, cfg->matrix_sha256);
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        fclose(f);
+        if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK) {
+            if (!cli->quiet) fprintf(stderr, "%s: mvm from the cache %s\n", cli->prog, path);
+            return WT_OK;
+        }
+        if (!cli->quiet) fprintf(stderr, "%s: rebuilding the stale or damaged %s\n", cli->prog, path);
+    }
+    wt_h5_writer *w = NULL;
+    if ((st = wt_h5_check_replaceable(cli->ctx, path, cli->force)) < 0) return st;
+    if (!cli->quiet) fprintf(stderr, "%s: building the MVM for %s (hash %.16s)\n", cli->prog, cfg->path, cfg->matrix_sha256);
+    if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", NULL, out)) < 0) return st;
+    *build_s = (*out)->stats.t_total;
+    if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
+    if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 && (st = wt_cli_write_layout(w, sys)) >= 0 &&
+        (st = wt_mvm_write(w, *out, cfg, "pcg3")) >= 0) {
+        st = wt_h5_commit(w);
+        w = NULL;
+    }
+    wt_h5_abort(w);
     return st;
 }

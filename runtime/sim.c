@@ -9,6 +9,7 @@
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
 #include "core/sim/loop.h"
+#include "core/model/estimate.h"
 #include "core/sim/record.h"
 
 static void help(void)
@@ -37,6 +38,8 @@ static void help(void)
            "                   applied commands (float32), for `wavetomo run`\n"
            "  --dump-screens   add the layer screens of frame 0 and the residual OPD maps of the last\n"
            "                   frame to RUN.h5\n"
+           "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
+           "  --max-memory S   refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n"
            "A progress line (frames, frames/s, ETA, running field-average Strehl) goes to stderr on a terminal.\n");
 }
 
@@ -112,6 +115,8 @@ int wt_cmd_sim(int argc, char **argv)
     wt_sim_record *rec = NULL;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind)) >= 0) goto cleanup; /* --dry-run, or too big */
+    rc = 0;
     /* find an unwritable output before the run, not after it */
     if ((st = wt_cli_check_output(&cli, out, 0, args.matrix, NULL)) < 0) goto fail;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;

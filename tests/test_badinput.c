@@ -8,6 +8,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -234,6 +235,27 @@ static const cli_case cli_cases[] = {
     {"sim --config " DEMO " --set 'atmosphere.wind_speed_mps=[1e22, 10.0, 12.0, 18.0, 25.0]' --out %1$s/x.h5", 1,
      {"atmosphere.wind_speed_mps", "out of range"}, "x.h5"},
     {"sim --config %1$s --out %1$s/x.h5", 1, {"cannot", ""}, "x.h5"},
+    /* C: sizes the machine (here: --max-memory) cannot hold, refused before allocating, naming the estimate
+     * and the keys that drive it; --max-memory parsed strictly */
+    {"sim --config " DEMO " --max-memory 10M --out %1$s/x.h5", 1, {"estimated peak memory", "allowed by --max-memory"}, "x.h5"},
+    {"sim --config " DEMO " --set 'recon.pcg3.layer_size=[8192, 16, 32]' --max-memory 2G --out %1$s/x.h5", 1,
+     {"recon.pcg3.layer_size", "5.93 GB"}, "x.h5"},
+    {"sim --config " DEMO " --recon none --set lgs.wfs.subapertures=1024 --max-memory 8G --out %1$s/x.h5", 1,
+     {"lgs.wfs.subapertures x sim.points_per_subaperture", "estimated peak memory"}, "x.h5"},
+    {"sim --config " DEMO " --recon none --set loop.frames=2147483647 --max-memory 100G --out %1$s/x.h5", 1,
+     {"loop.frames (2147483647)", "estimated"}, "x.h5"},
+    {"build --config data/presets/eelt-mcao.cfg --recon cg9 --max-memory 4G --out %1$s/M.h5", 1,
+     {"recon.cg9.layer_size", "Cholesky factor"}, "M.h5"},
+    {"build --config " DEMO " --memory 0.001 --out %1$s/M.h5", 1, {"estimated peak memory", "--max-memory"}, "M.h5"},
+    {"info " DEMO " --set 'recon.cg9.layer_size=[4096, 4096, 4096, 4096, 4096]' --max-memory 1G", 1,
+     {"recon.cg9.layer_size", "estimated peak memory"}, NULL},
+    {"compare --config " DEMO " --recon pcg3,mvm --max-memory 10M --out %1$s/c", 1, {"estimated peak memory", ""}, "c"},
+    {"budget --config " DEMO " --max-memory 10M --out %1$s/b", 1, {"estimated peak memory", ""}, "b"},
+    {"sim --config " DEMO " --max-memory 0.5 --out %1$s/x.h5", 2, {"--max-memory", "'0.5'"}, "x.h5"},
+    {"sim --config " DEMO " --max-memory 4Q --out %1$s/x.h5", 2, {"--max-memory", "'4Q'"}, "x.h5"},
+    {"sim --config " DEMO " --max-memory inf --out %1$s/x.h5", 2, {"--max-memory", "'inf'"}, "x.h5"},
+    {"sim --config " DEMO " --set lgs.wfs.subapertures=1024 --dry-run --out %1$s/x.h5", 0, {"", ""}, "x.h5"},
+    {"compare --config " DEMO " --dry-run --out %1$s/c", 0, {"", ""}, "c"},
 };
 
 START_TEST(test_cli)
@@ -552,6 +574,180 @@ START_TEST(test_signals_and_stale_temporaries)
 }
 END_TEST
 
+/* C: the estimate against the peak RSS the kernel measures (wait4's ru_maxrss) for the real command, on
+ * small cases (the demo, and with 8 points per subaperture so that the screens and OPD maps dominate the
+ * process's base): within a factor 1.5 either way. --dry-run of a 1024-subaperture system (tens of GB)
+ * allocates nothing big (< 64 MB) and writes nothing. */
+/* Start `wavetomo ARGS` (args[0] = the binary) with its stdout (which = 1) or stderr (which = 2) into a
+ * pipe whose read end is *rd, the other stream to /dev/null. */
+static pid_t spawn(const char *const *args, int which, int *rd)
+{
+    int fd[2];
+    ck_assert_int_eq(pipe(fd), 0);
+    pid_t pid = fork();
+    ck_assert(pid >= 0);
+    if (pid == 0) {
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(fd[1], which), dup2(nul, 3 - which), close(fd[0]);
+        execv(wt, (char *const *)args);
+        _exit(127);
+    }
+    close(fd[1]);
+    *rd = fd[0];
+    return pid;
+}
+
+static double run_measured(const char *const *args, char *out, size_t n)
+{
+    int rd;
+    pid_t pid = spawn(args, 1, &rd);
+    size_t k = 0;
+    ssize_t r;
+    while (k + 1 < n && (r = read(rd, out + k, n - 1 - k)) > 0) k += (size_t)r;
+    out[k] = '\0';
+    close(rd);
+    int status;
+    struct rusage ru;
+    ck_assert_int_eq(wait4(pid, &status, 0, &ru), pid);
+    ck_assert_msg(WIFEXITED(status) && WEXITSTATUS(status) == 0, "%s %s: status %d", args[1], args[3], status);
+    return ru.ru_maxrss * 1024.0;
+}
+
+START_TEST(test_estimate_vs_measured)
+{
+    const char *recon[] = {"none", "pcg3", "cg9", "none"};
+    const char *set[] = {"sim.noise=true", "sim.noise=true", "sim.noise=true", "sim.points_per_subaperture=8"};
+    char out[8192], x[256];
+    snprintf(x, sizeof x, "%s/x.h5", dir);
+    for (int k = 0; k < 4; k++) {
+        const char *dry[] = {wt, "sim", "--config", DEMO, "--recon", recon[k], "--set", set[k], "--frames", "5",
+                             "--out", x, "--dry-run", NULL};
+        run_measured(dry, out, sizeof out);
+        const char *p = strstr(out, "estimated peak memory ");
+        ck_assert_ptr_nonnull(p);
+        double est = atof(p + strlen("estimated peak memory ")) * 1e9;
+        ck_assert_msg(access(x, F_OK) != 0, "--dry-run wrote %s", x);
+        dry[12] = NULL; /* the real run */
+        double rss = run_measured(dry, out, sizeof out);
+        fprintf(stderr, "estimate %s %s: %.1f MB, measured peak RSS %.1f MB, ratio %.2f\n", recon[k], set[k], est / 1e6,
+                rss / 1e6, est / rss);
+#ifndef __SANITIZE_ADDRESS__ /* ASan's shadow memory and quarantine double the RSS: no size to compare */
+        ck_assert_msg(est / rss > 1.0 / 1.5 && est / rss < 1.5, "%s %s: estimate %.1f MB, measured %.1f MB", recon[k],
+                      set[k], est / 1e6, rss / 1e6);
+#endif
+        unlink(x);
+    }
+    const char *big[] = {wt, "sim", "--config", DEMO, "--set", "lgs.wfs.subapertures=1024", "--recon", "none",
+                         "--out", x, "--dry-run", NULL};
+    double rss = run_measured(big, out, sizeof out);
+    const char *p = strstr(out, "estimated peak memory ");
+    ck_assert_ptr_nonnull(p);
+    ck_assert_msg(atof(p + strlen("estimated peak memory ")) > 10.0, "%s", out);
+#ifdef __SANITIZE_ADDRESS__
+    const double small = 256e6;
+#else
+    const double small = 64e6;
+#endif
+    ck_assert_msg(rss < small, "--dry-run used %.1f MB", rss / 1e6);
+    ck_assert_msg(access(x, F_OK) != 0, "--dry-run wrote %s", x);
+}
+END_TEST
+
+/* K for every file compare writes, not only results.h5: a foreign summary.csv, report.md or PNG in DIR is
+ * refused naming it and left as it was; --force replaces it. */
+START_TEST(test_compare_foreign_outputs)
+{
+    const char *files[] = {"summary.csv", "report.md", "map_pcg3_0.png", "time_per_frame.png"};
+    const char *text[] = {"my,own,table\n", "# my notes\n", "\x89PNG not ours\n", "\x89PNG\n"};
+    char cmd[512], path[320], err[8192], back[64];
+    for (int k = 0; k < 4; k++) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s/c%d && mkdir -p %s/c%d", dir, k, dir, k);
+        ck_assert_int_eq(system(cmd), 0);
+        snprintf(path, sizeof path, "%s/c%d/%s", dir, k, files[k]);
+        write_file(path, text[k]);
+        snprintf(cmd, sizeof cmd, "compare --config " DEMO " --recon pcg3 --frames 4 --out %%1$s/c%d", k);
+        ck_assert_int_eq(run_cli(cmd, err, sizeof err), 1);
+        ck_assert_msg(strstr(err, files[k]) && strstr(err, "not a wavetomo output"), "%s: %s", files[k], err);
+        FILE *f = fopen(path, "r");
+        ck_assert_ptr_nonnull(f);
+        ck_assert_ptr_nonnull(fgets(back, sizeof back, f));
+        fclose(f);
+        ck_assert_str_eq(back, text[k]);
+        snprintf(path, sizeof path, "%s/c%d/results.h5", dir, k);
+        ck_assert_msg(access(path, F_OK) != 0, "%s: results.h5 written", files[k]);
+    }
+    ck_assert_int_eq(run_cli("compare --config " DEMO " --recon pcg3 --frames 4 --force --out %1$s/c0", err, sizeof err), 0);
+}
+END_TEST
+
+/* compare interrupted (issue 10): SIGTERM once the first case is finished keeps it (results.h5 valid,
+ * done = [1, 0], summary.csv names the missing case), exit 128 + 15; --resume runs only the missing one
+ * and the final Strehl maps equal an uninterrupted run's bit for bit; --resume with another seed or case
+ * list is refused naming what differs. */
+static void read_strehl(const char *cdir, double *s, int64_t *done)
+{
+    char p[320];
+    snprintf(p, sizeof p, "%s/results.h5", cdir);
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r = NULL;
+    ck_assert_msg(wt_h5_open(ctx, p, &r) == WT_OK, "%s", wt_error_message(ctx));
+    int64_t e3[3] = {2, 1, 25}, e2[2] = {2, 1};
+    ck_assert_int_eq(wt_h5_read(r, "strehl_le", WT_H5_F64, 3, e3, NULL, s, 50), WT_OK);
+    ck_assert_int_eq(wt_h5_read(r, "done", WT_H5_I64, 2, e2, NULL, done, 2), WT_OK);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+}
+
+START_TEST(test_compare_interrupt_resume)
+{
+    const char *common = "compare --config " DEMO " --recon pcg3,none --frames 120 --seed 7";
+    char cmd[1024], cdir[256], err[8192], line[1024];
+    double full[50], part[50], fin[50];
+    int64_t done[2];
+    snprintf(cmd, sizeof cmd, "%s --out %%1$s/full --quiet", common);
+    ck_assert_int_eq(run_cli(cmd, err, sizeof err), 0);
+    snprintf(cdir, sizeof cdir, "%s/full", dir);
+    read_strehl(cdir, full, done);
+    ck_assert(done[0] == 1 && done[1] == 1);
+
+    /* the interrupted run: its stderr through a pipe, SIGTERM after the first case's summary line */
+    snprintf(cdir, sizeof cdir, "%s/part", dir);
+    const char *args[] = {wt, "compare", "--config", DEMO, "--recon", "pcg3,none", "--frames", "120", "--seed", "7",
+                          "--out", cdir, NULL};
+    int rd;
+    pid_t pid = spawn(args, 2, &rd);
+    FILE *f = fdopen(rd, "r");
+    int first = 0;
+    while (!first && fgets(line, sizeof line, f)) first = strstr(line, "LE Strehl") != NULL;
+    ck_assert_msg(first, "no case finished");
+    ck_assert_int_eq(kill(pid, SIGTERM), 0);
+    while (fgets(line, sizeof line, f)) {}
+    fclose(f);
+    int status;
+    ck_assert_int_eq(waitpid(pid, &status, 0), pid);
+    ck_assert_msg(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM, "status %d", status);
+    read_strehl(cdir, part, done);
+    ck_assert_msg(done[0] == 1 && done[1] == 0, "done %lld %lld", (long long)done[0], (long long)done[1]);
+    ck_assert(memcmp(part, full, 25 * sizeof *full) == 0);
+    snprintf(line, sizeof line, "grep -q '^none,,,' %s/summary.csv && grep -q 'missing' %s/report.md", cdir, cdir);
+    ck_assert_msg(system(line) == 0, "summary.csv / report.md do not name the missing case");
+
+    /* resume refused for another seed or case list, naming it; then the real resume */
+    snprintf(cmd, sizeof cmd, "compare --config " DEMO " --recon pcg3,none --frames 120 --seed 8 --out %%1$s/part --resume");
+    ck_assert_int_eq(run_cli(cmd, err, sizeof err), 1);
+    ck_assert_msg(strstr(err, "seed (sim.seed) 7 there, 8 now"), "%s", err);
+    snprintf(cmd, sizeof cmd, "compare --config " DEMO " --recon pcg3 --frames 120 --seed 7 --out %%1$s/part --resume");
+    ck_assert_int_eq(run_cli(cmd, err, sizeof err), 1);
+    ck_assert_msg(strstr(err, "methods 'pcg3,none' there, 'pcg3' now"), "%s", err);
+    snprintf(cmd, sizeof cmd, "%s --out %%1$s/part --resume", common);
+    ck_assert_int_eq(run_cli(cmd, err, sizeof err), 0);
+    ck_assert_msg(strstr(err, "1 of 2 cases done") && !strstr(err, "pcg3 "), "%s", err);
+    read_strehl(cdir, fin, done);
+    ck_assert(done[0] == 1 && done[1] == 1);
+    ck_assert(memcmp(fin, full, sizeof full) == 0);
+}
+END_TEST
+
 /* ---------------------------------------------------------------- --threads */
 
 /* --threads N also sets OpenBLAS's pool (issue 10): `run` with the stored MVM and with pcg3 gives the
@@ -607,6 +803,9 @@ Suite *make_suite(void)
     tcase_add_loop_test(tcl, test_h5_inputs, 0, (int)(sizeof h5_cases / sizeof *h5_cases));
     tcase_add_test(tcl, test_disk_full);
     tcase_add_test(tcl, test_signals_and_stale_temporaries);
+    tcase_add_test(tcl, test_compare_interrupt_resume);
+    tcase_add_test(tcl, test_compare_foreign_outputs);
+    tcase_add_test(tcl, test_estimate_vs_measured);
     tcase_add_test(tcl, test_threads_bit_identical);
     suite_add_tcase(s, tcl);
     TCase *tco = tcase_create("outputs");

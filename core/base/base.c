@@ -36,6 +36,7 @@ const char *wt_strerror(int status)
     case WT_ERR_LIBRARY: return "external library error";
     case WT_ERR_NUMERIC: return "numerical error";
     case WT_ERR_FORMAT: return "file format error";
+    case WT_ERR_INTERRUPTED: return "interrupted by a signal";
     default: return status < 0 ? "unknown error" : "unknown warning";
     }
 }

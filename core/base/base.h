@@ -29,7 +29,8 @@ enum {
     WT_ERR_IO = -4,        /* a file could not be read or written */
     WT_ERR_LIBRARY = -5,   /* an external library (HDF5, CHOLMOD, FFTW, LAPACK) reported a failure */
     WT_ERR_NUMERIC = -6,   /* NaN/Inf, breakdown, loss of positive definiteness */
-    WT_ERR_FORMAT = -7     /* a file has the wrong shape, type or provenance */
+    WT_ERR_FORMAT = -7,    /* a file has the wrong shape, type or provenance */
+    WT_ERR_INTERRUPTED = -8 /* stopped by SIGINT/SIGTERM/SIGHUP at a point where the caller keeps what is done */
 };
 
 /* Human-readable name of a status code; never NULL. */

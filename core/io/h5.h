@@ -59,6 +59,10 @@ typedef struct wt_h5_series wt_h5_series; /* a dataset that grows by one frame p
  *    die of the signal as before (signals the caller ignores stay ignored).
  * Every wt_h5_create also removes "TARGET.tmp-<pid>" files left by processes that no longer exist. */
 void wt_h5_process_init(void);
+/* on = 1: the first SIGINT/SIGTERM/SIGHUP after this is only recorded (a second one acts as usual);
+ * wt_interrupt_pending returns its number (0: none). on = 0: back to the default, the record cleared. */
+void wt_interrupt_defer(int on);
+int wt_interrupt_pending(void);
 
 /* Before writing `path`: WT_OK when it does not exist, is a wavetomo output (an HDF5 file whose root
  * attribute "creator" starts with "wavetomo"), or force is set; else WT_ERR_IO naming it: a file that is

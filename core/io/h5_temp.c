@@ -6,6 +6,9 @@
  * its temporary stays, is incomplete (no root attribute "complete", so every reader refuses it), and the
  * next writer of the same target removes it once its process is gone (wt_h5_priv_remove_stale).
  *
+ * wt_interrupt_defer(1) turns the first signal into a flag the caller polls (wt_interrupt_pending) and
+ * acts on at a safe point; the second signal acts as above.
+ *
  * Why a global: a signal handler receives nothing but the signal number, so the paths it must unlink have
  * to live in static storage. This registry is the only mutable global of the library; it is a fixed
  * table (no allocation), written only by the thread that creates and commits writers, and read by the
@@ -47,8 +50,25 @@ void wt_h5_priv_temp_unregister(int slot)
     if (slot >= 0 && slot < SLOTS) temp_used[slot] = 0;
 }
 
+/* Deferred mode (wt_interrupt_defer): the first signal is only recorded, so that a long job made of
+ * independent pieces (compare's cases) can stop between frames and keep what is finished; a second one
+ * ends the process as usual. */
+static volatile sig_atomic_t defer_on, pending;
+
+void wt_interrupt_defer(int on)
+{
+    defer_on = on ? 1 : 0;
+    if (!on) pending = 0;
+}
+
+int wt_interrupt_pending(void) { return pending; }
+
 static void on_signal(int sig)
 {
+    if (defer_on && !pending) {
+        pending = sig;
+        return;
+    }
     for (int i = 0; i < SLOTS; i++)
         if (temp_used[i]) unlink(temp_path[i]);
     signal(sig, SIG_DFL);

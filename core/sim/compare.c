@@ -1,0 +1,113 @@
+/* core/sim/compare.c: one case of a comparison (SPEC §10) and the plan that identifies a set of cases.
+ * LE Strehl by the Maréchal approximation over the frames after the settle period (SPEC §8, strehl.h). */
+#include "compare.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "../base/sha256.h"
+#include "../model/tomography.h"
+
+const char *wt_compare_part_name(int k)
+{
+    static const char *const names[WT_COMPARE_NPART] = {"atmosphere", "sensors",  "reconstruction",
+                                                        "fitting",    "control",  "evaluation"};
+    return k >= 0 && k < WT_COMPARE_NPART ? names[k] : "?";
+}
+
+int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+                   wt_compare_frame_fn fn, void *user, wt_compare_result *res)
+{
+    const wt_config *cfg = sys->cfg;
+    wt_loop *lp = NULL;
+    memset(res, 0, sizeof *res);
+    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = cfg->seed, .noise = cfg->noise};
+    double t0 = wt_time_now();
+    int st = wt_loop_alloc(ctx, sys, &o, &lp);
+    if (st < 0) return st;
+    res->setup = wt_time_now() - t0 + build_s;
+    double r0 = wt_time_now(), sum = 0.0;
+    for (long t = 0; t < cfg->frames; t++) {
+        if ((st = wt_loop_step(lp)) < 0) goto out;
+        sum += wt_loop_field_strehl(lp);
+        if (fn && fn(user, t + 1, sum / (t + 1))) {
+            st = WT_ERROR(ctx, WT_ERR_INTERRUPTED, "stopped at frame %ld of %d", t + 1, cfg->frames);
+            goto out;
+        }
+    }
+    double run = wt_time_now() - r0, fw = 0.0;
+    const wt_strehl_le *le = wt_loop_le(lp);
+    for (int j = 0; j < sys->neval; j++) {
+        res->strehl[j] = wt_strehl_le_strehl(le, j);
+        res->wfe[j] = wt_strehl_le_wfe(le, j) * 1e9;
+        res->field += res->strehl[j] / sys->neval;
+        fw += res->wfe[j] * res->wfe[j] / sys->neval;
+    }
+    res->on_axis = res->strehl[sys->eval_centre];
+    res->wfe_field = sqrt(fw);
+    wt_loop_times tm = wt_loop_get_times(lp);
+    double v[WT_COMPARE_NPART] = {tm.atmosphere, tm.sensors, tm.reconstruction, tm.fitting, tm.control, tm.evaluation};
+    for (int k = 0; k < WT_COMPARE_NPART; k++) res->parts[k] = v[k] / cfg->frames * 1e3;
+    res->total = run / cfg->frames * 1e3;
+    /* R and RÂ in float32; the matrix-free operators as the tomography counts them */
+    if (kind == WT_RECON_MVM) res->memory = 4.0 * (double)sys->nact * (double)(sys->nslopes + sys->nact);
+    else if (kind != WT_RECON_NONE)
+        res->memory = wt_tomography_bytes(wt_reconstructor_tomography(wt_loop_reconstructor(lp)));
+    res->done = 1;
+out:
+    wt_loop_free(lp);
+    return st;
+}
+
+static void join(char *dst, size_t n, int k, char *const *items)
+{
+    dst[0] = '\0';
+    for (int i = 0; i < k; i++) snprintf(dst + strlen(dst), n - strlen(dst), "%s%s", i ? "," : "", items[i]);
+}
+
+void wt_compare_plan_make(wt_compare_plan *p, int nm, char *const *methods, const char *key, int nv,
+                          char *const *values, const wt_config *cfg)
+{
+    memset(p, 0, sizeof *p);
+    join(p->methods, sizeof p->methods, nm, methods);
+    snprintf(p->sweep_key, sizeof p->sweep_key, "%s", nv ? key : "");
+    join(p->sweep_values, sizeof p->sweep_values, nv, values);
+    wt_sha256_hex(cfg->canonical, strlen(cfg->canonical), p->config_sha256);
+    p->seed = cfg->seed;
+    p->frames = cfg->frames;
+}
+
+static void append(char *dst, size_t n, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void append(char *dst, size_t n, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    size_t used = strlen(dst);
+    vsnprintf(dst + used, n - used, fmt, ap);
+    va_end(ap);
+}
+
+int wt_compare_plan_check(wt_context *ctx, const char *source, const wt_compare_plan *stored,
+                          const wt_compare_plan *want)
+{
+    char why[4096] = "";
+#define DIFF(cond, ...)                                                                                     \
+    if (cond) append(why, sizeof why, __VA_ARGS__)
+    DIFF(strcmp(stored->methods, want->methods), "; methods '%s' there, '%s' now", stored->methods, want->methods);
+    DIFF(strcmp(stored->sweep_key, want->sweep_key), "; sweep key '%s' there, '%s' now", stored->sweep_key,
+         want->sweep_key);
+    DIFF(strcmp(stored->sweep_values, want->sweep_values), "; sweep values '%s' there, '%s' now",
+         stored->sweep_values, want->sweep_values);
+    DIFF(stored->seed != want->seed, "; seed (sim.seed) %llu there, %llu now", (unsigned long long)stored->seed,
+         (unsigned long long)want->seed);
+    DIFF(stored->frames != want->frames, "; frames (loop.frames) %lld there, %lld now", (long long)stored->frames,
+         (long long)want->frames);
+    DIFF(strcmp(stored->config_sha256, want->config_sha256), "; configuration (config_sha256 %.16s there, %.16s now)",
+         stored->config_sha256, want->config_sha256);
+#undef DIFF
+    if (!why[0]) return WT_OK;
+    return WT_ERROR(ctx, WT_ERR_FORMAT, "%s was made for other cases, cannot resume it: %s (run without --resume "
+                    "into another directory, or repeat the first command's options)", source, why + 2);
+}

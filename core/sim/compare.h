@@ -1,0 +1,57 @@
+/* core/sim/compare.h: the cases of a comparison (SPEC §10): one closed-loop run (core/sim/loop.h) per
+ * reconstructor and per value of a swept key, on identical turbulence and noise (the same seed), reduced
+ * to the figures `wavetomo compare` reports: per-direction LE Strehl (Maréchal, SPEC §8) and residual WFE,
+ * their on-axis value and field means, the time per frame by part, and the reconstructor's memory.
+ *
+ * A plan names the cases (methods x sweep values) and what makes their results comparable (the
+ * configuration's canonical text hash, the seed, the frames); a stored plan that differs from the one
+ * asked for is refused for resumption, naming what differs (issue 10: compare --resume).
+ */
+#ifndef WT_COMPARE_H
+#define WT_COMPARE_H
+
+#include "../solve/mvm.h"
+#include "loop.h"
+
+#define WT_COMPARE_NPART 6     /* atmosphere, sensors, reconstruction, fitting, control, evaluation */
+#define WT_COMPARE_MAXM 4
+#define WT_COMPARE_MAXV 32
+
+typedef struct wt_compare_result {
+    double strehl[WT_MAX_EVAL], wfe[WT_MAX_EVAL]; /* LE Strehl and WFE [nm] per evaluation direction */
+    double on_axis, field, wfe_field;             /* on-axis Strehl, field-mean Strehl, field-rms WFE [nm] */
+    double parts[WT_COMPARE_NPART];               /* wall time per frame by part [ms] */
+    double total, setup, memory;                  /* ms per frame, set-up [s] (incl. an MVM build), bytes */
+    int done;                                     /* 1: the case ran to its last frame */
+} wt_compare_result;
+
+/* Names of the parts of wt_compare_result.parts, in order. */
+const char *wt_compare_part_name(int k);
+
+/* Called after every frame with the running mean of the field short-exposure Strehl; return non-zero to
+ * stop the case (it is then not done: WT_ERR_INTERRUPTED). */
+typedef int (*wt_compare_frame_fn)(void *user, long frame, double mean_field_strehl);
+
+/* Run one case: the closed loop of reconstructor `kind` (mvm: the matrix `mvm`, built in build_s seconds)
+ * on sys for its configuration's loop.frames, seed and noise, and reduce it into *res (res->done = 1). */
+int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+                   wt_compare_frame_fn fn, void *user, wt_compare_result *res);
+
+typedef struct wt_compare_plan {
+    char methods[256];       /* "mvm,pcg3,cg9" */
+    char sweep_key[128];     /* "" without a sweep */
+    char sweep_values[2048]; /* "20,50,100" ("" without a sweep) */
+    char config_sha256[65];  /* SHA-256 of the canonical text of the first case's configuration */
+    uint64_t seed;
+    int64_t frames;
+} wt_compare_plan;
+
+/* The plan of methods[nm] x values[nv] (nv = 0: no sweep) on cfg (the first case's configuration). */
+void wt_compare_plan_make(wt_compare_plan *p, int nm, char *const *methods, const char *key, int nv,
+                          char *const *values, const wt_config *cfg);
+/* WT_OK when `stored` (read from `source`) describes the same cases and the same runs as `want`; else
+ * WT_ERR_FORMAT with a message naming every field that differs and both values. */
+int wt_compare_plan_check(wt_context *ctx, const char *source, const wt_compare_plan *stored,
+                          const wt_compare_plan *want);
+
+#endif
