@@ -73,6 +73,12 @@ static int get_string(wt_context *ctx, const char *file, const char *what, hid_t
         FAIL(ctx, WT_ERR_FORMAT, "%s: %s is not a single string", file, what);
     int var = H5Tis_variable_str(ft) > 0;
     size_t size = var ? 0 : H5Tget_size(ft);
+    /* I: the declared length is allocated below; a header may declare gigabytes that the file does not
+     * store (an unwritten 2^31-byte string in a 1.5 KB file, seen while writing tests/fuzz/fuzz_h5_recipe) */
+    hsize_t stored = var ? 0 : is_attr ? H5Aget_storage_size(obj) : H5Dget_storage_size(obj);
+    if (!var && size > stored)
+        FAIL(ctx, WT_ERR_FORMAT, "%s: %s declares a string of %zu bytes but the file stores %llu bytes of it", file,
+             what, size, (unsigned long long)stored);
     if ((mt = wt_h5_priv_string_type(size, H5Tget_cset(ft))) < 0 || (var && H5Tset_size(mt, H5T_VARIABLE) < 0))
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for %s", file, what);
     void *dst = var ? (void *)&vl : NULL;

@@ -1,6 +1,7 @@
 #!/bin/bash
 # tests/fuzz/config_seeds.sh SANDBOX SEEDS: the include sandbox and the seed corpus of fuzz_config
-# (`make fuzz`). Seeds: the presets; the demo with each --set case of the bad-input suite
+# (`make fuzz`; the sandbox holds copies of the presets, a fragment, a directory, a self-include, an
+# empty file, a file with a NUL byte and a FIFO). Seeds: the presets; the demo with each --set case of the bad-input suite
 # (tests/test_badinput.c, ov_cases) as "TEXT\0override\0override"; texts that @include sandbox files.
 set -e
 sb=$1 seeds=$2
@@ -10,6 +11,7 @@ printf 'loop = { frames = 5; rate_hz = 500.0; };\n' > "$sb/frag.cfg"
 printf '@include "self.cfg"\n' > "$sb/self.cfg"
 : > "$sb/empty.cfg"
 printf 'a = 1;\0b = 2;\n' > "$sb/nul.cfg"
+mkfifo "$sb/pipe" # nobody writes it: an @include must not wait for one
 for p in data/presets/*.cfg; do cp "$p" "$seeds/preset-$(basename "$p")"; done
 n=0
 # each row {{"k=v"[, "k=v"]}, {...}} of ov_cases: the overrides, NUL-separated after the demo text
@@ -27,3 +29,4 @@ printf '@include "self.cfg"\n' > "$seeds/inc-self"
 printf '@include "nul.cfg"\n' > "$seeds/inc-nul"
 printf '@include "empty.cfg"\n@include "frag.cfg"\n' > "$seeds/inc-frag"
 printf '@include missing.cfg\n' > "$seeds/inc-unquoted"
+printf '@include "pipe"\n' > "$seeds/inc-fifo"

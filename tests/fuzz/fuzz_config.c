@@ -5,7 +5,7 @@
  * integer pass of config_text.c, libconfig, the file's own `overrides`, the command-line overrides,
  * typed keys, consistency, derived sizes, the canonical text and its hash). @include names resolve in
  * the sandbox directory (build/fuzz/sandbox: a copy of the presets, a fragment, a directory, a file
- * including itself, an empty file); an input whose @include could leave it is skipped. */
+ * including itself, an empty file, a NUL byte, a FIFO nobody writes); an input whose @include could leave it is skipped. */
 #include "fuzz.h"
 
 static wt_context *ctx;

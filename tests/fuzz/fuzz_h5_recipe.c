@@ -6,7 +6,7 @@
  * with the wrong things in it. Here the input is a recipe: its bytes choose, for each name the readers
  * look for (config, matrix_config, slopes, slopes_ol, commands, R, RA and the root attributes complete,
  * creator, config_sha256, variant), whether it is absent, a string (fixed or variable length, the demo's
- * real text, or bytes of the input), a numeric dataset (class, size, byte order, rank 0-4, dims, chunked
+ * real text, or bytes of the input, or a declared length up to 2 GiB that is not stored), a numeric dataset (class, size, byte order, rank 0-4, dims, chunked
  * or not, Fletcher32 or not, an extent beyond what is written, values with NaN/Inf/huge), a group, or a
  * soft or external link; also the file format bounds (v0 superblock without checksums). The file is
  * built in memory with HDF5's core driver, its image taken, and given to the telemetry reading of
@@ -104,10 +104,16 @@ static char *string_value(recipe *r, char *buf, size_t cap)
     }
 }
 
-static void put_string(hid_t loc, const char *name, int attr, int vlen, const char *s)
+/* declared > 0: a fixed-length string of that many bytes, never written (only a dataset can be) */
+static void put_string(hid_t loc, const char *name, int attr, int vlen, const char *s, size_t declared)
 {
     hid_t t = H5Tcopy(H5T_C_S1), sp = H5Screate(H5S_SCALAR), o = -1;
-    H5Tset_size(t, vlen ? H5T_VARIABLE : strlen(s) + 1);
+    H5Tset_size(t, vlen ? H5T_VARIABLE : declared && !attr ? declared : strlen(s) + 1);
+    if (declared && !attr) {
+        H5Dclose(H5Dcreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+        H5Tclose(t), H5Sclose(sp);
+        return;
+    }
     const void *src = vlen ? (const void *)&s : (const void *)s;
     if (attr) {
         if ((o = H5Acreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT)) >= 0) H5Awrite(o, t, src), H5Aclose(o);
@@ -188,7 +194,7 @@ static void *build(recipe *r, size_t *size)
         }
         switch (b % 4) {
         case 0: break;
-        case 1: put_string(f, attrs[i], 1, (b >> 2) & 1, string_value(r, buf, sizeof buf)); break;
+        case 1: put_string(f, attrs[i], 1, (b >> 2) & 1, string_value(r, buf, sizeof buf), 0); break;
         default: put_numeric(r, f, attrs[i], 1, lcpl); break;
         }
     }
@@ -196,7 +202,10 @@ static void *build(recipe *r, size_t *size)
         unsigned b = byte(r);
         switch (b % 8) {
         case 0: case 1: break;
-        case 2: put_string(f, dsets[i], 0, (b >> 3) & 1, string_value(r, buf, sizeof buf)); break;
+        case 2: /* a string; with bit 4, one whose declared length (up to 2^31 bytes) is not stored */
+            put_string(f, dsets[i], 0, (b >> 3) & 1, string_value(r, buf, sizeof buf),
+                       (b & 16) ? (size_t)1 << (byte(r) % 32) : 0);
+            break;
         case 3: case 4: case 5: put_numeric(r, f, dsets[i], 0, lcpl); break;
         case 6: H5Gclose(H5Gcreate2(f, dsets[i], lcpl, H5P_DEFAULT, H5P_DEFAULT)); break;
         default: /* a dangling or circular soft link, or an external link to a file that is not there */
