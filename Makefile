@@ -163,7 +163,7 @@ fuzz: deps fuzz-deps
 	        --telemetry $(FUZZ)/seeds/telemetry/sim.h5 --force > /dev/null
 	@fail=0; for t in $(FUZZ_TARGETS); do \
 	  mkdir -p $(FUZZ)/corpus/$$t; rm -f $(FUZZ)/crashes/$$t-*; echo "fuzz_$$t: $(FUZZ_SECONDS) s (log $(FUZZ)/fuzz_$$t.log)"; \
-	  WT_FUZZ_SANDBOX=$(CURDIR)/$(FUZZ)/sandbox LSAN_OPTIONS=suppressions=$(CURDIR)/tests/fuzz/lsan.supp \
+	  WT_FUZZ_SANDBOX=$(CURDIR)/$(FUZZ)/sandbox LSAN_OPTIONS=suppressions=$(CURDIR)/tests/fuzz/lsan.supp:print_suppressions=0 \
 	    nice -n 19 $(FUZZ)/fuzz_$$t $(CURDIR)/$(FUZZ)/corpus/$$t $(CURDIR)/$(FUZZ)/seeds/$$t \
 	    -max_total_time=$(FUZZ_SECONDS) -timeout=5 -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 \
 	    -artifact_prefix=$(CURDIR)/$(FUZZ)/crashes/$$t- > $(FUZZ)/fuzz_$$t.log 2>&1 || fail=1; \
