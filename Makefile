@@ -27,7 +27,7 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps
+.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo
 
@@ -133,6 +133,52 @@ debug-test: deps
 	@LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp \
 	$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug OPT="$(SAN)" \
 	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" test
+
+# libFuzzer targets of the readers (tests/fuzz, README "Fuzzing"; not part of `make test`, which needs no
+# clang): the library is rebuilt with clang, coverage instrumentation, ASan and UBSan in build/fuzz/obj;
+# each target runs FUZZ_SECONDS seconds on its corpus build/fuzz/corpus/NAME (seeded from build/fuzz/seeds);
+# a crash, leak, UBSan report, input slower than 5 s or allocation above 512 MB is saved as
+# build/fuzz/crashes/NAME-* and makes `make fuzz` fail.
+FUZZ_PACKAGES := clang libclang-rt-14-dev libomp-14-dev
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?= config telemetry mvm h5_recipe
+FUZZ     := $(BUILD)/fuzz
+FUZZ_SAN := -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined
+FUZZ_LIBS = $(PKG_LIBS) -lcholmod -lsuitesparseconfig -lm -fopenmp
+
+fuzz-deps:
+	@$(MAKE) --no-print-directory DEB_PACKAGES="$(FUZZ_PACKAGES)" deps
+
+$(FUZZ)/fuzz_%: tests/fuzz/fuzz_%.c tests/fuzz/fuzz.h $(FUZZ)/obj/libwavetomo.a
+	@$(if $(V),,echo "  FUZZ/LD $@")
+	$(Q)clang -std=c11 -D_DEFAULT_SOURCE -I. -DWT_FUZZ_ROOT='"$(CURDIR)"' $(FUZZ_SAN) -fsanitize=fuzzer $(PKG_CFLAGS) \
+	    -o $@ $< $(FUZZ)/obj/libwavetomo.a $(FUZZ_LIBS)
+
+$(FUZZ)/obj/libwavetomo.a: FORCE
+	@$(MAKE) --no-print-directory BUILD=$(FUZZ)/obj CC=clang OPT="$(FUZZ_SAN)" $@
+
+$(FUZZ)/make_seeds: tests/fuzz/make_seeds.c tests/fuzz/fuzz.h $(LIB)
+	@mkdir -p $(dir $@)
+	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+fuzz: deps fuzz-deps
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(FUZZ)/make_seeds $(FUZZ_TARGETS:%=$(FUZZ)/fuzz_%)
+	@rm -rf $(FUZZ)/seeds $(FUZZ)/sandbox && mkdir -p $(FUZZ)/seeds/mvm $(FUZZ)/seeds/telemetry $(FUZZ)/seeds/h5_recipe \
+	    $(FUZZ)/crashes && bash tests/fuzz/config_seeds.sh $(FUZZ)/sandbox $(FUZZ)/seeds/config && \
+	    $(FUZZ)/make_seeds data/presets/demo.cfg $(FUZZ)/seeds && \
+	    $(BIN)/wavetomo sim --config data/presets/demo.cfg --frames 2 --out $(FUZZ)/seeds/r.h5 \
+	        --telemetry $(FUZZ)/seeds/telemetry/sim.h5 --force > /dev/null
+	@fail=0; for t in $(FUZZ_TARGETS); do \
+	  mkdir -p $(FUZZ)/corpus/$$t; rm -f $(FUZZ)/crashes/$$t-*; echo "fuzz_$$t: $(FUZZ_SECONDS) s (log $(FUZZ)/fuzz_$$t.log)"; \
+	  WT_FUZZ_SANDBOX=$(CURDIR)/$(FUZZ)/sandbox LSAN_OPTIONS=suppressions=$(CURDIR)/tests/fuzz/lsan.supp:print_suppressions=0 \
+	    nice -n 19 $(FUZZ)/fuzz_$$t $(CURDIR)/$(FUZZ)/corpus/$$t $(CURDIR)/$(FUZZ)/seeds/$$t \
+	    -max_total_time=$(FUZZ_SECONDS) -timeout=5 -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 \
+	    -artifact_prefix=$(CURDIR)/$(FUZZ)/crashes/$$t- > $(FUZZ)/fuzz_$$t.log 2>&1 || fail=1; \
+	  grep -E "^#[0-9]+.*(DONE|pulse|NEW)" $(FUZZ)/fuzz_$$t.log | tail -1; \
+	  grep -E "^stat::number_of_executed_units" $(FUZZ)/fuzz_$$t.log; \
+	 done; \
+	 if [ -n "$$(ls $(FUZZ)/crashes)" ] || [ $$fail != 0 ]; then \
+	   echo "fuzz: findings in $(FUZZ)/crashes:" >&2; ls $(FUZZ)/crashes >&2; exit 1; fi
 
 clean:
 	rm -rf build build-debug bin bin-debug

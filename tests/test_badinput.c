@@ -140,6 +140,8 @@ static const file_case file_cases[] = {
     {"@include \"missing.cfg\"\n", {"main.cfg:1: @include \"missing.cfg\"", "No such file", ""}},
     {"@include \"main.cfg\"\n", {"main.cfg:1: @include \"main.cfg\"", "nested deeper", ""}},
     {"@include \"/dev/null\"\n", {"@include \"/dev/null\"", "not a regular file", ""}},
+    /* a FIFO without a writer: refused at once, not waited on for ever (seen while writing tests/fuzz/fuzz_config) */
+    {"@include \"pipe\"\n", {"main.cfg:1: @include \"pipe\"", "not a regular file", ""}},
     {"@include missing.cfg\n", {"main.cfg:1", "quoted file name", ""}},
     /* a syntax error in an included file names that file and its line */
     {"@include \"inc_syntax.cfg\"\n", {"inc_syntax.cfg:2: syntax error", "", ""}},
@@ -152,6 +154,8 @@ START_TEST(test_config_file)
     ck_assert_ptr_nonnull(realpath(DEMO, demo));
     snprintf(sub, sizeof sub, "%s/sub", dir);
     ck_assert_int_eq(mkdir(sub, 0700), 0);
+    snprintf(path, sizeof path, "%s/pipe", dir);
+    ck_assert_int_eq(mkfifo(path, 0600), 0);
     /* an included copy of the demo whose loop.frames wraps modulo 2^32 to 21 in libconfig 1.5 */
     FILE *f = fopen(DEMO, "r");
     ck_assert_ptr_nonnull(f);
@@ -274,7 +278,7 @@ END_TEST
 
 /* ---------------------------------------------------------------- HDF5 inputs of `wavetomo run` */
 
-enum { TEL_OK, TEL_I32, TEL_F64, TEL_NAN_CMD, TEL_INF_SOL, TEL_ZERO, TEL_HUGE };
+enum { TEL_OK, TEL_I32, TEL_F64, TEL_NAN_CMD, TEL_INF_SOL, TEL_ZERO, TEL_HUGE, TEL_BIGSTR };
 enum { MAT_OK, MAT_F64, MAT_I32, MAT_NAN, MAT_INF_RA, MAT_EDITED, MAT_VARIANT };
 
 /* A telemetry file of the demo system: 4 frames of slopes, slopes_ol (open loop) and commands. */
@@ -319,6 +323,13 @@ static void write_tel(const char *path, const wt_config *cfg, const wt_system *s
             H5Dclose(d);
         }
         H5Fclose(f);
+    }
+    if (kind == TEL_BIGSTR) { /* 'config' declares a 2 GiB string and stores nothing (a 1.5 KB header made
+                               * `run` allocate and fill 6 GB for 33 s; seen while writing tests/fuzz/fuzz_h5_recipe) */
+        hid_t f = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT), sp = H5Screate(H5S_SCALAR), t = H5Tcopy(H5T_C_S1), d;
+        ck_assert(f >= 0 && H5Ldelete(f, "config", H5P_DEFAULT) >= 0 && H5Tset_size(t, (size_t)1 << 31) >= 0);
+        ck_assert((d = H5Dcreate2(f, "config", t, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)) >= 0);
+        H5Dclose(d), H5Tclose(t), H5Sclose(sp), H5Fclose(f);
     }
 }
 
@@ -376,6 +387,8 @@ static const h5_case h5_cases[] = {
     {TEL_ZERO, MAT_OK, RUN_PCG, {"t.h5", "'slopes_ol' holds 0 frames", ""}},
     {TEL_HUGE, MAT_OK, RUN_MVM, {"dataset 'slopes' claims", "stores", ""}},
     {TEL_HUGE, MAT_OK, RUN_PCG, {"dataset 'slopes_ol' claims 1548000000000 elements", "", ""}},
+    /* I for strings: a declared length the file does not store is refused before it is allocated */
+    {TEL_BIGSTR, MAT_OK, RUN_PCG, {"t.h5: dataset 'config' declares a string of 2147483648 bytes", "stores 0 bytes", ""}},
     /* J: provenance: an edited configuration text, a variant the builder never writes */
     {TEL_OK, MAT_EDITED, RUN_MVM, {"M.h5", "'matrix_config' hashes to", "edited"}},
     {TEL_OK, MAT_VARIANT, RUN_MVM, {"M.h5", "'variant' is \"pcg33;rm -rf\"", "\"pcg3\" or \"cg9\""}},

@@ -483,6 +483,40 @@ START_TEST(test_truncated)
 }
 END_TEST
 
+/* A file read from memory (wt_h5_open_image, the fuzz targets' way in) gives what the file gives, and
+ * is refused for the same reasons: no signature, a cut image, a missing "complete". */
+START_TEST(test_open_image)
+{
+    wt_context *ctx = tu_context();
+    const char *p = P(0, "img.h5");
+    write_small(ctx, p);
+    long size = file_size(p);
+    ck_assert(size > 0);
+    unsigned char *img = malloc((size_t)size);
+    FILE *f = fopen(p, "rb");
+    ck_assert_ptr_nonnull(f);
+    ck_assert_int_eq(fread(img, 1, (size_t)size, f), (size_t)size);
+    fclose(f);
+    wt_h5_reader *r = NULL;
+    float a[20 * 30];
+    ck_assert_msg(wt_h5_open_image(ctx, "mem.h5", img, (size_t)size, &r) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_str_eq(wt_h5_path(r), "mem.h5");
+    ck_assert_int_eq(wt_h5_read(r, "R", WT_H5_F32, 2, NULL, NULL, a, 600), WT_OK);
+    ck_assert(a[31] == 101.0f && a[599] == 1929.0f);
+    wt_h5_close(r);
+    /* a cut image: the superblock's end of file is beyond the bytes given */
+    ck_assert_int_eq(wt_h5_open_image(ctx, "mem.h5", img, (size_t)size / 2, &r), WT_ERR_FORMAT);
+    ck_assert_ptr_null(r);
+    assert_contains(wt_error_message(ctx), "mem.h5");
+    img[1] ^= 1; /* no signature */
+    ck_assert_int_eq(wt_h5_open_image(ctx, "mem.h5", img, (size_t)size, &r), WT_ERR_FORMAT);
+    assert_contains(wt_error_message(ctx), "not an HDF5 file");
+    ck_assert_int_eq(wt_h5_open_image(ctx, "mem.h5", img, 3, &r), WT_ERR_FORMAT);
+    free(img);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* One flipped byte in the data of R: the file opens (its metadata is intact) but reading R fails its
  * Fletcher32 checksum instead of returning a wrong matrix. */
 START_TEST(test_corrupt_data)
@@ -782,6 +816,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_shape_mismatch);
     tcase_add_test(tc, test_missing_and_not_hdf5);
     tcase_add_test(tc, test_truncated);
+    tcase_add_test(tc, test_open_image);
     tcase_add_test(tc, test_corrupt_data);
     tcase_add_test(tc, test_atomic_commit);
     tcase_add_test(tc, test_poisoned_writer);

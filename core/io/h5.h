@@ -143,6 +143,10 @@ int wt_h5_series_close(wt_h5_series *s);
 /* Open a committed file. WT_ERR_IO: missing or unreadable; WT_ERR_FORMAT: not HDF5, truncated,
  * corrupt metadata, or no root attribute "complete" = 1. [out] *out, freed by wt_h5_close. */
 int wt_h5_open(wt_context *ctx, const char *path, wt_h5_reader **out);
+/* The same checks on a file held in memory (`size` bytes at `image`, copied; `name` stands for the file in
+ * messages): the fuzz targets of tests/fuzz read HDF5 bytes without touching the disk. An image whose
+ * first 8 bytes are not the HDF5 signature is refused (a user block is not supported here). */
+int wt_h5_open_image(wt_context *ctx, const char *name, const void *image, size_t size, wt_h5_reader **out);
 void wt_h5_close(wt_h5_reader *r);
 const char *wt_h5_path(const wt_h5_reader *r);
 

@@ -158,7 +158,9 @@ static int create_impl(wt_context *ctx, const char *path, wt_h5_writer **out)
     wt_h5_priv_remove_stale(path); /* temporaries of earlier runs that were killed (SIGKILL) */
     if ((fapl = wt_h5_priv_file_access()) < 0)
         H5FAIL(ctx, WT_ERR_LIBRARY, "%s: cannot set up file access properties", path);
-    /* registered before it exists: a signal during H5Fcreate must not leave it behind */
+    /* registered before it exists: a signal between H5Fcreate and the registration would leave it behind
+     * (seen under load by the bad-input suite's SIGTERM case); the name carries our pid, so unlinking it
+     * before it is created removes nothing of anyone else's */
     w->temp_slot = wt_h5_priv_temp_register(w->temp); /* unlinked on SIGINT/SIGTERM (h5_temp.c) */
     if ((w->file = H5Fcreate(w->temp, H5F_ACC_TRUNC, H5P_DEFAULT, fapl)) < 0)
         H5FAIL(ctx, WT_ERR_IO, "%s: cannot create the temporary file '%s' (H5Fcreate)", path, w->temp);

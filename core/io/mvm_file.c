@@ -55,10 +55,20 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t na
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, float *R,
                      float *RA, char *variant_out)
 {
-    int st;
     wt_h5_reader *r = NULL;
+    int st = wt_h5_open(ctx, path, &r);
+    if (st < 0) return st;
+    st = wt_mvm_file_read_open(ctx, r, sys, nact, nslopes, R, RA, variant_out);
+    wt_h5_close(r);
+    return st;
+}
+
+int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes,
+                          float *R, float *RA, char *variant_out)
+{
+    int st;
+    const char *path = wt_h5_path(r);
     char *hash = NULL, *variant = NULL, *text = NULL, own[65];
-    if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
     if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
     if (strcmp(hash, sys->sha256) != 0) {
         st = WT_ERROR(ctx, WT_ERR_FORMAT,
@@ -94,6 +104,5 @@ fail:
     wt_free(ctx, hash);
     wt_free(ctx, text);
     wt_free(ctx, variant);
-    wt_h5_close(r);
     return st;
 }

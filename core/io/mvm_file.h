@@ -46,5 +46,9 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t na
  * stored variant. Allocates only transiently. */
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, float *R,
                      float *RA, char *variant_out);
+/* The same from a file already open (its name is wt_h5_path(r); r stays open): tests/fuzz reads memory
+ * images through it. */
+int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes,
+                          float *R, float *RA, char *variant_out);
 
 #endif
