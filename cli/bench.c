@@ -1,6 +1,7 @@
 /* cli/bench.c: `wavetomo bench`: reconstructor kernel timings with flop/byte counts, against the
  * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). */
 #include <cblas.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,6 +10,7 @@
 #endif
 
 #include "cli.h"
+#include "core/la/half.h"
 #include "core/base/rng.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
@@ -30,7 +32,8 @@ static void help(void)
            "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
            "operand traffic; the working sets (~1 MB for pcg3) live in cache, so the implied GB/s can exceed\n"
            "the DRAM triad figure. Then the closed-loop simulation speed with pcg3 (--loop-frames, default\n"
-           "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size)\n"
+           "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
+           "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
            "memory (--no-build skips it; ~4 minutes at E-ELT size).\n");
 }
@@ -264,23 +267,45 @@ static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
     const int64_t na = sys->nact, ns = sys->nslopes;
     const size_t n = (size_t)na * (size_t)ns;
     float *R = malloc(n * sizeof *R), *C = malloc(n * sizeof *C), *x = malloc((size_t)ns * sizeof *x),
-          *y = malloc((size_t)na * sizeof *y);
+          *y = malloc((size_t)na * sizeof *y), *y16 = malloc((size_t)na * sizeof *y16);
+    uint16_t *H[2] = {malloc(n * sizeof(uint16_t)), malloc(n * sizeof(uint16_t))};
+    float *Hc[2] = {malloc((size_t)na * sizeof(float)), malloc((size_t)na * sizeof(float))};
     double *tg = malloc((size_t)reps * sizeof *tg), *tc = malloc((size_t)reps * sizeof *tc);
+    double *th[2] = {malloc((size_t)reps * sizeof(double)), malloc((size_t)reps * sizeof(double))};
+    const int prec[2] = {WT_PREC_F16, WT_PREC_BF16};
     int st = WT_OK;
-    if (!R || !C || !x || !y || !tg || !tc) {
+    if (!R || !C || !x || !y || !y16 || !tg || !tc || !H[0] || !H[1] || !Hc[0] || !Hc[1] || !th[0] || !th[1]) {
         st = wt_error_set(cli->ctx, WT_ERR_NOMEM, __FILE__, __LINE__, "bench: out of memory for a %.2f GB matrix",
-                          2.0 * n * 4.0 / 1e9);
+                          3.0 * n * 4.0 / 1e9);
         goto out;
     }
 #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < n; i++) R[i] = C[i] = (float)((i * 2654435761u) % 1000) * 1e-3f;
     for (int64_t i = 0; i < ns; i++) x[i] = (float)(i % 7) * 1e-6f;
-    /* the runtime's own apply (core/solve/mvm.h) on a container that borrows R */
+    const int nth = wt_context_threads(cli->ctx);
+    /* the runtime's own apply (core/solve/mvm.h) on containers that borrow R and its 16-bit copies */
     const wt_mvm view = {.ctx = cli->ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns, .R = R};
+    wt_mvm v16[2];
+    for (int k = 0; k < 2; k++) {
+        wt_half_pack(prec[k], na, ns, R, H[k], Hc[k], nth);
+        v16[k] = (wt_mvm){.ctx = cli->ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns,
+                          .precision = prec[k], .Rh = H[k], .Rc = Hc[k], .nthreads = nth};
+    }
+    double err[2] = {0, 0}, ymax = 0;
     for (int r = 0; r < reps; r++) {
         double a = wt_time_now();
         wt_mvm_apply(&view, x, NULL, y);
         tg[r] = wt_time_now() - a;
+        for (int k = 0; k < 2; k++) {
+            a = wt_time_now();
+            wt_mvm_apply(&v16[k], x, NULL, y16);
+            th[k][r] = wt_time_now() - a;
+            if (r == 0)
+                for (int64_t i = 0; i < na; i++) {
+                    err[k] = fmax(err[k], fabs((double)y16[i] - y[i]));
+                    ymax = fmax(ymax, fabs((double)y[i]));
+                }
+        }
         a = wt_time_now();
 #pragma omp parallel for schedule(static)
         for (size_t i = 0; i < n; i++) C[i] = R[i];
@@ -288,16 +313,24 @@ static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
     }
     stats g = summarise(tg, reps), c = summarise(tc, reps);
     double bytes = 4.0 * (double)n;
-    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS threads, %d repetitions side by side:\n",
-           (long long)na, (long long)ns, bytes / 1e9, openblas_get_num_threads(), reps);
+    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS / %d OpenMP threads, %d repetitions side by side:\n",
+           (long long)na, (long long)ns, bytes / 1e9, openblas_get_num_threads(), nth, reps);
     printf("  sgemv          %8.2f ms  [%.2f, %.2f]  reads R once: %.1f GB/s\n", g.med * 1e3, g.p10 * 1e3, g.p90 * 1e3,
            bytes / g.med / 1e9);
-    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the same bytes (read + write): %.1f GB/s\n", c.med * 1e3,
+    for (int k = 0; k < 2; k++) {
+        stats h = summarise(th[k], reps);
+        printf("  %s GEMV     %8.2f ms  [%.2f, %.2f]  reads %.2f GB: %.1f GB/s; %.2fx faster than sgemv; "
+               "max |dy| / max |y| = %.1e\n",
+               wt_prec_name(prec[k]), h.med * 1e3, h.p10 * 1e3, h.p90 * 1e3, bytes / 2e9, bytes / 2.0 / h.med / 1e9,
+               g.med / h.med, ymax > 0 ? err[k] / ymax : 0.0);
+    }
+    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the float32 bytes (read + write): %.1f GB/s\n", c.med * 1e3,
            c.p10 * 1e3, c.p90 * 1e3, 2.0 * bytes / c.med / 1e9);
-    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s\n",
-           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9);
+    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s (fp32), %.0f GB/s (16-bit)\n",
+           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9, bytes * 250.0 / 1e9);
 out:
-    free(R), free(C), free(x), free(y), free(tg), free(tc);
+    free(R), free(C), free(x), free(y), free(y16), free(tg), free(tc);
+    for (int k = 0; k < 2; k++) free(H[k]), free(Hc[k]), free(th[k]);
     return st;
 }
 

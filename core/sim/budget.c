@@ -178,11 +178,12 @@ fail:
 }
 
 /* Sums over the directions of one frame: piston-removed σ² of the rim points and of the tip-tilt plane,
- * each as Σ/N per direction. */
-static void frame_stats(const wt_loop *lp, int neval, const pupil_geom *g, double *rim, double *tt)
+ * each as Σ/N per direction. Per-direction values first, summed in direction order afterwards: the same
+ * seed gives the same bits whatever thread ran which direction. */
+static void frame_stats(const wt_loop *lp, int neval, int nthreads, const pupil_geom *g, double *rim, double *tt)
 {
-    double srim = 0.0, stt = 0.0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : srim, stt)
+    double drim[WT_MAX_EVAL], dtt[WT_MAX_EVAL];
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads > 0 ? nthreads : 1)
     for (int j = 0; j < neval; j++) {
         const double *o = wt_loop_residual(lp, j);
         double m = 0.0, r = 0.0, bx = 0.0, by = 0.0;
@@ -196,11 +197,13 @@ static void frame_stats(const wt_loop *lp, int neval, const pupil_geom *g, doubl
         /* least-squares plane c = G⁻¹ b; its variance cᵀ G c / N = bᵀ G⁻¹ b / N */
         double det = g->gxx * g->gyy - g->gxy * g->gxy;
         double q = (g->gyy * bx * bx - 2.0 * g->gxy * bx * by + g->gxx * by * by) / det;
-        srim += r / (double)g->n;
-        stt += q / (double)g->n;
+        drim[j] = r / (double)g->n;
+        dtt[j] = q / (double)g->n;
     }
-    *rim += srim;
-    *tt += stt;
+    for (int j = 0; j < neval; j++) {
+        *rim += drim[j];
+        *tt += dtt[j];
+    }
 }
 
 typedef struct {
@@ -228,7 +231,7 @@ static int run_loop(wt_context *ctx, const wt_system *sys, const wt_loop_options
     for (long t = first; t < last; t++) {
         if ((st = wt_loop_step(lp)) < 0) break;
         if (t >= cfg->settle_frames) {
-            frame_stats(lp, sys->neval, &g, &rim, &tt);
+            frame_stats(lp, sys->neval, wt_context_threads(ctx), &g, &rim, &tt);
             n++;
         }
         if (ps->opt->progress && t + 1 < last)
