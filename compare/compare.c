@@ -196,7 +196,9 @@ static int run_one(wt_cli *cli, const cmp_args *a, int mi, int vi, wt_config *cf
     double v[NPART] = {tm.atmosphere, tm.sensors, tm.reconstruction, tm.fitting, tm.control, tm.evaluation};
     for (int k = 0; k < NPART; k++) res->parts[k] = v[k] / cfg->frames * 1e3;
     res->total = run / cfg->frames * 1e3;
-    if (kind == WT_RECON_MVM) res->memory = 4.0 * (double)sys->nact * (double)(sys->nslopes + sys->nact);
+    if (kind == WT_RECON_MVM) /* R and RA: 4 bytes an element in fp32, 2 in fp16/bf16 (+ the row scales) */
+        res->memory = (cfg->mvm_precision ? 2.0 : 4.0) * (double)sys->nact * (double)(sys->nslopes + sys->nact) +
+                      (cfg->mvm_precision ? 8.0 * (double)sys->nact : 0.0);
     else if (kind != WT_RECON_NONE) res->memory = wt_tomography_bytes(wt_reconstructor_tomography(wt_loop_reconstructor(lp)));
     if (!cli->quiet)
         fprintf(stderr, "  %-28s LE Strehl on-axis %.4f field %.4f, WFE %.1f nm, %.1f ms/frame (reconstruction %.2f ms)\n",
