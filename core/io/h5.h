@@ -169,6 +169,8 @@ int wt_h5_read_int64(wt_h5_reader *r, const char *name, int64_t *value);
 int wt_h5_read_string(wt_h5_reader *r, const char *name, char **text);
 
 /* Attributes of obj ("/" for the root). Strings are allocated through the context: wt_free. */
+/* 1 when object obj ("/" for the root) exists and has an attribute `name`, else 0. */
+int wt_h5_attr_exists(wt_h5_reader *r, const char *obj, const char *name);
 int wt_h5_attr_read_string(wt_h5_reader *r, const char *obj, const char *name, char **value);
 int wt_h5_attr_read_double(wt_h5_reader *r, const char *obj, const char *name, double *value);
 int wt_h5_attr_read_int64(wt_h5_reader *r, const char *obj, const char *name, int64_t *value);

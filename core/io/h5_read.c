@@ -193,6 +193,16 @@ int wt_h5_exists(wt_h5_reader *r, const char *name)
     return e;
 }
 
+int wt_h5_attr_exists(wt_h5_reader *r, const char *obj, const char *name)
+{
+    if (!r || !obj || !name) return 0;
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    int e = (!strcmp(obj, "/") || wt_h5_priv_path_exists(r->file, obj)) &&
+            H5Aexists_by_name(r->file, obj, name, H5P_DEFAULT) > 0;
+    wt_h5_priv_quiet_off(q);
+    return e;
+}
+
 /* Open dataset `name`; [out] its rank and dims. */
 static int open_dataset(wt_h5_reader *r, const char *name, hid_t *dset, int *rank, int64_t *dims)
 {

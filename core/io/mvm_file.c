@@ -73,6 +73,27 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64
                               "fill-reducing ordering CHOLMOD chose");
 }
 
+int wt_mvm_file_precision(wt_context *ctx, const char *path, int *precision)
+{
+    wt_h5_reader *r = NULL;
+    char *p = NULL;
+    int st;
+    *precision = WT_MVM_FILE_F32;
+    if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
+    if (wt_h5_attr_exists(r, "/", "precision")) {
+        if ((st = wt_h5_attr_read_string(r, "/", "precision", &p)) >= 0) {
+            if (!strcmp(p, "fp16")) *precision = WT_MVM_FILE_F16;
+            else if (!strcmp(p, "bf16")) *precision = WT_MVM_FILE_BF16;
+            else if (strcmp(p, "fp32") != 0)
+                st = WT_ERROR(ctx, WT_ERR_FORMAT, "%s: root attribute 'precision' is \"%.40s\", expected \"fp32\", "
+                              "\"fp16\" or \"bf16\"", path, p);
+        }
+    }
+    wt_free(ctx, p);
+    wt_h5_close(r);
+    return st;
+}
+
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes,
                      wt_mvm_file_data *md, char *variant_out)
 {

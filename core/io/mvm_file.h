@@ -44,16 +44,21 @@ typedef struct wt_mvm_file_data {
     float *Rc, *RAc;
 } wt_mvm_file_data;
 
-/* Write the matrices of d (d->precision must be cfg->mvm_precision), the identity of cfg and the record
- * into an open writer (the caller adds provenance and layout and commits). */
+/* Write the matrices of d in d->precision (root attribute "precision"), the identity of cfg and the
+ * record into an open writer (the caller adds provenance and layout and commits). */
 int wt_mvm_file_write(wt_h5_writer *w, const wt_config *cfg, int64_t nact, int64_t nslopes, const wt_mvm_file_data *d,
                       const wt_mvm_file_record *rec);
 
+/* The storage precision of MATRIX.h5 (its root attribute "precision": "fp32", "fp16" or "bf16"; a file
+ * without it is fp32). Anything else is refused naming the file. */
+int wt_mvm_file_precision(wt_context *ctx, const char *path, int *precision);
+
 /* Read MATRIX.h5 for a system of nact actuators and nslopes slopes described by cfg into the caller's
- * buffers of d, allocated for d->precision = cfg->mvm_precision. Refuses (WT_ERR_FORMAT, naming the file)
- * a matrix whose config_sha256 differs from cfg->matrix_sha256 (the precision is one of the hashed keys),
- * whose shapes or element types differ, or whose values or row scales are not finite (scales: > 0).
- * variant_out: 16 bytes for the stored variant. Allocates only transiently. */
+ * buffers of d, allocated for d->precision (the file's, from wt_mvm_file_precision). Refuses
+ * (WT_ERR_FORMAT, naming the file) a matrix whose config_sha256 differs from cfg->matrix_sha256 (the
+ * precision is not hashed: it is how R is stored, not which R), whose shapes or element types differ,
+ * or whose values or row scales are not finite (scales: > 0). variant_out: 16 bytes for the stored
+ * variant. Allocates only transiently. */
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes,
                      wt_mvm_file_data *d, char *variant_out);
 

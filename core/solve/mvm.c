@@ -113,14 +113,16 @@ int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t
     wt_mvm *m = NULL;
     int st = WT_OK;
     *out = NULL;
-    if (cfg->mvm_precision == WT_PREC_F32) {
+    int precision;
+    WT_TRY(wt_mvm_file_precision(ctx, path, &precision));
+    if (precision == WT_PREC_F32) {
         WT_TRY(wt_mvm_alloc(ctx, WT_MVM_LAYER_VALUES, nact, nslopes, &m));
     } else {
         WT_ALLOC(ctx, m, 1, "MVM");
         m->ctx = ctx;
         m->nact = nact;
         m->nslopes = nslopes;
-        m->precision = cfg->mvm_precision;
+        m->precision = precision;
         m->nthreads = wt_context_threads(ctx);
         WT_ALLOC(ctx, m->Rh, (size_t)(nact * nslopes), "the 16-bit control matrix R");
         WT_ALLOC(ctx, m->RAh, (size_t)(nact * nact), "the 16-bit POLC matrix RA");
@@ -149,10 +151,6 @@ int wt_mvm_write(wt_h5_writer *w, const wt_mvm *m, const wt_config *cfg, const c
                               .peak_estimate = s->peak_estimate,
                               .ordering = s->ordering,
                               .cholmod_version = wt_chol_version()};
-    if (m->precision != cfg->mvm_precision)
-        return WT_ERROR(m->ctx, WT_ERR_INVALID,
-                        "MVM: the matrix is %s but the configuration says recon.mvm_precision = %s; the file's hash "
-                        "would not describe it", wt_prec_name(m->precision), wt_prec_name(cfg->mvm_precision));
     wt_mvm_file_data d = {m->precision, m->R, m->RA, m->Rh, m->RAh, m->Rc, m->RAc};
     return wt_mvm_file_write(w, cfg, m->nact, m->nslopes, &d, &rec);
 }

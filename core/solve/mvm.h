@@ -66,8 +66,9 @@ void wt_mvm_free(wt_mvm *m);
 void wt_mvm_apply(const wt_mvm *m, const float *s, const float *a, float *y);
 
 /* MATRIX.h5 (core/io/mvm_file.h) <-> the container. read: for a system of nact actuators and nslopes
- * slopes described by cfg (the file's config hash must be cfg's; the container gets cfg's precision and
- * the context's thread count); variant_out: NULL or 16 bytes. write: m's precision must be cfg's.
+ * slopes described by cfg (the file's config hash must be cfg's; the container gets the file's precision,
+ * whatever cfg's recon.mvm_precision says, and the context's thread count); variant_out: NULL or 16 bytes.
+ * write: in m's precision.
  * write: into an open writer, variant "pcg3" or "cg9" (the caller adds provenance, layout, commits). */
 int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, wt_mvm **out,
                 char *variant_out);
