@@ -2,12 +2,14 @@
  * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). The
  * timings are core/sim/bench.h's; this file parses, prints and times the MVM build. */
 #include <cblas.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/resource.h>
 
 #include "cli.h"
 #include "core/build/mvm_build.h"
+#include "core/la/half.h"
 #include "core/model/params.h"
 #include "core/model/system.h"
 #include "core/sim/bench.h"
@@ -24,7 +26,8 @@ static void help(void)
            "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
            "operand traffic; the working sets (~1 MB for pcg3) live in cache, so the implied GB/s can exceed\n"
            "the DRAM triad figure. Then the closed-loop simulation speed with pcg3 (--loop-frames, default\n"
-           "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size)\n"
+           "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
+           "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
            "memory (--no-build skips it; ~4 minutes at E-ELT size).\n");
 }
@@ -99,14 +102,23 @@ static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
     if (st < 0) return st;
     const wt_bench_stats g = b.sgemv, c = b.copy;
     const double bytes = b.bytes;
-    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS threads, %d repetitions side by side:\n",
-           (long long)sys->nact, (long long)sys->nslopes, bytes / 1e9, openblas_get_num_threads(), reps);
+    printf("\nMVM apply, R %lld x %lld float32 (%.2f GB), %d OpenBLAS / %d OpenMP threads, %d repetitions side by "
+           "side:\n",
+           (long long)sys->nact, (long long)sys->nslopes, bytes / 1e9, openblas_get_num_threads(),
+           wt_context_threads(cli->ctx), reps);
     printf("  sgemv          %8.2f ms  [%.2f, %.2f]  reads R once: %.1f GB/s\n", g.med * 1e3, g.p10 * 1e3, g.p90 * 1e3,
            bytes / g.med / 1e9);
-    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the same bytes (read + write): %.1f GB/s\n", c.med * 1e3,
+    for (int k = 0; k < 2; k++) {
+        const wt_bench_stats h = b.half[k];
+        printf("  %s GEMV     %8.2f ms  [%.2f, %.2f]  reads %.2f GB: %.1f GB/s; %.2fx faster than sgemv; "
+               "max |dy| / max |y| = %.1e\n",
+               wt_prec_name(b.half_prec[k]), h.med * 1e3, h.p10 * 1e3, h.p90 * 1e3, bytes / 2e9,
+               bytes / 2.0 / h.med / 1e9, g.med / h.med, b.half_error[k]);
+    }
+    printf("  STREAM copy    %8.2f ms  [%.2f, %.2f]  of the float32 bytes (read + write): %.1f GB/s\n", c.med * 1e3,
            c.p10 * 1e3, c.p90 * 1e3, 2.0 * bytes / c.med / 1e9);
-    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s\n",
-           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9);
+    printf("  sgemv bandwidth / copy bandwidth = %.2f; a 500 Hz MVM would need %.0f GB/s (fp32), %.0f GB/s (16-bit)\n",
+           (bytes / g.med) / (2.0 * bytes / c.med), bytes * 500.0 / 1e9, bytes * 250.0 / 1e9);
     return WT_OK;
 }
 

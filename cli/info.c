@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "core/la/half.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
 #include "core/model/params.h"
@@ -159,11 +160,14 @@ int wt_cmd_info(int argc, char **argv)
     for (int m = 0; m < sys->nsensors; m++) nnz_c += 4LL * sys->sensors[m].nsub;
     printf("noise weight C~^-1: %lld non-zeros (2x2 blocks)\n", (long long)nnz_c);
 
-    double r_bytes = 4.0 * (double)sys->nact * (double)sys->nslopes;
-    double ra_bytes = 4.0 * (double)sys->nact * (double)sys->nact;
-    printf("MVM control matrix R: %lld x %lld float32 = %.3g GB; R*A^ (POLC): %lld x %lld = %.3g GB\n",
-           (long long)sys->nact, (long long)sys->nslopes, r_bytes / 1e9, (long long)sys->nact, (long long)sys->nact,
-           ra_bytes / 1e9);
+    const double esize = cfg->mvm_precision == WT_PREC_F32 ? 4.0 : 2.0; /* recon.mvm_precision */
+    double r_bytes = esize * (double)sys->nact * (double)sys->nslopes;
+    double ra_bytes = esize * (double)sys->nact * (double)sys->nact;
+    printf("MVM control matrix R: %lld x %lld %s = %.3g GB; R*A^ (POLC): %lld x %lld = %.3g GB\n",
+           (long long)sys->nact, (long long)sys->nslopes,
+           cfg->mvm_precision == WT_PREC_F16 ? "float16" : cfg->mvm_precision == WT_PREC_BF16 ? "bfloat16" : "float32",
+           r_bytes / 1e9,
+           (long long)sys->nact, (long long)sys->nact, ra_bytes / 1e9);
 
     print_variant(&cli, sys, &cfg->pcg3, "pcg3", count_nnz, &st);
     if (st < 0) goto out;

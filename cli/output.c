@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "core/io/h5.h"
 #include "core/build/mvm_build.h"
+#include "core/la/half.h"
 #include "core/model/system.h"
 
 int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv)
@@ -153,11 +154,17 @@ int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *s
     char path[2048];
     int st;
     *build_s = 0.0;
-    snprintf(path, sizeof path, "%s/cache/mvm-pcg3-%.16s.h5", dir, cfg->matrix_sha256);
+    /* the precision is not part of the system's hash (one system, several storages): it names the file */
+    snprintf(path, sizeof path, "%s/cache/mvm-pcg3-%.16s%s%s.h5", dir, cfg->matrix_sha256, cfg->mvm_precision ? "-" : "",
+             cfg->mvm_precision ? wt_prec_name(cfg->mvm_precision) : "");
     FILE *f = fopen(path, "rb");
     if (f) {
         fclose(f);
-        if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK) {
+        if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK &&
+            (*out)->precision != cfg->mvm_precision) {
+            wt_mvm_free(*out);
+            *out = NULL;
+        } else if (*out) {
             if (!cli->quiet) fprintf(stderr, "%s: mvm from the cache %s\n", cli->prog, path);
             return WT_OK;
         }

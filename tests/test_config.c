@@ -607,7 +607,7 @@ START_TEST(test_reference)
         const char *u = strrchr(path, '_');
         if (u && strcmp(u, "_e") && strcmp(u, "_fractions") && !strstr(path, "warm_start") && !strstr(path, "_size") &&
             !strstr(path, "_order") && !strstr(path, "_levels") && !strstr(path, "_frames") && !strstr(path, "_fraction") &&
-            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error")) {
+            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "_precision")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];

@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include "core/build/mvm_build.h"
+#include "core/io/mvm_file.h"
+#include "core/la/half.h"
 #include "core/model/system.h"
 #include "testutil.h"
 
@@ -112,12 +114,88 @@ START_TEST(test_round_trip_and_refusals)
 }
 END_TEST
 
+/* recon.mvm_precision fp16 / bf16: built, written as 16-bit floats, read back bit for bit, also under
+ * the fp32 configuration (the precision is how R is stored, not which system it is for: not hashed);
+ * a file claiming another precision is refused; the apply agrees with the fp32 matrix within half.h's
+ * bound. */
+START_TEST(test_half_round_trip)
+{
+    make_dir();
+    char path[128];
+    snprintf(path, sizeof path, "%s/H.h5", dir);
+    wt_context *ctx = tu_context();
+    wt_config *c32, *c16;
+    wt_system *sys;
+    const char *names[2] = {"recon.mvm_precision=\"fp16\"", "recon.mvm_precision=\"bf16\""};
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &c32), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, c32, &sys), WT_OK);
+    wt_mvm *m32 = build(ctx, c32);
+    ck_assert_int_eq(m32->precision, WT_PREC_F32);
+    for (int p = 0; p < 2; p++) {
+        ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 1, &names[p], &c16), WT_OK);
+        ck_assert_int_eq(c16->mvm_precision, p == 0 ? WT_PREC_F16 : WT_PREC_BF16);
+        ck_assert_str_eq(c16->matrix_sha256, c32->matrix_sha256);
+        wt_mvm *built = build(ctx, c16), *m = NULL;
+        ck_assert_int_eq(built->precision, c16->mvm_precision);
+        write_matrix(ctx, built, c16, path, 1);
+        ck_assert_msg(wt_mvm_read(ctx, path, c32, sys->nact, sys->nslopes, &m, NULL) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_int_eq(m->precision, c16->mvm_precision);
+        ck_assert_ptr_null(m->R);
+        const size_t nr = (size_t)(m->nact * m->nslopes), na = (size_t)(m->nact * m->nact);
+        ck_assert(!memcmp(m->Rh, built->Rh, nr * sizeof *m->Rh));
+        ck_assert(!memcmp(m->RAh, built->RAh, na * sizeof *m->RAh));
+        ck_assert(!memcmp(m->Rc, built->Rc, (size_t)m->nact * sizeof *m->Rc));
+        ck_assert(!memcmp(m->RAc, built->RAc, (size_t)m->nact * sizeof *m->RAc));
+        wt_mvm_free(m);
+        m = NULL;
+        /* the stored element type must be the one the precision names: an fp32 file read as fp16
+         * (what a file relabelled by hand would ask for) is refused naming the dataset and both types */
+        if (p == 0) {
+            char f32[160];
+            snprintf(f32, sizeof f32, "%s/f32.h5", dir);
+            write_matrix(ctx, m32, c32, f32, 1);
+            wt_mvm_file_data d = {WT_MVM_FILE_F16, NULL, NULL, malloc(nr * 2), malloc(na * 2),
+                                  malloc((size_t)sys->nact * 4), malloc((size_t)sys->nact * 4)};
+            const wt_mvm_file_system fs = {.sha256 = c32->matrix_sha256, .text = c32->matrix_text, .path = c32->path};
+            ck_assert_int_eq(wt_mvm_file_read(ctx, f32, &fs, sys->nact, sys->nslopes, &d, NULL), WT_ERR_FORMAT);
+            ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "'R' is float32, refused as float16"));
+            free(d.Rh), free(d.RAh), free(d.Rc), free(d.RAc);
+        }
+        /* same slopes through both: |Δy_i| ≤ (u + float32 sums) Σ_j |R_ij s_j| */
+        float *s = malloc(sizeof(float) * (size_t)sys->nslopes), *y32 = malloc(sizeof(float) * (size_t)sys->nact),
+              *y16 = malloc(sizeof(float) * (size_t)sys->nact);
+        for (int64_t j = 0; j < sys->nslopes; j++) s[j] = (float)(1e-6 * sin(0.37 * (double)j));
+        wt_mvm_apply(m32, s, NULL, y32);
+        wt_mvm_apply(built, s, NULL, y16);
+        const double u = p == 0 ? 0x1p-11 : 0x1p-8;
+        for (int64_t i = 0; i < sys->nact; i++) {
+            double sabs = 0;
+            for (int64_t j = 0; j < sys->nslopes; j++) sabs += fabs((double)m32->R[i * sys->nslopes + j] * s[j]);
+            ck_assert_msg(fabs((double)y16[i] - y32[i]) <= (u + 1e-4) * sabs, "actuator %lld", (long long)i);
+        }
+        free(s);
+        free(y32);
+        free(y16);
+        wt_mvm_free(built);
+        wt_config_free(ctx, c16);
+    }
+    char cmd[160];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    ck_assert_int_eq(system(cmd), 0);
+    wt_mvm_free(m32);
+    wt_system_free(sys);
+    wt_config_free(ctx, c32);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("mvm_file");
     TCase *tc = tcase_create("io");
     tcase_set_timeout(tc, 120);
     tcase_add_test(tc, test_round_trip_and_refusals);
+    tcase_add_test(tc, test_half_round_trip);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -306,6 +306,11 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
     if (st < 0) return st;
     st = wt_mvm_build(ctx, t, &opt, out);
     wt_tomography_free(t);
+    /* built in float32 (the solves' output); stored and applied in the configured precision */
+    if (st >= 0 && (st = wt_mvm_set_precision(*out, cfg->mvm_precision)) < 0) {
+        wt_mvm_free(*out);
+        *out = NULL;
+    }
     if (st >= 0) (*out)->stats.t_total = wt_time_now() - t0;
     return st;
 }

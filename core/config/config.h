@@ -110,6 +110,7 @@ typedef struct wt_config {
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */
     int model_error;                 /* 1: LGS noise variance + the layer-binning model error */
     int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */
+    int mvm_precision;               /* storage of the MVM control matrix: WT_PREC_* of core/la/half.h (0 fp32) */
     int sensor_points;               /* lit model: sample points per subaperture side */
     double alpha;                    /* prior weight α */
     double tau;                      /* elongation weight τ of the reconstructor's noise model */

@@ -594,7 +594,7 @@ static int affects_matrix(const char *path)
                                        "lgs.tt_jitter_arcsec", "atmosphere.wind_", "recon.warm_start",
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
                                        "recon.cg9.iterations", "recon.cg9.tolerance", "recon.cg9.preconditioner",
-                                       "recon.cg9.fit_iterations"};
+                                       "recon.cg9.fit_iterations", "recon.mvm_precision"};
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
     return 1;

@@ -136,6 +136,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},
     {"recon.sensor_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(sensor_points), NOCOUNT, 0, 0, NULL, 1,
      "lit model: layer sample points per subaperture side (optional, default 1)"},
+    {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
+     "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
+     "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},
     VARIANT("recon.pcg3", pcg3),
     VARIANT("recon.cg9", cg9),
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),

@@ -46,6 +46,11 @@
  * refused naming the dataset and its type. Float data read is checked for NaN/Inf, and a dataset whose
  * stored bytes cannot hold its extent is refused (see h5_read.c). */
 enum { WT_H5_F64 = 1, WT_H5_F32 = 2, WT_H5_I32 = 3, WT_H5_I64 = 4, WT_H5_U8 = 5 };
+/* 16-bit floats (the MVM's storage precision, core/la/half.h): IEEE binary16 (h5py reads it as numpy
+ * float16) and bfloat16 (an HDF5 float type with float32's 8-bit exponent and a 7-bit mantissa). In
+ * memory they are the raw 16-bit patterns (uint16_t); a file dataset is read as one of these only when
+ * its type is exactly that one, and its values are checked for Inf/NaN like other floats. */
+enum { WT_H5_F16 = 6, WT_H5_BF16 = 7 };
 
 typedef struct wt_h5_writer wt_h5_writer;
 typedef struct wt_h5_reader wt_h5_reader;
@@ -172,6 +177,8 @@ int wt_h5_read_int64(wt_h5_reader *r, const char *name, int64_t *value);
 int wt_h5_read_string(wt_h5_reader *r, const char *name, char **text);
 
 /* Attributes of obj ("/" for the root). Strings are allocated through the context: wt_free. */
+/* 1 when object obj ("/" for the root) exists and has an attribute `name`, else 0. */
+int wt_h5_attr_exists(wt_h5_reader *r, const char *obj, const char *name);
 int wt_h5_attr_read_string(wt_h5_reader *r, const char *obj, const char *name, char **value);
 int wt_h5_attr_read_double(wt_h5_reader *r, const char *obj, const char *name, double *value);
 int wt_h5_attr_read_int64(wt_h5_reader *r, const char *obj, const char *name, int64_t *value);

@@ -89,18 +89,39 @@ void wt_h5_priv_drop(hid_t id)
 
 /* ---- types, names, files ------------------------------------------------------------------------ */
 
-int wt_h5_priv_type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_U8; }
+int wt_h5_priv_type_ok(int t) { return t >= WT_H5_F64 && t <= WT_H5_BF16; }
 int wt_h5_priv_type_float(int t) { return t == WT_H5_F64 || t == WT_H5_F32; }
+int wt_h5_priv_type_half(int t) { return t == WT_H5_F16 || t == WT_H5_BF16; }
+
+/* fp16: sign bit 15, exponent bits 10-14 (bias 15), mantissa 0-9; bf16: exponent 7-14 (bias 127),
+ * mantissa 0-6 — little-endian, as h5py defines float16. */
+static hid_t half_type(int t)
+{
+    hid_t id = H5Tcopy(H5T_IEEE_F32LE);
+    const int f16 = t == WT_H5_F16;
+    if (id < 0) return -1;
+    if (H5Tset_fields(id, 15, f16 ? 10 : 7, f16 ? 5 : 8, 0, f16 ? 10 : 7) < 0 || H5Tset_size(id, 2) < 0 ||
+        H5Tset_ebias(id, f16 ? 15 : 127) < 0) {
+        H5Tclose(id);
+        return -1;
+    }
+    return id;
+}
+
+void wt_h5_priv_type_release(int t, hid_t id)
+{
+    if (wt_h5_priv_type_half(t) && id >= 0) H5Tclose(id);
+}
 
 const char *wt_h5_priv_type_name(int t)
 {
-    static const char *const names[] = {"?", "float64", "float32", "int32", "int64", "uint8"};
+    static const char *const names[] = {"?", "float64", "float32", "int32", "int64", "uint8", "float16", "bfloat16"};
     return wt_h5_priv_type_ok(t) ? names[t] : "?";
 }
 
 size_t wt_h5_priv_type_size(int t)
 {
-    static const size_t sizes[] = {0, 8, 4, 4, 8, 1};
+    static const size_t sizes[] = {0, 8, 4, 4, 8, 1, 2, 2};
     return wt_h5_priv_type_ok(t) ? sizes[t] : 0;
 }
 
@@ -112,6 +133,8 @@ hid_t wt_h5_priv_mem_type(int t)
     case WT_H5_I32: return H5T_NATIVE_INT32;
     case WT_H5_I64: return H5T_NATIVE_INT64;
     case WT_H5_U8: return H5T_NATIVE_UINT8;
+    case WT_H5_F16:
+    case WT_H5_BF16: return half_type(t);
     default: return -1;
     }
 }
@@ -124,6 +147,8 @@ hid_t wt_h5_priv_file_type(int t)
     case WT_H5_I32: return H5T_STD_I32LE;
     case WT_H5_I64: return H5T_STD_I64LE;
     case WT_H5_U8: return H5T_STD_U8LE;
+    case WT_H5_F16:
+    case WT_H5_BF16: return half_type(t);
     default: return -1;
     }
 }
@@ -261,6 +286,10 @@ int wt_h5_priv_check_types(wt_h5_writer *w, const char *name, int ft, int mt)
     if (wt_h5_priv_type_float(mt) && !wt_h5_priv_type_float(ft))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an %s dataset (lossy)",
                         w->target, name, wt_h5_priv_type_name(mt), wt_h5_priv_type_name(ft));
+    /* 16-bit floats are stored as they are: the caller rounds (core/la/half.h), HDF5 never does */
+    if ((wt_h5_priv_type_half(ft) || wt_h5_priv_type_half(mt)) && ft != mt)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data for a %s dataset: 16-bit floats are written "
+                        "only from the same type", w->target, name, wt_h5_priv_type_name(mt), wt_h5_priv_type_name(ft));
     return WT_OK;
 }
 

@@ -59,12 +59,15 @@ void wt_h5_priv_drop(hid_t id);
 
 /* ---- types, names, files ------------------------------------------------------------------------ */
 
-int wt_h5_priv_type_ok(int t);           /* t is one of WT_H5_F64..WT_H5_U8 */
+int wt_h5_priv_type_ok(int t);           /* t is one of WT_H5_F64..WT_H5_BF16 */
 int wt_h5_priv_type_float(int t);        /* WT_H5_F64 or WT_H5_F32 */
+int wt_h5_priv_type_half(int t);         /* WT_H5_F16 or WT_H5_BF16 */
 const char *wt_h5_priv_type_name(int t); /* "float64", ..., "?" for an unknown t */
 hid_t wt_h5_priv_mem_type(int t);        /* native HDF5 type of t, -1 for an unknown t */
 size_t wt_h5_priv_type_size(int t);      /* bytes of an element of t, 0 for an unknown t */
 hid_t wt_h5_priv_file_type(int t);       /* little-endian file type of t, -1 for an unknown t */
+/* The two above return a new type id for the 16-bit floats: give every returned id back here. */
+void wt_h5_priv_type_release(int t, hid_t id);
 
 /* A copy of s through ctx's allocator; NULL when out of memory. */
 char *wt_h5_priv_dupstr(wt_context *ctx, const char *s);

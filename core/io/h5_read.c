@@ -117,6 +117,7 @@ static int get_number(wt_context *ctx, const char *file, const char *what, hid_t
              c == H5T_STRING ? "string" : c == H5T_FLOAT ? "float" : c == H5T_INTEGER ? "integer" : "non-numeric");
     if (c == H5T_FLOAT && !wt_h5_priv_type_float(t))
         FAIL(ctx, WT_ERR_FORMAT, "%s: %s is floating point, refused as %s", file, what, wt_h5_priv_type_name(t));
+    if (wt_h5_priv_type_half(t)) FAIL(ctx, WT_ERR_INVALID, "%s: %s: single values are not read as 16-bit floats", file, what);
     if ((is_attr ? H5Aread(obj, wt_h5_priv_mem_type(t), value)
                  : H5Dread(obj, wt_h5_priv_mem_type(t), H5S_ALL, H5S_ALL, H5P_DEFAULT, value)) < 0)
         H5FAIL(ctx, WT_ERR_FORMAT, "%s: reading %s failed", file, what);
@@ -234,6 +235,16 @@ int wt_h5_exists(wt_h5_reader *r, const char *name)
     return e;
 }
 
+int wt_h5_attr_exists(wt_h5_reader *r, const char *obj, const char *name)
+{
+    if (!r || !obj || !name) return 0;
+    wt_h5_priv_quiet q = wt_h5_priv_quiet_on();
+    int e = (!strcmp(obj, "/") || wt_h5_priv_path_exists(r->file, obj)) &&
+            H5Aexists_by_name(r->file, obj, name, H5P_DEFAULT) > 0;
+    wt_h5_priv_quiet_off(q);
+    return e;
+}
+
 /* Open dataset `name`; [out] its rank and dims. */
 static int open_dataset(wt_h5_reader *r, const char *name, hid_t *dset, int *rank, int64_t *dims)
 {
@@ -331,7 +342,8 @@ static const char *file_type_text(hid_t ft, char *buf, size_t n)
 {
     H5T_class_t c = ft < 0 ? H5T_NO_CLASS : H5Tget_class(ft);
     size_t bits = ft < 0 ? 0 : 8 * H5Tget_size(ft);
-    if (c == H5T_FLOAT) snprintf(buf, n, "float%zu", bits);
+    if (c == H5T_FLOAT && bits == 16 && H5Tget_ebias(ft) == 127) snprintf(buf, n, "bfloat16");
+    else if (c == H5T_FLOAT) snprintf(buf, n, "float%zu", bits);
     else if (c == H5T_INTEGER) snprintf(buf, n, "%sint%zu", H5Tget_sign(ft) == H5T_SGN_NONE ? "u" : "", bits);
     else if (c == H5T_STRING) snprintf(buf, n, "a string");
     else snprintf(buf, n, "HDF5 type class %d", (int)c);
@@ -344,6 +356,13 @@ static int exact_conversion(hid_t ft, int mt)
     H5T_class_t c = H5Tget_class(ft);
     size_t fs = H5Tget_size(ft), ms = wt_h5_priv_type_size(mt);
     int fsigned = c == H5T_INTEGER && H5Tget_sign(ft) != H5T_SGN_NONE;
+    if (wt_h5_priv_type_half(mt)) {
+        /* the stored bits as they are: the file type must be exactly this 16-bit float */
+        hid_t t = wt_h5_priv_mem_type(mt);
+        int same = t >= 0 && H5Tequal(ft, t) > 0;
+        wt_h5_priv_type_release(mt, t);
+        return same;
+    }
     if (c == H5T_FLOAT) return (fs == 4 || fs == 8) && wt_h5_priv_type_float(mt) && fs <= ms;
     if (c != H5T_INTEGER) return 0;
     size_t bits = 8 * fs - (size_t)fsigned; /* magnitude bits */
@@ -369,8 +388,8 @@ static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
     else if (!exact_conversion(ft, mt))
         st = WT_ERROR(r->ctx, WT_ERR_FORMAT,
                       "%s: dataset '%s' is %s, refused as %s: the conversion is not exact for every value (accepted: "
-                      "float32 or float64 for float64, float32 for float32, integers that the memory type holds "
-                      "exactly)", r->path, name, file_type_text(ft, tn, sizeof tn), wt_h5_priv_type_name(mt));
+                      "float32 or float64 for float64, float32 for float32, float16 and bfloat16 only as themselves, "
+                      "integers that the memory type holds exactly)", r->path, name, file_type_text(ft, tn, sizeof tn), wt_h5_priv_type_name(mt));
     wt_h5_priv_drop(space);
     wt_h5_priv_drop(ft);
     return st;
@@ -381,9 +400,16 @@ static int check_readable(wt_h5_reader *r, const char *name, hid_t d, int mt)
 static int check_finite(wt_h5_reader *r, const char *name, int mt, const void *data, int64_t n, int64_t cols,
                         int64_t row0)
 {
-    if (!wt_h5_priv_type_float(mt)) return WT_OK;
+    if (!wt_h5_priv_type_float(mt) && !wt_h5_priv_type_half(mt)) return WT_OK;
     for (int64_t i = 0; i < n; i++) {
-        double v = mt == WT_H5_F32 ? (double)((const float *)data)[i] : ((const double *)data)[i];
+        double v;
+        if (wt_h5_priv_type_half(mt)) {
+            /* all-ones exponent: bits 10-14 of fp16, 7-14 of bf16; a NaN has mantissa bits too */
+            const uint16_t h = ((const uint16_t *)data)[i], e = mt == WT_H5_F16 ? 0x7c00 : 0x7f80;
+            v = (h & e) != e ? 0.0 : (h & (uint16_t)(0x7fff & ~e)) ? NAN : INFINITY;
+        } else {
+            v = mt == WT_H5_F32 ? (double)((const float *)data)[i] : ((const double *)data)[i];
+        }
         if (isfinite(v)) continue;
         const char *what = isnan(v) ? "NaN" : "Inf";
         if (cols > 0)
@@ -401,7 +427,7 @@ static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const 
                      void *data, size_t capacity)
 {
     int st;
-    hid_t d = -1;
+    hid_t d = -1, mtid = -1;
     int64_t got[WT_H5_MAX_RANK] = {0};
     WT_TRY(shape_impl(r, name, &d, rank, expect, got));
     WT_TRY(check_readable(r, name, d, mt));
@@ -410,7 +436,7 @@ static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const 
     if (total > capacity || (total > 0 && !data))
         FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %llu elements, the buffer holds %zu", r->path, name,
              (unsigned long long)total, data ? capacity : 0);
-    if (total > 0 && H5Dread(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    if (total > 0 && ((mtid = wt_h5_priv_mem_type(mt)) < 0 || H5Dread(d, mtid, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0))
         H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading dataset '%s' failed: corrupt data (checksum) or truncated file "
                "(H5Dread)", r->path, name);
     WT_TRY(check_finite(r, name, mt, data, (int64_t)total, rank >= 2 && got[0] > 0 ? (int64_t)(total / (uint64_t)got[0]) : 0, 0));
@@ -418,6 +444,7 @@ static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const 
         for (int i = 0; i < rank; i++) dims[i] = got[i];
 fail:
     wt_h5_priv_drop(d);
+    wt_h5_priv_type_release(mt, mtid);
     return st;
 }
 
@@ -430,7 +457,7 @@ int wt_h5_read(wt_h5_reader *r, const char *name, int mem_type, int rank, const 
 static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row0, int64_t nrows, void *data)
 {
     int st, nd = 0;
-    hid_t d = -1, fs = -1, ms = -1;
+    hid_t d = -1, fs = -1, ms = -1, mtid = -1;
     int64_t got[WT_H5_MAX_RANK] = {0};
     hsize_t start[WT_H5_MAX_RANK] = {0}, count[WT_H5_MAX_RANK];
     WT_TRY(open_dataset(r, name, &d, &nd, got));
@@ -444,9 +471,9 @@ static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row
     for (int i = 1; i < nd; i++) count[i] = (hsize_t)got[i];
     /* memory space of the selection's own shape: a flat one sends HDF5 down a ~30x slower path */
     if ((fs = H5Dget_space(d)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
-        (ms = H5Screate_simple(nd, count, NULL)) < 0)
+        (ms = H5Screate_simple(nd, count, NULL)) < 0 || (mtid = wt_h5_priv_mem_type(mt)) < 0)
         H5FAIL(r->ctx, WT_ERR_LIBRARY, "%s: dataset '%s': cannot select rows", r->path, name);
-    if (H5Dread(d, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+    if (H5Dread(d, mtid, ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
                "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
     {
@@ -458,6 +485,7 @@ fail:
     wt_h5_priv_drop(ms);
     wt_h5_priv_drop(fs);
     wt_h5_priv_drop(d);
+    wt_h5_priv_type_release(mt, mtid);
     return st;
 }
 

@@ -43,10 +43,19 @@ static int check_data(wt_h5_writer *w, const char *name, hid_t dset, int mt, con
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': unknown type %d or NULL data", w->target, name, mt);
     hid_t ft = H5Dget_type(dset);
     int file_float = ft >= 0 && H5Tget_class(ft) == H5T_FLOAT;
+    int file_half = file_float && H5Tget_size(ft) == 2, same = 0;
+    if (wt_h5_priv_type_half(mt)) {
+        hid_t t = wt_h5_priv_mem_type(mt);
+        same = t >= 0 && H5Tequal(ft, t) > 0;
+        wt_h5_priv_type_release(mt, t);
+    }
     wt_h5_priv_drop(ft);
     if (wt_h5_priv_type_float(mt) && !file_float)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused for an integer dataset (lossy)",
                         w->target, name, wt_h5_priv_type_name(mt));
+    if ((file_half || wt_h5_priv_type_half(mt)) && !same)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: dataset '%s': %s data refused: a 16-bit float dataset is written "
+                        "only from its own type", w->target, name, wt_h5_priv_type_name(mt));
     return WT_OK;
 }
 
@@ -57,7 +66,7 @@ static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
 {
     int st = WT_OK;
     wt_h5_matrix *m = NULL;
-    hid_t space = -1, dcpl = -1, dapl = -1;
+    hid_t space = -1, dcpl = -1, dapl = -1, ftid = -1;
     hsize_t hd[2] = {(hsize_t)rows, (hsize_t)cols}, chunk[2];
     if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_matrix_create: out is NULL", w->target);
     *out = NULL;
@@ -81,7 +90,8 @@ static int matrix_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     size_t cbytes = (size_t)(chunk[0] * chunk[1]) * wt_h5_priv_type_size(ft);
     size_t cache = 2 * cbytes + WT_H5_PRIV_CHUNK_BYTES;
     if (H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, cache, H5D_CHUNK_CACHE_W0_DEFAULT) < 0 ||
-        (m->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, dapl)) < 0)
+        (ftid = wt_h5_priv_file_type(ft)) < 0 ||
+        (m->dset = H5Dcreate2(w->file, name, ftid, space, w->lcpl, dcpl, dapl)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create matrix '%s' (H5Dcreate2)", w->target, name);
     WT_TRY(wt_h5_priv_set_doc(w, m->dset, name, units, desc));
     m->piece.close = matrix_piece_close;
@@ -98,6 +108,7 @@ fail:
     wt_h5_priv_drop(dapl);
     wt_h5_priv_drop(dcpl);
     wt_h5_priv_drop(space);
+    wt_h5_priv_type_release(ft, ftid);
     return st;
 }
 
@@ -111,17 +122,17 @@ static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int m
 {
     wt_h5_writer *w = m->w;
     int st = WT_OK;
-    hid_t fs = -1, ms = -1;
+    hid_t fs = -1, ms = -1, mtid = -1;
     WT_TRY(check_data(w, m->name, m->dset, mt, data));
     if (row0 < 0 || nrows < 1 || row0 > m->rows - nrows)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: matrix '%s': rows %lld..%lld, expected within 0..%lld", w->target,
                         m->name, (long long)row0, (long long)(row0 + nrows - 1), (long long)(m->rows - 1));
     hsize_t start[2] = {(hsize_t)row0, 0}, count[2] = {(hsize_t)nrows, (hsize_t)m->cols};
     if ((fs = H5Dget_space(m->dset)) < 0 || H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
-        (ms = H5Screate_simple(2, count, NULL)) < 0)
+        (ms = H5Screate_simple(2, count, NULL)) < 0 || (mtid = wt_h5_priv_mem_type(mt)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: matrix '%s': cannot select rows %lld..%lld", w->target, m->name,
                (long long)row0, (long long)(row0 + nrows - 1));
-    if (H5Dwrite(m->dset, wt_h5_priv_mem_type(mt), ms, fs, H5P_DEFAULT, data) < 0)
+    if (H5Dwrite(m->dset, mtid, ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing rows %lld..%lld of matrix '%s' failed (H5Dwrite)", w->target,
                (long long)row0, (long long)(row0 + nrows - 1), m->name);
     for (int64_t i = row0; i < row0 + nrows; i++) {
@@ -131,6 +142,7 @@ static int matrix_write_impl(wt_h5_matrix *m, int64_t row0, int64_t nrows, int m
 fail:
     wt_h5_priv_drop(ms);
     wt_h5_priv_drop(fs);
+    wt_h5_priv_type_release(mt, mtid);
     return st;
 }
 
@@ -183,6 +195,8 @@ static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t
     *out = NULL;
     WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
     WT_TRY(wt_h5_priv_check_types(w, name, ft, ft));
+    if (wt_h5_priv_type_half(ft))
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s': 16-bit floats are for matrices only", w->target, name);
     if (n < 0)
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
                         (long long)n);

@@ -255,7 +255,7 @@ static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int ran
                       const void *data, const char *units, const char *desc)
 {
     int st = WT_OK;
-    hid_t space = -1, dcpl = -1, d = -1;
+    hid_t space = -1, dcpl = -1, d = -1, ftid = -1, mtid = -1;
     hsize_t hd[WT_H5_MAX_RANK], chunk[WT_H5_MAX_RANK];
     WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
     WT_TRY(wt_h5_priv_check_types(w, name, ft, mt));
@@ -274,9 +274,10 @@ static int write_impl(wt_h5_writer *w, const char *name, int ft, int mt, int ran
     if ((space = H5Screate_simple(rank, hd, NULL)) < 0 ||
         (dcpl = wt_h5_priv_numeric_dcpl(rank, hd, wt_h5_priv_type_size(ft), WT_H5_PRIV_CHUNK_BYTES, rank, total == 0,
                                         chunk)) < 0 ||
-        (d = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
+        (ftid = wt_h5_priv_file_type(ft)) < 0 || (mtid = wt_h5_priv_mem_type(mt)) < 0 ||
+        (d = H5Dcreate2(w->file, name, ftid, space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create dataset '%s' (H5Dcreate2)", w->target, name);
-    if (total > 0 && H5Dwrite(d, wt_h5_priv_mem_type(mt), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    if (total > 0 && H5Dwrite(d, mtid, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
         H5FAIL(w->ctx, WT_ERR_IO, "%s: writing dataset '%s' failed (H5Dwrite)", w->target, name);
     WT_TRY(wt_h5_priv_set_doc(w, d, name, units, desc));
     if (H5Dclose(d) < 0) st = H5ERR(w->ctx, WT_ERR_IO, "%s: closing dataset '%s' failed", w->target, name);
@@ -285,6 +286,8 @@ fail:
     wt_h5_priv_drop(d);
     wt_h5_priv_drop(dcpl);
     wt_h5_priv_drop(space);
+    wt_h5_priv_type_release(ft, ftid);
+    wt_h5_priv_type_release(mt, mtid);
     return st;
 }
 

@@ -7,24 +7,45 @@
 
 #include "../base/sha256.h"
 
-int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, const float *Rm,
-                      const float *RA, const wt_mvm_file_record *rec)
+/* The element type of the stored matrices. */
+static int h5_type(int precision)
+{
+    return precision == WT_MVM_FILE_F16 ? WT_H5_F16 : precision == WT_MVM_FILE_BF16 ? WT_H5_BF16 : WT_H5_F32;
+}
+
+int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, const wt_mvm_file_data *md,
+                      const wt_mvm_file_record *rec)
 {
     int st;
     wt_h5_matrix *R = NULL;
     const int64_t block = 256;
-    if ((st = wt_h5_matrix_create(w, "R", WT_H5_F32, nact, nslopes, "m/rad",
-                                  "control matrix: commands [m] = R x slopes [rad]; row = actuator (layout/actuator_index), "
-                                  "column = slope (layout/sensor_slope_offset)",
-                                  &R)) < 0)
-        return st;
+    const int half = md->precision != WT_MVM_FILE_F32, t = h5_type(md->precision);
+    const size_t esize = half ? sizeof(uint16_t) : sizeof(float);
+    const char *rdoc = half ? "control matrix as 16-bit floats of R_ij / c_i (c_i: R_row_scale): commands [m] = "
+                              "R_row_scale[i] x R[i, :] x slopes [rad]; row = actuator (layout/actuator_index), column "
+                              "= slope (layout/sensor_slope_offset)"
+                            : "control matrix: commands [m] = R x slopes [rad]; row = actuator (layout/actuator_index), "
+                              "column = slope (layout/sensor_slope_offset)";
+    if ((st = wt_h5_matrix_create(w, "R", t, nact, nslopes, half ? "" : "m/rad", rdoc, &R)) < 0) return st;
+    const char *Rbytes = half ? (const char *)md->Rh : (const char *)md->R;
     for (int64_t r = 0; r < nact; r += block) {
         int64_t nr = nact - r < block ? nact - r : block;
-        if ((st = wt_h5_matrix_write_rows(R, r, nr, WT_H5_F32, Rm + (size_t)r * (size_t)nslopes)) < 0) return st;
+        if ((st = wt_h5_matrix_write_rows(R, r, nr, t, Rbytes + (size_t)r * (size_t)nslopes * esize)) < 0) return st;
     }
     int64_t d[2] = {nact, nact};
-    if ((st = wt_h5_write(w, "RA", WT_H5_F32, WT_H5_F32, 2, d, RA, "",
-                          "R A^: R times the DM-to-slope interaction, so that R s_ol = R s + RA a (POLC)")) < 0)
+    if ((st = wt_h5_write(w, "RA", t, t, 2, d, half ? (const void *)md->RAh : (const void *)md->RA, "",
+                          half ? "R A^ as 16-bit floats of (R A^)_ik / c_k (c_k: RA_row_scale), R s_ol = R s + RA a (POLC)"
+                               : "R A^: R times the DM-to-slope interaction, so that R s_ol = R s + RA a (POLC)")) < 0)
+        return st;
+    if (half && ((st = wt_h5_write(w, "R_row_scale", WT_H5_F32, WT_H5_F32, 1, d, md->Rc, "m/rad",
+                                   "power-of-two scale c_i of row i of R")) < 0 ||
+                 (st = wt_h5_write(w, "RA_row_scale", WT_H5_F32, WT_H5_F32, 1, d, md->RAc, "",
+                                   "power-of-two scale of row i of RA")) < 0))
+        return st;
+    if ((st = wt_h5_attr_write_string(w, "/", "precision",
+                                      md->precision == WT_MVM_FILE_F16    ? "fp16"
+                                      : md->precision == WT_MVM_FILE_BF16 ? "bf16"
+                                                                           : "fp32")) < 0)
         return st;
     if ((st = wt_h5_attr_write_string(w, "/", "config_sha256", sys->sha256)) < 0) return st;
     if ((st = wt_h5_write_string(w, "matrix_config", sys->text,
@@ -52,19 +73,40 @@ int wt_mvm_file_write(wt_h5_writer *w, const wt_mvm_file_system *sys, int64_t na
                               "fill-reducing ordering CHOLMOD chose");
 }
 
-int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes, float *R,
-                     float *RA, char *variant_out)
+int wt_mvm_file_precision(wt_context *ctx, const char *path, int *precision)
 {
     wt_h5_reader *r = NULL;
-    int st = wt_h5_open(ctx, path, &r);
-    if (st < 0) return st;
-    st = wt_mvm_file_read_open(ctx, r, sys, nact, nslopes, R, RA, variant_out);
+    char *p = NULL;
+    int st;
+    *precision = WT_MVM_FILE_F32;
+    if ((st = wt_h5_open(ctx, path, &r)) < 0) return st;
+    if (wt_h5_attr_exists(r, "/", "precision")) {
+        if ((st = wt_h5_attr_read_string(r, "/", "precision", &p)) >= 0) {
+            if (!strcmp(p, "fp16")) *precision = WT_MVM_FILE_F16;
+            else if (!strcmp(p, "bf16")) *precision = WT_MVM_FILE_BF16;
+            else if (strcmp(p, "fp32") != 0)
+                st = WT_ERROR(ctx, WT_ERR_FORMAT, "%s: root attribute 'precision' is \"%.40s\", expected \"fp32\", "
+                              "\"fp16\" or \"bf16\"", path, p);
+        }
+    }
+    wt_free(ctx, p);
     wt_h5_close(r);
     return st;
 }
 
-int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes,
-                          float *R, float *RA, char *variant_out)
+int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes,
+                     wt_mvm_file_data *md, char *variant_out)
+{
+    wt_h5_reader *r = NULL;
+    int st = wt_h5_open(ctx, path, &r);
+    if (st < 0) return st;
+    st = wt_mvm_file_read_open(ctx, r, sys, nact, nslopes, md, variant_out);
+    wt_h5_close(r);
+    return st;
+}
+
+int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_system *sys, int64_t nact,
+                          int64_t nslopes, wt_mvm_file_data *md, char *variant_out)
 {
     int st;
     const char *path = wt_h5_path(r);
@@ -96,8 +138,25 @@ int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_sy
     int64_t er[2] = {nact, nslopes}, ea[2] = {nact, nact};
     if ((st = wt_h5_check_shape(r, "R", 2, er, NULL)) < 0) goto fail;
     if ((st = wt_h5_check_shape(r, "RA", 2, ea, NULL)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "R", WT_H5_F32, 2, er, NULL, R, (size_t)nact * (size_t)nslopes)) < 0) goto fail;
-    if ((st = wt_h5_read(r, "RA", WT_H5_F32, 2, ea, NULL, RA, (size_t)nact * (size_t)nact)) < 0) goto fail;
+    const int half = md->precision != WT_MVM_FILE_F32, t = h5_type(md->precision);
+    if ((st = wt_h5_read(r, "R", t, 2, er, NULL, half ? (void *)md->Rh : (void *)md->R, (size_t)(nact * nslopes))) < 0)
+        goto fail;
+    if ((st = wt_h5_read(r, "RA", t, 2, ea, NULL, half ? (void *)md->RAh : (void *)md->RA, (size_t)(nact * nact))) < 0)
+        goto fail;
+    if (half) {
+        int64_t ec[1] = {nact};
+        float *sc[2] = {md->Rc, md->RAc};
+        const char *names[2] = {"R_row_scale", "RA_row_scale"};
+        for (int k = 0; k < 2; k++) {
+            if ((st = wt_h5_read(r, names[k], WT_H5_F32, 1, ec, NULL, sc[k], (size_t)nact)) < 0) goto fail;
+            for (int64_t i = 0; i < nact; i++)
+                if (!(sc[k][i] > 0.0f)) {
+                    st = WT_ERROR(ctx, WT_ERR_FORMAT, "%s: dataset '%s' holds %g at element %lld, expected > 0", path,
+                                  names[k], (double)sc[k][i], (long long)i);
+                    goto fail;
+                }
+        }
+    }
     strncpy(variant_out, variant, 15);
     variant_out[15] = '\0';
 fail:

@@ -1,11 +1,15 @@
 /* core/sim/bench.c: kernel timings of the reconstructor and the machine's scale (see bench.h). */
 #include "bench.h"
+#include <math.h>
+
+#include "../la/half.h"
 
 #include <cblas.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "../base/rng.h"
+#include "../la/half.h"
 #include "../model/fitting.h"
 #include "../model/tomography.h"
 #include "../solve/mvm.h"
@@ -203,22 +207,43 @@ int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps,
     const int nth = wt_context_threads(ctx);
     memset(out, 0, sizeof *out);
     float *R = malloc(n * sizeof *R), *C = malloc(n * sizeof *C), *x = malloc((size_t)ns * sizeof *x),
-          *y = malloc((size_t)na * sizeof *y);
+          *y = malloc((size_t)na * sizeof *y), *y16 = malloc((size_t)na * sizeof *y16);
+    uint16_t *H[2] = {malloc(n * sizeof(uint16_t)), malloc(n * sizeof(uint16_t))};
+    float *Hc[2] = {malloc((size_t)na * sizeof(float)), malloc((size_t)na * sizeof(float))};
     double *tg = malloc((size_t)reps * sizeof *tg), *tc = malloc((size_t)reps * sizeof *tc);
+    double *th[2] = {malloc((size_t)reps * sizeof(double)), malloc((size_t)reps * sizeof(double))};
+    const int prec[2] = {WT_PREC_F16, WT_PREC_BF16};
     int st = WT_OK;
-    if (!R || !C || !x || !y || !tg || !tc) {
-        st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for a %.2f GB matrix", 2.0 * (double)n * 4.0 / 1e9);
+    if (!R || !C || !x || !y || !y16 || !tg || !tc || !H[0] || !H[1] || !Hc[0] || !Hc[1] || !th[0] || !th[1]) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for a %.2f GB matrix", 3.0 * (double)n * 4.0 / 1e9);
         goto out;
     }
 #pragma omp parallel for schedule(static) num_threads(nth)
     for (size_t i = 0; i < n; i++) R[i] = C[i] = (float)((i * 2654435761u) % 1000) * 1e-3f;
     for (int64_t i = 0; i < ns; i++) x[i] = (float)(i % 7) * 1e-6f;
-    /* the runtime's own apply (core/solve/mvm.h) on a container that borrows R */
+    /* the runtime's own apply (core/solve/mvm.h) on containers that borrow R and its 16-bit copies */
     const wt_mvm view = {.ctx = ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns, .R = R};
+    wt_mvm v16[2];
+    for (int k = 0; k < 2; k++) {
+        wt_half_pack(prec[k], na, ns, R, H[k], Hc[k], nth);
+        v16[k] = (wt_mvm){.ctx = ctx, .commands = WT_MVM_LAYER_VALUES, .nact = na, .nslopes = ns,
+                          .precision = prec[k], .Rh = H[k], .Rc = Hc[k], .nthreads = nth};
+    }
+    double err[2] = {0, 0}, ymax = 0;
     for (int r = 0; r < reps; r++) {
         double a = wt_time_now();
         wt_mvm_apply(&view, x, NULL, y);
         tg[r] = wt_time_now() - a;
+        for (int k = 0; k < 2; k++) {
+            a = wt_time_now();
+            wt_mvm_apply(&v16[k], x, NULL, y16);
+            th[k][r] = wt_time_now() - a;
+            if (r == 0)
+                for (int64_t i = 0; i < na; i++) {
+                    err[k] = fmax(err[k], fabs((double)y16[i] - y[i]));
+                    ymax = fmax(ymax, fabs((double)y[i]));
+                }
+        }
         a = wt_time_now();
 #pragma omp parallel for schedule(static) num_threads(nth)
         for (size_t i = 0; i < n; i++) C[i] = R[i];
@@ -227,7 +252,13 @@ int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps,
     out->bytes = 4.0 * (double)n;
     out->sgemv = wt_bench_summarise(tg, reps);
     out->copy = wt_bench_summarise(tc, reps);
+    for (int k = 0; k < 2; k++) {
+        out->half[k] = wt_bench_summarise(th[k], reps);
+        out->half_prec[k] = prec[k];
+        out->half_error[k] = ymax > 0 ? err[k] / ymax : 0.0;
+    }
 out:
-    free(R), free(C), free(x), free(y), free(tg), free(tc);
+    free(R), free(C), free(x), free(y), free(y16), free(tg), free(tc);
+    for (int k = 0; k < 2; k++) free(H[k]), free(Hc[k]), free(th[k]);
     return st;
 }

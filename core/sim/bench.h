@@ -59,12 +59,15 @@ typedef struct wt_bench_loop {
 int wt_bench_loop_run(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
                       int warm, int frames, wt_bench_loop *out);
 
-/* The MVM apply at nact x nslopes (R filled with a pattern: values do not change a GEMV's time) and a
- * STREAM copy of R's bytes, alternated reps times. */
+/* The MVM apply at nact x nslopes (R filled with a pattern: values do not change a GEMV's time), the same
+ * apply from fp16 and bf16 copies of R, and a STREAM copy of R's bytes, alternated reps times. */
 typedef struct wt_bench_mvm {
-    double bytes;        /* bytes of R (float32) */
-    wt_bench_stats sgemv; /* the runtime's apply */
-    wt_bench_stats copy;  /* read + write of R's bytes */
+    double bytes;          /* bytes of R (float32) */
+    wt_bench_stats sgemv;  /* the runtime's apply */
+    wt_bench_stats half[2]; /* the same apply with R stored in half_prec[k] (recon.mvm_precision) */
+    int half_prec[2];      /* WT_PREC_F16, WT_PREC_BF16 */
+    double half_error[2];  /* max |y16 - y| / max |y| of the first repetition */
+    wt_bench_stats copy;   /* read + write of R's bytes */
 } wt_bench_mvm;
 
 int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps, wt_bench_mvm *out);

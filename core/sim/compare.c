@@ -52,7 +52,9 @@ int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm
     for (int k = 0; k < WT_COMPARE_NPART; k++) res->parts[k] = v[k] / cfg->frames * 1e3;
     res->total = run / cfg->frames * 1e3;
     /* R and RÂ in float32; the matrix-free operators as the tomography counts them */
-    if (kind == WT_RECON_MVM) res->memory = 4.0 * (double)sys->nact * (double)(sys->nslopes + sys->nact);
+    if (kind == WT_RECON_MVM) /* R and RA: 4 bytes an element in fp32, 2 in fp16/bf16 (+ the row scales) */
+        res->memory = (cfg->mvm_precision ? 2.0 : 4.0) * (double)sys->nact * (double)(sys->nslopes + sys->nact) +
+                      (cfg->mvm_precision ? 8.0 * (double)sys->nact : 0.0);
     else if (kind != WT_RECON_NONE)
         res->memory = wt_tomography_bytes(wt_reconstructor_tomography(wt_loop_reconstructor(lp)));
     res->done = 1;

@@ -3,6 +3,9 @@
  *
  *   y = R s + (R Â) a        R: n_act x n_slopes, RÂ: n_act x n_act, float32, row = actuator,
  *
+ * or both stored as 16-bit floats with a power-of-two scale per row and applied with float32
+ * accumulation (recon.mvm_precision fp16/bf16, core/la/half.h: half the bytes per frame),
+ *
  * the pseudo-open-loop reconstruction R s_ol with s_ol = s + Â a written so that Â is not needed at run
  * time (`wavetomo run`), or y = R s_ol when the caller already has the pseudo-open-loop slopes (the
  * closed loop of core/sim/loop, `sim --recon mvm`, `compare`). Slope order: the system's (LGS first,
@@ -42,21 +45,30 @@ typedef struct wt_mvm {
     wt_context *ctx;
     int commands;              /* WT_MVM_LAYER_VALUES or WT_MVM_FITTING */
     int64_t nact, nslopes;
-    float *R;                  /* nact x nslopes, row-major: R[i * nslopes + j] (actuator i, slope j) */
-    float *RA;                 /* nact x nact, row-major: (R Â)[i * nact + k] */
+    int precision;             /* WT_PREC_F32, or WT_PREC_F16 / WT_PREC_BF16 (core/la/half.h) */
+    float *R;                  /* fp32: nact x nslopes, row-major: R[i * nslopes + j] (actuator i, slope j); else NULL */
+    float *RA;                 /* fp32: nact x nact, row-major: (R Â)[i * nact + k]; else NULL */
+    uint16_t *Rh, *RAh;        /* fp16/bf16: the same matrices as 16-bit floats of R_ij / c_i; else NULL */
+    float *Rc, *RAc;           /* fp16/bf16: the row scales c_i (nact each); else NULL */
+    int nthreads;              /* threads of the 16-bit apply (the fp32 one uses OpenBLAS's) */
     wt_mvm_stats stats;
 } wt_mvm;
 
-/* An nact x nslopes container with R and RÂ allocated (uninitialised), stats zero. [out] *out. */
+/* An nact x nslopes fp32 container with R and RÂ allocated (uninitialised), stats zero. [out] *out. */
 int wt_mvm_alloc(wt_context *ctx, int commands, int64_t nact, int64_t nslopes, wt_mvm **out);
+/* Store an fp32 container's matrices in `precision` instead (rounded to nearest even, the fp32 arrays
+ * freed); WT_PREC_F32 or the current precision: nothing to do. A non-finite entry is refused. */
+int wt_mvm_set_precision(wt_mvm *m, int precision);
 void wt_mvm_free(wt_mvm *m);
 
 /* y = R s + RÂ a, or y = R s when a is NULL (y: nact, overwritten; s: nslopes; a: nact). One float32
- * GEMV (two with a) through OpenBLAS. Allocates nothing. */
+ * GEMV (two with a) through OpenBLAS, or core/la/half.h's 16-bit GEMV. Allocates nothing. */
 void wt_mvm_apply(const wt_mvm *m, const float *s, const float *a, float *y);
 
 /* MATRIX.h5 (core/io/mvm_file.h) <-> the container. read: for a system of nact actuators and nslopes
- * slopes described by cfg (the file's config hash must be cfg's); variant_out: NULL or 16 bytes.
+ * slopes described by cfg (the file's config hash must be cfg's; the container gets the file's precision,
+ * whatever cfg's recon.mvm_precision says, and the context's thread count); variant_out: NULL or 16 bytes.
+ * write: in m's precision.
  * write: into an open writer, variant "pcg3" or "cg9" (the caller adds provenance, layout, commits). */
 int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t nact, int64_t nslopes, wt_mvm **out,
                 char *variant_out);

@@ -34,7 +34,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         fuzz_h5_check_ids(ids);
         return 0;
     }
-    if (wt_mvm_file_read_open(ctx, r, &demo_fs, FUZZ_NACT, FUZZ_NSLOPES, R, RA, variant) == WT_OK) {
+    if (wt_mvm_file_read_open(ctx, r, &demo_fs, FUZZ_NACT, FUZZ_NSLOPES, &(wt_mvm_file_data){.precision = WT_MVM_FILE_F32, .R = R, .RA = RA}, variant) == WT_OK) {
         if (strcmp(variant, "pcg3") && strcmp(variant, "cg9")) abort();
         for (int i = 0; i < FUZZ_NACT * FUZZ_NSLOPES; i++)
             if (!isfinite(R[i])) abort();

@@ -36,7 +36,8 @@ static void matrix(const char *dir, const char *name, const wt_config *cfg, int 
     wt_h5_writer *w;
     check(wt_h5_create(ctx, path, &w), path);
     const wt_mvm_file_system fs = fuzz_file_system(cfg);
-    check(wt_mvm_file_write(w, &fs, FUZZ_NACT, FUZZ_NSLOPES, R, RA, &rec), path);
+    const wt_mvm_file_data d = {.precision = WT_MVM_FILE_F32, .R = R, .RA = RA};
+    check(wt_mvm_file_write(w, &fs, FUZZ_NACT, FUZZ_NSLOPES, &d, &rec), path);
     check(wt_h5_commit(w), path);
 }
 
