@@ -83,13 +83,13 @@ END_TEST
  *   u Σ|R_ij x_j| + 2^-25 c_i Σ|x_j| (fp16 subnormals) + γ_k (1 + u) Σ|R_ij x_j| (float32 products and sums,
  *   k = n/32 + 33 additions along any path of the 32-lane sum),
  * for rows of very different sizes (1e-9 .. 1e3), a zero row and a row with tiny entries; the same bits
- * with 1 and 2 threads; beta accumulates. */
+ * with 1 and 2 threads, and for a row alone; beta accumulates. */
 START_TEST(test_gemv_bound)
 {
-    const int64_t rows = 41, cols = 1237;
+    const int64_t rows = 141, cols = 1237; /* 2 full blocks of 64 rows + 13: 4-row kernel and its tail */
     float *A = malloc(sizeof(float) * (size_t)(rows * cols)), *x = malloc(sizeof(float) * (size_t)cols);
     uint16_t *H = malloc(sizeof(uint16_t) * (size_t)(rows * cols));
-    float c[41], y1[41], y2[41], yb[41];
+    float c[141], y1[141], y2[141], yb[141];
     uint64_t s = 99;
     for (int64_t i = 0; i < rows; i++) {
         const float mag = i == 0 ? 0.0f : powf(10.0f, (float)(i % 13) - 9.0f);
@@ -111,6 +111,14 @@ START_TEST(test_gemv_bound)
         wt_half_gemv(precs[p], rows, cols, H, c, x, 0.0f, y1, 1);
         wt_half_gemv(precs[p], rows, cols, H, c, x, 0.0f, y2, 2);
         ck_assert(!memcmp(y1, y2, sizeof y1));
+        /* a row alone (the one-row kernel) gives the bits it gets among others (the four-row kernel):
+         * the same lanes in the same order */
+        for (int64_t i = 0; i < rows; i++) {
+            float yi;
+            wt_half_gemv(precs[p], 1, cols, H + i * cols, c + i, x, 0.0f, &yi, 1);
+            ck_assert_msg(yi == y1[i], "%s row %lld alone %a, in the block %a", wt_prec_name(precs[p]), (long long)i,
+                          (double)yi, (double)y1[i]);
+        }
         for (int64_t i = 0; i < rows; i++) {
             double exact = 0, sabs = 0, xabs = 0;
             for (int64_t j = 0; j < cols; j++) {

@@ -156,6 +156,61 @@ __attribute__((target("avx2,fma,f16c"))) static float dot_avx2(int prec, int64_t
     return s;
 }
 
+/* Four rows at once, the same 32 lanes per row as dot_avx2 (two accumulators of 8 per row, each taking
+ * two of the four 8-element slices of a 32-element block, in the same order): why — one row at a time
+ * is one memory stream per core, which the hardware prefetcher keeps at ~9 GB/s on the EPYC host (the
+ * 16-bit GEMV read 18.7 GB/s on 2 cores against 30 GB/s for OpenBLAS's fp32 sgemv, which walks several
+ * rows together); four rows are four streams, and each x slice loaded serves four rows. */
+__attribute__((target("avx2,fma,f16c"))) static inline void dot4_avx2(int prec, int64_t n, const uint16_t *h,
+                                                                      int64_t ld, const float *x, float *out)
+{
+    const uint16_t *h0 = h, *h1 = h + ld, *h2 = h + 2 * ld, *h3 = h + 3 * ld;
+    __m256 a0 = _mm256_setzero_ps(), b0 = a0, a1 = a0, b1 = a0, a2 = a0, b2 = a0, a3 = a0, b3 = a0;
+    __m256 c0 = a0, d0 = a0, c1 = a0, d1 = a0, c2 = a0, d2 = a0, c3 = a0, d3 = a0;
+    int64_t j = 0;
+    for (; j + 32 <= n; j += 32) {
+        const __m256 x0 = _mm256_loadu_ps(x + j), x1 = _mm256_loadu_ps(x + j + 8);
+        a0 = _mm256_fmadd_ps(load8(prec, h0 + j), x0, a0);
+        a1 = _mm256_fmadd_ps(load8(prec, h1 + j), x0, a1);
+        a2 = _mm256_fmadd_ps(load8(prec, h2 + j), x0, a2);
+        a3 = _mm256_fmadd_ps(load8(prec, h3 + j), x0, a3);
+        b0 = _mm256_fmadd_ps(load8(prec, h0 + j + 8), x1, b0);
+        b1 = _mm256_fmadd_ps(load8(prec, h1 + j + 8), x1, b1);
+        b2 = _mm256_fmadd_ps(load8(prec, h2 + j + 8), x1, b2);
+        b3 = _mm256_fmadd_ps(load8(prec, h3 + j + 8), x1, b3);
+        const __m256 x2 = _mm256_loadu_ps(x + j + 16), x3 = _mm256_loadu_ps(x + j + 24);
+        c0 = _mm256_fmadd_ps(load8(prec, h0 + j + 16), x2, c0);
+        c1 = _mm256_fmadd_ps(load8(prec, h1 + j + 16), x2, c1);
+        c2 = _mm256_fmadd_ps(load8(prec, h2 + j + 16), x2, c2);
+        c3 = _mm256_fmadd_ps(load8(prec, h3 + j + 16), x2, c3);
+        d0 = _mm256_fmadd_ps(load8(prec, h0 + j + 24), x3, d0);
+        d1 = _mm256_fmadd_ps(load8(prec, h1 + j + 24), x3, d1);
+        d2 = _mm256_fmadd_ps(load8(prec, h2 + j + 24), x3, d2);
+        d3 = _mm256_fmadd_ps(load8(prec, h3 + j + 24), x3, d3);
+    }
+    const __m256 acc[4][4] = {{a0, b0, c0, d0}, {a1, b1, c1, d1}, {a2, b2, c2, d2}, {a3, b3, c3, d3}};
+    const uint16_t *rows[4] = {h0, h1, h2, h3};
+    for (int r = 0; r < 4; r++) {
+        float lane[32];
+        for (int q = 0; q < 4; q++) _mm256_storeu_ps(lane + 8 * q, acc[r][q]);
+        for (int64_t k = j, l = 0; k < n; k++, l++) lane[l] += wt_half_to_float(prec, rows[r][k]) * x[k];
+        float s = 0.0f;
+        for (int l = 0; l < 32; l++) s += lane[l];
+        out[r] = s;
+    }
+}
+
+__attribute__((target("avx2,fma,f16c"))) static void rows_avx2(int prec, int64_t r0, int64_t r1, int64_t cols,
+                                                               const uint16_t *H, const float *x, float *d)
+{
+    int64_t i = r0;
+    if (prec == WT_PREC_BF16)
+        for (; i + 4 <= r1; i += 4) dot4_avx2(WT_PREC_BF16, cols, H + i * cols, cols, x, d + (i - r0));
+    else
+        for (; i + 4 <= r1; i += 4) dot4_avx2(WT_PREC_F16, cols, H + i * cols, cols, x, d + (i - r0));
+    for (; i < r1; i++) d[i - r0] = dot_avx2(prec, cols, H + i * cols, x);
+}
+
 static int have_avx2(void)
 {
     /* F16C from CPUID leaf 1 (ECX bit 29): clang's __builtin_cpu_supports does not know "f16c" */
@@ -173,16 +228,20 @@ void wt_half_gemv(int prec, int64_t rows, int64_t cols, const uint16_t *H, const
 #ifdef WT_HALF_X86
     fast = have_avx2();
 #endif
+    /* blocks of rows: the fast kernel takes four at a time; static schedule, so each thread walks one
+     * contiguous part of H */
+    enum { BLOCK = 64 };
+    const int64_t nblocks = (rows + BLOCK - 1) / BLOCK;
 #pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1)
-    for (int64_t i = 0; i < rows; i++) {
-        const uint16_t *h = H + i * cols;
-        float d;
+    for (int64_t b = 0; b < nblocks; b++) {
+        const int64_t r0 = b * BLOCK, r1 = r0 + BLOCK < rows ? r0 + BLOCK : rows;
+        float d[BLOCK];
 #ifdef WT_HALF_X86
         if (fast)
-            d = dot_avx2(prec, cols, h, x);
+            rows_avx2(prec, r0, r1, cols, H, x, d);
         else
 #endif
-            d = dot_scalar(prec, cols, h, x);
-        y[i] = (beta == 0.0f ? 0.0f : beta * y[i]) + c[i] * d;
+            for (int64_t i = r0; i < r1; i++) d[i - r0] = dot_scalar(prec, cols, H + i * cols, x);
+        for (int64_t i = r0; i < r1; i++) y[i] = (beta == 0.0f ? 0.0f : beta * y[i]) + c[i] * d[i - r0];
     }
 }
