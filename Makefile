@@ -2,7 +2,8 @@
 # build/libwavetomo.a and bin/wavetomo.  `make test`, `make demo`, `make bench`, `make debug`.
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
-                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check
+                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
+                openmpi-bin libopenmpi-dev
 
 CC      ?= gcc
 PKGS    := openblas lapacke hdf5-serial fftw3 libconfig plplot
@@ -45,6 +46,10 @@ deps:
 
 PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS))
 PKG_LIBS   = $(shell pkg-config --libs $(PKGS))
+# MPI (OpenMPI) only for cli/mpi.c and the executable: the library and the test suites stay MPI-free
+MPI_CFLAGS = $(shell pkg-config --cflags ompi-c)
+MPI_LIBS   = $(shell pkg-config --libs ompi-c)
+$(BUILD)/cli/mpi.o: PKG_CFLAGS += $(MPI_CFLAGS)
 
 # V=1 shows the full command lines
 Q := $(if $(V),,@)
@@ -77,7 +82,7 @@ $(LIB): $(CORE_OBJ)
 $(BIN)/wavetomo: $(CLI_OBJ) $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  LD      $@")
-	$(Q)$(CC) $(CFLAGS) -o $@ $(CLI_OBJ) $(LIB) $(PKG_LIBS) $(LDLIBS)
+	$(Q)$(CC) $(CFLAGS) -o $@ $(CLI_OBJ) $(LIB) $(PKG_LIBS) $(MPI_LIBS) $(LDLIBS)
 
 # Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
 # is only for the report driver).
@@ -108,7 +113,7 @@ regress-commands-update: deps
 # between the library's files, from `nm` of its objects (tests/check_deps.sh).
 check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
-	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="$(PKG_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
+	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="$(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
 test: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)

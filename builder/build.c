@@ -1,11 +1,15 @@
 /* builder/build.c: `wavetomo build`: the offline MVM builder (SPEC §9). Thin driver: reads the
- * configuration, runs core/model/mvm (CHOLMOD factorisation, column solves), writes MATRIX.h5. */
+ * configuration, runs core/build/mvm (CHOLMOD factorisation, column solves), writes MATRIX.h5.
+ * Under mpirun (issue 11) every rank assembles and factorises, solves the blocks of right-hand sides
+ * b % K == rank (wt_mvm_options.part_*), and rank 0 gathers the rows and writes the one file: the same
+ * blocks in the same order as a serial build, so the matrix is bit for bit the serial one. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
 
 #include "cli/cli.h"
+#include "cli/mpi.h"
 #include "core/io/h5.h"
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
@@ -30,7 +34,11 @@ static void help(void)
            "               build estimates its peak first and refuses, saying how much it needs, above it\n"
            "  --max-memory S  the same limit as a size (4G, 512M); --dry-run  print the estimated peak memory\n"
            "               and build time (from the configuration alone) and the keys that drive them; stop\n"
-           "The file is written to a temporary name and renamed when complete.\n");
+           "The file is written to a temporary name and renamed when complete.\n"
+           "\n"
+           "MPI: `mpirun -n K wavetomo build ...` splits the column solves over K ranks (each rank assembles and\n"
+           "factorises for itself, so each needs the memory of a serial build); rank 0 writes MATRIX.h5, equal\n"
+           "bit for bit to the serial one. Use --threads to set the threads of each rank.\n");
 }
 
 typedef struct {
@@ -74,16 +82,49 @@ static void on_progress(void *user, const char *phase, int64_t done, int64_t tot
     wt_progress_update(&bp->pr, (long)done, NULL);
 }
 
+/* MPI: rank 0 receives the rows of R and RÂ of the blocks the other ranks solved (each rank sends its own in
+ * increasing order, so the messages match in order); the others send theirs. */
+static int gather_rows(wt_mpi *mp, wt_mvm *m, int block)
+{
+    const int64_t nact = m->nact, ns = m->nslopes, nb = block < nact ? block : (nact > 0 ? nact : 1);
+    for (int64_t i0 = 0, b = 0; i0 < nact; i0 += nb, b++) {
+        const int owner = (int)(b % mp->size);
+        const int64_t cb = nact - i0 < nb ? nact - i0 : nb;
+        float *r = m->R + (size_t)i0 * ns, *ra = m->RA + (size_t)i0 * nact;
+        const size_t rb = (size_t)cb * ns * sizeof *r, ab = (size_t)cb * nact * sizeof *ra;
+        if (mp->rank == 0 && owner != 0) {
+            if (wt_mpi_recv(mp, r, rb, owner, 1) < 0 || wt_mpi_recv(mp, ra, ab, owner, 2) < 0) return -1;
+        } else if (mp->rank != 0 && owner == mp->rank) {
+            if (wt_mpi_send(mp, r, rb, 0, 1) < 0 || wt_mpi_send(mp, ra, ab, 0, 2) < 0) return -1;
+        }
+    }
+    return 0;
+}
+
+static int build_main(wt_mpi *mp, int argc, char **argv);
+
 int wt_cmd_build(int argc, char **argv)
 {
+    wt_mpi mp;
+    if (wt_mpi_begin(&mp)) return 1;
+    int rc = build_main(&mp, argc, argv);
+    wt_mpi_end(&mp);
+    return rc;
+}
+
+static int build_main(wt_mpi *mp, int argc, char **argv)
+{
     wt_cli cli;
-    if (wt_cli_init(&cli, "wavetomo build", help)) return 1;
+    char prog[64];
+    snprintf(prog, sizeof prog, mp->size > 1 ? "wavetomo build[rank %d]" : "wavetomo build", mp->rank);
+    if (wt_cli_init(&cli, mp->rank ? prog : "wavetomo build", help)) return 1;
     build_args args = {"pcg3", NULL, 0.0};
     int rc = wt_cli_parse(&cli, argc, argv, build_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
         return rc;
     }
+    if (mp->rank) cli.quiet = 1; /* rank 0 speaks for the job; the others only report their errors */
     rc = 0;
     if (strcmp(args.recon, "pcg3") && strcmp(args.recon, "cg9")) {
         rc = wt_cli_usage_error(&cli, "--recon expects pcg3 or cg9, got '%s'", args.recon);
@@ -107,9 +148,14 @@ int wt_cmd_build(int argc, char **argv)
     rc = 0;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;
     int cg9 = !strcmp(args.recon, "cg9");
-    /* check the output before hours of work: R is n_act x n_slopes float32 */
+    /* check the output before hours of work: R is n_act x n_slopes float32 (rank 0 writes it; a refusal
+     * there stops every rank) */
     double rbytes = 4.0 * (double)sys->nact * ((double)sys->nslopes + (double)sys->nact);
-    if ((st = wt_cli_check_output(&cli, args.out, (int64_t)(rbytes * 1.05), NULL, NULL)) < 0) goto fail;
+    if (mp->rank == 0) st = wt_cli_check_output(&cli, args.out, (int64_t)(rbytes * 1.05), NULL, NULL);
+    int bad = st < 0;
+    if (wt_mpi_max_int(mp, &bad) < 0) bad = 1;
+    if (st < 0) goto fail;
+    if (bad) goto quiet_fail;
     const wt_recon_variant_config *var = cg9 ? &cfg->cg9 : &cfg->pcg3;
     int64_t nunknowns = 0; /* a coefficient per layer grid point */
     for (int l = 0; l < var->nlayers; l++) nunknowns += (int64_t)var->size[l] * var->size[l];
@@ -119,13 +165,26 @@ int wt_cmd_build(int argc, char **argv)
     build_progress bp = {.phase = "", .quiet = cli.quiet};
     o.progress = on_progress;
     o.progress_user = &bp;
+    o.part_index = mp->rank, o.part_count = mp->size;
     if (!cli.quiet)
-        fprintf(stderr, "wavetomo build: %s, %s: %lld unknowns, R %lld x %lld (%.2f GB float32), memory budget %.1f GB\n",
+        fprintf(stderr, "wavetomo build: %s, %s: %lld unknowns, R %lld x %lld (%.2f GB float32), memory budget %.1f GB%s\n",
                 cfg->path, args.recon, (long long)nunknowns, (long long)sys->nact,
-                (long long)sys->nslopes, 4.0 * sys->nact * (double)sys->nslopes / 1e9, o.memory_budget / 1e9);
+                (long long)sys->nslopes, 4.0 * sys->nact * (double)sys->nslopes / 1e9, o.memory_budget / 1e9,
+                mp->size > 1 ? " per rank" : "");
+    if (!cli.quiet && mp->size > 1)
+        fprintf(stderr, "wavetomo build: %d MPI ranks x %d threads, blocks of %d columns dealt round-robin\n", mp->size,
+                wt_context_threads(cli.ctx), o.block);
     st = wt_mvm_build_variant(cli.ctx, sys, cfg, args.recon, &o, &m);
     if (bp.phase[0]) wt_progress_end(&bp.pr);
+    /* every rank learns whether all built before any waits for another's rows */
+    bad = st < 0;
+    if (wt_mpi_max_int(mp, &bad) < 0) bad = 1;
     if (st < 0) goto fail;
+    if (bad) goto quiet_fail;
+    double tg0 = wt_time_now();
+    if (mp->size > 1 && gather_rows(mp, m, o.block) < 0) goto quiet_fail;
+    if (mp->rank) goto cleanup;
+    if (mp->size > 1 && !cli.quiet) fprintf(stderr, "wavetomo build: rows gathered on rank 0 in %.1f s\n", wt_time_now() - tg0);
     double tw0 = wt_time_now();
     if ((st = wt_h5_create(cli.ctx, args.out, &w)) < 0) goto fail;
     if ((st = wt_cli_write_provenance(&cli, w, cfg, argc, argv)) < 0) goto fail;
@@ -151,6 +210,9 @@ int wt_cmd_build(int argc, char **argv)
     goto cleanup;
 fail:
     rc = wt_cli_fail(&cli, st);
+    goto cleanup;
+quiet_fail: /* another rank failed and said why, or the MPI call printed its error */
+    rc = 1;
 cleanup:
     wt_h5_abort(w);
     wt_mvm_free(m);

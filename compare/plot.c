@@ -294,9 +294,19 @@ static double viridis_luminance(double t)
 
 static const char *pname(const char *path) { return path ? path : "(null)"; }
 
+/* Vertical error bars y ± e at the finite points (issue 11: the standard error over seeds). */
+static void error_bars(int n, const double *x, const double *y, const double *e)
+{
+    for (int k = 0; k < n; k++) {
+        if (!isfinite(y[k]) || !isfinite(e[k]) || e[k] <= 0.0) continue;
+        PLFLT px = x[k], lo = y[k] - e[k], hi = y[k] + e[k];
+        plerry(1, &px, &lo, &hi);
+    }
+}
+
 int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
-                         const double *field, int log_x)
+                         const double *field, const double *on_err, const double *field_err, int log_x)
 {
     if (nmethods < 1 || nmethods > MAX_SERIES || nvalues < 1 || nvalues > MAX_VALUES)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl sweep of %d methods x %d values; expected 1..%d x 1..%d",
@@ -319,8 +329,8 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
                             "plot '%s': Strehl of method %ld at x[%ld] is %g on-axis, %g field; expected >= 0, or NaN "
                             "for a missing run",
                             pname(path), i / nvalues, i % nvalues, on_axis[i], field[i]);
-        if (isfinite(on_axis[i])) ymax = fmax(ymax, on_axis[i]);
-        if (isfinite(field[i])) ymax = fmax(ymax, field[i]);
+        if (isfinite(on_axis[i])) ymax = fmax(ymax, on_axis[i] + (on_err && isfinite(on_err[i]) ? on_err[i] : 0.0));
+        if (isfinite(field[i])) ymax = fmax(ymax, field[i] + (field_err && isfinite(field_err[i]) ? field_err[i] : 0.0));
     }
     for (int m = 0; m < nmethods; m++)
         if (!methods[m]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': method name %d is NULL", pname(path), m);
@@ -349,6 +359,8 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
         plwidth(1.0);
         markers_finite(nvalues, px, on, mark_filled[m % N_MARK]);
         markers_finite(nvalues, px, fa, mark_open[m % N_MARK]);
+        if (on_err) error_bars(nvalues, px, on, on_err + (long)m * nvalues);
+        if (field_err) error_bars(nvalues, px, fa, field_err + (long)m * nvalues);
     }
 
     /* legend "METHOD on-axis" / "METHOD field", outside the axes on the right */

@@ -9,10 +9,11 @@
 
 /* LE Strehl against the swept value for each method: on-axis solid, field average dashed, one colour
  * per method, legend, axis labels (x label = the swept key), title. on_axis/field: [nmethods][nvalues]
- * row-major. log_x: logarithmic x axis (e.g. for α). */
+ * row-major; on_err/field_err: the same shape, error bars ± the value (NULL: none). log_x: logarithmic x
+ * axis (e.g. for α). */
 int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
-                         const double *field, int log_x);
+                         const double *field, const double *on_err, const double *field_err, int log_x);
 
 /* A g x g map of LE Strehl over the field (index i + g j, x = column, y = row, in arcsec at positions
  * coords[0..g-1]), with a colour bar and each cell's value printed; one PNG per call. vmin/vmax fix

@@ -15,15 +15,26 @@ typedef struct wt_cmp_cases {
     const char *seed;
     long frames;
     int resume;
+    long nseeds;          /* --seeds N (0: not given) */
+    int ns;               /* seeds per method and sweep value (1: the configuration's sim.seed) */
+    uint64_t seeds[WT_COMPARE_MAXS];
 } wt_cmp_cases;
+
+/* Index of the case (method m, sweep value v, seed s) in the per-seed result arrays. */
+static inline int wt_cmp_case(const wt_cmp_cases *a, int m, int v, int s)
+{
+    return (m * (a->nv ? a->nv : 1) + v) * a->ns + s;
+}
 
 /* Every file the command writes in DIR: not an input, not a foreign file (unless --force). */
 int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a);
 /* --resume: read DIR/results.h5, refuse it when its plan is not `want` (naming what differs), and copy the
- * cases it has done into R ([method * columns + value]). *ndone: how many. */
+ * cases it has done into R (per seed, indexed by wt_cmp_case). *ndone: how many. */
 int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *want, wt_compare_result *R,
                          int *ndone);
-/* results.h5, summary.csv, report.md and the figures; cases not done are marked missing in each. */
+/* results.h5, summary.csv, report.md and the figures from the per-seed results R; with several seeds the
+ * tables and curves show the mean ± standard error over the seeds and the paired differences between the
+ * methods (core/sim/compare.h), results.h5 keeps every seed's values; cases not done are marked missing. */
 int wt_cmp_write_all(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
                      const wt_system *sys, const wt_compare_result *R, int argc, char **argv);
 

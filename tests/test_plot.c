@@ -135,7 +135,7 @@ static int draw_sweep(wt_context *ctx, const char *path, double shift)
     double on[15], fa[15];
     sweep_data(on, fa, shift);
     return wt_plot_strehl_sweep(ctx, path, "LE Strehl vs alpha (K band)", "recon.alpha", 3, methods, 5, alpha, on, fa,
-                                1);
+                                NULL, NULL, 1);
 }
 
 static int draw_map(wt_context *ctx, const char *path, double peak)
@@ -166,7 +166,7 @@ START_TEST(test_sweep_writes_png)
     sweep_data(on, fa, 0.0);
     on[2] = NAN, fa[7] = NAN;
     snprintf(path, sizeof path, "%s/sweep_lin.png", dir);
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "iterations", 3, methods, 5, alpha, on, fa, 0), WT_OK);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "iterations", 3, methods, 5, alpha, on, fa, NULL, NULL, 0), WT_OK);
     assert_png(path, 900, 650);
     remove_dir(dir);
     wt_context_free(ctx);
@@ -230,7 +230,7 @@ START_TEST(test_missing_directory_refused)
     sweep_data(on, fa, 0.0);
     map_data(s, 0.6);
     int st[3] = {
-        wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, alpha, on, fa, 0),
+        wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, alpha, on, fa, NULL, NULL, 0),
         wt_plot_strehl_map(ctx, path, "t", 5, coords, s, 0.2, 0.7),
         wt_plot_time_bars(ctx, path, "t", 3, methods, 6, parts, times),
     };
@@ -323,15 +323,15 @@ START_TEST(test_invalid_inputs_refused)
     memcpy(c, coords, sizeof c);
     memcpy(t, times, sizeof t);
 
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 0, methods, 5, x, on, fa, 0), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 0, methods, 5, x, on, fa, NULL, NULL, 0), WT_ERR_INVALID);
     x[0] = 0.0; /* no log of 0 */
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, x, on, fa, 1), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, x, on, fa, NULL, NULL, 1), WT_ERR_INVALID);
     x[0] = alpha[0];
     on[4] = INFINITY;
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, x, on, fa, 1), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, x, on, fa, NULL, NULL, 1), WT_ERR_INVALID);
     on[4] = 0.5;
     const char *const nullname[3] = {"MVM", NULL, "CG-9"};
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, nullname, 5, x, on, fa, 1), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, nullname, 5, x, on, fa, NULL, NULL, 1), WT_ERR_INVALID);
 
     ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.7, 0.6), WT_ERR_INVALID);
     ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.2, NAN), WT_ERR_INVALID);
@@ -370,7 +370,7 @@ START_TEST(test_edge_inputs_draw)
     snprintf(path, sizeof path, "%s/single.png", dir);
     const char *const m1[1] = {"run #2"};
     double xv = 5.0, on = 0.3, fa = 0.2;
-    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "#", "#x", 1, m1, 1, &xv, &on, &fa, 1), WT_OK);
+    ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "#", "#x", 1, m1, 1, &xv, &on, &fa, NULL, NULL, 1), WT_OK);
     assert_png(path, 900, 650);
     remove_dir(dir);
     wt_context_free(ctx);

@@ -191,9 +191,19 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     WT_ALLOC(ctx, work, (size_t)nth * ws, "wavelet workspace");
     if (opt.commands == WT_MVM_FITTING) WT_ALLOC(ctx, Fb, (size_t)nact * nb, "fitting block");
     const wt_sparse *gp = wt_mvm_priv_normal_gp(nm);
+    const int parts = opt.part_count > 1 ? opt.part_count : 1;
+    if (parts > 1 && (opt.part_index < 0 || opt.part_index >= parts)) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "wt_mvm_build: part %d of %d", opt.part_index, parts);
+        goto fail;
+    }
+    if (parts > 1) {
+        memset(mv->R, 0, (size_t)nact * ns * sizeof *mv->R);
+        memset(mv->RA, 0, (size_t)nact * nact * sizeof *mv->RA);
+    }
     wt_mvm_priv_progress(&opt, "solve", 0, nact);
-    for (int64_t i0 = 0; i0 < nact; i0 += nb) {
+    for (int64_t i0 = 0, b = 0; i0 < nact; i0 += nb, b++) {
         const int cb = (int)(nact - i0 < nb ? nact - i0 : nb);
+        if (b % parts != (parts > 1 ? opt.part_index : 0)) continue;
         /* X = Eᵀ[:, block]: coefficients of the command functionals */
         if (opt.commands == WT_MVM_FITTING) {
             /* Eᵀ = W Aᵀ F⁻¹: columns of F⁻¹, then Aᵀ, then W */

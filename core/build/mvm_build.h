@@ -55,6 +55,10 @@ typedef struct wt_mvm_options {
     int fit_sampling;          /* fitting sample points per subaperture side (cfg->cg9.fit_sampling; ≤ 0: 1) */
     double memory_budget;      /* bytes the build may hold at its peak; ≤ 0: no limit */
     int block;                 /* right-hand sides per solve block; ≤ 0: 256 */
+    int part_index, part_count; /* part_count > 1: solve only the blocks b (rows b·block … of R and RÂ) with
+                                   b % part_count == part_index, the other rows stay zero; every part does
+                                   the same assembly and factorisation, so a block's rows are bit for bit
+                                   those of a whole build (`mpirun wavetomo build`: one part per rank) */
     wt_mvm_progress_fn progress; /* NULL: none */
     void *progress_user;
 } wt_mvm_options;

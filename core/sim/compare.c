@@ -3,6 +3,7 @@
 #include "compare.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -17,13 +18,13 @@ const char *wt_compare_part_name(int k)
     return k >= 0 && k < WT_COMPARE_NPART ? names[k] : "?";
 }
 
-int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
                    wt_compare_frame_fn fn, void *user, wt_compare_result *res)
 {
     const wt_config *cfg = sys->cfg;
     wt_loop *lp = NULL;
     memset(res, 0, sizeof *res);
-    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = cfg->seed, .noise = cfg->noise};
+    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     int st = wt_loop_alloc(ctx, sys, &o, &lp);
     if (st < 0) return st;
@@ -63,6 +64,68 @@ out:
     return st;
 }
 
+double wt_compare_metric(const wt_compare_result *r, int k)
+{
+    return k == WT_METRIC_ON_AXIS ? r->on_axis : k == WT_METRIC_FIELD ? r->field : r->wfe_field;
+}
+
+const char *wt_compare_metric_name(int k)
+{
+    return k == WT_METRIC_ON_AXIS ? "strehl_le_on_axis" : k == WT_METRIC_FIELD ? "strehl_le_field" : "wfe_le_field";
+}
+
+void wt_compare_mean_se(const double *x, int n, double *mean, double *se)
+{
+    double m = 0.0, ss = 0.0;
+    for (int i = 0; i < n; i++) m += x[i];
+    m = n > 0 ? m / n : 0.0;
+    for (int i = 0; i < n; i++) ss += (x[i] - m) * (x[i] - m);
+    *mean = m;
+    *se = n > 1 ? sqrt(ss / (n - 1) / n) : 0.0;
+}
+
+/* wt_compare_summarise averages a result as an array of doubles up to `done`: it must stay all doubles there */
+_Static_assert(offsetof(wt_compare_result, done) ==
+                   sizeof(double) * (2 * WT_MAX_EVAL + 3 + WT_COMPARE_NPART + 3),
+               "wt_compare_result: the fields before 'done' must be the doubles wt_compare_summarise averages");
+
+void wt_compare_summarise(const wt_compare_result *r, int ns, wt_compare_summary *out)
+{
+    memset(out, 0, sizeof *out);
+    double x[WT_COMPARE_MAXS];
+    int n = 0;
+    /* a result is all doubles but `done`: average the doubles field by field */
+    const size_t nd = offsetof(wt_compare_result, done) / sizeof(double);
+    double *acc = (double *)&out->mean;
+    for (int s = 0; s < ns; s++) {
+        if (!r[s].done) continue;
+        const double *v = (const double *)&r[s];
+        for (size_t i = 0; i < nd; i++) acc[i] += v[i];
+        n++;
+    }
+    for (size_t i = 0; i < nd && n > 0; i++) acc[i] /= n;
+    for (int k = 0; k < WT_NMETRICS; k++) {
+        int j = 0;
+        for (int s = 0; s < ns; s++)
+            if (r[s].done) x[j++] = wt_compare_metric(&r[s], k);
+        double m;
+        wt_compare_mean_se(x, j, &m, &out->se[k]);
+    }
+    out->nseeds = n;
+    out->mean.done = n == ns;
+}
+
+void wt_compare_paired(const wt_compare_result *a, const wt_compare_result *b, int ns, int k, double *mean, double *se,
+                       int *n)
+{
+    double d[WT_COMPARE_MAXS];
+    int j = 0;
+    for (int s = 0; s < ns && s < WT_COMPARE_MAXS; s++)
+        if (a[s].done && b[s].done) d[j++] = wt_compare_metric(&a[s], k) - wt_compare_metric(&b[s], k);
+    wt_compare_mean_se(d, j, mean, se);
+    *n = j;
+}
+
 static void join(char *dst, size_t n, int k, char *const *items)
 {
     dst[0] = '\0';
@@ -70,14 +133,17 @@ static void join(char *dst, size_t n, int k, char *const *items)
 }
 
 void wt_compare_plan_make(wt_compare_plan *p, int nm, char *const *methods, const char *key, int nv,
-                          char *const *values, const wt_config *cfg)
+                          char *const *values, int ns, const uint64_t *seeds, const wt_config *cfg)
 {
     memset(p, 0, sizeof *p);
     join(p->methods, sizeof p->methods, nm, methods);
     snprintf(p->sweep_key, sizeof p->sweep_key, "%s", nv ? key : "");
     join(p->sweep_values, sizeof p->sweep_values, nv, values);
     wt_sha256_hex(cfg->canonical, strlen(cfg->canonical), p->config_sha256);
-    p->seed = cfg->seed;
+    p->seed = ns > 1 ? seeds[0] : cfg->seed;
+    for (int s = 0; s < ns && ns > 1; s++)
+        snprintf(p->seeds + strlen(p->seeds), sizeof p->seeds - strlen(p->seeds), "%s%llu", s ? "," : "",
+                 (unsigned long long)seeds[s]);
     p->frames = cfg->frames;
 }
 
@@ -102,6 +168,7 @@ int wt_compare_plan_check(wt_context *ctx, const char *source, const wt_compare_
          want->sweep_key);
     DIFF(strcmp(stored->sweep_values, want->sweep_values), "; sweep values '%s' there, '%s' now",
          stored->sweep_values, want->sweep_values);
+    DIFF(strcmp(stored->seeds, want->seeds), "; seeds '%s' there, '%s' now", stored->seeds, want->seeds);
     DIFF(stored->seed != want->seed, "; seed (sim.seed) %llu there, %llu now", (unsigned long long)stored->seed,
          (unsigned long long)want->seed);
     DIFF(stored->frames != want->frames, "; frames (loop.frames) %lld there, %lld now", (long long)stored->frames,

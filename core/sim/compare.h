@@ -33,22 +33,50 @@ const char *wt_compare_part_name(int k);
 typedef int (*wt_compare_frame_fn)(void *user, long frame, double mean_field_strehl);
 
 /* Run one case: the closed loop of reconstructor `kind` (mvm: the matrix `mvm`, built in build_s seconds)
- * on sys for its configuration's loop.frames, seed and noise, and reduce it into *res (res->done = 1). */
-int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+ * on sys for its configuration's loop.frames and noise with random seed `seed` (turbulence and noise: the
+ * loop's only random input), and reduce it into *res (res->done = 1). */
+int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
                    wt_compare_frame_fn fn, void *user, wt_compare_result *res);
+
+/* ---- statistics over seeds (issue 11: `compare --seeds N`) ----------------------------------------------
+ * Each seed is an independent realisation of the turbulence and noise; every method runs on the same seeds,
+ * so methods are compared by the paired difference d_s = x_s(A) − x_s(B), whose scatter is much smaller than
+ * that of either x_s (the realisation's luck is common to both). Standard error of a mean of n values:
+ * s / √n with s the sample standard deviation (n − 1); 0 for n < 2. A difference is "within the noise" when
+ * |mean| < 2 SE (about the 95 % two-sided level). */
+#define WT_COMPARE_MAXS 64
+enum { WT_METRIC_ON_AXIS, WT_METRIC_FIELD, WT_METRIC_WFE, WT_NMETRICS };
+/* The figure of merit k of a result: on-axis LE Strehl, field-mean LE Strehl, field-rms WFE [nm]. */
+double wt_compare_metric(const wt_compare_result *r, int k);
+const char *wt_compare_metric_name(int k); /* "strehl_le_on_axis", "strehl_le_field", "wfe_le_field" */
+/* Mean and standard error of x[0..n). */
+void wt_compare_mean_se(const double *x, int n, double *mean, double *se);
+
+typedef struct wt_compare_summary {
+    wt_compare_result mean;    /* every field averaged over the seeds done; done = 1 when all ns are */
+    double se[WT_NMETRICS];    /* standard error of the mean of each metric */
+    int nseeds;                /* seeds done */
+} wt_compare_summary;
+/* Reduce the per-seed results r[0..ns) of one method and sweep value (only those done count). */
+void wt_compare_summarise(const wt_compare_result *r, int ns, wt_compare_summary *out);
+/* Paired difference of metric k, a − b, over the seeds done in both: mean, standard error, seeds used. */
+void wt_compare_paired(const wt_compare_result *a, const wt_compare_result *b, int ns, int k, double *mean, double *se,
+                       int *n);
 
 typedef struct wt_compare_plan {
     char methods[256];       /* "mvm,pcg3,cg9" */
     char sweep_key[128];     /* "" without a sweep */
     char sweep_values[2048]; /* "20,50,100" ("" without a sweep) */
     char config_sha256[65];  /* SHA-256 of the canonical text of the first case's configuration */
+    char seeds[1024];        /* "1,2,3" with several seeds ("" with one: `seed`) */
     uint64_t seed;
     int64_t frames;
 } wt_compare_plan;
 
-/* The plan of methods[nm] x values[nv] (nv = 0: no sweep) on cfg (the first case's configuration). */
+/* The plan of methods[nm] x values[nv] (nv = 0: no sweep) x seeds[ns] on cfg (the first case's
+ * configuration; ns = 1: its seed). */
 void wt_compare_plan_make(wt_compare_plan *p, int nm, char *const *methods, const char *key, int nv,
-                          char *const *values, const wt_config *cfg);
+                          char *const *values, int ns, const uint64_t *seeds, const wt_config *cfg);
 /* WT_OK when `stored` (read from `source`) describes the same cases and the same runs as `want`; else
  * WT_ERR_FORMAT with a message naming every field that differs and both values. */
 int wt_compare_plan_check(wt_context *ctx, const char *source, const wt_compare_plan *stored,
