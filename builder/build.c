@@ -11,6 +11,7 @@
 #include "cli/cli.h"
 #include "cli/mpi.h"
 #include "core/io/h5.h"
+#include "core/la/half.h"
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
@@ -83,19 +84,27 @@ static void on_progress(void *user, const char *phase, int64_t done, int64_t tot
 }
 
 /* MPI: rank 0 receives the rows of R and RÂ of the blocks the other ranks solved (each rank sends its own in
- * increasing order, so the messages match in order); the others send theirs. */
+ * increasing order, so the messages match in order); the others send theirs. In fp16/bf16 storage the rows
+ * are 16-bit with one scale each, packed row by row (core/la/half.h), so a rank's rows are the serial ones. */
 static int gather_rows(wt_mpi *mp, wt_mvm *m, int block)
 {
     const int64_t nact = m->nact, ns = m->nslopes, nb = block < nact ? block : (nact > 0 ? nact : 1);
+    const int half = m->precision != WT_PREC_F32;
+    const size_t esz = half ? sizeof *m->Rh : sizeof *m->R;
+    char *R = half ? (char *)m->Rh : (char *)m->R, *RA = half ? (char *)m->RAh : (char *)m->RA;
     for (int64_t i0 = 0, b = 0; i0 < nact; i0 += nb, b++) {
         const int owner = (int)(b % mp->size);
         const int64_t cb = nact - i0 < nb ? nact - i0 : nb;
-        float *r = m->R + (size_t)i0 * ns, *ra = m->RA + (size_t)i0 * nact;
-        const size_t rb = (size_t)cb * ns * sizeof *r, ab = (size_t)cb * nact * sizeof *ra;
-        if (mp->rank == 0 && owner != 0) {
-            if (wt_mpi_recv(mp, r, rb, owner, 1) < 0 || wt_mpi_recv(mp, ra, ab, owner, 2) < 0) return -1;
-        } else if (mp->rank != 0 && owner == mp->rank) {
-            if (wt_mpi_send(mp, r, rb, 0, 1) < 0 || wt_mpi_send(mp, ra, ab, 0, 2) < 0) return -1;
+        if (mp->rank == 0 ? owner == 0 : owner != mp->rank) continue; /* rank 0 receives, the owner sends */
+        struct { void *p; size_t bytes; } part[4] = {
+            {R + (size_t)i0 * ns * esz, (size_t)cb * ns * esz}, {RA + (size_t)i0 * nact * esz, (size_t)cb * nact * esz},
+            {half ? m->Rc + i0 : NULL, half ? (size_t)cb * sizeof *m->Rc : 0},
+            {half ? m->RAc + i0 : NULL, half ? (size_t)cb * sizeof *m->RAc : 0}};
+        for (int k = 0; k < 4; k++) {
+            if (!part[k].bytes) continue;
+            int rc = mp->rank == 0 ? wt_mpi_recv(mp, part[k].p, part[k].bytes, owner, 1 + k)
+                                   : wt_mpi_send(mp, part[k].p, part[k].bytes, 0, 1 + k);
+            if (rc < 0) return -1;
         }
     }
     return 0;

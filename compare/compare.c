@@ -149,7 +149,7 @@ static int open_case(wt_cli *cli, const wt_cmp_cases *a, int base_nset, int v, c
  * each method, the MVM build's, and the matrix hash (MVM cases of equal hash share one cache file). */
 typedef struct {
     double run[WT_COMPARE_MAXM][WT_COMPARE_MAXV], build[WT_COMPARE_MAXV];
-    char hash[WT_COMPARE_MAXV][65];
+    char hash[WT_COMPARE_MAXV][80];
 } case_costs;
 
 /* Issue 10, C: every case's estimate (an MVM adds its build), before anything runs; -1: go on. */
@@ -160,7 +160,8 @@ static int estimate(wt_cli *cli, const wt_cmp_cases *a, int base_nset, char *set
         wt_config *cfg = NULL;
         int st = read_case(cli, a, base_nset, v, set, n, &cfg);
         if (st < 0) return wt_cli_fail(cli, st);
-        snprintf(cc->hash[v], sizeof cc->hash[v], "%s", cfg->matrix_sha256);
+        /* the cache file's name: the matrix hash and the storage precision (cli/output.c) */
+        snprintf(cc->hash[v], sizeof cc->hash[v], "%.64s-%d", cfg->matrix_sha256, cfg->mvm_precision);
         cc->build[v] = 0.0;
         for (int m = 0; m < a->nm; m++) {
             int kind = wt_reconstructor_kind(a->methods[m]);
