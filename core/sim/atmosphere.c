@@ -104,8 +104,10 @@ static void sh_step_init(int levels, double dk, double dpx, sh_step *q)
 
 /* The subharmonic field of layer `ly` on the row y = py, from x = px0 on.
  * With F = e^{2πi Δκ_p y}: B_p(m) = c_{m,−1} F̄ + c_{m,0} + c_{m,+1} F, and the field is
- * Re Σ_p [B_p(0) + B_p(+1) E + B_p(−1) Ē] = Σ_p Re B_p(0) + Re[(B_p(+1) + conj B_p(−1)) E]. */
-static void sh_row_init(const atm_layer *ly, int levels, double dk, double py, double px0, sh_row *s)
+ * Re Σ_p [B_p(0) + B_p(+1) E + B_p(−1) Ē] = Σ_p Re B_p(0) + Re[(B_p(+1) + conj B_p(−1)) E].
+ * Its two halves: the y part (g0, G_p) depends on the layer and py only, the x part (E_p at px0) on px0
+ * only, so lines of sight that share py or px0 share them (row_memo). */
+static void sh_row_y(const atm_layer *ly, int levels, double dk, double py, sh_row *s)
 {
     s->g0 = ly->sh_offset;
     double kp = dk;
@@ -121,23 +123,48 @@ static void sh_row_init(const atm_layer *ly, int levels, double dk, double py, d
         s->g0 += br[1];
         s->gr[p] = br[2] + br[0];
         s->gi[p] = bi[2] - bi[0];
+    }
+}
+
+static void sh_row_x(int levels, double dk, double px0, sh_row *s)
+{
+    double kp = dk;
+    for (int p = 0; p < levels; p++) {
+        kp /= 3.0;
         s->er[p] = cos(2.0 * M_PI * kp * px0);
         s->ei[p] = sin(2.0 * M_PI * kp * px0);
     }
 }
 
-/* v[i] = the field at the next m ≤ SH_CHUNK points; then step to the next block. The block-to-block
- * rotation drifts by ~1e-16 relative per block: negligible for rows of thousands of points. */
-static inline void sh_row_block(const sh_step *q, sh_row *s, int m, double *restrict v)
+static void sh_row_init(const atm_layer *ly, int levels, double dk, double py, double px0, sh_row *s)
 {
-    for (int i = 0; i < m; i++) v[i] = s->g0;
+    sh_row_y(ly, levels, dk, py, s);
+    sh_row_x(levels, dk, px0, s);
+}
+
+/* The block's coefficients A_p = G_p E_p (ar + i ai), then E_p stepped to the next block. The
+ * block-to-block rotation drifts by ~1e-16 relative per block: negligible for rows of thousands of
+ * points. */
+static inline void sh_row_coef(const sh_step *q, sh_row *s, double *restrict ar, double *restrict ai)
+{
     for (int p = 0; p < q->levels; p++) {
         double er = s->er[p], ei = s->ei[p];
-        double ar = s->gr[p] * er - s->gi[p] * ei, ai = s->gr[p] * ei + s->gi[p] * er; /* G E */
-        const double *restrict pr = q->pr[p], *restrict pi = q->pi[p];
-        for (int i = 0; i < m; i++) v[i] += ar * pr[i] - ai * pi[i];
+        ar[p] = s->gr[p] * er - s->gi[p] * ei, ai[p] = s->gr[p] * ei + s->gi[p] * er; /* G E */
         s->er[p] = er * q->rr[p] - ei * q->ri[p];
         s->ei[p] = er * q->ri[p] + ei * q->rr[p];
+    }
+}
+
+/* v[i] = the field at the next m ≤ SH_CHUNK points: g0 + Σ_p Re[A_p R_p^i], the levels added in
+ * order; then step to the next block. */
+static inline void sh_row_block(const sh_step *q, sh_row *s, int m, double *restrict v)
+{
+    double ar[SHL] = {0}, ai[SHL] = {0};
+    sh_row_coef(q, s, ar, ai);
+    for (int i = 0; i < m; i++) v[i] = s->g0;
+    for (int p = 0; p < q->levels; p++) {
+        const double *restrict pr = q->pr[p], *restrict pi = q->pi[p];
+        for (int i = 0; i < m; i++) v[i] += ar[p] * pr[i] - ai[p] * pi[i];
     }
 }
 
@@ -455,9 +482,63 @@ static void layer_call_step(const wt_atmosphere *atm, const wt_grid *tg, double 
     if (atm->sh_levels) sh_step_init(atm->sh_levels, 1.0 / (atm->n * atm->delta), c * tg->dx, q);
 }
 
-/* What both row kernels start from: the span [lo, hi] of masked points of target row iy (the whole row
- * without a mask), the unwrapped screen position u0 of point lo along x, the screen rows r0, r1 (index
- * j, j1 = j + 1 mod n) and weight fy along y, and the subharmonic row state. 0: no masked point. */
+/* The masked points of one target row: the span [lo, hi] the kernels sample (the whole row without a
+ * mask) and the masked points per block of SH_CHUNK from lo. It depends on the mask only, so a batch
+ * computes it once per (mask, row) for all layers and lines of sight (span_memo). */
+#define SPAN_BLOCKS 64
+typedef struct row_span {
+    int lo, hi;               /* lo > hi: no masked point */
+    int nb;                   /* blocks counted in cnt (0: more than SPAN_BLOCKS; the kernel counts) */
+    const uint8_t *mk;        /* the row's mask (NULL: all points) */
+    uint8_t cnt[SPAN_BLOCKS]; /* masked points of block (k − lo) / SH_CHUNK */
+} row_span;
+
+static void row_span_init(const uint8_t *mask, int nx, int iy, row_span *sp)
+{
+    const uint8_t *mk = mask ? mask + (int64_t)iy * nx : NULL;
+    int lo = 0, hi = nx - 1;
+    sp->mk = mk, sp->nb = 0;
+    if (mk) {
+        while (lo < nx && !mk[lo]) lo++;
+        while (hi >= lo && !mk[hi]) hi--;
+        const int nb = hi < lo ? 0 : (hi - lo) / SH_CHUNK + 1;
+        if (nb <= SPAN_BLOCKS) {
+            sp->nb = nb;
+            for (int bk = 0; bk < nb; bk++) {
+                const int k0 = lo + bk * SH_CHUNK, m = hi - k0 + 1 < SH_CHUNK ? hi - k0 + 1 : SH_CHUNK;
+                int cnt = 0;
+                for (int k = 0; k < m; k++) cnt += mk[k0 + k] != 0;
+                sp->cnt[bk] = (uint8_t)cnt;
+            }
+        }
+    }
+    sp->lo = lo, sp->hi = hi;
+}
+
+/* What one (layer, target row) shares between the lines of sight of a batch: the y part of a row start
+ * (the screen row position w and the subharmonic g0, G_p) depends on the layer and py only, the x part
+ * (the position u0 and E_p) on px0 only. They are looked up by the bits of py and px0 (the same
+ * arguments give the same fmod and libm results, so sharing is exact). The E-ELT's 25 evaluation
+ * directions on a 5 x 5 grid have 5 distinct py and 5 distinct px0 per row and layer: 10 sets of 3
+ * sincos and one fmod instead of 50. When full, the next ones are computed without sharing. */
+#define ROW_MEMO 16
+typedef struct row_memo {
+    int ny, nx;
+    uint64_t ykey[ROW_MEMO], xkey[ROW_MEMO];
+    double w[ROW_MEMO], u0[ROW_MEMO];
+    sh_row y[ROW_MEMO], x[ROW_MEMO]; /* y: g0, gr, gi; x: er, ei */
+} row_memo;
+
+static inline uint64_t dbits(double v)
+{
+    uint64_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+}
+
+/* What both row kernels start from: the row's span, the unwrapped screen position u0 of point lo along
+ * x, the screen rows r0, r1 (index j, j1 = j + 1 mod n) and weight fy along y, and the subharmonic row
+ * state. */
 typedef struct row_start {
     int lo, hi, j1;
     const uint8_t *mk; /* the row's mask (NULL: all points) */
@@ -467,40 +548,64 @@ typedef struct row_start {
     sh_row s;
 } row_start;
 
+/* 0: the row has no masked point. mm: the memo of this (layer, row), or NULL. */
 static inline int row_start_init(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg,
-                                 const uint8_t *mask, double *out, int iy, row_start *r)
+                                 const row_span *sp, double *out, int iy, row_memo *mm, row_start *r)
 {
-    const int nx = tg->nx, n = atm->n;
-    const int64_t row = (int64_t)iy * nx;
-    const uint8_t *mk = mask ? mask + row : NULL;
-    int lo = 0, hi = nx - 1;
-    if (mk) { /* sample only the span of masked points; the kernels skip the holes */
-        while (lo < nx && !mk[lo]) lo++;
-        if (lo == nx) return 0;
-        while (!mk[hi]) hi--;
-    }
-    const double inv = 1.0 / atm->delta, c = lc->c;
+    if (sp->lo > sp->hi) return 0;
+    const int n = atm->n, lo = sp->lo, levels = atm->sh_levels;
+    const double inv = 1.0 / atm->delta, c = lc->c, dk = 1.0 / (n * atm->delta);
     const double px0 = c * (tg->x0 + lo * tg->dx) + lc->ax, py = c * (tg->y0 + iy * tg->dx) + lc->ay;
-    const double w = wrap((py - atm->grid.y0) * inv, n);
+    double w, u0;
+    sh_row *s = &r->s;
+    *s = (sh_row){0};
+    if (mm) {
+        const uint64_t ky = dbits(py), kx = dbits(px0);
+        int a = 0, b = 0;
+        while (a < mm->ny && mm->ykey[a] != ky) a++;
+        if (a < mm->ny) {
+            w = mm->w[a];
+            s->g0 = mm->y[a].g0;
+            memcpy(s->gr, mm->y[a].gr, sizeof s->gr);
+            memcpy(s->gi, mm->y[a].gi, sizeof s->gi);
+        } else {
+            w = wrap((py - atm->grid.y0) * inv, n);
+            if (levels) sh_row_y(lc->ly, levels, dk, py, s);
+            if (a < ROW_MEMO) mm->ykey[a] = ky, mm->w[a] = w, mm->y[a] = *s, mm->ny++;
+        }
+        while (b < mm->nx && mm->xkey[b] != kx) b++;
+        if (b < mm->nx) {
+            u0 = mm->u0[b];
+            memcpy(s->er, mm->x[b].er, sizeof s->er);
+            memcpy(s->ei, mm->x[b].ei, sizeof s->ei);
+        } else {
+            u0 = wrap((px0 - atm->grid.x0) * inv, n);
+            if (levels) sh_row_x(levels, dk, px0, s);
+            if (b < ROW_MEMO) mm->xkey[b] = kx, mm->u0[b] = u0, mm->x[b] = *s, mm->nx++;
+        }
+    } else {
+        w = wrap((py - atm->grid.y0) * inv, n);
+        u0 = wrap((px0 - atm->grid.x0) * inv, n);
+        if (levels) sh_row_init(lc->ly, levels, dk, py, px0, s);
+    }
     const int j = (int)w;
-    r->lo = lo, r->hi = hi, r->mk = mk, r->o = out + row;
-    r->u0 = wrap((px0 - atm->grid.x0) * inv, n);
+    r->lo = lo, r->hi = sp->hi, r->mk = sp->mk, r->o = out + (int64_t)iy * tg->nx;
+    r->u0 = u0;
     r->j1 = j + 1 == n ? 0 : j + 1;
     r->fy = w - j;
     r->r0 = lc->ly->screen + (int64_t)n * j, r->r1 = lc->ly->screen + (int64_t)n * r->j1;
-    if (atm->sh_levels) sh_row_init(lc->ly, atm->sh_levels, 1.0 / (n * atm->delta), py, px0, &r->s);
-    else r->s = (sh_row){0};
     return 1;
 }
 
 /* The reference (point by point, the definition of every bit): target row iy, one layer:
  * out[row] += alpha · screen on the masked points. */
-static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const uint8_t *mask,
-                        double alpha, double *out, int iy)
+static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg,
+                                  const row_span *sp, double alpha, double *out, int iy, row_memo *mm)
 {
+    (void)mm; /* the definition computes every row's set-up itself */
     const int n = atm->n;
     row_start r;
-    if (!row_start_init(atm, lc, tg, mask, out, iy, &r)) return;
+    if (!row_start_init(atm, lc, tg, sp, out, iy, NULL, &r)) return;
     const int lo = r.lo, hi = r.hi;
     const uint8_t *mk = r.mk;
     double *o = r.o;
@@ -555,14 +660,22 @@ static inline void sh_row_skip(const sh_step *q, sh_row *s)
  *    iu stay within one period and off its last cell needs no wrap test: a branch-free loop the
  *    compiler vectorises; blocks across the seam and sparse blocks take the point-by-point loop.
  * Sparse blocks (fewer than a quarter of the points masked: the LGS rows between subaperture
- * corners) evaluate only their masked points. */
+ * corners) evaluate only their masked points.
+ *
+ * Unit rows. Where one target step is exactly one screen cell (b = 1: the lines of sight from
+ * infinity, NGS and evaluation directions, 4/5 of all samples at E-ELT size), u_k = fl(u0 + k) and
+ * ⌊u_k⌋ = ⌊u0⌋ + k for every k as long as the fraction of u0 is farther from 0 and 1 than the rounding
+ * of u0 + k (≤ half an ulp of the row's largest u): then the cell index and the weight fx = u_k − ⌊u_k⌋
+ * need no conversion back from u, the screen reads are contiguous, and the subharmonic sum, the
+ * bilinear weights and the accumulation run in one loop without intermediate arrays; each value is
+ * still formed by the same operations in the same order. */
 WT_ROW_CLONES
-static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const uint8_t *mask,
-                        double alpha, double *out, int iy)
+static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const row_span *sp,
+                        double alpha, double *out, int iy, row_memo *mm)
 {
-    const int n = atm->n;
+    const int n = atm->n, levels = atm->sh_levels;
     row_start r;
-    if (!row_start_init(atm, lc, tg, mask, out, iy, &r)) return;
+    if (!row_start_init(atm, lc, tg, sp, out, iy, mm, &r)) return;
     const int lo = r.lo, hi = r.hi, j1 = r.j1;
     const uint8_t *mk = r.mk;
     double *o = r.o;
@@ -572,25 +685,88 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
      * hardware prefetcher picks up late (docs/results.md §3). */
     const double *r2 = lc->ly->screen + (int64_t)n * (j1 + 1 == n ? 0 : j1 + 1);
     sh_row s = r.s;
+    int unit = 0, iu0 = 0;
+    if (b == 1.0) {
+        iu0 = (int)u0;
+        const double f = u0 - iu0, eps = (u0 + (hi - lo) + 2.0) * 0x1p-52;
+        unit = f > eps && f < 1.0 - eps;
+    }
     for (int k0 = lo; k0 <= hi; k0 += SH_CHUNK) {
         const int m = hi - k0 + 1 < SH_CHUNK ? hi - k0 + 1 : SH_CHUNK;
         int cnt = m;
         if (mk) {
-            cnt = 0;
-            for (int k = 0; k < m; k++) cnt += mk[k0 + k] != 0;
+            const int bk = (k0 - lo) / SH_CHUNK;
+            if (bk < sp->nb) cnt = sp->cnt[bk];
+            else {
+                cnt = 0;
+                for (int k = 0; k < m; k++) cnt += mk[k0 + k] != 0;
+            }
             if (cnt == 0) {
-                if (atm->sh_levels) sh_row_skip(lc->q, &s);
+                if (levels) sh_row_skip(lc->q, &s);
+                continue;
+            }
+        }
+        const int d0 = k0 - lo; /* (ix − lo) of the block's first point */
+        if (unit && 4 * cnt >= m) {
+            const int c0 = iu0 + d0, i0 = c0 < n ? c0 : c0 % n; /* the block's first cell, wrapped */
+            if (i0 + m <= n - 1) {
+                for (int x = i0; x < i0 + m + 1; x += 8) __builtin_prefetch(r2 + x);
+                const double *restrict p0 = r0 + i0, *restrict p1 = r1 + i0;
+                const uint8_t *restrict bm = mk && cnt < m ? mk + k0 : NULL;
+                double *restrict ob = o + k0;
+                if (levels == SHL) {
+                    double ar[SHL] = {0}, ai[SHL] = {0};
+                    sh_row_coef(lc->q, &s, ar, ai);
+                    const double *restrict pr0 = lc->q->pr[0], *restrict pi0 = lc->q->pi[0];
+                    const double *restrict pr1 = lc->q->pr[1], *restrict pi1 = lc->q->pi[1];
+                    const double *restrict pr2 = lc->q->pr[2], *restrict pi2 = lc->q->pi[2];
+                    const double g0 = s.g0;
+#define WT_UNIT_POINT                                                                                          \
+    const double u = u0 + (double)(d0 + k), fx = u - (double)(c0 + k);                                          \
+    double sv = g0;                                                                                            \
+    sv += ar[0] * pr0[k] - ai[0] * pi0[k];                                                                     \
+    sv += ar[1] * pr1[k] - ai[1] * pi1[k];                                                                     \
+    sv += ar[2] * pr2[k] - ai[2] * pi2[k];                                                                     \
+    const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);                  \
+    const double v = a0 + fy * (a1 - a0) + sv;
+                    if (bm)
+                        for (int k = 0; k < m; k++) {
+                            WT_UNIT_POINT
+                            ob[k] = bm[k] ? ob[k] + alpha * v : ob[k];
+                        }
+                    else
+                        for (int k = 0; k < m; k++) {
+                            WT_UNIT_POINT
+                            ob[k] += alpha * v;
+                        }
+#undef WT_UNIT_POINT
+                } else {
+#define WT_UNIT_POINT                                                                                          \
+    const double u = u0 + (double)(d0 + k), fx = u - (double)(c0 + k);                                          \
+    const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);                  \
+    const double v = a0 + fy * (a1 - a0) + 0.0;
+                    if (bm)
+                        for (int k = 0; k < m; k++) {
+                            WT_UNIT_POINT
+                            ob[k] = bm[k] ? ob[k] + alpha * v : ob[k];
+                        }
+                    else
+                        for (int k = 0; k < m; k++) {
+                            WT_UNIT_POINT
+                            ob[k] += alpha * v;
+                        }
+#undef WT_UNIT_POINT
+                }
                 continue;
             }
         }
         double shv[SH_CHUNK], val[SH_CHUNK];
-        if (atm->sh_levels) sh_row_block(lc->q, &s, m, shv);
+        if (levels) sh_row_block(lc->q, &s, m, shv);
         else for (int k = 0; k < m; k++) shv[k] = 0.0;
-        const int d0 = k0 - lo; /* (ix − lo) of the block's first point */
         const int iu_a = (int)(u0 + d0 * b), iu_b = (int)(u0 + (d0 + m - 1) * b);
-        const int q0 = iu_a / n;
+        const int q0 = iu_a < n ? 0 : iu_a / n;
         for (int x = iu_a - q0 * n, xe = x + (iu_b - iu_a) + 2; x < xe && x < n; x += 8) __builtin_prefetch(r2 + x);
-        if (4 * cnt >= m && iu_b / n == q0 && iu_b - q0 * n <= n - 2) {
+        if (4 * cnt >= m && iu_b - q0 * n <= n - 2) {
             const int oc = q0 * n;
             double fxv[SH_CHUNK];
             int iv[SH_CHUNK], steps = 0;
@@ -601,7 +777,7 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
                 iv[k] = iu - oc;
             }
             for (int k = 0; k < m; k++) steps += iv[k] != iv[0] + k;
-            if (steps == 0) { /* one screen cell per point (b = 1: the NGS and evaluation directions) */
+            if (steps == 0) { /* one screen cell per point */
                 const double *restrict p0 = r0 + iv[0], *restrict p1 = r1 + iv[0];
                 for (int k = 0; k < m; k++) {
                     const double a0 = p0[k] + fxv[k] * (p0[k + 1] - p0[k]), a1 = p1[k] + fxv[k] * (p1[k + 1] - p1[k]);
@@ -671,8 +847,8 @@ static int check_project(const wt_atmosphere *atm, double t, double source_altit
  * rotations) is done once per thread. The static schedule gives each thread the same rows for every
  * layer, so `nowait` is safe and every point adds its layers in layer order whatever the thread count
  * (bit-identical results). */
-typedef void (*row_kernel)(const wt_atmosphere *, const layer_call *, const wt_grid *, const uint8_t *, double,
-                           double *, int);
+typedef void (*row_kernel)(const wt_atmosphere *, const layer_call *, const wt_grid *, const row_span *, double,
+                           double *, int, row_memo *);
 
 static int project_with(row_kernel row, const wt_atmosphere *atm, double t, double source_altitude,
                         double theta_x, double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
@@ -691,7 +867,11 @@ static int project_with(row_kernel row, const wt_atmosphere *atm, double t, doub
         layer_call_step(atm, target, lc.c, &q);
         lc.q = &q;
 #pragma omp for schedule(static) nowait
-        for (int iy = 0; iy < ny; iy++) row(atm, &lc, target, mask, alpha, out, iy);
+        for (int iy = 0; iy < ny; iy++) {
+            row_span sp;
+            row_span_init(mask, target->nx, iy, &sp);
+            row(atm, &lc, target, &sp, alpha, out, iy, NULL);
+        }
     }
     return WT_OK;
 }
@@ -722,6 +902,24 @@ int wt_atmosphere_project_reference(const wt_atmosphere *atm, double t, double s
 #define BAND_ROWS 8
 #define BATCH_PAIRS 512
 #define BATCH_STEPS 24
+
+/* The spans of one target row by mask (the E-ELT's 34 lines of sight have 10 distinct masks). */
+#define SPAN_MEMO 16
+typedef struct span_memo {
+    int n;
+    const uint8_t *key[SPAN_MEMO];
+    row_span v[SPAN_MEMO];
+} span_memo;
+
+static const row_span *span_lookup(span_memo *m, const uint8_t *mask, int nx, int iy, row_span *tmp)
+{
+    for (int k = 0; k < m->n; k++)
+        if (m->key[k] == mask) return &m->v[k];
+    row_span *sp = m->n < SPAN_MEMO ? &m->v[m->n] : tmp;
+    row_span_init(mask, nx, iy, sp);
+    if (m->n < SPAN_MEMO) m->key[m->n++] = mask;
+    return sp;
+}
 
 int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, const wt_atmosphere_los *los,
                                const wt_grid *target, double alpha)
@@ -769,10 +967,18 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1 && nb > 1 && !omp_in_parallel())
     for (int bd = 0; bd < nb; bd++) {
         const int y0 = bd * BAND_ROWS, y1 = y0 + BAND_ROWS < ny ? y0 + BAND_ROWS : ny;
+        span_memo spm[BAND_ROWS];
+        row_memo mm;
+        for (int iy = y0; iy < y1; iy++) spm[iy - y0].n = 0;
         for (int l = 0; l < nl; l++)
-            for (int i = 0; i < nlos; i++)
-                for (int iy = y0; iy < y1; iy++)
-                    project_row(atm, &lc[i * nl + l], target, los[i].mask, alpha, los[i].out, iy);
+            for (int iy = y0; iy < y1; iy++) {
+                mm.ny = mm.nx = 0;
+                for (int i = 0; i < nlos; i++) {
+                    row_span tmp;
+                    const row_span *sp = span_lookup(&spm[iy - y0], los[i].mask, target->nx, iy, &tmp);
+                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm);
+                }
+            }
     }
     return WT_OK;
 }
