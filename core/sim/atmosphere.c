@@ -652,6 +652,45 @@ static inline void sh_row_skip(const sh_step *q, sh_row *s)
     }
 }
 
+/* One block of a unit row (see project_row): levels SHL or 0, masked or not, one fx for the block or
+ * one per point. Compile-time flags: each combination is its own branch-free loop. */
+typedef struct unit_args {
+    const double *p0, *p1;   /* the two screen rows from the block's first cell */
+    const uint8_t *bm;       /* the block's mask (NULL: all points) */
+    double *o;               /* the block's output */
+    double u0, fy, alpha, g0, fx;
+    double ar[SHL], ai[SHL]; /* the block's subharmonic coefficients */
+    const double *pr[SHL], *pi[SHL];
+    int d0, c0, m;
+} unit_args;
+
+static inline __attribute__((always_inline)) void unit_block(const unit_args *a, const int levels,
+                                                             const int masked, const int fxc)
+{
+    const double *restrict p0 = a->p0, *restrict p1 = a->p1;
+    const uint8_t *restrict bm = a->bm;
+    double *restrict o = a->o;
+    const double u0 = a->u0, fy = a->fy, alpha = a->alpha, g0 = a->g0, fxb = a->fx;
+    const double ar0 = a->ar[0], ar1 = a->ar[1], ar2 = a->ar[2], ai0 = a->ai[0], ai1 = a->ai[1], ai2 = a->ai[2];
+    const double *restrict pr0 = a->pr[0], *restrict pr1 = a->pr[1], *restrict pr2 = a->pr[2];
+    const double *restrict pi0 = a->pi[0], *restrict pi1 = a->pi[1], *restrict pi2 = a->pi[2];
+    const int d0 = a->d0, c0 = a->c0, m = a->m;
+    for (int k = 0; k < m; k++) {
+        const double fx = fxc ? fxb : (u0 + (double)(d0 + k)) - (double)(c0 + k);
+        double sv = 0.0;
+        if (levels) {
+            sv = g0;
+            sv += ar0 * pr0[k] - ai0 * pi0[k];
+            sv += ar1 * pr1[k] - ai1 * pi1[k];
+            sv += ar2 * pr2[k] - ai2 * pi2[k];
+        }
+        const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);
+        const double v = a0 + fy * (a1 - a0) + sv;
+        if (masked) o[k] = bm[k] ? o[k] + alpha * v : o[k];
+        else o[k] += alpha * v;
+    }
+}
+
 /* The fast path of project_row_reference, with the same arithmetic on every computed point (so the
  * same bits; tests/test_atmosphere.c compares them) but organised per block of SH_CHUNK points:
  *  - a block with no masked point evaluates nothing (the NGS sensors read only the pupil rim, the LGS
@@ -711,51 +750,26 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
             const int c0 = iu0 + d0, i0 = c0 < n ? c0 : c0 % n; /* the block's first cell, wrapped */
             if (i0 + m <= n - 1) {
                 for (int x = i0; x < i0 + m + 1; x += 8) __builtin_prefetch(r2 + x);
-                const double *restrict p0 = r0 + i0, *restrict p1 = r1 + i0;
-                const uint8_t *restrict bm = mk && cnt < m ? mk + k0 : NULL;
-                double *restrict ob = o + k0;
+                unit_args ua = {.p0 = r0 + i0, .p1 = r1 + i0, .bm = mk && cnt < m ? mk + k0 : NULL, .o = o + k0,
+                                .u0 = u0, .fy = fy, .alpha = alpha, .g0 = s.g0, .d0 = d0, .c0 = c0, .m = m};
                 if (levels == SHL) {
-                    double ar[SHL] = {0}, ai[SHL] = {0};
-                    sh_row_coef(lc->q, &s, ar, ai);
-                    const double *restrict pr0 = lc->q->pr[0], *restrict pi0 = lc->q->pi[0];
-                    const double *restrict pr1 = lc->q->pr[1], *restrict pi1 = lc->q->pi[1];
-                    const double *restrict pr2 = lc->q->pr[2], *restrict pi2 = lc->q->pi[2];
-                    const double g0 = s.g0;
-#define WT_UNIT_POINT                                                                                          \
-    const double u = u0 + (double)(d0 + k), fx = u - (double)(c0 + k);                                          \
-    double sv = g0;                                                                                            \
-    sv += ar[0] * pr0[k] - ai[0] * pi0[k];                                                                     \
-    sv += ar[1] * pr1[k] - ai[1] * pi1[k];                                                                     \
-    sv += ar[2] * pr2[k] - ai[2] * pi2[k];                                                                     \
-    const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);                  \
-    const double v = a0 + fy * (a1 - a0) + sv;
-                    if (bm)
-                        for (int k = 0; k < m; k++) {
-                            WT_UNIT_POINT
-                            ob[k] = bm[k] ? ob[k] + alpha * v : ob[k];
-                        }
-                    else
-                        for (int k = 0; k < m; k++) {
-                            WT_UNIT_POINT
-                            ob[k] += alpha * v;
-                        }
-#undef WT_UNIT_POINT
+                    sh_row_coef(lc->q, &s, ua.ar, ua.ai);
+                    for (int p = 0; p < SHL; p++) ua.pr[p] = lc->q->pr[p], ua.pi[p] = lc->q->pi[p];
+                }
+                /* one fx for the block when its cells lie in one binade [2^e, 2^(e+1)): there
+                 * fl(c + f) = c + (f rounded to the binade's ulp) for every integer c */
+                const int fxc = c0 >= 1 && ((c0 ^ (c0 + m - 1)) <= c0);
+                if (fxc) ua.fx = (u0 + (double)d0) - (double)c0;
+                if (levels == SHL) {
+                    if (fxc) {
+                        if (ua.bm) unit_block(&ua, SHL, 1, 1);
+                        else unit_block(&ua, SHL, 0, 1);
+                    } else {
+                        if (ua.bm) unit_block(&ua, SHL, 1, 0);
+                        else unit_block(&ua, SHL, 0, 0);
+                    }
                 } else {
-#define WT_UNIT_POINT                                                                                          \
-    const double u = u0 + (double)(d0 + k), fx = u - (double)(c0 + k);                                          \
-    const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);                  \
-    const double v = a0 + fy * (a1 - a0) + 0.0;
-                    if (bm)
-                        for (int k = 0; k < m; k++) {
-                            WT_UNIT_POINT
-                            ob[k] = bm[k] ? ob[k] + alpha * v : ob[k];
-                        }
-                    else
-                        for (int k = 0; k < m; k++) {
-                            WT_UNIT_POINT
-                            ob[k] += alpha * v;
-                        }
-#undef WT_UNIT_POINT
+                    unit_block(&ua, 0, ua.bm != NULL, 0);
                 }
                 continue;
             }
