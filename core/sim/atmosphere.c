@@ -916,6 +916,7 @@ int wt_atmosphere_project_reference(const wt_atmosphere *atm, double t, double s
 #define BAND_ROWS 8
 #define BATCH_PAIRS 512
 #define BATCH_STEPS 24
+#define MANY_LAYERS 16
 
 /* The spans of one target row by mask (the E-ELT's 34 lines of sight have 10 distinct masks). */
 #define SPAN_MEMO 16
@@ -951,7 +952,7 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
     layer_call lc[BATCH_PAIRS];
     sh_step q[BATCH_STEPS];
     double qc[BATCH_STEPS];
-    int nq = 0, fit = (int64_t)nlos * nl <= BATCH_PAIRS;
+    int nq = 0, fit = (int64_t)nlos * nl <= BATCH_PAIRS && nl <= MANY_LAYERS;
     for (int i = 0; fit && i < nlos; i++)
         for (int l = 0; fit && l < nl; l++) {
             layer_call *c = &lc[i * nl + l];
@@ -981,18 +982,18 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1 && nb > 1 && !omp_in_parallel())
     for (int bd = 0; bd < nb; bd++) {
         const int y0 = bd * BAND_ROWS, y1 = y0 + BAND_ROWS < ny ? y0 + BAND_ROWS : ny;
-        span_memo spm[BAND_ROWS];
-        row_memo mm;
-        for (int iy = y0; iy < y1; iy++) spm[iy - y0].n = 0;
-        for (int l = 0; l < nl; l++)
-            for (int iy = y0; iy < y1; iy++) {
-                mm.ny = mm.nx = 0;
-                for (int i = 0; i < nlos; i++) {
-                    row_span tmp;
-                    const row_span *sp = span_lookup(&spm[iy - y0], los[i].mask, target->nx, iy, &tmp);
-                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm);
-                }
+        span_memo spm;
+        row_memo mm[MANY_LAYERS];
+        for (int iy = y0; iy < y1; iy++) {
+            spm.n = 0;
+            for (int l = 0; l < nl; l++) mm[l].ny = mm[l].nx = 0;
+            for (int i = 0; i < nlos; i++) {
+                row_span tmp;
+                const row_span *sp = span_lookup(&spm, los[i].mask, target->nx, iy, &tmp);
+                for (int l = 0; l < nl; l++)
+                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm[l]);
             }
+        }
     }
     return WT_OK;
 }
