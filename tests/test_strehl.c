@@ -49,12 +49,41 @@ START_TEST(test_long_exposure)
 }
 END_TEST
 
+/* The batched rms equals one wt_strehl_rms per map bit for bit (any reordering of a sum would show in
+ * the last bits): 11 maps (over one chunk of WT_STREHL_CHAINS), a mask with holes, pistons of different
+ * sizes, and an empty mask (0). */
+START_TEST(test_rms_many_equals_single)
+{
+    enum { N = 2000, M = 11 };
+    static double maps[M][N];
+    static uint8_t mask[N], none[N];
+    wt_rng rng;
+    wt_rng_init(&rng, 3, 0);
+    for (int i = 0; i < N; i++) mask[i] = (uint8_t)(i % 7 != 3 && i % 11 != 0);
+    const double *p[M];
+    for (int j = 0; j < M; j++) {
+        for (int i = 0; i < N; i++) maps[j][i] = 1e-6 * j + 1e-7 * wt_rng_normal(&rng);
+        p[j] = maps[j];
+    }
+    double many[M], none_rms[M];
+    wt_strehl_rms_many(p, mask, N, M, many);
+    for (int j = 0; j < M; j++) {
+        const double one = wt_strehl_rms(maps[j], mask, N);
+        ck_assert_msg(memcmp(&one, &many[j], sizeof one) == 0, "map %d: %.17g vs %.17g", j, one, many[j]);
+        ck_assert_double_gt(one, 5e-8);
+    }
+    wt_strehl_rms_many(p, none, N, M, none_rms);
+    for (int j = 0; j < M; j++) ck_assert_double_eq(none_rms[j], 0.0);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("strehl");
     TCase *tc = tcase_create("core");
     tcase_add_test(tc, test_rms_of_known_opd);
     tcase_add_test(tc, test_long_exposure);
+    tcase_add_test(tc, test_rms_many_equals_single);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -780,7 +780,7 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
         const int iu_a = (int)(u0 + d0 * b), iu_b = (int)(u0 + (d0 + m - 1) * b);
         const int q0 = iu_a < n ? 0 : iu_a / n;
         for (int x = iu_a - q0 * n, xe = x + (iu_b - iu_a) + 2; x < xe && x < n; x += 8) __builtin_prefetch(r2 + x);
-        if (4 * cnt >= m && iu_b - q0 * n <= n - 2) {
+        if (2 * cnt > m && iu_b - q0 * n <= n - 2) {
             const int oc = q0 * n;
             double fxv[SH_CHUNK];
             int iv[SH_CHUNK], steps = 0;

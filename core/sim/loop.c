@@ -13,6 +13,7 @@
 #include "wfs.h"
 
 #define NOISE_STREAM_BASE (1ULL << 32)
+#define EVAL_GROUP 4 /* evaluation directions per work item of the closed loop's sensor/evaluation region */
 
 struct wt_loop {
     wt_context *ctx;
@@ -333,19 +334,31 @@ int wt_loop_step(wt_loop *lp)
     lp->times.atmosphere += t1 - t0;
 
     /* 2.–3. every line of sight in one parallel region: minus the DMs, then the truth sensor with its
-     * noise, or the residual rms of an evaluation direction. Per-part CPU times are summed over the
-     * threads and the region's wall time is split in their proportion. */
+     * noise, or the residual rms of the evaluation directions, EVAL_GROUP at a time (the rms sums of a
+     * group run side by side: wt_strehl_rms_many). The groups come first, the sensors fill in after them.
+     * Per-part CPU times are summed over the threads and the region's wall time is split in their
+     * proportion. */
+    const int ngroups = (sys->neval + EVAL_GROUP - 1) / EVAL_GROUP;
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_sens, c_eval) num_threads(wt_context_threads(lp->ctx))
-    for (int i = 0; i < lp->nlos; i++) {
+    for (int item = 0; item < ngroups + sys->nsensors; item++) {
         double a1 = wt_time_now();
-        double *o = lp->opd + (size_t)i * nf;
-        wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
-        if (i < sys->nsensors) {
+        if (item < ngroups) {
+            const int j0 = item * EVAL_GROUP, m = sys->neval - j0 < EVAL_GROUP ? sys->neval - j0 : EVAL_GROUP;
+            const double *maps[EVAL_GROUP];
+            for (int j = j0; j < j0 + m; j++) {
+                const int i = sys->nsensors + j;
+                double *o = lp->opd + (size_t)i * nf;
+                wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
+                maps[j - j0] = o;
+            }
+            wt_strehl_rms_many(maps, lp->pupil, nf, m, lp->rms + j0);
+            c_eval += wt_time_now() - a1;
+        } else {
+            const int i = item - ngroups;
+            double *o = lp->opd + (size_t)i * nf;
+            wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
             sense(lp, i, t, o);
             c_sens += wt_time_now() - a1;
-        } else {
-            lp->rms[i - sys->nsensors] = wt_strehl_rms(o, lp->pupil, nf);
-            c_eval += wt_time_now() - a1;
         }
     }
     double t2 = wt_time_now(), csum = c_sens + c_eval;

@@ -12,6 +12,11 @@
 
 /* Piston-removed rms [m] of opd over the points with mask[i] ≠ 0 (n points in all). */
 double wt_strehl_rms(const double *opd, const uint8_t *mask, int64_t n);
+/* rms[j] = wt_strehl_rms(opd[j], mask, n) for j < count, bit for bit, in one pass over the mask: the
+ * count sums are independent chains run side by side (WT_STREHL_CHAINS at a time), so their additions
+ * overlap where one sum alone waits for each addition before the next (each sum keeps its order). */
+#define WT_STREHL_CHAINS 4
+void wt_strehl_rms_many(const double *const *opd, const uint8_t *mask, int64_t n, int count, double *rms);
 /* Maréchal Strehl for an rms σ [m] at wavelength λ [m]. */
 double wt_strehl_marechal(double rms, double wavelength);
 
