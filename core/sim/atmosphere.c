@@ -715,14 +715,13 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
     const int n = atm->n, levels = atm->sh_levels;
     row_start r;
     if (!row_start_init(atm, lc, tg, sp, out, iy, mm, &r)) return;
-    const int lo = r.lo, hi = r.hi, j1 = r.j1;
+    const int lo = r.lo, hi = r.hi;
     const uint8_t *mk = r.mk;
     double *o = r.o;
     const double u0 = r.u0, fy = r.fy, b = lc->b, *r0 = r.r0, *r1 = r.r1;
-    /* The screen row after r1, which the next target row reads, is fetched block by block while this
-     * row computes: the rows of a footprint are short runs (~340 doubles) n doubles apart, which the
-     * hardware prefetcher picks up late (docs/results.md §3). */
-    const double *r2 = lc->ly->screen + (int64_t)n * (j1 + 1 == n ? 0 : j1 + 1);
+    /* No software prefetch of the next screen row (it paid when each line of sight ran its rows in
+     * turn, docs/results.md §3b; with the layers and lines of sight interleaved per row it measured
+     * no gain). */
     sh_row s = r.s;
     int unit = 0, iu0 = 0;
     if (b == 1.0) {
@@ -749,7 +748,6 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
         if (unit && 4 * cnt >= m) {
             const int c0 = iu0 + d0, i0 = c0 < n ? c0 : c0 % n; /* the block's first cell, wrapped */
             if (i0 + m <= n - 1) {
-                for (int x = i0; x < i0 + m + 1; x += 8) __builtin_prefetch(r2 + x);
                 unit_args ua = {.p0 = r0 + i0, .p1 = r1 + i0, .bm = mk && cnt < m ? mk + k0 : NULL, .o = o + k0,
                                 .u0 = u0, .fy = fy, .alpha = alpha, .g0 = s.g0, .d0 = d0, .c0 = c0, .m = m};
                 if (levels == SHL) {
@@ -779,7 +777,7 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
         else for (int k = 0; k < m; k++) shv[k] = 0.0;
         const int iu_a = (int)(u0 + d0 * b), iu_b = (int)(u0 + (d0 + m - 1) * b);
         const int q0 = iu_a < n ? 0 : iu_a / n;
-        for (int x = iu_a - q0 * n, xe = x + (iu_b - iu_a) + 2; x < xe && x < n; x += 8) __builtin_prefetch(r2 + x);
+
         if (2 * cnt > m && iu_b - q0 * n <= n - 2) {
             const int oc = q0 * n;
             double fxv[SH_CHUNK];
