@@ -354,7 +354,8 @@ END_TEST
 
 /* The batched projection equals one wt_atmosphere_project per line of sight bit for bit: 12 lines of
  * sight (NGS and two LGS altitudes, different masks, one without), 1 and 2 threads; and with 12 source
- * altitudes (36 cone factors, over the batch's table) through its fallback. Outputs start nonzero. */
+ * altitudes (36 cone factors, over the batch's table) through its fallback. Outputs start nonzero; 6 of
+ * the 12 are set (overwritten) instead of added to, which must equal zeroing them first. */
 START_TEST(test_many_equals_single)
 {
     wt_context *ctx = tu_context();
@@ -382,7 +383,11 @@ START_TEST(test_many_equals_single)
                                              .theta_x = 1e-4 * (i % 4 - 1.5),
                                              .theta_y = 1e-4 * (i / 4 - 1.0),
                                              .mask = i % 3 == 2 ? NULL : i % 2 ? sparse : disc,
-                                             .out = a + i * np};
+                                             .out = a + i * np,
+                                             .set = i % 5 < 2};
+                if (los[i].set) /* set = the same bits as zeroing the masked points first */
+                    for (long k = 0; k < np; k++)
+                        if (!los[i].mask || los[i].mask[k]) b[i * np + k] = 0.0;
                 ck_assert_int_eq(wt_atmosphere_project(atm, 0.29, H, los[i].theta_x, los[i].theta_y, &tg, los[i].mask,
                                                        0.9, b + i * np),
                                  WT_OK);
@@ -391,6 +396,14 @@ START_TEST(test_many_equals_single)
             ck_assert_msg(memcmp(a, b, nlos * np * sizeof *a) == 0, "many != single: threads %d, altitudes %d", th,
                           many_h);
         }
+    /* alpha = 0: the outputs with set get their masked points zeroed, the others stay */
+    for (long k = 0; k < nlos * np; k++) a[k] = b[k] = 1e-8 * (double)(k % 7);
+    for (int i = 0; i < nlos; i++)
+        if (los[i].set)
+            for (long k = 0; k < np; k++)
+                if (!los[i].mask || los[i].mask[k]) b[i * np + k] = 0.0;
+    ck_assert_int_eq(wt_atmosphere_project_many(atm, 0.29, nlos, los, &tg, 0.0), WT_OK);
+    ck_assert(memcmp(a, b, nlos * np * sizeof *a) == 0);
     /* a bad line of sight: an error, nothing written */
     los[3].source_altitude = 10e3; /* below the 12 km layer */
     for (long k = 0; k < nlos * np; k++) b[k] = a[k];

@@ -600,7 +600,7 @@ static inline int row_start_init(const wt_atmosphere *atm, const layer_call *lc,
 /* The reference (point by point, the definition of every bit): target row iy, one layer:
  * out[row] += alpha · screen on the masked points. */
 static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg,
-                                  const row_span *sp, double alpha, double *out, int iy, row_memo *mm)
+                                  const row_span *sp, double alpha, double *out, int iy, row_memo *mm, int set)
 {
     (void)mm; /* the definition computes every row's set-up itself */
     const int n = atm->n;
@@ -626,7 +626,7 @@ static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc
             while (i >= n) i -= n, off += n;
             const int i1 = i + 1 == n ? 0 : i + 1;
             const double a0 = r0[i] + fx * (r0[i1] - r0[i]), a1 = r1[i] + fx * (r1[i1] - r1[i]);
-            if (!mk || mk[ix]) o[ix] += alpha * (a0 + fy * (a1 - a0) + shv[k]);
+            if (!mk || mk[ix]) o[ix] = (set ? 0.0 : o[ix]) + alpha * (a0 + fy * (a1 - a0) + shv[k]);
         }
     }
 }
@@ -653,7 +653,8 @@ static inline void sh_row_skip(const sh_step *q, sh_row *s)
 }
 
 /* One block of a unit row (see project_row): levels SHL or 0, masked or not, one fx for the block or
- * one per point. Compile-time flags: each combination is its own branch-free loop. */
+ * one per point, adding to the output or setting it (set: 0 + the term, the bits of adding to a zeroed
+ * output). Compile-time flags: each combination is its own branch-free loop. */
 typedef struct unit_args {
     const double *p0, *p1;   /* the two screen rows from the block's first cell */
     const uint8_t *bm;       /* the block's mask (NULL: all points) */
@@ -665,7 +666,7 @@ typedef struct unit_args {
 } unit_args;
 
 static inline __attribute__((always_inline)) void unit_block(const unit_args *a, const int levels,
-                                                             const int masked, const int fxc)
+                                                             const int masked, const int fxc, const int set)
 {
     const double *restrict p0 = a->p0, *restrict p1 = a->p1;
     const uint8_t *restrict bm = a->bm;
@@ -686,8 +687,9 @@ static inline __attribute__((always_inline)) void unit_block(const unit_args *a,
         }
         const double a0 = p0[k] + fx * (p0[k + 1] - p0[k]), a1 = p1[k] + fx * (p1[k + 1] - p1[k]);
         const double v = a0 + fy * (a1 - a0) + sv;
-        if (masked) o[k] = bm[k] ? o[k] + alpha * v : o[k];
-        else o[k] += alpha * v;
+        const double o0 = set ? 0.0 : o[k];
+        if (masked) o[k] = bm[k] ? o0 + alpha * v : o[k];
+        else o[k] = o0 + alpha * v;
     }
 }
 
@@ -710,7 +712,7 @@ static inline __attribute__((always_inline)) void unit_block(const unit_args *a,
  * still formed by the same operations in the same order. */
 WT_ROW_CLONES
 static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const row_span *sp,
-                        double alpha, double *out, int iy, row_memo *mm)
+                        double alpha, double *out, int iy, row_memo *mm, int set)
 {
     const int n = atm->n, levels = atm->sh_levels;
     row_start r;
@@ -759,26 +761,35 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
                 const int fxc = c0 >= 1 && ((c0 ^ (c0 + m - 1)) <= c0);
                 if (fxc) ua.fx = (u0 + (double)d0) - (double)c0;
                 if (levels == SHL) {
-                    if (fxc) {
-                        if (ua.bm) unit_block(&ua, SHL, 1, 1);
-                        else unit_block(&ua, SHL, 0, 1);
+                    if (set) {
+                        if (fxc) {
+                            if (ua.bm) unit_block(&ua, SHL, 1, 1, 1);
+                            else unit_block(&ua, SHL, 0, 1, 1);
+                        } else {
+                            if (ua.bm) unit_block(&ua, SHL, 1, 0, 1);
+                            else unit_block(&ua, SHL, 0, 0, 1);
+                        }
                     } else {
-                        if (ua.bm) unit_block(&ua, SHL, 1, 0);
-                        else unit_block(&ua, SHL, 0, 0);
+                        if (fxc) {
+                            if (ua.bm) unit_block(&ua, SHL, 1, 1, 0);
+                            else unit_block(&ua, SHL, 0, 1, 0);
+                        } else {
+                            if (ua.bm) unit_block(&ua, SHL, 1, 0, 0);
+                            else unit_block(&ua, SHL, 0, 0, 0);
+                        }
                     }
                 } else {
-                    unit_block(&ua, 0, ua.bm != NULL, 0);
+                    unit_block(&ua, 0, ua.bm != NULL, 0, set);
                 }
                 continue;
             }
         }
-        double shv[SH_CHUNK], val[SH_CHUNK];
-        if (levels) sh_row_block(lc->q, &s, m, shv);
-        else for (int k = 0; k < m; k++) shv[k] = 0.0;
         const int iu_a = (int)(u0 + d0 * b), iu_b = (int)(u0 + (d0 + m - 1) * b);
         const int q0 = iu_a < n ? 0 : iu_a / n;
-
         if (2 * cnt > m && iu_b - q0 * n <= n - 2) {
+            double shv[SH_CHUNK], val[SH_CHUNK];
+            if (levels) sh_row_block(lc->q, &s, m, shv);
+            else for (int k = 0; k < m; k++) shv[k] = 0.0;
             const int oc = q0 * n;
             double fxv[SH_CHUNK];
             int iv[SH_CHUNK], steps = 0;
@@ -803,20 +814,29 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
                 }
             }
             if (cnt == m)
-                for (int k = 0; k < m; k++) o[k0 + k] += alpha * val[k];
+                for (int k = 0; k < m; k++) o[k0 + k] = (set ? 0.0 : o[k0 + k]) + alpha * val[k];
             else
                 for (int k = 0; k < m; k++)
-                    if (mk[k0 + k]) o[k0 + k] += alpha * val[k];
+                    if (mk[k0 + k]) o[k0 + k] = (set ? 0.0 : o[k0 + k]) + alpha * val[k];
             continue;
         }
+        /* point by point (sparse blocks, the seam): the subharmonic sum of the masked points only, in
+         * the order of sh_row_block */
+        double ar[SHL] = {0}, ai[SHL] = {0};
+        if (levels) sh_row_coef(lc->q, &s, ar, ai);
         for (int k = 0; k < m; k++) {
             if (mk && !mk[k0 + k]) continue;
+            double sv = 0.0;
+            if (levels) {
+                sv = s.g0;
+                for (int p = 0; p < levels; p++) sv += ar[p] * lc->q->pr[p][k] - ai[p] * lc->q->pi[p][k];
+            }
             const double u = u0 + (d0 + k) * b;
             const int iu = (int)u;
             const double fx = u - iu;
-            const int i = iu % n, i1 = i + 1 == n ? 0 : i + 1;
+            const int i = iu < n ? iu : iu % n, i1 = i + 1 == n ? 0 : i + 1;
             const double a0 = r0[i] + fx * (r0[i1] - r0[i]), a1 = r1[i] + fx * (r1[i1] - r1[i]);
-            o[k0 + k] += alpha * (a0 + fy * (a1 - a0) + shv[k]);
+            o[k0 + k] = (set ? 0.0 : o[k0 + k]) + alpha * (a0 + fy * (a1 - a0) + sv);
         }
     }
 }
@@ -860,7 +880,7 @@ static int check_project(const wt_atmosphere *atm, double t, double source_altit
  * layer, so `nowait` is safe and every point adds its layers in layer order whatever the thread count
  * (bit-identical results). */
 typedef void (*row_kernel)(const wt_atmosphere *, const layer_call *, const wt_grid *, const row_span *, double,
-                           double *, int, row_memo *);
+                           double *, int, row_memo *, int);
 
 static int project_with(row_kernel row, const wt_atmosphere *atm, double t, double source_altitude,
                         double theta_x, double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
@@ -882,7 +902,7 @@ static int project_with(row_kernel row, const wt_atmosphere *atm, double t, doub
         for (int iy = 0; iy < ny; iy++) {
             row_span sp;
             row_span_init(mask, target->nx, iy, &sp);
-            row(atm, &lc, target, &sp, alpha, out, iy, NULL);
+            row(atm, &lc, target, &sp, alpha, out, iy, NULL, 0);
         }
     }
     return WT_OK;
@@ -934,6 +954,16 @@ static const row_span *span_lookup(span_memo *m, const uint8_t *mask, int nx, in
     return sp;
 }
 
+/* The masked points of the outputs with `set` are zeroed (where the batch does not set them itself). */
+static void zero_set_outputs(int nlos, const wt_atmosphere_los *los, const wt_grid *target)
+{
+    const int64_t np = wt_grid_size(target);
+    for (int i = 0; i < nlos; i++)
+        if (los[i].set)
+            for (int64_t k = 0; k < np; k++)
+                if (!los[i].mask || los[i].mask[k]) los[i].out[k] = 0.0;
+}
+
 int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, const wt_atmosphere_los *los,
                                const wt_grid *target, double alpha)
 {
@@ -945,8 +975,12 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
         int st = check_project(atm, t, los[i].source_altitude, los[i].theta_x, los[i].theta_y, target, los[i].out);
         if (st < 0) return st;
     }
-    if (alpha == 0.0 || nlos == 0) return WT_OK;
+    if (nlos == 0) return WT_OK;
     const int nl = atm->nlayers, ny = target->ny;
+    if (alpha == 0.0) {
+        zero_set_outputs(nlos, los, target);
+        return WT_OK;
+    }
     layer_call lc[BATCH_PAIRS];
     sh_step q[BATCH_STEPS];
     double qc[BATCH_STEPS];
@@ -968,6 +1002,7 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
             c->q = &q[k];
         }
     if (!fit) {
+        zero_set_outputs(nlos, los, target);
         for (int i = 0; i < nlos; i++) {
             int st = wt_atmosphere_project(atm, t, los[i].source_altitude, los[i].theta_x, los[i].theta_y, target,
                                            los[i].mask, alpha, los[i].out);
@@ -989,7 +1024,8 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
                 row_span tmp;
                 const row_span *sp = span_lookup(&spm, los[i].mask, target->nx, iy, &tmp);
                 for (int l = 0; l < nl; l++)
-                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm[l]);
+                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm[l],
+                                l == 0 && los[i].set);
             }
         }
     }

@@ -82,11 +82,14 @@ int wt_atmosphere_project(const wt_atmosphere *atm, double t, double source_alti
                           double *out);
 
 /* One line of sight of wt_atmosphere_project_many: its source (as in wt_atmosphere_project), mask
- * (NULL: all points) and output (target->nx * target->ny values, added to). */
+ * (NULL: all points) and output (target->nx * target->ny values, added to; with set = 1 the masked
+ * points are overwritten instead: the same bits as zeroing them first, without the pass over the
+ * output that zeroing takes). */
 typedef struct wt_atmosphere_los {
     double source_altitude, theta_x, theta_y;
     const uint8_t *mask;
     double *out;
+    int set;
 } wt_atmosphere_los;
 
 /* wt_atmosphere_project for each of nlos lines of sight at the same t, on the same target grid, bit for

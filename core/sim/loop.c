@@ -134,6 +134,7 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         l->source_altitude = los_altitude(lp, i);
         l->mask = los_mask(lp, i);
         l->out = lp->opd + (size_t)i * lp->nfine;
+        l->set = 1;
     }
     WT_ALLOC(ctx, lp->dm_grids, wt_dm_grid_points(sys->dm), "DM grids");
     WT_TRY(wt_interaction_alloc(ctx, sys, &lp->ia));
@@ -320,15 +321,12 @@ int wt_loop_step(wt_loop *lp)
      * row band for all lines of sight; the same bits as one projection per line of sight). */
     double t0 = wt_time_now(), c_sens = 0.0, c_eval = 0.0;
     int err = WT_OK;
-#pragma omp parallel for schedule(static) num_threads(wt_context_threads(lp->ctx))
-    for (int i = 0; i < lp->nlos; i++) {
-        const uint8_t *mask = lp->los[i].mask;
-        double *o = lp->los[i].out;
-        for (int64_t k = 0; k < nf; k++)
-            if (mask[k]) o[k] = 0.0;
-    }
-    if (!lp->opt.no_turbulence)
+    if (!lp->opt.no_turbulence) /* sets the masked points (los[i].set) */
         err = wt_atmosphere_project_many(lp->atm, time, lp->nlos, lp->los, &lp->fine, 1.0);
+    else
+        for (int i = 0; i < lp->nlos; i++)
+            for (int64_t k = 0; k < nf; k++)
+                if (lp->los[i].mask[k]) lp->los[i].out[k] = 0.0;
     if (err < 0) return err;
     double t1 = wt_time_now();
     lp->times.atmosphere += t1 - t0;
