@@ -27,7 +27,12 @@ struct wt_loop {
     int nlos;                     /* lines of sight: sensors then evaluation directions */
     wt_wfs **wfs;                 /* per sensor: truth Shack–Hartmann */
     wt_noise **noise;             /* per sensor: truth noise (τ = 1) */
-    wt_projection **dm;           /* per line of sight: DMs on the fine grid */
+    wt_projection **dm;           /* per line of sight: DMs on the fine grid (with ground: DMs 1.. only) */
+    int ground;                   /* 1: DM 0 is at altitude 0: its term is the same along every line of sight */
+    wt_projection *dm0;           /* ground: DM 0 on the union of the lines of sight's masks */
+    double *t0;                   /* ground: its term of this frame, 0 + H_0 (-a) (nfine) */
+    int64_t **runs;               /* ground: per line of sight, its masked runs (start, end) in the fine grid */
+    int *nruns;
     double *opd;                  /* nlos x nfine */
     wt_atmosphere_los *los;       /* per line of sight: source, mask and OPD map for the batched projection */
     double *dm_grids;             /* expanded applied commands */
@@ -63,6 +68,83 @@ static void los_direction(const wt_loop *lp, int i, double *tx, double *ty)
 static const uint8_t *los_mask(const wt_loop *lp, int i)
 {
     return i < lp->sys->nsensors ? wt_wfs_fine_mask(lp->wfs[i]) : lp->pupil;
+}
+
+/* The DM projections. A DM at altitude 0 is seen the same way from every source and direction
+ * (cone factor 1, shift θ·0): its bilinear term at a fine point is the same number along every line of
+ * sight. When DM 0 is such a DM its term is computed once per frame on the union of the masks (t0) and
+ * added to each map before the other DMs' terms, so each point still gets its terms in DM order:
+ * o + t (the per-line-of-sight projection) and o + (0 + t) (t0) are the same number since o is never
+ * -0 (the atmosphere sets the maps to 0 + its first term). */
+static int dm_alloc(wt_loop *lp)
+{
+    wt_context *ctx = lp->ctx;
+    const wt_dm *dm = lp->sys->dm;
+    int st = WT_OK;
+    uint8_t *all = NULL;
+    WT_ALLOC(ctx, lp->dm, lp->nlos, "DM projections");
+    lp->ground = dm->ndms >= 1 && dm->altitude[0] == 0.0;
+    for (int i = 0; i < lp->nlos; i++) {
+        double tx, ty;
+        los_direction(lp, i, &tx, &ty);
+        if (!lp->ground)
+            WT_TRY(wt_dm_influence_alloc(ctx, dm, los_altitude(lp, i), tx, ty, &lp->fine, los_mask(lp, i), &lp->dm[i]));
+        else if (dm->ndms > 1)
+            WT_TRY(wt_projection_alloc(ctx, dm->ndms - 1, dm->grid + 1, dm->altitude + 1, los_altitude(lp, i), tx, ty,
+                                       &lp->fine, los_mask(lp, i), 1, &lp->dm[i]));
+    }
+    if (!lp->ground) return WT_OK;
+    const int64_t nf = lp->nfine;
+    WT_ALLOC(ctx, all, nf, "DM mask union");
+    WT_ALLOC(ctx, lp->runs, lp->nlos, "DM runs");
+    WT_ALLOC(ctx, lp->nruns, lp->nlos, "DM runs");
+    for (int i = 0; i < lp->nlos; i++) {
+        const uint8_t *m = los_mask(lp, i);
+        int n = 0;
+        for (int pass = 0; pass < 2; pass++) {
+            n = 0;
+            for (int64_t row = 0; row < nf; row += lp->fine.nx)
+                for (int64_t k = row; k < row + lp->fine.nx;) {
+                    if (!m[k]) {
+                        k++;
+                        continue;
+                    }
+                    int64_t a = k;
+                    while (k < row + lp->fine.nx && m[k]) all[k++] = 1;
+                    if (pass) lp->runs[i][2 * n] = a, lp->runs[i][2 * n + 1] = k;
+                    n++;
+                }
+            if (!pass) WT_ALLOC(ctx, lp->runs[i], 2 * (size_t)n + 1, "DM runs");
+        }
+        lp->nruns[i] = n;
+    }
+    WT_TRY(wt_projection_alloc(ctx, 1, dm->grid, dm->altitude, 0.0, 0.0, 0.0, &lp->fine, all, 1, &lp->dm0));
+    WT_ALLOC(ctx, lp->t0, nf, "ground DM term");
+fail:
+    wt_free(ctx, all);
+    return st;
+}
+
+/* t0 = 0 + the ground DM's term of the applied commands (after wt_dm_expand) */
+static void dm_ground(wt_loop *lp)
+{
+    if (!lp->ground) return;
+    memset(lp->t0, 0, (size_t)lp->nfine * sizeof *lp->t0);
+    wt_projection_apply(lp->dm0, -1.0, lp->dm_grids, lp->t0);
+}
+
+/* o −= the DM shapes along line of sight i, on its masked points */
+static void dm_subtract(const wt_loop *lp, int i, double *o)
+{
+    if (!lp->ground) {
+        wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
+        return;
+    }
+    const int64_t *r = lp->runs[i];
+    const double *restrict t0 = lp->t0;
+    for (int k = 0; k < lp->nruns[i]; k++)
+        for (int64_t p = r[2 * k]; p < r[2 * k + 1]; p++) o[p] += t0[p];
+    if (lp->dm[i]) wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids + wt_grid_size(&lp->sys->dm->grid[0]), o);
 }
 
 int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, const wt_loop_params *par,
@@ -119,13 +201,7 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s->sigma2, s->noise_scale, s->spot_fwhm, s->beta, 1.0, 0,
                                      &lp->noise[m]));
     }
-    WT_ALLOC(ctx, lp->dm, lp->nlos, "DM projections");
-    for (int i = 0; i < lp->nlos; i++) {
-        double tx, ty;
-        los_direction(lp, i, &tx, &ty);
-        WT_TRY(wt_dm_influence_alloc(ctx, sys->dm, los_altitude(lp, i), tx, ty,
-                                   &lp->fine, los_mask(lp, i), &lp->dm[i]));
-    }
+    WT_TRY(dm_alloc(lp));
     WT_ALLOC(ctx, lp->opd, (size_t)lp->nlos * lp->nfine, "OPD maps");
     WT_ALLOC(ctx, lp->los, lp->nlos, "lines of sight");
     for (int i = 0; i < lp->nlos; i++) {
@@ -183,6 +259,12 @@ void wt_loop_free(wt_loop *lp)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_noise_free(lp->noise[m]);
     if (lp->dm)
         for (int i = 0; i < lp->nlos; i++) wt_projection_free(lp->dm[i]);
+    if (lp->runs)
+        for (int i = 0; i < lp->nlos; i++) wt_free(ctx, lp->runs[i]);
+    wt_free(ctx, lp->runs);
+    wt_free(ctx, lp->nruns);
+    wt_projection_free(lp->dm0);
+    wt_free(ctx, lp->t0);
     if (lp->ring)
         for (int k = 0; k <= lp->delay; k++) wt_free(ctx, lp->ring[k]);
     wt_free(ctx, lp->ring);
@@ -291,10 +373,11 @@ static int step_open_loop(wt_loop *lp)
     double t2 = wt_time_now();
     memcpy(lp->applied, lp->a_rec, (size_t)sys->nact * sizeof *lp->applied);
     wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
+    dm_ground(lp);
 #pragma omp parallel for schedule(dynamic, 1)
     for (int j = 0; j < sys->neval; j++) {
         double *o = lp->opd + (size_t)(sys->nsensors + j) * nf;
-        wt_projection_apply(lp->dm[sys->nsensors + j], -1.0, lp->dm_grids, o);
+        dm_subtract(lp, sys->nsensors + j, o);
         lp->rms[j] = wt_strehl_rms(o, lp->pupil, nf);
     }
     evaluate(lp);
@@ -336,6 +419,7 @@ int wt_loop_step(wt_loop *lp)
      * group run side by side: wt_strehl_rms_many). The groups come first, the sensors fill in after them.
      * Per-part CPU times are summed over the threads and the region's wall time is split in their
      * proportion. */
+    dm_ground(lp);
     const int ngroups = (sys->neval + EVAL_GROUP - 1) / EVAL_GROUP;
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : c_sens, c_eval) num_threads(wt_context_threads(lp->ctx))
     for (int item = 0; item < ngroups + sys->nsensors; item++) {
@@ -346,7 +430,7 @@ int wt_loop_step(wt_loop *lp)
             for (int j = j0; j < j0 + m; j++) {
                 const int i = sys->nsensors + j;
                 double *o = lp->opd + (size_t)i * nf;
-                wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
+                dm_subtract(lp, i, o);
                 maps[j - j0] = o;
             }
             wt_strehl_rms_many(maps, lp->pupil, nf, m, lp->rms + j0);
@@ -354,7 +438,7 @@ int wt_loop_step(wt_loop *lp)
         } else {
             const int i = item - ngroups;
             double *o = lp->opd + (size_t)i * nf;
-            wt_projection_apply(lp->dm[i], -1.0, lp->dm_grids, o);
+            dm_subtract(lp, i, o);
             sense(lp, i, t, o);
             c_sens += wt_time_now() - a1;
         }
