@@ -721,9 +721,10 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
     const uint8_t *mk = r.mk;
     double *o = r.o;
     const double u0 = r.u0, fy = r.fy, b = lc->b, *r0 = r.r0, *r1 = r.r1;
-    /* No software prefetch of the next screen row (it paid when each line of sight ran its rows in
-     * turn, docs/results.md §3b; with the layers and lines of sight interleaved per row it measured
-     * no gain). */
+    /* The sparse points (NGS rims, LGS rows between subaperture corners) read scattered screen cells
+     * that miss every cache: their cells in the next screen row, which the next target row reads, are
+     * prefetched (dense blocks measured no gain from it). */
+    const double *r2 = lc->ly->screen + (int64_t)n * (r.j1 + 1 == n ? 0 : r.j1 + 1);
     sh_row s = r.s;
     int unit = 0, iu0 = 0;
     if (b == 1.0) {
@@ -835,6 +836,7 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
             const int iu = (int)u;
             const double fx = u - iu;
             const int i = iu < n ? iu : iu % n, i1 = i + 1 == n ? 0 : i + 1;
+            __builtin_prefetch(r2 + i);
             const double a0 = r0[i] + fx * (r0[i1] - r0[i]), a1 = r1[i] + fx * (r1[i1] - r1[i]);
             o[k0 + k] = (set ? 0.0 : o[k0 + k]) + alpha * (a0 + fy * (a1 - a0) + sv);
         }
