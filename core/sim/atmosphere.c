@@ -72,9 +72,10 @@ struct wt_atmosphere {
 
 /* What all rows of one layer share for sample spacing dpx: the x rotations. */
 typedef struct sh_step {
+    _Alignas(64) double pr[SHL][SH_CHUNK]; /* e^{2πi Δκ_p dpx i}, i < SH_CHUNK (cache-line aligned rows) */
+    _Alignas(64) double pi[SHL][SH_CHUNK];
+    double rr[SHL], ri[SHL];               /* e^{2πi Δκ_p dpx SH_CHUNK}: block to block */
     int levels;
-    double rr[SHL], ri[SHL];                     /* e^{2πi Δκ_p dpx SH_CHUNK}: block to block */
-    double pr[SHL][SH_CHUNK], pi[SHL][SH_CHUNK]; /* e^{2πi Δκ_p dpx i}, i < SH_CHUNK */
 } sh_step;
 
 /* One row: the field is g0 + Σ_p Re[G_p E_p(x)], E_p(x) = e^{2πi Δκ_p x}. */
