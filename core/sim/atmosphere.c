@@ -763,22 +763,16 @@ static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt
                 const int fxc = c0 >= 1 && ((c0 ^ (c0 + m - 1)) <= c0);
                 if (fxc) ua.fx = (u0 + (double)d0) - (double)c0;
                 if (levels == SHL) {
-                    if (set) {
-                        if (fxc) {
-                            if (ua.bm) unit_block(&ua, SHL, 1, 1, 1);
-                            else unit_block(&ua, SHL, 0, 1, 1);
-                        } else {
-                            if (ua.bm) unit_block(&ua, SHL, 1, 0, 1);
-                            else unit_block(&ua, SHL, 0, 0, 1);
-                        }
-                    } else {
-                        if (fxc) {
-                            if (ua.bm) unit_block(&ua, SHL, 1, 1, 0);
-                            else unit_block(&ua, SHL, 0, 1, 0);
-                        } else {
-                            if (ua.bm) unit_block(&ua, SHL, 1, 0, 0);
-                            else unit_block(&ua, SHL, 0, 0, 0);
-                        }
+                    /* each combination of the flags is its own loop (masked, one fx, set) */
+                    switch ((ua.bm != NULL) << 2 | fxc << 1 | (set != 0)) {
+                    case 0: unit_block(&ua, SHL, 0, 0, 0); break;
+                    case 1: unit_block(&ua, SHL, 0, 0, 1); break;
+                    case 2: unit_block(&ua, SHL, 0, 1, 0); break;
+                    case 3: unit_block(&ua, SHL, 0, 1, 1); break;
+                    case 4: unit_block(&ua, SHL, 1, 0, 0); break;
+                    case 5: unit_block(&ua, SHL, 1, 0, 1); break;
+                    case 6: unit_block(&ua, SHL, 1, 1, 0); break;
+                    default: unit_block(&ua, SHL, 1, 1, 1); break;
                     }
                 } else {
                     unit_block(&ua, 0, ua.bm != NULL, 0, set);
