@@ -701,8 +701,9 @@ static inline __attribute__((always_inline)) void unit_block(const unit_args *a,
  *  - the sample index along the row is iu mod n (iu = ⌊u⌋ ≥ 0 grows along the row), so a block whose
  *    iu stay within one period and off its last cell needs no wrap test: a branch-free loop the
  *    compiler vectorises; blocks across the seam and sparse blocks take the point-by-point loop.
- * Sparse blocks (fewer than a quarter of the points masked: the LGS rows between subaperture
- * corners) evaluate only their masked points.
+ * Sparse blocks evaluate only their masked points: in unit rows (below) those with fewer than a
+ * quarter of their points masked, elsewhere those with at most half (the LGS rows between subaperture
+ * corners, every 4th point).
  *
  * Unit rows. Where one target step is exactly one screen cell (b = 1: the lines of sight from
  * infinity, NGS and evaluation directions, 4/5 of all samples at E-ELT size), u_k = fl(u0 + k) and
