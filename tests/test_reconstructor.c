@@ -3,8 +3,9 @@
  * a power of two commutes with every rounding), a converged one is linear, the MVM reconstructor is the
  * stored matrix's own apply (core/solve/mvm.h), and none is zero. */
 #include "core/build/mvm_build.h"
-#include "core/model/params.h"
+#include "core/la/sparse.h"
 #include "core/model/reconstructor.h"
+#include "core/model/params.h"
 #include "testutil.h"
 
 typedef struct {
@@ -96,6 +97,65 @@ START_TEST(test_pcg3_converged_linear)
 }
 END_TEST
 
+/* pcg3's layers → commands map with a layer between the DMs (wt_reconstructor_command_map): a plane
+ * φ = 1 + 0.3 x − 0.2 y [rad, x, y in m] on the 1 km layer only, between DM 1 (0 m) and DM 2 (4 km),
+ * must give DM 1 (1 − 1/4) φ and DM 2 (1/4) φ at every actuator (the linear altitude split of the prior;
+ * bilinear interpolation of the 1 m layer at the 0.5 m actuators is exact on a plane) and DM 3 nothing.
+ * A wrong weight, a swapped DM, an interpolation off by a point or a dropped actuator is O(0.1). A DM
+ * that no layer reaches is refused naming it. */
+START_TEST(test_pcg3_command_map_split)
+{
+    fixture f;
+    const char *set[] = {"recon.pcg3.layer_altitudes_m=[0.0, 1000.0, 4000.0, 12700.0]",
+                         "recon.pcg3.layer_spacing_m=[0.5, 1.0, 1.0, 1.0]", "recon.pcg3.layer_size=[32, 16, 16, 32]"};
+    setup(&f, 3, set);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f.cfg, &tp);
+    wt_tomography *t = NULL;
+    ck_assert_msg(wt_tomography_alloc(f.ctx, f.sys, &f.cfg->pcg3, "pcg3", &tp, &t) == WT_OK, "%s", wt_error_message(f.ctx));
+    wt_sparse *st = NULL;
+    ck_assert_msg(wt_reconstructor_command_map(f.ctx, t, &st) == WT_OK, "%s", wt_error_message(f.ctx));
+    const int64_t n = wt_tomography_nunknowns(t), na = f.sys->nact;
+    ck_assert_int_eq(st->nrow, n);
+    ck_assert_int_eq(st->ncol, na);
+    double *phi = calloc(n, sizeof *phi), *a = calloc(na, sizeof *a);
+    const wt_grid *lg = wt_tomography_layer_grid(t, 1);
+    double *layer = phi + wt_tomography_layer_offset(t, 1);
+    for (int iy = 0; iy < lg->ny; iy++)
+        for (int ix = 0; ix < lg->nx; ix++)
+            layer[ix + lg->nx * iy] = 1.0 + 0.3 * (lg->x0 + ix * lg->dx) - 0.2 * (lg->y0 + iy * lg->dx);
+    wt_sparse_apply_t(st, 1.0, phi, a);
+    const wt_dm *dm = f.sys->dm;
+    const double share[3] = {0.75, 0.25, 0.0};
+    int64_t q = 0;
+    for (int k = 0; k < dm->ndms; k++) {
+        const wt_grid *dg = &dm->grid[k];
+        for (int iy = 0; iy < dg->ny; iy++)
+            for (int ix = 0; ix < dg->nx; ix++) {
+                if (!dm->active[k][ix + (int64_t)dg->nx * iy]) continue;
+                double want = share[k] * (1.0 + 0.3 * (dg->x0 + ix * dg->dx) - 0.2 * (dg->y0 + iy * dg->dx));
+                ck_assert_msg(fabs(a[q] - want) <= 1e-12, "DM %d actuator (%d, %d): %.15g, want %.15g", k + 1, ix, iy,
+                              a[q], want);
+                q++;
+            }
+    }
+    ck_assert_int_eq(q, na);
+    free(phi), free(a);
+    wt_sparse_free(st);
+    wt_tomography_free(t);
+    teardown(&f);
+
+    /* layers at 0 and 4 km only: DM 3 (12.7 km) gets nothing */
+    const char *bad[] = {"recon.pcg3.layer_altitudes_m=[0.0, 4000.0]", "recon.pcg3.layer_spacing_m=[0.5, 1.0]",
+                         "recon.pcg3.layer_size=[32, 16]"};
+    setup(&f, 3, bad);
+    wt_reconstructor *r = NULL;
+    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_PCG3, -1, &r), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(f.ctx), "DM 3"), "message: %s", wt_error_message(f.ctx));
+    teardown(&f);
+}
+END_TEST
+
 /* mvm: a = R s_ol in float32, exactly what wt_mvm_apply gives; none: a = 0. */
 START_TEST(test_mvm_and_none)
 {
@@ -137,6 +197,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_cg9_homogeneous);
     tcase_add_test(tc, test_pcg3_converged_linear);
     tcase_add_test(tc, test_mvm_and_none);
+    tcase_add_test(tc, test_pcg3_command_map_split);
     suite_add_tcase(s, tc);
     return s;
 }

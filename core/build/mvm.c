@@ -133,7 +133,7 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     wt_mvm_normal *nm = NULL;
     wt_interaction *ia = NULL;
     wt_sparse *Ahat = NULL, *Afit = NULL;
-    int64_t *pts = NULL;
+    wt_sparse *cmap = NULL;
     double *Fc = NULL, *X = NULL, *Zs = NULL, *Wt = NULL, *Fb = NULL, *work = NULL;
     double t0 = wt_time_now(), tt;
     double peak = 0.0;
@@ -145,8 +145,7 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
 
     /* the command map first: a pcg3 layer/DM mismatch is a configuration error, found in milliseconds */
     if (opt.commands == WT_MVM_LAYER_VALUES) {
-        WT_ALLOC(ctx, pts, nact, "actuator layer points");
-        WT_TRY(wt_reconstructor_actuator_points(ctx, t, pts));
+        WT_TRY(wt_reconstructor_command_map(ctx, t, &cmap));
     }
     WT_TRY(wt_interaction_alloc(ctx, sys, &ia));
     WT_TRY(wt_interaction_assemble(ia, &Ahat));
@@ -221,12 +220,17 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
             double *x = X + (size_t)n * c, *wk = work + (size_t)wt_mvm_priv_thread() * ws;
             if (opt.commands == WT_MVM_LAYER_VALUES) {
                 memset(x, 0, (size_t)n * sizeof *x);
-                int64_t p = pts[i0 + c];
-                int l = layer_of(t, p);
-                int64_t off = wt_tomography_layer_offset(t, l);
-                x[p] = 1.0;
-                /* row p of W⁻¹ = (W e_p)ᵀ; the other layers stay zero */
-                wt_wavelet_forward(wt_tomography_wavelet(t, l), x + off, x + off, wk);
+                /* row i of S W⁻¹ = (W S[i, :]ᵀ)ᵀ: the actuator's layer weights, then W on the layers they touch */
+                int touched[WT_MAX_LAYERS] = {0};
+                for (int64_t k = cmap->colptr[i0 + c]; k < cmap->colptr[i0 + c + 1]; k++) {
+                    x[cmap->rowind[k]] = cmap->val[k];
+                    touched[layer_of(t, cmap->rowind[k])] = 1;
+                }
+                for (int l = 0; l < L; l++)
+                    if (touched[l]) {
+                        int64_t off = wt_tomography_layer_offset(t, l);
+                        wt_wavelet_forward(wt_tomography_wavelet(t, l), x + off, x + off, wk);
+                    }
             } else {
                 const double *f = Fb + (size_t)nact * c;
                 for (int64_t p = 0; p < n; p++) {
@@ -285,7 +289,7 @@ fail:
     wt_interaction_free(ia);
     wt_sparse_free(Ahat);
     wt_sparse_free(Afit);
-    wt_free(ctx, pts);
+    wt_sparse_free(cmap);
     wt_free(ctx, Fc);
     wt_free(ctx, X);
     wt_free(ctx, Zs);

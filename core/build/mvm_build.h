@@ -6,9 +6,9 @@
  *   RÂ = R · Â          (n_act x n_act; Â the DM-to-slope interaction, POLC: R s_ol = R s + RÂ a)
  *
  * E maps wavelet coefficients to actuator commands:
- *   pcg3 (WT_MVM_LAYER_VALUES): the layer values at the active actuators, E = S W⁻¹ with S the
- *     selection of the layer points under each actuator (every DM needs a reconstruction layer at its
- *     altitude and pitch with its actuators on layer points, else WT_ERR_CONFIG);
+ *   pcg3 (WT_MVM_LAYER_VALUES): the layer values at the active actuators, E = S W⁻¹ with S the sparse
+ *     layers → commands map of wt_reconstructor_command_map (the selection of the layer point under each
+ *     actuator, plus the linear altitude split of layers between DMs; WT_ERR_CONFIG when a DM gets none);
  *   cg9 (WT_MVM_FITTING): the fitting step of core/model/fitting.h solved exactly,
  *     E = F⁻¹ Σ_j H_jᵀ P_j W⁻¹,  F = Σ_j H_jᵀ H_j + ε I  (dense n_act x n_act, LAPACK Cholesky).
  *

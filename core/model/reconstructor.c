@@ -1,6 +1,7 @@
 /* core/model/reconstructor.c: the pcg3 / cg9 / none reconstructors as one slopes → commands map. */
 #include "reconstructor.h"
 
+#include "../la/sparse.h"
 #include "../solve/mvm.h"
 
 #include <math.h>
@@ -19,50 +20,98 @@ struct wt_reconstructor {
     double *c;               /* wavelet coefficients (warm start) */
     double *phi;             /* spatial layers */
     double *a_fit;           /* fitting warm start */
-    int64_t *act_index;      /* pcg3: actuator → index into phi */
+    wt_sparse *cmap;         /* pcg3: Sᵀ, layer points x actuators (wt_reconstructor_command_map) */
     const wt_mvm *mvm;       /* mvm: the control matrix (not owned) */
     float *sf, *af;          /* mvm: float32 slopes and commands */
     double t_tomo, t_fit;
     wt_pcg_result last;
 };
 
-int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points)
+/* Layer l's value at (x, y) as bilinear weights on its grid points, times `weight`, into column col of
+ * the triplet list (an actuator on a grid point gives one entry). WT_ERR_CONFIG when (x, y) is off the grid. */
+static int add_bilinear(wt_context *ctx, wt_triplet *tr, const wt_tomography *t, int l, double x, double y, double weight,
+                        int64_t col, int dm)
 {
-    const wt_system *sys = wt_tomography_system(t);
-    const int L = wt_tomography_nlayers(t);
-    int64_t q = 0;
-    for (int k = 0; k < sys->dm->ndms; k++) {
-        const wt_grid *dg = &sys->dm->grid[k];
-        double h = sys->dm->altitude[k];
-        int l = -1;
-        for (int i = 0; i < L && l < 0; i++) {
-            const wt_grid *lg = wt_tomography_layer_grid(t, i);
-            double hl = wt_tomography_layer_altitude(t, i);
-            if (fabs(hl - h) <= 1e-6 * fmax(1.0, h) && fabs(lg->dx - dg->dx) <= 1e-9 * dg->dx) l = i;
-        }
-        if (l < 0)
+    const wt_grid *lg = wt_tomography_layer_grid(t, l);
+    const int64_t off = wt_tomography_layer_offset(t, l);
+    double g[2] = {(x - lg->x0) / lg->dx, (y - lg->y0) / lg->dx}, f[2];
+    int64_t i[2];
+    for (int d = 0; d < 2; d++) {
+        double r = round(g[d]);
+        if (fabs(g[d] - r) <= 1e-6) g[d] = r; /* on a grid line: no neighbour needed */
+        i[d] = (int64_t)floor(g[d]);
+        f[d] = g[d] - (double)i[d];
+        int64_t nmax = d == 0 ? lg->nx : lg->ny;
+        if (i[d] < 0 || i[d] + (f[d] > 0.0) >= nmax)
             return WT_ERROR(ctx, WT_ERR_CONFIG,
-                            "pcg3: the commands are the layer values at the actuators, but DM %d (altitude %g m, "
-                            "pitch %g m) has no reconstruction layer at its altitude with spacing equal to its pitch; "
-                            "set recon.pcg3.layer_altitudes_m and layer_spacing_m to the DM altitudes and pitches",
-                            k + 1, h, dg->dx);
-        const wt_grid *lg = wt_tomography_layer_grid(t, l);
-        int64_t off = wt_tomography_layer_offset(t, l);
-        for (int iy = 0; iy < dg->ny; iy++)
-            for (int ix = 0; ix < dg->nx; ix++) {
-                if (!sys->dm->active[k][ix + (int64_t)dg->nx * iy]) continue;
-                double gx = (dg->x0 + ix * dg->dx - lg->x0) / lg->dx, gy = (dg->y0 + iy * dg->dx - lg->y0) / lg->dx;
-                double rx = round(gx), ry = round(gy);
-                if (fabs(gx - rx) > 1e-6 || fabs(gy - ry) > 1e-6 || rx < 0 || ry < 0 || rx >= lg->nx || ry >= lg->ny)
-                    return WT_ERROR(ctx, WT_ERR_CONFIG,
-                                    "pcg3: actuator (%d, %d) of DM %d sits at layer %d grid position (%.4f, %.4f), not "
-                                    "on a point of its %d x %d grid; an odd actuator count of the layer's pitch "
-                                    "inside the layer grid is needed",
-                                    ix, iy, k + 1, l + 1, gx, gy, lg->nx, lg->ny);
-                points[q++] = off + (int64_t)rx + (int64_t)lg->nx * (int64_t)ry;
-            }
+                            "pcg3: an actuator of DM %d at (%.3f, %.3f) m falls off reconstruction layer %d's %d x %d grid "
+                            "(spacing %g m); enlarge recon.pcg3.layer_size",
+                            dm + 1, x, y, l + 1, lg->nx, lg->ny, lg->dx);
+    }
+    for (int b = 0; b < 4; b++) {
+        int bx = b & 1, by = b >> 1;
+        double wv = weight * (bx ? f[0] : 1.0 - f[0]) * (by ? f[1] : 1.0 - f[1]);
+        if (wv == 0.0) continue;
+        int st = wt_triplet_add(tr, off + i[0] + bx + (int64_t)lg->nx * (i[1] + by), col, wv);
+        if (st < 0) return st;
     }
     return WT_OK;
+}
+
+int wt_reconstructor_command_map(wt_context *ctx, const wt_tomography *t, wt_sparse **out)
+{
+    int st = WT_OK;
+    const wt_system *sys = wt_tomography_system(t);
+    const wt_dm *dm = sys->dm;
+    const int L = wt_tomography_nlayers(t), K = dm->ndms;
+    wt_triplet *tr = NULL;
+    double alt[WT_DM_MAX], reach[WT_DM_MAX] = {0};
+    int order[WT_DM_MAX];
+    int64_t first[WT_DM_MAX + 1];
+    *out = NULL;
+    /* the DMs by increasing altitude (the split needs them sorted) and each one's first command index */
+    for (int k = 0; k < K; k++) order[k] = k;
+    for (int i = 1; i < K; i++)
+        for (int j = i; j > 0 && dm->altitude[order[j]] < dm->altitude[order[j - 1]]; j--) {
+            int o = order[j];
+            order[j] = order[j - 1];
+            order[j - 1] = o;
+        }
+    for (int k = 0; k < K; k++) alt[k] = dm->altitude[order[k]];
+    first[0] = 0;
+    for (int k = 0; k < K; k++) first[k + 1] = first[k] + dm->nactive[k];
+    WT_TRY(wt_triplet_alloc(ctx, wt_tomography_nunknowns(t), sys->nact, 4 * sys->nact, &tr));
+    for (int l = 0; l < L; l++) {
+        int j;
+        double w;
+        wt_tomography_bin_altitude(K, alt, wt_tomography_layer_altitude(t, l), &j, &w);
+        for (int side = 0; side < 2; side++) {
+            double weight = side ? w : 1.0 - w;
+            if (weight <= 0.0) continue;
+            const int k = order[j + side];
+            const wt_grid *dg = &dm->grid[k];
+            int64_t q = first[k];
+            reach[k] += weight;
+            for (int iy = 0; iy < dg->ny; iy++)
+                for (int ix = 0; ix < dg->nx; ix++) {
+                    if (!dm->active[k][ix + (int64_t)dg->nx * iy]) continue;
+                    WT_TRY(add_bilinear(ctx, tr, t, l, dg->x0 + ix * dg->dx, dg->y0 + iy * dg->dx, weight, q++, k));
+                }
+        }
+    }
+    for (int k = 0; k < K; k++)
+        if (reach[k] <= 0.0) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                          "pcg3: DM %d (altitude %g m) receives no reconstruction layer (each layer goes to the DM at its "
+                          "altitude, or is split linearly between the two DMs around it); put a layer of "
+                          "recon.pcg3.layer_altitudes_m between DM %d and its neighbours",
+                          k + 1, dm->altitude[k], k + 1);
+            goto fail;
+        }
+    WT_TRY(wt_triplet_compress(tr, out));
+fail:
+    wt_triplet_free(tr);
+    return st;
 }
 
 int wt_reconstructor_kind(const char *name)
@@ -113,8 +162,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
     WT_ALLOC(ctx, r->phi, n, "layers");
     if (kind == WT_RECON_PCG3) {
         /* the commands are the layer values at the actuators: the same map as the MVM builder's */
-        WT_ALLOC(ctx, r->act_index, sys->nact, "actuator map");
-        WT_TRY(wt_reconstructor_actuator_points(ctx, r->tomo, r->act_index));
+        WT_TRY(wt_reconstructor_command_map(ctx, r->tomo, &r->cmap));
     } else {
         WT_TRY(wt_fitting_alloc_for(ctx, r->tomo, &par->fitting, &r->fit));
         WT_ALLOC(ctx, r->a_fit, sys->nact, "fitting warm start");
@@ -158,7 +206,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
     wt_free(r->ctx, r->c);
     wt_free(r->ctx, r->phi);
     wt_free(r->ctx, r->a_fit);
-    wt_free(r->ctx, r->act_index);
+    wt_sparse_free(r->cmap);
     wt_free(r->ctx, r);
 }
 
@@ -196,7 +244,8 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     wt_tomography_layers(r->tomo, r->c, r->phi);
     r->t_tomo = wt_time_now() - t0;
     if (r->kind == WT_RECON_PCG3) {
-        for (int64_t i = 0; i < na; i++) a[i] = r->phi[r->act_index[i]];
+        memset(a, 0, (size_t)na * sizeof *a);
+        wt_sparse_apply_t(r->cmap, 1.0, r->phi, a);
         return WT_OK;
     }
     t0 = wt_time_now();

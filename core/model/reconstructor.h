@@ -1,8 +1,8 @@
 /* core/model/reconstructor.h: slopes → DM commands, the R of the POLC loop (paper §6.1, SPEC §5–§7).
  *
- *  pcg3: layers at the DM altitudes, modified Jacobi PCG (recon.pcg3); commands = the reconstructed
- *        layer values at the active actuator positions (each DM's actuators must be points of the
- *        reconstruction layer at its altitude, which must have the DM's pitch).
+ *  pcg3: layers at the DM altitudes (and optionally between them), modified Jacobi PCG (recon.pcg3);
+ *        commands = the reconstructed layer values at the active actuator positions, a layer between two
+ *        DM altitudes split linearly between those DMs (wt_reconstructor_command_map; no fitting step).
  *  cg9:  layers at the atmosphere altitudes, CG (recon.cg9), then the fitting step by CG over the
  *        evaluation directions (recon.cg9.fit_iterations).
  *  none: commands 0 (the uncorrected baseline).
@@ -45,10 +45,14 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
 /* The MVM reconstructor around a matrix built for sys (not owned: it must outlive the reconstructor). */
 int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const struct wt_mvm *m, wt_reconstructor **out);
 void wt_reconstructor_free(wt_reconstructor *r);
-/* The pcg3 command map (also the MVM builder's): index (into the concatenated layer vector) of the layer point under each active actuator
- * (points: nact). WT_ERR_CONFIG naming the DM when a DM has no layer at its altitude and pitch, or an
- * actuator falls off the layer points. */
-int wt_reconstructor_actuator_points(wt_context *ctx, const wt_tomography *t, int64_t *points);
+/* The pcg3 command map (also the MVM builder's), a = S φ: returns Sᵀ (layer points x active actuators,
+ * CSC: column i holds actuator i's weights). A layer at a DM's altitude goes to that DM; a layer between
+ * two DM altitudes is split linearly between them (wt_tomography_bin_altitude, the prior's Cn² rule),
+ * one outside their range goes to the end DM; each share is the layer's bilinear interpolation at the
+ * actuator positions (one point with weight 1 when the actuator is a layer point). WT_ERR_CONFIG naming
+ * the DM when a DM receives no layer or an actuator falls off a layer grid. */
+struct wt_sparse;
+int wt_reconstructor_command_map(wt_context *ctx, const wt_tomography *t, struct wt_sparse **out);
 
 /* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). */
 int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);

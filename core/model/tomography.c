@@ -70,10 +70,7 @@ static int thread_id(void)
 #endif
 }
 
-/* Where the Cn² of a true layer at altitude h goes among the reconstruction altitudes alt[0..L-1]
- * (increasing): fraction 1 − w to layer *l and w to layer *l + 1 (linear split between the two nearest;
- * all of it to the end layer outside their range, w = 0). */
-static void bin_altitude(int L, const double *alt, double h, int *l, double *w)
+void wt_tomography_bin_altitude(int L, const double *alt, double h, int *l, double *w)
 {
     *l = 0;
     *w = 0.0;
@@ -86,14 +83,14 @@ static void bin_altitude(int L, const double *alt, double h, int *l, double *w)
     *w = (h - alt[*l]) / (alt[*l + 1] - alt[*l]);
 }
 
-/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (bin_altitude); floor 1e-3. */
+/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (wt_tomography_bin_altitude); floor 1e-3. */
 static void bin_profile(const wt_tomography_params *par, int L, const double *alt, double *frac)
 {
     for (int l = 0; l < L; l++) frac[l] = 0.0;
     for (int k = 0; k < par->natm; k++) {
         int l;
         double w;
-        bin_altitude(L, alt, par->atm_altitude[k], &l, &w);
+        wt_tomography_bin_altitude(L, alt, par->atm_altitude[k], &l, &w);
         frac[l] += (1.0 - w) * par->atm_fraction[k];
         if (w > 0.0) frac[l + 1] += w * par->atm_fraction[k];
     }
@@ -118,7 +115,7 @@ const double *wt_tomography_jacobi_inverse(const wt_tomography *t) { return t->j
 /* ---- Layer-binning model error of the LGS slopes (recon.model_error) ---------------------------------
  *
  * The prior puts the Cn² of a true layer at altitude h on the two nearest reconstruction layers
- * (bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
+ * (wt_tomography_bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
  * then predicts Γ_m[(1 − w) P_m(h_l) + w P_m(h_{l+1})] φ where it measures Γ_m P_m(h) φ; the difference
  * (sub-metre structure seen through the shifts (h − h_l)θ_m and the LGS cone (h − h_l) r / H) cannot be
  * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
@@ -167,7 +164,7 @@ static int model_error(wt_tomography *t, const wt_recon_variant_config *var, con
         const double h = par->atm_altitude[k], f = par->atm_fraction[k];
         int l;
         double w;
-        bin_altitude(t->L, t->alt, h, &l, &w);
+        wt_tomography_bin_altitude(t->L, t->alt, h, &l, &w);
         if (f <= 0.0 || (w == 0.0 && fabs(h - t->alt[l]) <= 1e-6 * fmax(1.0, h))) continue;
         WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, &prior));
         const double *d = wt_prior_diag(prior);

@@ -58,6 +58,11 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                         const char *variant_name, const wt_tomography_params *par, wt_tomography **out);
 void wt_tomography_free(wt_tomography *t);
 
+/* Where a true layer at altitude h goes among the increasing altitudes alt[0..L-1]: fraction 1 − w to
+ * *l and w to *l + 1 (linear split between the two nearest; all of it to the end one outside their
+ * range, w = 0). The prior's Cn² binning and pcg3's layers → DMs map both use it. */
+void wt_tomography_bin_altitude(int L, const double *alt, double h, int *l, double *w);
+
 int64_t wt_tomography_nunknowns(const wt_tomography *t);
 int wt_tomography_nlayers(const wt_tomography *t);
 const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l);
