@@ -274,6 +274,21 @@ START_TEST(test_variance_formula)
 }
 END_TEST
 
+/* The loop's noise gain against the variances of the closed forms: delay 1 is an AR(1) of coefficient
+ * 1 − g driven by g n, Σh² = g/(2 − g); delay 2 the AR(2) y_t = y_{t−1} − g y_{t−2} + g n_{t−2}, whose
+ * variance (1 − φ2) σ² / ((1 + φ2)((1 − φ2)² − φ1²)) with φ1 = 1, φ2 = −g is g(1 + g)/((1 − g)(2 + g));
+ * g = 1, delay 1 passes each frame's noise whole. */
+START_TEST(test_loop_gain)
+{
+    for (double g = 0.1; g < 0.95; g += 0.1) {
+        ck_assert_rel(wt_noise_loop_gain(g, 1), g / (2.0 - g), 1e-12, 0.0);
+        ck_assert_rel(wt_noise_loop_gain(g, 2), g * (1.0 + g) / ((1.0 - g) * (2.0 + g)), 1e-12, 0.0);
+    }
+    ck_assert_rel(wt_noise_loop_gain(0.4, 2), 7.0 / 18.0, 1e-12, 0.0);
+    ck_assert_rel(wt_noise_loop_gain(1.0, 1), 1.0, 1e-15, 0.0);
+}
+END_TEST
+
 START_TEST(test_elongation_hand)
 {
     /* Launch at (22, 0) m, Δh = 10 km, H = 90 km: β = (r − l) Δh / H².
@@ -484,6 +499,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_assemble);
     tcase_add_test(tc, test_variance_formula);
     tcase_add_test(tc, test_elongation_hand);
+    tcase_add_test(tc, test_loop_gain);
     tcase_add_test(tc, test_sampling);
     tcase_add_test(tc, test_nea_is_short_axis);
     tcase_add_test(tc, test_bad_input);

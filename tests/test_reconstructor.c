@@ -150,7 +150,9 @@ START_TEST(test_pcg3_command_map_split)
                          "recon.pcg3.layer_size=[32, 16]"};
     setup(&f, 3, bad);
     wt_reconstructor *r = NULL;
-    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_PCG3, -1, &r), WT_ERR_CONFIG);
+    wt_reconstructor_params rp;
+    wt_reconstructor_params_from_config(f.cfg, WT_RECON_PCG3, -1, &rp);
+    ck_assert_int_eq(wt_reconstructor_alloc(f.ctx, f.sys, WT_RECON_PCG3, &rp, &r), WT_ERR_CONFIG);
     ck_assert_msg(strstr(wt_error_message(f.ctx), "DM 3"), "message: %s", wt_error_message(f.ctx));
     teardown(&f);
 }

@@ -90,6 +90,60 @@ START_TEST(test_ngs_lowrank_preconditioner)
 }
 END_TEST
 
+/* coarse_ngs: B = the Jacobi diagonal with the coarse coefficients of all layers as one exact block of
+ * the LGS + prior part of M, the NGS by Woodbury around it. With coarse_levels = J the block is the whole
+ * LGS + prior part, so P = M and PCG is exact after one iteration; with one coarse level, at low noise,
+ * 4 iterations from a random layer state end nearer x* (M-norm) than jacobi_ngs's and at the same x*. */
+START_TEST(test_coarse_preconditioner)
+{
+    const char *jn[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.preconditioner=jacobi_ngs"};
+    const char *c1[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.preconditioner=coarse_ngs",
+                        "recon.pcg3.coarse_levels=1"};
+    const char *cj[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.preconditioner=coarse_ngs",
+                        "recon.pcg3.coarse_levels=3"};
+    fixture a, b, x;
+    setup(&a, DEMO, 0, 4, jn);
+    setup(&b, DEMO, 0, 5, c1);
+    setup(&x, DEMO, 0, 5, cj);
+    ck_assert_int_eq(x.cfg->wavelet_levels, 3);
+    const int64_t n = wt_tomography_nunknowns(a.t), ns = a.sys->nslopes;
+    double *s = malloc(ns * sizeof *s), *ca = calloc(n, sizeof *ca), *cb = calloc(n, sizeof *cb);
+    tu_randn(ca, n, 5);
+    tu_tomo_slopes(a.t, ca, s);
+    memset(ca, 0, n * sizeof *ca);
+    wt_pcg_result ra, rb, rx;
+    /* P = M: one iteration (two allowed for rounding) */
+    double *cx = calloc(n, sizeof *cx);
+    ck_assert_int_eq(wt_tomography_solve(x.t, s, cx, 2, 1e-9, NULL, &rx), WT_OK);
+    ck_assert_msg(rx.rel_resid < 1e-9, "exact block: relative residual %g after %d iterations", rx.rel_resid,
+                  rx.iterations);
+    ck_assert_int_le(rx.iterations, 2);
+    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 4, 0.0, NULL, &ra), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(b.t, s, cb, 4, 0.0, NULL, &rb), WT_OK);
+    double *xs = calloc(n, sizeof *xs), *e = malloc(n * sizeof *e), *me = malloc(n * sizeof *me), err[2];
+    ck_assert_int_eq(wt_tomography_solve(a.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK);
+    for (int k = 0; k < 2; k++) {
+        const double *c = k ? cb : ca;
+        for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
+        tu_tomo_apply(a.t, e, me);
+        err[k] = sqrt(tu_dot(e, me, n));
+    }
+    fprintf(stderr, "coarse: 4-iteration M-norm error %g (coarse 1) vs %g (jacobi_ngs)\n", err[1], err[0]);
+    ck_assert_msg(err[1] < 0.8 * err[0], "4 iterations: M-norm error %g with the coarse block, %g without", err[1], err[0]);
+    /* the exact block's one-iteration solution is x* */
+    for (int64_t i = 0; i < n; i++) e[i] = cx[i] - xs[i];
+    tu_tomo_apply(a.t, e, me);
+    double ex = sqrt(tu_dot(e, me, n));
+    tu_tomo_apply(a.t, xs, me);
+    ck_assert_double_lt(ex, 1e-7 * sqrt(tu_dot(xs, me, n)));
+    free(xs), free(e), free(me), free(cx);
+    free(s), free(ca), free(cb);
+    teardown(&a);
+    teardown(&b);
+    teardown(&x);
+}
+END_TEST
+
 START_TEST(test_eelt_sizes)
 {
     /* SPEC §1: 5112 valid subapertures per LGS, 5525 + 1609 + 2161 = 9295 actuators, 61356 slopes (no guard
@@ -511,6 +565,37 @@ START_TEST(test_model_error)
 }
 END_TEST
 
+/* recon.pcg3.loop_noise_average: the measurement noise of every sensor (NGS too) scaled by the loop's noise
+ * gain κ = Σh² (the demo: g 0.4, delay 2, κ = 7/18), elongation term included, and the model error added
+ * unscaled: C̃_i = (κσ² + σ²_e) I + κσ² (τ/θf²) β βᵀ. */
+START_TEST(test_loop_noise_average)
+{
+    const char *off[] = {"recon.model_error=true"};
+    const char *on[] = {"recon.model_error=true", "recon.pcg3.loop_noise_average=true"};
+    fixture a, b;
+    setup(&a, DEMO, 0, 1, off);
+    setup(&b, DEMO, 0, 2, on);
+    const double k = wt_noise_loop_gain(b.cfg->gain, b.cfg->delay);
+    ck_assert_rel(k, 7.0 / 18.0, 1e-12, 0.0); /* the demo's loop: g 0.4, delay 2 */
+    for (int m = 0; m < b.sys->nsensors; m++) {
+        const wt_sensor *s = &b.sys->sensors[m];
+        const double e2 = wt_tomography_model_error(b.t, m);
+        ck_assert_double_eq(e2, wt_tomography_model_error(a.t, m)); /* not averaged */
+        const int nsub = s->nsub, i = nsub / 3;
+        const double bx = s->beta ? s->beta[i] : 0.0, by = s->beta ? s->beta[nsub + i] : 0.0;
+        const double g = b.cfg->tau / (s->spot_fwhm * s->spot_fwhm);
+        double *x = calloc((size_t)2 * nsub, sizeof *x), *y = calloc((size_t)2 * nsub, sizeof *y);
+        x[i] = 1.0;
+        wt_noise_apply_cov(wt_tomography_noise(b.t, m), 1.0, x, y);
+        ck_assert_rel(y[i], k * s->sigma2 + e2 + k * s->sigma2 * g * bx * bx, 1e-12, 0.0);
+        ck_assert_rel(y[nsub + i], k * s->sigma2 * g * bx * by, 1e-12, 1e-30);
+        free(x), free(y);
+    }
+    teardown(&a);
+    teardown(&b);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("tomography");
@@ -518,6 +603,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, test_eelt_sizes);
     tcase_add_test(tc, test_ngs_lowrank_preconditioner);
+    tcase_add_test(tc, test_coarse_preconditioner);
     tcase_add_test(tc, test_normal_operator_consistency);
     tcase_add_test(tc, test_apply_two_threads_one_operator);
     tcase_add_test(tc, test_pcg_matches_dense_solve);
@@ -528,6 +614,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_nea_and_lit_noise);
     tcase_add_test(tc, test_fitting_recovers_dm_shape);
     tcase_add_test(tc, test_model_error);
+    tcase_add_test(tc, test_loop_noise_average);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -39,7 +39,10 @@ typedef struct wt_recon_variant_config {
     int size[WT_MAX_LAYERS];         /* layer grid points per side, a power of two */
     int iterations;                  /* (P)CG iterations per frame */
     double tolerance;                /* relative residual to stop at; 0: always run `iterations` */
-    int jacobi;                      /* 0: plain CG, 1: modified Jacobi PCG, 2: Jacobi + NGS low-rank term */
+    int jacobi;                      /* 0: plain CG, 1: modified Jacobi PCG, 2: Jacobi + NGS low-rank term,
+                                        3: 2 with the coarse coefficients as one exact block */
+    int coarse_levels;               /* 3: detail levels in the coarse block besides the scaling block */
+    int loop_noise_average;          /* 1: the sensors' σ² times the integrator's noise gain Σh² */
     int fit_iterations;              /* fitting CG iterations (cg9 only; 0 for pcg3) */
     double fit_regularization;       /* fitting Tikhonov weight, relative to the mean diagonal of H^T H */
     int fit_sampling;                /* fitting sample points per subaperture side (1: Fried corners) */

@@ -587,13 +587,22 @@ static int check_consistency(pstate *ps, wt_config *cfg)
  * written by libconfig with 15 significant digits. */
 /* Keys that cannot change the reconstructor's matrices (R, RÂ): the simulation truth only (wind, LGS
  * jitter, seed, noise switch), the loop, the long-exposure bookkeeping, and how an iterative solver
- * stops. Everything else is hashed into the matrix's identity (SPEC §9). */
-static int affects_matrix(const char *path)
+ * stops. Everything else is hashed into the matrix's identity (SPEC §9). The loop's gain and delay
+ * enter the noise model when a variant's loop_noise_average is on, and then only. */
+static int affects_matrix(const pstate *ps, const char *path)
 {
+    if (!strcmp(path, "loop.gain") || !strcmp(path, "loop.delay_frames")) {
+        int on = 0;
+        for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
+            if (strstr(wt_config_priv_keys[k].path, ".loop_noise_average") && ps->set[k])
+                on |= config_setting_get_bool(ps->set[k]);
+        return on;
+    }
     static const char *const skip[] = {"sim.", "loop.", "evaluation.settle_frames", "evaluation.wavelength_nm",
                                        "lgs.tt_jitter_arcsec", "atmosphere.wind_", "recon.warm_start",
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
-                                       "recon.cg9.iterations", "recon.cg9.tolerance", "recon.cg9.preconditioner",
+                                       "recon.pcg3.coarse_levels", "recon.cg9.iterations", "recon.cg9.tolerance",
+                                       "recon.cg9.preconditioner", "recon.cg9.coarse_levels",
                                        "recon.cg9.fit_iterations", "recon.mvm_precision"};
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
@@ -612,7 +621,7 @@ static int build_text(pstate *ps, int matrix_only, char **text)
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS && st == WT_OK; k++) {
         const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
         const config_setting_t *s = ps->set[k];
-        if (!s || (matrix_only && !affects_matrix(ks->path))) continue;
+        if (!s || (matrix_only && !affects_matrix(ps, ks->path))) continue;
         const char *leaf;
         config_setting_t *g = ensure_parent(&out, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,

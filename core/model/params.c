@@ -3,6 +3,7 @@
 
 #include <string.h>
 
+#include "../op/noise.h"
 #include "../op/prior.h"
 
 void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params *par)
@@ -21,6 +22,7 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
         par->atm_fraction[k] = cfg->layer_fraction[k];
     }
     par->model_error = cfg->model_error;
+    par->loop_noise_gain = wt_noise_loop_gain(cfg->gain, cfg->delay);
     par->source = cfg->path;
 }
 

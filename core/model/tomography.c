@@ -34,6 +34,12 @@ struct wt_tomography {
     double *lr_Y;             /* n x r: J⁻¹ R */
     double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ J⁻¹ R */
     double *lr_w;             /* r */
+    /* coarse block of the preconditioner (coarse_ngs, see coarse_*): J replaced by B = J with the
+     * coarse coefficients' rows and columns of the LGS + prior part of M, inverted exactly */
+    int nc;                   /* coarse coefficients (0: none) */
+    int64_t *c_idx;           /* nc: their indices in c */
+    double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block */
+    double *c_w;              /* nc */
     int iterations;
     double tol;
     int S;                    /* sensors */
@@ -218,6 +224,7 @@ fail:
 }
 
 static int compute_jacobi(wt_tomography *t);
+static int compute_coarse(wt_tomography *t, int coarse_levels);
 static int compute_lowrank(wt_tomography *t);
 
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
@@ -258,6 +265,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
     WT_ALLOC(ctx, t->noise, t->S, "noise models");
     if (par->model_error) WT_TRY(model_error(t, var, par, t->model_var));
+    /* loop_noise_average: the loop applies an average of the reconstructions over its memory (the POLC
+     * integrator): white measurement noise reaches the command with variance κσ², κ = Σh² (0.389 for
+     * g 0.4, delay 2), while the turbulence, and the model error that moves with it, stays nearly the
+     * same over those few frames. The per-frame estimate whose loop average is best is then the MAP
+     * with noise κσ² (a weaker prior against the noise, not against the model error). */
+    const double kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {
@@ -276,13 +289,14 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                 goto fail;
             }
         }
-        /* C̃_i = σ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ σ²/σ²_t / θf²) β βᵀ), σ²_t = σ² + σ²_e: the
-         * model error is isotropic, the elongation term keeps its size. With lit_noise as well, the
-         * per-subaperture factor c_i scales σ²_t whole (the model error of a partly lit subaperture is
-         * taken as larger in the same proportion: both options are off by default). */
-        const double s2t = s->sigma2 + t->model_var[m];
+        /* C̃_i = κσ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ), σ²_t = κσ² + σ²_e:
+         * the model error is isotropic, the elongation term keeps its size; κ (loop_noise_average, else 1)
+         * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
+         * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
+         * proportion: both options are off by default). */
+        const double s2n = kappa * s->sigma2, s2t = s2n + t->model_var[m];
         WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
-                                     par->tau * (s->sigma2 / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));
+                                     par->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));
     }
 
     t->stack = (wt_sensor_stack){.sys = sys, .nin = t->L, .proj = t->proj, .in_offset = t->off};
@@ -298,7 +312,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
     if (var->jacobi) WT_TRY(compute_jacobi(t));
-    if (var->jacobi == 2) WT_TRY(compute_lowrank(t));
+    if (var->jacobi == 3) WT_TRY(compute_coarse(t, var->coarse_levels));
+    if (var->jacobi >= 2) WT_TRY(compute_lowrank(t));
     *out = t;
     return WT_OK;
 fail:
@@ -325,6 +340,9 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->lr_Y);
     wt_free(ctx, t->lr_K);
     wt_free(ctx, t->lr_w);
+    wt_free(ctx, t->c_idx);
+    wt_free(ctx, t->c_L);
+    wt_free(ctx, t->c_w);
     wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
     wt_free(ctx, t);
@@ -465,12 +483,123 @@ static void apply_cb(void *user, const double *x, double *y)
  * R = G Ĉ⁻¹ = [Ãᵀ Ĉ⁻¹ e_k] (r right-hand sides) and C_n = (Ĉ⁻¹_NGS)⁻¹, is inverted by Woodbury:
  *   P⁻¹ = J⁻¹ − Y K⁻¹ Yᵀ,   Y = J⁻¹ R,   K = Ĉ⁻¹_NGS + Rᵀ J⁻¹ R   (r x r, Cholesky once),
  * which costs 4 r n flops per iteration on top of the diagonal. */
+/* ---- coarse block of the preconditioner (coarse_ngs) --------------------------------------------
+ *
+ * Jacobi treats every wavelet coefficient alone. At the coarse scales that is far from M: every LGS sees
+ * the 3 layers' large-scale structure almost alike (their footprints overlap), so the layers' coarse
+ * coefficients are strongly coupled and the few iterations leave the layer-difference modes behind
+ * (at low noise the 4-iteration PCG-3 is 20-25 nm from its exact MAP, docs/results.md §0d). B replaces
+ * J on the coarse coefficients of all layers together (each layer's top-left s x s square of the Mallat
+ * layout, s = n / 2^(J − coarse_levels): the scaling block and the coarse_levels coarsest detail
+ * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
+ * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
+ * costs two triangular solves, ~nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers: ~4 % of
+ * an iteration). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
+static void coarse_apply(wt_tomography *t, const double *r, double *z)
+{
+    const int64_t n = t->n;
+    for (int64_t i = 0; i < n; i++) z[i] = t->jinv[i] * r[i];
+    const int q = t->nc;
+    if (q == 0) return;
+    double *w = t->c_w;
+    const double *L = t->c_L;
+    for (int i = 0; i < q; i++) w[i] = r[t->c_idx[i]];
+    for (int i = 0; i < q; i++) { /* forward: L y = w (column-oriented) */
+        const double v = (w[i] /= L[i + (size_t)q * i]);
+        const double *col = L + (size_t)q * i;
+        for (int k = i + 1; k < q; k++) w[k] -= col[k] * v;
+    }
+    for (int i = q - 1; i >= 0; i--) { /* backward: Lᵀ x = y */
+        const double *col = L + (size_t)q * i;
+        double acc = w[i];
+        for (int k = i + 1; k < q; k++) acc -= col[k] * w[k];
+        w[i] = acc / L[i + (size_t)q * i];
+    }
+    for (int i = 0; i < q; i++) z[t->c_idx[i]] = w[i];
+}
+
+/* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten) */
+static int cholesky(wt_context *ctx, int q, double *A, const char *what)
+{
+    for (int j = 0; j < q; j++) {
+        double d = A[j + (size_t)q * j];
+        for (int k = 0; k < j; k++) d -= A[j + (size_t)q * k] * A[j + (size_t)q * k];
+        if (!(d > 0.0) || !isfinite(d))
+            return WT_ERROR(ctx, WT_ERR_NUMERIC, "tomography: the %s matrix is not positive definite (pivot %d = %g)",
+                            what, j, d);
+        A[j + (size_t)q * j] = sqrt(d);
+        for (int i = j + 1; i < q; i++) {
+            double s = A[i + (size_t)q * j];
+            for (int k = 0; k < j; k++) s -= A[i + (size_t)q * k] * A[j + (size_t)q * k];
+            A[i + (size_t)q * j] = s / A[j + (size_t)q * j];
+        }
+    }
+    return WT_OK;
+}
+
+static int compute_coarse(wt_tomography *t, int coarse_levels)
+{
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    const wt_system *sys = t->sys;
+    const int64_t n = t->n;
+    double *e = NULL, *phi = NULL, *col = NULL;
+    int q = 0;
+    int side[WT_MAX_LAYERS];
+    for (int l = 0; l < t->L; l++) {
+        const int J = wt_wavelet_levels(t->wav[l]), k = coarse_levels < J ? coarse_levels : J;
+        side[l] = t->grid[l].nx >> (J - k);
+        q += side[l] * side[l];
+    }
+    if (q > 4096)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: coarse_ngs with coarse_levels %d gives a block of %d "
+                        "coefficients; at most 4096 (lower coarse_levels)", coarse_levels, q);
+    WT_ALLOC(ctx, t->c_idx, q, "coarse indices");
+    WT_ALLOC(ctx, t->c_L, (size_t)q * q, "coarse block");
+    WT_ALLOC(ctx, t->c_w, q, "coarse work");
+    WT_ALLOC(ctx, e, n, "coarse probe");
+    WT_ALLOC(ctx, phi, n, "coarse probe layers");
+    WT_ALLOC(ctx, col, n, "coarse column");
+    {
+        int k = 0;
+        for (int l = 0; l < t->L; l++)
+            for (int j = 0; j < side[l]; j++)
+                for (int i = 0; i < side[l]; i++) t->c_idx[k++] = t->off[l] + i + (int64_t)t->grid[l].nx * j;
+    }
+    /* column j of the LGS + prior part of M: the NGS slopes of Γ P W⁻¹ e_j set to zero before the adjoint
+     * (the weight is block-diagonal per sensor, so this drops exactly their term) */
+    for (int j = 0; j < q; j++) {
+        e[t->c_idx[j]] = 1.0;
+        double *sl = t->work->slopes;
+        inverse_dwt(t, t->work, e, phi);
+        forward_slopes(t, t->work, phi, sl);
+        for (int m = sys->nlgs; m < sys->nsensors; m++)
+            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
+        adjoint_slopes(t, t->work, sl, col);
+        col[t->c_idx[j]] += t->alpha_d[t->c_idx[j]];
+        for (int i = 0; i < q; i++) t->c_L[i + (size_t)q * j] = col[t->c_idx[i]];
+        e[t->c_idx[j]] = 0.0;
+    }
+    /* symmetrise the rounding of the two triangles before the factorisation */
+    for (int j = 0; j < q; j++)
+        for (int i = j + 1; i < q; i++)
+            t->c_L[i + (size_t)q * j] = 0.5 * (t->c_L[i + (size_t)q * j] + t->c_L[j + (size_t)q * i]);
+    WT_TRY(cholesky(ctx, q, t->c_L, "coarse preconditioner"));
+    t->nc = q;
+fail:
+    wt_free(ctx, e);
+    wt_free(ctx, phi);
+    wt_free(ctx, col);
+    return st;
+}
+
 static void lowrank_precond(void *user, const double *r, double *z)
 {
     wt_tomography *t = user;
     const int64_t n = t->n;
     const int q = t->nlr;
-    for (int64_t i = 0; i < n; i++) z[i] = t->jinv[i] * r[i];
+    coarse_apply(t, r, z);
+    if (q == 0) return;
     for (int k = 0; k < q; k++) t->lr_w[k] = wt_vec_dot(t->lr_Y + (size_t)k * n, r, n);
     /* K v = w by the Cholesky factor (lower, column-major) */
     for (int i = 0; i < q; i++) {
@@ -524,29 +653,14 @@ static int compute_lowrank(wt_tomography *t)
         for (int j = 0; j < q; j++) cinv[j + (size_t)q * k] = we[o0 + j];
         e[o0 + k] = 0.0;
     }
-    for (int k = 0; k < q; k++)
-        for (int64_t i = 0; i < n; i++) t->lr_Y[i + (size_t)n * k] = t->jinv[i] * R[i + (size_t)n * k];
+    for (int k = 0; k < q; k++) coarse_apply(t, R + (size_t)n * k, t->lr_Y + (size_t)n * k);
     for (int k = 0; k < q; k++)
         for (int j = 0; j <= k; j++) {
             double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, t->lr_Y + (size_t)k * n, n);
             t->lr_K[j + (size_t)q * k] = t->lr_K[k + (size_t)q * j] = v;
         }
-    /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀJ⁻¹R semi-definite) */
-    for (int j = 0; j < q; j++) {
-        double d = t->lr_K[j + (size_t)q * j];
-        for (int k = 0; k < j; k++) d -= t->lr_K[j + (size_t)q * k] * t->lr_K[j + (size_t)q * k];
-        if (!(d > 0.0) || !isfinite(d)) {
-            st = WT_ERROR(ctx, WT_ERR_NUMERIC, "tomography: the NGS preconditioner matrix is not positive definite "
-                          "(pivot %d = %g)", j, d);
-            goto fail;
-        }
-        t->lr_K[j + (size_t)q * j] = sqrt(d);
-        for (int i = j + 1; i < q; i++) {
-            double s = t->lr_K[i + (size_t)q * j];
-            for (int k = 0; k < j; k++) s -= t->lr_K[i + (size_t)q * k] * t->lr_K[j + (size_t)q * k];
-            t->lr_K[i + (size_t)q * j] = s / t->lr_K[j + (size_t)q * j];
-        }
-    }
+    /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
+    WT_TRY(cholesky(ctx, q, t->lr_K, "NGS preconditioner"));
     t->nlr = q;
 fail:
     wt_free(ctx, R);
@@ -564,7 +678,7 @@ int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_it
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
     double *b = t->work->b;
     adjoint_slopes(t, t->work, s, b);
-    if (t->nlr > 0)
+    if (t->nlr > 0 || t->nc > 0)
         return wt_pcg_solve_precond(t->pcg, apply_cb, t, lowrank_precond, t, b, c,
                                     max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
     return wt_pcg_solve(t->pcg, apply_cb, t, t->jinv, b, c, max_iter >= 0 ? max_iter : t->iterations,

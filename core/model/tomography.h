@@ -48,6 +48,8 @@ typedef struct wt_tomography_params {
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
     int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
+    double loop_noise_gain; /* κ = Σh², the integrator's noise gain (wt_noise_loop_gain): with the variant's
+                               loop_noise_average the sensors' σ² is multiplied by it, the model error not */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
 } wt_tomography_params;
 

@@ -34,6 +34,21 @@ double wt_noise_variance(double photons, double read_noise_e, double spot_fwhm, 
            pixel * pixel * read_noise_e * read_noise_e * ns2 * ns2 / (12.0 * photons * photons);
 }
 
+double wt_noise_loop_gain(double gain, int delay)
+{
+    /* impulse response of the loop to a unit measurement at t = 0, summed until it has decayed: it
+     * decays geometrically for the config's stable gains (g ≤ 1, d ≤ 2); a holds a_{t}..a_{t+d} */
+    enum { N = 20000 };
+    double a[3] = {0.0, 0.0, 0.0}, s = 0.0;
+    for (int t = 0; t + delay < N; t++) {
+        const double next = a[delay - 1] + gain * ((t == 0 ? 1.0 : 0.0) - a[0]);
+        for (int k = 0; k < delay - 1; k++) a[k] = a[k + 1];
+        a[delay - 1] = next;
+        s += next * next;
+    }
+    return s;
+}
+
 void wt_noise_elongation(int nsub, const double *cx, const double *cy, double launch_x, double launch_y,
                          double sodium_fwhm, double lgs_altitude, double *beta)
 {

@@ -10,6 +10,7 @@
 
 #include "../io/h5.h"
 #include "../model/reconstructor.h"
+#include "../op/noise.h"
 #include "loop.h"
 
 const char *const wt_budget_term_names[WT_BUDGET_NTERMS] = {
@@ -115,18 +116,7 @@ double wt_budget_servo_band_limited(const wt_config *cfg)
     return rad2_to_nm(cfg, s);
 }
 
-double wt_budget_noise_gain(double gain, int delay)
-{
-    /* impulse response of the loop to a unit measurement at t = 0; it decays geometrically for the
-     * stable gains of the config (g ≤ 1, d ≤ 2) */
-    enum { N = 20000 };
-    double a[N + 4] = {0}, s = 0.0;
-    for (int t = 0; t + delay < N; t++) {
-        a[t + delay] = a[t + delay - 1] + gain * ((t == 0 ? 1.0 : 0.0) - a[t]);
-        s += a[t + delay] * a[t + delay];
-    }
-    return s;
-}
+double wt_budget_noise_gain(double gain, int delay) { return wt_noise_loop_gain(gain, delay); }
 
 /* ---------------------------------------------------------------- measured terms */
 

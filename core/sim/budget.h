@@ -128,7 +128,7 @@ double wt_budget_servo_analytic(const wt_config *cfg);
  * most of which no DM corrects (they are in the fitting term). */
 double wt_budget_servo_band_limited(const wt_config *cfg);
 /* Σ_k h_k²: the variance gain of white measurement noise through the loop's integrator with delay d
- * (impulse response h of a_{t+d} = a_{t+d−1} + g (n_t − a_t)); g/(2−g) for d = 1. */
+ * (impulse response h of a_{t+d} = a_{t+d−1} + g (n_t − a_t)); g/(2−g) for d = 1 (= wt_noise_loop_gain). */
 double wt_budget_noise_gain(double gain, int delay);
 
 #endif
