@@ -208,7 +208,8 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->pcg3.size[2], 64);
     ck_assert_rel(c->pcg3.spacing[1], 1.0, ULP2, 0);
     ck_assert_int_eq(c->pcg3.iterations, 4);
-    ck_assert_int_eq(c->pcg3.jacobi, 2); /* jacobi_ngs */
+    ck_assert_int_eq(c->pcg3.jacobi, 3); /* coarse_ngs (docs/results.md §0d.2) */
+    ck_assert_int_eq(c->pcg3.coarse_levels, 2);
     ck_assert_int_eq(c->pcg3.fit_iterations, 0);
     ck_assert_int_eq(c->cg9.nlayers, 9);
     for (int i = 0; i < 9; i++) {
@@ -227,8 +228,9 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->lit_sensor_model, 1);
     ck_assert_int_eq(c->sensor_points, 1);
     ck_assert_int_eq(c->prior_aliasing, 0);
-    ck_assert_int_eq(c->model_error, 0);
-    ck_assert_int_eq(c->pcg3.loop_noise_average, 0);
+    /* PCG-3's noise model: model error + the loop's noise average (docs/results.md §0d.2); cg9 keeps one frame's */
+    ck_assert_int_eq(c->model_error, 1);
+    ck_assert_int_eq(c->pcg3.loop_noise_average, 1);
     ck_assert_int_eq(c->cg9.loop_noise_average, 0);
     wt_config_free(ctx, c);
     wt_context_free(ctx);
