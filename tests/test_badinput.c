@@ -24,20 +24,8 @@
 
 static char dir[64], wt[512];
 
-static void setup(void)
-{
-    const char *bin = getenv("BIN");
-    snprintf(wt, sizeof wt, "%s/wavetomo", bin ? bin : "bin");
-    snprintf(dir, sizeof dir, "/tmp/wt_bad_XXXXXX");
-    ck_assert_ptr_nonnull(mkdtemp(dir));
-}
-
-static void teardown(void)
-{
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
-}
+static void setup(void) { tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_bad_"); }
+static void teardown(void) { tu_cli_teardown(dir); }
 
 static void write_file(const char *path, const char *text)
 {

@@ -62,20 +62,8 @@ static int is_png(const char *d, const char *name)
     return n == 8 && !memcmp(sig, "\x89PNG\r\n\x1a\n", 8);
 }
 
-static void setup(void)
-{
-    const char *bin = getenv("BIN");
-    snprintf(wt, sizeof wt, "%s/wavetomo", bin ? bin : "bin");
-    snprintf(dir, sizeof dir, "/tmp/wt_cli_XXXXXX");
-    ck_assert_ptr_nonnull(mkdtemp(dir));
-}
-
-static void teardown(void)
-{
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
-}
+static void setup(void) { tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_cli_"); }
+static void teardown(void) { tu_cli_teardown(dir); }
 
 START_TEST(test_compare_writes_the_report)
 {

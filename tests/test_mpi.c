@@ -39,20 +39,8 @@ static int run(const char *prefix, const char *fmt, ...)
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
-static void setup(void)
-{
-    const char *bin = getenv("BIN");
-    snprintf(wt, sizeof wt, "%s/wavetomo", bin ? bin : "bin");
-    snprintf(dir, sizeof dir, "/tmp/wt_mpi_XXXXXX");
-    ck_assert_ptr_nonnull(mkdtemp(dir));
-}
-
-static void teardown(void)
-{
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
-}
+static void setup(void) { tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_mpi_"); }
+static void teardown(void) { tu_cli_teardown(dir); }
 
 /* Dataset `name` of path as doubles (float32 converts exactly), with its element count; a float16 dataset
  * (fp16 storage) as its 16-bit patterns, each widened to a double. */

@@ -20,6 +20,23 @@
                       #a, a_, #b, b_, fabs(a_ - b_) / s_, (double)(rtol));                       \
     } while (0)
 
+/* The command-line suites' fixture: wt = the binary under test ($BIN/wavetomo, else bin/wavetomo) and
+ * dir = a fresh directory /tmp/<prefix>XXXXXX, removed with everything in it by tu_cli_teardown. */
+static inline void tu_cli_setup(char *wt, size_t nwt, char *dir, size_t ndir, const char *prefix)
+{
+    const char *bin = getenv("BIN");
+    snprintf(wt, nwt, "%s/wavetomo", bin ? bin : "bin");
+    snprintf(dir, ndir, "/tmp/%sXXXXXX", prefix);
+    ck_assert_ptr_nonnull(mkdtemp(dir));
+}
+
+static inline void tu_cli_teardown(const char *dir)
+{
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
+}
+
 static inline double tu_dot(const double *x, const double *y, long n)
 {
     double s = 0.0;
