@@ -24,14 +24,21 @@ static void make(int n, double *d)
     for (int i = 0; i < n; i++) d[i] = 2.0 + pow(10.0, 4.0 * i / (n - 1.0));
 }
 
+/* The operator of size n (diagonal into d), a random solution xs from seed and its b = A xs. */
+static tri known_problem(int n, unsigned long seed, double *d, double *xs, double *b)
+{
+    make(n, d);
+    tri t = {n, d};
+    tu_randn(xs, n, seed);
+    tri_apply(&t, xs, b);
+    return t;
+}
+
 START_TEST(test_converges_to_known_solution)
 {
     const int n = 400;
     double d[400], xs[400], b[400], x[400];
-    make(n, d);
-    tri t = {n, d};
-    tu_randn(xs, n, 1);
-    tri_apply(&t, xs, b);
+    tri t = known_problem(n, 1, d, xs, b);
     wt_context *ctx = tu_context();
     wt_pcg *p;
     ck_assert_int_eq(wt_pcg_alloc(ctx, n, &p), WT_OK);
@@ -77,10 +84,7 @@ START_TEST(test_warm_start_history_and_cap)
 {
     const int n = 200;
     double d[200], xs[200], b[200], x[200], hist[6];
-    make(n, d);
-    tri t = {n, d};
-    tu_randn(xs, n, 3);
-    tri_apply(&t, xs, b);
+    tri t = known_problem(n, 3, d, xs, b);
     wt_context *ctx = tu_context();
     wt_pcg *p;
     ck_assert_int_eq(wt_pcg_alloc(ctx, n, &p), WT_OK);
@@ -140,11 +144,8 @@ START_TEST(test_tolerance_zero_stops_cleanly)
 {
     const int n = 400;
     double d[400], xs[400], b[400], x[400], inv[400];
-    make(n, d);
+    tri t = known_problem(n, 3, d, xs, b);
     for (int i = 0; i < n; i++) inv[i] = 1.0 / d[i];
-    tri t = {n, d};
-    tu_randn(xs, n, 3);
-    tri_apply(&t, xs, b);
     wt_context *ctx = tu_context();
     wt_pcg *p;
     ck_assert_int_eq(wt_pcg_alloc(ctx, n, &p), WT_OK);
