@@ -1,5 +1,6 @@
 /* cli/cli.c: shared driver plumbing: options, error reporting, progress. */
 #include "cli.h"
+#include "mpi.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -290,8 +291,15 @@ int wt_cli_check_text_output(wt_cli *cli, const char *path, const char *signatur
 int wt_cli_resources(wt_cli *cli, const wt_estimate *e)
 {
     if (cli->dry_run) {
+        int rank, size;
+        /* under mpirun one answer, from rank 0: every rank would print the same estimate */
+        if (wt_mpi_launch_rank(&rank, &size) && rank > 0) return 0;
         printf("%s --dry-run (nothing allocated, nothing written):\n", cli->prog);
         wt_estimate_print(stdout, "", e);
+        if (size > 1)
+            printf("under mpirun with %d ranks: the memory is per rank (a rank runs one case or its share of the columns "
+                   "at a time; ranks on one machine add up), the run time is the serial one, divided by at most %d\n",
+                   size, size);
     }
     double avail = wt_memory_available(), limit = avail;
     const char *source = "available now (MemAvailable of /proc/meminfo)";

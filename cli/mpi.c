@@ -15,6 +15,23 @@ static int launched_by_mpi(void)
     return getenv("OMPI_COMM_WORLD_SIZE") || getenv("PMI_SIZE") || getenv("PMIX_RANK");
 }
 
+static int env_int(const char *a, const char *b, int fallback)
+{
+    const char *v = getenv(a);
+    if (!v && b) v = getenv(b);
+    return v ? atoi(v) : fallback;
+}
+
+int wt_mpi_launch_rank(int *rank, int *size)
+{
+    *rank = 0;
+    *size = 1;
+    if (!launched_by_mpi()) return 0;
+    *rank = env_int("OMPI_COMM_WORLD_RANK", getenv("PMIX_RANK") ? "PMIX_RANK" : "PMI_RANK", 0);
+    *size = env_int("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", 1);
+    return 1;
+}
+
 static int fail(const char *what, int code)
 {
     char msg[MPI_MAX_ERROR_STRING];

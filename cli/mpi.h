@@ -25,6 +25,9 @@ typedef struct wt_mpi {
 int wt_mpi_begin(wt_mpi *p);
 /* MPI_Finalize when active. */
 void wt_mpi_end(wt_mpi *p);
+/* Rank and size as the launcher's environment gives them, before (or without) MPI_Init: 1 when started by an MPI
+ * launcher, else 0 with *rank = 0, *size = 1. For what must differ per rank before MPI is entered (--dry-run). */
+int wt_mpi_launch_rank(int *rank, int *size);
 /* Give up on the whole job (another rank may be waiting for this one): MPI_Abort when active. */
 void wt_mpi_abort(wt_mpi *p, int code);
 

@@ -193,6 +193,20 @@ START_TEST(test_seed_statistics)
 }
 END_TEST
 
+/* --dry-run under mpirun: one estimate (rank 0's), saying that the memory is per rank; nothing written. */
+START_TEST(test_dry_run_once)
+{
+    ck_assert_int_eq(run(MPIRUN, "compare --config data/presets/demo.cfg --recon pcg3 --dry-run --out %s/d", dir), 0);
+    char q[512];
+    snprintf(q, sizeof q, "test $(grep -c 'dry-run (nothing allocated' %s/out.txt) -eq 1", dir);
+    ck_assert_msg(system(q) == 0, "the estimate is not printed exactly once under 2 ranks");
+    snprintf(q, sizeof q, "grep -q 'with 2 ranks: the memory is per rank' %s/out.txt", dir);
+    ck_assert_int_eq(system(q), 0);
+    snprintf(q, sizeof q, "test ! -e %s/d/results.h5", dir);
+    ck_assert_int_eq(system(q), 0);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("mpi");
@@ -202,6 +216,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_build_mpi_equals_serial);
     tcase_add_test(tc, test_compare_mpi_equals_serial);
     tcase_add_test(tc, test_seed_statistics);
+    tcase_add_test(tc, test_dry_run_once);
     suite_add_tcase(s, tc);
     return s;
 }
