@@ -215,6 +215,35 @@ START_TEST(test_weight)
 }
 END_TEST
 
+/* The batched weight (the adjoint's three LGS of a group side by side) is the single weight bit for bit,
+ * for a batch that mixes sizes and sensors without the tip-tilt removal (they go alone). */
+START_TEST(test_weight_many)
+{
+    wt_context *ctx = tu_context();
+    enum { K = 7 };
+    const int nsub[K] = {300, 300, 300, 300, 300, 120, 300}, tt[K] = {1, 1, 1, 1, 1, 1, 0};
+    wt_noise *ns[K];
+    double *x[K], *y1[K], *y2[K];
+    for (int j = 0; j < K; j++) {
+        ns[j] = make_noise(ctx, nsub[j], 0.8 - 0.1 * j, tt[j]);
+        x[j] = malloc(2 * (size_t)nsub[j] * sizeof *x[j]);
+        y1[j] = malloc(2 * (size_t)nsub[j] * sizeof *y1[j]);
+        y2[j] = malloc(2 * (size_t)nsub[j] * sizeof *y2[j]);
+        tu_randn(x[j], 2 * nsub[j], 30 + j);
+        tu_randn(y1[j], 2 * nsub[j], 40 + j);
+        memcpy(y2[j], y1[j], 2 * (size_t)nsub[j] * sizeof *y2[j]);
+    }
+    wt_noise_apply_weight_many((const wt_noise *const *)ns, K, -0.7, (const double *const *)x, y1);
+    for (int j = 0; j < K; j++) {
+        wt_noise_apply_weight(ns[j], -0.7, x[j], y2[j]);
+        ck_assert_mem_eq(y1[j], y2[j], 2 * (size_t)nsub[j] * sizeof *y1[j]);
+        wt_noise_free(ns[j]);
+        free(x[j]), free(y1[j]), free(y2[j]);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_assemble)
 {
     wt_context *ctx = tu_context();
@@ -496,6 +525,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_inv_block_hand);
     tcase_add_test(tc, test_tt_projection);
     tcase_add_test(tc, test_weight);
+    tcase_add_test(tc, test_weight_many);
     tcase_add_test(tc, test_assemble);
     tcase_add_test(tc, test_variance_formula);
     tcase_add_test(tc, test_elongation_hand);

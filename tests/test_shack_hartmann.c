@@ -299,6 +299,70 @@ START_TEST(test_lit_model)
 }
 END_TEST
 
+/* The lit sensor with one sample per subaperture (the reconstructor's model) runs its own kernels over
+ * runs of cells (shack_hartmann.c, quad_setup): they must give the CSR rows' results bit for bit (the
+ * same additions in the same order, the transpose's per-corner order included), on the E-ELT pupil
+ * (partly lit rim cells, central obstruction) and on a mask with random holes, for any α and any
+ * starting y. */
+/* slopes += α Γ phase (transpose 0) or phase += α Γᵀ slopes (transpose 1), by the CSR rows in order */
+static void csr_reference(const wt_shack_hartmann *s, double alpha, double *phase, double *slopes, int transpose)
+{
+    const int32_t *rp, *col;
+    const double *val;
+    wt_shack_hartmann_csr(s, &rp, &col, &val);
+    for (int r = 0; r < wt_shack_hartmann_nslopes(s); r++) {
+        if (transpose) {
+            const double t = alpha * slopes[r];
+            for (int32_t q = rp[r]; q < rp[r + 1]; q++) phase[col[q]] += val[q] * t;
+        } else {
+            double acc = 0.0;
+            for (int32_t q = rp[r]; q < rp[r + 1]; q++) acc += val[q] * phase[col[q]];
+            slopes[r] += alpha * acc;
+        }
+    }
+}
+
+START_TEST(test_lit_runs_equal_csr)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    for (int mask = 0; mask < 2; mask++) {
+        eelt_valid(v);
+        if (mask) {
+            double r[N * N];
+            tu_randn(r, N * N, 91);
+            for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0; /* ~16 % holes: short runs */
+        }
+        wt_shack_hartmann *s = NULL;
+        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, &s), WT_OK);
+        const int nc = wt_shack_hartmann_ncorners(s), ns = wt_shack_hartmann_nslopes(s);
+        double *phi = malloc(nc * sizeof *phi), *p1 = malloc(nc * sizeof *p1), *p2 = malloc(nc * sizeof *p2);
+        double *sl = malloc(ns * sizeof *sl), *s1 = malloc(ns * sizeof *s1), *s2 = malloc(ns * sizeof *s2);
+        tu_randn(phi, nc, 92 + mask);
+        tu_randn(sl, ns, 94 + mask);
+        const double alphas[3] = {1.0, -0.37, 2.5e3};
+        for (int a = 0; a < 3; a++) {
+            tu_randn(s1, ns, 96 + a); /* y ← y + α Γ φ from a non-zero y */
+            memcpy(s2, s1, ns * sizeof *s1);
+            wt_shack_hartmann_apply(s, alphas[a], phi, s1);
+            csr_reference(s, alphas[a], phi, s2, 0);
+            ck_assert_mem_eq(s1, s2, ns * sizeof *s1);
+            for (int z = 0; z < 2; z++) { /* from zero (as the reconstructor) and from a random phase */
+                if (z) tu_randn(p1, nc, 98 + a);
+                else memset(p1, 0, nc * sizeof *p1);
+                memcpy(p2, p1, nc * sizeof *p1);
+                wt_shack_hartmann_apply_t(s, alphas[a], sl, p1);
+                csr_reference(s, alphas[a], p2, sl, 1);
+                ck_assert_mem_eq(p1, p2, nc * sizeof *p1);
+            }
+        }
+        free(phi), free(p1), free(p2), free(sl), free(s1), free(s2);
+        wt_shack_hartmann_free(s);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_errors)
 {
     wt_context *ctx = tu_context();
@@ -324,12 +388,14 @@ START_TEST(test_allocation)
     tu_alloc_install(ctx, &fa);
     uint8_t v[N * N];
     eelt_valid(v);
-    for (int m = 0; m <= 2; m++) {
+    for (int m = 0; m <= 3; m++) { /* 3: the lit sensor of the reconstructor (q = 1, its run kernels) */
         int k, ok = 0;
         for (k = 0; k < 50 && !ok; k++) {
             wt_shack_hartmann *s = (wt_shack_hartmann *)&s;
             tu_alloc_budget(&fa, k);
-            int st = m ? wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, m, &s) : wt_shack_hartmann_alloc(ctx, N, D_SUB, v, &s);
+            int st = m == 3 ? wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, &s)
+                     : m    ? wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, m, &s)
+                            : wt_shack_hartmann_alloc(ctx, N, D_SUB, v, &s);
             if (st == WT_OK) {
                 ok = 1;
                 tu_alloc_budget(&fa, -1);
@@ -362,6 +428,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_linear_and_quadratic_phase);
     tcase_add_test(tc, test_averaged_is_mean);
     tcase_add_test(tc, test_lit_model);
+    tcase_add_test(tc, test_lit_runs_equal_csr);
     tcase_add_test(tc, test_errors);
     tcase_add_test(tc, test_allocation);
     suite_add_tcase(s, tc);

@@ -19,6 +19,15 @@
 /* Σ x_i y_i, parallel for long vectors, bit-identical for any thread count. */
 double wt_vec_dot(const double *x, const double *y, int64_t n);
 
+/* out[k] = wt_vec_dot(X + k ld, y, n) for k < q, bit for bit, with the q sums side by side in one pass
+ * over y (WT_VEC_MANY at a time); on nthreads threads when n > 8192. */
+#define WT_VEC_MANY 16
+void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_t n, double *out, int nthreads);
+
+/* z ← z − Σ_k v_k X_k (X_k = X + k ld, k < q), each element taking the columns in order k = 0, 1, …: the
+ * same bits as q axpys in a row, in one pass over z; on nthreads threads when n > 8192. */
+void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, int nthreads);
+
 /* Assign n items of the given costs to WT_GROUPS groups of about equal cost (greedy, largest first,
  * deterministic). group[i] ∈ [0, WT_GROUPS). */
 void wt_vec_groups(int n, const double *cost, int *group);

@@ -416,14 +416,25 @@ static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const 
     for (int g = 0; g < WT_GROUPS; g++) {
         double *acc = w->acc + (size_t)g * n;
         memset(acc, 0, (size_t)n * sizeof *acc);
+        /* the group's weights first, side by side (wt_noise_apply_weight_many), then its adjoints in order */
+        const wt_noise *nz[2 * WT_MAX_GS];
+        const double *x[2 * WT_MAX_GS];
+        double *ws[2 * WT_MAX_GS];
+        int k = 0;
         for (int m = 0; m < t->S; m++) {
             if (t->group[m] != g) continue;
             const wt_sensor *s = &sys->sensors[m];
-            double *ws = w->weighted + s->offset;
-            memset(ws, 0, (size_t)s->nslopes * sizeof *ws);
-            wt_noise_apply_weight(t->noise[m], 1.0, slopes + s->offset, ws);
-            wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, ws, acc, w->phase + (size_t)m * t->ncg);
+            nz[k] = t->noise[m];
+            x[k] = slopes + s->offset;
+            ws[k] = w->weighted + s->offset;
+            memset(ws[k], 0, (size_t)s->nslopes * sizeof *ws[k]);
+            k++;
         }
+        wt_noise_apply_weight_many(nz, k, 1.0, x, ws);
+        for (int m = 0; m < t->S; m++)
+            if (t->group[m] == g)
+                wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
+                                               w->phase + (size_t)m * t->ncg);
     }
     wt_vec_sum_groups(w->acc, n, w->phi);
     forward_dwt(t, w, w->phi, c);
@@ -600,7 +611,7 @@ static void lowrank_precond(void *user, const double *r, double *z)
     const int q = t->nlr;
     coarse_apply(t, r, z);
     if (q == 0) return;
-    for (int k = 0; k < q; k++) t->lr_w[k] = wt_vec_dot(t->lr_Y + (size_t)k * n, r, n);
+    wt_vec_dot_many(t->lr_Y, n, q, r, n, t->lr_w, t->nthreads);
     /* K v = w by the Cholesky factor (lower, column-major) */
     for (int i = 0; i < q; i++) {
         double s = t->lr_w[i];
@@ -612,10 +623,7 @@ static void lowrank_precond(void *user, const double *r, double *z)
         for (int k = i + 1; k < q; k++) s -= t->lr_K[k + (size_t)q * i] * t->lr_w[k];
         t->lr_w[i] = s / t->lr_K[i + (size_t)q * i];
     }
-    for (int k = 0; k < q; k++) {
-        const double v = t->lr_w[k], *y = t->lr_Y + (size_t)k * n;
-        for (int64_t i = 0; i < n; i++) z[i] -= v * y[i];
-    }
+    wt_vec_sub_many(z, t->lr_Y, n, q, t->lr_w, n, t->nthreads);
 }
 
 static int compute_lowrank(wt_tomography *t)

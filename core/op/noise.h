@@ -59,6 +59,11 @@ void wt_noise_apply_cov(const wt_noise *n, double alpha, const double *x, double
 void wt_noise_apply_inv(const wt_noise *n, double alpha, const double *x, double *y);
 /* y <- y + alpha * Ĉ⁻¹ x  (= C̃⁻¹ x when remove_tt is 0). x and y must not alias. */
 void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y);
+/* wt_noise_apply_weight(ns[j], alpha, x[j], y[j]) for j < k, bit for bit. Sensors of one size (the
+ * LGS) run side by side: the weight's sums over the subapertures are serial chains, one sensor alone
+ * waits on the adder's latency (~3 cycles per subaperture), k of them share that wait. */
+void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, const double *const *x,
+                                double *const *y);
 /* x <- (I − T) x: remove the global tip and tilt in place. */
 void wt_noise_remove_tt(const wt_noise *n, double *x);
 /* The inverse 2x2 block of subaperture i: {a, b, c} with C̃_i⁻¹ = [[a, b], [b, c]]. */

@@ -1,0 +1,86 @@
+/* tests/test_vec.c: the order-fixed vector kernels (core/la/vec.h): the dot product is the ordered sum of
+ * WT_VEC_CHUNKS chunk sums (written out here as the definition), for every length, on 1 and 2 threads;
+ * the batched dots and the fused column updates are the one-at-a-time kernels bit for bit. */
+#include "testutil.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "core/la/vec.h"
+
+static double dot_definition(const double *x, const double *y, int64_t n)
+{
+    const int64_t len = (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS;
+    double total = 0.0;
+    for (int c = 0; c < WT_VEC_CHUNKS; c++) {
+        double s = 0.0;
+        for (int64_t i = (int64_t)c * len; i < n && i < (int64_t)(c + 1) * len; i++) s += x[i] * y[i];
+        total += s;
+    }
+    return total;
+}
+
+START_TEST(test_dot_is_chunked_sum)
+{
+    const int64_t lens[] = {1, 7, 63, 64, 65, 500, 513, 24576, 24577, 40000, 70001};
+    double *x = malloc(70001 * sizeof *x), *y = malloc(70001 * sizeof *y);
+    tu_randn(x, 70001, 1);
+    tu_randn(y, 70001, 2);
+    for (size_t k = 0; k < sizeof lens / sizeof *lens; k++) {
+        const double ref = dot_definition(x, y, lens[k]);
+        for (int th = 1; th <= 2; th++) {
+#ifdef _OPENMP
+            omp_set_num_threads(th);
+#endif
+            const double d = wt_vec_dot(x, y, lens[k]);
+            ck_assert_msg(memcmp(&d, &ref, sizeof d) == 0, "n %lld, %d threads: %.17g against %.17g",
+                          (long long)lens[k], th, d, ref);
+        }
+    }
+    free(x), free(y);
+}
+END_TEST
+
+START_TEST(test_many_equal_single)
+{
+    const int64_t lens[] = {5, 130, 8193, 24576, 24599};
+    const int qs[] = {1, 3, 12, 17, 33}; /* beyond WT_VEC_MANY: several passes */
+    const int64_t ld = 24650;
+    double *X = malloc(33 * ld * sizeof *X), *y = malloc(ld * sizeof *y), *z1 = malloc(ld * sizeof *z1),
+           *z2 = malloc(ld * sizeof *z2), out[33], v[33];
+    tu_randn(X, 33 * ld, 3);
+    tu_randn(y, ld, 4);
+    tu_randn(v, 33, 5);
+    for (size_t a = 0; a < sizeof lens / sizeof *lens; a++)
+        for (size_t b = 0; b < sizeof qs / sizeof *qs; b++)
+            for (int th = 1; th <= 2; th++) {
+                const int64_t n = lens[a];
+                const int q = qs[b];
+                wt_vec_dot_many(X, ld, q, y, n, out, th);
+                for (int k = 0; k < q; k++) {
+                    const double ref = wt_vec_dot(X + k * ld, y, n);
+                    ck_assert_msg(memcmp(&out[k], &ref, sizeof ref) == 0, "dot %d of %d, n %lld", k, q, (long long)n);
+                }
+                tu_randn(z1, n, 6);
+                memcpy(z2, z1, n * sizeof *z1);
+                wt_vec_sub_many(z1, X, ld, q, v, n, th);
+                for (int k = 0; k < q; k++)
+                    for (int64_t i = 0; i < n; i++) z2[i] -= v[k] * X[k * ld + i];
+                ck_assert_mem_eq(z1, z2, n * sizeof *z1);
+            }
+    free(X), free(y), free(z1), free(z2);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("vec");
+    TCase *tc = tcase_create("core");
+    tcase_add_test(tc, test_dot_is_chunked_sum);
+    tcase_add_test(tc, test_many_equal_single);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
