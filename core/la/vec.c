@@ -57,45 +57,143 @@ double wt_vec_dot(const double *x, const double *y, int64_t n)
     return sum_parts(part);
 }
 
-void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_t n, double *out, int nthreads)
+/* s[k] += Σ_{i ∈ [a, b)} X_k[i] y[i] for k < B, B a compile-time constant (always inlined from the
+ * switch below): the B sums are B chains in registers, each in index order. */
+static inline __attribute__((always_inline)) void dots_block(const int B, const double *restrict X, int64_t ld,
+                                                             const double *restrict y, int64_t a, int64_t b,
+                                                             double *restrict s)
 {
-    double part[WT_VEC_MANY][WT_VEC_CHUNKS];
+    double acc[16];
+    for (int k = 0; k < B; k++) acc[k] = s[k];
+    for (int64_t i = a; i < b; i++) {
+        const double v = y[i];
+        for (int k = 0; k < B; k++) acc[k] += X[(int64_t)k * ld + i] * v;
+    }
+    for (int k = 0; k < B; k++) s[k] = acc[k];
+}
+
+/* The runs [runs[2j], runs[2j+1]) that meet [a, b), clipped: calls fn's body for each. Runs are sorted,
+ * disjoint; NULL runs = the one run [0, n). first_run finds the first run ending after a. */
+static int first_run(const int64_t *runs, int nruns, int64_t a)
+{
+    int lo = 0, hi = nruns;
+    while (lo < hi) {
+        const int mid = (lo + hi) / 2;
+        if (runs[2 * mid + 1] <= a) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+static void dots_range(const double *X, int64_t ld, int q, const double *y, int64_t a, int64_t b, double *s)
+{
+    int k = 0;
+    for (; q - k >= 12; k += 12) dots_block(12, X + (int64_t)k * ld, ld, y, a, b, s + k);
+    for (; q - k >= 8; k += 8) dots_block(8, X + (int64_t)k * ld, ld, y, a, b, s + k);
+    for (; q - k >= 4; k += 4) dots_block(4, X + (int64_t)k * ld, ld, y, a, b, s + k);
+    for (; k < q; k++) dots_block(1, X + (int64_t)k * ld, ld, y, a, b, s + k);
+}
+
+void wt_vec_dot_many_part(const double *X, int64_t ld, int q, const double *y, int64_t n, const int64_t *runs,
+                          int nruns, int c0, int c1, double *part)
+{
     const int64_t len = (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS;
-    for (int k0 = 0; k0 < q; k0 += WT_VEC_MANY) {
-        const int qk = q - k0 < WT_VEC_MANY ? q - k0 : WT_VEC_MANY;
-#pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1) if (n > 8192)
-        for (int c = 0; c < WT_VEC_CHUNKS; c++) {
-            const int64_t a = (int64_t)c * len, b = a + len < n ? a + len : n;
-            double s[WT_VEC_MANY] = {0.0};
-            /* qk chains side by side over one chunk of y, each in index order */
-            for (int64_t i = a; i < b; i++) {
-                const double v = y[i];
-                for (int k = 0; k < qk; k++) s[k] += X[(int64_t)(k0 + k) * ld + i] * v;
+    for (int c = c0; c < c1; c++) {
+        const int64_t a = (int64_t)c * len, b = a + len < n ? a + len : n;
+        double s[WT_VEC_MAX_MANY];
+        for (int k = 0; k < q; k++) s[k] = 0.0;
+        if (!runs) {
+            if (a < b) dots_range(X, ld, q, y, a, b, s);
+        } else
+            for (int j = first_run(runs, nruns, a); j < nruns && runs[2 * j] < b; j++) {
+                const int64_t lo = runs[2 * j] > a ? runs[2 * j] : a, hi = runs[2 * j + 1] < b ? runs[2 * j + 1] : b;
+                dots_range(X, ld, q, y, lo, hi, s);
             }
-            for (int k = 0; k < qk; k++) part[k][c] = s[k];
-        }
-        for (int k = 0; k < qk; k++) out[k0 + k] = sum_parts(part[k]);
+        for (int k = 0; k < q; k++) part[(int64_t)k * WT_VEC_CHUNKS + c] = s[k];
     }
 }
 
-void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, int nthreads)
+void wt_vec_dot_many_finish(int q, const double *part, double *out)
+{
+    for (int k = 0; k < q; k++) out[k] = sum_parts(part + (int64_t)k * WT_VEC_CHUNKS);
+}
+
+void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_t n, const int64_t *runs, int nruns,
+                     double *out, int nthreads)
+{
+    double part[WT_VEC_MAX_MANY * WT_VEC_CHUNKS];
+#pragma omp parallel num_threads(nthreads > 0 ? nthreads : 1) if (n > 8192)
+    {
+#ifdef _OPENMP
+        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
+#else
+        const int nt = 1, id = 0;
+#endif
+        wt_vec_dot_many_part(X, ld, q, y, n, runs, nruns, WT_VEC_CHUNKS * id / nt, WT_VEC_CHUNKS * (id + 1) / nt, part);
+    }
+    wt_vec_dot_many_finish(q, part, out);
+}
+
+/* z[i] ← z[i] − Σ_k v_k X_k[i] over [a, b), columns in order, four per pass */
+static void sub_range(double *restrict z, const double *restrict X, int64_t ld, int q, const double *v, int64_t a,
+                      int64_t b)
+{
+    int k = 0;
+    for (; k + 4 <= q; k += 4) {
+        const double *restrict x0 = X + (int64_t)k * ld, *restrict x1 = x0 + ld, *restrict x2 = x1 + ld,
+                     *restrict x3 = x2 + ld;
+        const double v0 = v[k], v1 = v[k + 1], v2 = v[k + 2], v3 = v[k + 3];
+        for (int64_t i = a; i < b; i++) z[i] = (((z[i] - v0 * x0[i]) - v1 * x1[i]) - v2 * x2[i]) - v3 * x3[i];
+    }
+    for (; k < q; k++) {
+        const double *restrict xk = X + (int64_t)k * ld, vk = v[k];
+        for (int64_t i = a; i < b; i++) z[i] -= vk * xk[i];
+    }
+}
+
+void wt_vec_sub_many_range(double *z, const double *X, int64_t ld, int q, const double *v, const int64_t *runs,
+                           int nruns, int64_t i0, int64_t i1)
+{
+    if (!runs) {
+        if (i0 < i1) sub_range(z, X, ld, q, v, i0, i1);
+        return;
+    }
+    int64_t at = i0; /* rows in [i0, at) are done */
+    for (int j = first_run(runs, nruns, i0); at < i1; j++) {
+        const int64_t lo = j < nruns && runs[2 * j] < i1 ? (runs[2 * j] > at ? runs[2 * j] : at) : i1;
+        /* rows [at, lo) hold zeros in every column: z − v_k·(±0) = z, except that a zero z can change
+         * sign; those (rare) elements take the full update */
+        for (int64_t i = at; i < lo; i++)
+            if (z[i] == 0.0) sub_range(z, X, ld, q, v, i, i + 1);
+        if (lo == i1) break;
+        const int64_t hi = runs[2 * j + 1] < i1 ? runs[2 * j + 1] : i1;
+        sub_range(z, X, ld, q, v, lo, hi);
+        at = hi;
+    }
+}
+
+void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, const int64_t *runs,
+                     int nruns, int nthreads)
 {
 #pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1) if (n > 8192)
     for (int c = 0; c < WT_VEC_CHUNKS; c++) {
         const int64_t len = (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS, a = (int64_t)c * len, b = a + len < n ? a + len : n;
-        int k = 0;
-        /* four columns per pass, each element taking them in column order */
-        for (; k + 4 <= q; k += 4) {
-            const double *restrict x0 = X + (int64_t)k * ld, *restrict x1 = x0 + ld, *restrict x2 = x1 + ld,
-                         *restrict x3 = x2 + ld;
-            const double v0 = v[k], v1 = v[k + 1], v2 = v[k + 2], v3 = v[k + 3];
-            for (int64_t i = a; i < b; i++) z[i] = (((z[i] - v0 * x0[i]) - v1 * x1[i]) - v2 * x2[i]) - v3 * x3[i];
-        }
-        for (; k < q; k++) {
-            const double *restrict xk = X + (int64_t)k * ld, vk = v[k];
-            for (int64_t i = a; i < b; i++) z[i] -= vk * xk[i];
-        }
+        wt_vec_sub_many_range(z, X, ld, q, v, runs, nruns, a, b);
     }
+}
+
+int wt_vec_runs(const double *X, int64_t ld, int q, int64_t n, int64_t *runs)
+{
+    int nruns = 0, open = 0;
+    for (int64_t i = 0; i < n; i++) {
+        int nz = 0;
+        for (int k = 0; k < q && !nz; k++) nz = X[(int64_t)k * ld + i] != 0.0;
+        if (nz && !open) runs[2 * nruns] = i;
+        if (!nz && open) runs[2 * nruns++ + 1] = i;
+        open = nz;
+    }
+    if (open) runs[2 * nruns++ + 1] = n;
+    return nruns;
 }
 
 void wt_vec_groups(int n, const double *cost, int *group)

@@ -19,14 +19,28 @@
 /* Σ x_i y_i, parallel for long vectors, bit-identical for any thread count. */
 double wt_vec_dot(const double *x, const double *y, int64_t n);
 
-/* out[k] = wt_vec_dot(X + k ld, y, n) for k < q, bit for bit, with the q sums side by side in one pass
- * over y (WT_VEC_MANY at a time); on nthreads threads when n > 8192. */
-#define WT_VEC_MANY 16
-void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_t n, double *out, int nthreads);
-
-/* z ← z − Σ_k v_k X_k (X_k = X + k ld, k < q), each element taking the columns in order k = 0, 1, …: the
- * same bits as q axpys in a row, in one pass over z; on nthreads threads when n > 8192. */
-void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, int nthreads);
+/* Dots of q ≤ WT_VEC_MAX_MANY columns X_k = X + k ld against one y, and the fused update
+ * z ← z − Σ_k v_k X_k (each element taking the columns in order k = 0, 1, …): the same bits as q calls
+ * of wt_vec_dot and q axpys in a row, in one pass each (the q sums side by side).
+ * runs (optional, NULL = all rows): sorted disjoint row ranges [runs[2j], runs[2j+1]), j < nruns, outside
+ * which every column is zero (wt_vec_runs finds them); those rows are skipped where that keeps the bits
+ * (a sum that starts at +0 never becomes −0, so adding 0·y_i changes nothing for finite y). The plain forms
+ * run on nthreads threads when n > 8192; the _part / _range forms are serial pieces for a caller's own
+ * parallel region: dots over the chunks [c0, c1) of the WT_VEC_CHUNKS into part (q x WT_VEC_CHUNKS,
+ * k major), summed by _finish; the update over the rows [i0, i1). */
+#define WT_VEC_MAX_MANY 64
+void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_t n, const int64_t *runs, int nruns,
+                     double *out, int nthreads);
+void wt_vec_dot_many_part(const double *X, int64_t ld, int q, const double *y, int64_t n, const int64_t *runs,
+                          int nruns, int c0, int c1, double *part);
+void wt_vec_dot_many_finish(int q, const double *part, double *out);
+void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, const int64_t *runs,
+                     int nruns, int nthreads);
+void wt_vec_sub_many_range(double *z, const double *X, int64_t ld, int q, const double *v, const int64_t *runs,
+                           int nruns, int64_t i0, int64_t i1);
+/* The runs of rows i < n where some column X_k[i] (k < q) is non-zero; runs needs room for n + 1 values
+ * (at most ⌈n/2⌉ runs). Returns their number. */
+int wt_vec_runs(const double *X, int64_t ld, int q, int64_t n, int64_t *runs);
 
 /* Assign n items of the given costs to WT_GROUPS groups of about equal cost (greedy, largest first,
  * deterministic). group[i] ∈ [0, WT_GROUPS). */

@@ -34,6 +34,9 @@ struct wt_tomography {
     double *lr_Y;             /* n x r: J⁻¹ R */
     double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ J⁻¹ R */
     double *lr_w;             /* r */
+    double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
+    int64_t *lr_runs;         /* the row runs where Y is not all zero (wt_vec_runs) */
+    int lr_nruns;
     /* coarse block of the preconditioner (coarse_ngs, see coarse_*): J replaced by B = J with the
      * coarse coefficients' rows and columns of the LGS + prior part of M, inverted exactly */
     int nc;                   /* coarse coefficients (0: none) */
@@ -340,6 +343,8 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->lr_Y);
     wt_free(ctx, t->lr_K);
     wt_free(ctx, t->lr_w);
+    wt_free(ctx, t->lr_part);
+    wt_free(ctx, t->lr_runs);
     wt_free(ctx, t->c_idx);
     wt_free(ctx, t->c_L);
     wt_free(ctx, t->c_w);
@@ -604,26 +609,51 @@ fail:
     return st;
 }
 
+/* K v = w in place by the Cholesky factor of K (lower, column-major) */
+static void lowrank_solve(const wt_tomography *t, double *w)
+{
+    const int q = t->nlr;
+    for (int i = 0; i < q; i++) {
+        double s = w[i];
+        for (int k = 0; k < i; k++) s -= t->lr_K[i + (size_t)q * k] * w[k];
+        w[i] = s / t->lr_K[i + (size_t)q * i];
+    }
+    for (int i = q - 1; i >= 0; i--) {
+        double s = w[i];
+        for (int k = i + 1; k < q; k++) s -= t->lr_K[k + (size_t)q * i] * w[k];
+        w[i] = s / t->lr_K[i + (size_t)q * i];
+    }
+}
+
+/* z = P⁻¹ r = B⁻¹ r − Y K⁻¹ Yᵀ r. B⁻¹ r (coarse_apply: mostly the coarse block's two triangular solves,
+ * serial chains) and Yᵀ r (the r dots, which read r and not z) are independent: on two threads they run
+ * side by side, then both threads share the update of z. Y is zero on ~60 % of the rows (the fine
+ * wavelet coefficients away from the NGS footprints' rims): its runs of non-zero rows are skipped. */
 static void lowrank_precond(void *user, const double *r, double *z)
 {
     wt_tomography *t = user;
     const int64_t n = t->n;
     const int q = t->nlr;
-    coarse_apply(t, r, z);
-    if (q == 0) return;
-    wt_vec_dot_many(t->lr_Y, n, q, r, n, t->lr_w, t->nthreads);
-    /* K v = w by the Cholesky factor (lower, column-major) */
-    for (int i = 0; i < q; i++) {
-        double s = t->lr_w[i];
-        for (int k = 0; k < i; k++) s -= t->lr_K[i + (size_t)q * k] * t->lr_w[k];
-        t->lr_w[i] = s / t->lr_K[i + (size_t)q * i];
+    if (q == 0) {
+        coarse_apply(t, r, z);
+        return;
     }
-    for (int i = q - 1; i >= 0; i--) {
-        double s = t->lr_w[i];
-        for (int k = i + 1; k < q; k++) s -= t->lr_K[k + (size_t)q * i] * t->lr_w[k];
-        t->lr_w[i] = s / t->lr_K[i + (size_t)q * i];
+#pragma omp parallel num_threads(t->nthreads)
+    {
+#ifdef _OPENMP
+        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
+#else
+        const int nt = 1, id = 0;
+#endif
+        if (id == 0) coarse_apply(t, r, z);
+        if (id == (nt > 1 ? 1 : 0)) {
+            wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, 0, WT_VEC_CHUNKS, t->lr_part);
+            wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
+            lowrank_solve(t, t->lr_w);
+        }
+#pragma omp barrier
+        wt_vec_sub_many_range(z, t->lr_Y, n, q, t->lr_w, t->lr_runs, t->lr_nruns, n * id / nt, n * (id + 1) / nt);
     }
-    wt_vec_sub_many(z, t->lr_Y, n, q, t->lr_w, n, t->nthreads);
 }
 
 static int compute_lowrank(wt_tomography *t)
@@ -646,6 +676,8 @@ static int compute_lowrank(wt_tomography *t)
     WT_ALLOC(ctx, t->lr_Y, (size_t)n * q, "NGS preconditioner Y");
     WT_ALLOC(ctx, t->lr_K, (size_t)q * q, "NGS preconditioner K");
     WT_ALLOC(ctx, t->lr_w, q, "NGS preconditioner work");
+    WT_ALLOC(ctx, t->lr_part, (size_t)q * WT_VEC_CHUNKS, "NGS preconditioner work");
+    WT_ALLOC(ctx, t->lr_runs, n + 1, "NGS preconditioner runs");
     WT_ALLOC(ctx, e, ns, "unit slope vector");
     WT_ALLOC(ctx, we, ns, "weighted unit slope vector");
     WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
@@ -662,6 +694,7 @@ static int compute_lowrank(wt_tomography *t)
         e[o0 + k] = 0.0;
     }
     for (int k = 0; k < q; k++) coarse_apply(t, R + (size_t)n * k, t->lr_Y + (size_t)n * k);
+    t->lr_nruns = wt_vec_runs(t->lr_Y, n, q, n, t->lr_runs);
     for (int k = 0; k < q; k++)
         for (int j = 0; j <= k; j++) {
             double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, t->lr_Y + (size_t)k * n, n);

@@ -234,6 +234,44 @@ void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, dou
 
 enum { MANY = 4 };
 
+/* wt_noise_apply_weight's three passes for B sensors of one size at once, each sensor's sums in its own
+ * order; B is a compile-time constant at each call (always inlined), so the 4 B sums live in registers. */
+static inline __attribute__((always_inline)) void weight_batch(const int B, const wt_noise *const *ns, double alpha,
+                                                               const double *const *x, double *const *y)
+{
+    const int m = ns[0]->nsub;
+    double mx[MANY], my[MANY], svx[MANY], svy[MANY];
+    for (int q = 0; q < B; q++) mx[q] = my[q] = svx[q] = svy[q] = 0.0;
+    for (int i = 0; i < m; i++)
+        for (int q = 0; q < B; q++) {
+            mx[q] += x[q][i];
+            my[q] += x[q][m + i];
+        }
+    for (int q = 0; q < B; q++) {
+        mx[q] /= m;
+        my[q] /= m;
+    }
+    for (int i = 0; i < m; i++)
+        for (int q = 0; q < B; q++) {
+            const wt_noise *n = ns[q];
+            double u = x[q][i] - mx[q], v = x[q][m + i] - my[q];
+            double vx = n->ia[i] * u + n->ib[i] * v;
+            double vy = n->ib[i] * u + n->ic[i] * v;
+            svx[q] += vx;
+            svy[q] += vy;
+            y[q][i] += alpha * vx;
+            y[q][m + i] += alpha * vy;
+        }
+    for (int q = 0; q < B; q++) {
+        double dx = alpha * svx[q] / m, dy = alpha * svy[q] / m;
+        double *restrict yy = y[q];
+        for (int i = 0; i < m; i++) {
+            yy[i] -= dx;
+            yy[m + i] -= dy;
+        }
+    }
+}
+
 void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, const double *const *x,
                                 double *const *y)
 {
@@ -243,44 +281,11 @@ void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, 
         int b = 1;
         if (ns[j]->remove_tt)
             while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
-        if (b == 1) {
-            wt_noise_apply_weight(ns[j], alpha, x[j], y[j]);
-            j++;
-            continue;
-        }
-        /* wt_noise_apply_weight's three passes, each sensor's sums in its own order */
-        const int m = ns[j]->nsub;
-        double mx[MANY], my[MANY], svx[MANY], svy[MANY];
-        for (int q = 0; q < b; q++) mx[q] = my[q] = svx[q] = svy[q] = 0.0;
-        for (int i = 0; i < m; i++)
-            for (int q = 0; q < b; q++) {
-                mx[q] += x[j + q][i];
-                my[q] += x[j + q][m + i];
-            }
-        for (int q = 0; q < b; q++) {
-            mx[q] /= m;
-            my[q] /= m;
-        }
-        for (int i = 0; i < m; i++)
-            for (int q = 0; q < b; q++) {
-                const wt_noise *n = ns[j + q];
-                const double *xx = x[j + q];
-                double *yy = y[j + q];
-                double u = xx[i] - mx[q], v = xx[m + i] - my[q];
-                double vx = n->ia[i] * u + n->ib[i] * v;
-                double vy = n->ib[i] * u + n->ic[i] * v;
-                svx[q] += vx;
-                svy[q] += vy;
-                yy[i] += alpha * vx;
-                yy[m + i] += alpha * vy;
-            }
-        for (int q = 0; q < b; q++) {
-            double dx = alpha * svx[q] / m, dy = alpha * svy[q] / m;
-            double *yy = y[j + q];
-            for (int i = 0; i < m; i++) {
-                yy[i] -= dx;
-                yy[m + i] -= dy;
-            }
+        switch (b) {
+        case 4: weight_batch(4, ns + j, alpha, x + j, y + j); break;
+        case 3: weight_batch(3, ns + j, alpha, x + j, y + j); break;
+        case 2: weight_batch(2, ns + j, alpha, x + j, y + j); break;
+        default: wt_noise_apply_weight(ns[j], alpha, x[j], y[j]); break;
         }
         j += b;
     }
