@@ -6,6 +6,8 @@
  * (bit for bit) at about the load ports' rate instead. */
 #include "vec.h"
 
+#include <math.h>
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -161,10 +163,10 @@ void wt_vec_sub_many_range(double *z, const double *X, int64_t ld, int q, const 
     int64_t at = i0; /* rows in [i0, at) are done */
     for (int j = first_run(runs, nruns, i0); at < i1; j++) {
         const int64_t lo = j < nruns && runs[2 * j] < i1 ? (runs[2 * j] > at ? runs[2 * j] : at) : i1;
-        /* rows [at, lo) hold zeros in every column: z − v_k·(±0) = z, except that a zero z can change
-         * sign; those (rare) elements take the full update */
+        /* rows [at, lo) hold zeros in every column: z − v_k·(±0) = z, except −0 − (−0) = +0: a −0 takes
+         * the full update (+0 − (±0) = +0; +0 is common here: rows no sensor sees keep r = z = +0) */
         for (int64_t i = at; i < lo; i++)
-            if (z[i] == 0.0) sub_range(z, X, ld, q, v, i, i + 1);
+            if (z[i] == 0.0 && signbit(z[i])) sub_range(z, X, ld, q, v, i, i + 1);
         if (lo == i1) break;
         const int64_t hi = runs[2 * j + 1] < i1 ? runs[2 * j + 1] : i1;
         sub_range(z, X, ld, q, v, lo, hi);
