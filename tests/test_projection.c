@@ -246,6 +246,47 @@ START_TEST(test_cone_and_shift)
 }
 END_TEST
 
+/* A multi-layer apply runs the layers per point (in groups of 4, projection.c): each point must add its
+ * layers' terms in layer order, i.e. give the bits of the single-layer applies in a row, for 1–6
+ * layers (the grouping), with and without clamping (a DM seen beyond its edge), from a random y with
+ * α ≠ 1. (That the two-lane kernel is the scalar expression bit for bit is checked end to end by the
+ * command hashes of make regress-commands.) */
+START_TEST(test_layers_per_point_bits)
+{
+    wt_context *ctx = tu_context();
+    uint8_t mask[85 * 85];
+    const wt_grid t = corner_grid(mask);
+    wt_grid g[6];
+    double h[6];
+    for (int l = 0; l < 6; l++) {
+        g[l] = wt_grid_layer(l % 2 ? 64 : 128, l % 2 ? 1.0 : 0.5);
+        h[l] = 2500.0 * l;
+    }
+    for (int clamp = 0; clamp <= 1; clamp++)
+        for (int nl = 1; nl <= 6; nl++) {
+            const double H = clamp ? 0.0 : 90000.0, tx = 25 * ARCSEC, ty = -40 * ARCSEC;
+            wt_projection *p = make(ctx, nl, g, h, H, tx, ty, &t, mask, clamp);
+            const long nin = wt_projection_nin(p), nout = wt_projection_nout(p);
+            double *x = malloc(nin * sizeof *x), *y = malloc(nout * sizeof *y), *ref = malloc(nout * sizeof *ref);
+            tu_randn(x, nin, 60 + nl);
+            tu_randn(y, nout, 70 + nl);
+            memcpy(ref, y, nout * sizeof *y);
+            wt_projection_apply(p, -0.83, x, y);
+            long off = 0;
+            for (int l = 0; l < nl; l++) {
+                wt_projection *q = make(ctx, 1, &g[l], &h[l], H, tx, ty, &t, mask, clamp);
+                wt_projection_apply(q, -0.83, x + off, ref);
+                wt_projection_free(q);
+                off += wt_grid_size(&g[l]);
+            }
+            ck_assert_mem_eq(y, ref, nout * sizeof *y);
+            free(x), free(y), free(ref);
+            wt_projection_free(p);
+        }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_outside_rejected)
 {
     wt_context *ctx = tu_context();
@@ -373,6 +414,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_masked_points_untouched);
     tcase_add_test(tc, test_ground_layer_same_everywhere);
     tcase_add_test(tc, test_cone_and_shift);
+    tcase_add_test(tc, test_layers_per_point_bits);
     tcase_add_test(tc, test_outside_rejected);
     tcase_add_test(tc, test_clamp);
     tcase_add_test(tc, test_allocation);

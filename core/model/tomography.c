@@ -47,7 +47,9 @@ struct wt_tomography {
     double tol;
     int S;                    /* sensors */
     wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
-    wt_sensor_stack stack;    /* Σ_m Γ_m P_m over proj (a view) */
+    wt_projection **projs;    /* S: sensor m, all L layers in one (the applies run the layers per point) */
+    wt_sensor_stack stack;    /* Σ_m Γ_m P_m over projs (a view) */
+    int64_t zero_offset;
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
     double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
     int64_t ncg;              /* corner grid points */
@@ -266,6 +268,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->S = sys->nsensors;
     t->ncg = wt_grid_size(&sys->sense_grid);
     WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
+    WT_ALLOC(ctx, t->projs, t->S, "projections");
     WT_ALLOC(ctx, t->noise, t->S, "noise models");
     if (par->model_error) WT_TRY(model_error(t, var, par, t->model_var));
     /* loop_noise_average: the loop applies an average of the reconstructions over its memory (the POLC
@@ -292,6 +295,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                 goto fail;
             }
         }
+        WT_TRY(wt_projection_alloc(ctx, t->L, t->grid, t->alt, s->altitude, s->theta_x, s->theta_y, &sys->sense_grid,
+                                   wt_shack_hartmann_corner_mask(s->sh), 0, &t->projs[m]));
         /* C̃_i = κσ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ), σ²_t = κσ² + σ²_e:
          * the model error is isotropic, the elongation term keeps its size; κ (loop_noise_average, else 1)
          * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
@@ -302,7 +307,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                                      par->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));
     }
 
-    t->stack = (wt_sensor_stack){.sys = sys, .nin = t->L, .proj = t->proj, .in_offset = t->off};
+    t->stack = (wt_sensor_stack){.sys = sys, .nin = 1, .proj = t->projs, .in_offset = &t->zero_offset};
 
     /* A parallel region costs a few µs on an idle machine and a scheduler time slice when a thread is
      * descheduled: below ~16k unknowns (an apply of well under 0.1 ms) threads do not pay. */
@@ -334,9 +339,12 @@ void wt_tomography_free(wt_tomography *t)
     }
     if (t->proj)
         for (int i = 0; i < t->S * t->L; i++) wt_projection_free(t->proj[i]);
+    if (t->projs)
+        for (int m = 0; m < t->S; m++) wt_projection_free(t->projs[m]);
     if (t->noise)
         for (int m = 0; m < t->S; m++) wt_noise_free(t->noise[m]);
     wt_free(ctx, t->proj);
+    wt_free(ctx, t->projs);
     wt_free(ctx, t->noise);
     wt_free(ctx, t->alpha_d);
     wt_free(ctx, t->jinv);

@@ -27,6 +27,10 @@
 
 #include <math.h>
 #include <stdint.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#define WT_PROJ_SSE2 1
+#endif
 
 struct wt_projection {
     wt_context *ctx;
@@ -36,6 +40,7 @@ struct wt_projection {
     int32_t *lnx;     /* [nlayers] points along x of each layer (row stride) */
     int32_t *cbase;   /* [nlayers * tnx] x index of the stencil's left column in the layer */
     double *cw0, *cw1; /* [nlayers * tnx] weights of the left and right columns */
+    double *cw01;     /* [nlayers * tnx][2]: (cw0, cw1) side by side, for the two-lane kernels */
     int32_t *rbase;   /* [nlayers * tny] layer offset + (bottom row) * nx_ℓ: the stencil's row start */
     double *rw0, *rw1; /* [nlayers * tny] weights of the bottom and top rows */
     int32_t nrun;     /* runs of consecutive masked target points within a row */
@@ -87,6 +92,7 @@ void wt_projection_free(wt_projection *p)
     wt_free(ctx, p->cbase);
     wt_free(ctx, p->cw0);
     wt_free(ctx, p->cw1);
+    wt_free(ctx, p->cw01);
     wt_free(ctx, p->rbase);
     wt_free(ctx, p->rw0);
     wt_free(ctx, p->rw1);
@@ -148,6 +154,7 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
     WT_ALLOC(ctx, p->cbase, (size_t)nlayers * tnx, "projection column stencils");
     WT_ALLOC(ctx, p->cw0, (size_t)nlayers * tnx, "projection column weights");
     WT_ALLOC(ctx, p->cw1, (size_t)nlayers * tnx, "projection column weights");
+    WT_ALLOC(ctx, p->cw01, 2 * (size_t)nlayers * tnx, "projection column weights");
     WT_ALLOC(ctx, p->rbase, (size_t)nlayers * tny, "projection row stencils");
     WT_ALLOC(ctx, p->rw0, (size_t)nlayers * tny, "projection row weights");
     WT_ALLOC(ctx, p->rw1, (size_t)nlayers * tny, "projection row weights");
@@ -193,6 +200,11 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
             double X = scale * (target->x0 + ix * target->dx) + theta_x * h;
             size_t k = (size_t)l * tnx + ix;
             cok[k] = (uint8_t)stencil_1d((X - g->x0) / g->dx, g->nx, clamp_outside, &p->cbase[k], &p->cw0[k], &p->cw1[k]);
+        }
+        for (int ix = 0; ix < tnx; ix++) {
+            size_t k = (size_t)l * tnx + ix;
+            p->cw01[2 * k] = p->cw0[k];
+            p->cw01[2 * k + 1] = p->cw1[k];
         }
         for (int iy = 0; iy < tny; iy++) {
             double Y = scale * (target->y0 + iy * target->dx) + theta_y * h;
@@ -251,23 +263,78 @@ int64_t wt_projection_nout(const wt_projection *p) { return (int64_t)p->tnx * p-
 #define WT_SCALAR_LOOPS
 #endif
 
-WT_SCALAR_LOOPS
-void wt_projection_apply(const wt_projection *p, double alpha, const double *restrict layers, double *restrict points)
+/* Layers [l0, l0 + NL) of every run, layers innermost: each target point adds its NL terms in layer
+ * order, as the layer-by-layer passes would (the same additions in the same order), while its row
+ * value stays in a register and the NL layers' independent loads overlap. NL is a compile-time
+ * constant at each call (always inlined from the switch below). */
+WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(const int NL, const wt_projection *p, int l0,
+                                                               double alpha, const double *restrict layers,
+                                                               double *restrict points)
 {
-    const int nl = p->nlayers, tnx = p->tnx, tny = p->tny;
+    const int tnx = p->tnx, tny = p->tny;
     for (int32_t r = 0; r < p->nrun; r++) {
         const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
         double *restrict y = points + (int64_t)iy * tnx;
-        for (int l = 0; l < nl; l++) {
+        const double *r0[4], *r1[4];
+        const int32_t *cb[4];
+        const double *w0[4], *w1[4];
+        double a0[4], a1[4];
+        for (int k = 0; k < NL; k++) {
+            const int l = l0 + k;
             const size_t kr = (size_t)l * tny + iy;
-            const double *r0 = layers + p->rbase[kr], *r1 = r0 + p->lnx[l];
-            const double a0 = alpha * p->rw0[kr], a1 = alpha * p->rw1[kr];
-            const int32_t *restrict cb = p->cbase + (size_t)l * tnx;
-            const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
-            for (int ix = lo; ix < hi; ix++) {
-                const int32_t j = cb[ix];
-                y[ix] += a0 * (w0[ix] * r0[j] + w1[ix] * r0[j + 1]) + a1 * (w0[ix] * r1[j] + w1[ix] * r1[j + 1]);
+            r0[k] = layers + p->rbase[kr];
+            r1[k] = r0[k] + p->lnx[l];
+            a0[k] = alpha * p->rw0[kr];
+            a1[k] = alpha * p->rw1[kr];
+            cb[k] = p->cbase + (size_t)l * tnx;
+            w0[k] = p->cw0 + (size_t)l * tnx;
+            w1[k] = p->cw1 + (size_t)l * tnx;
+        }
+#ifdef WT_PROJ_SSE2
+        /* the scalar expression below in two lanes: (w0, w1) times the row pairs (r[j], r[j + 1]) of the
+         * bottom and top rows, the two products of each row added across lanes, times (a0, a1), added
+         * across lanes: the same IEEE operations on the same operands, half the multiplies */
+        (void)w0, (void)w1;
+        const double *w01[4];
+        __m128d a01[4];
+        for (int k = 0; k < NL; k++) {
+            w01[k] = p->cw01 + 2 * ((size_t)(l0 + k) * tnx);
+            a01[k] = _mm_set_pd(a1[k], a0[k]);
+        }
+        for (int ix = lo; ix < hi; ix++) {
+            __m128d acc = _mm_load_sd(y + ix);
+            for (int k = 0; k < NL; k++) {
+                const int32_t j = cb[k][ix];
+                const __m128d w = _mm_loadu_pd(w01[k] + 2 * ix);
+                const __m128d pb = _mm_mul_pd(w, _mm_loadu_pd(r0[k] + j)), pt = _mm_mul_pd(w, _mm_loadu_pd(r1[k] + j));
+                const __m128d st = _mm_mul_pd(_mm_add_pd(_mm_unpacklo_pd(pb, pt), _mm_unpackhi_pd(pb, pt)), a01[k]);
+                acc = _mm_add_sd(acc, _mm_add_sd(st, _mm_unpackhi_pd(st, st)));
             }
+            _mm_store_sd(y + ix, acc);
+        }
+#else
+        for (int ix = lo; ix < hi; ix++) {
+            double acc = y[ix];
+            for (int k = 0; k < NL; k++) {
+                const int32_t j = cb[k][ix];
+                acc += a0[k] * (w0[k][ix] * r0[k][j] + w1[k][ix] * r0[k][j + 1]) +
+                       a1[k] * (w0[k][ix] * r1[k][j] + w1[k][ix] * r1[k][j + 1]);
+            }
+            y[ix] = acc;
+        }
+#endif
+    }
+}
+
+WT_SCALAR_LOOPS
+void wt_projection_apply(const wt_projection *p, double alpha, const double *restrict layers, double *restrict points)
+{
+    for (int l0 = 0; l0 < p->nlayers;) {
+        switch (p->nlayers - l0) {
+        case 1: apply_layers(1, p, l0, alpha, layers, points); l0 += 1; break;
+        case 2: apply_layers(2, p, l0, alpha, layers, points); l0 += 2; break;
+        case 3: apply_layers(3, p, l0, alpha, layers, points); l0 += 3; break;
+        default: apply_layers(4, p, l0, alpha, layers, points); l0 += 4; break;
         }
     }
 }
@@ -275,6 +342,8 @@ void wt_projection_apply(const wt_projection *p, double alpha, const double *res
 WT_SCALAR_LOOPS
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *restrict points, double *restrict layers)
 {
+    /* layer by layer (running the layers side by side per point, as apply does, measured 12 % slower
+     * on the E-ELT LGS: the per-layer column state then no longer fits the registers) */
     const int nl = p->nlayers, tnx = p->tnx, tny = p->tny;
     for (int32_t r = 0; r < p->nrun; r++) {
         const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
