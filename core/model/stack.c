@@ -3,8 +3,8 @@
 
 #include <string.h>
 
-void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
-                           int nthreads)
+static void stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
+                        int nthreads, int zero)
 {
     const wt_system *sys = st->sys;
     const int64_t ncg = wt_grid_size(&sys->sense_grid);
@@ -14,8 +14,21 @@ void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double
         double *ph = phase + (size_t)m * ncg;
         memset(ph, 0, (size_t)ncg * sizeof *ph);
         for (int l = 0; l < st->nin; l++) wt_projection_apply(st->proj[m * st->nin + l], 1.0, x + st->in_offset[l], ph);
+        if (zero) memset(y + s->offset, 0, (size_t)s->nslopes * sizeof *y);
         wt_shack_hartmann_apply(s->sh, alpha, ph, y + s->offset);
     }
+}
+
+void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
+                           int nthreads)
+{
+    stack_apply(st, alpha, x, y, phase, nthreads, 0);
+}
+
+void wt_sensor_stack_set(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
+                         int nthreads)
+{
+    stack_apply(st, alpha, x, y, phase, nthreads, 1);
 }
 
 void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,

@@ -24,6 +24,10 @@ typedef struct wt_sensor_stack {
  * (points of sys->sense_grid), overwritten. Allocates nothing. */
 void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
                            int nthreads);
+/* y ← α Γ P x (y zeroed first, each sensor's slice by the thread that fills it: the bits of a memset
+ * and wt_sensor_stack_apply, without the serial pass over all slopes). */
+void wt_sensor_stack_set(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
+                         int nthreads);
 /* x ← x + α Σ_l P_{m,l}ᵀ Γ_mᵀ y_m for sensor m alone (y_m: its slopes); phase: one sample-grid
  * workspace, overwritten. Sensors that write the same x must not run at once. */
 void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,

@@ -405,23 +405,26 @@ static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const dou
         wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)thread_id() * t->wsize);
 }
 
-static void forward_dwt(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *c)
-{
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-    for (int l = 0; l < t->L; l++)
-        wt_wavelet_forward(t->wav[l], phi + t->off[l], c + t->off[l], w->wwork + (size_t)thread_id() * t->wsize);
-}
-
 /* slopes = Γ P φ for every sensor */
 static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
 {
-    memset(slopes, 0, (size_t)t->sys->nslopes * sizeof *slopes);
-    wt_sensor_stack_apply(&t->stack, 1.0, phi, slopes, w->phase, t->nthreads);
+    wt_sensor_stack_set(&t->stack, 1.0, phi, slopes, w->phase, t->nthreads);
 }
 
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m. Each accumulator group takes its sensors in index order and the
  * groups are summed in order, so the result does not depend on the threads (core/la/vec.h). */
+static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                          double *c);
+
 static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const double *slopes, double *c)
+{
+    adjoint_prior(t, w, slopes, NULL, c);
+}
+
+/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given). The group sum, the transform and the prior term
+ * of a layer run in one task (the same per-element operations as three passes). */
+static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                          double *c)
 {
     const wt_system *sys = t->sys;
     const int64_t n = t->n;
@@ -449,8 +452,18 @@ static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const 
                 wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
                                                w->phase + (size_t)m * t->ncg);
     }
-    wt_vec_sum_groups(w->acc, n, w->phi);
-    forward_dwt(t, w, w->phi, c);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int l = 0; l < t->L; l++) {
+        const int64_t a = t->off[l], b = t->off[l + 1];
+        for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
+            double v = w->acc[i];
+            for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
+            w->phi[i] = v;
+        }
+        wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)thread_id() * t->wsize);
+        if (cx)
+            for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
+    }
 }
 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
@@ -458,8 +471,7 @@ static void normal(const wt_tomography *t, wt_tomography_work *w, const double *
 {
     inverse_dwt(t, w, c, w->phi);
     forward_slopes(t, w, w->phi, w->slopes);
-    adjoint_slopes(t, w, w->slopes, y);
-    for (int64_t i = 0; i < t->n; i++) y[i] += t->alpha_d[i] * c[i];
+    adjoint_prior(t, w, w->slopes, c, y);
 }
 
 /* The public forms accumulate (y ← y + α A x, as core/op does); w->b is their scratch (in the object's
