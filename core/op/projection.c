@@ -43,6 +43,8 @@ struct wt_projection {
     double *cw01;     /* [nlayers * tnx][2]: (cw0, cw1) side by side, for the two-lane kernels */
     int32_t *rbase;   /* [nlayers * tny] layer offset + (bottom row) * nx_ℓ: the stencil's row start */
     double *rw0, *rw1; /* [nlayers * tny] weights of the bottom and top rows */
+    int narrow;       /* 1: along every run, every layer's columns are non-decreasing and span at most 6
+                         cells over 8 points (apply_layers_avx512's condition) */
     int32_t nrun;     /* runs of consecutive masked target points within a row */
     int32_t *run_row, *run_lo, *run_hi; /* [nrun] row iy and columns [lo, hi) */
 };
@@ -217,6 +219,14 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
     }
     p->nin = offset;
 
+    p->narrow = 1;
+    for (int64_t r = 0; r < nrun && p->narrow; r++)
+        for (int l = 0; l < nlayers && p->narrow; l++) {
+            const int32_t *cb = p->cbase + (size_t)l * tnx;
+            for (int ix = p->run_lo[r]; ix < p->run_hi[r] && p->narrow; ix++)
+                if ((ix + 1 < p->run_hi[r] && cb[ix + 1] < cb[ix]) || (ix + 7 < p->run_hi[r] && cb[ix + 7] - cb[ix] > 6))
+                    p->narrow = 0;
+        }
     if (!clamp_outside) {
         /* point (ix, iy) is covered iff its column and its row stencils are; report the first one not */
         for (int64_t r = 0; r < nrun; r++) {
@@ -326,9 +336,93 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
     }
 }
 
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#include <immintrin.h>
+#define WT_PROJ_AVX512 1
+/* AVX-512, 8 target points at a time: along a run the stencil columns advance by less than a cell per
+ * point wherever the layer is coarser than the target grid (the DMs seen by the evaluation, the 1 m
+ * layers seen by the sensors), so 8 points use at most 8 consecutive layer values of each stencil row:
+ * one (masked, no read past what the scalar loop reads) load of those, and a lane permutation picks each
+ * point's r[j] and r[j + 1]. Per lane the arithmetic is the scalar expression's, in its order, and the
+ * layers are added per point in layer order; a block where a layer's columns span more than 6 cells
+ * (not met where p->narrow is 0, which keeps the two-lane kernel: the 0.5 m ground layer under the
+ * 0.5 m corners, where this one measured slower) computes that layer's 8 terms by the scalar expression. */
+__attribute__((target("avx512f"))) static void apply_layers_avx512(const wt_projection *p, int l0, int nl, double alpha,
+                                                                  const double *restrict layers, double *restrict points)
+{
+    const int tnx = p->tnx, tny = p->tny;
+    for (int32_t r = 0; r < p->nrun; r++) {
+        const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
+        double *restrict y = points + (int64_t)iy * tnx;
+        const double *r0[4], *r1[4];
+        const int32_t *cb[4];
+        const double *w0[4], *w1[4];
+        double a0[4], a1[4];
+        for (int k = 0; k < nl; k++) {
+            const int l = l0 + k;
+            const size_t kr = (size_t)l * tny + iy;
+            r0[k] = layers + p->rbase[kr];
+            r1[k] = r0[k] + p->lnx[l];
+            a0[k] = alpha * p->rw0[kr];
+            a1[k] = alpha * p->rw1[kr];
+            cb[k] = p->cbase + (size_t)l * tnx;
+            w0[k] = p->cw0 + (size_t)l * tnx;
+            w1[k] = p->cw1 + (size_t)l * tnx;
+        }
+        int ix = lo;
+        for (; ix + 8 <= hi; ix += 8) {
+            __m512d acc = _mm512_loadu_pd(y + ix);
+            for (int k = 0; k < nl; k++) {
+                const int32_t J = cb[k][ix], span = cb[k][ix + 7] - J;
+                __m512d term;
+                if (span <= 6) {
+                    const __mmask8 m = (__mmask8)((1u << (span + 2)) - 1u);
+                    const __m512d b = _mm512_maskz_loadu_pd(m, r0[k] + J), t = _mm512_maskz_loadu_pd(m, r1[k] + J);
+                    const __m256i d32 = _mm256_sub_epi32(_mm256_loadu_si256((const __m256i *)(cb[k] + ix)), _mm256_set1_epi32(J));
+                    const __m512i d = _mm512_cvtepi32_epi64(d32), d1 = _mm512_add_epi64(d, _mm512_set1_epi64(1));
+                    const __m512d u0 = _mm512_loadu_pd(w0[k] + ix), u1 = _mm512_loadu_pd(w1[k] + ix);
+                    const __m512d sb = _mm512_add_pd(_mm512_mul_pd(u0, _mm512_permutexvar_pd(d, b)),
+                                                     _mm512_mul_pd(u1, _mm512_permutexvar_pd(d1, b)));
+                    const __m512d st = _mm512_add_pd(_mm512_mul_pd(u0, _mm512_permutexvar_pd(d, t)),
+                                                     _mm512_mul_pd(u1, _mm512_permutexvar_pd(d1, t)));
+                    term = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(a0[k]), sb), _mm512_mul_pd(_mm512_set1_pd(a1[k]), st));
+                } else {
+                    double tv[8];
+                    for (int e = 0; e < 8; e++) {
+                        const int i = ix + e;
+                        const int32_t j = cb[k][i];
+                        tv[e] = a0[k] * (w0[k][i] * r0[k][j] + w1[k][i] * r0[k][j + 1]) +
+                                a1[k] * (w0[k][i] * r1[k][j] + w1[k][i] * r1[k][j + 1]);
+                    }
+                    term = _mm512_loadu_pd(tv);
+                }
+                acc = _mm512_add_pd(acc, term);
+            }
+            _mm512_storeu_pd(y + ix, acc);
+        }
+        for (; ix < hi; ix++) {
+            double acc = y[ix];
+            for (int k = 0; k < nl; k++) {
+                const int32_t j = cb[k][ix];
+                acc += a0[k] * (w0[k][ix] * r0[k][j] + w1[k][ix] * r0[k][j + 1]) +
+                       a1[k] * (w0[k][ix] * r1[k][j] + w1[k][ix] * r1[k][j + 1]);
+            }
+            y[ix] = acc;
+        }
+    }
+}
+#endif
+
 WT_SCALAR_LOOPS
 void wt_projection_apply(const wt_projection *p, double alpha, const double *restrict layers, double *restrict points)
 {
+#ifdef WT_PROJ_AVX512
+    if (p->narrow && __builtin_cpu_supports("avx512f")) {
+        for (int l0 = 0; l0 < p->nlayers; l0 += 4)
+            apply_layers_avx512(p, l0, p->nlayers - l0 < 4 ? p->nlayers - l0 : 4, alpha, layers, points);
+        return;
+    }
+#endif
     for (int l0 = 0; l0 < p->nlayers;) {
         switch (p->nlayers - l0) {
         case 1: apply_layers(1, p, l0, alpha, layers, points); l0 += 1; break;
