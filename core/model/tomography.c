@@ -531,6 +531,11 @@ static void apply_cb(void *user, const double *x, double *y)
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
  * costs two triangular solves, ~nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers: ~4 % of
  * an iteration). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
+/* cloned for AVX2/AVX-512 like the transforms (the forward solve's column updates vectorise; the same
+ * operations in the same order in every clone, ISO C: no FMA) */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+__attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
 static void coarse_apply(wt_tomography *t, const double *r, double *z)
 {
     const int64_t n = t->n;
