@@ -273,6 +273,39 @@ int64_t wt_projection_nout(const wt_projection *p) { return (int64_t)p->tnx * p-
 #define WT_SCALAR_LOOPS
 #endif
 
+/* One run's stencil rows of layers [l0, l0 + nl) (nl ≤ 4): the layer rows r0, r1 (bottom, top) with
+ * their weights α rw0, α rw1, and the layers' column tables. */
+typedef struct {
+    const double *r0[4], *r1[4];
+    const int32_t *cb[4];
+    const double *w0[4], *w1[4];
+    double a0[4], a1[4];
+} run_rows;
+
+static inline __attribute__((always_inline)) void run_setup(const wt_projection *p, int l0, int nl, int iy, double alpha,
+                                                            const double *layers, run_rows *q)
+{
+    for (int k = 0; k < nl; k++) {
+        const int l = l0 + k;
+        const size_t kr = (size_t)l * p->tny + iy;
+        q->r0[k] = layers + p->rbase[kr];
+        q->r1[k] = q->r0[k] + p->lnx[l];
+        q->a0[k] = alpha * p->rw0[kr];
+        q->a1[k] = alpha * p->rw1[kr];
+        q->cb[k] = p->cbase + (size_t)l * p->tnx;
+        q->w0[k] = p->cw0 + (size_t)l * p->tnx;
+        q->w1[k] = p->cw1 + (size_t)l * p->tnx;
+    }
+}
+
+/* Layer k's term at target point ix: the scalar definition of the apply's arithmetic */
+static inline __attribute__((always_inline)) double run_term(const run_rows *q, int k, int ix)
+{
+    const int32_t j = q->cb[k][ix];
+    const double u0 = q->w0[k][ix], u1 = q->w1[k][ix];
+    return q->a0[k] * (u0 * q->r0[k][j] + u1 * q->r0[k][j + 1]) + q->a1[k] * (u0 * q->r1[k][j] + u1 * q->r1[k][j + 1]);
+}
+
 /* Layers [l0, l0 + NL) of every run, layers innermost: each target point adds its NL terms in layer
  * order, as the layer-by-layer passes would (the same additions in the same order), while its row
  * value stays in a register and the NL layers' independent loads overlap. NL is a compile-time
@@ -281,42 +314,28 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
                                                                double alpha, const double *restrict layers,
                                                                double *restrict points)
 {
-    const int tnx = p->tnx, tny = p->tny;
+    const int tnx = p->tnx;
     for (int32_t r = 0; r < p->nrun; r++) {
         const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
         double *restrict y = points + (int64_t)iy * tnx;
-        const double *r0[4], *r1[4];
-        const int32_t *cb[4];
-        const double *w0[4], *w1[4];
-        double a0[4], a1[4];
-        for (int k = 0; k < NL; k++) {
-            const int l = l0 + k;
-            const size_t kr = (size_t)l * tny + iy;
-            r0[k] = layers + p->rbase[kr];
-            r1[k] = r0[k] + p->lnx[l];
-            a0[k] = alpha * p->rw0[kr];
-            a1[k] = alpha * p->rw1[kr];
-            cb[k] = p->cbase + (size_t)l * tnx;
-            w0[k] = p->cw0 + (size_t)l * tnx;
-            w1[k] = p->cw1 + (size_t)l * tnx;
-        }
+        run_rows q;
+        run_setup(p, l0, NL, iy, alpha, layers, &q);
 #ifdef WT_PROJ_SSE2
-        /* the scalar expression below in two lanes: (w0, w1) times the row pairs (r[j], r[j + 1]) of the
-         * bottom and top rows, the two products of each row added across lanes, times (a0, a1), added
-         * across lanes: the same IEEE operations on the same operands, half the multiplies */
-        (void)w0, (void)w1;
+        /* run_term in two lanes: (w0, w1) times the row pairs (r[j], r[j + 1]) of the bottom and top rows,
+         * the two products of each row added across lanes, times (a0, a1), added across lanes: the same
+         * IEEE operations on the same operands, half the multiplies */
         const double *w01[4];
         __m128d a01[4];
         for (int k = 0; k < NL; k++) {
             w01[k] = p->cw01 + 2 * ((size_t)(l0 + k) * tnx);
-            a01[k] = _mm_set_pd(a1[k], a0[k]);
+            a01[k] = _mm_set_pd(q.a1[k], q.a0[k]);
         }
         for (int ix = lo; ix < hi; ix++) {
             __m128d acc = _mm_load_sd(y + ix);
             for (int k = 0; k < NL; k++) {
-                const int32_t j = cb[k][ix];
+                const int32_t j = q.cb[k][ix];
                 const __m128d w = _mm_loadu_pd(w01[k] + 2 * ix);
-                const __m128d pb = _mm_mul_pd(w, _mm_loadu_pd(r0[k] + j)), pt = _mm_mul_pd(w, _mm_loadu_pd(r1[k] + j));
+                const __m128d pb = _mm_mul_pd(w, _mm_loadu_pd(q.r0[k] + j)), pt = _mm_mul_pd(w, _mm_loadu_pd(q.r1[k] + j));
                 const __m128d st = _mm_mul_pd(_mm_add_pd(_mm_unpacklo_pd(pb, pt), _mm_unpackhi_pd(pb, pt)), a01[k]);
                 acc = _mm_add_sd(acc, _mm_add_sd(st, _mm_unpackhi_pd(st, st)));
             }
@@ -325,11 +344,7 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
 #else
         for (int ix = lo; ix < hi; ix++) {
             double acc = y[ix];
-            for (int k = 0; k < NL; k++) {
-                const int32_t j = cb[k][ix];
-                acc += a0[k] * (w0[k][ix] * r0[k][j] + w1[k][ix] * r0[k][j + 1]) +
-                       a1[k] * (w0[k][ix] * r1[k][j] + w1[k][ix] * r1[k][j + 1]);
-            }
+            for (int k = 0; k < NL; k++) acc += run_term(&q, k, ix);
             y[ix] = acc;
         }
 #endif
@@ -350,50 +365,32 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
 __attribute__((target("avx512f"))) static void apply_layers_avx512(const wt_projection *p, int l0, int nl, double alpha,
                                                                   const double *restrict layers, double *restrict points)
 {
-    const int tnx = p->tnx, tny = p->tny;
+    const int tnx = p->tnx;
     for (int32_t r = 0; r < p->nrun; r++) {
         const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
         double *restrict y = points + (int64_t)iy * tnx;
-        const double *r0[4], *r1[4];
-        const int32_t *cb[4];
-        const double *w0[4], *w1[4];
-        double a0[4], a1[4];
-        for (int k = 0; k < nl; k++) {
-            const int l = l0 + k;
-            const size_t kr = (size_t)l * tny + iy;
-            r0[k] = layers + p->rbase[kr];
-            r1[k] = r0[k] + p->lnx[l];
-            a0[k] = alpha * p->rw0[kr];
-            a1[k] = alpha * p->rw1[kr];
-            cb[k] = p->cbase + (size_t)l * tnx;
-            w0[k] = p->cw0 + (size_t)l * tnx;
-            w1[k] = p->cw1 + (size_t)l * tnx;
-        }
+        run_rows q;
+        run_setup(p, l0, nl, iy, alpha, layers, &q);
         int ix = lo;
         for (; ix + 8 <= hi; ix += 8) {
             __m512d acc = _mm512_loadu_pd(y + ix);
             for (int k = 0; k < nl; k++) {
-                const int32_t J = cb[k][ix], span = cb[k][ix + 7] - J;
+                const int32_t J = q.cb[k][ix], span = q.cb[k][ix + 7] - J;
                 __m512d term;
                 if (span <= 6) {
                     const __mmask8 m = (__mmask8)((1u << (span + 2)) - 1u);
-                    const __m512d b = _mm512_maskz_loadu_pd(m, r0[k] + J), t = _mm512_maskz_loadu_pd(m, r1[k] + J);
-                    const __m256i d32 = _mm256_sub_epi32(_mm256_loadu_si256((const __m256i *)(cb[k] + ix)), _mm256_set1_epi32(J));
+                    const __m512d b = _mm512_maskz_loadu_pd(m, q.r0[k] + J), t = _mm512_maskz_loadu_pd(m, q.r1[k] + J);
+                    const __m256i d32 = _mm256_sub_epi32(_mm256_loadu_si256((const __m256i *)(q.cb[k] + ix)), _mm256_set1_epi32(J));
                     const __m512i d = _mm512_cvtepi32_epi64(d32), d1 = _mm512_add_epi64(d, _mm512_set1_epi64(1));
-                    const __m512d u0 = _mm512_loadu_pd(w0[k] + ix), u1 = _mm512_loadu_pd(w1[k] + ix);
+                    const __m512d u0 = _mm512_loadu_pd(q.w0[k] + ix), u1 = _mm512_loadu_pd(q.w1[k] + ix);
                     const __m512d sb = _mm512_add_pd(_mm512_mul_pd(u0, _mm512_permutexvar_pd(d, b)),
                                                      _mm512_mul_pd(u1, _mm512_permutexvar_pd(d1, b)));
                     const __m512d st = _mm512_add_pd(_mm512_mul_pd(u0, _mm512_permutexvar_pd(d, t)),
                                                      _mm512_mul_pd(u1, _mm512_permutexvar_pd(d1, t)));
-                    term = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(a0[k]), sb), _mm512_mul_pd(_mm512_set1_pd(a1[k]), st));
+                    term = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(q.a0[k]), sb), _mm512_mul_pd(_mm512_set1_pd(q.a1[k]), st));
                 } else {
                     double tv[8];
-                    for (int e = 0; e < 8; e++) {
-                        const int i = ix + e;
-                        const int32_t j = cb[k][i];
-                        tv[e] = a0[k] * (w0[k][i] * r0[k][j] + w1[k][i] * r0[k][j + 1]) +
-                                a1[k] * (w0[k][i] * r1[k][j] + w1[k][i] * r1[k][j + 1]);
-                    }
+                    for (int e = 0; e < 8; e++) tv[e] = run_term(&q, k, ix + e);
                     term = _mm512_loadu_pd(tv);
                 }
                 acc = _mm512_add_pd(acc, term);
@@ -402,11 +399,7 @@ __attribute__((target("avx512f"))) static void apply_layers_avx512(const wt_proj
         }
         for (; ix < hi; ix++) {
             double acc = y[ix];
-            for (int k = 0; k < nl; k++) {
-                const int32_t j = cb[k][ix];
-                acc += a0[k] * (w0[k][ix] * r0[k][j] + w1[k][ix] * r0[k][j + 1]) +
-                       a1[k] * (w0[k][ix] * r1[k][j] + w1[k][ix] * r1[k][j + 1]);
-            }
+            for (int k = 0; k < nl; k++) acc += run_term(&q, k, ix);
             y[ix] = acc;
         }
     }
