@@ -112,6 +112,30 @@ START_TEST(test_many_skip_zero_rows)
 }
 END_TEST
 
+/* wt_context_set_threads reaches the context-free kernels: with 1 thread asked for, a dot's parallel region
+ * runs on one thread (it used to take OpenMP's default, the machine's count). */
+START_TEST(test_context_threads_reach_kernels)
+{
+#ifdef _OPENMP
+    omp_set_num_threads(2);
+    wt_context *ctx = tu_context();
+    wt_context_set_threads(ctx, 1);
+    ck_assert_int_eq(omp_get_max_threads(), 1);
+    int seen = 0;
+#pragma omp parallel
+    {
+#pragma omp atomic
+        seen++;
+    }
+    ck_assert_int_eq(seen, 1);
+    wt_context_set_threads(ctx, 0); /* <= 0 leaves OpenMP's setting alone */
+    ck_assert_int_eq(omp_get_max_threads(), 1);
+    wt_context_free(ctx);
+    omp_set_num_threads(2);
+#endif
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("vec");
@@ -119,6 +143,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_dot_is_chunked_sum);
     tcase_add_test(tc, test_many_equal_single);
     tcase_add_test(tc, test_many_skip_zero_rows);
+    tcase_add_test(tc, test_context_threads_reach_kernels);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -71,7 +71,15 @@ void wt_context_set_allocator(wt_context *ctx, wt_malloc_hook m, wt_free_hook f,
     ctx->alloc_user = user;
 }
 
-void wt_context_set_threads(wt_context *ctx, int nthreads) { ctx->nthreads = nthreads; }
+/* The vector and sparse kernels (core/la) take no context, so their OpenMP regions follow OpenMP's own
+ * setting: set it too, or a caller that asks for 1 thread still gets the machine's count there. */
+void wt_context_set_threads(wt_context *ctx, int nthreads)
+{
+    ctx->nthreads = nthreads;
+#ifdef _OPENMP
+    if (nthreads > 0) omp_set_num_threads(nthreads);
+#endif
+}
 
 int wt_context_threads(const wt_context *ctx)
 {

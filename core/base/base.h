@@ -54,7 +54,8 @@ void wt_context_set_error_hook(wt_context *ctx, wt_error_hook hook, void *user);
 void wt_context_set_log_hook(wt_context *ctx, wt_log_hook hook, void *user, int max_level);
 /* Replace the allocator (tests count allocations or inject failures with it). */
 void wt_context_set_allocator(wt_context *ctx, wt_malloc_hook m, wt_free_hook f, void *user);
-/* Threads the library may use in its OpenMP regions (<= 0: all the machine offers). */
+/* Threads the library may use in its OpenMP regions (<= 0: all the machine offers). A positive count also
+ * becomes OpenMP's default for the calling thread (omp_set_num_threads): the context-free kernels use that. */
 void wt_context_set_threads(wt_context *ctx, int nthreads);
 int wt_context_threads(const wt_context *ctx);
 
