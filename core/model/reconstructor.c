@@ -15,6 +15,7 @@ struct wt_reconstructor {
     double tol;
     int fit_iterations;
     int warm;
+    int cont;                /* c is the last solve's result, untouched since: the next solve may continue it */
     wt_tomography *tomo;
     wt_fitting *fit;
     double *c;               /* wavelet coefficients (warm start) */
@@ -213,6 +214,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
 void wt_reconstructor_reset(wt_reconstructor *r)
 {
     if (r->c) memset(r->c, 0, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->c);
+    r->cont = 0;
     if (r->a_fit) memset(r->a_fit, 0, (size_t)r->sys->nact * sizeof *r->a_fit);
 }
 
@@ -239,7 +241,11 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     }
     if (!r->warm) wt_reconstructor_reset(r);
     double t0 = wt_time_now();
-    int st = wt_tomography_solve(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
+    /* warm: the previous frame's solve is continued, its recursive residual standing in for the initial
+     * apply of M (wt_tomography_solve_continue) */
+    int st = r->cont ? wt_tomography_solve_continue(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last)
+                     : wt_tomography_solve(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
+    r->cont = r->warm && st >= 0;
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
     r->t_tomo = wt_time_now() - t0;

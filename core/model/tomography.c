@@ -58,6 +58,9 @@ struct wt_tomography {
     size_t wsize;             /* wavelet workspace per thread (doubles) */
     wt_tomography_work *work; /* the object's own workspace: solve, set-up, the workspace-less applies */
     wt_pcg *pcg;
+    double *rhs;              /* 2 x n: the solves' right-hand sides, alternating (wt_tomography_solve_continue) */
+    int rhs_cur;              /* the half that holds the last solve's */
+    const double *last_c;     /* the last solve's unknowns (a continuing solve on other ones starts afresh) */
 };
 
 /* What one application of the operators writes (GSL's workspaces): the operator itself stays const. */
@@ -319,6 +322,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     }
     WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
+    WT_ALLOC(ctx, t->rhs, 2 * t->n, "right-hand sides");
     if (var->jacobi) WT_TRY(compute_jacobi(t));
     if (var->jacobi == 3) WT_TRY(compute_coarse(t, var->coarse_levels));
     if (var->jacobi >= 2) WT_TRY(compute_lowrank(t));
@@ -358,6 +362,7 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->c_w);
     wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
+    wt_free(ctx, t->rhs);
     wt_free(ctx, t);
 }
 
@@ -529,8 +534,9 @@ static void apply_cb(void *user, const double *x, double *y)
  * layout, s = n / 2^(J − coarse_levels): the scaling block and the coarse_levels coarsest detail
  * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
- * costs two triangular solves, ~nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers: ~4 % of
- * an iteration). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
+ * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
+ * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
+ * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
 /* cloned for AVX2/AVX-512 like the transforms (the forward solve's column updates vectorise; the same
  * operations in the same order in every clone, ISO C: no FMA) */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
@@ -550,11 +556,10 @@ static void coarse_apply(wt_tomography *t, const double *r, double *z)
         const double *col = L + (size_t)q * i;
         for (int k = i + 1; k < q; k++) w[k] -= col[k] * v;
     }
-    for (int i = q - 1; i >= 0; i--) { /* backward: Lᵀ x = y */
+    for (int i = q - 1; i >= 0; i--) { /* backward: Lᵀ x = y (column-oriented on Lᵀ, held above the diagonal) */
+        const double v = (w[i] /= L[i + (size_t)q * i]);
         const double *col = L + (size_t)q * i;
-        double acc = w[i];
-        for (int k = i + 1; k < q; k++) acc -= col[k] * w[k];
-        w[i] = acc / L[i + (size_t)q * i];
+        for (int k = 0; k < i; k++) w[k] -= col[k] * v;
     }
     for (int i = 0; i < q; i++) z[t->c_idx[i]] = w[i];
 }
@@ -626,6 +631,10 @@ static int compute_coarse(wt_tomography *t, int coarse_levels)
         for (int i = j + 1; i < q; i++)
             t->c_L[i + (size_t)q * j] = 0.5 * (t->c_L[i + (size_t)q * j] + t->c_L[j + (size_t)q * i]);
     WT_TRY(cholesky(ctx, q, t->c_L, "coarse preconditioner"));
+    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L, so that the backward
+     * solve runs by contiguous columns too */
+    for (int i = 0; i < q; i++)
+        for (int k = 0; k < i; k++) t->c_L[k + (size_t)q * i] = t->c_L[i + (size_t)q * k];
     t->nc = q;
 fail:
     wt_free(ctx, e);
@@ -736,19 +745,34 @@ fail:
     return st;
 }
 
-int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
-                        wt_pcg_result *res)
+static int solve(wt_tomography *t, const double *s, double *c, int continuing, int max_iter, double rtol,
+                 double *history, wt_pcg_result *res)
 {
     for (int64_t i = 0; i < t->sys->nslopes; i++)
         if (!isfinite(s[i]))
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
-    double *b = t->work->b;
+    /* b in the half not holding the previous solve's right-hand side, which a continuing solve reads */
+    double *b = t->rhs + (size_t)t->n * (t->rhs_cur ^ 1);
+    const double *b_prev = continuing && c == t->last_c ? t->rhs + (size_t)t->n * t->rhs_cur : NULL;
     adjoint_slopes(t, t->work, s, b);
-    if (t->nlr > 0 || t->nc > 0)
-        return wt_pcg_solve_precond(t->pcg, apply_cb, t, lowrank_precond, t, b, c,
-                                    max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
-    return wt_pcg_solve(t->pcg, apply_cb, t, t->jinv, b, c, max_iter >= 0 ? max_iter : t->iterations,
-                        rtol >= 0 ? rtol : t->tol, history, res);
+    t->rhs_cur ^= 1;
+    t->last_c = c;
+    const int lowrank = t->nlr > 0 || t->nc > 0;
+    return wt_pcg_solve_continue(t->pcg, apply_cb, t, lowrank ? NULL : t->jinv, lowrank ? lowrank_precond : NULL, t, b,
+                                 b_prev, c, max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol,
+                                 history, res);
+}
+
+int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
+                        wt_pcg_result *res)
+{
+    return solve(t, s, c, 0, max_iter, rtol, history, res);
+}
+
+int wt_tomography_solve_continue(wt_tomography *t, const double *s, double *c, int max_iter, double rtol,
+                                 double *history, wt_pcg_result *res)
+{
+    return solve(t, s, c, 1, max_iter, rtol, history, res);
 }
 
 /* ---- modified Jacobi diagonal ------------------------------------------------------------------ */

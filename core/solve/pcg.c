@@ -15,6 +15,7 @@ struct wt_pcg {
     wt_context *ctx;
     int64_t n;
     int nthreads; /* the context's thread count, for the vector updates */
+    int r_valid;  /* r is b − A x of the last solve's b and x (up to its rounding drift) */
     double *r, *z, *p, *q;
 };
 
@@ -58,18 +59,27 @@ double wt_pcg_flops_per_iteration(int64_t n, int preconditioned)
 static double dot(const double *a, const double *b, int64_t n) { return wt_vec_dot(a, b, n); }
 
 static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
-                 const double *b, double *x, int max_iter, double rtol, double *history, wt_pcg_result *res);
+                 const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
+                 wt_pcg_result *res);
 
 int wt_pcg_solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, const double *b, double *x,
                  int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
-    return solve(w, A, user, inv_diag, NULL, NULL, b, x, max_iter, rtol, history, res);
+    return solve(w, A, user, inv_diag, NULL, NULL, b, NULL, x, max_iter, rtol, history, res);
 }
 
 int wt_pcg_solve_precond(wt_pcg *w, wt_linop_fn A, void *user, wt_precond_fn P, void *puser, const double *b,
                          double *x, int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
-    return solve(w, A, user, NULL, P, puser, b, x, max_iter, rtol, history, res);
+    return solve(w, A, user, NULL, P, puser, b, NULL, x, max_iter, rtol, history, res);
+}
+
+int wt_pcg_solve_continue(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                          const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
+                          wt_pcg_result *res)
+{
+    if (inv_diag && P) return WT_ERROR(w->ctx, WT_ERR_INVALID, "pcg: give a Jacobi diagonal or a preconditioner, not both");
+    return solve(w, A, user, inv_diag, P, puser, b, b_prev, x, max_iter, rtol, history, res);
 }
 
 /* Stop at a breakdown after `done` iterations: x holds the last iterate, res its residual. */
@@ -80,8 +90,26 @@ static int breakdown(wt_pcg *w, const char *what, double v, int done, const wt_p
                     "residual %.3g kept", done, what, v, res->rel_resid);
 }
 
+/* The solve, with r kept consistent with x (r_valid) on every non-error return, so that the next solve may
+ * continue from it; any error leaves r_valid 0. */
+static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                      const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
+                      wt_pcg_result *res);
+
 static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
-                 const double *b, double *x, int max_iter, double rtol, double *history, wt_pcg_result *res)
+                 const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
+                 wt_pcg_result *res)
+{
+    const int can_continue = b_prev != NULL && w->r_valid;
+    w->r_valid = 0;
+    int st = solve_body(w, A, user, inv_diag, P, puser, b, can_continue ? b_prev : NULL, x, max_iter, rtol, history, res);
+    w->r_valid = st >= 0;
+    return st;
+}
+
+static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                      const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
+                      wt_pcg_result *res)
 {
     const int64_t n = w->n;
     double *r = w->r, *z = w->z, *p = w->p, *q = w->q;
@@ -95,12 +123,16 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
     double bnorm = sqrt(dot(b, b, n));
     if (!isfinite(bnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: right-hand side holds NaN or Inf");
     if (bnorm == 0.0) {
-        for (int64_t i = 0; i < n; i++) x[i] = 0.0;
+        for (int64_t i = 0; i < n; i++) x[i] = r[i] = 0.0;
         if (history) history[0] = 0.0;
         return WT_OK;
     }
-    A(user, x, q);
-    for (int64_t i = 0; i < n; i++) r[i] = b[i] - q[i];
+    if (b_prev) { /* A x = b_prev − r_prev: r = b − b_prev + r_prev, in place */
+        for (int64_t i = 0; i < n; i++) r[i] = (b[i] - b_prev[i]) + r[i];
+    } else {
+        A(user, x, q);
+        for (int64_t i = 0; i < n; i++) r[i] = b[i] - q[i];
+    }
     double rnorm = sqrt(dot(r, r, n));
     if (!isfinite(rnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: initial guess gives a non-finite residual");
     if (history) history[0] = rnorm / bnorm;
