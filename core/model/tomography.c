@@ -679,13 +679,27 @@ static void lowrank_precond(void *user, const double *r, double *z)
 #else
         const int nt = 1, id = 0;
 #endif
-        if (id == 0) coarse_apply(t, r, z);
-        if (id == (nt > 1 ? 1 : 0)) {
-            wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, 0, WT_VEC_CHUNKS, t->lr_part);
-            wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
-            lowrank_solve(t, t->lr_w);
-        }
+        if (t->nc > 0) {
+            if (id == 0) coarse_apply(t, r, z);
+            if (id == (nt > 1 ? 1 : 0)) {
+                wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, 0, WT_VEC_CHUNKS, t->lr_part);
+                wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
+                lowrank_solve(t, t->lr_w);
+            }
 #pragma omp barrier
+        } else {
+            /* no coarse block: J⁻¹ r and the dots' chunks split over the threads (the chunk sums land in fixed
+             * slots and are added in a fixed order: the same bits as on one thread) */
+            for (int64_t i = n * id / nt; i < n * (id + 1) / nt; i++) z[i] = t->jinv[i] * r[i];
+            wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, WT_VEC_CHUNKS * id / nt,
+                                 WT_VEC_CHUNKS * (id + 1) / nt, t->lr_part);
+#pragma omp barrier
+#pragma omp single
+            {
+                wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
+                lowrank_solve(t, t->lr_w);
+            } /* (its implicit barrier: w is ready for every thread) */
+        }
         wt_vec_sub_many_range(z, t->lr_Y, n, q, t->lr_w, t->lr_runs, t->lr_nruns, n * id / nt, n * (id + 1) / nt);
     }
 }
