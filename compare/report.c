@@ -71,12 +71,12 @@ static int write_fields(wt_h5_writer *w, const char *group, const wt_compare_res
         int nw = width(f, nd);
         for (int c = 0; c < n; c++)
             for (int j = 0; j < nw; j++) buf[(size_t)c * nw + j] = ((const double *)((const char *)res[c] + f->off))[j];
-        int64_t d[4];
+        int64_t d[WT_H5_MAX_RANK];
         for (int i = 0; i < npre; i++) d[i] = pre[i];
         d[npre] = nw;
         snprintf(name, sizeof name, "%s%s%s", group, *group ? "/" : "", f->name);
-        snprintf(desc, sizeof desc, "%s%s", f->desc, *group ? "; here per seed: the second index is sweep value x "
-                                                           "seeds + seed (root attribute 'seeds')" : "");
+        snprintf(desc, sizeof desc, "%s%s", f->desc, *group ? "; here per seed: a seed index after the sweep value's "
+                                                           "(seeds in the root attribute 'seeds')" : "");
         st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, npre + (f->per_dir ? 1 : 0), d, buf, f->units, desc);
     }
     if (st >= 0) {
@@ -154,7 +154,7 @@ static int write_results(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
     if (st >= 0) st = wt_h5_attr_write_int64(w, "/", "frames", plan->frames);
     /* the root datasets: per method and sweep value, the mean over the seeds (the value itself with one) */
     for (int c = 0; c < nm * nv; c++) res[c] = &S[c].mean;
-    int64_t d2[2] = {nm, nv}, ds[2] = {nm, (int64_t)nv * ns}; /* HDF5 files here have rank <= 3: seed folded */
+    int64_t d2[2] = {nm, nv}, ds[3] = {nm, nv, ns};
     if (st >= 0) st = write_fields(w, "", res, nm * nv, d2, 2, nd, buf);
     if (st >= 0) {
         for (int c = 0; c < nm * nv; c++) done[c] = S[c].mean.done;
@@ -165,10 +165,10 @@ static int write_results(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
     }
     if (ns > 1 && st >= 0) { /* every seed's own values, and the statistics */
         for (int c = 0; c < nc; c++) res[c] = &R[c], done[c] = R[c].done;
-        st = write_fields(w, "seeds", res, nc, ds, 2, nd, buf);
+        st = write_fields(w, "seeds", res, nc, ds, 3, nd, buf);
         if (st >= 0)
-            st = wt_h5_write(w, "seeds/done", WT_H5_I64, WT_H5_I64, 2, ds, done, "",
-                             "1: the run of this seed is done [method, sweep value x seeds + seed]");
+            st = wt_h5_write(w, "seeds/done", WT_H5_I64, WT_H5_I64, 3, ds, done, "",
+                             "1: the run of this seed is done [method, sweep value, seed]");
         if (st >= 0) st = write_statistics(w, a, R, S, buf);
     }
     if (st >= 0) {
@@ -196,7 +196,7 @@ int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
     char path[2200], name[128], *s = NULL;
     wt_h5_reader *r = NULL;
     wt_compare_plan have;
-    int64_t seed = 0, ndir = 0, dims[4] = {0};
+    int64_t seed = 0, ndir = 0, dims[WT_H5_MAX_RANK] = {0};
     int st, nm = a->nm, nv = cols(a), ns = a->ns, nc = nm * nv * ns, rank = 1;
     const char *group = ns > 1 ? "seeds/" : "";
     double *buf = NULL;
@@ -221,17 +221,21 @@ int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
     snprintf(name, sizeof name, "%sstrehl_le", group);
     if (st >= 0) st = wt_h5_dims(r, name, &rank, dims);
     ndir = dims[rank - 1];
-    if (st >= 0 && (rank != 3 || ndir < 1 || ndir > WT_MAX_EVAL))
-        st = WT_ERROR(cli->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has an unexpected shape", path, name);
-    int64_t e[3] = {nm, (int64_t)nv * ns, 0}; /* the seed folded into the second index */
+    /* [method, sweep value(, seed), direction] */
+    const int npre = ns > 1 ? 3 : 2;
+    if (st >= 0 && (rank != npre + 1 || ndir < 1 || ndir > WT_MAX_EVAL))
+        st = WT_ERROR(cli->ctx, WT_ERR_FORMAT, "%s: dataset '%s' has rank %d, expected %d (method, sweep value%s, "
+                      "direction; a file of an older wavetomo cannot be resumed)", path, name, rank, npre + 1,
+                      ns > 1 ? ", seed" : "");
+    int64_t e[4] = {nm, nv, ns, 0};
     if (st >= 0 && (!(buf = malloc((size_t)nc * (ndir > NP ? ndir : NP) * sizeof *buf)) ||
                     !(done = malloc((size_t)nc * sizeof *done))))
         st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory reading %s", path);
     snprintf(name, sizeof name, "%sdone", group);
-    if (st >= 0) st = wt_h5_read(r, name, WT_H5_I64, 2, e, NULL, done, (size_t)nc);
+    if (st >= 0) st = wt_h5_read(r, name, WT_H5_I64, npre, e, NULL, done, (size_t)nc);
     for (int k = 0; k < NFIELDS && st >= 0; k++) {
         const field *f = &fields[k];
-        int nw = f->per_dir == 1 ? (int)ndir : width(f, 0), npre = 2;
+        int nw = f->per_dir == 1 ? (int)ndir : width(f, 0);
         e[npre] = nw;
         snprintf(name, sizeof name, "%s%s", group, f->name);
         if ((st = wt_h5_read(r, name, WT_H5_F64, npre + (f->per_dir ? 1 : 0), e, NULL, buf, (size_t)nc * nw)) < 0) break;

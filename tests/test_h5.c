@@ -431,6 +431,64 @@ START_TEST(test_shape_mismatch)
 }
 END_TEST
 
+/* Dimensions a file may claim (found by tests/fuzz/fuzz_h5_recipe): an empty dataset of rank 4 whose other
+ * dimensions multiply past 2^63 (31e9 x 27e9 x 0) is read as empty, rows of 0 elements included, with no
+ * integer overflow on the way (UBSan in `make debug-test` caught the old row count); a dataset of more
+ * than 2^63 elements is refused by both readers, naming the file. */
+START_TEST(test_claimed_dims_overflow)
+{
+    wt_context *ctx = tu_context();
+    const char *p = P(0, "dims.h5");
+    write_small(ctx, p);
+    {
+        hid_t f = H5Fopen(p, H5F_ACC_RDWR, H5P_DEFAULT);
+        ck_assert(f >= 0);
+        const hsize_t de[4] = {1, 31000000217ULL, 27000000189ULL, 0}, dh[3] = {2, 4000000000ULL, 4000000000ULL};
+        const hsize_t ce[4] = {1, 1, 1, 1}, ch[3] = {1, 1, 1};
+        const hsize_t *dims[2] = {de, dh}, *chunk[2] = {ce, ch};
+        const int rank[2] = {4, 3};
+        const char *name[2] = {"E", "H"};
+        for (int k = 0; k < 2; k++) {
+            hid_t sp = H5Screate_simple(rank[k], dims[k], NULL), pl = H5Pcreate(H5P_DATASET_CREATE), d;
+            ck_assert(sp >= 0 && pl >= 0 && H5Pset_chunk(pl, rank[k], chunk[k]) >= 0);
+            ck_assert((d = H5Dcreate2(f, name[k], H5T_IEEE_F64LE, sp, H5P_DEFAULT, pl, H5P_DEFAULT)) >= 0);
+            H5Dclose(d), H5Pclose(pl), H5Sclose(sp);
+        }
+        H5Fclose(f);
+    }
+    wt_h5_reader *r = NULL;
+    ck_assert_int_eq(wt_h5_open(ctx, p, &r), WT_OK);
+    double buf[4] = {0};
+    int64_t got[4];
+    ck_assert_msg(wt_h5_read(r, "E", WT_H5_F64, 4, NULL, got, buf, 4) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert(got[1] == 31000000217LL && got[3] == 0);
+    ck_assert_msg(wt_h5_read_rows(r, "E", WT_H5_F64, 0, 1, buf) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_lt(wt_h5_read(r, "H", WT_H5_F64, 3, NULL, got, buf, 4), 0);
+    ck_assert_int_lt(wt_h5_read_rows(r, "H", WT_H5_F64, 0, 1, buf), 0);
+    assert_contains(wt_error_message(ctx), p);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* A chunk index that claims a 3.5 GB chunk in a 13 kB file (tests/data/corrupt_chunk_index.h5, found by
+ * tests/fuzz/fuzz_mvm: HDF5 allocated the claimed size before reading) is refused before HDF5 reads it. */
+START_TEST(test_corrupt_chunk_index)
+{
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r = NULL;
+    const char *p = "tests/data/corrupt_chunk_index.h5";
+    ck_assert_msg(wt_h5_open(ctx, p, &r) == WT_OK, "%s", wt_error_message(ctx));
+    float buf[60];
+    const int64_t e[2] = {6, 10};
+    ck_assert_int_eq(wt_h5_read(r, "R", WT_H5_F32, 2, e, NULL, buf, 60), WT_ERR_FORMAT);
+    assert_contains(wt_error_message(ctx), "dataset 'R' claims to store 3469235456 bytes in a file of 12911 bytes");
+    ck_assert_int_eq(wt_h5_read_rows(r, "R", WT_H5_F32, 0, 1, buf), WT_ERR_FORMAT);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_missing_and_not_hdf5)
 {
     wt_context *ctx = tu_context();
@@ -825,6 +883,8 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_alloc_failures);
     tcase_add_test(tc, test_hdf5_error_state);
     tcase_add_test(tc, test_version);
+    tcase_add_test(tc, test_claimed_dims_overflow);
+    tcase_add_test(tc, test_corrupt_chunk_index);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -175,6 +175,33 @@ START_TEST(test_seed_statistics)
         /* pairing: the paired SE is not the SE of a difference of independent means */
         ck_assert(fabs(sqrt(dss / (ns - 1) / ns) - sqrt(se[0] * se[0] + se[1] * se[1])) > 1e-9);
     }
+    /* the per-seed datasets are [method, sweep value, seed(, direction)] */
+    {
+        wt_context *ctx = tu_context();
+        wt_h5_reader *r = NULL;
+        ck_assert_msg(wt_h5_open(ctx, p, &r) == WT_OK, "%s", wt_error_message(ctx));
+        int rank = 0;
+        int64_t d[8];
+        ck_assert_int_eq(wt_h5_dims(r, "seeds/strehl_le", &rank, d), WT_OK);
+        ck_assert_int_eq(rank, 4);
+        ck_assert(d[0] == 2 && d[1] == 1 && d[2] == ns && d[3] >= 1);
+        ck_assert_int_eq(wt_h5_dims(r, "seeds/strehl_le_field", &rank, d), WT_OK);
+        ck_assert_int_eq(rank, 3);
+        ck_assert(d[0] == 2 && d[1] == 1 && d[2] == ns);
+        ck_assert_int_eq(wt_h5_dims(r, "seeds/done", &rank, d), WT_OK);
+        ck_assert_int_eq(rank, 3);
+        wt_h5_close(r);
+        wt_context_free(ctx);
+    }
+    /* --resume of the finished comparison reads every seed's results back (nothing left to run) and
+     * writes the same numbers */
+    double before = at(p, "seeds/wfe_le_field", 4);
+    ck_assert_int_eq(run("", "compare --config data/presets/demo.cfg --recon pcg3,mvm --frames 12 --threads 1 --seed 7 "
+                             "--seeds 3 --out %s/n --resume", dir), 0);
+    snprintf(q, sizeof q, "grep -q 'resuming: 6 of 6 cases done' %s/out.txt", dir);
+    ck_assert_int_eq(system(q), 0);
+    double after = at(p, "seeds/wfe_le_field", 4);
+    ck_assert_msg(memcmp(&before, &after, sizeof before) == 0, "resume changed %.17g to %.17g", before, after);
     /* seed k is the run of sim.seed = 7 + k: a single run with --seed 8 is the second seed bit for bit */
     ck_assert_int_eq(run("", "%s --seed 8 --out %s/one", opts, dir), 0);
     snprintf(q, sizeof q, "%s/one/results.h5", dir);

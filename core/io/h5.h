@@ -38,7 +38,7 @@
 
 #include "../base/base.h"
 
-#define WT_H5_MAX_RANK 3
+#define WT_H5_MAX_RANK 4
 
 /* Element types, for the file and for memory. Reading accepts only conversions that are exact for every
  * value of the file's type (float32 -> float32/float64, float64 -> float64, integers into a type that holds

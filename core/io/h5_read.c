@@ -282,7 +282,9 @@ int wt_h5_dims(wt_h5_reader *r, const char *name, int *rank, int64_t *dims)
 }
 
 /* I: a numeric dataset stores at least the bytes its extent claims (a header that claims 10^9 frames is
- * refused before anyone allocates for them; unwritten chunks would read back as zeros). */
+ * refused before anyone allocates for them; unwritten chunks would read back as zeros), and no more than
+ * the file holds (a chunk index claiming a 3.5 GB chunk in a 13 kB file made HDF5 allocate 3.5 GB for it:
+ * tests/fuzz/fuzz_mvm). */
 static int check_stored(wt_h5_reader *r, const char *name, hid_t d)
 {
     hid_t ft = H5Dget_type(d), space = H5Dget_space(d);
@@ -298,6 +300,12 @@ static int check_stored(wt_h5_reader *r, const char *name, hid_t d)
                           "%s: dataset '%s' claims %lld elements (%.0f bytes) but the file stores %.0f bytes of it: "
                           "a header edited or a write cut short (unwritten parts would read as zeros)",
                           r->path, name, (long long)np, need, have);
+        else {
+            hsize_t fsize = 0;
+            if (H5Fget_filesize(r->file, &fsize) < 0 || have > (double)fsize)
+                st = WT_ERROR(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' claims to store %.0f bytes in a file of %.0f "
+                              "bytes: a corrupt chunk index", r->path, name, have, (double)fsize);
+        }
     }
     wt_h5_priv_drop(space);
     wt_h5_priv_drop(ft);
@@ -423,6 +431,20 @@ static int check_finite(wt_h5_reader *r, const char *name, int mt, const void *d
     return WT_OK;
 }
 
+/* Elements of dims[from..nd): 0 when any of them is 0, UINT64_MAX when the product passes INT64_MAX (a
+ * file's claim that no buffer can hold; wrapping would let it pass a capacity check). */
+static uint64_t elements(int from, int nd, const int64_t *dims)
+{
+    for (int i = from; i < nd; i++)
+        if (dims[i] == 0) return 0;
+    uint64_t n = 1;
+    for (int i = from; i < nd; i++) {
+        if ((uint64_t)dims[i] > (uint64_t)INT64_MAX / n) return UINT64_MAX;
+        n *= (uint64_t)dims[i];
+    }
+    return n;
+}
+
 static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const int64_t *expect, int64_t *dims,
                      void *data, size_t capacity)
 {
@@ -431,8 +453,7 @@ static int read_impl(wt_h5_reader *r, const char *name, int mt, int rank, const 
     int64_t got[WT_H5_MAX_RANK] = {0};
     WT_TRY(shape_impl(r, name, &d, rank, expect, got));
     WT_TRY(check_readable(r, name, d, mt));
-    uint64_t total = 1;
-    for (int i = 0; i < rank; i++) total *= (uint64_t)got[i];
+    const uint64_t total = elements(0, rank, got);
     if (total > capacity || (total > 0 && !data))
         FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %llu elements, the buffer holds %zu", r->path, name,
              (unsigned long long)total, data ? capacity : 0);
@@ -466,6 +487,10 @@ static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row
     if (nd < 1 || !data || row0 < 0 || nrows < 1 || row0 > got[0] - nrows)
         FAIL(r->ctx, WT_ERR_INVALID, "%s: dataset '%s' has %lld rows, rows %lld..%lld requested", r->path, name,
              nd < 1 ? 0LL : (long long)got[0], (long long)row0, (long long)(row0 + nrows - 1));
+    const uint64_t cols = elements(1, nd, got);
+    if (cols > (uint64_t)INT64_MAX / (uint64_t)nrows)
+        FAIL(r->ctx, WT_ERR_FORMAT, "%s: dataset '%s' claims rows of %s elements: more than any buffer holds", r->path,
+             name, cols == UINT64_MAX ? "over 2^63" : "too many");
     start[0] = (hsize_t)row0;
     count[0] = (hsize_t)nrows;
     for (int i = 1; i < nd; i++) count[i] = (hsize_t)got[i];
@@ -476,11 +501,7 @@ static int read_rows_impl(wt_h5_reader *r, const char *name, int mt, int64_t row
     if (H5Dread(d, mtid, ms, fs, H5P_DEFAULT, data) < 0)
         H5FAIL(r->ctx, WT_ERR_FORMAT, "%s: reading rows %lld..%lld of dataset '%s' failed: corrupt data (checksum) "
                "or truncated file (H5Dread)", r->path, (long long)row0, (long long)(row0 + nrows - 1), name);
-    {
-        int64_t cols = 1;
-        for (int i = 1; i < nd; i++) cols *= got[i];
-        WT_TRY(check_finite(r, name, mt, data, nrows * cols, cols, row0));
-    }
+    WT_TRY(check_finite(r, name, mt, data, nrows * (int64_t)cols, (int64_t)cols, row0));
 fail:
     wt_h5_priv_drop(ms);
     wt_h5_priv_drop(fs);

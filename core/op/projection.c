@@ -298,8 +298,9 @@ static inline __attribute__((always_inline)) void run_setup(const wt_projection 
     }
 }
 
-/* Layer k's term at target point ix: the scalar definition of the apply's arithmetic */
-static inline __attribute__((always_inline)) double run_term(const run_rows *q, int k, int ix)
+/* Layer k's term at target point ix: the scalar definition of the apply's arithmetic (unused where the
+ * two-lane kernel runs and the AVX-512 one is not built: clang, the fuzz build) */
+static inline __attribute__((always_inline, unused)) double run_term(const run_rows *q, int k, int ix)
 {
     const int32_t j = q->cb[k][ix];
     const double u0 = q->w0[k][ix], u1 = q->w1[k][ix];

@@ -128,8 +128,8 @@ static void put_numeric(recipe *r, hid_t loc, const char *name, int attr, hid_t 
 {
     hid_t t = num_type(byte(r)), sp = -1, dcpl = H5Pcreate(H5P_DATASET_CREATE), o = -1;
     unsigned how = byte(r);
-    int rank = attr ? (int)(how & 1) : (int)(how % 5); /* 0..4: 4 is beyond WT_H5_MAX_RANK */
-    hsize_t d[4] = {1, 1, 1, 1}, maxd[4], chunk[4], written[4];
+    int rank = attr ? (int)(how & 1) : (int)(how % 6); /* 0..5: 5 is beyond WT_H5_MAX_RANK */
+    hsize_t d[5] = {1, 1, 1, 1, 1}, maxd[5], chunk[5], written[5];
     double npts = 1;
     for (int i = 0; i < rank; i++) {
         d[i] = (hsize_t)dim(r);
