@@ -117,7 +117,7 @@ START_TEST(test_roundtrip_types)
     wt_context *ctx = tu_context();
     const int types[5] = {WT_H5_F64, WT_H5_F32, WT_H5_I32, WT_H5_I64, WT_H5_U8};
     const char *tn[5] = {"f64", "f32", "i32", "i64", "u8"};
-    const int64_t shapes[3][3] = {{7, 0, 0}, {4, 5, 0}, {3, 2, 4}};
+    const int64_t shapes[WT_H5_MAX_RANK][WT_H5_MAX_RANK] = {{7, 0, 0, 0}, {4, 5, 0, 0}, {3, 2, 4, 0}, {2, 3, 2, 2}};
     double f64[24], back[24];
     float f32[24];
     int32_t i32[24];
@@ -129,7 +129,7 @@ START_TEST(test_roundtrip_types)
     char name[64], *s = NULL;
     ck_assert_int_eq(wt_h5_create(ctx, P(0, "rt.h5"), &w), WT_OK);
     for (int t = 0; t < 5; t++)
-        for (int rank = 1; rank <= 3; rank++) {
+        for (int rank = 1; rank <= WT_H5_MAX_RANK; rank++) {
             for (int64_t i = 0; i < 24; i++) {
                 double v = rt_value(t, i);
                 f64[i] = v, f32[i] = (float)v, i32[i] = (int32_t)v, i64[i] = (int64_t)v, u8[i] = (uint8_t)v;
@@ -143,8 +143,8 @@ START_TEST(test_roundtrip_types)
 
     ck_assert_int_eq(wt_h5_open(ctx, P(0, "rt.h5"), &r), WT_OK);
     for (int t = 0; t < 5; t++)
-        for (int rank = 1; rank <= 3; rank++) {
-            int64_t n = 1, dims[3] = {0};
+        for (int rank = 1; rank <= WT_H5_MAX_RANK; rank++) {
+            int64_t n = 1, dims[WT_H5_MAX_RANK] = {0};
             int grank = -1;
             for (int k = 0; k < rank; k++) n *= shapes[rank - 1][k];
             snprintf(name, sizeof name, "t/%s_r%d", tn[t], rank);
@@ -669,7 +669,8 @@ START_TEST(test_poisoned_writer)
     ck_assert_int_eq(wt_h5_write(w, "b", WT_H5_F64, WT_H5_F64, 1, n2, x, NULL, "b"), WT_ERR_INVALID);
     ck_assert_int_eq(wt_h5_write(w, "c", WT_H5_F64, WT_H5_F64, 1, n2, x, "m", ""), WT_ERR_INVALID);
     ck_assert_int_eq(wt_h5_write(w, "d", WT_H5_I32, WT_H5_F64, 1, n2, x, "m", "d"), WT_ERR_INVALID);
-    ck_assert_int_eq(wt_h5_write(w, "e", WT_H5_F64, WT_H5_F64, 4, n2, x, "m", "e"), WT_ERR_INVALID);
+    const int64_t n5[WT_H5_MAX_RANK + 1] = {2, 1, 1, 1, 1}; /* a rank past the limit */
+    ck_assert_int_eq(wt_h5_write(w, "e", WT_H5_F64, WT_H5_F64, WT_H5_MAX_RANK + 1, n5, x, "m", "e"), WT_ERR_INVALID);
     ck_assert_int_eq(wt_h5_group(w, "a"), WT_ERR_INVALID); /* a dataset is not a group */
     assert_contains(wt_error_message(ctx), "'a' exists and is not a group");
     ck_assert_int_eq(wt_h5_write(w, "f", WT_H5_F64, WT_H5_F64, 1, n2, x, "m", "f"), WT_OK);
