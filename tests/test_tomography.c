@@ -660,6 +660,55 @@ START_TEST(test_solve_continue_matches_warm_start)
 }
 END_TEST
 
+/* The fitting's warm start continued (wt_fitting_solve_continue), as the reconstructor runs it frame after
+ * frame: the CG-9 fitting of drifting layers gives the warm-started solutions up to rounding (8 frames of
+ * 10 iterations; bound as for the tomography above), and after a wt_fitting_solve_maps on the same
+ * object, or on other commands, the next continue is a fresh warm-started solve, bit for bit. */
+START_TEST(test_fitting_continue_matches_warm_start)
+{
+    fixture f, g;
+    setup(&f, DEMO, 1, 0, NULL);
+    setup(&g, DEMO, 1, 0, NULL);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f.cfg, &tp);
+    wt_fitting *fa, *fb;
+    const wt_fitting_params fp = {.regularization = f.cfg->cg9.fit_regularization, .sampling = 2};
+    ck_assert_int_eq(wt_fitting_alloc_for(f.ctx, f.t, &fp, &fa), WT_OK);
+    ck_assert_int_eq(wt_fitting_alloc_for(g.ctx, g.t, &fp, &fb), WT_OK);
+    const int64_t n = wt_tomography_nunknowns(f.t), na = f.sys->nact;
+    double *c = malloc(n * sizeof *c), *dc = malloc(n * sizeof *dc), *phi = malloc(n * sizeof *phi);
+    double *aa = calloc(na, sizeof *aa), *ab = calloc(na, sizeof *ab), *ac = calloc(na, sizeof *ac);
+    tu_randn(c, n, 61);
+    double worst = 0.0;
+    for (int frame = 0; frame < 8; frame++) {
+        if (frame > 0) {
+            tu_randn(dc, n, 70 + frame);
+            for (int64_t i = 0; i < n; i++) c[i] += 0.1 * dc[i];
+        }
+        wt_tomography_layers(f.t, c, phi);
+        ck_assert_int_eq(wt_fitting_solve(fa, phi, aa, 10, 0.0, NULL, NULL), WT_OK);
+        ck_assert_int_eq(wt_fitting_solve_continue(fb, phi, ab, 10, 0.0, NULL, NULL), WT_OK);
+        const double e = tu_rel_diff(ab, aa, na);
+        if (e > worst) worst = e;
+    }
+    fprintf(stderr, "fitting continue: largest relative difference from warm starts %g\n", worst);
+    ck_assert_msg(worst <= 1e-9 && worst > 0.0, "continued fittings differ from warm starts by %g", worst);
+    /* a maps solve in between (its own commands) leaves nothing to continue from */
+    const wt_grid *sg = wt_fitting_sample_grid(fb);
+    double *maps = calloc((size_t)wt_grid_size(sg) * f.sys->neval, sizeof *maps);
+    ck_assert_int_ge(wt_fitting_solve_maps(fb, maps, ac, 2, 0.0, NULL), WT_OK);
+    memcpy(aa, ab, na * sizeof *aa);
+    ck_assert_int_eq(wt_fitting_solve_continue(fb, phi, ab, 10, 0.0, NULL, NULL), WT_OK);
+    ck_assert_int_eq(wt_fitting_solve(fa, phi, aa, 10, 0.0, NULL, NULL), WT_OK);
+    for (int64_t i = 0; i < na; i++) ck_assert(aa[i] == ab[i]);
+    free(c), free(dc), free(phi), free(aa), free(ab), free(ac), free(maps);
+    wt_fitting_free(fa);
+    wt_fitting_free(fb);
+    teardown(&g);
+    teardown(&f);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("tomography");
@@ -680,6 +729,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_model_error);
     tcase_add_test(tc, test_loop_noise_average);
     tcase_add_test(tc, test_solve_continue_matches_warm_start);
+    tcase_add_test(tc, test_fitting_continue_matches_warm_start);
     suite_add_tcase(s, tc);
     return s;
 }

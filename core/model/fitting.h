@@ -40,6 +40,13 @@ void wt_fitting_rhs(wt_fitting *f, double alpha, const double *phi, double *b);
 /* CG on the normal equations, warm-started from a. max_iter ≥ 0, rtol ≥ 0. */
 int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
                      wt_pcg_result *res);
+/* wt_fitting_solve continuing the previous one on f (the reconstructor's warm start): a must hold that
+ * solve's result, unchanged; the initial apply of the normal operator is replaced by the previous
+ * right-hand side minus the previous recursive residual (wt_pcg_solve_continue): 11 → 10 applies for 10
+ * iterations, the same solution up to rounding. A first solve, one after wt_fitting_solve_maps or an error,
+ * or one on other commands than the last, applies the operator as wt_fitting_solve does. */
+int wt_fitting_solve_continue(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol,
+                              double *history, wt_pcg_result *res);
 double wt_fitting_epsilon(const wt_fitting *f);
 /* Fit given OPD maps instead of layers: maps holds ndir maps on the sample grid (nx*ny each, only the
  * sample points read), b = Σ H_jᵀ map_j; the solve is warm-started from a. */

@@ -15,7 +15,7 @@ struct wt_reconstructor {
     double tol;
     int fit_iterations;
     int warm;
-    int cont;                /* c is the last solve's result, untouched since: the next solve may continue it */
+    int cont;                /* c and a_fit are the last solves' results, untouched since: the next may continue */
     wt_tomography *tomo;
     wt_fitting *fit;
     double *c;               /* wavelet coefficients (warm start) */
@@ -243,6 +243,7 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     double t0 = wt_time_now();
     /* warm: the previous frame's solve is continued, its recursive residual standing in for the initial
      * apply of M (wt_tomography_solve_continue) */
+    const int fit_cont = r->cont;
     int st = r->cont ? wt_tomography_solve_continue(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last)
                      : wt_tomography_solve(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
     r->cont = r->warm && st >= 0;
@@ -255,7 +256,9 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
         return WT_OK;
     }
     t0 = wt_time_now();
-    st = wt_fitting_solve(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL);
+    st = fit_cont ? wt_fitting_solve_continue(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL)
+                  : wt_fitting_solve(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL);
+    r->cont = r->cont && st >= 0;
     r->t_fit = wt_time_now() - t0;
     if (st < 0) return st;
     memcpy(a, r->a_fit, (size_t)na * sizeof *a);
