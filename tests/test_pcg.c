@@ -193,7 +193,7 @@ static void counted_apply(void *user, const double *x, double *y)
 START_TEST(test_continue_saves_an_apply)
 {
     const int n = 300, frames = 30, it = 4;
-    double d[300], xs[300], b[300], bp[300], xa[300], xb[300], inv[300], drift[300];
+    double d[300], xs[300], b[300], xa[300], xb[300], inv[300], drift[300];
     counted ca = {known_problem(n, 5, d, xs, b), 0}, cb = ca;
     for (int i = 0; i < n; i++) inv[i] = 1.0 / d[i];
     wt_context *ctx = tu_context();
@@ -205,14 +205,13 @@ START_TEST(test_continue_saves_an_apply)
     double worst = 0.0;
     for (int f = 0; f < frames; f++) {
         if (f > 0) {
-            memcpy(bp, b, sizeof b);
             tu_randn(drift, n, 100 + f);
             for (int i = 0; i < n; i++) b[i] += 0.05 * drift[i];
         }
         const int a0 = ca.applies, b0 = cb.applies;
         ck_assert_int_eq(wt_pcg_solve(pa, counted_apply, &ca, inv, b, xa, it, 0.0, NULL, NULL), WT_OK);
-        ck_assert_int_eq(wt_pcg_solve_continue(pb, counted_apply, &cb, inv, NULL, NULL, b, f > 0 ? bp : NULL, xb, it,
-                                               0.0, NULL, NULL), WT_OK);
+        memcpy(wt_pcg_rhs(pb), b, sizeof b);
+        ck_assert_int_eq(wt_pcg_solve_rhs(pb, counted_apply, &cb, inv, NULL, NULL, xb, 1, it, 0.0, NULL, NULL), WT_OK);
         ck_assert_int_eq(ca.applies - a0, it + 1);
         ck_assert_int_eq(cb.applies - b0, f > 0 ? it : it + 1);
         if (f == 0)
@@ -227,14 +226,23 @@ START_TEST(test_continue_saves_an_apply)
     double nanb[300];
     memcpy(nanb, b, sizeof b);
     nanb[7] = NAN;
-    ck_assert_int_eq(wt_pcg_solve_continue(pb, counted_apply, &cb, inv, NULL, NULL, nanb, b, xb, it, 0.0, NULL, NULL),
-                     WT_ERR_NUMERIC);
+    memcpy(wt_pcg_rhs(pb), nanb, sizeof nanb);
+    ck_assert_int_eq(wt_pcg_solve_rhs(pb, counted_apply, &cb, inv, NULL, NULL, xb, 1, it, 0.0, NULL, NULL), WT_ERR_NUMERIC);
     memcpy(xa, xb, sizeof xa);
-    const int b0 = cb.applies;
-    ck_assert_int_eq(wt_pcg_solve_continue(pb, counted_apply, &cb, inv, NULL, NULL, b, nanb, xb, it, 0.0, NULL, NULL), WT_OK);
+    int b0 = cb.applies;
+    memcpy(wt_pcg_rhs(pb), b, sizeof b);
+    ck_assert_int_eq(wt_pcg_solve_rhs(pb, counted_apply, &cb, inv, NULL, NULL, xb, 1, it, 0.0, NULL, NULL), WT_OK);
     ck_assert_int_eq(cb.applies - b0, it + 1);
     ck_assert_int_eq(wt_pcg_solve(pa, counted_apply, &ca, inv, b, xa, it, 0.0, NULL, NULL), WT_OK);
     for (int i = 0; i < n; i++) ck_assert(xa[i] == xb[i]);
+    /* so does a solve of another right-hand side on the same workspace (the fitting's maps solve) */
+    double other[300];
+    memset(other, 0, sizeof other);
+    ck_assert_int_eq(wt_pcg_solve(pb, counted_apply, &cb, inv, b, other, it, 0.0, NULL, NULL), WT_OK);
+    b0 = cb.applies;
+    memcpy(wt_pcg_rhs(pb), b, sizeof b);
+    ck_assert_int_eq(wt_pcg_solve_rhs(pb, counted_apply, &cb, inv, NULL, NULL, xb, 1, it, 0.0, NULL, NULL), WT_OK);
+    ck_assert_int_eq(cb.applies - b0, it + 1);
     wt_pcg_free(pa);
     wt_pcg_free(pb);
     wt_context_free(ctx);

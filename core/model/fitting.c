@@ -28,10 +28,7 @@ struct wt_fitting {
     double *acc;            /* WT_GROUPS x ndm_pts */
     int *group;             /* direction → accumulator group */
     double *pupil;          /* ndir x ncg */
-    double *b;              /* nact: the public forms' scratch */
-    double *rhs;            /* 2 x nact: the solves' right-hand sides, alternating (wt_fitting_solve_continue) */
-    int rhs_cur;            /* the half that holds the last solve's */
-    const double *last_a;   /* the last solve's commands (a continuing solve on other ones starts afresh) */
+    double *b;              /* nact: the public forms' scratch, the maps solve's right-hand side */
     wt_pcg *pcg;
 };
 
@@ -105,7 +102,6 @@ int wt_fitting_solve_maps(wt_fitting *f, const double *maps, double *a, int max_
                           wt_pcg_result *res)
 {
     wt_fitting_rhs_maps(f, maps, f->b);
-    f->last_a = NULL; /* the workspace's residual is this solve's now: a continue must start afresh */
     return wt_pcg_solve(f->pcg, apply_cb, f, NULL, f->b, a, max_iter, rtol, NULL, res);
 }
 
@@ -131,18 +127,11 @@ fail:
 }
 
 
-/* b in the half not holding the previous solve's right-hand side, which a continuing solve reads (the
- * same scheme as wt_tomography_solve_continue) */
 static int solve(wt_fitting *f, const double *phi, double *a, int continuing, int max_iter, double rtol,
                  double *history, wt_pcg_result *res)
 {
-    const int64_t na = f->sys->nact;
-    double *b = f->rhs + (size_t)na * (f->rhs_cur ^ 1);
-    const double *b_prev = continuing && a == f->last_a ? f->rhs + (size_t)na * f->rhs_cur : NULL;
-    rhs(f, phi, b);
-    f->rhs_cur ^= 1;
-    f->last_a = a;
-    return wt_pcg_solve_continue(f->pcg, apply_cb, f, NULL, NULL, NULL, b, b_prev, a, max_iter, rtol, history, res);
+    rhs(f, phi, wt_pcg_rhs(f->pcg));
+    return wt_pcg_solve_rhs(f->pcg, apply_cb, f, NULL, NULL, NULL, a, continuing, max_iter, rtol, history, res);
 }
 
 int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol, double *history,
@@ -208,7 +197,6 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     }
     WT_ALLOC(ctx, f->pupil, (size_t)f->ndir * f->ncg, "fitting pupil workspace");
     WT_ALLOC(ctx, f->b, sys->nact, "fitting right-hand side");
-    WT_ALLOC(ctx, f->rhs, 2 * sys->nact, "fitting right-hand sides");
     WT_TRY(wt_pcg_alloc(ctx, sys->nact, &f->pcg));
 
     /* ε relative to the mean diagonal of Σ H_jᵀ H_j: probe the diagonal with unit actuators spread
@@ -287,7 +275,6 @@ void wt_fitting_free(wt_fitting *f)
     wt_free(ctx, f->group);
     wt_free(ctx, f->pupil);
     wt_free(ctx, f->b);
-    wt_free(ctx, f->rhs);
     wt_pcg_free(f->pcg);
     wt_free(ctx, f);
 }

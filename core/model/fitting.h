@@ -42,7 +42,7 @@ int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, 
                      wt_pcg_result *res);
 /* wt_fitting_solve continuing the previous one on f (the reconstructor's warm start): a must hold that
  * solve's result, unchanged; the initial apply of the normal operator is replaced by the previous
- * right-hand side minus the previous recursive residual (wt_pcg_solve_continue): 11 → 10 applies for 10
+ * right-hand side minus the previous recursive residual (wt_pcg_solve_rhs): 11 → 10 applies for 10
  * iterations, the same solution up to rounding. A first solve, one after wt_fitting_solve_maps or an error,
  * or one on other commands than the last, applies the operator as wt_fitting_solve does. */
 int wt_fitting_solve_continue(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol,

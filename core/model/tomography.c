@@ -58,9 +58,6 @@ struct wt_tomography {
     size_t wsize;             /* wavelet workspace per thread (doubles) */
     wt_tomography_work *work; /* the object's own workspace: solve, set-up, the workspace-less applies */
     wt_pcg *pcg;
-    double *rhs;              /* 2 x n: the solves' right-hand sides, alternating (wt_tomography_solve_continue) */
-    int rhs_cur;              /* the half that holds the last solve's */
-    const double *last_c;     /* the last solve's unknowns (a continuing solve on other ones starts afresh) */
 };
 
 /* What one application of the operators writes (GSL's workspaces): the operator itself stays const. */
@@ -322,7 +319,6 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     }
     WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
-    WT_ALLOC(ctx, t->rhs, 2 * t->n, "right-hand sides");
     if (var->jacobi) WT_TRY(compute_jacobi(t));
     if (var->jacobi == 3) WT_TRY(compute_coarse(t, var->coarse_levels));
     if (var->jacobi >= 2) WT_TRY(compute_lowrank(t));
@@ -362,7 +358,6 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->c_w);
     wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
-    wt_free(ctx, t->rhs);
     wt_free(ctx, t);
 }
 
@@ -765,16 +760,11 @@ static int solve(wt_tomography *t, const double *s, double *c, int continuing, i
     for (int64_t i = 0; i < t->sys->nslopes; i++)
         if (!isfinite(s[i]))
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
-    /* b in the half not holding the previous solve's right-hand side, which a continuing solve reads */
-    double *b = t->rhs + (size_t)t->n * (t->rhs_cur ^ 1);
-    const double *b_prev = continuing && c == t->last_c ? t->rhs + (size_t)t->n * t->rhs_cur : NULL;
-    adjoint_slopes(t, t->work, s, b);
-    t->rhs_cur ^= 1;
-    t->last_c = c;
+    adjoint_slopes(t, t->work, s, wt_pcg_rhs(t->pcg));
     const int lowrank = t->nlr > 0 || t->nc > 0;
-    return wt_pcg_solve_continue(t->pcg, apply_cb, t, lowrank ? NULL : t->jinv, lowrank ? lowrank_precond : NULL, t, b,
-                                 b_prev, c, max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol,
-                                 history, res);
+    return wt_pcg_solve_rhs(t->pcg, apply_cb, t, lowrank ? NULL : t->jinv, lowrank ? lowrank_precond : NULL, t, c,
+                            continuing, max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history,
+                            res);
 }
 
 int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
@@ -955,8 +945,8 @@ fail:
 
 double wt_tomography_bytes(const wt_tomography *t)
 {
-    /* vectors of n: α D, J⁻¹, φ, b, the group accumulators and the 4 PCG vectors */
-    double b = 8.0 * (double)t->n * (4.0 + (t->jinv ? 1.0 : 0.0) + 2.0 + 4.0);
+    /* vectors of n: α D, J⁻¹, φ, b, the group accumulators, the 4 PCG vectors and its 2 right-hand sides */
+    double b = 8.0 * (double)t->n * (4.0 + (t->jinv ? 1.0 : 0.0) + 2.0 + 6.0);
     b += 8.0 * (double)t->S * (double)t->ncg + 16.0 * (double)t->sys->nslopes + 8.0 * t->nthreads * (double)t->wsize;
     /* projection stencils: ~24 bytes per masked point and layer, plus the separable tables */
     b += 24.0 * (double)t->sys->ncorners * t->S * t->L;

@@ -106,7 +106,7 @@ int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_it
                         wt_pcg_result *res);
 /* wt_tomography_solve continuing the previous solve on t (the reconstructor's warm start): c must hold
  * that solve's result, unchanged. M c is then the previous right-hand side minus the previous recursive
- * residual (wt_pcg_solve_continue), which saves the initial apply of M: 4 + 1 → 4 applies in a PCG-3 frame.
+ * residual (wt_pcg_solve_rhs), which saves the initial apply of M: 4 + 1 → 4 applies in a PCG-3 frame.
  * Differs from wt_tomography_solve by the recursive residual's rounding drift only (not the same bits).
  * The first solve, and one after an error, applies M as wt_tomography_solve does. */
 int wt_tomography_solve_continue(wt_tomography *t, const double *s, double *c, int max_iter, double rtol,

@@ -17,6 +17,9 @@ struct wt_pcg {
     int nthreads; /* the context's thread count, for the vector updates */
     int r_valid;  /* r is b − A x of the last solve's b and x (up to its rounding drift) */
     double *r, *z, *p, *q;
+    double *rhs;             /* 2 x n: the wt_pcg_solve_rhs right-hand sides, alternating */
+    int cur;                 /* the half that holds the last wt_pcg_solve_rhs's */
+    const double *cont_x;    /* that solve's unknowns while r belongs to them (else NULL) */
 };
 
 int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out)
@@ -33,6 +36,7 @@ int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out)
     WT_ALLOC(ctx, p->z, n, "pcg preconditioned residual");
     WT_ALLOC(ctx, p->p, n, "pcg direction");
     WT_ALLOC(ctx, p->q, n, "pcg operator image");
+    WT_ALLOC(ctx, p->rhs, 2 * n, "pcg right-hand sides");
     *out = p;
     return WT_OK;
 fail:
@@ -47,6 +51,7 @@ void wt_pcg_free(wt_pcg *p)
     wt_free(p->ctx, p->z);
     wt_free(p->ctx, p->p);
     wt_free(p->ctx, p->q);
+    wt_free(p->ctx, p->rhs);
     wt_free(p->ctx, p);
 }
 
@@ -74,12 +79,17 @@ int wt_pcg_solve_precond(wt_pcg *w, wt_linop_fn A, void *user, wt_precond_fn P, 
     return solve(w, A, user, NULL, P, puser, b, NULL, x, max_iter, rtol, history, res);
 }
 
-int wt_pcg_solve_continue(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
-                          const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
-                          wt_pcg_result *res)
+double *wt_pcg_rhs(wt_pcg *w) { return w->rhs + w->n * (int64_t)(w->cur ^ 1); }
+
+int wt_pcg_solve_rhs(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                     double *x, int continuing, int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
     if (inv_diag && P) return WT_ERROR(w->ctx, WT_ERR_INVALID, "pcg: give a Jacobi diagonal or a preconditioner, not both");
-    return solve(w, A, user, inv_diag, P, puser, b, b_prev, x, max_iter, rtol, history, res);
+    const double *b = wt_pcg_rhs(w), *b_prev = continuing && x == w->cont_x ? w->rhs + w->n * (int64_t)w->cur : NULL;
+    w->cur ^= 1;
+    int st = solve(w, A, user, inv_diag, P, puser, b, b_prev, x, max_iter, rtol, history, res);
+    w->cont_x = st >= 0 ? x : NULL;
+    return st;
 }
 
 /* Stop at a breakdown after `done` iterations: x holds the last iterate, res its residual. */
@@ -102,6 +112,7 @@ static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, w
 {
     const int can_continue = b_prev != NULL && w->r_valid;
     w->r_valid = 0;
+    w->cont_x = NULL; /* wt_pcg_solve_rhs sets it again after its own solves */
     int st = solve_body(w, A, user, inv_diag, P, puser, b, can_continue ? b_prev : NULL, x, max_iter, rtol, history, res);
     w->r_valid = st >= 0;
     return st;

@@ -39,16 +39,18 @@ typedef void (*wt_precond_fn)(void *user, const double *r, double *z);
 /* The same with a general preconditioner P⁻¹ given as a callback. */
 int wt_pcg_solve_precond(wt_pcg *p, wt_linop_fn A, void *user, wt_precond_fn P, void *puser, const double *b,
                          double *x, int max_iter, double rtol, double *history, wt_pcg_result *res);
-/* Continue from the previous solve on this workspace (a warm start from its result, paper §6.1): x must
- * hold that solve's result unchanged and b_prev its right-hand side. Its recursive residual r_prev, kept in
- * the workspace, gives A x = b_prev − r_prev, which replaces the initial apply of A: one apply per solve
- * saved (of 5 in a 4-iteration frame). The image differs from A x by the recursive residual's rounding
- * drift, not by more; the iterates are not bit-identical to wt_pcg_solve*'s. When the workspace holds no
- * usable residual (no solve yet, or the last one failed) or b_prev is NULL, A x is applied as usual: the
- * same bits as wt_pcg_solve (inv_diag) or wt_pcg_solve_precond (P); at most one of the two. */
-int wt_pcg_solve_continue(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
-                          const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
-                          wt_pcg_result *res);
+/* Frame after frame (the reconstructor's warm start, paper §6.1), the workspace holds the right-hand side:
+ * the caller writes it into wt_pcg_rhs(p) (n values; the buffer alternates between two halves, so the
+ * previous solve's stays) and calls wt_pcg_solve_rhs. With `continuing` set and x the unchanged result of
+ * the previous wt_pcg_solve_rhs on this workspace, that solve's recursive residual r_prev gives
+ * A x = b_prev − r_prev, which replaces the initial apply of A: one apply per solve saved (of 5 in a
+ * 4-iteration frame). The image differs from A x by the recursive residual's rounding drift, not by more;
+ * the iterates are not bit-identical to a fresh solve's. Otherwise (continuing 0, the first solve, one
+ * after an error or after a wt_pcg_solve*, other unknowns x) A x is applied: the same bits as wt_pcg_solve
+ * (inv_diag) or wt_pcg_solve_precond (P); at most one of the two. */
+double *wt_pcg_rhs(wt_pcg *p);
+int wt_pcg_solve_rhs(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
+                     double *x, int continuing, int max_iter, double rtol, double *history, wt_pcg_result *res);
 /* Flops of one iteration outside the operator (vector updates, dots, preconditioner): for reports. */
 double wt_pcg_flops_per_iteration(int64_t n, int preconditioned);
 
