@@ -74,8 +74,8 @@ static inline __attribute__((always_inline)) void dots_block(const int B, const 
     for (int k = 0; k < B; k++) s[k] = acc[k];
 }
 
-/* The runs [runs[2j], runs[2j+1]) that meet [a, b), clipped: calls fn's body for each. Runs are sorted,
- * disjoint; NULL runs = the one run [0, n). first_run finds the first run ending after a. */
+/* Runs [runs[2j], runs[2j+1]) are sorted and disjoint (NULL runs: the one run [0, n)); the kernels below
+ * visit those that meet [a, b), clipped to it, starting at first_run: the first run ending after a. */
 static int first_run(const int64_t *runs, int nruns, int64_t a)
 {
     int lo = 0, hi = nruns;

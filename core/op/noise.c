@@ -201,41 +201,13 @@ static void means(int m, const double *x, double *mx, double *my)
     *my = sy / m;
 }
 
-void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y)
-{
-    if (!n->remove_tt) {
-        wt_noise_apply_inv(n, alpha, x, y);
-        return;
-    }
-    /* y += α (I − T) v with v = C̃⁻¹ (x − T x), in three O(n) passes and no scratch: T x and T v need
-     * only the two means of each, so v is added to y while its means are summed, and α T v is then
-     * taken off y. */
-    const int m = n->nsub;
-    double mx, my;
-    means(m, x, &mx, &my);
-    const double *xx = x, *xy = x + m;
-    double *yx = y, *yy = y + m;
-    double svx = 0.0, svy = 0.0;
-    for (int i = 0; i < m; i++) {
-        double u = xx[i] - mx, v = xy[i] - my;
-        double vx = n->ia[i] * u + n->ib[i] * v;
-        double vy = n->ib[i] * u + n->ic[i] * v;
-        svx += vx;
-        svy += vy;
-        yx[i] += alpha * vx;
-        yy[i] += alpha * vy;
-    }
-    double dx = alpha * svx / m, dy = alpha * svy / m;
-    for (int i = 0; i < m; i++) {
-        yx[i] -= dx;
-        yy[i] -= dy;
-    }
-}
-
 enum { MANY = 4 };
 
-/* wt_noise_apply_weight's three passes for B sensors of one size at once, each sensor's sums in its own
- * order; B is a compile-time constant at each call (always inlined), so the 4 B sums live in registers. */
+/* y += α (I − T) v with v = C̃⁻¹ (x − T x), in three O(n) passes and no scratch: T x and T v need only the
+ * two means of each, so v is added to y while its means are summed, and α T v is then taken off y. For B
+ * sensors of one size at once (wt_noise_apply_weight_many; 1 for wt_noise_apply_weight), each sensor's
+ * sums in its own order; B is a compile-time constant at each call (always inlined), so the 4 B sums live
+ * in registers. */
 static inline __attribute__((always_inline)) void weight_batch(const int B, const wt_noise *const *ns, double alpha,
                                                                const double *const *x, double *const *y)
 {
@@ -270,6 +242,15 @@ static inline __attribute__((always_inline)) void weight_batch(const int B, cons
             yy[m + i] -= dy;
         }
     }
+}
+
+void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    if (!n->remove_tt) {
+        wt_noise_apply_inv(n, alpha, x, y);
+        return;
+    }
+    weight_batch(1, &n, alpha, &x, &y);
 }
 
 void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, const double *const *x,
