@@ -87,6 +87,16 @@ void wt_free(wt_context *ctx, void *ptr);
             goto fail;                                                                            \
         }                                                                                         \
     } while (0)
+/* A hot kernel compiled for the baseline x86-64 (SSE2) and, picked at load time when the CPU has them, for
+ * AVX2 and AVX-512. Every clone does the same IEEE operations in the same order (ISO C mode: no contraction
+ * into FMA), so the results do not depend on the CPU; only the vector width does. Empty where GCC's
+ * target_clones is not available (clang, other systems). */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define WT_CPU_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define WT_CPU_CLONES
+#endif
+
 /* Evaluate a status expression; on error jump to `fail` keeping it in st. */
 #define WT_TRY(expr)          \
     do {                      \

@@ -532,12 +532,8 @@ static void apply_cb(void *user, const double *x, double *y)
  * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
  * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
  * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
-/* cloned for AVX2/AVX-512 like the transforms (the forward solve's column updates vectorise; the same
- * operations in the same order in every clone, ISO C: no FMA) */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-__attribute__((target_clones("avx512f", "avx2", "default")))
-#endif
-static void coarse_apply(wt_tomography *t, const double *r, double *z)
+/* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
+WT_CPU_CLONES static void coarse_apply(wt_tomography *t, const double *r, double *z)
 {
     const int64_t n = t->n;
     for (int64_t i = 0; i < n; i++) z[i] = t->jinv[i] * r[i];

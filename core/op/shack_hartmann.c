@@ -469,15 +469,9 @@ void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, doub
     *y = -0.5 * s->n * s->d + (j + 0.5) * w;
 }
 
-/* The applies are compiled for the baseline x86-64 (SSE2) and, picked at load time, for AVX2 and AVX-512:
- * the same IEEE operations in the same order in every clone (ISO C: no FMA contraction), same bits. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define WT_SH_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define WT_SH_CLONES
-#endif
+/* The applies are cloned for AVX2 and AVX-512 (WT_CPU_CLONES, core/base/base.h: the same bits on every CPU). */
 
-WT_SH_CLONES
+WT_CPU_CLONES
 void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const double *restrict phase,
                              double *restrict slopes)
 {
@@ -529,7 +523,7 @@ void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const dou
     }
 }
 
-WT_SH_CLONES
+WT_CPU_CLONES
 void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const double *restrict slopes,
                                double *restrict phase)
 {

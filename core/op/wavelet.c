@@ -356,22 +356,16 @@ WT_INLINE void inverse_n(const int N, const wt_wavelet *w, const double *c, doub
     default: fn(10, __VA_ARGS__); break; \
     }
 
-/* The transforms are compiled for the baseline x86-64 (SSE2) and, picked at load time when the CPU has
- * them, for AVX2 and AVX-512: the same IEEE operations in the same order in every clone (ISO C mode,
- * no contraction into FMA), so the bits do not depend on the CPU. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define WT_DWT_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define WT_DWT_CLONES
-#endif
+/* The transforms are cloned for AVX2 and AVX-512 (WT_CPU_CLONES, core/base/base.h: the same bits on every
+ * CPU). */
 
-WT_DWT_CLONES
+WT_CPU_CLONES
 void wt_wavelet_forward(const wt_wavelet *w, const double *x, double *c, double *work)
 {
     WT_DISPATCH(forward_n, w->order, w, x, c, work);
 }
 
-WT_DWT_CLONES
+WT_CPU_CLONES
 void wt_wavelet_inverse(const wt_wavelet *w, const double *c, double *x, double *work)
 {
     WT_DISPATCH(inverse_n, w->order, w, c, x, work);

@@ -632,16 +632,6 @@ static void project_row_reference(const wt_atmosphere *atm, const layer_call *lc
     }
 }
 
-/* The row kernel is compiled for the baseline x86-64 (SSE2) and, picked at load time when the CPU has
- * them, for AVX2 and AVX-512 (wider vectors, hardware gathers). The arithmetic is the same IEEE
- * operations in the same order in every clone (ISO C mode: no contraction into FMA), so the bits do not
- * depend on the CPU. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define WT_ROW_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define WT_ROW_CLONES
-#endif
-
 /* E_p advanced by one block without evaluating it (a block with no masked point): the same rotation
  * as the end of sh_row_block, so the blocks after it see the same E_p bit for bit. */
 static inline void sh_row_skip(const sh_step *q, sh_row *s)
@@ -711,8 +701,9 @@ static inline __attribute__((always_inline)) void unit_block(const unit_args *a,
  * of u0 + k (≤ half an ulp of the row's largest u): then the cell index and the weight fx = u_k − ⌊u_k⌋
  * need no conversion back from u, the screen reads are contiguous, and the subharmonic sum, the
  * bilinear weights and the accumulation run in one loop without intermediate arrays; each value is
- * still formed by the same operations in the same order. */
-WT_ROW_CLONES
+ * still formed by the same operations in the same order. Cloned for AVX2 and AVX-512 (WT_CPU_CLONES: wider
+ * vectors, hardware gathers; the same bits on every CPU). */
+WT_CPU_CLONES
 static void project_row(const wt_atmosphere *atm, const layer_call *lc, const wt_grid *tg, const row_span *sp,
                         double alpha, double *out, int iy, row_memo *mm, int set)
 {
