@@ -5,7 +5,8 @@
 #   base ← config        (the configuration layer: libconfig text -> wt_config, the schema)
 #   base ← io            (the file layer: HDF5, plain data only, no configuration, no numerical module)
 #   base ← la ← op ← solve ← model ← {build, sim} ← drivers (cli, builder, runtime, compare)
-#   solve and above may use config and io.
+#   base ← la ← optics   (diffractive sensing: sodium profile, spot images, centroiders, their noise)
+#   solve and above may use config and io; model and above may use optics.
 #
 # Every source and header of core/ and the drivers is passed to `$CC -MM`; every project file in its
 # (transitive) dependency list must belong to its own module or one the table below allows. Circles:
@@ -22,10 +23,11 @@ declare -A ALLOW=(
   [la]="base la"
   [op]="base la op"
   [solve]="base la op config io solve"
-  [model]="base la op config io solve model"
-  [build]="base la op config io solve model build"
-  [sim]="base la op config io solve model sim"
-  [driver]="base la op config io solve model build sim driver"
+  [optics]="base la optics"
+  [model]="base la op config io solve optics model"
+  [build]="base la op config io solve optics model build"
+  [sim]="base la op config io solve optics model sim"
+  [driver]="base la op config io solve optics model build sim driver"
 )
 module() { # path relative to the root -> module name
   case "$1" in
