@@ -250,7 +250,7 @@ START_TEST(test_lit_model)
     for (int q = 1; q <= 3; q++)
         for (int m = 0; m <= 2; m++) {
             wt_shack_hartmann *s = NULL;
-            ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, m, &s), WT_OK);
+            ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, m, WT_SH_TILT_G, &s), WT_OK);
             ck_assert_int_eq(wt_shack_hartmann_nsub(s), m == 0 ? 5112 : m * m);
             ck_assert_int_eq(wt_shack_hartmann_ncorners(s), (N * q + 1) * (N * q + 1));
             check_adjoint_assembly(s, 400 + 10 * q + m);
@@ -268,7 +268,7 @@ START_TEST(test_lit_model)
     /* fully lit subapertures: lit(q) of the q-refined bilinear interpolant = Fried on the corners */
     wt_shack_hartmann *f = make(ctx, N, D_SUB, v, 0), *l = NULL;
     const int q = 2, nq = N * q;
-    ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, 0, &l), WT_OK);
+    ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, 0, WT_SH_TILT_G, &l), WT_OK);
     double *pc = malloc((N + 1) * (N + 1) * sizeof *pc), *pf = malloc((nq + 1) * (nq + 1) * sizeof *pf);
     double *sf = calloc(2 * 5112, sizeof *sf), *sl = calloc(2 * 5112, sizeof *sl);
     tu_randn(pc, (N + 1) * (N + 1), 77);
@@ -322,6 +322,61 @@ static void csr_reference(const wt_shack_hartmann *s, double alpha, double *phas
     }
 }
 
+/* Z-tilt rows (ngs.wfs.tilt = "z"): the least-squares plane of the lit area. On a plane a + bx + cy both
+ * tilts are (b, c) exactly (the normal equations reproduce any plane). On φ = x³ over a whole annulus of
+ * radii R, r they differ, analytically: the G-tilt is the mean of 3x², 3(R² + r²)/4; the Z-tilt is
+ * ∫x⁴/∫x² = (R⁶ − r⁶)/(2(R⁴ − r⁴)). The discrete sensors sample the lit area with cells of side δ (exact
+ * lit fractions, corner weights by the trapezoid rule): the quadrature error is O(δ/R), so the test asks
+ * |error| ≤ 2 δ/R of the value at 4 and 8 samples per subaperture, and that it shrinks with δ. */
+START_TEST(test_ztilt_rows)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    const double R = 21.0, r = 0.28 * 21.0;
+    const double gz = 3.0 * (R * R + r * r) / 4.0, zz = (pow(R, 6) - pow(r, 6)) / (2.0 * (pow(R, 4) - pow(r, 4)));
+    double err_prev = INFINITY;
+    for (int q = 1; q <= 4; q *= 2)
+        for (int m = 1; m <= 2; m++) {
+            wt_shack_hartmann *s = NULL;
+            ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, m, WT_SH_TILT_Z, &s), WT_OK);
+            check_adjoint_assembly(s, 500 + 10 * q + m);
+            const int nq = N * q, nc = (nq + 1) * (nq + 1), ns = wt_shack_hartmann_nslopes(s), nsub = ns / 2;
+            double *phi = malloc(nc * sizeof *phi), *sl = calloc(ns, sizeof *sl);
+            fill_phase(nq, D_SUB / q, phi, 3e-6, -2e-6, 0, 0, 0, 1e-6);
+            wt_shack_hartmann_apply(s, 1.0, phi, sl);
+            for (int k = 0; k < nsub; k++) {
+                ck_assert_double_eq_tol(sl[k], 3e-6, 1e-15);
+                ck_assert_double_eq_tol(sl[nsub + k], -2e-6, 1e-15);
+            }
+            if (m == 1) {
+                /* φ = x³ (units of R): whole pupil, one subaperture; G-tilt from the G rows on the same samples */
+                const double dq = D_SUB / q;
+                for (int j = 0; j <= nq; j++)
+                    for (int i = 0; i <= nq; i++) phi[i + (nq + 1) * j] = pow(-0.5 * nq * dq + i * dq, 3);
+                wt_shack_hartmann *g = NULL;
+                ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, q, v, 1, WT_SH_TILT_G, &g), WT_OK);
+                double sz[2] = {0, 0}, sg[2] = {0, 0};
+                wt_shack_hartmann_apply(s, 1.0, phi, sz);
+                wt_shack_hartmann_apply(g, 1.0, phi, sg);
+                const double tol = 2.0 * dq / R, ez = fabs(sz[0] / zz - 1.0);
+                ck_assert_msg(ez <= tol, "q = %d: Z-tilt of x^3 %g, analytic %g (rel. error %g > %g)", q, sz[0], zz, ez, tol);
+                ck_assert_msg(fabs(sg[0] / gz - 1.0) <= tol, "q = %d: G-tilt of x^3 %g, analytic %g", q, sg[0], gz);
+                ck_assert_double_le(fabs(sz[1]), 1e-9 * zz); /* no y part by symmetry */
+                ck_assert_double_le(ez, err_prev);
+                err_prev = ez;
+                wt_shack_hartmann_free(g);
+            }
+            free(phi), free(sl);
+            wt_shack_hartmann_free(s);
+        }
+    wt_shack_hartmann *s = NULL;
+    ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 1, 2, &s), WT_ERR_INVALID);
+    ck_assert_ptr_null(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_lit_runs_equal_csr)
 {
     wt_context *ctx = tu_context();
@@ -334,7 +389,7 @@ START_TEST(test_lit_runs_equal_csr)
             for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0; /* ~16 % holes: short runs */
         }
         wt_shack_hartmann *s = NULL;
-        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, &s), WT_OK);
+        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, WT_SH_TILT_G, &s), WT_OK);
         const int nc = wt_shack_hartmann_ncorners(s), ns = wt_shack_hartmann_nslopes(s);
         double *phi = malloc(nc * sizeof *phi), *p1 = malloc(nc * sizeof *p1), *p2 = malloc(nc * sizeof *p2);
         double *sl = malloc(ns * sizeof *sl), *s1 = malloc(ns * sizeof *s1), *s2 = malloc(ns * sizeof *s2);
@@ -393,7 +448,7 @@ START_TEST(test_allocation)
         for (k = 0; k < 50 && !ok; k++) {
             wt_shack_hartmann *s = (wt_shack_hartmann *)&s;
             tu_alloc_budget(&fa, k);
-            int st = m == 3 ? wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, &s)
+            int st = m == 3 ? wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, WT_SH_TILT_G, &s)
                      : m    ? wt_shack_hartmann_alloc_averaged(ctx, N, D_SUB, v, m, &s)
                             : wt_shack_hartmann_alloc(ctx, N, D_SUB, v, &s);
             if (st == WT_OK) {
@@ -428,6 +483,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_linear_and_quadratic_phase);
     tcase_add_test(tc, test_averaged_is_mean);
     tcase_add_test(tc, test_lit_model);
+    tcase_add_test(tc, test_ztilt_rows);
     tcase_add_test(tc, test_lit_runs_equal_csr);
     tcase_add_test(tc, test_errors);
     tcase_add_test(tc, test_allocation);

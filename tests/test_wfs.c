@@ -22,7 +22,7 @@ static void eelt_valid(uint8_t *v) { ck_assert_int_eq(wt_pupil_valid_subaperture
 static wt_wfs *make(wt_context *ctx, double D, double obs, int n, int p, const uint8_t *v, int m)
 {
     wt_wfs *w = NULL;
-    int st = wt_wfs_alloc(ctx, D, obs, n, D / n, p, v, m, &w);
+    int st = wt_wfs_alloc(ctx, D, obs, n, D / n, p, v, m, WT_SH_TILT_G, &w);
     ck_assert_msg(st == WT_OK, "wfs alloc failed: %s", wt_error_message(ctx));
     return w;
 }
@@ -517,7 +517,7 @@ START_TEST(test_representable_screen)
     for (int m = 0; m <= 2; m++) {
         wt_wfs *t = make(ctx, DIAM, OBS, N, P, v, m);
         wt_shack_hartmann *s = NULL;
-        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, DIAM, OBS, N, DSUB, 1, v, m, &s), WT_OK);
+        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, DIAM, OBS, N, DSUB, 1, v, m, WT_SH_TILT_G, &s), WT_OK);
         const int nsub = wt_shack_hartmann_nsub(s);
         ck_assert_int_eq(wt_wfs_nsub(t), nsub);
         double *st = calloc(2 * (size_t)nsub, sizeof *st), *sm = calloc(2 * (size_t)nsub, sizeof *sm);
@@ -624,7 +624,7 @@ static void expect_error(wt_context *ctx, double D, double obs, int n, double d,
     static wt_wfs *const sentinel = (wt_wfs *)1; /* alloc must reset *out to NULL */
     wt_wfs *w = sentinel;
     wt_error_clear(ctx);
-    ck_assert_int_eq(wt_wfs_alloc(ctx, D, obs, n, d, p, v, m, &w), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_wfs_alloc(ctx, D, obs, n, d, p, v, m, WT_SH_TILT_G, &w), WT_ERR_INVALID);
     ck_assert_ptr_null(w);
     ck_assert_msg(strstr(wt_error_message(ctx), needle), "message '%s' does not name '%s'", wt_error_message(ctx),
                   needle);
@@ -675,7 +675,7 @@ START_TEST(test_alloc_failure)
             tu_alloc_budget(&fa, budget);
             tu_alloc_install(ctx, &fa);
             wt_wfs *w = NULL;
-            st = wt_wfs_alloc(ctx, 4.0, 0.3, 8, 0.5, 3, v, ms[t], &w);
+            st = wt_wfs_alloc(ctx, 4.0, 0.3, 8, 0.5, 3, v, ms[t], WT_SH_TILT_G, &w);
             if (st == WT_OK) {
                 ck_assert_ptr_nonnull(w);
                 wt_wfs_free(w);

@@ -30,6 +30,8 @@ typedef struct wt_sensor_config {
     int pixels;              /* pixels across a subaperture (Ns) */
     double nea;              /* noise-equivalent angle per axis [rad]; < 0: use the photon/read model */
     int lit_noise;           /* 1: a partly lit subaperture collects its lit fraction of the photons (more noise) */
+    int tilt;                /* what a slope is (NGS only; LGS 0): 0 G-tilt, the average gradient over the lit
+                                area (a centroid); 1 Z-tilt, the least-squares plane over it (WT_SH_TILT_*) */
 } wt_sensor_config;
 
 typedef struct wt_recon_variant_config {

@@ -102,6 +102,10 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
         "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
     SENSOR("ngs.wfs", ngs_wfs),
+    {"ngs.wfs.tilt", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(ngs_wfs.tilt), NOCOUNT, 0, 0, "g|z", 0,
+     "what an NGS slope is, in the simulated sensors and the reconstructor's model alike: g = G-tilt, the "
+     "average gradient over the lit area (what a centroiding sensor measures), z = Z-tilt, the least-squares "
+     "plane over it (as other simulators' tip-tilt sensors; for like-for-like comparisons) (optional, default g)"},
 
     KFL("dm.altitudes_m", GE0(MAXALT), "m", 1, dm_altitude, ndms, 1, WT_MAX_DMS, "conjugation altitude of each DM"),
     KFL("dm.pitch_m", GT0(100.0), "m", 1, dm_pitch, ndms, 1, WT_MAX_DMS, "actuator pitch of each DM"),

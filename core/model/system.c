@@ -19,6 +19,7 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
     snprintf(s->name, sizeof s->name, "%s%d", kind == WT_SENSOR_LGS ? "LGS" : "NGS", index + 1);
     const wt_sensor_config *w = kind == WT_SENSOR_LGS ? &cfg->lgs_wfs : &cfg->ngs_wfs;
     s->spot_fwhm = w->spot_fwhm;
+    s->tilt = kind == WT_SENSOR_LGS ? WT_SH_TILT_G : w->tilt;
     s->sigma2 = wt_noise_variance(w->photons, w->read_noise_e, w->spot_fwhm, w->pixel, w->pixels, w->nea);
     if (kind == WT_SENSOR_LGS) {
         s->altitude = cfg->lgs_altitude;
@@ -28,7 +29,7 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
         s->launch_y = cfg->launch_radius * sin(az);
         if (cfg->lit_sensor_model)
             WT_TRY(wt_shack_hartmann_alloc_lit(ctx, cfg->diameter, cfg->obstruction, sys->n, sys->d, sys->sense_q,
-                                               sys->valid, 0, &s->sh));
+                                               sys->valid, 0, WT_SH_TILT_G, &s->sh));
         else WT_TRY(wt_shack_hartmann_alloc(ctx, sys->n, sys->d, sys->valid, &s->sh));
     } else {
         s->altitude = 0.0;
@@ -40,7 +41,10 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
                             cfg->path, m, sys->n);
         if (cfg->lit_sensor_model)
             WT_TRY(wt_shack_hartmann_alloc_lit(ctx, cfg->diameter, cfg->obstruction, sys->n, sys->d, sys->sense_q,
-                                               sys->valid, m, &s->sh));
+                                               sys->valid, m, s->tilt, &s->sh));
+        else if (s->tilt == WT_SH_TILT_Z)
+            return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: ngs.wfs.tilt = \"z\" needs recon.sensor_model = \"lit\" (the Fried "
+                            "model averages cell gradients: a G-tilt)", cfg->path);
         else WT_TRY(wt_shack_hartmann_alloc_averaged(ctx, sys->n, sys->d, sys->valid, m, &s->sh));
     }
     s->nsub = wt_shack_hartmann_nsub(s->sh);

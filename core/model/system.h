@@ -29,6 +29,7 @@ typedef struct wt_sensor {
     double launch_x, launch_y;  /* LGS launch position in the pupil [m] */
     double sigma2;              /* noise variance per axis [rad²] (photon + read noise, or NEA²) */
     double spot_fwhm;           /* θf [rad] */
+    int tilt;                   /* WT_SH_TILT_G / _Z: what a slope is (ngs.wfs.tilt; LGS G), model and truth */
     wt_shack_hartmann *sh;      /* Γ_m (owned) */
     int nsub;                   /* valid subapertures */
     int nslopes;                /* 2 nsub */

@@ -331,8 +331,49 @@ fail:
     return st;
 }
 
+/* Z-tilt rows of big subaperture (I, J) (see the header): ax, ay [(F+1)²] become the plane slopes' corner
+ * coefficients in units of 1/(2 δf), as accumulate() gives the G-tilt's; returns Σ w. */
+static double accumulate_ztilt(const double *wcell, int nf, int F, int I, int J, double *ax, double *ay)
+{
+    const int L = F + 1;
+    memset(ax, 0, sizeof *ax * (size_t)L * L);
+    memset(ay, 0, sizeof *ay * (size_t)L * L);
+    double W = 0.0;
+    for (int b = 0; b < F; b++) {
+        const double *wrow = wcell + (size_t)nf * (J * F + b) + (size_t)I * F;
+        for (int a = 0; a < F; a++) {
+            const double w = 0.25 * wrow[a];
+            const int c = a + L * b;
+            ax[c] += w, ax[c + 1] += w, ax[c + L] += w, ax[c + L + 1] += w; /* corner weights, in ax for now */
+            W += wrow[a];
+        }
+    }
+    if (!(W > 0.0)) return W;
+    /* moments about the subaperture centre, coordinates in units of δf */
+    const double h = 0.5 * F;
+    double s0 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+    for (int b = 0; b < L; b++)
+        for (int a = 0; a < L; a++) {
+            const double w = ax[a + L * b], x = a - h, y = b - h;
+            s0 += w, sx += w * x, sy += w * y, sxx += w * x * x, sxy += w * x * y, syy += w * y * y;
+        }
+    /* rows 2 and 3 of the inverse of the symmetric 3×3 N (cofactors) */
+    const double c00 = sxx * syy - sxy * sxy, c01 = -(sx * syy - sxy * sy), c02 = sx * sxy - sxx * sy;
+    const double c11 = s0 * syy - sy * sy, c12 = -(s0 * sxy - sx * sy), c22 = s0 * sxx - sx * sx;
+    const double det = s0 * c00 + sx * c01 + sy * c02;
+    for (int b = 0; b < L; b++)
+        for (int a = 0; a < L; a++) {
+            const int q = a + L * b;
+            const double w = ax[q], x = a - h, y = b - h;
+            /* slope per δf, times 2 W: the caller scales by 1 / (2 δf W) */
+            ax[q] = 2.0 * W * w * (c01 + c11 * x + c12 * y) / det;
+            ay[q] = 2.0 * W * w * (c02 + c12 * x + c22 * y) / det;
+        }
+    return W;
+}
+
 int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruction, int n, double d, int p,
-                                const uint8_t *valid, int m, wt_shack_hartmann **out)
+                                const uint8_t *valid, int m, int tilt, wt_shack_hartmann **out)
 {
     int st = WT_OK;
     wt_shack_hartmann *w = NULL;
@@ -340,6 +381,10 @@ int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruc
     uint8_t *bigvalid = NULL;
     *out = NULL;
     WT_TRY(check_lit_args(ctx, diameter, obstruction, n, d, p, valid, m));
+    if (tilt != WT_SH_TILT_G && tilt != WT_SH_TILT_Z)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): tilt = %d: need WT_SH_TILT_G (0) or WT_SH_TILT_Z (1)", tilt);
+    double (*const acc)(const double *, int, int, int, int, double *, double *) =
+        tilt == WT_SH_TILT_Z ? accumulate_ztilt : accumulate;
     const int M = m ? m : n, f = n / M; /* big subapertures per side; fine subapertures per big side */
     const int nf = n * p, F = f * p, L = F + 1, ng = nf + 1;
     const double df = d / p;
@@ -385,7 +430,7 @@ int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruc
     for (int J = 0; J < M; J++)
         for (int I = 0; I < M; I++) {
             if (!bigvalid[I + M * J]) continue;
-            const double W = accumulate(wcell, nf, F, I, J, ax, ay);
+            const double W = acc(wcell, nf, F, I, J, ax, ay);
             if (!(W > 0.0)) {
                 st = WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann (lit): subaperture (%d, %d) of the %d x %d sensor is valid but "
                               "not illuminated (obstruction %g, D = %g m)", I, J, M, M, obstruction, diameter);
@@ -408,7 +453,7 @@ int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruc
     WT_ALLOC(ctx, w->val, nnz_x + nnz_y, "sensor coefficients");
     for (k = 0; k < nsub; k++) {
         const int I = w->cell[k] % M, J = w->cell[k] / M;
-        const double W = accumulate(wcell, nf, F, I, J, ax, ay);
+        const double W = acc(wcell, nf, F, I, J, ax, ay);
         const double scale = 1.0 / (2.0 * df * W);
         int32_t qx = w->rowptr[k], qy = w->rowptr[nsub + k];
         for (int b = 0; b < L; b++)

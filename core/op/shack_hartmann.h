@@ -32,8 +32,15 @@ int wt_shack_hartmann_alloc_averaged(wt_context *ctx, int n, double d, const uin
  * big subaperture when 1 ≤ m < n), g_c the Fried gradient of cell c and w_c its illuminated fraction of
  * the annulus (D, obstruction). Validity as the averaged sensor's (m = 0 or n: `valid` itself). With
  * q = 1 and a fully lit subaperture it is the Fried slope. Corners in the layout of a (n q + 1)² grid. */
+enum { WT_SH_TILT_G = 0, WT_SH_TILT_Z = 1 };
+/* tilt = WT_SH_TILT_Z instead makes each row the Z-tilt of its (big) subaperture: the slope of the
+ * weighted least-squares plane a + b x + c y through the corner samples φ_k, weight w_k = Σ w_c / 4 over the
+ * (up to 4) lit sample cells of the subaperture that touch corner k (the trapezoid rule of the lit area),
+ *   [a b c]ᵀ = N⁻¹ Σ_k w_k [1 x_k y_k]ᵀ φ_k,   N = Σ_k w_k [1 x_k y_k]ᵀ[1 x_k y_k];
+ * what other simulators' tip-tilt sensors report. G-tilt and Z-tilt agree on a plane and differ by the
+ * gradient the higher modes (coma first) put into the average: G-tilt is what a centroid measures. */
 int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruction, int n, double d, int q,
-                                const uint8_t *valid, int m, wt_shack_hartmann **out);
+                                const uint8_t *valid, int m, int tilt, wt_shack_hartmann **out);
 void wt_shack_hartmann_free(wt_shack_hartmann *s);
 
 int wt_shack_hartmann_nsub(const wt_shack_hartmann *s);         /* valid (big) subapertures */

@@ -191,7 +191,7 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
         WT_TRY(wt_wfs_alloc(ctx, par->diameter, par->obstruction, sys->n, sys->d, p, sys->valid,
-                            s->kind == WT_SENSOR_LGS ? 0 : s->subapertures, &lp->wfs[m]));
+                            s->kind == WT_SENSOR_LGS ? 0 : s->subapertures, s->tilt, &lp->wfs[m]));
         if (wt_wfs_nslopes(lp->wfs[m]) != s->nslopes) {
             st = WT_ERROR(ctx, WT_ERR_INVALID, "%s: truth sensor has %d slopes, the model %d", s->name,
                           wt_wfs_nslopes(lp->wfs[m]), s->nslopes);

@@ -52,7 +52,7 @@ void wt_wfs_free(wt_wfs *w)
 }
 
 int wt_wfs_alloc(wt_context *ctx, double diameter, double obstruction, int n, double d, int p,
-                 const uint8_t *valid, int m, wt_wfs **out)
+                 const uint8_t *valid, int m, int tilt, wt_wfs **out)
 {
     int st = WT_OK;
     wt_wfs *w = NULL;
@@ -62,7 +62,7 @@ int wt_wfs_alloc(wt_context *ctx, double diameter, double obstruction, int n, do
     w->n = n;
     w->p = p;
     w->d = d;
-    st = wt_shack_hartmann_alloc_lit(ctx, diameter, obstruction, n, d, p, valid, m, &w->sh);
+    st = wt_shack_hartmann_alloc_lit(ctx, diameter, obstruction, n, d, p, valid, m, tilt, &w->sh);
     if (st < 0) {
         st = WT_ERROR(ctx, st, "wfs: %s", wt_error_message(ctx));
         goto fail;

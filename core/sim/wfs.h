@@ -36,12 +36,14 @@ typedef struct wt_wfs wt_wfs;
 
 /* [in] diameter D [m] > 0, obstruction ε ∈ [0, 1) (inner diameter ε D), n subapertures per side, side
  * d [m] with n d = D (relative 1e-9), p ≥ 1 fine points per subaperture side, valid[n*n] the LGS
- * valid-subaperture mask (not kept), m: 0 or n for the LGS-type sensor, else 1 ≤ m < n dividing n.
+ * valid-subaperture mask (not kept), m: 0 or n for the LGS-type sensor, else 1 ≤ m < n dividing n; tilt
+ * WT_SH_TILT_G (the average gradient above) or WT_SH_TILT_Z (the least-squares plane over the lit area,
+ * core/op/shack_hartmann.h; its slopes read every lit point, so the fine mask is the whole lit area).
  * Every valid (big) subaperture must be illuminated somewhere. [out] *out, owned by the caller.
  * Allocates the sensor and, during alloc only, (n p)² + 2 (n p / m' + 1)² doubles of work space
  * (m' = m or n). Errors: WT_ERR_INVALID naming the value, WT_ERR_NOMEM. */
 int wt_wfs_alloc(wt_context *ctx, double diameter, double obstruction, int n, double d, int p,
-                 const uint8_t *valid, int m, wt_wfs **out);
+                 const uint8_t *valid, int m, int tilt, wt_wfs **out);
 void wt_wfs_free(wt_wfs *w);
 
 /* The fine grid wt_grid_centred(n p + 1, d / p) the OPD lives on. */
