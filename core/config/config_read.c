@@ -591,6 +591,9 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
     int st = wt_config_priv_layer_grid(ps->ctx, cfg, name, !gs, v);
     if (st == WT_OK && !gs) st = write_list(ps, ks, v->spacing, NULL, v->nlayers);
     if (st == WT_OK) st = write_list(ps, kz, NULL, v->size, v->nlayers);
+    /* the canonical text gives the chosen grid and not the oversampling: it must read back (wavetomo run
+     * parses a stored one), and an oversampling beside a given spacing is refused above */
+    ps->set[ko] = NULL;
     return st;
 }
 
@@ -657,10 +660,7 @@ static int affects_matrix(const pstate *ps, const char *path)
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
                                        "recon.pcg3.coarse_levels", "recon.cg9.iterations", "recon.cg9.tolerance",
                                        "recon.cg9.preconditioner", "recon.cg9.coarse_levels",
-                                       "recon.cg9.fit_iterations", "recon.mvm_precision",
-                                       /* the grid it chose is in the text; the same grid given explicitly
-                                        * is the same matrix */
-                                       "recon.pcg3.layer_oversampling", "recon.cg9.layer_oversampling"};
+                                       "recon.cg9.fit_iterations", "recon.mvm_precision"};
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
     return 1;

@@ -67,10 +67,9 @@
     {pre ".layer_size", K_INTS, F_POW2 | F_AUTO, 4, 8192, "", 1, CF(v.size), CF(v.nlayers), 1, WT_MAX_LAYERS, NULL, 0, \
      "grid points per side of each layer, >= 2^recon.wavelet_levels; left out (or \"auto\"): the smallest power of " \
      "two whose grid covers every LGS, NGS and evaluation footprint at the layer's altitude" cover   \
-     " (only with layer_spacing_m left out or given)"},                                                   \
+     "; with layer_spacing_m given, for that spacing (a size without layer_spacing_m is refused)"},                                                   \
     {pre ".layer_oversampling", K_FLOAT, F_OPT, 0.25, 16.0, "", 1, CF(v.oversampling), NOCOUNT, 0, 0, NULL, 1.0, \
-     "the automatic layer_spacing_m is divided by this; only with layer_spacing_m left out (optional, "   \
-     "default 1)"},                                                                                        \
+     "the automatic layer_spacing_m is divided by this (default 1); refused beside a given layer_spacing_m"},                                                                                        \
     KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
     KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
     KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs", v.jacobi,                               \
