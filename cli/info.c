@@ -48,8 +48,16 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
         const wt_grid *g = wt_tomography_layer_grid(t, l);
         char gs[32];
         snprintf(gs, sizeof gs, "%dx%d", g->nx, g->ny);
-        printf("  %-5d %10.0f %12s %9.3g %10lld   (Cn2 fraction %.4f)\n", l + 1, wt_tomography_layer_altitude(t, l),
-               gs, g->dx, (long long)wt_grid_size(g), wt_tomography_layer_fraction(t, l));
+        char how[160] = "";
+        if (v->grid_auto == WT_GRID_AUTO) {
+            char base[48];
+            if (v->grid_base_dm[l] < 0) snprintf(base, sizeof base, "d = %g m", v->grid_base[l]);
+            else snprintf(base, sizeof base, "DM %d pitch %g m", v->grid_base_dm[l] + 1, v->grid_base[l]);
+            snprintf(how, sizeof how, "   (automatic: %s, oversampling %g)", base, v->oversampling);
+        } else if (v->grid_auto == WT_GRID_AUTO_SIZE)
+            snprintf(how, sizeof how, "   (automatic size for the given spacing)");
+        printf("  %-5d %10.0f %12s %9.3g %10lld   (Cn2 fraction %.4f)%s\n", l + 1, wt_tomography_layer_altitude(t, l),
+               gs, g->dx, (long long)wt_grid_size(g), wt_tomography_layer_fraction(t, l), how);
     }
     long long n = (long long)wt_tomography_nunknowns(t);
     printf("  total unknowns: %lld; prior D: %lld non-zeros (diagonal)\n", n, n);

@@ -628,10 +628,185 @@ START_TEST(test_reference)
             ck_assert_msg(strstr(ref, unit) != NULL, "%s: unit %s not in its line", path, unit);
         }
     }
-    ck_assert_int_eq(nkeys, nlines); /* one line per key, no more */
+    /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
+     * they chose does) */
+    ck_assert_int_eq(nkeys + 2, nlines);
+    ck_assert_ptr_nonnull(strstr(buf, "\nrecon.pcg3.layer_oversampling "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nrecon.cg9.layer_oversampling "));
     wt_config_free(ctx, c);
     wt_context_free(ctx);
     free(buf);
+}
+END_TEST
+
+/* ---------------------------------------------------------------- automatic layer grids */
+
+static wt_config *read_ok(wt_context *ctx, const char *file, int nov, const char *const *ov)
+{
+    wt_config *c = NULL;
+    int st = read_preset(ctx, file, nov, ov, &c);
+    ck_assert_msg(st == WT_OK, "%s: status %d: %s", file, st, wt_error_message(ctx));
+    return c;
+}
+
+static void assert_grid(const wt_recon_variant_config *v, const double *spacing, const int *size)
+{
+    for (int l = 0; l < v->nlayers; l++) {
+        ck_assert_msg(v->spacing[l] == spacing[l], "layer %d: spacing %.17g, want %.17g", l + 1, v->spacing[l], spacing[l]);
+        ck_assert_msg(v->size[l] == size[l], "layer %d: size %d, want %d", l + 1, v->size[l], size[l]);
+    }
+}
+
+/* Both keys left out ("auto" on the command line, since a preset's keys cannot be removed by --set): the
+ * E-ELT's hand-tuned grids come back (pcg3 on the DM pitches 0.5/1/1 m, 128/64/64; cg9 128 x 0.5 m at all
+ * nine altitudes, d = 0.5 m), so do the 42x42 preset's (pcg3 1/2/2 m, 64/32/32; cg9 64 x 1 m) and the
+ * demo's pcg3 (32/16/32); and the configuration is the preset's to the byte: the same canonical text and
+ * matrix hash, so an MVM built with either is accepted by the other. */
+START_TEST(test_auto_grid_presets)
+{
+    wt_context *ctx = tu_context();
+    const char *both[] = {"recon.pcg3.layer_spacing_m=auto", "recon.pcg3.layer_size=auto",
+                          "recon.cg9.layer_spacing_m=auto", "recon.cg9.layer_size=auto"};
+    static const struct {
+        const char *file;
+        double pcg3_spacing[3], cg9_spacing;
+        int pcg3_size[3], cg9_size, cg9_same; /* cg9_same: the preset's cg9 grid is the automatic one */
+    } want[] = {{"eelt-mcao.cfg", {0.5, 1.0, 1.0}, 0.5, {128, 64, 64}, 128, 1},
+                {"eelt-mcao-nea20-42.cfg", {1.0, 2.0, 2.0}, 1.0, {64, 32, 32}, 64, 1},
+                {"demo.cfg", {0.5, 1.0, 1.0}, 0.5, {32, 16, 32}, 32, 0}};
+    for (size_t i = 0; i < sizeof want / sizeof *want; i++) {
+        wt_config *a = read_ok(ctx, want[i].file, 4, both), *e = read_ok(ctx, want[i].file, 0, NULL);
+        assert_grid(&a->pcg3, want[i].pcg3_spacing, want[i].pcg3_size);
+        ck_assert_int_eq(a->pcg3.grid_auto, WT_GRID_AUTO);
+        ck_assert_int_eq(a->cg9.grid_auto, WT_GRID_AUTO);
+        ck_assert_int_eq(e->pcg3.grid_auto, WT_GRID_EXPLICIT);
+        for (int l = 0; l < 3; l++) {
+            ck_assert_int_eq(a->pcg3.grid_base_dm[l], l); /* the DM at the layer's altitude */
+            ck_assert(a->pcg3.grid_base[l] == want[i].pcg3_spacing[l]);
+        }
+        const int nl = a->cg9.nlayers;
+        for (int l = 0; l < nl && !strcmp(want[i].file, "demo.cfg"); l++) /* 12 km: the NGS at 80" need 64 */
+            ck_assert_int_eq(a->cg9.size[l], l < nl - 1 ? want[i].cg9_size : 2 * want[i].cg9_size);
+        for (int l = 0; l < nl; l++) {
+            ck_assert(a->cg9.spacing[l] == want[i].cg9_spacing);
+            ck_assert_int_eq(a->cg9.grid_base_dm[l], -1); /* d <= every DM pitch */
+            ck_assert(a->cg9.grid_base[l] == want[i].cg9_spacing);
+            if (want[i].cg9_same) ck_assert_int_eq(a->cg9.size[l], want[i].cg9_size);
+        }
+        if (want[i].cg9_same) {
+            ck_assert_str_eq(a->canonical, e->canonical);
+            ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+        }
+        wt_config_free(ctx, a);
+        wt_config_free(ctx, e);
+    }
+    /* the demo's pcg3 alone automatic: its preset grid, the same hash */
+    wt_config *a = read_ok(ctx, "demo.cfg", 2, both), *e = read_ok(ctx, "demo.cfg", 0, NULL);
+    ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+    ck_assert_str_eq(a->canonical, e->canonical);
+    wt_config_free(ctx, a);
+    wt_config_free(ctx, e);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The oversampling divides the automatic spacing; the sizes follow (0.25 m on the demo). The canonical text
+ * holds the chosen grid, not the oversampling, so the same grid given explicitly has the same text and
+ * matrix hash, and the text reads back as the same values (a round trip). A spacing of 1/3 m is written with
+ * the 15 digits the canonical text keeps, so that text reads back to the same bits. */
+START_TEST(test_auto_grid_oversampling)
+{
+    wt_context *ctx = tu_context();
+    const char *ov[] = {"recon.cg9.layer_spacing_m=auto", "recon.cg9.layer_size=auto", "recon.cg9.layer_oversampling=2"};
+    wt_config *a = read_ok(ctx, "demo.cfg", 3, ov);
+    for (int l = 0; l < a->cg9.nlayers; l++) {
+        ck_assert(a->cg9.spacing[l] == 0.25);
+        ck_assert(a->cg9.oversampling == 2.0);
+    }
+    const double s25[5] = {0.25, 0.25, 0.25, 0.25, 0.25};
+    const int n25[5] = {64, 64, 64, 64, 128};
+    assert_grid(&a->cg9, s25, n25);
+    const char *ex[] = {"recon.cg9.layer_spacing_m=[0.25, 0.25, 0.25, 0.25, 0.25]", "recon.cg9.layer_size=[64, 64, 64, 64, 128]"};
+    wt_config *e = read_ok(ctx, "demo.cfg", 2, ex);
+    ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+    ck_assert_str_eq(a->canonical, e->canonical); /* the chosen grid, not the oversampling */
+    wt_config *r = parse_ok(ctx, a->canonical, 0, NULL);
+    ck_assert_str_eq(r->matrix_sha256, a->matrix_sha256);
+    ck_assert_int_eq(r->cg9.grid_auto, WT_GRID_EXPLICIT);
+    assert_grid(&r->cg9, a->cg9.spacing, a->cg9.size);
+    wt_config_free(ctx, r);
+    wt_config_free(ctx, a);
+    wt_config_free(ctx, e);
+
+    const char *third[] = {"recon.cg9.layer_spacing_m=auto", "recon.cg9.layer_size=auto", "recon.cg9.layer_oversampling=1.5"};
+    a = read_ok(ctx, "demo.cfg", 3, third);
+    ck_assert(a->cg9.spacing[0] == strtod("0.333333333333333", NULL));
+    r = parse_ok(ctx, a->canonical, 0, NULL);
+    assert_grid(&r->cg9, a->cg9.spacing, a->cg9.size);
+    ck_assert_str_eq(r->matrix_sha256, a->matrix_sha256);
+    wt_config_free(ctx, r);
+    wt_config_free(ctx, a);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* One key of the two: a spacing without a size gives the smallest size for that spacing (the demo's cg9
+ * 1 m layers at 6 km need only 16 points); a size without a spacing is refused, and so are an oversampling
+ * beside a given spacing, a word other than "auto", and a grid beyond 8192 points; each message names the
+ * keys. "auto" also reads from a file (a string). */
+START_TEST(test_auto_grid_combinations)
+{
+    wt_context *ctx = tu_context();
+    const char *sz[] = {"recon.cg9.layer_size=auto"};
+    wt_config *c = read_ok(ctx, "demo.cfg", 1, sz);
+    const double s[5] = {0.5, 0.5, 0.5, 1.0, 1.0};
+    const int n[5] = {32, 32, 32, 16, 32};
+    assert_grid(&c->cg9, s, n);
+    ck_assert_int_eq(c->cg9.grid_auto, WT_GRID_AUTO_SIZE);
+    ck_assert_int_eq(c->pcg3.grid_auto, WT_GRID_EXPLICIT);
+    wt_config_free(ctx, c);
+
+    static const struct {
+        int nov;
+        const char *ov[3];
+        const char *want[3];
+    } bad[] = {
+        {1, {"recon.cg9.layer_spacing_m=auto"}, {"key 'recon.cg9.layer_size' is given but 'recon.cg9.layer_spacing_m' is left out", "demo.cfg:", ""}},
+        {1, {"recon.pcg3.layer_oversampling=2"}, {"--set recon.pcg3.layer_oversampling=2", "'recon.pcg3.layer_spacing_m' (", "demo.cfg:"}},
+        {2, {"recon.pcg3.layer_size=auto", "recon.pcg3.layer_oversampling=2"}, {"key 'recon.pcg3.layer_oversampling' is given with 'recon.pcg3.layer_spacing_m'", "", ""}},
+        {1, {"recon.cg9.layer_size=automatic"}, {"key 'recon.cg9.layer_size'", "or \"auto\"", "\"automatic\""}},
+        {2, {"recon.cg9.layer_size=auto", "recon.cg9.layer_spacing_m=[0.0005, 0.5, 0.5, 0.5, 0.5]"},
+         {"'recon.cg9.layer_size' (left out: automatic) and 'recon.cg9.layer_spacing_m'", "layer 1 at 0 m", "more than the 8192"}},
+        {3, {"recon.pcg3.layer_spacing_m=auto", "recon.pcg3.layer_size=auto", "recon.pcg3.layer_oversampling=0.1"},
+         {"key 'recon.pcg3.layer_oversampling'", "out of range", ""}},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        c = (wt_config *)1;
+        int st = read_preset(ctx, "demo.cfg", bad[i].nov, bad[i].ov, &c);
+        ck_assert_msg(st == WT_ERR_CONFIG, "case %zu: status %d", i, st);
+        ck_assert_ptr_null(c);
+        for (int k = 0; k < 3; k++)
+            ck_assert_msg(strstr(wt_error_message(ctx), bad[i].want[k]), "case %zu: \"%s\" lacks \"%s\"", i,
+                          wt_error_message(ctx), bad[i].want[k]);
+    }
+
+    /* in a file: the string "auto", or the keys left out */
+    int line;
+    char *text = edit("layer_spacing_m = [0.5, 1.0, 1.0];", "layer_spacing_m = \"auto\";", NULL, &line);
+    char *text2 = malloc(strlen(text) + 64);
+    const char *from = strstr(text, "layer_size = [32, 16, 32];");
+    ck_assert_ptr_nonnull(from);
+    snprintf(text2, strlen(text) + 64, "%.*s%s", (int)(from - text), text, from + strlen("layer_size = [32, 16, 32];"));
+    c = parse_ok(ctx, text2, 0, NULL);
+    ck_assert_int_eq(c->pcg3.grid_auto, WT_GRID_AUTO);
+    const double ps[3] = {0.5, 1.0, 1.0};
+    const int pn[3] = {32, 16, 32};
+    assert_grid(&c->pcg3, ps, pn);
+    ck_assert_ptr_nonnull(strstr(c->canonical, "layer_size = [ 32, 16, 32 ]"));
+    wt_config_free(ctx, c);
+    free(text);
+    free(text2);
+    wt_context_free(ctx);
 }
 END_TEST
 
@@ -678,6 +853,9 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));
     tcase_add_test(tc, test_files);
     tcase_add_test(tc, test_reference);
+    tcase_add_test(tc, test_auto_grid_presets);
+    tcase_add_test(tc, test_auto_grid_oversampling);
+    tcase_add_test(tc, test_auto_grid_combinations);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);
     return s;

@@ -34,11 +34,20 @@ typedef struct wt_sensor_config {
                                 area (a centroid); 1 Z-tilt, the least-squares plane over it (WT_SH_TILT_*) */
 } wt_sensor_config;
 
+/* How a reconstruction variant's layer grids were chosen (wt_recon_variant_config.grid_auto). */
+enum { WT_GRID_EXPLICIT = 0, WT_GRID_AUTO_SIZE = 1, WT_GRID_AUTO = 2 };
+
 typedef struct wt_recon_variant_config {
     int nlayers;
     double altitudes[WT_MAX_LAYERS]; /* reconstruction layer altitudes [m] */
     double spacing[WT_MAX_LAYERS];   /* layer grid spacing [m] */
     int size[WT_MAX_LAYERS];         /* layer grid points per side, a power of two */
+    int grid_auto;                   /* WT_GRID_EXPLICIT, WT_GRID_AUTO_SIZE (spacing given), WT_GRID_AUTO
+                                        (both left out): how spacing and size were chosen (config_grid.c) */
+    double oversampling;             /* layer_oversampling: the automatic spacing is grid_base / this [-] */
+    double grid_base[WT_MAX_LAYERS]; /* WT_GRID_AUTO: the length the spacing divides: the LGS subaperture
+                                        side d, or the pitch of DM grid_base_dm [m] */
+    int grid_base_dm[WT_MAX_LAYERS]; /* WT_GRID_AUTO: -1 when grid_base is d, else the DM index (0-based) */
     int iterations;                  /* (P)CG iterations per frame */
     double tolerance;                /* relative residual to stop at; 0: always run `iterations` */
     int jacobi;                      /* 0: plain CG, 1: modified Jacobi PCG, 2: Jacobi + NGS low-rank term,

@@ -15,7 +15,9 @@ enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS };
 /* F_OPT: may be absent (then `def` is stored and the key is left out of the canonical text);
  * F_DEFAULT: may be absent, and then behaves exactly as if `def` had been written in the file (it appears
  * in the canonical text and the matrix hash, so a later change of default is seen by stored matrices). */
-enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32, F_DEFAULT = 64 };
+/* F_AUTO: may be absent or "auto" (layer grids only); then config_grid.c chooses the value from the system
+ * and it is written into the canonical text and the matrix hash as if the file had given it. */
+enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32, F_DEFAULT = 64, F_AUTO = 128 };
 
 typedef struct wt_config_priv_key_spec {
     const char *path;    /* dotted libconfig path */
@@ -34,7 +36,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 81 };
+enum { WT_CONFIG_PRIV_NKEYS = 83 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
@@ -51,6 +53,16 @@ void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n
 /* Quantities derived from several keys (shift per frame, screen size, unknowns) against what the code
  * can run; the message names every key involved. */
 int wt_config_priv_check_derived(wt_context *ctx, const wt_config *cfg);
+
+/* ---------------------------------------------------------------- config_grid.c */
+
+/* The automatic layer grids of variant v ("pcg3" or "cg9"; every other key of cfg loaded and checked
+ * against the LGS altitude): with auto_spacing, v->spacing[l] = (DM pitch, or min(d, DM pitch) for cg9) /
+ * v->oversampling, rounded to the 15 digits the canonical text keeps, and grid_base/grid_base_dm; then
+ * v->size[l] = the smallest power of two >= max(4, 2^J) whose layer grid covers every footprint at the
+ * layer's altitude (see config_grid.c). WT_ERR_CONFIG naming the keys when that exceeds 8192 points. */
+int wt_config_priv_layer_grid(wt_context *ctx, const wt_config *cfg, const char *name, int auto_spacing,
+                              wt_recon_variant_config *v);
 
 /* ---------------------------------------------------------------- config_text.c */
 

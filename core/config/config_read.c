@@ -305,7 +305,8 @@ static int apply_override(pstate *ps, int i)
     config_t tmp;
     int st = WT_OK, ok = 0;
     /* a bare word is retried as a string for string keys (recon.prior=exact) */
-    for (int quoted = 0; !ok && quoted < 1 + (wt_config_priv_keys[k].type == K_ENUM && !memchr(v, '"', vl)); quoted++) {
+    const int words = wt_config_priv_keys[k].type == K_ENUM || (wt_config_priv_keys[k].flags & F_AUTO);
+    for (int quoted = 0; !ok && quoted < 1 + (words && !memchr(v, '"', vl)); quoted++) {
         wt_config_priv_text vt;
         if (quoted) config_destroy(&tmp);
         snprintf(text, cap, quoted ? "v = \"%.*s\";" : "v = %.*s;", (int)vl, v);
@@ -425,9 +426,14 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     char loc[512], want[160], got[200], a[40], b[40];
     char *dst = (char *)cfg + ks->off;
     const config_setting_t *s = config_lookup(ps->cf, ks->path);
+    /* an automatic key left out or written "auto": config_grid.c chooses it after every key is loaded */
+    if (s && (ks->flags & F_AUTO) && config_setting_type(s) == CONFIG_TYPE_STRING &&
+        !strcmp(config_setting_get_string(s), "auto"))
+        s = NULL;
     ps->set[k] = s;
     expected_text(ks, want, sizeof want);
     if (!s) {
+        if (ks->flags & F_AUTO) return WT_OK;
         if (ks->flags & F_OPT) {
             *(double *)dst = ks->def;
             return WT_OK;
@@ -479,8 +485,8 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     /* lists: [a, b] arrays (one element type) or (a, b) lists */
     if (!config_setting_is_array(s) && !config_setting_is_list(s)) {
         describe(s, got, sizeof got);
-        return FAIL(ps, k, s, "key '%s': expected a list [ ... ] of %d..%d elements, each %s, got %s", ks->path,
-                    ks->minlen, ks->maxlen, want, got);
+        return FAIL(ps, k, s, "key '%s': expected a list [ ... ] of %d..%d elements, each %s%s, got %s", ks->path,
+                    ks->minlen, ks->maxlen, want, ks->flags & F_AUTO ? ", or \"auto\"" : "", got);
     }
     int n = config_setting_length(s);
     if (n < ks->minlen || n > ks->maxlen)
@@ -542,6 +548,55 @@ static int check_sizes(pstate *ps, const wt_config *cfg, const char *path, const
     return WT_OK;
 }
 
+/* A chosen list written into the file's tree, as if given: it is then in the canonical text and the matrix
+ * hash like any key (an MVM built on a chosen grid is refused when the choice would change). */
+static int write_list(pstate *ps, int k, const double *f, const int *iv, int n)
+{
+    const char *leaf;
+    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *d = NULL;
+    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+    if (g) d = config_setting_add(g, leaf, CONFIG_TYPE_ARRAY);
+    for (int i = 0; d && i < n; i++)
+        if (!(f ? config_setting_set_float_elem(d, -1, f[i]) : config_setting_set_int_elem(d, -1, iv[i]))) d = NULL;
+    if (!d)
+        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                        wt_config_priv_keys[k].path);
+    ps->set[k] = d;
+    return WT_OK;
+}
+
+/* recon.<name>.layer_spacing_m / layer_size / layer_oversampling: which are given decides what is chosen
+ * (config_grid.c). Both given: as written. Spacing given, size left out: the size follows from the spacing.
+ * Both left out: both chosen, the spacing divided by layer_oversampling. Refused: a size without its
+ * spacing (it fixes neither the resolution nor the extent) and an oversampling beside a given spacing (it
+ * would be ignored). */
+static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_variant_config *v)
+{
+    char loc[512], oth[512], sp[64], sz[64], os[64];
+    snprintf(sp, sizeof sp, "recon.%s.layer_spacing_m", name);
+    snprintf(sz, sizeof sz, "recon.%s.layer_size", name);
+    snprintf(os, sizeof os, "recon.%s.layer_oversampling", name);
+    const int ks = find_key(sp), kz = find_key(sz), ko = find_key(os);
+    const int gs = ps->set[ks] != NULL, gz = ps->set[kz] != NULL, go = ps->set[ko] != NULL;
+    v->grid_auto = WT_GRID_EXPLICIT;
+    if (gs && go)
+        return FAIL(ps, ko, ps->set[ko], "key '%s' is given with '%s' (%s): the oversampling divides only the "
+                    "automatic spacing; leave out one of them", os, sp, where(ps, ks, ps->set[ks], oth, sizeof oth));
+    if (!gs && gz)
+        return FAIL(ps, kz, ps->set[kz], "key '%s' is given but '%s' is left out (or \"auto\"): a size alone fixes "
+                    "neither the resolution nor the extent of a layer; give both, only '%s' (the size then follows "
+                    "from it), or neither (both chosen from the system)", sz, sp, sp);
+    if (gs && gz) return WT_OK;
+    v->grid_auto = gs ? WT_GRID_AUTO_SIZE : WT_GRID_AUTO;
+    int st = wt_config_priv_layer_grid(ps->ctx, cfg, name, !gs, v);
+    if (st == WT_OK && !gs) st = write_list(ps, ks, v->spacing, NULL, v->nlayers);
+    if (st == WT_OK) st = write_list(ps, kz, NULL, v->size, v->nlayers);
+    /* the canonical text gives the chosen grid and not the oversampling: it must read back (wavetomo run
+     * parses a stored one), and an oversampling beside a given spacing is refused above */
+    ps->set[ko] = NULL;
+    return st;
+}
+
 static int check_consistency(pstate *ps, wt_config *cfg)
 {
     char loc[512], oth[512];
@@ -570,6 +625,8 @@ static int check_consistency(pstate *ps, wt_config *cfg)
             (st = check_below_lgs(ps, cfg, "recon.cg9.layer_altitudes_m", cfg->cg9.altitudes, cfg->cg9.nlayers)) < 0)
             return st;
     }
+    if ((st = resolve_grid(ps, cfg, "pcg3", &cfg->pcg3)) < 0 || (st = resolve_grid(ps, cfg, "cg9", &cfg->cg9)) < 0)
+        return st;
     if ((st = check_sizes(ps, cfg, "recon.pcg3.layer_size", &cfg->pcg3)) < 0 ||
         (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
         return st;

@@ -50,13 +50,26 @@
      "is that of f N photons (NEA^2 / f with nea_mas), in the simulated noise and the reconstructor's "      \
      "weights (optional, default false)"}
 
-#define VARIANT(pre, v)                                                                                    \
+/* The automatic layer grids (config_grid.c, docs/design.md): the spacing rule of each variant, and what
+ * pcg3's layers must also hold (the actuators they are read at). */
+#define PCG3_SPACING "the pitch of the DM at the layer's altitude (the finer of the two DMs around it, the end DM " \
+                     "outside their range)"
+#define CG9_SPACING "min(LGS subaperture side d, the pitch of the DM at the layer's altitude or the finer of the two " \
+                    "DMs around it, the end DM outside their range)"
+#define PCG3_COVER " and the active actuators of the DMs the layer is read at"
+
+#define VARIANT(pre, v, spacing_rule, cover)                                                                                    \
     KFL(pre ".layer_altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
         "reconstruction layer altitudes, strictly increasing"),                                            \
-    KFL(pre ".layer_spacing_m", GT0(100.0), "m", 1, v.spacing, v.nlayers, 1, WT_MAX_LAYERS,                       \
-        "grid spacing of each reconstruction layer"),                                                      \
-    KIL(pre ".layer_size", F_POW2, 4, 8192, v.size, v.nlayers, 1, WT_MAX_LAYERS,                        \
-        "grid points per side of each layer; >= 2^recon.wavelet_levels"),                                  \
+    {pre ".layer_spacing_m", K_FLOATS, F_LO_OPEN | F_AUTO, 0.0, 100.0, "m", 1, CF(v.spacing), CF(v.nlayers), 1,   \
+     WT_MAX_LAYERS, NULL, 0, "grid spacing of each reconstruction layer; left out (or \"auto\"): per layer, "     \
+     spacing_rule " / layer_oversampling (docs/design.md)"},                                          \
+    {pre ".layer_size", K_INTS, F_POW2 | F_AUTO, 4, 8192, "", 1, CF(v.size), CF(v.nlayers), 1, WT_MAX_LAYERS, NULL, 0, \
+     "grid points per side of each layer, >= 2^recon.wavelet_levels; left out (or \"auto\"): the smallest power of " \
+     "two whose grid covers every LGS, NGS and evaluation footprint at the layer's altitude" cover   \
+     "; with layer_spacing_m given, for that spacing (a size without layer_spacing_m is refused)"},                                                   \
+    {pre ".layer_oversampling", K_FLOAT, F_OPT, 0.25, 16.0, "", 1, CF(v.oversampling), NOCOUNT, 0, 0, NULL, 1.0, \
+     "the automatic layer_spacing_m is divided by this (default 1); refused beside a given layer_spacing_m"},                                                                                        \
     KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
     KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
     KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs", v.jacobi,                               \
@@ -151,8 +164,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
      "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
      "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},
-    VARIANT("recon.pcg3", pcg3),
-    VARIANT("recon.cg9", cg9),
+    VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER),
+    VARIANT("recon.cg9", cg9, CG9_SPACING, ""),
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
     KF("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
@@ -206,6 +219,8 @@ void wt_config_print_reference(FILE *f)
         }
         snprintf(unit, sizeof unit, *ks->unit ? "[%s]" : "-", ks->unit);
         fprintf(f, "%-36s %-8s %-38s %-10s %s%s\n", ks->path, tname[ks->type], rng, unit, ks->desc,
-                ks->flags & F_OPT ? " (optional)" : "");
+                ks->flags & F_OPT    ? " (optional)"
+                : ks->flags & F_AUTO ? " (optional: automatic when left out)"
+                                     : "");
     }
 }
