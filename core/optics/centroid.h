@@ -53,6 +53,10 @@ enum {
     WT_CENTROID_MF = 2    /* matched filter (Gilles & Ellerbroek 2006) */
 };
 
+/* Largest detector side Ns [pixels]: far beyond any Shack–Hartmann subaperture (4–32 in practice); the
+ * per-frame CoG keeps two column sums of this length on the stack. */
+#define WT_CENTROID_MAX_PIXELS 256
+
 typedef struct wt_centroid_params {
     int method;             /* WT_CENTROID_COG, _TCOG or _MF */
     int window;             /* Nw: CoG/tCoG window of Nw x Nw pixels centred on the detector, Ns − Nw even;
