@@ -44,7 +44,7 @@ static void render(const spot *s, int ns, float *img, float *dx, float *dy)
         const double ylo = (iy - c0 - 0.5) * PIX - s->ty, yhi = ylo + PIX;
         for (int ix = 0; ix < ns; ix++) {
             const double ulo = (ix - c0 - 0.5) * PIX - s->tx, h = PIX / NQ;
-            double in = 0.0, iny = 0.0, edge[2];
+            double in = 0.0, iny = 0.0, edge[2] = {0.0, 0.0};
             for (int q = 0; q <= NQ; q++) {
                 const double u = ulo + q * h, w = (q == 0 || q == NQ) ? 1.0 : (q % 2 ? 4.0 : 2.0);
                 const double fx = npdf(u, sx);
@@ -326,6 +326,68 @@ START_TEST(test_threshold)
 }
 END_TEST
 
+START_TEST(test_cov_formula)
+{
+    /* The set-up covariance against the formulas of centroid.h written out here, on an off-centre
+     * elongated spot (so the reference centroid (x0, y0) ≠ 0 and the gain is not diagonal): CoG over a
+     * 6² window of 8², Σ_ab = Σ_W (a_j − a0)(b_j − b0) V_j / N0², then g⁻¹ Σ g⁻ᵀ with the reported gain;
+     * the MF's R C Rᵀ against the top-left 2x2 of (Gᵀ C⁻¹ G)⁻¹ (equal when C is the noise: the float rows
+     * round to ~1e-7). Double sums of the same terms: 1e-10 for the CoG. */
+    wt_context *ctx = tu_context();
+    const int ns = 8;
+    const double b = 2.0, se = 1.5;
+    spot s0 = {.flux = 700, .sl = 2.2 * PIX, .ss = 0.9 * PIX, .ang = 0.7, .tx = 1.2 * PIX, .ty = -0.8 * PIX};
+    float *ref, *dx, *dy;
+    render_sensor(&s0, 1, ns, &ref, &dx, &dy);
+    wt_centroid_params p = params(WT_CENTROID_COG, b, se);
+    p.window = 6;
+    p.apply_gain = 1;
+    wt_centroid *c = make(ctx, &p, 1, ns, ref, dx, dy);
+    double n0 = 0, x0 = 0, y0 = 0, sxx = 0, sxy = 0, syy = 0, g[4], cov[3];
+    for (int pass = 0; pass < 2; pass++)
+        for (int iy = 1; iy < 7; iy++)
+            for (int ix = 1; ix < 7; ix++) {
+                const double i0 = ref[ix + ns * iy], x = (ix - 3.5) * PIX, y = (iy - 3.5) * PIX;
+                if (pass == 0) {
+                    n0 += i0, x0 += x * i0, y0 += y * i0;
+                } else {
+                    const double v = i0 + b + se * se, ax = x - x0 / n0, ay = y - y0 / n0;
+                    sxx += ax * ax * v, sxy += ax * ay * v, syy += ay * ay * v;
+                }
+            }
+    sxx /= n0 * n0, sxy /= n0 * n0, syy /= n0 * n0;
+    ck_assert_msg(hypot(x0, y0) / n0 > 0.5 * PIX, "the reference centroid should be off-centre");
+    wt_centroid_gain(c, 0, g);
+    const double det = g[0] * g[3] - g[1] * g[2], h[4] = {g[3] / det, -g[1] / det, -g[2] / det, g[0] / det};
+    /* h Σ hᵀ */
+    const double exx = h[0] * (h[0] * sxx + h[1] * sxy) + h[1] * (h[0] * sxy + h[1] * syy);
+    const double exy = h[2] * (h[0] * sxx + h[1] * sxy) + h[3] * (h[0] * sxy + h[1] * syy);
+    const double eyy = h[2] * (h[2] * sxx + h[3] * sxy) + h[3] * (h[2] * sxy + h[3] * syy);
+    wt_centroid_noise_cov(c, cov);
+    ck_assert_rel(cov[0], exx, 1e-10, 0);
+    ck_assert_rel(cov[2], eyy, 1e-10, 0);
+    ck_assert_double_eq_tol(cov[1], exy, 1e-10 * sqrt(exx * eyy));
+    wt_centroid_free(c);
+
+    /* MF: M = Gᵀ C⁻¹ G (2x2), its inverse */
+    double m[3] = {0};
+    for (int j = 0; j < ns * ns; j++) {
+        const double v = ref[j] + b + se * se;
+        m[0] += (double)dx[j] * dx[j] / v, m[1] += (double)dx[j] * dy[j] / v, m[2] += (double)dy[j] * dy[j] / v;
+    }
+    const double dm = m[0] * m[2] - m[1] * m[1];
+    wt_centroid_params pm = params(WT_CENTROID_MF, b, se);
+    c = make(ctx, &pm, 1, ns, ref, dx, dy);
+    wt_centroid_noise_cov(c, cov);
+    ck_assert_rel(cov[0], m[2] / dm, 1e-6, 0);
+    ck_assert_rel(cov[2], m[0] / dm, 1e-6, 0);
+    ck_assert_double_eq_tol(cov[1], -m[1] / dm, 1e-6 * sqrt(m[0] * m[2]) / dm);
+    wt_centroid_free(c);
+    free(ref), free(dx), free(dy);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* Sample variance of x (n values). */
 static double sample_var(const double *x, int n, double *mean)
 {
@@ -465,16 +527,17 @@ START_TEST(test_mf_unbiased_better)
 }
 END_TEST
 
-/* The subaperture classes of the covariance test: unelongated, elongated at three angles, truncated. */
+/* The subaperture classes of the covariance test: unelongated, elongated at three angles (one off-centre),
+ * truncated (off-centre). */
 enum { NCLASS = 5, CNS = 10 };
 static void classes(spot *s)
 {
     const double n = 500;
     s[0] = (spot){.flux = n, .sl = 1.0 * PIX, .ss = 1.0 * PIX};
     s[1] = (spot){.flux = n, .sl = 2.0 * PIX, .ss = 0.8 * PIX, .ang = 0};
-    s[2] = (spot){.flux = n, .sl = 2.0 * PIX, .ss = 0.8 * PIX, .ang = 35 * M_PI / 180};
+    s[2] = (spot){.flux = n, .sl = 2.0 * PIX, .ss = 0.8 * PIX, .ang = 35 * M_PI / 180, .tx = 0.3 * PIX, .ty = -0.2 * PIX};
     s[3] = (spot){.flux = n, .sl = 2.0 * PIX, .ss = 0.8 * PIX, .ang = 80 * M_PI / 180};
-    s[4] = (spot){.flux = n, .sl = 4.0 * PIX, .ss = 0.8 * PIX, .ang = 45 * M_PI / 180};
+    s[4] = (spot){.flux = n, .sl = 4.0 * PIX, .ss = 0.8 * PIX, .ang = 45 * M_PI / 180, .tx = 0.5 * PIX, .ty = 0.4 * PIX};
 }
 
 START_TEST(test_cov_analytic_vs_mc)
@@ -537,9 +600,10 @@ static void random_sensor(int nsub, int ns, float **ref, float **dx, float **dy)
 
 START_TEST(test_threads)
 {
-    /* Slopes and the Monte-Carlo calibration bit-identical with 1 and 2 threads, every centroider. */
+    /* Slopes and the Monte-Carlo calibration bit-identical with 1 and 2 threads, every centroider. The
+     * apply shares blocks of 64 subapertures among the threads: 150 makes 3 blocks, the last partial. */
     wt_context *ctx = tu_context();
-    const int nsub = 37, ns = 8;
+    const int nsub = 150, ns = 8;
     float *ref, *dx, *dy;
     random_sensor(nsub, ns, &ref, &dx, &dy);
     float *img = malloc((size_t)nsub * ns * ns * sizeof *img);
@@ -732,6 +796,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_gain_fd);
     tcase_add_test(tc, test_mf_flux_column);
     tcase_add_test(tc, test_threshold);
+    tcase_add_test(tc, test_cov_formula);
     tcase_add_test(tc, test_photon_noise_cog);
     tcase_add_test(tc, test_read_noise_cog);
     tcase_add_test(tc, test_mf_unbiased_better);

@@ -12,6 +12,7 @@
  */
 #include "centroid.h"
 
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 #ifdef _OPENMP
@@ -60,7 +61,7 @@ static inline void mf_dot(const float *restrict rx, const float *restrict ry, co
     double ax[L] = {0}, ay[L] = {0};
     size_t j = 0;
     for (; j + L <= npix; j += L)
-        for (int k = 0; k < L; k++) {
+        for (size_t k = 0; k < L; k++) {
             ax[k] += (double)rx[j + k] * (double)d[j + k];
             ay[k] += (double)ry[j + k] * (double)d[j + k];
         }
@@ -396,7 +397,9 @@ static int check_params(wt_context *ctx, const wt_centroid_params *par, int nsub
     if (par->method != WT_CENTROID_COG && par->method != WT_CENTROID_TCOG && par->method != WT_CENTROID_MF)
         return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: method = %d: must be WT_CENTROID_COG (0), _TCOG (1) or _MF (2)",
                         par->method);
-    if (nsub < 1) return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: nsub = %d: must be >= 1", nsub);
+    /* 4·nsub indexes the gains in int arithmetic */
+    if (nsub < 1 || nsub > INT_MAX / 4)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: nsub = %d: must be in [1, %d]", nsub, INT_MAX / 4);
     if (ns < 1 || ns > WT_CENTROID_MAX_PIXELS)
         return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: ns = %d: must be in [1, %d]", ns, WT_CENTROID_MAX_PIXELS);
     if (par->window < 0 || par->window > ns)
@@ -499,7 +502,7 @@ int wt_centroid_alloc(wt_context *ctx, const wt_centroid_params *par, int nsub, 
         }
         c->cov[i] = cxx;
         c->cov[nsub + i] = cxy;
-        c->cov[2 * (size_t)nsub + i] = cyy;
+        c->cov[2 * nsub + i] = cyy;
     }
     wt_free(ctx, work);
     *out = c;
@@ -609,7 +612,7 @@ int wt_centroid_noise_mc(const wt_centroid *c, const float *images, int ndraws, 
             }
             cov[i] = qxx / (ndraws - 1);
             cov[nsub + i] = qxy / (ndraws - 1);
-            cov[2 * (size_t)nsub + i] = qyy / (ndraws - 1);
+            cov[2 * nsub + i] = qyy / (ndraws - 1);
             if (mean) {
                 mean[i] = mx;
                 mean[nsub + i] = my;
