@@ -66,6 +66,18 @@ int main(void)
             printf("%-5s threads %d: per frame median %.2f ms, min %.2f ms (set-up %.2f s)\n", name[m], th,
                    1e3 * t[nrep / 2], 1e3 * t[0], tset);
         }
+        if (m == WT_CENTROID_MF) { /* Monte-Carlo calibration: 1000 subapertures, K = 200 */
+            static double cov[3 * 1000];
+            wt_centroid *cm = NULL;
+            wt_context_set_threads(ctx, 2);
+            if (wt_centroid_alloc(ctx, &par, 1000, ns, ref, dx, dy, &cm) != WT_OK) return 1;
+            t0 = wt_time_now();
+            if (wt_centroid_noise_mc(cm, ref, 200, 1, cov, NULL) != WT_OK) return 1;
+            const double tm = wt_time_now() - t0;
+            printf("noise_mc: %.2f s for 1000 subapertures x 200 draws x %d pixels on 2 threads: %.1f ns per pixel draw\n",
+                   tm, ns * ns, 1e9 * tm * 2 / (1000.0 * 200 * ns * ns));
+            wt_centroid_free(cm);
+        }
         wt_centroid_free(c);
     }
     wt_context_free(ctx);
