@@ -459,6 +459,55 @@ START_TEST(test_nea_is_short_axis)
 }
 END_TEST
 
+/* wt_noise_alloc_blocks (diffractive sensors' calibrated covariances): the blocks σ²(I + ββᵀ/θf²) given
+ * explicitly reproduce wt_noise_alloc's model for every τ (τ scales the part beyond the short axis σ²,
+ * exactly the paper's τ/θf² ββᵀ), to rounding (1e-12 relative: a few operations per block, condition
+ * ≲ 100); the inverse blocks invert; a block that is not positive definite, or NaN, is refused naming its
+ * subaperture. */
+START_TEST(test_alloc_blocks)
+{
+    wt_context *ctx = tu_context();
+    const int nsub = 500, ns = 2 * nsub;
+    double *beta = malloc(ns * sizeof *beta), *cov = malloc(3 * nsub * sizeof *cov);
+    make_beta(nsub, beta, 9);
+    const double s2 = sigma2_lgs(), g = 1.0 / (LGS_FWHM * LGS_FWHM);
+    for (int i = 0; i < nsub; i++) {
+        const double bx = beta[i], by = beta[nsub + i];
+        cov[i] = s2 * (1 + g * bx * bx), cov[nsub + i] = s2 * g * bx * by, cov[2 * nsub + i] = s2 * (1 + g * by * by);
+    }
+    const double taus[] = {0.0, 0.4, 0.8, 1.0};
+    for (int t = 0; t < 4; t++) {
+        wt_noise *a = NULL, *b = NULL;
+        ck_assert_int_eq(wt_noise_alloc(ctx, nsub, s2, LGS_FWHM, beta, taus[t], 1, &a), WT_OK);
+        ck_assert_int_eq(wt_noise_alloc_blocks(ctx, nsub, cov, taus[t], 1, &b), WT_OK);
+        double *x = malloc(ns * sizeof *x), *ya = calloc(ns, sizeof *ya), *yb = calloc(ns, sizeof *yb), *z = calloc(ns, sizeof *z);
+        tu_randn(x, ns, 30 + t);
+        wt_noise_apply_cov(a, 1.0, x, ya);
+        wt_noise_apply_cov(b, 1.0, x, yb);
+        ck_assert_double_le(tu_rel_diff(yb, ya, ns), 1e-12);
+        memset(ya, 0, ns * sizeof *ya), memset(yb, 0, ns * sizeof *yb);
+        wt_noise_apply_weight(a, 1.0, x, ya);
+        wt_noise_apply_weight(b, 1.0, x, yb);
+        ck_assert_double_le(tu_rel_diff(yb, ya, ns), 1e-12);
+        memset(yb, 0, ns * sizeof *yb);
+        wt_noise_apply_inv(b, 1.0, x, yb);
+        wt_noise_apply_cov(b, 1.0, yb, z);
+        ck_assert_double_le(tu_rel_diff(z, x, ns), 1e-12);
+        free(x), free(ya), free(yb), free(z);
+        wt_noise_free(a), wt_noise_free(b);
+    }
+    wt_noise *n = NULL;
+    cov[nsub + 17] = sqrt(cov[17] * cov[2 * nsub + 17]); /* singular block */
+    ck_assert_int_eq(wt_noise_alloc_blocks(ctx, nsub, cov, 0.8, 1, &n), WT_ERR_INVALID);
+    ck_assert_ptr_null(n);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "subaperture 17"));
+    cov[nsub + 17] = NAN;
+    ck_assert_int_eq(wt_noise_alloc_blocks(ctx, nsub, cov, 0.8, 1, &n), WT_ERR_INVALID);
+    free(beta), free(cov);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_bad_input)
 {
     wt_context *ctx = tu_context();
@@ -532,6 +581,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_loop_gain);
     tcase_add_test(tc, test_sampling);
     tcase_add_test(tc, test_nea_is_short_axis);
+    tcase_add_test(tc, test_alloc_blocks);
     tcase_add_test(tc, test_bad_input);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);

@@ -156,6 +156,61 @@ fail:
     return st;
 }
 
+int wt_noise_alloc_blocks(wt_context *ctx, int nsub, const double *cov, double tau, int remove_tt, wt_noise **out)
+{
+    int st = WT_OK;
+    wt_noise *n = NULL;
+    *out = NULL;
+    if (nsub < 1) return WT_ERROR(ctx, WT_ERR_INVALID, "noise: nsub = %d, expected at least 1 subaperture", nsub);
+    if (!(tau >= 0.0 && tau <= 1.0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "noise: elongation weight tau = %g, expected in [0, 1]", tau);
+    if (!cov) return WT_ERROR(ctx, WT_ERR_INVALID, "noise: the covariance blocks are NULL");
+    for (int i = 0; i < nsub; i++) {
+        const double a = cov[i], b = cov[nsub + i], c = cov[2 * nsub + i];
+        if (!isfinite(a) || !isfinite(b) || !isfinite(c) || !(a > 0.0) || !(c > 0.0) || !(a * c - b * b > 0.0))
+            return WT_ERROR(ctx, WT_ERR_INVALID,
+                            "noise: covariance block of subaperture %d is [[%g, %g], [%g, %g]] rad^2, expected finite "
+                            "and positive definite", i, a, b, b, c);
+    }
+    WT_ALLOC(ctx, n, 1, "noise model");
+    n->ctx = ctx;
+    n->nsub = nsub;
+    n->remove_tt = remove_tt ? 1 : 0;
+    n->tau = tau;
+    WT_ALLOC(ctx, n->store, (size_t)9 * (size_t)nsub, "noise blocks");
+    double *p = n->store;
+    n->ia = p, p += nsub;
+    n->ib = p, p += nsub;
+    n->ic = p, p += nsub;
+    n->ca = p, p += nsub;
+    n->cb = p, p += nsub;
+    n->cc = p, p += nsub;
+    n->l11 = p, p += nsub;
+    n->l21 = p, p += nsub;
+    n->l22 = p;
+    double smin = INFINITY;
+    for (int i = 0; i < nsub; i++) {
+        const double a0 = cov[i], b0 = cov[nsub + i], c0 = cov[2 * nsub + i];
+        /* smaller eigenvalue without cancellation: det / larger one */
+        const double h = 0.5 * (a0 + c0), r = hypot(0.5 * (a0 - c0), b0), lmax = h + r, lmin = (a0 * c0 - b0 * b0) / lmax;
+        const double a = lmin + tau * (a0 - lmin), b = tau * b0, c = lmin + tau * (c0 - lmin);
+        const double det = a * c - b * b;
+        n->ca[i] = a, n->cb[i] = b, n->cc[i] = c;
+        n->ia[i] = c / det, n->ib[i] = -b / det, n->ic[i] = a / det;
+        n->l11[i] = sqrt(a);
+        n->l21[i] = b / n->l11[i];
+        n->l22[i] = sqrt(det / a);
+        smin = fmin(smin, lmin);
+    }
+    n->sigma2 = smin;
+    n->spot_fwhm = NAN; /* not a Gaussian-spot model */
+    *out = n;
+    return WT_OK;
+fail:
+    wt_noise_free(n);
+    return st;
+}
+
 int wt_noise_nslopes(const wt_noise *n) { return 2 * n->nsub; }
 
 double wt_noise_mean_variance(const wt_noise *n)

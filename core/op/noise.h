@@ -44,6 +44,13 @@ int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, c
 /* The same with per-subaperture variance factors c_i (nsub, each finite and > 0; NULL: all 1). */
 int wt_noise_alloc_scaled(wt_context *ctx, int nsub, double sigma2, const double *scale, double spot_fwhm,
                           const double *beta, double tau, int remove_tt, wt_noise **out);
+/* The noise model from explicit 2x2 covariance blocks (a diffractive sensor's centroider, calibrated at set-up:
+ * core/optics/centroid.h): cov 3·nsub [Σxx of every subaperture…, Σxy…, Σyy…] [rad²], each block symmetric
+ * positive definite and finite. τ acts as in the paper's model, on the part of each block beyond its short
+ * axis: C̃_i = λ_i I + τ (Σ_i − λ_i I), λ_i the smaller eigenvalue of Σ_i (τ = 1: the calibrated block;
+ * τ = 0: an isotropic one with the short-axis variance, as σ² I is the unelongated spot's). For a block
+ * σ²(I + ββᵀ/θf²) this is exactly wt_noise_alloc's C̃_i. */
+int wt_noise_alloc_blocks(wt_context *ctx, int nsub, const double *cov, double tau, int remove_tt, wt_noise **out);
 /* Per-axis variance factor of a subaperture that collects `lit` (0 < lit ≤ 1) of the photons of a fully
  * lit one: σ²(N lit)/σ²(N) for the photon/read model (arguments as wt_noise_variance), 1/lit for an NEA. */
 double wt_noise_lit_factor(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
