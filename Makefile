@@ -6,7 +6,7 @@ DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsui
                 openmpi-bin libopenmpi-dev
 
 CC      ?= gcc
-PKGS    := openblas lapacke hdf5-serial fftw3 libconfig plplot
+PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig plplot
 # -march=native is opt-in (`make NATIVE=1`): a binary built on one machine must run on another, and
 # the instruction set (FMA contraction) changes floating-point results, so the bit-identity reference
 # tests/regress/commands.sha256 is recorded without it.
