@@ -28,7 +28,9 @@ struct wt_spot {
     wt_context *ctx;
     wt_spot_params par; /* sodium set to NULL after alloc */
     int nsub, np, N, Ns, k, M, Lp, R, nthreads;
+    int qmin, omin;      /* first lattice point of the cells; smallest pixel−cell offset kP − q */
     double theta_f;      /* PSF sample [rad] */
+    double blur;         /* variance per axis the rebinning adds, θ_f²/12 + c²/6 [rad²] */
     double *flux;        /* [nsub] photons × lit */
     float *scale;        /* [nsub] flux / (N² Σ A²) */
     float *amp;          /* [nsub·n_p²] */
@@ -139,6 +141,15 @@ static int check_params(wt_context *ctx, const wt_spot_params *p, int nsub)
     return WT_OK;
 }
 
+/* ∫_{−∞}^{x} (1 − |t|)₊ dt */
+static double tent_int(double x)
+{
+    if (x <= -1) return 0;
+    if (x <= 0) return 0.5 * (x + 1) * (x + 1);
+    if (x < 1) return 1 - 0.5 * (1 - x) * (1 - x);
+    return 1;
+}
+
 /* Standard normal CDF. */
 static double Phi(double x) { return 0.5 * erfc(-x * M_SQRT1_2); }
 
@@ -150,7 +161,9 @@ static void source_cells(const wt_spot *s, const wt_sodium *na, double xc, doubl
                          double *gx, double *gy)
 {
     const double c = s->par.pixel / s->k;
-    const double sg = s->par.uplink_fwhm / (2.0 * sqrt(2.0 * log(2.0))) / c; /* σ in cells */
+    /* σ in cells of the Gaussian the table applies: the source's, less the rebinning blur (spot.h) */
+    const double su = s->par.uplink_fwhm / (2.0 * sqrt(2.0 * log(2.0)));
+    const double sg = su * su > s->blur ? sqrt(su * su - s->blur) / c : 0.0;
     const int reach = sg > 0 ? (int)ceil(7.0 * sg) + 1 : 0;
     memset(S, 0, (size_t)LS * LS * sizeof *S);
     double ux = 0, uy = 0, H = 1, mass = 1;
@@ -252,14 +265,21 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
     const int np = s->np, N = s->N, Ns = s->Ns, k = s->k;
     const double d = par->subap_side, dx = d / np, c = par->pixel / k;
     s->theta_f = par->wavelength / (N * dx);
+    s->blur = s->theta_f * s->theta_f / 12 + c * c / 6;
 
-    /* the cell lattice: u = θ/c + k(Ns−1)/2 puts pixel P's centre at u = kP and cell q's at u = q */
+    /* the cell lattice: u = θ/c + k(Ns−1)/2 puts pixel P's centre at u = kP and cell q's at u = q. PSF
+     * sample i, a box [a, b] of width θ_f/c around u_i, goes to the lattice points by the overlap of the
+     * box with the linear-interpolation tent (1 − |u − q|)₊: w_q = (T(b − q) − T(a − q))/(b − a), T the
+     * tent's integral. The tent reproduces constants and linear functions, so each sample's mass and
+     * first moment are kept exactly and the image moves smoothly and linearly with the tilt. */
     {
         const double half = 0.5 * k * (Ns - 1), hf = 0.5 * s->theta_f / c;
         const double u0 = (0 - N / 2) * s->theta_f / c + half, u1 = (N - 1 - N / 2) * s->theta_f / c + half;
-        const int qmin = (int)floor(u0 - hf + 0.5), qmax = (int)floor(u1 + hf + 0.5);
-        s->M = qmax - qmin + 1;
-        s->R = (int)ceil(2 * hf) + 1;
+        s->qmin = (int)floor(u0 - hf);
+        const int qmax = (int)ceil(u1 + hf);
+        s->M = qmax - s->qmin + 1;
+        s->omin = -qmax;
+        s->R = (int)ceil(2 * hf) + 3;
         s->Lp = Ns + (s->M - 1) / k;
         WT_ALLOC(ctx, s->rm, (size_t)N * s->R, "spot rebinning cells");
         WT_ALLOC(ctx, s->rw, (size_t)N * s->R, "spot rebinning weights");
@@ -267,11 +287,11 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
         for (int i = 0; i < N; i++) {
             double ui = (i - N / 2) * s->theta_f / c + half, a = ui - hf, b = ui + hf;
             int n = 0;
-            for (int q = (int)floor(a + 0.5); q <= (int)floor(b + 0.5) && q <= qmax; q++) {
-                double ov = fmin(b, q + 0.5) - fmax(a, q - 0.5);
-                if (ov <= 0) continue;
-                s->rm[i * s->R + n] = q - qmin;
-                s->rw[i * s->R + n] = (float)(ov / (b - a));
+            for (int q = (int)floor(a); q <= (int)ceil(b) && n < s->R; q++) {
+                double wq = (tent_int(b - q) - tent_int(a - q)) / (b - a);
+                if (wq <= 0) continue;
+                s->rm[i * s->R + n] = q - s->qmin;
+                s->rw[i * s->R + n] = (float)wq;
                 n++;
             }
             s->rn[i] = n;
@@ -313,10 +333,7 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
         WT_ALLOC(ctx, B, (size_t)LK * LS, "spot box sums");
         WT_ALLOC(ctx, g, 2 * (size_t)LS + 64, "spot Gaussian masses");
         /* o = kP − q with q = qmin + m: omin = −qmax; S index o − omin + h, i.e. S's first cell at omin − h */
-        const double half = 0.5 * k * (Ns - 1), hf = 0.5 * s->theta_f / c;
-        const double u1 = (N - 1 - N / 2) * s->theta_f / c + half;
-        const int qmax = (int)floor(u1 + hf + 0.5);
-        const int o_min = -qmax, h = (k - 1) / 2;
+        const int o_min = s->omin, h = (k - 1) / 2;
         for (int is = 0; is < nsub; is++) {
             source_cells(s, par->sodium, xc[is], yc[is], o_min - h, LS, S, g, g + LS + 32);
             kernel_table(s, S, LS, B, s->K + (size_t)is * k * k * Lp * Lp);
@@ -479,6 +496,12 @@ void wt_spot_truncation(const wt_spot *s, const float *img, double *trunc)
 }
 
 double wt_spot_flux(const wt_spot *s, int isub) { return s->flux[isub]; }
+
+double wt_spot_blur(const wt_spot *s)
+{
+    const double su = s->par.uplink_fwhm / (2.0 * sqrt(2.0 * log(2.0)));
+    return s->blur > su * su ? s->blur - su * su : 0.0;
+}
 int wt_spot_nsub(const wt_spot *s) { return s->nsub; }
 int wt_spot_npix(const wt_spot *s) { return s->Ns; }
 

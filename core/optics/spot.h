@@ -13,21 +13,27 @@
  * How (the design, and what it costs in accuracy):
  *  1. A small Nyquist FFT per subaperture (n_p = 16, N = 32 at d = 0.5 m, 589 nm: θ_f = 0.12″, field
  *     λ/dx = 3.9″), as two batches of 1-D transforms (the n_p non-zero rows, then the N columns).
- *  2. The PSF samples, each taken as a box of side θ_f, rebinned exactly by overlap onto a lattice of
- *     cells of side c = p/k (k odd, cells_per_pixel) aligned with the pixel centres.
+ *  2. The PSF samples, each taken as a box of side θ_f, spread onto a lattice of cells of side c = p/k
+ *     (k odd, cells_per_pixel) aligned with the pixel centres, by the overlap of the box with the
+ *     linear-interpolation tent of each lattice point: mass and first moment are kept exactly, so the
+ *     spot moves linearly and smoothly with the tilt. (Plain overlap binning would not: a spot narrower
+ *     than a cell moves in steps of c.)
  *  3. The image as the direct linear sum image(P) = Σ_cells cell_q · K_s(kP − q), with K_s(o) = the mass
  *     of the source kernel inside a pixel whose centre is o cells from the point: exact (the pixel edges
  *     fall on cell edges because k is odd), precomputed per subaperture at alloc (stored in k² phase
  *     tables so that the inner loop runs over contiguous pixels). Linear, so no wrap-around, and the
  *     detector's truncation is exact.
- *  Accuracy: treating each PSF sample as a uniform box adds a blur of variance θ_f²/12 per axis, and
- *  putting a cell's flux at its centre adds c²/12 (Sheppard's correction): the image is that of a spot
- *  wider by θ_f²/12 + c²/12 in variance (tests/test_spot.c measures it against a brute-force fine
- *  computation). At the E-ELT numbers (θ_f = 0.12″, p = 1.1″, k = 3: c = 0.37″) that is
- *  0.0012 + 0.0112 arcsec², σ_extra = 0.11″, against an LGS spot of σ ≥ 0.47″ (+5 % in variance);
- *  k = 5 gives σ_extra = 0.07″. The reference I0 and its derivatives are made by the same model.
- *  The FFT field λ/dx bounds the tilts it represents: a spot whose tilt plus half-width exceeds
- *  λ/(2 dx) wraps around (choose a larger N for larger tilts).
+ *  Accuracy: the box adds a blur of variance θ_f²/12 per axis and the tent c²/6 on average over the
+ *  sub-cell positions: v = θ_f²/12 + c²/6. It is taken back from the source's Gaussian (the table uses
+ *  σ² = σ_uplink² − v), so the images have the exact second moments whenever the uplink spot is wider
+ *  than √v; wt_spot_blur gives what is left otherwise. At the E-ELT numbers (θ_f = 0.12″, p = 1.1″,
+ *  k = 3: c = 0.37″) √v = 0.15″ against an uplink σ of 0.42″ (1″ FWHM): nothing is left, and the
+ *  residual is a shape difference (tent vs Gaussian), measured in tests/test_spot.c against a
+ *  brute-force fine computation. The reference I0 and its derivatives are made by the same model.
+ *  The FFT field λ/dx = n_p λ/d is periodic: a spot whose tilt plus half-width exceeds λ/(2 dx) wraps
+ *  around, and the diffraction tails beyond ±λ/(2 dx) fold back — ~4/(π² n_p) of the flux for a square
+ *  subaperture (2.5 % at n_p = 16), which lowers the CoG's tilt gain by about as much (the centroider's
+ *  calibrated gain absorbs it; a larger n_p widens the field).
  *
  * Data layouts and units:
  *  - subaperture s has its centre (xc[s], yc[s]) [m] in the pupil (origin at the pupil centre);
@@ -106,6 +112,10 @@ int wt_spot_reference(const wt_spot *s, double dtheta, float *i0, float *didx, f
 /* trunc[s] = 1 − Σ_pixels img_s / (photons × lit_s): the fraction of the subaperture's flux outside the
  * detector field, for a noise-free image (0 for a dark subaperture). */
 void wt_spot_truncation(const wt_spot *s, const float *img, double *trunc);
+
+/* The variance per axis [rad²] by which the images are wider than exact ones: the rebinning blur
+ * θ_f²/12 + c²/6 less the uplink Gaussian's variance it was taken from (0 when the uplink is wider). */
+double wt_spot_blur(const wt_spot *s);
 
 /* The whole subaperture's flux photons × lit fraction [e-]. */
 double wt_spot_flux(const wt_spot *s, int isub);
