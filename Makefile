@@ -189,3 +189,14 @@ clean:
 	rm -rf build build-debug bin bin-debug
 
 -include $(CORE_OBJ:.o=.d) $(CLI_OBJ:.o=.d)
+
+# The diffractive LGS image bench (core/optics/spot.h): 6 E-ELT LGS sensors per frame on 2 threads.
+$(BUILD)/tests/bench_spot: tests/bench_spot.c $(LIB)
+	@mkdir -p $(dir $@)
+	@$(if $(V),,echo "  CC/LD   $@")
+	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+.PHONY: bench-spot
+bench-spot: deps
+	@$(MAKE) --no-print-directory $(BUILD)/tests/bench_spot
+	@$(BUILD)/tests/bench_spot 2
