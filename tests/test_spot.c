@@ -74,7 +74,7 @@ START_TEST(t_diffraction_fwhm)
 {
     /* Unaberrated, unobstructed square subaperture, point source, pixels of λ/(10d): the PSF along x is
      * sinc²(θd/λ), whose FWHM is 0.88589 λ/d (sinc²(x) = 1/2 at x = 0.44295). The image adds the pixel
-     * box and the rebinning blur, σ² = p²/12 + θ_f²/12 + c²/6 ≈ 0.0012 (λ/d)²: +0.4 % on the FWHM,
+     * box and the rebinning blur, σ² = p²/12 + θ_f²/12 + c²/6 ≈ 0.0023 (λ/d)²: < 1 % on the FWHM,
      * and n_p = 16 samples make the aperture a Dirichlet kernel, +~0.1 %. Tolerance 2 % (brief: 5 %). */
     wt_context *ctx = tu_context();
     wt_spot_params p = base_params();
