@@ -6,7 +6,7 @@ DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsui
                 openmpi-bin libopenmpi-dev
 
 CC      ?= gcc
-PKGS    := openblas lapacke hdf5-serial fftw3 libconfig plplot
+PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig plplot
 # -march=native is opt-in (`make NATIVE=1`): a binary built on one machine must run on another, and
 # the instruction set (FMA contraction) changes floating-point results, so the bit-identity reference
 # tests/regress/commands.sha256 is recorded without it.
@@ -189,3 +189,14 @@ clean:
 	rm -rf build build-debug bin bin-debug
 
 -include $(CORE_OBJ:.o=.d) $(CLI_OBJ:.o=.d)
+
+# The diffractive LGS image bench (core/optics/spot.h): 6 E-ELT LGS sensors per frame on 2 threads.
+$(BUILD)/tests/bench_spot: tests/bench_spot.c $(LIB)
+	@mkdir -p $(dir $@)
+	@$(if $(V),,echo "  CC/LD   $@")
+	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+.PHONY: bench-spot
+bench-spot: deps
+	@$(MAKE) --no-print-directory $(BUILD)/tests/bench_spot
+	@$(BUILD)/tests/bench_spot 2

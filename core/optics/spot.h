@@ -1,0 +1,133 @@
+/* core/optics/spot.h: diffractive Shack–Hartmann spot images, detector and noise (SPEC §4b).
+ *
+ * Per subaperture s and frame (SPEC §4b "Per subaperture", "LGS source", "Detector"):
+ *   U = A·exp(2πi·OPD/λ) on the n_p × n_p pupil samples (dx = d/n_p), zero-padded to N × N;
+ *   PSF(θ) = |FFT_forward(U)|² at θ = (k − N/2)·θ_f, θ_f = λ/(N dx) (Nyquist: θ_f ≤ λ/(2d) ⟺ N ≥ 2 n_p);
+ *   image(P) = ∫_{pixel P} (PSF ⊛ S)(θ) dθ at the Ns × Ns pixel centres ((P − (Ns−1)/2)·p per axis),
+ *   S the source kernel: δ for a point source; for an LGS the sodium line — each altitude h of the
+ *   profile at β(h) = (r − l)(h − H)/H² — convolved with the uplink Gaussian (FWHM given);
+ *   normalised so that the whole subaperture receives photons × lit fraction (before the detector's
+ *   field truncates it); noisy frame = Poisson(I + B) + N(0, σe²) − B.
+ * Sign: a tilt OPD = θ·x moves the spot to +x (forward FFT, exp(−2πi k·x/N)); tested.
+ *
+ * How (the design, and what it costs in accuracy):
+ *  1. A small Nyquist FFT per subaperture (n_p = 16, N = 32 at d = 0.5 m, 589 nm: θ_f = 0.12″, field
+ *     λ/dx = 3.9″), as two batches of 1-D transforms (the n_p non-zero rows, then the N columns).
+ *  2. The PSF samples, each taken as a box of side θ_f, spread onto a lattice of cells of side c = p/k
+ *     (k odd, cells_per_pixel) aligned with the pixel centres, by the overlap of the box with the
+ *     linear-interpolation tent of each lattice point: mass and first moment are kept exactly, so the
+ *     spot moves linearly and smoothly with the tilt. (Plain overlap binning would not: a spot narrower
+ *     than a cell moves in steps of c.)
+ *  3. The image as the direct linear sum image(P) = Σ_cells cell_q · K_s(kP − q), with K_s(o) = the mass
+ *     of the source kernel inside a pixel whose centre is o cells from the point: exact (the pixel edges
+ *     fall on cell edges because k is odd), precomputed per subaperture at alloc (stored in k² phase
+ *     tables so that the inner loop runs over contiguous pixels). Linear, so no wrap-around, and the
+ *     detector's truncation is exact.
+ *  Accuracy: the box adds a blur of variance θ_f²/12 per axis and the tent c²/6 on average over the
+ *  sub-cell positions: v = θ_f²/12 + c²/6. It is taken back from the source's Gaussian (the table uses
+ *  σ² = σ_uplink² − v), so the images have the exact second moments whenever the uplink spot is wider
+ *  than √v; wt_spot_blur gives what is left otherwise. At the E-ELT numbers (θ_f = 0.12″, p = 1.1″,
+ *  k = 3: c = 0.37″) √v = 0.15″ against an uplink σ of 0.42″ (1″ FWHM): nothing is left, and the
+ *  residual is a shape difference (tent vs Gaussian), measured in tests/test_spot.c against a
+ *  brute-force fine computation. The reference I0 and its derivatives are made by the same model.
+ *  The FFT field λ/dx = n_p λ/d is periodic: a spot whose tilt plus half-width exceeds λ/(2 dx) wraps
+ *  around, and the diffraction tails beyond ±λ/(2 dx) fold back — ~4/(π² n_p) of the flux for a square
+ *  subaperture (2.5 % at n_p = 16), which lowers the CoG's tilt gain by about as much (the centroider's
+ *  calibrated gain absorbs it; a larger n_p widens the field).
+ *
+ * Data layouts and units:
+ *  - subaperture s has its centre (xc[s], yc[s]) [m] in the pupil (origin at the pupil centre);
+ *  - pupil sample (i, j), 0 ≤ i, j < n_p, of subaperture s is at x = xc + (i + ½ − n_p/2)·d/n_p,
+ *    y = yc + (j + ½ − n_p/2)·d/n_p and stored at [s·n_p² + i + n_p·j] in the amplitude and OPD arrays;
+ *  - amplitude A ∈ [0, 1] (the caller's pupil: for an annulus, 1 inside and 0 outside, or the lit fraction
+ *    of each sample's square); OPD in metres;
+ *  - image of subaperture s: pixel (ix, iy) at [s·Ns² + ix + Ns·iy], float32 photo-electrons, pixel ix at
+ *    angle (ix − (Ns−1)/2)·p [rad] (likewise y).
+ *
+ * Randomness (stream rule): the noise of subaperture s is drawn from wt_rng_init(seed, WT_SPOT_STREAM(base,
+ * s)) with `base` the caller's stream for the sensor and frame (the loop's 2³² + 64t + m). The map
+ * (base, s) ↦ 2⁶³ + base·2²⁰ + s is one-to-one for base < 2⁴³ and s < 2²⁰ (both checked), and its values
+ * are ≥ 2⁶³, above every stream the rest of wavetomo uses: no two (frame, sensor, subaperture) share a
+ * stream, and the pixels do not depend on the thread count.
+ *
+ * Threads: alloc plans (FFTW_ESTIMATE: deterministic plans, no timing) and allocates one workspace per
+ * thread of the context; the per-frame calls run an OpenMP loop over subapertures, allocate nothing and
+ * may be called concurrently on different images only from outside a parallel region (they share the
+ * workspaces).
+ */
+#ifndef WT_SPOT_H
+#define WT_SPOT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/base/base.h"
+#include "core/base/rng.h"
+#include "core/optics/sodium.h"
+
+#define WT_SPOT_STREAM(base, s) ((UINT64_C(1) << 63) | ((uint64_t)(base) << 20) | (uint64_t)(s))
+
+typedef struct wt_spot_params {
+    double wavelength;   /* λ [m] */
+    double subap_side;   /* d [m] */
+    int pupil_samples;   /* n_p: pupil samples across d (≥ 2) */
+    int fft_size;        /* N: even, ≥ 2 n_p (Nyquist) */
+    int npix;            /* Ns: detector pixels per side */
+    double pixel;        /* p: pixel side [rad] */
+    int cells_per_pixel; /* k: odd ≥ 1 (0: the default 3); the rebinning lattice c = p/k */
+    double photons;      /* photo-electrons per fully lit subaperture per frame */
+    double background;   /* B: background per pixel per frame [photo-electrons] */
+    double read_noise;   /* σe: read noise per pixel [electrons rms] */
+    double uplink_fwhm;  /* FWHM of the Gaussian source (the LGS uplink spot, or an extended NGS) [rad]; 0: none */
+    /* LGS (sodium != NULL): the line source of the sodium profile */
+    const wt_sodium *sodium; /* borrowed during alloc only */
+    double lgs_altitude;     /* H: the altitude the sensor is focused at [m]; must lie within the profile */
+    double launch_x, launch_y; /* l: launch telescope position in the pupil [m] */
+} wt_spot_params;
+
+typedef struct wt_spot wt_spot;
+
+/* Validate, plan the FFTs, precompute the per-subaperture source/pixel tables. nsub subapertures with
+ * centres xc, yc [m]; amp [nsub·n_p²] the amplitudes (NULL: all 1, copied); lit [nsub] the lit fraction of
+ * each (NULL: mean of A² over the samples). Refuses (WT_ERR_INVALID, naming *.wfs.* keys) a sampling
+ * coarser than Nyquist, bad sizes, an LGS altitude outside the profile. Allocates; *out owns everything. */
+int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const double *xc, const double *yc,
+                  const float *amp, const double *lit, wt_spot **out);
+void wt_spot_free(wt_spot *s);
+
+/* Noise-free images of every subaperture for the OPD [nsub·n_p²] (m, float or double), into
+ * img [nsub·Ns²]. Allocates nothing. */
+int wt_spot_image(const wt_spot *s, const float *opd, float *img);
+int wt_spot_image_d(const wt_spot *s, const double *opd, float *img);
+
+/* In place: img ← Poisson(img + B) + N(0, σe²) − B per pixel, subaperture s from the stream
+ * WT_SPOT_STREAM(base_stream, s) of seed. img must be noise-free (≥ 0). Allocates nothing. */
+int wt_spot_noise(const wt_spot *s, uint64_t seed, uint64_t base_stream, float *img);
+
+/* The noise-free reference I0 (flat wavefront) and its derivatives dI0/dθx, dI0/dθy [e-/rad] by central
+ * differences of a tilt ±dtheta [rad] (≤ 0: λ/(20 d)) applied to the OPD; each [nsub·Ns²]; any may be NULL.
+ * Allocates nothing. */
+int wt_spot_reference(const wt_spot *s, double dtheta, float *i0, float *didx, float *didy);
+
+/* trunc[s] = 1 − Σ_pixels img_s / (photons × lit_s): the fraction of the subaperture's flux outside the
+ * detector field, for a noise-free image (0 for a dark subaperture). */
+void wt_spot_truncation(const wt_spot *s, const float *img, double *trunc);
+
+/* The variance per axis [rad²] by which the images are wider than exact ones: the rebinning blur
+ * θ_f²/12 + c²/6 less the uplink Gaussian's variance it was taken from (0 when the uplink is wider). */
+double wt_spot_blur(const wt_spot *s);
+
+/* The whole subaperture's flux photons × lit fraction [e-]. */
+double wt_spot_flux(const wt_spot *s, int isub);
+int wt_spot_nsub(const wt_spot *s);
+int wt_spot_npix(const wt_spot *s);
+/* Bytes the object holds (tables, workspaces). */
+size_t wt_spot_memory(const wt_spot *s);
+/* Rough flops per subaperture per noise-free image, and bytes of table read (for the bench). */
+void wt_spot_cost(const wt_spot *s, double *flops, double *bytes);
+
+/* An exact Poisson deviate of mean mu ≥ 0: inversion (sequential search) for mu < 10, PTRS transformed
+ * rejection (Hörmann 1993, Insurance Math. Econom. 12, 39) above. */
+double wt_poisson(wt_rng *rng, double mu);
+
+#endif
