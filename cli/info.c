@@ -153,6 +153,10 @@ int wt_cmd_info(int argc, char **argv)
                s->nsub, s->nslopes, sqrt(s->sigma2) / WT_ARCSEC * 1e3);
     }
     printf("total slopes: %lld (Fried corner points used: %lld)\n", (long long)sys->nslopes, (long long)sys->ncorners);
+    if (cfg->lit_sensor_model)
+        printf("reconstructor's sensor model: lit-area average read at %d x %d points per subaperture (%g m)\n",
+               cfg->sensor_points, cfg->sensor_points, sys->d / cfg->sensor_points);
+    else printf("reconstructor's sensor model: Fried (corner differences)\n");
 
     printf("\n%-4s %10s %8s %10s %8s\n", "DM", "altitude_m", "pitch_m", "grid", "active");
     for (int k = 0; k < sys->dm->ndms; k++) {

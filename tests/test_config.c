@@ -754,6 +754,42 @@ END_TEST
  * 1 m layers at 6 km need only 16 points); a size without a spacing is refused, and so are an oversampling
  * beside a given spacing, a word other than "auto", and a grid beyond 8192 points; each message names the
  * keys. "auto" also reads from a file (a string). */
+/* recon.sensor_points_per_subaperture left out (the presets): the fewest points q with d/q no coarser than
+ * the finest layer of either variant: 1 on the E-ELT (0.5 m layers, d = 0.5 m) and on the 42x42 system's 1 m
+ * layers (d = 1 m); 2 when its cg9 layers are 0.5 m, 4 for 0.3 m (ceil(1/0.3)); written into the canonical
+ * text (same hash as the value given explicitly); an explicit value is kept. */
+START_TEST(test_auto_sensor_points)
+{
+    wt_context *ctx = tu_context();
+    wt_config *a = read_ok(ctx, "eelt-mcao.cfg", 0, NULL);
+    ck_assert_int_eq(a->sensor_points, 1);
+    wt_config_free(ctx, a);
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 0, NULL);
+    ck_assert_int_eq(a->sensor_points, 1);
+    wt_config_free(ctx, a);
+    const char *half[] = {"recon.cg9.layer_spacing_m=[0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5]",
+                          "recon.cg9.layer_size=[128, 128, 128, 128, 128, 128, 128, 128, 128]"};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 2, half);
+    ck_assert_int_eq(a->sensor_points, 2);
+    const char *half2[] = {half[0], half[1], "recon.sensor_points_per_subaperture=2"};
+    wt_config *e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 3, half2);
+    ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+    ck_assert_str_eq(a->canonical, e->canonical);
+    wt_config_free(ctx, e);
+    const char *half1[] = {half[0], half[1], "recon.sensor_points_per_subaperture=1"};
+    e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 3, half1);
+    ck_assert_int_eq(e->sensor_points, 1);
+    ck_assert_str_ne(a->matrix_sha256, e->matrix_sha256);
+    wt_config_free(ctx, e);
+    wt_config_free(ctx, a);
+    const char *third[] = {"recon.pcg3.layer_spacing_m=[0.3, 2.0, 2.0]", "recon.sensor_points_per_subaperture=auto"};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 2, third);
+    ck_assert_int_eq(a->sensor_points, 4); /* ceil(1 / 0.3) */
+    wt_config_free(ctx, a);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_auto_grid_combinations)
 {
     wt_context *ctx = tu_context();
@@ -856,6 +892,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_auto_grid_presets);
     tcase_add_test(tc, test_auto_grid_oversampling);
     tcase_add_test(tc, test_auto_grid_combinations);
+    tcase_add_test(tc, test_auto_sensor_points);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);
     return s;

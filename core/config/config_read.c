@@ -597,6 +597,30 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
     return st;
 }
 
+/* recon.sensor_points_per_subaperture left out (or "auto"): the smallest q with d/q ≤ the finest layer
+ * spacing of both variants (within the 15 digits of the canonical text), at most the schema's 16; written
+ * into the canonical text like the automatic grids. */
+static int resolve_sensor_points(pstate *ps, wt_config *cfg)
+{
+    const int k = find_key("recon.sensor_points_per_subaperture");
+    if (ps->set[k]) return WT_OK;
+    double dmin = INFINITY;
+    for (int i = 0; i < cfg->pcg3.nlayers; i++) dmin = fmin(dmin, cfg->pcg3.spacing[i]);
+    for (int i = 0; i < cfg->cg9.nlayers; i++) dmin = fmin(dmin, cfg->cg9.spacing[i]);
+    const double d = cfg->diameter / cfg->lgs_wfs.subapertures;
+    int q = (int)ceil(d / dmin * (1.0 - 1e-12));
+    cfg->sensor_points = q < 1 ? 1 : q > 16 ? 16 : q;
+    const char *leaf;
+    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
+    if (!s || !config_setting_set_int(s, cfg->sensor_points))
+        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                        wt_config_priv_keys[k].path);
+    ps->set[k] = s;
+    return WT_OK;
+}
+
 static int check_consistency(pstate *ps, wt_config *cfg)
 {
     char loc[512], oth[512];
@@ -630,6 +654,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
     if ((st = check_sizes(ps, cfg, "recon.pcg3.layer_size", &cfg->pcg3)) < 0 ||
         (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
         return st;
+    if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
 
     /* the NGS sensors have no keys of their own for these */
     cfg->ngs_wfs.valid_fraction = cfg->lgs_wfs.valid_fraction;

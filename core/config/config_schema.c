@@ -159,8 +159,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
      "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},
-    {"recon.sensor_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(sensor_points), NOCOUNT, 0, 0, NULL, 1,
-     "lit model: layer sample points per subaperture side (optional, default 1)"},
+    {"recon.sensor_points_per_subaperture", K_INT, F_AUTO, 1, 16, "", 1, CF(sensor_points), NOCOUNT, 0, 0, NULL, 1,
+     "lit model: sample points per subaperture side at which the reconstructor's sensors read the layers; when "
+     "left out (or \"auto\") the smallest q with d/q no coarser than the finest reconstruction layer of either "
+     "variant (a sensor model sampled coarser than the layer cannot see part of it, and the MAP degrades as the "
+     "layers get finer: docs/results.md §0e)"},
     {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
      "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
      "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},
