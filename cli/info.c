@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "core/model/sensing.h"
 #include "core/la/half.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
@@ -157,6 +158,18 @@ int wt_cmd_info(int argc, char **argv)
         printf("reconstructor's sensor model: lit-area average read at %d x %d points per subaperture (%g m)\n",
                cfg->sensor_points, cfg->sensor_points, sys->d / cfg->sensor_points);
     else printf("reconstructor's sensor model: Fried (corner differences)\n");
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        const wt_sensing *ws = s->diffr;
+        if (!ws) continue;
+        const wt_sensor_config *w = s->kind == WT_SENSOR_LGS ? &cfg->lgs_wfs : &cfg->ngs_wfs;
+        static const char *const cen[] = {"cog", "tcog", "mf"};
+        printf("%s diffractive: %s, %dx%d pixels of %g arcsec, n_p %d, N %d, %g nm; median NEA %.1f mas; worst "
+               "truncation %.1f %% (subaperture %d at %.2f, %.2f m); set-up %.2f s\n",
+               s->name, cen[w->centroider], ws->ns, ws->ns, w->pixel / WT_ARCSEC, ws->np, w->fft_size,
+               w->wavelength * 1e9, ws->nea_median / WT_ARCSEC * 1e3, 100.0 * ws->worst_trunc, ws->worst_sub,
+               ws->xc[ws->worst_sub], ws->yc[ws->worst_sub], ws->setup_seconds);
+    }
 
     printf("\n%-4s %10s %8s %10s %8s\n", "DM", "altitude_m", "pitch_m", "grid", "active");
     for (int k = 0; k < sys->dm->ndms; k++) {

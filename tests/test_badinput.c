@@ -75,6 +75,16 @@ static const ov_case ov_cases[] = {
     {{"lgs.wfs.subapertures=2000"}, {"key 'lgs.wfs.subapertures'", "", ""}},
     {{"dm.actuators=[17, 13, 100000]"}, {"key 'dm.actuators', element [2]", "", ""}},
     {{"lgs.wfs.subapertures=1024", "sim.points_per_subaperture=16"}, {"phase screens", "'lgs.wfs.subapertures' = 1024", "'sim.points_per_subaperture' = 16"}},
+    /* the diffractive sensors (issue 19): an FFT sampling below Nyquist, a window that does not fit, keys of the
+     * geometric model beside the diffractive one */
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.wfs.fft_size=20"}, {"key 'lgs.wfs.fft_size' = 20", "'lgs.wfs.pupil_samples' = 16", ">= 32"}},
+    {{"ngs.wfs.model=\"diffractive\"", "ngs.wfs.fft_size=255"}, {"key 'ngs.wfs.fft_size' = 255", "ngs.wfs.pupil_samples", "even"}},
+    {{"ngs.wfs.model=\"diffractive\"", "ngs.wfs.tilt=\"z\""}, {"key 'ngs.wfs.tilt'", "'ngs.wfs.model' = \"diffractive\"", ""}},
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.wfs.window_pixels=3"}, {"key 'lgs.wfs.window_pixels' = 3", "'lgs.wfs.pixels' = 4", ""}},
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.wfs.nea_mas=20.0"}, {"key 'lgs.wfs.nea_mas'", "diffractive", ""}},
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.wfs.centroider=\"median\""}, {"key 'lgs.wfs.centroider'", "\"mf\"", ""}},
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.wfs.cells_per_pixel=2"}, {"key 'lgs.wfs.cells_per_pixel'", "even", ""}},
+    {{"lgs.wfs.model=\"diffractive\"", "lgs.sodium_profile=\"\""}, {"key 'lgs.sodium_profile'", "file path", ""}},
     {{"lgs.wfs.subapertures=512", "evaluation.spacing_arcsec=1000.0"}, {"phase screens", "evaluation.spacing_arcsec", "atmosphere.altitudes_m"}},
 };
 
@@ -788,6 +798,43 @@ START_TEST(test_threads_bit_identical)
 }
 END_TEST
 
+/* The diffractive LGS's sodium profile file and detector field (issue 19 "Bad input"): refused by `wavetomo
+ * sim` with exit 1, a message naming the key and the file (or the detector keys), and no output left. */
+typedef struct na_case {
+    const char *name, *text; /* file written in the scratch directory (text NULL: not written) */
+    const char *set;         /* further --set (NULL: none) */
+    const char *want[2];
+} na_case;
+
+static const na_case na_cases[] = {
+    {"na_missing.txt", NULL, NULL, {"lgs.sodium_profile", "na_missing.txt"}},
+    {"na_empty.txt", "# nothing\n", NULL, {"lgs.sodium_profile", "na_empty.txt"}},
+    {"na_text.txt", "85000 1\n90000 abc\n95000 1\n", NULL, {"lgs.sodium_profile", "na_text.txt:2"}},
+    {"na_negative.txt", "85000 1\n90000 -0.5\n95000 1\n", NULL, {"lgs.sodium_profile", "na_negative.txt:2"}},
+    {"na_unsorted.txt", "85000 1\n95000 1\n90000 1\n", NULL, {"lgs.sodium_profile", "na_unsorted.txt:3"}},
+    {"na_low.txt", "50000 1\n60000 2\n", NULL, {"lgs.sodium_profile", "does not contain the LGS altitude"}},
+    {"na_ok.txt", "85000 0\n90000 1\n95000 0\n", "--set lgs.wfs.pixels=2 --set lgs.wfs.pixel_arcsec=0.1",
+     {"lgs.wfs.pixels = 2 x lgs.wfs.pixel_arcsec = 0.1", "refused above 90 % truncation"}},
+};
+
+START_TEST(test_sodium_profile)
+{
+    const na_case *c = &na_cases[_i];
+    char path[512], args[2048], err[8192];
+    snprintf(path, sizeof path, "%s/%s", dir, c->name);
+    if (c->text) write_file(path, c->text);
+    snprintf(args, sizeof args,
+             "sim --config data/presets/demo-diffractive.cfg --set lgs.sodium_profile=%s %s --frames 3 --quiet "
+             "--out %%1$s/x.h5",
+             path, c->set ? c->set : "");
+    int rc = run_cli(args, err, sizeof err);
+    ck_assert_msg(rc == 1, "%s: exit %d (%s)", c->name, rc, err);
+    for (int i = 0; i < 2; i++) ck_assert_msg(strstr(err, c->want[i]), "%s: stderr \"%s\" lacks \"%s\"", c->name, err, c->want[i]);
+    snprintf(path, sizeof path, "%s/x.h5", dir);
+    ck_assert_msg(access(path, F_OK) != 0, "%s: output left behind", c->name);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("badinput");
@@ -801,6 +848,7 @@ Suite *make_suite(void)
     tcase_add_checked_fixture(tcl, setup, teardown);
     tcase_set_timeout(tcl, 120);
     tcase_add_loop_test(tcl, test_cli, 0, (int)(sizeof cli_cases / sizeof *cli_cases));
+    tcase_add_loop_test(tcl, test_sodium_profile, 0, (int)(sizeof na_cases / sizeof *na_cases));
     tcase_add_loop_test(tcl, test_h5_inputs, 0, (int)(sizeof h5_cases / sizeof *h5_cases));
     tcase_add_test(tcl, test_disk_full);
     tcase_add_test(tcl, test_signals_and_stale_temporaries);

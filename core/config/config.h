@@ -32,7 +32,25 @@ typedef struct wt_sensor_config {
     int lit_noise;           /* 1: a partly lit subaperture collects its lit fraction of the photons (more noise) */
     int tilt;                /* what a slope is (NGS only; LGS 0): 0 G-tilt, the average gradient over the lit
                                 area (a centroid); 1 Z-tilt, the least-squares plane over it (WT_SH_TILT_*) */
+    /* the sensor model (SPEC §4b): geometric (today's: lit-area gradient + Gaussian noise) or diffractive
+     * (spot images on pixels, a centroider, its calibrated noise covariance); the rest is diffractive only */
+    int model;               /* WT_WFS_GEOMETRIC or WT_WFS_DIFFRACTIVE */
+    int centroider;          /* WT_CENTROID_COG / _TCOG / _MF (core/optics/centroid.h): 0 cog, 1 tcog, 2 mf */
+    int apply_gain;          /* 1: slopes and covariance corrected by the calibrated 2x2 gain */
+    double threshold_noise;  /* tCoG: T = threshold_noise sqrt(σe² + B) + threshold_peak max I0 */
+    double threshold_peak;   /* tCoG: fraction of the reference peak [-] */
+    int window_pixels;       /* CoG/tCoG window Nw [pixels]; 0: the whole detector */
+    double background_e;     /* background per pixel per frame [e-] */
+    int pupil_samples;       /* n_p: pupil samples across a subaperture */
+    int fft_size;            /* N: FFT points (≥ 2 n_p) */
+    int cells_per_pixel;     /* k: rebinning cells per pixel side (odd) */
+    double wavelength;       /* sensing wavelength [m] */
+    int noise_calibration;   /* 0 analytic, 1 Monte Carlo */
+    int calibration_draws;   /* Monte Carlo draws */
+    uint64_t calibration_seed; /* Monte Carlo seed */
 } wt_sensor_config;
+
+enum { WT_WFS_GEOMETRIC = 0, WT_WFS_DIFFRACTIVE = 1 };
 
 /* How a reconstruction variant's layer grids were chosen (wt_recon_variant_config.grid_auto). */
 enum { WT_GRID_EXPLICIT = 0, WT_GRID_AUTO_SIZE = 1, WT_GRID_AUTO = 2 };
@@ -86,6 +104,9 @@ typedef struct wt_config {
     double sodium_fwhm;              /* sodium layer thickness Δh_Na [m]; 0 = no elongation */
     double launch_radius;            /* side-launch radius [m], at the azimuth of its LGS */
     double lgs_tt_jitter;            /* random LGS tip-tilt per axis per frame [rad rms] */
+    double uplink_fwhm;              /* diffractive LGS: FWHM of the uplink (laser) spot on the sodium layer [rad] */
+    char sodium_profile[1024];       /* diffractive LGS: the profile file as resolved (relative paths against the
+                                        configuration file's directory); "" = Gaussian of sodium_fwhm */
     wt_sensor_config lgs_wfs;
 
     /* natural guide stars */

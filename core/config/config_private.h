@@ -11,7 +11,7 @@
 
 #include <stddef.h>
 
-enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS };
+enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS, K_STR /* a path: char[1024] */ };
 /* F_OPT: may be absent (then `def` is stored and the key is left out of the canonical text);
  * F_DEFAULT: may be absent, and then behaves exactly as if `def` had been written in the file (it appears
  * in the canonical text and the matrix hash, so a later change of default is seen by stored matrices). */
@@ -36,7 +36,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 83 };
+enum { WT_CONFIG_PRIV_NKEYS = 113 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }

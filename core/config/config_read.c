@@ -11,6 +11,8 @@
 
 #include "../base/sha256.h"
 
+#define WT_SH_TILT_Z_CFG 1 /* ngs.wfs.tilt = "z" (WT_SH_TILT_Z of core/op/shack_hartmann.h) */
+
 #include <errno.h>
 #include <libconfig.h>
 #include <limits.h>
@@ -36,6 +38,10 @@ static void expected_text(const wt_config_priv_key_spec *ks, char *buf, size_t n
     char r[96];
     if (ks->type == K_BOOL) {
         snprintf(buf, n, "a boolean (true or false)");
+        return;
+    }
+    if (ks->type == K_STR) {
+        snprintf(buf, n, "a string (a file path)");
         return;
     }
     if (ks->type == K_ENUM) {
@@ -173,6 +179,7 @@ typedef struct pstate {
     const wt_config_priv_text *src;                  /* the expanded text: its lines map to FILE:LINE */
     int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
     const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
+    const char *incdir;                              /* the configuration file's directory (NULL: working dir.) */
 } pstate;
 
 static int fail_at(pstate *ps, const char *loc, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -305,7 +312,7 @@ static int apply_override(pstate *ps, int i)
     config_t tmp;
     int st = WT_OK, ok = 0;
     /* a bare word is retried as a string for string keys (recon.prior=exact) */
-    const int words = wt_config_priv_keys[k].type == K_ENUM || (wt_config_priv_keys[k].flags & F_AUTO);
+    const int words = wt_config_priv_keys[k].type == K_ENUM || wt_config_priv_keys[k].type == K_STR || (wt_config_priv_keys[k].flags & F_AUTO);
     for (int quoted = 0; !ok && quoted < 1 + (words && !memchr(v, '"', vl)); quoted++) {
         wt_config_priv_text vt;
         if (quoted) config_destroy(&tmp);
@@ -434,6 +441,10 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     expected_text(ks, want, sizeof want);
     if (!s) {
         if (ks->flags & F_AUTO) return WT_OK;
+        if (ks->type == K_STR) {
+            *dst = '\0';
+            return WT_OK;
+        }
         if (ks->flags & F_OPT) {
             *(double *)dst = ks->def;
             return WT_OK;
@@ -454,6 +465,20 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
         }
         *(int *)dst = config_setting_get_bool(s);
         return WT_OK;
+    case K_STR: {
+        /* a path: relative to the configuration file's directory, like @include */
+        const char *str = config_setting_type(s) == CONFIG_TYPE_STRING ? config_setting_get_string(s) : NULL;
+        if (!str || !*str) {
+            describe(s, got, sizeof got);
+            return FAIL(ps, k, s, "key '%s': expected %s, got %s", ks->path, want, got);
+        }
+        const int rel = str[0] != '/' && ps->incdir && *ps->incdir;
+        const size_t cap = sizeof cfg->sodium_profile;
+        if ((rel ? strlen(ps->incdir) : 0) + strlen(str) + 1 > cap)
+            return FAIL(ps, k, s, "key '%s': the path \"%s\" is longer than %zu characters", ks->path, str, cap - 1);
+        snprintf(dst, cap, "%s%s", rel ? ps->incdir : "", str);
+        return WT_OK;
+    }
     case K_ENUM: {
         const char *str = config_setting_type(s) == CONFIG_TYPE_STRING ? config_setting_get_string(s) : NULL;
         if (!str) {
@@ -656,6 +681,44 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
 
+    for (int t = 0; t < 2; t++) {
+        const char *pre = t ? "ngs.wfs" : "lgs.wfs";
+        const wt_sensor_config *w = t ? &cfg->ngs_wfs : &cfg->lgs_wfs;
+        char a[96], b[96];
+        if ((t ? cfg->nngs : cfg->nlgs) == 0 || w->model != WT_WFS_DIFFRACTIVE) continue;
+        snprintf(a, sizeof a, "%s.fft_size", pre);
+        snprintf(b, sizeof b, "%s.pupil_samples", pre);
+        k = find_key(a);
+        if (w->fft_size % 2 || w->fft_size < 2 * w->pupil_samples)
+            return FAIL(ps, k, ps->set[k], "key '%s' = %d: the FFT sampling is too coarse or odd for '%s' = %d; "
+                        "expected an even number >= %d (2 x %s: Nyquist sampling of the wavelength over the "
+                        "subaperture side)", a, w->fft_size, b, w->pupil_samples, 2 * w->pupil_samples, b);
+        snprintf(a, sizeof a, "%s.window_pixels", pre);
+        snprintf(b, sizeof b, "%s.pixels", pre);
+        k = find_key(a);
+        if (w->window_pixels > w->pixels || (w->window_pixels > 0 && (w->pixels - w->window_pixels) % 2))
+            return FAIL(ps, k, ps->set[k], "key '%s' = %d: the window must fit the detector '%s' = %d with an even "
+                        "difference (it is centred), or be 0 (the whole detector)", a, w->window_pixels, b, w->pixels);
+        if (w->centroider == 2 && w->window_pixels != 0 && w->window_pixels != w->pixels)
+            return FAIL(ps, k, ps->set[k], "key '%s' = %d: the matched filter ('%s.centroider' = \"mf\") uses every "
+                        "pixel; expected 0 or '%s' = %d", a, w->window_pixels, pre, b, w->pixels);
+        k = find_key(b);
+        if (w->pixels > 256) /* WT_CENTROID_MAX_PIXELS of core/optics/centroid.h */
+            return FAIL(ps, k, ps->set[k], "key '%s' = %d: a diffractive detector has at most 256 pixels per side",
+                        b, w->pixels);
+        snprintf(a, sizeof a, "%s.nea_mas", pre);
+        k = find_key(a);
+        if (ps->set[k])
+            return FAIL(ps, k, ps->set[k], "key '%s' is a geometric-model key (it replaces the photon/read-noise "
+                        "model); with '%s.model' = \"diffractive\" the noise comes from the pixels: leave it out", a, pre);
+        if (t && w->tilt == WT_SH_TILT_Z_CFG) {
+            k = find_key("ngs.wfs.tilt");
+            return FAIL(ps, k, ps->set[k], "key 'ngs.wfs.tilt' = \"z\" concerns the geometric model; with "
+                        "'ngs.wfs.model' = \"diffractive\" an NGS measures what its centroider measures (a G-tilt): "
+                        "use \"g\" or the geometric model");
+        }
+    }
+
     /* the NGS sensors have no keys of their own for these */
     cfg->ngs_wfs.valid_fraction = cfg->lgs_wfs.valid_fraction;
     cfg->ngs_wfs.subapertures = 0;
@@ -680,6 +743,15 @@ static int affects_matrix(const pstate *ps, const char *path)
                 on |= config_setting_get_bool(ps->set[k]);
         return on;
     }
+    /* the diffractive sensor's keys shape the noise model only when that sensor type is diffractive */
+    static const char *const diffr[] = {".model", ".centroider", ".apply_gain", ".tcog_threshold", ".window_pixels",
+                                        ".background_e", ".pupil_samples", ".fft_size", ".cells_per_pixel",
+                                        ".wavelength_nm", ".noise_calibration", ".calibration_"};
+    const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.sodium_profile");
+    for (size_t i = 0; i < sizeof diffr / sizeof *diffr && !lgs_only; i++)
+        if ((!strncmp(path, "lgs.wfs.", 8) || !strncmp(path, "ngs.wfs.", 8)) && strstr(path, diffr[i]))
+            goto diffractive;
+    if (lgs_only) goto diffractive;
     static const char *const skip[] = {"sim.", "loop.", "evaluation.settle_frames", "evaluation.wavelength_nm",
                                        "lgs.tt_jitter_arcsec", "atmosphere.wind_", "recon.warm_start",
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
@@ -689,6 +761,11 @@ static int affects_matrix(const pstate *ps, const char *path)
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
     return 1;
+diffractive: {
+    const int k = find_key(path[0] == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
+    const char *m = k >= 0 && ps->set[k] ? config_setting_get_string(ps->set[k]) : NULL;
+    return m && !strcmp(m, "diffractive");
+}
 }
 
 static int build_text(pstate *ps, int matrix_only, char **text)
@@ -707,7 +784,7 @@ static int build_text(pstate *ps, int matrix_only, char **text)
         const char *leaf;
         config_setting_t *g = ensure_parent(&out, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
-                                    CONFIG_TYPE_STRING, CONFIG_TYPE_ARRAY, CONFIG_TYPE_ARRAY};
+                                    CONFIG_TYPE_STRING, CONFIG_TYPE_ARRAY, CONFIG_TYPE_ARRAY, CONFIG_TYPE_STRING};
         if (g) d = config_setting_add(g, leaf, ctype[ks->type]);
         if (!d) {
             st = WT_ERROR(ps->ctx, WT_ERR_NOMEM, "libconfig could not add '%s' to the canonical text", ks->path);
@@ -718,7 +795,8 @@ static int build_text(pstate *ps, int matrix_only, char **text)
         case K_INT64: config_setting_set_int64(d, config_setting_get_int64(s)); break;
         case K_FLOAT: config_setting_set_float(d, num(s)); break;
         case K_BOOL: config_setting_set_bool(d, config_setting_get_bool(s)); break;
-        case K_ENUM: config_setting_set_string(d, config_setting_get_string(s)); break;
+        case K_ENUM:
+        case K_STR: config_setting_set_string(d, config_setting_get_string(s)); break;
         default:
             for (int i = 0; i < config_setting_length(s); i++) {
                 const config_setting_t *e = config_setting_get_elem(s, (unsigned)i);
@@ -770,7 +848,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     const char **allov = NULL;
     int nfile = 0; /* overrides the file carries (before any goto fail) */
     config_t cf;
-    pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides, .src = &src};
+    pstate ps = {.ctx = ctx, .name = name ? name : "<string>", .cf = &cf, .ov = overrides, .src = &src, .incdir = incdir};
     *out = NULL;
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) ps.ovidx[k] = -1;
     config_init(&cf);

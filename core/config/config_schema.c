@@ -36,7 +36,7 @@
 #define KFL_(p, fl, lo, hi, u, sc, dst, cnt, mn, mx, d) {p, K_FLOATS, fl, lo, hi, u, sc, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 #define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 
-#define SENSOR(pre, w)                                                                                     \
+#define SENSOR(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)                                                                                   \
     KF(pre ".photons", GT0(1e12), "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
     KF(pre ".read_noise_e", GE0(1e6), "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
     KF(pre ".spot_fwhm_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
@@ -48,7 +48,55 @@
     {pre ".lit_noise", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(w.lit_noise), NOCOUNT, 0, 0, NULL, 0,              \
      "a partly lit subaperture collects its lit fraction f of a full one's photons: the per-axis variance " \
      "is that of f N photons (NEA^2 / f with nea_mas), in the simulated noise and the reconstructor's "      \
-     "weights (optional, default false)"}
+     "weights (optional, default false)"},                                                                  \
+    DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)
+
+/* The diffractive sensor (SPEC §4b, docs/design.md "Diffractive sensing"): keys read only when
+ * <pre>.model = "diffractive"; each has a default (F_DEFAULT), so today's files read as before. */
+#define DFLT(p, t, fl, lo, hi, u, sc, dst, ch, d, txt) {p, t, F_DEFAULT | (fl), lo, hi, u, sc, CF(dst), NOCOUNT, 0, 0, ch, d, txt}
+#define DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)                        \
+    DFLT(pre ".model", K_ENUM, 0, 0, 0, "", 1, w.model, "geometric|diffractive", 0,                          \
+         "sensor model: geometric = average gradient over the lit area plus a Gaussian draw of the "         \
+         "reconstructor's noise model; diffractive = spot images (FFT of the lit pupil at wavelength_nm, LGS "  \
+         "sodium line + uplink spot) on pixels with photon, read and background noise, measured by the "      \
+         "centroider; the reconstructor's noise model is the centroider's covariance (docs/design.md) "       \
+         "(optional, default geometric)"),                                                                   \
+    DFLT(pre ".centroider", K_ENUM, 0, 0, 0, "", 1, w.centroider, "cog|tcog|mf", cdef,                       \
+         "diffractive: cog = centre of gravity in the window, tcog = thresholded CoG, mf = matched filter "  \
+         "from the noise-free reference image and its derivatives (optional, default " cdefs ")"),           \
+    DFLT(pre ".apply_gain", K_BOOL, 0, 0, 1, "", 1, w.apply_gain, NULL, 1,                                   \
+         "diffractive: correct each subaperture's slopes (and its noise covariance) by the inverse of the "  \
+         "centroider's calibrated 2x2 gain (optional, default true)"),                                       \
+    DFLT(pre ".tcog_threshold_noise", K_FLOAT, 0, 0.0, 100.0, "", 1, w.threshold_noise, NULL, 3.0,           \
+         "tcog: threshold T = this x sqrt(read_noise_e^2 + background_e) + tcog_threshold_peak x the "       \
+         "reference peak [e-] (optional, default 3)"),                                                       \
+    DFLT(pre ".tcog_threshold_peak", K_FLOAT, F_HI_OPEN, 0.0, 1.0, "", 1, w.threshold_peak, NULL, 0.0,       \
+         "tcog: the fraction of the noise-free reference peak in the threshold (optional, default 0)"),      \
+    DFLT(pre ".window_pixels", K_INT, 0, 0, 1024, "", 1, w.window_pixels, NULL, 0,                           \
+         "diffractive cog/tcog: window of this many pixels per side centred on the detector (pixels minus "  \
+         "it even); 0 = the whole detector; mf uses every pixel (0 only) (optional, default 0)"),            \
+    DFLT(pre ".background_e", K_FLOAT, 0, 0.0, 1e9, "e-", 1, w.background_e, NULL, 0.0,                      \
+         "diffractive: background (sky, Rayleigh) per pixel per frame, Poisson, subtracted (optional, "      \
+         "default 0)"),                                                                                      \
+    DFLT(pre ".pupil_samples", K_INT, 0, 2, 1024, "", 1, w.pupil_samples, NULL, npdef,                       \
+         "diffractive: pupil samples across a subaperture (the OPD is interpolated from the simulation grid "\
+         "onto them); the FFT field is pupil_samples x wavelength / subaperture side (optional, default "    \
+         npdefs ")"),                                                                                        \
+    DFLT(pre ".fft_size", K_INT, 0, 4, 4096, "", 1, w.fft_size, NULL, nfdef,                                 \
+         "diffractive: FFT points per side, even, >= 2 x pupil_samples (Nyquist sampling of wavelength / "   \
+         "subaperture side) (optional, default " nfdefs ")"),                                                \
+    DFLT(pre ".cells_per_pixel", K_INT, F_ODD, 1, 15, "", 1, w.cells_per_pixel, NULL, 3,                     \
+         "diffractive: rebinning cells per pixel side, odd (core/optics/spot.h) (optional, default 3)"),     \
+    DFLT(pre ".wavelength_nm", K_FLOAT, 0, 100.0, 1e5, "nm", 1e-9, w.wavelength, NULL, wldef,                \
+         "diffractive: sensing wavelength (optional, default " wldefs ")"),                                  \
+    DFLT(pre ".noise_calibration", K_ENUM, 0, 0, 0, "", 1, w.noise_calibration, "analytic|montecarlo", 0,    \
+         "diffractive: the reconstructor's 2x2 noise covariance per subaperture: analytic = first-order "    \
+         "propagation of photon, read and background noise through the centroider; montecarlo = "            \
+         "calibration_draws noisy reference frames with calibration_seed (optional, default analytic)"),     \
+    DFLT(pre ".calibration_draws", K_INT, 0, 2, 10000000, "", 1, w.calibration_draws, NULL, 1000,            \
+         "montecarlo: noisy frames per subaperture (optional, default 1000)"),                               \
+    DFLT(pre ".calibration_seed", K_INT64, 0, 0.0, INF, "", 1, w.calibration_seed, NULL, 1,                  \
+         "montecarlo: seed of the calibration draws (its own, not sim.seed) (optional, default 1)")
 
 /* The automatic layer grids (config_grid.c, docs/design.md): the spacing rule of each variant, and what
  * pcg3's layers must also hold (the actuators they are read at). */
@@ -102,19 +150,28 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("lgs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
     KF("lgs.azimuth0_deg", ANYANGLE, "deg", DEG, lgs_azimuth0, "azimuth of the first LGS; the others follow every 360/count deg"),
     KF("lgs.altitude_m", GT0(MAXALT), "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
-    KF("lgs.sodium_fwhm_m", GE0(1e5), "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation"),
+    KF("lgs.sodium_fwhm_m", GE0(1e5), "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation; a diffractive LGS with lgs.sodium_profile uses the profile instead"),
     KF("lgs.launch_radius_m", GE0(1000.0), "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
     KF("lgs.tt_jitter_arcsec", GE0(100.0), "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
     KI("lgs.wfs.subapertures", 0, 1, 1024, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
     KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
        "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
-    SENSOR("lgs.wfs", lgs_wfs),
+    SENSOR("lgs.wfs", lgs_wfs, 2, "mf", 16, "16", 32, "32", 589.0, "589 (sodium D2)"),
+    {"lgs.uplink_fwhm_arcsec", K_FLOAT, F_DEFAULT, 0.0, 100.0, "arcsec", ARCSEC, CF(uplink_fwhm), NOCOUNT, 0, 0, NULL, 1.0,
+     "diffractive LGS: FWHM of the Gaussian uplink (laser) spot on the sodium layer, convolved with the sodium "
+     "line (optional, default 1)"},
+    {"lgs.sodium_profile", K_STR, F_OPT, 0, 0, "", 1, CF(sodium_profile), NOCOUNT, 0, 0, NULL, 0,
+     "diffractive LGS: sodium density profile file, two columns \"altitude_m density\" (altitude above the "
+     "telescope), relative to the configuration file's directory like @include (shipped: "
+     "data/sodium/default.txt); left out: a Gaussian layer of lgs.sodium_fwhm_m at lgs.altitude_m. With a "
+     "profile, lgs.sodium_fwhm_m is not used by the diffractive model (the geometric model ignores the file)"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
     KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
         "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
-    SENSOR("ngs.wfs", ngs_wfs),
+    SENSOR("ngs.wfs", ngs_wfs, 0, "cog", 128, "128 (the 1x1 sensor's whole pupil: D/128 samples)", 256, "256",
+           1650.0, "1650 (H band)"),
     {"ngs.wfs.tilt", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(ngs_wfs.tilt), NOCOUNT, 0, 0, "g|z", 0,
      "what an NGS slope is, in the simulated sensors and the reconstructor's model alike: g = G-tilt, the "
      "average gradient over the lit area (what a centroiding sensor measures), z = Z-tilt, the least-squares "
@@ -198,6 +255,7 @@ void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n
     wt_config_priv_fmt_num(ks->hi, b, sizeof b);
     if (ks->type == K_BOOL) snprintf(buf, n, "true|false");
     else if (ks->type == K_ENUM) snprintf(buf, n, "%s", ks->choices);
+    else if (ks->type == K_STR) snprintf(buf, n, "a file path");
     else if (lo && hi)
         snprintf(buf, n, "in %c%s, %s%c", ks->flags & F_LO_OPEN ? '(' : '[', a, b, ks->flags & F_HI_OPEN ? ')' : ']');
     else if (lo) snprintf(buf, n, "%s %s", ks->flags & F_LO_OPEN ? ">" : ">=", a);
@@ -209,7 +267,7 @@ void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n
 
 void wt_config_print_reference(FILE *f)
 {
-    static const char *tname[] = {"int", "int", "float", "bool", "string", "float[]", "int[]"};
+    static const char *tname[] = {"int", "int", "float", "bool", "string", "float[]", "int[]", "path"};
     char rng[128], unit[32];
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) {
         const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];

@@ -6,6 +6,7 @@
 
 #include "../op/noise.h"
 #include "../op/pupil.h"
+#include "sensing.h"
 
 static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index, double tx, double ty, int m)
 {
@@ -52,6 +53,35 @@ static int add_sensor(wt_system *sys, const wt_config *cfg, int kind, int index,
     s->offset = sys->nslopes;
     sys->nslopes += s->nslopes;
     sys->nsensors++;
+    if (w->model == WT_WFS_DIFFRACTIVE) {
+        /* the diffractive sensor: spot + centroider on the valid subapertures of the model, in its order */
+        double *cx = NULL, *cy = NULL;
+        WT_ALLOC(ctx, cx, s->nsub, "subaperture centres");
+        cy = wt_calloc(ctx, (size_t)s->nsub, sizeof *cy);
+        if (!cy) {
+            wt_free(ctx, cx);
+            return WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for subaperture centres");
+        }
+        for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cy[k]);
+        const wt_sensing_geometry g = {.lgs = kind == WT_SENSOR_LGS,
+                                       .name = s->name,
+                                       .source = cfg->path,
+                                       .nsub = s->nsub,
+                                       .xc = cx,
+                                       .yc = cy,
+                                       .side = cfg->diameter / s->subapertures,
+                                       .diameter = cfg->diameter,
+                                       .obstruction = cfg->obstruction,
+                                       .altitude = s->altitude,
+                                       .launch_x = s->launch_x,
+                                       .launch_y = s->launch_y};
+        st = wt_sensing_alloc(ctx, cfg, w, &g, &s->diffr);
+        wt_free(ctx, cx);
+        wt_free(ctx, cy);
+        if (st < 0) return st;
+        s->sigma2 = s->diffr->mean_var;
+        return WT_OK;
+    }
     if (w->lit_noise) {
         /* f relative to the sensor's best-lit subaperture: 1 for a fully lit LGS subaperture, and for the NGS
          * quadrants or the whole pupil (their photons are the star's, whatever the pupil's shape) */
@@ -177,12 +207,14 @@ void wt_system_free(wt_system *sys)
         wt_shack_hartmann_free(sys->sensors[k].sh);
         wt_free(ctx, sys->sensors[k].beta);
         wt_free(ctx, sys->sensors[k].noise_scale);
+        wt_sensing_free(sys->sensors[k].diffr);
     }
     /* a sensor that failed half-way was not counted: free its parts too */
     if (sys->nsensors < 2 * WT_MAX_GS) {
         wt_shack_hartmann_free(sys->sensors[sys->nsensors].sh);
         wt_free(ctx, sys->sensors[sys->nsensors].beta);
         wt_free(ctx, sys->sensors[sys->nsensors].noise_scale);
+        wt_sensing_free(sys->sensors[sys->nsensors].diffr);
     }
     wt_dm_free(sys->dm);
     wt_free(ctx, sys->valid);

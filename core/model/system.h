@@ -37,6 +37,10 @@ typedef struct wt_sensor {
     double *noise_scale;        /* per-axis variance factor of each subaperture (lit_noise), nsub; NULL = all 1 */
     double *beta;               /* LGS elongation vectors [rad], 2*nsub ([βx…, βy…]); NULL for NGS or Δh = 0 */
     char name[16];              /* "LGS1", "NGS2", … for messages */
+    struct wt_sensing *diffr;   /* the diffractive sensor (lgs/ngs.wfs.model = "diffractive", core/model/sensing.h;
+                                   owned; NULL: geometric). Then sigma2 is its mean per-axis variance (for
+                                   messages), noise_scale and beta are NULL, and the reconstructor's noise model
+                                   is diffr->cov (the centroider's 2x2 blocks) with τ; the loop's truth uses it */
 } wt_sensor;
 
 typedef struct wt_system {

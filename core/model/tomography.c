@@ -1,6 +1,7 @@
 /* core/model/tomography.c: normal operator, right-hand side, modified Jacobi diagonal and (P)CG solve
  * of the wavelet MAP tomography (paper eq. eqn_lse; SPEC §6). */
 #include "tomography.h"
+#include "sensing.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -302,6 +303,26 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
          * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
          * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
          * proportion: both options are off by default). */
+        if (s->diffr) {
+            /* a diffractive sensor: the centroider's calibrated 2x2 blocks Σ_i (sensing.h), κΣ_i + σ²_e I; τ
+             * scales the part beyond the short axis, κ(Σ_i − λ_i I), which the isotropic model error leaves as
+             * it is (the same rule as the paper's model above) */
+            const int ns = s->nsub;
+            double *cov = wt_malloc(ctx, 3 * (size_t)ns, sizeof *cov);
+            if (!cov) {
+                st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for %s's noise blocks", s->name);
+                goto fail;
+            }
+            for (int i = 0; i < ns; i++) {
+                cov[i] = kappa * s->diffr->cov[i] + t->model_var[m];
+                cov[ns + i] = kappa * s->diffr->cov[ns + i];
+                cov[2 * ns + i] = kappa * s->diffr->cov[2 * ns + i] + t->model_var[m];
+            }
+            st = wt_noise_alloc_blocks(ctx, ns, cov, par->tau, s->kind == WT_SENSOR_LGS, &t->noise[m]);
+            wt_free(ctx, cov);
+            if (st < 0) goto fail;
+            continue;
+        }
         const double s2n = kappa * s->sigma2, s2t = s2n + t->model_var[m];
         WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
                                      par->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));

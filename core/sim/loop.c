@@ -6,6 +6,7 @@
 
 #include "../model/fitting.h"
 #include "../model/interaction.h"
+#include "../model/sensing.h"
 #include "../op/noise.h"
 #include "../op/projection.h"
 #include "../op/pupil.h"
@@ -27,6 +28,7 @@ struct wt_loop {
     int nlos;                     /* lines of sight: sensors then evaluation directions */
     wt_wfs **wfs;                 /* per sensor: truth Shack–Hartmann */
     wt_noise **noise;             /* per sensor: truth noise (τ = 1) */
+    uint8_t **dmask;              /* per diffractive sensor: the fine points its pupil samples read (else NULL) */
     wt_projection **dm;           /* per line of sight: DMs on the fine grid (with ground: DMs 1.. only) */
     int ground;                   /* 1: DM 0 is at altitude 0: its term is the same along every line of sight */
     wt_projection *dm0;           /* ground: DM 0 on the union of the lines of sight's masks */
@@ -67,7 +69,8 @@ static void los_direction(const wt_loop *lp, int i, double *tx, double *ty)
 
 static const uint8_t *los_mask(const wt_loop *lp, int i)
 {
-    return i < lp->sys->nsensors ? wt_wfs_fine_mask(lp->wfs[i]) : lp->pupil;
+    if (i >= lp->sys->nsensors) return lp->pupil;
+    return lp->dmask[i] ? lp->dmask[i] : wt_wfs_fine_mask(lp->wfs[i]);
 }
 
 /* The DM projections. A DM at altitude 0 is seen the same way from every source and direction
@@ -188,8 +191,16 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
 
     WT_ALLOC(ctx, lp->wfs, sys->nsensors, "truth sensors");
     WT_ALLOC(ctx, lp->noise, sys->nsensors, "truth noise");
+    WT_ALLOC(ctx, lp->dmask, sys->nsensors, "diffractive sensor masks");
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
+        if (s->diffr) {
+            /* the diffractive truth: the system's spot and centroider (core/model/sensing.h), fed by the OPD
+             * interpolated from the fine grid at its pupil samples */
+            WT_ALLOC(ctx, lp->dmask[m], lp->nfine, "diffractive sensor mask");
+            WT_TRY(wt_sensing_fine_mask(s->diffr, &lp->fine, lp->dmask[m]));
+            continue;
+        }
         WT_TRY(wt_wfs_alloc(ctx, par->diameter, par->obstruction, sys->n, sys->d, p, sys->valid,
                             s->kind == WT_SENSOR_LGS ? 0 : s->subapertures, s->tilt, &lp->wfs[m]));
         if (wt_wfs_nslopes(lp->wfs[m]) != s->nslopes) {
@@ -255,6 +266,9 @@ void wt_loop_free(wt_loop *lp)
     wt_atmosphere_free(lp->atm);
     if (lp->wfs)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_wfs_free(lp->wfs[m]);
+    if (lp->dmask)
+        for (int m = 0; m < lp->sys->nsensors; m++) wt_free(ctx, lp->dmask[m]);
+    wt_free(ctx, lp->dmask);
     if (lp->noise)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_noise_free(lp->noise[m]);
     if (lp->dm)
@@ -305,6 +319,19 @@ static void sense(wt_loop *lp, int i, long t, const double *o)
 {
     const wt_sensor *s = &lp->sys->sensors[i];
     double *sl = lp->s + s->offset;
+    if (s->diffr) {
+        /* the LGS jitter is a tilt of the OPD (it moves the spots), from the same stream as the geometric
+         * sensor's; the images, their noise and the centroider run in sense_diffractive */
+        double jx = 0.0, jy = 0.0;
+        if (lp->opt.noise && s->kind == WT_SENSOR_LGS && lp->par.lgs_tt_jitter > 0.0) {
+            wt_rng rng;
+            wt_rng_init(&rng, lp->opt.seed, NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i);
+            jx = lp->par.lgs_tt_jitter * wt_rng_normal(&rng);
+            jy = lp->par.lgs_tt_jitter * wt_rng_normal(&rng);
+        }
+        wt_sensing_sample(s->diffr, &lp->fine, o, jx, jy);
+        return;
+    }
     wt_wfs_measure(lp->wfs[i], o, sl);
     if (lp->opt.noise) {
         wt_rng rng;
@@ -313,6 +340,22 @@ static void sense(wt_loop *lp, int i, long t, const double *o)
         if (s->kind == WT_SENSOR_LGS && lp->par.lgs_tt_jitter > 0.0)
             wt_wfs_add_tiptilt(lp->wfs[i], &rng, lp->par.lgs_tt_jitter, sl);
     }
+}
+
+/* The diffractive sensors of frame t, after sense() sampled their OPD: images, noise (subaperture s of
+ * sensor m from WT_SPOT_STREAM(2^32 + 64 t + m, s)), centroider. Outside parallel regions (the spot and
+ * centroider run their own OpenMP loops over subapertures); allocates nothing. */
+static int sense_diffractive(wt_loop *lp, long t, int nsens)
+{
+    const wt_system *sys = lp->sys;
+    for (int i = 0; i < nsens; i++) {
+        const wt_sensor *s = &sys->sensors[i];
+        if (!s->diffr) continue;
+        int st = wt_sensing_detect(s->diffr, lp->opt.noise, lp->opt.seed,
+                                   NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i, lp->s + s->offset);
+        if (st < 0) return st;
+    }
+    return WT_OK;
 }
 
 /* Evaluation of a frame: field Strehl, and the long-exposure sums after the settle period */
@@ -346,6 +389,7 @@ static int step_open_loop(wt_loop *lp)
         if (i < nsens) sense(lp, i, t, o);
     }
     if (err < 0) return err;
+    if ((err = sense_diffractive(lp, t, nsens)) < 0) return err;
     double t1 = wt_time_now();
     lp->times.sensors += t1 - t0;
     if (lp->opt.perfect_fit) {
@@ -448,6 +492,9 @@ int wt_loop_step(wt_loop *lp)
         lp->times.sensors += (t2 - t1) * c_sens / csum;
         lp->times.evaluation += (t2 - t1) * c_eval / csum;
     }
+    if ((st = sense_diffractive(lp, t, sys->nsensors)) < 0) return st;
+    lp->times.sensors += wt_time_now() - t2;
+    t2 = wt_time_now();
 
     evaluate(lp);
     double t2e = wt_time_now();

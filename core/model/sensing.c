@@ -1,0 +1,273 @@
+/* core/model/sensing.c: the diffractive sensor of one WFS: spot + centroider from the system geometry, its
+ * noise covariance for the reconstructor, and the per-frame truth path (SPEC §4b; see sensing.h). */
+#include "sensing.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../op/pupil.h"
+#include "../optics/centroid.h"
+#include "../optics/sodium.h"
+#include "../optics/spot.h"
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* the message of the optics module, prefixed with the sensor and the keys */
+static int rewrap(wt_context *ctx, int st, const wt_sensing_geometry *g, const char *keys)
+{
+    char detail[1024];
+    snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
+    return WT_ERROR(ctx, st < 0 ? st : WT_ERR_CONFIG, "%s: %s (%s): %s", g->source ? g->source : "sensing", g->name,
+                    keys, detail);
+}
+
+int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_config *w, const wt_sensing_geometry *g,
+                     wt_sensing **out)
+{
+    int st = WT_OK;
+    wt_sensing *ws = NULL;
+    wt_sodium *na = NULL;
+    double *lit = NULL, *tmp = NULL;
+    float *dix = NULL, *diy = NULL;
+    const char *pre = g->lgs ? "lgs.wfs" : "ngs.wfs";
+    const double t0 = wt_time_now();
+    *out = NULL;
+    if (g->nsub <= 0 || !g->xc || !g->yc || !(g->side > 0.0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "%s: %s: no subaperture for the diffractive sensor", g->source, g->name);
+    WT_ALLOC(ctx, ws, 1, "diffractive sensor");
+    ws->ctx = ctx;
+    ws->lgs = g->lgs;
+    ws->nsub = g->nsub;
+    ws->np = w->pupil_samples;
+    ws->ns = w->pixels;
+    ws->side = g->side;
+    const int nsub = g->nsub, np = ws->np, ns = ws->ns;
+    const size_t nsamp = (size_t)nsub * np * np, npix = (size_t)nsub * ns * ns;
+
+    /* the sodium line */
+    if (g->lgs && cfg->sodium_profile[0]) {
+        if ((st = wt_sodium_read(ctx, cfg->sodium_profile, &na)) < 0 ||
+            (st = wt_sodium_check_covers(ctx, na, g->altitude, "lgs.sodium_profile")) < 0) {
+            char detail[1024];
+            snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'lgs.sodium_profile' = \"%s\" (with lgs.altitude_m = %g m): %s",
+                          g->source, cfg->sodium_profile, g->altitude, detail);
+            goto fail;
+        }
+    } else if (g->lgs && cfg->sodium_fwhm > 0.0) {
+        WT_TRY(wt_sodium_gaussian(ctx, g->altitude, cfg->sodium_fwhm, &na));
+    }
+
+    /* amplitudes: each sample's lit fraction; lit: the subaperture's, relative to the best-lit one */
+    WT_ALLOC(ctx, ws->xc, nsub, "subaperture centres");
+    WT_ALLOC(ctx, ws->yc, nsub, "subaperture centres");
+    WT_ALLOC(ctx, ws->amp, nsamp, "pupil amplitudes");
+    WT_ALLOC(ctx, lit, nsub, "lit fractions");
+    {
+        const double d = g->side, dx = d / np;
+        double fmax = 0.0;
+        for (int k = 0; k < nsub; k++) {
+            ws->xc[k] = g->xc[k];
+            ws->yc[k] = g->yc[k];
+            const double x0 = g->xc[k] - 0.5 * d, y0 = g->yc[k] - 0.5 * d;
+            const double f = wt_pupil_fraction(g->diameter, g->obstruction, x0, y0, d);
+            lit[k] = f;
+            if (f > fmax) fmax = f;
+            float *a = ws->amp + (size_t)k * np * np;
+            for (int j = 0; j < np; j++)
+                for (int i = 0; i < np; i++)
+                    a[i + np * j] = f >= 1.0 ? 1.0f
+                                             : (float)wt_pupil_fraction(g->diameter, g->obstruction, x0 + i * dx,
+                                                                        y0 + j * dx, dx);
+        }
+        for (int k = 0; k < nsub; k++) lit[k] /= fmax;
+    }
+
+    wt_spot_params sp = {.wavelength = w->wavelength,
+                         .subap_side = g->side,
+                         .pupil_samples = np,
+                         .fft_size = w->fft_size,
+                         .npix = ns,
+                         .pixel = w->pixel,
+                         .cells_per_pixel = w->cells_per_pixel,
+                         .photons = w->photons,
+                         .background = w->background_e,
+                         .read_noise = w->read_noise_e,
+                         .uplink_fwhm = g->lgs ? cfg->uplink_fwhm : 0.0,
+                         .sodium = na,
+                         .lgs_altitude = g->altitude,
+                         .launch_x = g->launch_x,
+                         .launch_y = g->launch_y};
+    if ((st = wt_spot_alloc(ctx, &sp, nsub, ws->xc, ws->yc, ws->amp, lit, &ws->spot)) < 0) {
+        char keys[256];
+        snprintf(keys, sizeof keys, "%s.pupil_samples, fft_size, pixels, pixel_arcsec, wavelength_nm%s", pre,
+                 g->lgs ? ", lgs.sodium_profile" : "");
+        st = rewrap(ctx, st, g, keys);
+        goto fail;
+    }
+
+    /* the reference and its derivatives, the truncation */
+    WT_ALLOC(ctx, ws->i0, npix, "reference images");
+    WT_ALLOC(ctx, dix, npix, "reference derivatives");
+    WT_ALLOC(ctx, diy, npix, "reference derivatives");
+    WT_ALLOC(ctx, ws->trunc, nsub, "truncations");
+    WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->i0, dix, diy));
+    wt_spot_truncation(ws->spot, ws->i0, ws->trunc);
+    for (int k = 0; k < nsub; k++)
+        if (ws->trunc[k] > ws->worst_trunc) ws->worst_trunc = ws->trunc[k], ws->worst_sub = k;
+    if (ws->worst_trunc > WT_SENSING_TRUNC_REFUSE) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                      "%s: %s: the detector field (%s.pixels = %d x %s.pixel_arcsec = %g arcsec) holds only %.1f %% of "
+                      "subaperture %d's spot (centre %.2f, %.2f m); refused above %.0f %% truncation: widen the field, "
+                      "or shorten the spots (lgs.sodium_fwhm_m / lgs.sodium_profile, lgs.launch_radius_m, "
+                      "lgs.uplink_fwhm_arcsec)",
+                      g->source, g->name, pre, ns, pre, w->pixel / WT_ARCSEC, 100.0 * (1.0 - ws->worst_trunc),
+                      ws->worst_sub, ws->xc[ws->worst_sub], ws->yc[ws->worst_sub], 100.0 * WT_SENSING_TRUNC_REFUSE);
+        goto fail;
+    }
+    if (ws->worst_trunc > WT_SENSING_TRUNC_WARN)
+        wt_log(ctx, WT_LOG_WARN,
+               "%s: %s: the detector field (%s.pixels = %d x %s.pixel_arcsec = %g arcsec) truncates %.1f %% of "
+               "subaperture %d's spot flux (more than %.0f %%; refused above %.0f %%)",
+               g->source, g->name, pre, ns, pre, w->pixel / WT_ARCSEC, 100.0 * ws->worst_trunc, ws->worst_sub,
+               100.0 * WT_SENSING_TRUNC_WARN, 100.0 * WT_SENSING_TRUNC_REFUSE);
+
+    wt_centroid_params cp = {.method = w->centroider,
+                             .window = w->window_pixels,
+                             .threshold_noise = w->threshold_noise,
+                             .threshold_peak = w->threshold_peak,
+                             .mf_flux = 0,
+                             .apply_gain = w->apply_gain,
+                             .pixel = w->pixel,
+                             .background = w->background_e,
+                             .read_noise = w->read_noise_e};
+    if ((st = wt_centroid_alloc(ctx, &cp, nsub, ns, ws->i0, dix, diy, &ws->cen)) < 0) {
+        char keys[256];
+        snprintf(keys, sizeof keys, "%s.centroider, window_pixels, apply_gain, tcog_threshold_*", pre);
+        st = rewrap(ctx, st, g, keys);
+        goto fail;
+    }
+    WT_ALLOC(ctx, ws->cov, 3 * (size_t)nsub, "noise covariance");
+    if (w->noise_calibration == 1) WT_TRY(wt_centroid_noise_mc(ws->cen, ws->i0, w->calibration_draws,
+                                                               w->calibration_seed, ws->cov, NULL));
+    else wt_centroid_noise_cov(ws->cen, ws->cov);
+    WT_ALLOC(ctx, tmp, nsub, "NEA");
+    for (int k = 0; k < nsub; k++) {
+        const double a = ws->cov[k], b = ws->cov[nsub + k], c = ws->cov[2 * nsub + k];
+        if (!(isfinite(a) && isfinite(b) && isfinite(c) && a > 0.0 && c > 0.0 && a * c - b * b > 0.0)) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                          "%s: %s: subaperture %d's centroid noise covariance {%g, %g, %g} rad^2 is not positive "
+                          "definite (%s.centroider, photons, read_noise_e, background_e)",
+                          g->source, g->name, k, a, b, c, pre);
+            goto fail;
+        }
+        tmp[k] = sqrt(0.5 * (a + c));
+        ws->mean_var += 0.5 * (a + c) / nsub;
+    }
+    qsort(tmp, (size_t)nsub, sizeof *tmp, cmp_double);
+    ws->nea_median = nsub % 2 ? tmp[nsub / 2] : 0.5 * (tmp[nsub / 2 - 1] + tmp[nsub / 2]);
+
+    WT_ALLOC(ctx, ws->opd, nsamp, "sample OPD");
+    WT_ALLOC(ctx, ws->img, npix, "images");
+    ws->setup_seconds = wt_time_now() - t0;
+    *out = ws;
+fail:
+    wt_sodium_free(na);
+    wt_free(ctx, lit);
+    wt_free(ctx, tmp);
+    wt_free(ctx, dix);
+    wt_free(ctx, diy);
+    if (st < 0) wt_sensing_free(ws);
+    return st;
+}
+
+void wt_sensing_free(wt_sensing *ws)
+{
+    if (!ws) return;
+    wt_context *ctx = ws->ctx;
+    wt_spot_free(ws->spot);
+    wt_centroid_free(ws->cen);
+    wt_free(ctx, ws->xc);
+    wt_free(ctx, ws->yc);
+    wt_free(ctx, ws->amp);
+    wt_free(ctx, ws->cov);
+    wt_free(ctx, ws->trunc);
+    wt_free(ctx, ws->i0);
+    wt_free(ctx, ws->opd);
+    wt_free(ctx, ws->img);
+    wt_free(ctx, ws);
+}
+
+/* The fine cell (iu, iv) and weights of position (x, y); 0 when outside the grid. */
+static inline int locate(const wt_grid *f, double x, double y, int *iu, int *iv, double *fu, double *fv)
+{
+    const double u = (x - f->x0) / f->dx, v = (y - f->y0) / f->dx;
+    int a = (int)floor(u), b = (int)floor(v);
+    if (a == f->nx - 1 && u - a < 1e-9) a--; /* a sample on the last grid line */
+    if (b == f->ny - 1 && v - b < 1e-9) b--;
+    if (a < 0 || b < 0 || a >= f->nx - 1 || b >= f->ny - 1) return 0;
+    *iu = a, *iv = b, *fu = u - a, *fv = v - b;
+    return 1;
+}
+
+int wt_sensing_fine_mask(const wt_sensing *ws, const wt_grid *fine, uint8_t *mask)
+{
+    const int np = ws->np;
+    const double dx = ws->side / np;
+    for (int k = 0; k < ws->nsub; k++)
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++) {
+                if (ws->amp[(size_t)k * np * np + i + np * j] <= 0.0f) continue;
+                const double x = ws->xc[k] + (i + 0.5 - 0.5 * np) * dx, y = ws->yc[k] + (j + 0.5 - 0.5 * np) * dx;
+                int iu, iv;
+                double fu, fv;
+                if (!locate(fine, x, y, &iu, &iv, &fu, &fv))
+                    return WT_ERROR(ws->ctx, WT_ERR_INVALID, "diffractive sensor: pupil sample (%g, %g) m outside the "
+                                    "simulation grid", x, y);
+                const int64_t p = iu + (int64_t)fine->nx * iv;
+                mask[p] = mask[p + 1] = mask[p + fine->nx] = mask[p + fine->nx + 1] = 1;
+            }
+    return WT_OK;
+}
+
+void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_opd, double tx, double ty)
+{
+    const int np = ws->np;
+    const double dx = ws->side / np;
+    const int64_t nx = fine->nx;
+    for (int k = 0; k < ws->nsub; k++) {
+        const float *a = ws->amp + (size_t)k * np * np;
+        float *o = ws->opd + (size_t)k * np * np;
+        for (int j = 0; j < np; j++) {
+            const double y = ws->yc[k] + (j + 0.5 - 0.5 * np) * dx;
+            for (int i = 0; i < np; i++) {
+                if (a[i + np * j] <= 0.0f) {
+                    o[i + np * j] = 0.0f;
+                    continue;
+                }
+                const double x = ws->xc[k] + (i + 0.5 - 0.5 * np) * dx;
+                int iu = 0, iv = 0;
+                double fu = 0.0, fv = 0.0;
+                locate(fine, x, y, &iu, &iv, &fu, &fv); /* inside: checked by wt_sensing_fine_mask */
+                const double *p = fine_opd + iu + nx * iv;
+                const double v = (1.0 - fv) * ((1.0 - fu) * p[0] + fu * p[1]) + fv * ((1.0 - fu) * p[nx] + fu * p[nx + 1]);
+                o[i + np * j] = (float)(v + tx * x + ty * y);
+            }
+        }
+    }
+}
+
+int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes)
+{
+    int st = wt_spot_image(ws->spot, ws->opd, ws->img);
+    if (st < 0) return st;
+    if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
+    wt_centroid_apply(ws->cen, ws->img, slopes);
+    return WT_OK;
+}

@@ -1,0 +1,94 @@
+/* core/model/sensing.h: the diffractive sensor of one WFS (SPEC §4b, docs/design.md "Diffractive sensing"):
+ * the spot model (core/optics/spot.h) and the centroider (core/optics/centroid.h) built from the system
+ * geometry and the configuration, the centroider's noise covariance that the reconstructor uses as C_E, and
+ * the per-frame truth path (OPD on the pupil samples -> images -> noise -> centroider -> slopes).
+ *
+ * One object per diffractive sensor, built once by wt_system_alloc and shared by the reconstructor's noise
+ * model (cov) and the simulator's truth (the loop): the spot tables (~70 MB per E-ELT LGS) exist once.
+ *
+ * Geometry: subaperture k (the valid subapertures of the sensor's Shack–Hartmann model, in its order) of
+ * side d has its centre (xc[k], yc[k]); its n_p x n_p pupil samples are cell-centred at spacing d/n_p
+ * (spot.h's layout). Amplitude of a sample: its lit fraction of the annulus (wt_pupil_fraction of the
+ * sample's square); lit[k]: the subaperture's lit fraction relative to the sensor's best-lit subaperture (1
+ * for a fully lit LGS subaperture; for the NGS 1x1/2x2 sensors `photons` is the star's per (big)
+ * subaperture whatever the pupil's shape, as the geometric lit_noise option).
+ *
+ * The OPD on the samples: bilinear interpolation of the simulator's fine grid (sim.points_per_subaperture
+ * points per LGS subaperture side; the fine-grid OPD is what the geometric truth sensor reads too), only at
+ * lit samples; wt_sensing_fine_mask says which fine points that reads.
+ *
+ * Threads: wt_sensing_sample is serial and touches only this object's OPD buffer (the loop calls it for
+ * several sensors from one parallel region); wt_sensing_detect runs the spot and centroider OpenMP loops
+ * and must be called from outside a parallel region, one sensor at a time (the spot workspaces are per
+ * object, per thread). Neither allocates.
+ */
+#ifndef WT_SENSING_H
+#define WT_SENSING_H
+
+#include <stdint.h>
+
+#include "../base/base.h"
+#include "../config/config.h"
+#include "../op/grid.h"
+
+typedef struct wt_spot wt_spot;
+typedef struct wt_centroid wt_centroid;
+
+/* The truncation limits of the detector field (item "bad input" of issue 19): above WARN of a spot's flux
+ * outside the field (worst subaperture of the noise-free reference), a warning naming the keys; above
+ * REFUSE, refused. */
+#define WT_SENSING_TRUNC_WARN 0.5
+#define WT_SENSING_TRUNC_REFUSE 0.9
+
+typedef struct wt_sensing_geometry {
+    int lgs;                   /* 1: LGS (sodium line + uplink), 0: NGS (point source) */
+    const char *name;          /* "LGS1", … for messages */
+    const char *source;        /* the configuration file, for messages */
+    int nsub;                  /* valid subapertures */
+    const double *xc, *yc;     /* [nsub] centres [m] (read, not kept) */
+    double side;               /* subaperture side d [m] */
+    double diameter, obstruction; /* the annulus */
+    double altitude;           /* LGS focus altitude H [m] */
+    double launch_x, launch_y; /* LGS launch position [m] */
+} wt_sensing_geometry;
+
+typedef struct wt_sensing {
+    wt_context *ctx;
+    int lgs, nsub, np, ns;
+    double side;
+    wt_spot *spot;             /* owned */
+    wt_centroid *cen;          /* owned */
+    double *xc, *yc;           /* [nsub] centres [m] */
+    float *amp;                /* [nsub n_p²] amplitudes (the mask of lit samples) */
+    double *cov;               /* [3 nsub] the centroider's noise covariance [rad²] (analytic or Monte Carlo, after
+                                  the gain correction when applied): the reconstructor's C_E (before τ) */
+    double *trunc;             /* [nsub] flux fraction outside the detector field, noise-free reference */
+    float *i0;                 /* [nsub Ns²] noise-free reference images I0 [e-] */
+    double nea_median;         /* median over subapertures of sqrt((λ1 + λ2)/2) [rad] */
+    double mean_var;           /* mean over subapertures of (Σxx + Σyy)/2 [rad²] */
+    double worst_trunc;        /* max of trunc */
+    int worst_sub;             /* its subaperture */
+    double setup_seconds;      /* wall time of the set-up */
+    float *opd;                /* [nsub n_p²] per-frame OPD on the samples [m] */
+    float *img;                /* [nsub Ns²] per-frame images */
+} wt_sensing;
+
+/* Build the sensor of `w` (cfg->lgs_wfs or cfg->ngs_wfs, with model diffractive) for geometry g: sodium
+ * profile (lgs.sodium_profile or a Gaussian of lgs.sodium_fwhm_m), spot model, reference I0 and its
+ * derivatives, centroider, truncation check, noise covariance. Errors name the configuration keys (and the
+ * profile file). */
+int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_config *w, const wt_sensing_geometry *g,
+                     wt_sensing **out);
+void wt_sensing_free(wt_sensing *ws);
+
+/* mask[fine] |= 1 for the fine-grid points the samples' bilinear interpolation reads. The fine grid must
+ * cover every lit sample (WT_ERR_INVALID otherwise). */
+int wt_sensing_fine_mask(const wt_sensing *ws, const wt_grid *fine, uint8_t *mask);
+/* The OPD on the samples from the fine-grid map fine_opd (valid at the points of wt_sensing_fine_mask), plus
+ * the tilt (tx, ty) [rad] (an OPD tx·x + ty·y: the spots move by (tx, ty)). Serial, allocates nothing. */
+void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_opd, double tx, double ty);
+/* Images of the sampled OPD, with noise when `noise` (subaperture s from WT_SPOT_STREAM(base_stream, s) of
+ * seed), through the centroider: slopes[2 nsub] [rad] ([s_x…, s_y…]). Outside parallel regions only. */
+int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
+
+#endif
