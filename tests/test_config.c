@@ -2,7 +2,11 @@
  * overrides, and a table of malformed inputs that must each be refused with a precise message. */
 #include "testutil.h"
 
+#include <unistd.h>
+
+#include "core/base/sha256.h"
 #include "core/config/config.h"
+#include "core/model/system.h"
 
 #define NAME "t.cfg"
 
@@ -327,6 +331,98 @@ START_TEST(test_matrix_hash)
 }
 END_TEST
 
+/* The sodium profile enters the matrix identity by its contents (lgs.sodium_profile_sha256), not by its name:
+ * an edited profile changes the hash (an MVM built with the old one is refused), the same bytes under another
+ * name do not; a stored text keeps the recorded hash, and the sensors refuse a file that no longer has it. */
+static void write_profile(const char *path, double mid)
+{
+    FILE *f = fopen(path, "w");
+    ck_assert_ptr_nonnull(f);
+    fprintf(f, "# test profile\n80000 0\n85000 0.6\n90000 %.17g\n95000 0.4\n100000 0\n", mid);
+    ck_assert_int_eq(fclose(f), 0);
+}
+
+static wt_config *read_with_profile(wt_context *ctx, const char *file, const char *model)
+{
+    char set[600], mset[80];
+    snprintf(set, sizeof set, "lgs.sodium_profile=\"%s\"", file);
+    snprintf(mset, sizeof mset, "lgs.wfs.model=\"%s\"", model);
+    const char *ov[] = {set, mset};
+    wt_config *c = NULL;
+    const int st = read_preset(ctx, "demo-diffractive.cfg", 2, ov, &c);
+    ck_assert_msg(st == WT_OK, "status %d: %s", st, wt_error_message(ctx));
+    return c;
+}
+
+START_TEST(test_sodium_profile_hash)
+{
+    wt_context *ctx = tu_context();
+    char a[64] = "/tmp/wt_na_a_XXXXXX", b[64] = "/tmp/wt_na_b_XXXXXX", want[65], bytes[4096];
+    int fa = mkstemp(a), fb = mkstemp(b);
+    ck_assert(fa >= 0 && fb >= 0);
+    close(fa), close(fb);
+    write_profile(a, 1.0);
+    write_profile(b, 1.0);
+    FILE *f = fopen(a, "rb");
+    const size_t n = fread(bytes, 1, sizeof bytes, f);
+    fclose(f);
+    wt_sha256_hex(bytes, n, want);
+
+    wt_config *c1 = read_with_profile(ctx, a, "diffractive");
+    ck_assert_str_eq(c1->sodium_profile_sha256, want);
+    ck_assert_ptr_nonnull(strstr(c1->canonical, want));   /* recorded in the canonical text */
+    ck_assert_ptr_nonnull(strstr(c1->matrix_text, want)); /* and in the matrix identity */
+    ck_assert_ptr_null(strstr(c1->matrix_text, a));       /* by contents, not by name */
+    wt_config *same = read_with_profile(ctx, b, "diffractive");
+    ck_assert_str_eq(same->matrix_sha256, c1->matrix_sha256);
+
+    /* one density changed: another matrix */
+    write_profile(a, 0.9);
+    wt_config *c2 = read_with_profile(ctx, a, "diffractive");
+    ck_assert_str_ne(c2->sodium_profile_sha256, c1->sodium_profile_sha256);
+    ck_assert_str_ne(c2->matrix_sha256, c1->matrix_sha256);
+
+    /* the geometric model ignores the file: not hashed, the matrix does not depend on it */
+    wt_config *g1 = read_with_profile(ctx, a, "geometric");
+    write_profile(a, 1.0);
+    wt_config *g2 = read_with_profile(ctx, a, "geometric");
+    ck_assert_str_eq(g1->sodium_profile_sha256, "");
+    ck_assert_str_eq(g1->matrix_sha256, g2->matrix_sha256);
+
+    /* the stored text reads back to the recorded hash whatever the file holds now; the sensors check it */
+    write_profile(a, 0.9);
+    wt_config *r = parse_ok(ctx, c1->canonical, 0, NULL);
+    ck_assert_str_eq(r->sodium_profile_sha256, c1->sodium_profile_sha256);
+    ck_assert_str_eq(r->matrix_sha256, c1->matrix_sha256);
+    wt_system *sys = NULL;
+    ck_assert_int_eq(wt_system_alloc(ctx, r, &sys), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "lgs.sodium_profile_sha256"));
+    ck_assert_ptr_null(sys);
+    /* "auto" takes the file as it is now */
+    const char *au = "lgs.sodium_profile_sha256=auto";
+    wt_config *r2 = parse_ok(ctx, c1->canonical, 1, &au);
+    ck_assert_str_eq(r2->matrix_sha256, c2->matrix_sha256);
+    ck_assert_int_eq(wt_system_alloc(ctx, r2, &sys), WT_OK);
+    wt_system_free(sys);
+    /* a malformed hash is refused naming the key */
+    const char *bad = "lgs.sodium_profile_sha256=\"abc\"";
+    wt_config *x = NULL;
+    ck_assert_int_eq(wt_config_parse(ctx, c1->canonical, NAME, 1, &bad, &x), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "lgs.sodium_profile_sha256"));
+
+    wt_config_free(ctx, c1);
+    wt_config_free(ctx, c2);
+    wt_config_free(ctx, same);
+    wt_config_free(ctx, g1);
+    wt_config_free(ctx, g2);
+    wt_config_free(ctx, r);
+    wt_config_free(ctx, r2);
+    unlink(a);
+    unlink(b);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_canonical)
 {
     wt_context *ctx = tu_context();
@@ -623,7 +719,8 @@ START_TEST(test_reference)
             !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "_precision") && !strstr(path, "noise_average") &&
             /* the diffractive sensor's keys without a unit (counts, switches, seeds, ratios) */
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
-            !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration")) {
+            !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&
+            !strstr(path, "_sha256")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];
@@ -632,9 +729,10 @@ START_TEST(test_reference)
         }
     }
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
-     * they chose does), nor does lgs.sodium_profile when left out (the demo) */
-    ck_assert_int_eq(nkeys + 3, nlines);
+     * they chose does), nor do lgs.sodium_profile and its hash when left out (the demo) */
+    ck_assert_int_eq(nkeys + 4, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile_sha256 "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.pcg3.layer_oversampling "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.cg9.layer_oversampling "));
     wt_config_free(ctx, c);
@@ -888,6 +986,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_demo_preset);
     tcase_add_test(tc, test_canonical);
     tcase_add_test(tc, test_matrix_hash);
+    tcase_add_test(tc, test_sodium_profile_hash);
     tcase_add_test(tc, test_overrides);
     tcase_add_test(tc, test_file_overrides);
     tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));

@@ -2,9 +2,13 @@
  * truth, the reconstructor's noise model): the set-up covariance against the covariance of the truth's
  * slopes, thread-independence, no allocation per frame, a pure tilt measured as that tilt, and the demo's
  * closed loop against the uncorrected one. */
+#include "core/model/estimate.h"
+#include "core/model/reconstructor.h"
 #include "core/model/sensing.h"
 #include "core/model/system.h"
 #include "core/optics/centroid.h"
+#include "core/optics/sodium.h"
+#include "core/optics/spot.h"
 #include "core/sim/loop.h"
 #include "testutil.h"
 
@@ -218,6 +222,62 @@ START_TEST(test_demo_closed_loop)
 }
 END_TEST
 
+/* The resource estimate counts the diffractive sensors (core/model/estimate.c): on the E-ELT the spot tables
+ * of the 6 LGS are wt_spot_memory's figure (measured here per subaperture on a small object with the
+ * preset's parameters: the difference of 16 and 8 subapertures, so the per-thread workspaces cancel) times
+ * 6 x 5112 within 1 % (the estimate counts π/4 (1 − ε²) n² = 5107 valid subapertures), ~430 MB; the
+ * diffractive estimate exceeds the geometric one by that plus the images, references and MF rows (at most
+ * 60 % more), and its set-up time by a few seconds (~1 s per LGS measured by wavetomo info). */
+START_TEST(test_estimate_diffractive)
+{
+    wt_context *ctx = tu_context();
+    wt_config *geo = NULL, *dif = NULL;
+    ck_assert_msg(wt_config_read(ctx, "data/presets/eelt-mcao.cfg", 0, NULL, &geo) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_config_read(ctx, "data/presets/eelt-mcao-diffractive.cfg", 0, NULL, &dif) == WT_OK, "%s",
+                  wt_error_message(ctx));
+    const wt_sensor_config *w = &dif->lgs_wfs;
+    wt_sodium *na = NULL;
+    ck_assert_int_eq(wt_sodium_gaussian(ctx, dif->lgs_altitude, 1e4, &na), WT_OK);
+    wt_spot_params sp = {.wavelength = w->wavelength, .subap_side = dif->diameter / w->subapertures,
+                         .pupil_samples = w->pupil_samples, .fft_size = w->fft_size, .npix = w->pixels,
+                         .pixel = w->pixel, .cells_per_pixel = w->cells_per_pixel, .photons = w->photons,
+                         .read_noise = w->read_noise_e, .uplink_fwhm = dif->uplink_fwhm, .sodium = na,
+                         .lgs_altitude = dif->lgs_altitude, .launch_x = 20.0, .launch_y = 0.0};
+    double xc[16], yc[16];
+    for (int i = 0; i < 16; i++) xc[i] = 5.25 + 0.5 * (i % 4), yc[i] = 5.25 + 0.5 * (i / 4);
+    size_t mem[2];
+    for (int k = 0; k < 2; k++) {
+        wt_spot *s = NULL;
+        ck_assert_msg(wt_spot_alloc(ctx, &sp, 8 * (k + 1), xc, yc, NULL, NULL, &s) == WT_OK, "%s", wt_error_message(ctx));
+        mem[k] = wt_spot_memory(s);
+        wt_spot_free(s);
+    }
+    const double per_sub = (double)(mem[1] - mem[0]) / 8.0, want = dif->nlgs * 5112.0 * per_sub;
+    for (int task = 0; task < 2; task++) {
+        wt_estimate_request rq = {.task = task ? WT_TASK_INFO : WT_TASK_SIM, .recon = WT_RECON_PCG3, .frames = 1};
+        wt_estimate eg, ed;
+        wt_estimate_resources(geo, &rq, &eg);
+        wt_estimate_resources(dif, &rq, &ed);
+        double tables = -1.0;
+        for (int t = 0; t < ed.nterms; t++)
+            if (!strcmp(ed.term[t].what, "diffractive spot tables")) tables = ed.term[t].bytes;
+        for (int t = 0; t < eg.nterms; t++) ck_assert(strncmp(eg.term[t].what, "diffractive", 11) != 0);
+        ck_assert_msg(fabs(tables / want - 1.0) < 0.01, "tables %.4g B, wt_spot_memory gives %.4g B (%.0f B per "
+                      "subaperture)", tables, want, per_sub);
+        ck_assert_msg(tables > 0.40e9 && tables < 0.47e9, "tables %.4g B, expected ~430 MB", tables);
+        const double extra = ed.bytes - eg.bytes;
+        ck_assert_msg(extra >= tables && extra < 1.6 * tables, "diffractive - geometric = %.4g B, tables %.4g B", extra,
+                      tables);
+        const double dt = ed.seconds - eg.seconds;
+        ck_assert_msg(dt > 2.0 && dt < 30.0, "set-up (+ 1 frame) of the diffractive sensors: %.3g s", dt);
+    }
+    wt_sodium_free(na);
+    wt_config_free(ctx, geo);
+    wt_config_free(ctx, dif);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("sensing");
@@ -231,6 +291,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_tilt_measured_cog);
     tcase_add_test(tc, test_tilt_measured_mf);
     tcase_add_test(tc, test_demo_closed_loop);
+    tcase_add_test(tc, test_estimate_diffractive);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -1,8 +1,13 @@
 /* core/base/sha256.c: SHA-256 per FIPS 180-4 §6.2 (tested against the standard's example vectors). */
 #include "sha256.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 static const uint32_t K[64] = {
     0x428a2f98, 0x71374491, 0xb5c0fbcf, 0xe9b5dba5, 0x3956c25b, 0x59f111f1, 0x923f82a4, 0xab1c5ed5,
@@ -63,4 +68,48 @@ void wt_sha256_hex(const void *data, size_t len, char hex[65])
     uint8_t d[32];
     wt_sha256(data, len, d);
     for (int i = 0; i < 32; i++) snprintf(hex + 2 * i, 3, "%02x", d[i]);
+}
+
+int wt_sha256_file(const char *path, char hex[65])
+{
+    hex[0] = '\0';
+    const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return -1;
+    struct stat sb;
+    int err = 0;
+    if (fstat(fd, &sb) != 0) err = errno;
+    else if (!S_ISREG(sb.st_mode)) err = S_ISDIR(sb.st_mode) ? EISDIR : EINVAL;
+    else if ((uint64_t)sb.st_size > WT_SHA256_FILE_MAX) err = EFBIG;
+    uint8_t *buf = NULL;
+    size_t n = 0;
+    if (!err) {
+        /* read to the end (the size is a hint: the file may change while it is read), up to the cap */
+        size_t cap = (size_t)sb.st_size + 1;
+        buf = malloc(cap);
+        if (!buf) err = ENOMEM;
+        while (!err) {
+            if (n == cap) {
+                if (cap > WT_SHA256_FILE_MAX) {
+                    err = EFBIG;
+                    break;
+                }
+                uint8_t *t = realloc(buf, 2 * cap);
+                if (!t) {
+                    err = ENOMEM;
+                    break;
+                }
+                buf = t, cap *= 2;
+            }
+            const ssize_t r = read(fd, buf + n, cap - n);
+            if (r < 0 && errno == EINTR) continue;
+            if (r < 0) err = errno;
+            else if (r == 0) break;
+            else n += (size_t)r;
+        }
+    }
+    if (!err) wt_sha256_hex(buf, n, hex);
+    free(buf);
+    close(fd);
+    if (err) errno = err;
+    return err ? -1 : 0;
 }

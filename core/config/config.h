@@ -107,6 +107,8 @@ typedef struct wt_config {
     double uplink_fwhm;              /* diffractive LGS: FWHM of the uplink (laser) spot on the sodium layer [rad] */
     char sodium_profile[1024];       /* diffractive LGS: the profile file as resolved (relative paths against the
                                         configuration file's directory); "" = Gaussian of sodium_fwhm */
+    char sodium_profile_sha256[65];  /* diffractive LGS with a profile: SHA-256 (hex) of the file's bytes, taken at
+                                        reading (or as recorded in a stored text); "" when not used or unreadable */
     wt_sensor_config lgs_wfs;
 
     /* natural guide stars */

@@ -13,6 +13,7 @@
 
 #define WT_SH_TILT_Z_CFG 1 /* ngs.wfs.tilt = "z" (WT_SH_TILT_Z of core/op/shack_hartmann.h) */
 
+#include <ctype.h>
 #include <errno.h>
 #include <libconfig.h>
 #include <limits.h>
@@ -41,7 +42,8 @@ static void expected_text(const wt_config_priv_key_spec *ks, char *buf, size_t n
         return;
     }
     if (ks->type == K_STR) {
-        snprintf(buf, n, "a string (a file path)");
+        snprintf(buf, n, ks->flags & F_HEX ? "a string of 64 hexadecimal digits (a SHA-256), or \"auto\""
+                                           : "a string (a file path)");
         return;
     }
     if (ks->type == K_ENUM) {
@@ -472,6 +474,16 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
             describe(s, got, sizeof got);
             return FAIL(ps, k, s, "key '%s': expected %s, got %s", ks->path, want, got);
         }
+        if (ks->flags & F_HEX) {
+            /* a SHA-256: 64 hex digits, stored in lower case as wt_sha256_hex writes them */
+            size_t i = 0;
+            while (i < 64 && isxdigit((unsigned char)str[i])) i++;
+            if (i != 64 || str[64])
+                return FAIL(ps, k, s, "key '%s': \"%s\" is not %s", ks->path, str, want);
+            for (i = 0; i < 64; i++) dst[i] = (char)tolower((unsigned char)str[i]);
+            dst[64] = '\0';
+            return WT_OK;
+        }
         const int rel = str[0] != '/' && ps->incdir && *ps->incdir;
         const size_t cap = sizeof cfg->sodium_profile;
         if ((rel ? strlen(ps->incdir) : 0) + strlen(str) + 1 > cap)
@@ -646,6 +658,33 @@ static int resolve_sensor_points(pstate *ps, wt_config *cfg)
     return WT_OK;
 }
 
+/* lgs.sodium_profile_sha256 left out (or "auto") for a diffractive LGS with a profile file: the SHA-256 of
+ * the file's bytes, written into the canonical text so that the matrix hash follows the profile's contents
+ * (an MVM built with one profile is refused after the file changes). A file that cannot be hashed here
+ * (missing, unreadable, not a regular file) leaves the key out: building the sensors reads the file and
+ * refuses it with the reason (core/model/sensing.c), and nothing is built without them. A given value (the
+ * canonical text of a telemetry or matrix file, read back where the relative path may not resolve) is
+ * kept: it records the profile the system was made with; the sensors check the file against it. */
+static int resolve_sodium_sha256(pstate *ps, wt_config *cfg)
+{
+    const int k = find_key("lgs.sodium_profile_sha256");
+    if (ps->set[k] || cfg->nlgs == 0 || cfg->lgs_wfs.model != WT_WFS_DIFFRACTIVE || !cfg->sodium_profile[0])
+        return WT_OK;
+    if (wt_sha256_file(cfg->sodium_profile, cfg->sodium_profile_sha256) != 0) {
+        cfg->sodium_profile_sha256[0] = '\0';
+        return WT_OK;
+    }
+    const char *leaf;
+    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
+    if (!s || !config_setting_set_string(s, cfg->sodium_profile_sha256))
+        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                        wt_config_priv_keys[k].path);
+    ps->set[k] = s;
+    return WT_OK;
+}
+
 static int check_consistency(pstate *ps, wt_config *cfg)
 {
     char loc[512], oth[512];
@@ -680,6 +719,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
+    if ((st = resolve_sodium_sha256(ps, cfg)) < 0) return st;
 
     for (int t = 0; t < 2; t++) {
         const char *pre = t ? "ngs.wfs" : "lgs.wfs";
@@ -747,7 +787,14 @@ static int affects_matrix(const pstate *ps, const char *path)
     static const char *const diffr[] = {".model", ".centroider", ".apply_gain", ".tcog_threshold", ".window_pixels",
                                         ".background_e", ".pupil_samples", ".fft_size", ".cells_per_pixel",
                                         ".wavelength_nm", ".noise_calibration", ".calibration_"};
-    const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.sodium_profile");
+    /* the profile enters by its contents (lgs.sodium_profile_sha256) and by its name only when they could
+     * not be hashed: the same bytes under another name give the same matrix, an edited file another */
+    if (!strcmp(path, "lgs.sodium_profile")) {
+        const int kh = find_key("lgs.sodium_profile_sha256");
+        if (kh >= 0 && ps->set[kh]) return 0;
+    }
+    const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.sodium_profile") ||
+                         !strcmp(path, "lgs.sodium_profile_sha256");
     for (size_t i = 0; i < sizeof diffr / sizeof *diffr && !lgs_only; i++)
         if ((!strncmp(path, "lgs.wfs.", 8) || !strncmp(path, "ngs.wfs.", 8)) && strstr(path, diffr[i]))
             goto diffractive;

@@ -165,6 +165,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "telescope), relative to the configuration file's directory like @include (shipped: "
      "data/sodium/default.txt); left out: a Gaussian layer of lgs.sodium_fwhm_m at lgs.altitude_m. With a "
      "profile, lgs.sodium_fwhm_m is not used by the diffractive model (the geometric model ignores the file)"},
+    {"lgs.sodium_profile_sha256", K_STR, F_AUTO | F_HEX, 0, 0, "", 1, CF(sodium_profile_sha256), NOCOUNT, 0, 0, NULL, 0,
+     "diffractive LGS with lgs.sodium_profile: SHA-256 of the profile file's bytes, so that the matrix hash follows "
+     "the file's contents (not its name); left out (or \"auto\"): computed when the configuration is read and "
+     "written into the canonical text; given (a stored configuration): the file must still hash to it when the "
+     "sensors are built"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
@@ -255,7 +260,7 @@ void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n
     wt_config_priv_fmt_num(ks->hi, b, sizeof b);
     if (ks->type == K_BOOL) snprintf(buf, n, "true|false");
     else if (ks->type == K_ENUM) snprintf(buf, n, "%s", ks->choices);
-    else if (ks->type == K_STR) snprintf(buf, n, "a file path");
+    else if (ks->type == K_STR) snprintf(buf, n, ks->flags & F_HEX ? "64 hex digits" : "a file path");
     else if (lo && hi)
         snprintf(buf, n, "in %c%s, %s%c", ks->flags & F_LO_OPEN ? '(' : '[', a, b, ks->flags & F_HI_OPEN ? ')' : ']');
     else if (lo) snprintf(buf, n, "%s %s", ks->flags & F_LO_OPEN ? ">" : ">=", a);
@@ -279,7 +284,7 @@ void wt_config_print_reference(FILE *f)
             snprintf(rng + l, sizeof rng - l, "; %d..%d values", ks->minlen, ks->maxlen);
         }
         snprintf(unit, sizeof unit, *ks->unit ? "[%s]" : "-", ks->unit);
-        fprintf(f, "%-36s %-8s %-38s %-10s %s%s\n", ks->path, tname[ks->type], rng, unit, ks->desc,
+        fprintf(f, "%-36s %-8s %-38s %-10s %s%s\n", ks->path, ks->flags & F_HEX ? "string" : tname[ks->type], rng, unit, ks->desc,
                 ks->flags & F_OPT    ? " (optional)"
                 : ks->flags & F_AUTO ? " (optional: automatic when left out)"
                                      : "");

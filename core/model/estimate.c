@@ -15,6 +15,11 @@
 #define STREAM_RATE 28e9      /* bytes per s of a float32 GEMV (§2: sgemv of R at 28.1 GB/s, 2 threads) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
+/* Diffractive sensors (core/optics/spot.h; `make bench-spot` on the E-ELT LGS, 2 threads, 2026-11-25): */
+#define SPOT_TABLE_NS 30e-9   /* s of set-up per float of a subaperture's kernel table (2.99 s for 30672 × 3249) */
+#define SPOT_FLOP_RATE 8e9    /* image flops (wt_spot_cost) per s, 2 threads (0.126 Mflop in ~15 µs of wall) */
+#define SPOT_NOISE_NS 30e-9   /* s per pixel of Poisson + Gaussian noise, 2 threads */
+#define SPOT_MC_NS 95e-9      /* s per pixel draw of the Monte-Carlo calibration, 2 threads (centroid.h: 190 thread-ns) */
 
 typedef struct {
     double nvalid, ncorners, nslopes, nlgs_slopes, nact, nfine, nlos, screen, neval, nsensors;
@@ -60,6 +65,41 @@ static void term(wt_estimate *e, double bytes, const char *what, const char *fmt
     e->term[e->nterms++].bytes = bytes;
 }
 
+/* The diffractive sensors of one type (LGS or NGS): bytes of the spot tables and of the rest, set-up seconds,
+ * and seconds per frame. Per subaperture, as core/optics/spot.c and core/model/sensing.c allocate: the kernel
+ * table of k² Lp² floats (Lp = Ns + (M − 1)/k, M the rebinning lattice over the FFT field: spot.c's qmin..qmax)
+ * and n_p² amplitudes (the spot); amplitudes, OPD, I0 and the image (the sensing, n_p² and Ns² floats); the
+ * MF's 2 Ns² rows; ∂I0/∂θx,y (2 Ns² floats, freed after each sensor's set-up: one sensor's count). Set-up:
+ * the tables, 5 images (I0 and the central differences), the Monte Carlo when asked. A frame: one image, its
+ * noise, the centroider (2 Ns² multiply-adds at most). */
+static void diffractive_sensors(const wt_config *c, int lgs, double *tables, double *rest, double *setup,
+                                double *frame)
+{
+    const wt_sensor_config *w = lgs ? &c->lgs_wfs : &c->ngs_wfs;
+    *tables = *rest = *setup = *frame = 0.0;
+    if (w->model != WT_WFS_DIFFRACTIVE || (lgs ? c->nlgs : c->nngs) == 0) return;
+    const double ring = M_PI / 4.0 * (1.0 - sq(c->obstruction));
+    const int np = w->pupil_samples, N = w->fft_size, Ns = w->pixels, k = w->cells_per_pixel > 0 ? w->cells_per_pixel : 3;
+    for (int g = 0; g < (lgs ? 1 : c->nngs); g++) {
+        const int n = lgs ? w->subapertures : c->ngs_subapertures[g];
+        const double nsub = (lgs ? c->nlgs : 1) * (n > 2 ? ring * n * n : (double)n * n);
+        const double d = c->diameter / n, theta_f = w->wavelength / (N * d / np), cell = w->pixel / k;
+        const double half = 0.5 * k * (Ns - 1), hf = 0.5 * theta_f / cell;
+        const double qmin = floor((0 - N / 2) * theta_f / cell + half - hf);
+        const double qmax = ceil((N - 1 - N / 2) * theta_f / cell + half + hf);
+        const double M = qmax - qmin + 1, Lp = Ns + floor((M - 1) / k), tab = (double)k * k * Lp * Lp;
+        *tables += nsub * (4.0 * tab + 4.0 * np * np + 12.0);
+        *rest += nsub * (8.0 * np * np + 8.0 * Ns * Ns + (w->centroider == 2 ? 8.0 * Ns * Ns : 0.0) + 150.0) +
+                 8.0 * Ns * Ns * nsub / (lgs ? c->nlgs : 1);
+        const double flops = 20.0 * np * np + 5.0 * N * log2(N) * (np + N) + 7.0 * N * N + 4.0 * M * N +
+                             2.0 * M * M * Ns * Ns; /* wt_spot_cost */
+        *setup += nsub * (SPOT_TABLE_NS * tab + 5.0 * flops / SPOT_FLOP_RATE +
+                          (w->noise_calibration == 1 ? SPOT_MC_NS * w->calibration_draws * Ns * Ns : 0.0));
+        *frame += nsub * (flops / SPOT_FLOP_RATE + (c->noise ? SPOT_NOISE_NS * Ns * Ns : 0.0) +
+                          4.0 * Ns * Ns / SPOT_FLOP_RATE);
+    }
+}
+
 static double unknowns(const wt_recon_variant_config *v)
 {
     double u = 0.0;
@@ -97,6 +137,18 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
     term(e, BASE_BYTES, "the process (libraries)", "-");
     /* the system: Shack-Hartmann operators and masks, ~100 B per subaperture and sensor */
     term(e, 100.0 * s.nvalid * s.nsensors + 64.0 * s.nact, "system geometry", "lgs.wfs.subapertures, lgs.count");
+    /* diffractive sensors: built with the system, so by every command */
+    double tab[2], rest[2], setup[2], frame[2];
+    diffractive_sensors(c, 1, &tab[0], &rest[0], &setup[0], &frame[0]);
+    diffractive_sensors(c, 0, &tab[1], &rest[1], &setup[1], &frame[1]);
+    if (tab[0] + tab[1] > 0.0) {
+        term(e, tab[0] + tab[1], "diffractive spot tables",
+             "*.wfs.model = diffractive: lgs.count x lgs.wfs.subapertures, *.wfs.pixels, cells_per_pixel, pixel_arcsec, "
+             "pupil_samples, fft_size");
+        term(e, rest[0] + rest[1], "diffractive images and filters",
+             "*.wfs.pixels, pupil_samples, centroider (mf: 2 Ns^2 per subaperture)");
+    }
+    const double sensing_setup = setup[0] + setup[1], sensing_frame = frame[0] + frame[1];
     double flops = 0.0;
     if (req->task == WT_TASK_SIM) {
         /* the screens (their FFT work space, 3 more screens, is freed before the maps below exist) */
@@ -153,6 +205,8 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
         e->seconds = 4.0 * s.nact * nnz_l / SOLVE_RATE + NORMAL_NS * nnz_n;
         if (req->recon == WT_RECON_CG9) e->seconds += 8.0 * sq(s.nact) * s.nact / 3.0 / SOLVE_RATE; /* the fitting */
     }
+    /* the diffractive sensors' set-up (every command), their images in every simulated frame */
+    e->seconds += sensing_setup + (req->task == WT_TASK_SIM ? frames * sensing_frame : 0.0);
 }
 
 void wt_estimate_add(wt_estimate *total, const wt_estimate *e)

@@ -16,6 +16,13 @@
  * reconstructor: the flops of its iterations (the stencils of core/model/tomography.c's cost); the MVM: its
  * bytes streamed. The rates are the ones measured on this 2-core machine when quiet (docs/results.md §7b:
  * single thread, the GEMV at §2's 28 GB/s; 2026-11-24): the time is an order of magnitude, not a promise.
+ *
+ * Diffractive sensors (`*.wfs.model = "diffractive"`, built with the system by every command): the spot
+ * kernel tables, k² Lp² floats per subaperture with its n_p² amplitudes (14 kB at the E-ELT LGS: 16 pixels
+ * of 1.1″, k = 3, n_p 16, N 32; 431 MB for the 6 LGS, wt_spot_memory's figure), the images, references and
+ * matched-filter rows beside them (~200 MB more; tests/test_sensing.c checks both), their set-up
+ * (tables and 5 reference images per subaperture: ~1 s per E-ELT LGS) and, in `sim`, one image, its noise
+ * and the centroider per subaperture and frame (~0.7 s per E-ELT frame on 2 idle cores; bench-spot rates).
  */
 #ifndef WT_ESTIMATE_H
 #define WT_ESTIMATE_H
@@ -32,7 +39,7 @@ typedef struct wt_estimate_request {
     int64_t frames;  /* frames to run (≤ 0: cfg->frames) */
 } wt_estimate_request;
 
-#define WT_ESTIMATE_TERMS 10
+#define WT_ESTIMATE_TERMS 12
 
 typedef struct wt_estimate {
     double bytes;    /* peak resident memory [bytes] */

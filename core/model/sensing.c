@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../base/sha256.h"
 #include "../op/pupil.h"
 #include "../optics/centroid.h"
 #include "../optics/sodium.h"
@@ -58,6 +59,18 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
             snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'lgs.sodium_profile' = \"%s\" (with lgs.altitude_m = %g m): %s",
                           g->source, cfg->sodium_profile, g->altitude, detail);
+            goto fail;
+        }
+        /* the profile the configuration's hash (and so the matrix hash) was taken from, or recorded with */
+        char now[65];
+        if (cfg->sodium_profile_sha256[0] &&
+            (wt_sha256_file(cfg->sodium_profile, now) != 0 || strcmp(now, cfg->sodium_profile_sha256) != 0)) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                          "%s: key 'lgs.sodium_profile' = \"%s\": the file's contents changed: its SHA-256 is %.12s…, the "
+                          "configuration's 'lgs.sodium_profile_sha256' is %.12s… (the profile it was read or recorded "
+                          "with); a matrix or telemetry made with that profile does not describe this one (to take the "
+                          "file as it is now: --set lgs.sodium_profile_sha256=auto)",
+                          g->source, cfg->sodium_profile, now[0] ? now : "unreadable", cfg->sodium_profile_sha256);
             goto fail;
         }
     } else if (g->lgs && cfg->sodium_fwhm > 0.0) {
