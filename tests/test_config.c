@@ -761,9 +761,9 @@ static void assert_grid(const wt_recon_variant_config *v, const double *spacing,
 
 /* Both keys left out ("auto" on the command line, since a preset's keys cannot be removed by --set): the
  * E-ELT's hand-tuned grids come back (pcg3 on the DM pitches 0.5/1/1 m, 128/64/64; cg9 128 x 0.5 m at all
- * nine altitudes, d = 0.5 m), so do the 42x42 preset's (pcg3 1/2/2 m, 64/32/32; cg9 64 x 1 m) and the
- * demo's pcg3 (32/16/32); and the configuration is the preset's to the byte: the same canonical text and
- * matrix hash, so an MVM built with either is accepted by the other. */
+ * nine altitudes, d = 0.5 m), so does the demo's pcg3 (32/16/32); the 42x42 preset is itself automatic (pcg3
+ * 1/2/2 m, 64/32/32; cg9 at oversampling 2: 128 x 0.5 m from d = 1 m); and the configuration is the preset's
+ * to the byte: the same canonical text and matrix hash, so an MVM built with either is accepted by the other. */
 START_TEST(test_auto_grid_presets)
 {
     wt_context *ctx = tu_context();
@@ -771,17 +771,18 @@ START_TEST(test_auto_grid_presets)
                           "recon.cg9.layer_spacing_m=auto", "recon.cg9.layer_size=auto"};
     static const struct {
         const char *file;
-        double pcg3_spacing[3], cg9_spacing;
+        double pcg3_spacing[3], cg9_spacing, cg9_base;
         int pcg3_size[3], cg9_size, cg9_same; /* cg9_same: the preset's cg9 grid is the automatic one */
-    } want[] = {{"eelt-mcao.cfg", {0.5, 1.0, 1.0}, 0.5, {128, 64, 64}, 128, 1},
-                {"eelt-mcao-nea20-42.cfg", {1.0, 2.0, 2.0}, 1.0, {64, 32, 32}, 64, 1},
-                {"demo.cfg", {0.5, 1.0, 1.0}, 0.5, {32, 16, 32}, 32, 0}};
+        int preset_auto;                      /* the preset's own grids are automatic */
+    } want[] = {{"eelt-mcao.cfg", {0.5, 1.0, 1.0}, 0.5, 0.5, {128, 64, 64}, 128, 1, 0},
+                {"eelt-mcao-nea20-42.cfg", {1.0, 2.0, 2.0}, 0.5, 1.0, {64, 32, 32}, 128, 1, 1},
+                {"demo.cfg", {0.5, 1.0, 1.0}, 0.5, 0.5, {32, 16, 32}, 32, 0, 0}};
     for (size_t i = 0; i < sizeof want / sizeof *want; i++) {
         wt_config *a = read_ok(ctx, want[i].file, 4, both), *e = read_ok(ctx, want[i].file, 0, NULL);
         assert_grid(&a->pcg3, want[i].pcg3_spacing, want[i].pcg3_size);
         ck_assert_int_eq(a->pcg3.grid_auto, WT_GRID_AUTO);
         ck_assert_int_eq(a->cg9.grid_auto, WT_GRID_AUTO);
-        ck_assert_int_eq(e->pcg3.grid_auto, WT_GRID_EXPLICIT);
+        ck_assert_int_eq(e->pcg3.grid_auto, want[i].preset_auto ? WT_GRID_AUTO : WT_GRID_EXPLICIT);
         for (int l = 0; l < 3; l++) {
             ck_assert_int_eq(a->pcg3.grid_base_dm[l], l); /* the DM at the layer's altitude */
             ck_assert(a->pcg3.grid_base[l] == want[i].pcg3_spacing[l]);
@@ -792,7 +793,7 @@ START_TEST(test_auto_grid_presets)
         for (int l = 0; l < nl; l++) {
             ck_assert(a->cg9.spacing[l] == want[i].cg9_spacing);
             ck_assert_int_eq(a->cg9.grid_base_dm[l], -1); /* d <= every DM pitch */
-            ck_assert(a->cg9.grid_base[l] == want[i].cg9_spacing);
+            ck_assert(a->cg9.grid_base[l] == want[i].cg9_base);
             if (want[i].cg9_same) ck_assert_int_eq(a->cg9.size[l], want[i].cg9_size);
         }
         if (want[i].cg9_same) {
@@ -857,8 +858,8 @@ END_TEST
  * beside a given spacing, a word other than "auto", and a grid beyond 8192 points; each message names the
  * keys. "auto" also reads from a file (a string). */
 /* recon.sensor_points_per_subaperture left out (the presets): the fewest points q with d/q no coarser than
- * the finest layer of either variant: 1 on the E-ELT (0.5 m layers, d = 0.5 m) and on the 42x42 system's 1 m
- * layers (d = 1 m); 2 when its cg9 layers are 0.5 m, 4 for 0.3 m (ceil(1/0.3)); written into the canonical
+ * the finest layer of either variant: 1 on the E-ELT (0.5 m layers, d = 0.5 m) and on the 42x42 system with
+ * 1 m layers (d = 1 m); 2 with the preset's 0.5 m cg9 layers, 4 for 0.3 m (ceil(1/0.3)); written into the canonical
  * text (same hash as the value given explicitly); an explicit value is kept. */
 START_TEST(test_auto_sensor_points)
 {
@@ -866,20 +867,19 @@ START_TEST(test_auto_sensor_points)
     wt_config *a = read_ok(ctx, "eelt-mcao.cfg", 0, NULL);
     ck_assert_int_eq(a->sensor_points, 1);
     wt_config_free(ctx, a);
-    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 0, NULL);
+    const char *metre[] = {"recon.cg9.layer_oversampling=1.0"};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, metre);
     ck_assert_int_eq(a->sensor_points, 1);
     wt_config_free(ctx, a);
-    const char *half[] = {"recon.cg9.layer_spacing_m=[0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5]",
-                          "recon.cg9.layer_size=[128, 128, 128, 128, 128, 128, 128, 128, 128]"};
-    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 2, half);
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 0, NULL); /* the preset: 0.5 m cg9 layers */
     ck_assert_int_eq(a->sensor_points, 2);
-    const char *half2[] = {half[0], half[1], "recon.sensor_points_per_subaperture=2"};
-    wt_config *e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 3, half2);
+    const char *two[] = {"recon.sensor_points_per_subaperture=2"};
+    wt_config *e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, two);
     ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
     ck_assert_str_eq(a->canonical, e->canonical);
     wt_config_free(ctx, e);
-    const char *half1[] = {half[0], half[1], "recon.sensor_points_per_subaperture=1"};
-    e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 3, half1);
+    const char *one[] = {"recon.sensor_points_per_subaperture=1"};
+    e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, one);
     ck_assert_int_eq(e->sensor_points, 1);
     ck_assert_str_ne(a->matrix_sha256, e->matrix_sha256);
     wt_config_free(ctx, e);
