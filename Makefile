@@ -124,7 +124,7 @@ demo: all
 	$(BIN)/wavetomo compare --config data/presets/demo.cfg --recon mvm,pcg3,cg9 --out out/demo
 
 bench: all
-	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg
+	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg --sensing data/presets/eelt-mcao-diffractive.cfg
 
 # AddressSanitizer + UBSan build in build-debug/ and bin-debug/; `make debug-test` runs the suites with it
 # (UBSan findings abort, so a report fails the suite).
@@ -200,3 +200,14 @@ $(BUILD)/tests/bench_spot: tests/bench_spot.c $(LIB)
 bench-spot: deps
 	@$(MAKE) --no-print-directory $(BUILD)/tests/bench_spot
 	@$(BUILD)/tests/bench_spot 2
+
+# The diffractive NGS cost/accuracy sweep (issue 19: n_p, N, pixels, cells per pixel of the E-ELT NGS).
+$(BUILD)/tests/bench_ngs: tests/bench_ngs.c $(LIB)
+	@mkdir -p $(dir $@)
+	@$(if $(V),,echo "  CC/LD   $@")
+	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
+
+.PHONY: bench-ngs
+bench-ngs: deps
+	@$(MAKE) --no-print-directory $(BUILD)/tests/bench_ngs
+	@uptime; $(BUILD)/tests/bench_ngs 2

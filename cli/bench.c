@@ -17,7 +17,7 @@
 static void help(void)
 {
     printf("usage: wavetomo bench [CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--no-build] [--threads N]\n"
-           "                      [--set key=value]...\n"
+           "                      [--sensing DCONFIG] [--sensing-only] [--sensing-frames N] [--set key=value]...\n"
            "\n"
            "Times, on CONFIG (default data/presets/eelt-mcao.cfg): one application of the normal operator M\n"
            "for pcg3 and cg9, one PCG iteration, and a whole pcg3 frame (right-hand side + the configured\n"
@@ -29,7 +29,15 @@ static void help(void)
            "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
            "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
-           "memory (--no-build skips it; ~4 minutes at E-ELT size).\n");
+           "memory (--no-build skips it; ~4 minutes at E-ELT size).\n"
+           "\n"
+           "Diffractive sensing (issue 19): the diffractive sensors of DCONFIG (--sensing; default CONFIG itself when\n"
+           "it has any, e.g. data/presets/eelt-mcao-diffractive.cfg), LGS and NGS separately: per frame, images +\n"
+           "detector noise + centroider of every sensor of the kind, median and [p10, p90] of --sensing-frames\n"
+           "frames (default 7) on the --threads threads, with the parts, the sensors' set-up time and memory, and\n"
+           "the flops and bytes per subaperture against the machine's DGEMM rate and triad bandwidth; next to the\n"
+           "geometric sensors' time per frame of the closed loop above. --sensing-only times only the machine\n"
+           "and the sensing (--set applies to DCONFIG too).\n");
 }
 
 static void report(const char *what, wt_bench_stats s, double flops, double bytes)
@@ -76,7 +84,7 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
 
 /* Closed-loop speed (issue #3 goal: >= 5 frames/s at E-ELT size with pcg3): warm-up frames, then
  * timed frames, with the split by part. */
-static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
+static int bench_loop(wt_cli *cli, const wt_system *sys, int frames, double *sensors)
 {
     wt_loop_options o = {.recon = WT_RECON_PCG3, .iterations = -1, .seed = sys->cfg->seed, .noise = 1};
     wt_loop_params par;
@@ -87,6 +95,7 @@ static int bench_loop(wt_cli *cli, const wt_system *sys, int frames)
     if (st < 0) return st;
     const wt_bench_stats s = b.frame;
     const wt_loop_times m = b.per_frame;
+    *sensors = m.sensors;
     printf("\nclosed loop, pcg3, %d frames after %d warm-up (set-up %.1f s): median %.1f ms/frame [%.1f, %.1f] = "
            "%.2f frames/s (goal >= 5)\n",
            frames, warm, b.setup, s.med * 1e3, s.p10 * 1e3, s.p90 * 1e3, 1.0 / s.med);
@@ -125,10 +134,50 @@ static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
     return WT_OK;
 }
 
+/* The diffractive sensing of sys, LGS and NGS (core/sim/bench.h), beside the geometric sensors' time per
+ * frame of the closed loop (geometric < 0: not measured). */
+static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double geometric, double gf, double bw)
+{
+    const int threads = wt_context_threads(cli->ctx);
+    printf("\ndiffractive sensing, %s: %d threads, median [p10, p90] of %d frames after 1 warm frame\n", sys->cfg->path,
+           threads, frames);
+    int any = 0;
+    for (int kind = WT_SENSOR_LGS; kind <= WT_SENSOR_NGS; kind++) {
+        wt_bench_sensing b;
+        int st = wt_bench_sensing_run(cli->ctx, sys, kind, frames, &b);
+        if (st < 0) return st;
+        if (!b.nsensors) continue;
+        any = 1;
+        const char *name = kind == WT_SENSOR_LGS ? "LGS" : "NGS";
+        const double per = b.frame.med * threads / (double)b.nsub; /* thread-seconds per subaperture */
+        printf("  %s: %d sensors, %lld subapertures (n_p %d, N %d, %dx%d pixels, %d cells/pixel): %.1f ms per frame "
+               "[%.1f, %.1f] = images %.1f + noise %.1f + centroider %.1f ms\n",
+               name, b.nsensors, (long long)b.nsub, b.np, b.N, b.ns, b.ns, b.k, b.frame.med * 1e3, b.frame.p10 * 1e3,
+               b.frame.p90 * 1e3, b.images.med * 1e3, b.noise.med * 1e3, b.centroid.med * 1e3);
+        printf("    set-up %.2f s, memory %.0f MB; per subaperture %.2f thread-us per frame, image %.3g flop and %.3g "
+               "bytes of table/input/output: %.2f GFlop/s (%.1f %% of DGEMM), %.2f GB/s (%.1f %% of triad)\n",
+               b.setup, b.memory / 1e6, per * 1e6, b.flops, b.bytes, b.flops * b.nsub / b.images.med / 1e9,
+               100.0 * b.flops * b.nsub / b.images.med / gf, b.bytes * b.nsub / b.images.med / 1e9,
+               100.0 * b.bytes * b.nsub / b.images.med / bw);
+        printf("    CPU time %.1f ms per frame on %d threads: %.1f ms of wall on %d idle cores (the median above "
+               "grows with the machine's load)\n",
+               b.cpu * 1e3, threads, b.cpu / threads * 1e3, threads);
+        if (kind == WT_SENSOR_LGS)
+            printf("    target (issue 19): <= 1 s per frame for the 6 E-ELT LGS on 2 threads (stretch 0.5 s): median "
+                   "%.2f s, %.2f s on idle cores\n",
+                   b.frame.med, b.cpu / threads);
+    }
+    if (!any) printf("  (no diffractive sensor in %s)\n", sys->cfg->path);
+    if (geometric >= 0)
+        printf("  geometric sensors of the closed loop above (all sensors, slopes + noise): %.1f ms per frame\n",
+               geometric * 1e3);
+    return WT_OK;
+}
+
 typedef struct {
-    const char *path;
-    long reps, loop_frames;
-    int skip_loop, skip_build;
+    const char *path, *sensing;
+    long reps, loop_frames, sensing_frames;
+    int skip_loop, skip_build, sensing_only;
 } bench_args;
 
 static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -136,6 +185,13 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     bench_args *a = user;
     const char *o = argv[*i], *v;
     if (!strcmp(o, "--no-loop")) a->skip_loop = 1;
+    else if (!strcmp(o, "--sensing-only")) a->sensing_only = 1;
+    else if (!strcmp(o, "--sensing")) {
+        if (!(a->sensing = wt_cli_value(cli, argc, argv, i))) return -1;
+    } else if (!strcmp(o, "--sensing-frames")) {
+        if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
+        if (wt_cli_int(cli, o, v, 3, 100000, &a->sensing_frames) < 0) return -1;
+    }
     else if (!strcmp(o, "--no-build")) a->skip_build = 1;
     else if (!strcmp(o, "--reps") || !strcmp(o, "--loop-frames")) {
         if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
@@ -170,7 +226,7 @@ int wt_cmd_bench(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo bench", help)) return 1;
-    bench_args args = {NULL, 50, 20, 0, 0};
+    bench_args args = {NULL, NULL, 50, 20, 7, 0, 0, 0};
     int rc = wt_cli_parse(&cli, argc, argv, bench_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -180,8 +236,9 @@ int wt_cmd_bench(int argc, char **argv)
     const char *path = args.path;
     int reps = (int)args.reps, loop_frames = (int)args.loop_frames, skip_loop = args.skip_loop;
     if (!path && !cli.config_path) path = "data/presets/eelt-mcao.cfg";
-    wt_config *cfg = NULL;
-    wt_system *sys = NULL;
+    wt_config *cfg = NULL, *dcfg = NULL;
+    wt_system *sys = NULL, *dsys = NULL;
+    double geometric = -1.0;
     int st = wt_cli_read_config(&cli, path, &cfg);
     if (st < 0) goto out;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
@@ -191,6 +248,7 @@ int wt_cmd_bench(int argc, char **argv)
            openblas_get_num_threads(), reps);
     double bw = wt_bench_triad_bandwidth(cli.ctx, 5), gf = wt_bench_dgemm_rate();
     printf("machine: triad bandwidth %.1f GB/s, DGEMM %.1f GFlop/s (n = 2048, OpenBLAS)\n", bw / 1e9, gf / 1e9);
+    if (args.sensing_only) goto sensing;
     printf("%-34s %9s     %s\n", "kernel", "median", "[p10, p90, p99] ms, work per call, implied rates");
     st = bench_variant(&cli, sys, WT_RECON_PCG3, reps);
     if (st < 0) goto out;
@@ -199,10 +257,19 @@ int wt_cmd_bench(int argc, char **argv)
     /* the build first: its peak memory is read from the process's high-water mark, which the GEMV's
      * 2 x 2.3 GB buffers would otherwise set */
     if (!args.skip_build && (st = bench_mvm_build(&cli, sys)) < 0) goto out;
-    if (!skip_loop && (st = bench_loop(&cli, sys, loop_frames)) < 0) goto out;
-    st = bench_mvm_apply(&cli, sys, reps < 10 ? reps : 10);
+    if (!skip_loop && (st = bench_loop(&cli, sys, loop_frames, &geometric)) < 0) goto out;
+    if ((st = bench_mvm_apply(&cli, sys, reps < 10 ? reps : 10)) < 0) goto out;
+sensing:
+    if (args.sensing) {
+        /* its own system: the diffractive sensors are built with it (their set-up is timed there) */
+        if ((st = wt_cli_read_config(&cli, args.sensing, &dcfg)) < 0) goto out;
+        if ((st = wt_system_alloc(cli.ctx, dcfg, &dsys)) < 0) goto out;
+        st = bench_sensing(&cli, dsys, (int)args.sensing_frames, geometric, gf, bw);
+    } else st = bench_sensing(&cli, sys, (int)args.sensing_frames, geometric, gf, bw);
 out:
     if (st < 0) rc = wt_cli_fail(&cli, st);
+    wt_system_free(dsys);
+    wt_config_free(cli.ctx, dcfg);
     wt_system_free(sys);
     wt_config_free(cli.ctx, cfg);
     wt_cli_done(&cli);

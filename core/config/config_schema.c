@@ -36,7 +36,7 @@
 #define KFL_(p, fl, lo, hi, u, sc, dst, cnt, mn, mx, d) {p, K_FLOATS, fl, lo, hi, u, sc, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 #define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 
-#define SENSOR(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)                                                                                   \
+#define SENSOR(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, kdef, kdefs, wldef, wldefs)                                                                                   \
     KF(pre ".photons", GT0(1e12), "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
     KF(pre ".read_noise_e", GE0(1e6), "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
     KF(pre ".spot_fwhm_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
@@ -49,12 +49,12 @@
      "a partly lit subaperture collects its lit fraction f of a full one's photons: the per-axis variance " \
      "is that of f N photons (NEA^2 / f with nea_mas), in the simulated noise and the reconstructor's "      \
      "weights (optional, default false)"},                                                                  \
-    DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)
+    DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, kdef, kdefs, wldef, wldefs)
 
 /* The diffractive sensor (SPEC §4b, docs/design.md "Diffractive sensing"): keys read only when
  * <pre>.model = "diffractive"; each has a default (F_DEFAULT), so today's files read as before. */
 #define DFLT(p, t, fl, lo, hi, u, sc, dst, ch, d, txt) {p, t, F_DEFAULT | (fl), lo, hi, u, sc, CF(dst), NOCOUNT, 0, 0, ch, d, txt}
-#define DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, wldef, wldefs)                        \
+#define DIFFRACTIVE(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, kdef, kdefs, wldef, wldefs)                        \
     DFLT(pre ".model", K_ENUM, 0, 0, 0, "", 1, w.model, "geometric|diffractive", 0,                          \
          "sensor model: geometric = average gradient over the lit area plus a Gaussian draw of the "         \
          "reconstructor's noise model; diffractive = spot images (FFT of the lit pupil at wavelength_nm, LGS "  \
@@ -85,8 +85,10 @@
     DFLT(pre ".fft_size", K_INT, 0, 4, 4096, "", 1, w.fft_size, NULL, nfdef,                                 \
          "diffractive: FFT points per side, even, >= 2 x pupil_samples (Nyquist sampling of wavelength / "   \
          "subaperture side) (optional, default " nfdefs ")"),                                                \
-    DFLT(pre ".cells_per_pixel", K_INT, F_ODD, 1, 15, "", 1, w.cells_per_pixel, NULL, 3,                     \
-         "diffractive: rebinning cells per pixel side, odd (core/optics/spot.h) (optional, default 3)"),     \
+    DFLT(pre ".cells_per_pixel", K_INT, F_ODD, 1, 15, "", 1, w.cells_per_pixel, NULL, kdef,                  \
+         "diffractive: rebinning cells per pixel side, odd (core/optics/spot.h): cells of pixel_arcsec / "   \
+         "this blur a spot by (cell)^2/6 per axis where no source (the LGS uplink) absorbs it (optional, "    \
+         "default " kdefs ")"),                                                                               \
     DFLT(pre ".wavelength_nm", K_FLOAT, 0, 100.0, 1e5, "nm", 1e-9, w.wavelength, NULL, wldef,                \
          "diffractive: sensing wavelength (optional, default " wldefs ")"),                                  \
     DFLT(pre ".noise_calibration", K_ENUM, 0, 0, 0, "", 1, w.noise_calibration, "analytic|montecarlo", 0,    \
@@ -156,7 +158,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("lgs.wfs.subapertures", 0, 1, 1024, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
     KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
        "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
-    SENSOR("lgs.wfs", lgs_wfs, 2, "mf", 16, "16", 32, "32", 589.0, "589 (sodium D2)"),
+    SENSOR("lgs.wfs", lgs_wfs, 2, "mf", 16, "16", 32, "32", 3, "3: 0.37 arcsec cells at 1.1 arcsec pixels, whose "
+           "blur the 1 arcsec uplink spot absorbs", 589.0, "589 (sodium D2)"),
     {"lgs.uplink_fwhm_arcsec", K_FLOAT, F_DEFAULT, 0.0, 100.0, "arcsec", ARCSEC, CF(uplink_fwhm), NOCOUNT, 0, 0, NULL, 1.0,
      "diffractive LGS: FWHM of the Gaussian uplink (laser) spot on the sodium layer, convolved with the sodium "
      "line (optional, default 1)"},
@@ -175,7 +178,14 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
     KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
         "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
-    SENSOR("ngs.wfs", ngs_wfs, 0, "cog", 128, "128 (the 1x1 sensor's whole pupil: D/128 samples)", 256, "256",
+    SENSOR("ngs.wfs", ngs_wfs, 0, "cog", 64,
+           "64: the 1x1 sensor's whole pupil at D/64 (0.66 m on 42 m), an FFT field of 64 x 1650 nm / 42 m = 0.52 "
+           "arcsec (1.04 arcsec for the 2x2), which holds a partially corrected H-band spot and +-0.2 arcsec of "
+           "tip-tilt; the slopes of 64, 128 and 256 samples agree within 0.1 mas (docs/design.md, make bench-ngs)",
+           128, "128 (Nyquist, 2 x pupil_samples)", 9,
+           "9: the point-source spot (lambda/D = 8 mas on 42 m) is far smaller than a pixel, and cells of p/3 "
+           "would widen it: at 0.05 arcsec pixels 3 cells/pixel give a tCoG gain 43 % low and an NEA 75 % high, "
+           "9 cells/pixel within 2 %",
            1650.0, "1650 (H band)"),
     {"ngs.wfs.tilt", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(ngs_wfs.tilt), NOCOUNT, 0, 0, "g|z", 0,
      "what an NGS slope is, in the simulated sensors and the reconstructor's model alike: g = G-tilt, the "

@@ -284,3 +284,11 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
     wt_centroid_apply(ws->cen, ws->img, slopes);
     return WT_OK;
 }
+
+size_t wt_sensing_memory(const wt_sensing *ws)
+{
+    const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;
+    size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
+    b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
+    return b;
+}

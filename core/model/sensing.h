@@ -90,5 +90,7 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
 /* Images of the sampled OPD, with noise when `noise` (subaperture s from WT_SPOT_STREAM(base_stream, s) of
  * seed), through the centroider: slopes[2 nsub] [rad] ([s_x…, s_y…]). Outside parallel regions only. */
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
+/* Bytes the sensor holds: spot tables and workspaces, centroider, reference images, per-frame buffers. */
+size_t wt_sensing_memory(const wt_sensing *ws);
 
 #endif

@@ -514,6 +514,12 @@ fail:
 }
 
 int wt_centroid_nsub(const wt_centroid *c) { return c->nsub; }
+size_t wt_centroid_memory(const wt_centroid *c)
+{
+    size_t b = sizeof *c + (size_t)c->nsub * (2 + 4 + 4 + 3 + 1) * sizeof(double);
+    if (c->rows) b += 2 * (size_t)c->nsub * c->ns * c->ns * sizeof(float);
+    return b;
+}
 int wt_centroid_pixels(const wt_centroid *c) { return c->ns; }
 double wt_centroid_threshold(const wt_centroid *c, int i) { return c->thr[i]; }
 

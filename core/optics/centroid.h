@@ -89,6 +89,8 @@ int wt_centroid_alloc(wt_context *ctx, const wt_centroid_params *par, int nsub, 
 void wt_centroid_free(wt_centroid *c);
 
 int wt_centroid_nsub(const wt_centroid *c);
+/* Bytes the object holds (per-subaperture references, gains, covariances, thresholds, MF rows). */
+size_t wt_centroid_memory(const wt_centroid *c);
 int wt_centroid_pixels(const wt_centroid *c); /* Ns */
 /* tCoG threshold T of subaperture i [e⁻] (0 for CoG and MF). */
 double wt_centroid_threshold(const wt_centroid *c, int i);

@@ -13,6 +13,10 @@
 
 #define ALIGN 64
 #define RAD2AS (180.0 * 3600.0 / M_PI)
+/* output pixels per block of the direct sum in image_one: one row block is held in registers */
+#define SUM_W 16
+#define SUM_R 4 /* rows per block: 2·SUM_R independent accumulators hide the add latency */
+typedef float v8f __attribute__((vector_size(32)));
 
 typedef struct {
     void *block;           /* the allocation (workspace arrays are carved from it, aligned) */
@@ -22,6 +26,8 @@ typedef struct {
     float *cells;          /* M² */
     double *opd;           /* n_p² (the tilted flat OPDs of wt_spot_reference) */
     float *img2;           /* Ns² (the second image of a central difference) */
+    float *cv;             /* M² the non-zero cells' values, in the order (my, mx) */
+    int *co;               /* M² their table offsets (phase·Lp² + e1x + Lp·e1y) */
 } workspace;
 
 struct wt_spot {
@@ -38,6 +44,9 @@ struct wt_spot {
     int *rm;             /* [N·R] first cell of the overlap of PSF sample i, then consecutive cells */
     float *rw;           /* [N·R] overlap weights (fractions of the sample) */
     int *rn;             /* [N] cells PSF sample i overlaps */
+    int *gs;             /* [M + 1] the same weights by cell: cell m gathers gi/gw[gs[m] .. gs[m+1]) */
+    int *gi;             /* [N·R] PSF sample of each, ascending per cell */
+    float *gw;           /* [N·R] its weight */
     float *K;            /* [nsub · k² · Lp²] phase tables of the source ⊛ pixel kernel */
     fftwf_plan rows, cols;
     workspace *ws;       /* [nthreads] */
@@ -52,6 +61,8 @@ static size_t ws_bytes(const wt_spot *s)
     b += ALIGN + (size_t)s->M * s->M * sizeof(float);
     b += ALIGN + (size_t)s->np * s->np * sizeof(double);
     b += ALIGN + (size_t)s->Ns * s->Ns * sizeof(float);
+    b += ALIGN + (size_t)s->M * s->M * sizeof(float);
+    b += ALIGN + (size_t)s->M * s->M * sizeof(int);
     return b + ALIGN;
 }
 
@@ -73,6 +84,8 @@ static int ws_init(wt_spot *s, workspace *w)
     w->cells = carve(&p, (size_t)s->M * s->M * sizeof(float));
     w->opd = carve(&p, (size_t)s->np * s->np * sizeof(double));
     w->img2 = carve(&p, (size_t)s->Ns * s->Ns * sizeof(float));
+    w->cv = carve(&p, (size_t)s->M * s->M * sizeof(float));
+    w->co = carve(&p, (size_t)s->M * s->M * sizeof(int));
     return WT_OK;
 }
 
@@ -92,6 +105,9 @@ void wt_spot_free(wt_spot *s)
     wt_free(ctx, s->rm);
     wt_free(ctx, s->rw);
     wt_free(ctx, s->rn);
+    wt_free(ctx, s->gs);
+    wt_free(ctx, s->gi);
+    wt_free(ctx, s->gw);
     wt_free(ctx, s->K);
     wt_free(ctx, s);
 }
@@ -321,6 +337,20 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
             }
             s->rn[i] = n;
         }
+        /* the same weights listed by cell (ascending sample), for the gathering x pass of image_one */
+        WT_ALLOC(ctx, s->gs, s->M + 1, "spot rebinning lists");
+        WT_ALLOC(ctx, s->gi, (size_t)N * s->R, "spot rebinning lists");
+        WT_ALLOC(ctx, s->gw, (size_t)N * s->R, "spot rebinning lists");
+        for (int i = 0; i < N; i++)
+            for (int r = 0; r < s->rn[i]; r++) s->gs[s->rm[i * s->R + r] + 1]++;
+        for (int m = 0; m < s->M; m++) s->gs[m + 1] += s->gs[m];
+        for (int i = 0; i < N; i++)
+            for (int r = 0; r < s->rn[i]; r++) {
+                const int m = s->rm[i * s->R + r], at = s->gs[m]++;
+                s->gi[at] = i, s->gw[at] = s->rw[i * s->R + r];
+            }
+        for (int m = s->M; m > 0; m--) s->gs[m] = s->gs[m - 1];
+        s->gs[0] = 0;
     }
 
     WT_ALLOC(ctx, s->xs, np, "spot sample offsets");
@@ -353,7 +383,8 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
     /* the per-subaperture source ⊛ pixel tables */
     {
         const int Lp = s->Lp, LK = k * Lp, LS = LK + k - 1;
-        WT_ALLOC(ctx, s->K, (size_t)nsub * k * k * Lp * Lp, "spot source/pixel tables");
+        /* padding: image_one reads blocks of SUM_R rows of SUM_W, past the last table's end (zeros, unused) */
+        WT_ALLOC(ctx, s->K, (size_t)nsub * k * k * Lp * Lp + (size_t)SUM_R * Lp + SUM_W, "spot source/pixel tables");
         WT_ALLOC(ctx, S, (size_t)LS * LS, "spot source cells");
         WT_ALLOC(ctx, B, (size_t)LK * LS, "spot box sums");
         /* σ in cells of the Gaussian the table applies: the source's, less the rebinning blur (spot.h) */
@@ -433,15 +464,20 @@ static void image_one(const wt_spot *s, int is, const float *opdf, const double 
             Pr[i + N / 2] = sc * (z2[0] * z2[0] + z2[1] * z2[1]);
         }
     }
-    /* overlap rebinning: x (rows of P → tmp[m + M j]), then y (tmp → cells[mx + M my]) */
+    /* overlap rebinning: x (rows of P → tmp[m + M j]), then y (tmp → cells[mx + M my]). The x pass
+     * gathers per cell (its samples in ascending order: the sums and their order are those of scattering
+     * each sample in turn, with no store-to-load chain between neighbouring samples). */
     float *T = w->tmp, *C = w->cells;
-    memset(T, 0, (size_t)M * N * sizeof *T);
     memset(C, 0, (size_t)M * M * sizeof *C);
-    for (int j = 0; j < N; j++)
-        for (int i = 0; i < N; i++) {
-            const float v = P[i + (size_t)N * j];
-            for (int r = 0; r < s->rn[i]; r++) T[s->rm[i * R + r] + (size_t)M * j] += s->rw[i * R + r] * v;
+    for (int j = 0; j < N; j++) {
+        const float *Pr = P + (size_t)N * j;
+        float *Tr = T + (size_t)M * j;
+        for (int m = 0; m < M; m++) {
+            float a = 0.0f;
+            for (int g = s->gs[m]; g < s->gs[m + 1]; g++) a += s->gw[g] * Pr[s->gi[g]];
+            Tr[m] = a;
         }
+    }
     for (int j = 0; j < N; j++)
         for (int r = 0; r < s->rn[j]; r++) {
             const float wv = s->rw[j * R + r];
@@ -449,22 +485,48 @@ static void image_one(const wt_spot *s, int is, const float *opdf, const double 
             const float *Tr = T + (size_t)M * j;
             for (int m = 0; m < M; m++) Cr[m] += wv * Tr[m];
         }
-    /* image(P) = Σ_q cells_q K(kP − q): cell m ↦ e = M−1−m = k·e1 + e0, table (phase e0) at P + e1 */
+    /* image(P) = Σ_q cells_q K(kP − q): cell m ↦ e = M−1−m = k·e1 + e0, table (phase e0) at P + e1. The
+     * non-zero cells are listed with their table offsets, then each block of SUM_W pixels of a row sums
+     * over the list in registers: per pixel the same additions in the same order (cells by (my, mx)) as
+     * accumulating cell by cell into the image, without its loads and stores. */
     const float *K = s->K + (size_t)is * k * k * Lp * Lp;
+    float *cv = w->cv;
+    int *co = w->co, nc = 0;
     for (int my = 0; my < M; my++) {
         const int ey = M - 1 - my, e1y = ey / k, e0y = ey % k;
         for (int mx = 0; mx < M; mx++) {
             const float v = C[mx + (size_t)M * my];
             if (v == 0.0f) continue;
             const int ex = M - 1 - mx, e1x = ex / k, e0x = ex % k;
-            const float *Tb = K + (size_t)(e0x + k * e0y) * Lp * Lp + e1x + (size_t)Lp * e1y;
-            for (int py = 0; py < Ns; py++) {
-                const float *Kr = Tb + (size_t)Lp * py;
-                float *Ir = img + (size_t)Ns * py;
-                for (int px = 0; px < Ns; px++) Ir[px] += v * Kr[px];
-            }
+            cv[nc] = v;
+            co[nc++] = (e0x + k * e0y) * Lp * Lp + e1x + Lp * e1y;
         }
     }
+    for (int py = 0; py < Ns; py += SUM_R)
+        for (int p0 = 0; p0 < Ns; p0 += SUM_W) {
+            /* SUM_R rows × two 8-float vectors (GCC vector extension: the pixels are the vector lanes, not
+             * the cells); rows past Ns read the table's padding and are not stored */
+            v8f a[SUM_R][2];
+            memset(a, 0, sizeof a);
+            const float *Kp = K + (size_t)Lp * py + p0;
+            for (int c = 0; c < nc; c++) {
+                const float v = cv[c], *Kr = Kp + co[c];
+                for (int r = 0; r < SUM_R; r++) {
+                    v8f k0, k1;
+                    memcpy(&k0, Kr + (size_t)Lp * r, sizeof k0);
+                    memcpy(&k1, Kr + (size_t)Lp * r + 8, sizeof k1);
+                    a[r][0] += v * k0;
+                    a[r][1] += v * k1;
+                }
+            }
+            const int nw = Ns - p0 < SUM_W ? Ns - p0 : SUM_W;
+            for (int r = 0; r < SUM_R && py + r < Ns; r++) {
+                float acc[SUM_W];
+                memcpy(acc, a[r], sizeof acc);
+                float *Ir = img + (size_t)Ns * (py + r) + p0;
+                for (int q = 0; q < nw; q++) Ir[q] = acc[q];
+            }
+        }
 }
 
 static int thread_id(void)
@@ -565,7 +627,11 @@ double wt_poisson(wt_rng *rng, double mu)
     if (!(mu > 0)) return 0.0;
     if (mu < 10.0) {
         /* inversion by sequential search: k with F(k−1) < u ≤ F(k); p_k = p_{k−1}·mu/k */
-        double u = wt_rng_uniform(rng), p = exp(-mu), F = p;
+        double u = wt_rng_uniform(rng);
+        /* k = 0 when u ≤ e^{−mu}; e^{−mu} ≥ 1 − mu, so u below 1 − mu (less a margin for the rounding of
+         * both sides) decides it without the exp: the same deviate, most pixels of a faint image */
+        if (u <= (1.0 - mu) * (1.0 - 0x1p-48)) return 0.0;
+        double p = exp(-mu), F = p;
         double k = 0;
         while (u > F && k < 1000) {
             k += 1;

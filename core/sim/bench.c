@@ -7,10 +7,14 @@
 #include <cblas.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "../base/rng.h"
 #include "../la/half.h"
 #include "../model/fitting.h"
+#include "../model/sensing.h"
+#include "../optics/centroid.h"
+#include "../optics/spot.h"
 #include "../model/tomography.h"
 #include "../solve/mvm.h"
 #include "../solve/pcg.h"
@@ -262,4 +266,73 @@ out:
     free(R), free(C), free(x), free(y), free(y16), free(tg), free(tc);
     for (int k = 0; k < 2; k++) free(H[k]), free(Hc[k]), free(th[k]);
     return st;
+}
+
+int wt_bench_sensing_run(wt_context *ctx, const wt_system *sys, int kind, int reps, wt_bench_sensing *out)
+{
+    memset(out, 0, sizeof *out);
+    int64_t maxslopes = 0;
+    for (int i = 0; i < sys->nsensors; i++) {
+        const wt_sensing *ws = sys->sensors[i].diffr;
+        if (!ws || sys->sensors[i].kind != kind) continue;
+        if (!out->nsensors) {
+            out->np = ws->np, out->ns = ws->ns;
+            wt_spot_cost(ws->spot, &out->flops, &out->bytes);
+        }
+        out->nsensors++;
+        out->nsub += ws->nsub;
+        out->setup += ws->setup_seconds;
+        out->memory += (double)wt_sensing_memory(ws);
+        if (2 * ws->nsub > maxslopes) maxslopes = 2 * ws->nsub;
+    }
+    if (!out->nsensors) return WT_OK;
+    for (int i = 0; i < sys->nsensors; i++)
+        if (sys->sensors[i].diffr && sys->sensors[i].kind == kind) {
+            const wt_sensor_config *w = kind == WT_SENSOR_LGS ? &sys->cfg->lgs_wfs : &sys->cfg->ngs_wfs;
+            out->N = w->fft_size, out->k = w->cells_per_pixel ? w->cells_per_pixel : 3;
+            break;
+        }
+    double *sl = malloc((size_t)maxslopes * sizeof *sl), *tf = malloc(4 * (size_t)reps * sizeof *tf);
+    if (!sl || !tf) {
+        free(sl), free(tf);
+        return WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for the sensing timings");
+    }
+    double *ti = tf + reps, *tn = tf + 2 * reps, *tc = tf + 3 * reps;
+    /* the OPD: fixed for the run (the sensors' own per-frame buffers, overwritten here) */
+    for (int i = 0; i < sys->nsensors; i++) {
+        wt_sensing *ws = sys->sensors[i].diffr;
+        if (!ws || sys->sensors[i].kind != kind) continue;
+        wt_rng r;
+        wt_rng_init(&r, 11, (uint64_t)i);
+        const size_t n = (size_t)ws->nsub * ws->np * ws->np;
+        for (size_t j = 0; j < n; j++) ws->opd[j] = ws->amp[j] > 0.0f ? (float)(100e-9 * wt_rng_normal(&r)) : 0.0f;
+    }
+    struct timespec c0 = {0, 0}, c1;
+    for (int f = -1; f < reps; f++) {
+        if (f == 0) clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &c0);
+        double a = 0, b = 0, c = 0;
+        for (int i = 0; i < sys->nsensors; i++) {
+            wt_sensing *ws = sys->sensors[i].diffr;
+            if (!ws || sys->sensors[i].kind != kind) continue;
+            const uint64_t stream = (UINT64_C(1) << 32) + 64 * (uint64_t)(f + 1) + (uint64_t)i;
+            double t0 = wt_time_now();
+            wt_spot_image(ws->spot, ws->opd, ws->img);
+            double t1 = wt_time_now();
+            wt_spot_noise(ws->spot, 1, stream, ws->img);
+            double t2 = wt_time_now();
+            wt_centroid_apply(ws->cen, ws->img, sl);
+            double t3 = wt_time_now();
+            a += t1 - t0, b += t2 - t1, c += t3 - t2;
+        }
+        if (f < 0) continue; /* warm: pages, caches */
+        ti[f] = a, tn[f] = b, tc[f] = c, tf[f] = a + b + c;
+    }
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &c1);
+    out->cpu = ((double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec)) / reps;
+    out->frame = wt_bench_summarise(tf, reps);
+    out->images = wt_bench_summarise(ti, reps);
+    out->noise = wt_bench_summarise(tn, reps);
+    out->centroid = wt_bench_summarise(tc, reps);
+    free(sl), free(tf);
+    return WT_OK;
 }

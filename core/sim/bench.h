@@ -72,4 +72,24 @@ typedef struct wt_bench_mvm {
 
 int wt_bench_mvm_apply(wt_context *ctx, int64_t nact, int64_t nslopes, int reps, wt_bench_mvm *out);
 
+/* The diffractive sensing of one kind (WT_SENSOR_LGS or WT_SENSOR_NGS) of sys (core/model/sensing.h): per
+ * frame, every diffractive sensor of that kind in turn, images (wt_spot_image) + detector noise
+ * (wt_spot_noise, the loop's streams) + centroider (wt_centroid_apply), on a seeded OPD of 100 nm rms
+ * white per pupil sample (the time does not depend on the values, except the Poisson sampler's, which a
+ * faint image dominates either way); one warm frame, then reps timed frames on the context's threads. */
+typedef struct wt_bench_sensing {
+    int nsensors;              /* diffractive sensors of the kind (0: nothing timed) */
+    int64_t nsub;              /* their subapertures in all */
+    int np, N, ns, k;          /* pupil samples, FFT size, pixels, cells per pixel (first sensor) */
+    double setup;              /* Σ of their set-up times (in wt_system_alloc) [s] */
+    double memory;             /* Σ wt_sensing_memory [bytes] */
+    double flops, bytes;       /* per subaperture per noise-free image, wt_spot_cost (first sensor) */
+    wt_bench_stats frame;      /* per frame, all the sensors: images + noise + centroider */
+    wt_bench_stats images, noise, centroid; /* the three parts, per frame */
+    double cpu;                /* process CPU time per timed frame, all threads [s]: / threads = the wall
+                                  time on idle cores (the wall medians grow with the machine's load) */
+} wt_bench_sensing;
+
+int wt_bench_sensing_run(wt_context *ctx, const wt_system *sys, int kind, int reps, wt_bench_sensing *out);
+
 #endif
