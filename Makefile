@@ -86,7 +86,7 @@ $(BIN)/wavetomo: $(CLI_OBJ) $(LIB)
 
 # Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
 # is only for the report driver).
-$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o
+$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_pupil.o
 
 $(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h $(LIB)
 	@mkdir -p $(dir $@)

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "compare/spots.h"
 #include "core/model/sensing.h"
 #include "core/la/half.h"
 #include "core/model/fitting.h"
@@ -15,7 +16,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo info CONFIG [--set key=value]... [--no-nnz] [--threads N]\n"
+    printf("usage: wavetomo info CONFIG [--set key=value]... [--no-nnz] [--threads N] [--spots DIR [--sensor NAME]]\n"
            "       wavetomo info --keys\n"
            "\n"
            "Prints the derived sizes of the system described by CONFIG: valid subapertures and slopes\n"
@@ -24,6 +25,14 @@ static void help(void)
            "D), and the size of the MVM control matrix.\n"
            "\n"
            "  --keys        print every configuration key with its type, range and unit\n"
+           "  --spots DIR   draw one diffractive sensor (the first diffractive LGS, or --sensor) into DIR (created):\n"
+           "                spots_<SENSOR>.png, the noise-free mean spot image of every valid subaperture in its\n"
+           "                cell over the pupil (grey, each scaled to its peak; frames: truncation > 0.1/1/10 %%;\n"
+           "                the launch); gain_<SENSOR>.png, the centroid gain along the elongation (for the\n"
+           "                matched filter, whose gain is 1: a whole-detector CoG's) and the truncation per\n"
+           "                subaperture; spots.md, what they show with the median NEA and worst truncation.\n"
+           "                A system without a diffractive sensor is refused (lgs.wfs.model = \"diffractive\")\n"
+           "  --sensor NAME the sensor --spots draws (LGS1, NGS2, ...)\n"
            "  --no-nnz      skip the (few-second) symbolic count of the non-zeros of Ã\n"
            "  --set k=v     override a configuration key (repeatable)\n"
            "  --dry-run     print the estimated peak memory and run time of info itself; stop\n"
@@ -98,6 +107,7 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
 typedef struct {
     const char *path;
     int count_nnz, keys;
+    const char *spots, *sensor; /* --spots DIR, --sensor NAME */
 } info_args;
 
 static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -106,6 +116,12 @@ static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     info_args *a = user;
     if (!strcmp(argv[*i], "--keys")) a->keys = 1;
     else if (!strcmp(argv[*i], "--no-nnz")) a->count_nnz = 0;
+    else if (!strcmp(argv[*i], "--spots") || !strcmp(argv[*i], "--sensor")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        if (!v) return -1;
+        if (!strcmp(argv[*i - 1], "--spots")) a->spots = v;
+        else a->sensor = v;
+    }
     else if (argv[*i][0] == '-') return 0;
     else if (!a->path) a->path = argv[*i];
     else {
@@ -119,7 +135,7 @@ int wt_cmd_info(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo info", help)) return 1;
-    info_args args = {NULL, 1, 0};
+    info_args args = {NULL, 1, 0, NULL, NULL};
     int rc = wt_cli_parse(&cli, argc, argv, info_option, &args);
     if (rc >= 0 || args.keys) {
         if (args.keys && rc < 0) {
@@ -131,15 +147,24 @@ int wt_cmd_info(int argc, char **argv)
     }
     rc = 0;
     const char *path = args.path;
-    int count_nnz = args.count_nnz;
+    int count_nnz = args.count_nnz, spots_sensor = -1;
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
+    if (args.sensor && !args.spots) {
+        rc = wt_cli_usage_error(&cli, "--sensor names the sensor --spots draws; give --spots DIR");
+        wt_cli_done(&cli);
+        return rc;
+    }
     int st = wt_cli_read_config(&cli, path, &cfg);
     if (st < 0) goto out;
     if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE)) >= 0) goto out;
     rc = 0;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
     if (st < 0) goto out;
+    /* --spots: refused before anything is printed or written (no diffractive sensor, a foreign file in DIR) */
+    if (args.spots && ((st = wt_spots_pick(cli.ctx, sys, args.sensor, &spots_sensor)) < 0 ||
+                       (st = wt_spots_check_outputs(&cli, sys, spots_sensor, args.spots, NULL)) < 0))
+        goto out;
 
     printf("system: %s\n", cfg->path);
     printf("telescope: D = %g m, obstruction %g; Shack-Hartmann sampling %dx%d, d = %g m\n", cfg->diameter,
@@ -169,6 +194,17 @@ int wt_cmd_info(int argc, char **argv)
                s->name, cen[w->centroider], ws->ns, ws->ns, w->pixel / WT_ARCSEC, ws->np, w->fft_size,
                w->wavelength * 1e9, ws->nea_median / WT_ARCSEC * 1e3, 100.0 * ws->worst_trunc, ws->worst_sub,
                ws->xc[ws->worst_sub], ws->yc[ws->worst_sub], ws->setup_seconds);
+    }
+
+    if (args.spots) {
+        char cmd[4096] = "wavetomo";
+        for (int i = 0; i < argc; i++) /* argv[0] is the subcommand */
+            snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " %s", argv[i]);
+        const double t0 = wt_time_now();
+        if ((st = wt_spots_write(&cli, sys, spots_sensor, args.spots, cmd)) < 0) goto out;
+        const char *nm = sys->sensors[spots_sensor].name;
+        printf("%s pictures: %s/spots_%s.png, %s/gain_%s.png, %s/spots.md (%.1f s)\n", nm, args.spots, nm, args.spots,
+               nm, args.spots, wt_time_now() - t0);
     }
 
     printf("\n%-4s %10s %8s %10s %8s\n", "DM", "altitude_m", "pitch_m", "grid", "active");

@@ -18,6 +18,7 @@
 
 #include "cli/mpi.h"
 #include "compare/report.h"
+#include "compare/spots.h"
 #include "core/io/h5.h"
 #include "core/model/estimate.h"
 
@@ -362,8 +363,15 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     wt_compare_plan_make(&plan, a.nm, a.methods, a.key, a.nv, a.values, a.ns, a.seeds, first);
     /* rank 0 owns the directory: it creates it, checks the outputs and reads what a previous run did; the
      * other ranks wait for its verdict and its list of done cases */
+    /* a diffractive system: the pictures of its first diffractive LGS (else sensor) beside the report */
+    int spots = -1;
+    char results_h5[2200];
+    snprintf(results_h5, sizeof results_h5, "%s/results.h5", a.out);
+    for (int m = 0; m < first_sys->nsensors; m++)
+        if (first_sys->sensors[m].diffr && (st = wt_spots_pick(cli.ctx, first_sys, NULL, &spots)) < 0) goto fail;
     if (mp->rank == 0 && ((st = wt_cli_ensure_dir(cli.ctx, a.out)) < 0 || (st = wt_cli_ensure_dir(cli.ctx, cache)) < 0 ||
                           (st = wt_cmp_check_outputs(&cli, &a)) < 0 ||
+                          (spots >= 0 && (st = wt_spots_check_outputs(&cli, first_sys, spots, a.out, results_h5)) < 0) ||
                           (a.resume && (st = wt_cmp_read_previous(&cli, &a, &plan, R, &ndone)) < 0)))
         bad = 1;
     if (wt_mpi_max_int(mp, &bad) < 0) bad = 1;
@@ -395,6 +403,16 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     if (gather(mp, &a, owner, rc ? -1 : WT_OK, R, &others) < 0) goto quiet_fail;
     if (mp->rank) goto cleanup;
     int sig = wt_interrupt_pending();
+    if (spots >= 0) {
+        char cmd[4096] = "wavetomo info";
+        snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " %s", first->path);
+        for (int i = 0; i < base_nset; i++) snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " --set '%s'", cli.set[i]);
+        if (a.nv) /* the pictures are of the first sweep value's system */
+            snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " --set '%s=%s'", a.key, a.values[0]);
+        snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " --spots %s", a.out);
+        if ((st = wt_spots_write(&cli, first_sys, spots, a.out, cmd)) < 0) goto fail;
+        snprintf(a.spots, sizeof a.spots, "%s", first_sys->sensors[spots].name);
+    }
     if ((st = wt_cmp_write_all(&cli, &a, &plan, first, first_sys, R, argc, argv)) < 0) goto fail;
     if (others) {
         fprintf(stderr, "%s: %d MPI rank(s) failed (messages above): the finished cases are in %s (rerun with --resume "

@@ -14,6 +14,7 @@
  *    onto PATH, so PATH is either the old file or the whole new one.
  */
 #include "compare/plot.h"
+#include "compare/plot_private.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -24,21 +25,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* Page size [px]: wide enough for a legend beside the axes, readable when scaled to a report column. */
-enum { PAGE_W = 900, PAGE_H = 650 };
-
-/* cmap0 (the discrete colours). 0 is the background. */
-enum { C_BG = 0, C_FG = 1, C_GRID = 2, C_MISSING = 3, C_WHITE = 4, C_PAL = 5, N_PAL = 10 };
-static const PLINT cmap0_rgb[C_PAL + N_PAL][3] = {
+const PLINT wt_plot_cmap0[C_PAL + N_PAL][3] = {
     {255, 255, 255}, {0, 0, 0}, {205, 205, 205}, {200, 200, 200}, {255, 255, 255},
     /* a colour-blind-safe qualitative palette (Okabe-Ito, then Tableau) for methods and parts */
     {0, 114, 178}, {230, 159, 0}, {0, 158, 115}, {204, 121, 167}, {213, 94, 0},
     {86, 180, 233}, {120, 120, 120}, {148, 103, 189}, {140, 86, 75}, {188, 189, 34},
 };
-
-/* Viridis control points for cmap1 (perceptually uniform, readable in grey): position, r, g, b. */
-enum { N_VIRIDIS = 9 };
-static const double viridis[N_VIRIDIS][4] = {
+const double wt_plot_viridis[N_VIRIDIS][4] = {
     {0.000, 68, 1, 84},     {0.125, 71, 44, 122},  {0.250, 59, 81, 139},   {0.375, 44, 113, 142},
     {0.500, 33, 144, 141},  {0.625, 39, 173, 129}, {0.750, 92, 200, 99},   {0.875, 170, 220, 50},
     {1.000, 253, 231, 37},
@@ -49,20 +42,8 @@ enum { N_MARK = 4 };
 static const char *const mark_filled[N_MARK] = {"●", "■", "▲", "◆"};
 static const char *const mark_open[N_MARK] = {"○", "□", "△", "◇"};
 
-enum { LABEL_MAX = 256, ERRMSG_MAX = 2048 };
-
-typedef struct plot_job {
-    wt_context *ctx;
-    const char *path;
-    char tmp[4096 + 32];
-    PLINT prev_stream;
-    int stream_open;
-    PLINT errcode;          /* set to nonzero by plabort through plsError */
-    char errmsg[ERRMSG_MAX]; /* plabort's message (it writes without a bound: keep this generous) */
-} plot_job;
-
 /* '#' starts a PLplot escape sequence; a literal one is "##". Truncates to the buffer. */
-static const char *escape_text(char *dst, size_t n, const char *src)
+const char *wt_plot_escape(char *dst, size_t n, const char *src)
 {
     size_t k = 0;
     if (!src) src = "";
@@ -112,7 +93,7 @@ static int has_pngcairo(void)
 }
 
 /* After an error inside a figure: close the stream and drop the temporary. */
-static void job_abort(plot_job *j)
+void wt_plot_job_abort(wt_plot_job *j)
 {
     if (j->stream_open) {
         plend1();
@@ -122,8 +103,8 @@ static void job_abort(plot_job *j)
     if (j->tmp[0]) remove(j->tmp);
 }
 
-/* Check the path, create the temporary, open a fresh PLplot stream on it and start the page. */
-static int job_begin(plot_job *j, wt_context *ctx, const char *path)
+/* Check the path, create the temporary, open a fresh PLplot stream on it and start a page of w x h px. */
+int wt_plot_job_begin_size(wt_plot_job *j, wt_context *ctx, const char *path, int w, int h)
 {
     memset(j, 0, sizeof *j);
     j->ctx = ctx;
@@ -170,20 +151,20 @@ static int job_begin(plot_job *j, wt_context *ctx, const char *path)
     plsError(&j->errcode, j->errmsg);
     plsdev("pngcairo");
     plsfnam(j->tmp);
-    plspage(0.0, 0.0, PAGE_W, PAGE_H, 0, 0);
+    plspage(0.0, 0.0, w, h, 0, 0);
     PLINT r[C_PAL + N_PAL], g[C_PAL + N_PAL], b[C_PAL + N_PAL];
-    for (int i = 0; i < C_PAL + N_PAL; i++) r[i] = cmap0_rgb[i][0], g[i] = cmap0_rgb[i][1], b[i] = cmap0_rgb[i][2];
+    for (int i = 0; i < C_PAL + N_PAL; i++) r[i] = wt_plot_cmap0[i][0], g[i] = wt_plot_cmap0[i][1], b[i] = wt_plot_cmap0[i][2];
     plscmap0(r, g, b, C_PAL + N_PAL);
     PLFLT pos[N_VIRIDIS], cr[N_VIRIDIS], cg[N_VIRIDIS], cb[N_VIRIDIS];
     for (int i = 0; i < N_VIRIDIS; i++)
-        pos[i] = viridis[i][0], cr[i] = viridis[i][1] / 255.0, cg[i] = viridis[i][2] / 255.0,
-        cb[i] = viridis[i][3] / 255.0;
+        pos[i] = wt_plot_viridis[i][0], cr[i] = wt_plot_viridis[i][1] / 255.0, cg[i] = wt_plot_viridis[i][2] / 255.0,
+        cb[i] = wt_plot_viridis[i][3] / 255.0;
     plscmap1n(256);
     plscmap1l(1, N_VIRIDIS, pos, cr, cg, cb, NULL);
     plinit();
     if (j->errcode) {
         int st = WT_ERROR(ctx, WT_ERR_LIBRARY, "plot '%s': plinit failed: %s", path, trimmed(j->errmsg));
-        job_abort(j);
+        wt_plot_job_abort(j);
         return st;
     }
     pladv(0);
@@ -191,6 +172,11 @@ static int job_begin(plot_job *j, wt_context *ctx, const char *path)
     plwidth(1.0);
     plcol0(C_FG);
     return WT_OK;
+}
+
+int wt_plot_job_begin(wt_plot_job *j, wt_context *ctx, const char *path)
+{
+    return wt_plot_job_begin_size(j, ctx, path, PAGE_W, PAGE_H);
 }
 
 /* PNG = signature, chunks, IEND last: a short write (cairo ignores fwrite errors) loses the IEND. */
@@ -211,7 +197,7 @@ static int png_complete(const char *file)
 }
 
 /* Close the stream (PLplot writes the PNG here), check it, rename onto the path. */
-static int job_end(plot_job *j)
+int wt_plot_job_end(wt_plot_job *j)
 {
     plend1();
     plsstrm(j->prev_stream);
@@ -235,7 +221,7 @@ static int job_end(plot_job *j)
 }
 
 /* Axes with a light grid under them: the grid pass in grey, the frame and labels in black. */
-static void draw_axes(const char *xopt, const char *yopt, const char *xgrid, const char *ygrid)
+void wt_plot_axes(const char *xopt, const char *yopt, const char *xgrid, const char *ygrid)
 {
     plcol0(C_GRID);
     pllsty(1);
@@ -247,14 +233,14 @@ static void draw_axes(const char *xopt, const char *yopt, const char *xgrid, con
     plwidth(1.0);
 }
 
-static void draw_labels(const char *xlabel, const char *ylabel, const char *title)
+void wt_plot_labels(const char *xlabel, const char *ylabel, const char *title)
 {
     char xb[LABEL_MAX], yb[LABEL_MAX], tb[LABEL_MAX];
     plcol0(C_FG);
-    plmtex("b", 3.0, 0.5, 0.5, escape_text(xb, sizeof xb, xlabel));
-    plmtex("l", 3.8, 0.5, 0.5, escape_text(yb, sizeof yb, ylabel));
+    plmtex("b", 3.0, 0.5, 0.5, wt_plot_escape(xb, sizeof xb, xlabel));
+    plmtex("l", 3.8, 0.5, 0.5, wt_plot_escape(yb, sizeof yb, ylabel));
     plschr(0.0, 1.35);
-    plmtex("t", 1.6, 0.5, 0.5, escape_text(tb, sizeof tb, title));
+    plmtex("t", 1.6, 0.5, 0.5, wt_plot_escape(tb, sizeof tb, title));
     plschr(0.0, 1.15);
 }
 
@@ -281,18 +267,18 @@ enum { MAX_SERIES = 16, MAX_VALUES = 4096, MAX_GRID = 64 };
 
 /* Colour of cmap1 at t in [0,1] (same control points as the map) -> relative luminance in [0,1],
  * to choose black or white text on a cell. */
-static double viridis_luminance(double t)
+double wt_plot_viridis_luminance(double t)
 {
     int k = 0;
-    while (k < N_VIRIDIS - 2 && t > viridis[k + 1][0]) k++;
-    double w = (t - viridis[k][0]) / (viridis[k + 1][0] - viridis[k][0]);
+    while (k < N_VIRIDIS - 2 && t > wt_plot_viridis[k + 1][0]) k++;
+    double w = (t - wt_plot_viridis[k][0]) / (wt_plot_viridis[k + 1][0] - wt_plot_viridis[k][0]);
     w = fmin(fmax(w, 0.0), 1.0);
     double c[3];
-    for (int i = 0; i < 3; i++) c[i] = ((1.0 - w) * viridis[k][i + 1] + w * viridis[k + 1][i + 1]) / 255.0;
+    for (int i = 0; i < 3; i++) c[i] = ((1.0 - w) * wt_plot_viridis[k][i + 1] + w * wt_plot_viridis[k + 1][i + 1]) / 255.0;
     return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
 }
 
-static const char *pname(const char *path) { return path ? path : "(null)"; }
+const char *wt_plot_pname(const char *path) { return path ? path : "(null)"; }
 
 /* Vertical error bars y ± e at the finite points (issue 11: the standard error over seeds). */
 static void error_bars(int n, const double *x, const double *y, const double *e)
@@ -310,14 +296,14 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
 {
     if (nmethods < 1 || nmethods > MAX_SERIES || nvalues < 1 || nvalues > MAX_VALUES)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl sweep of %d methods x %d values; expected 1..%d x 1..%d",
-                        pname(path), nmethods, nvalues, MAX_SERIES, MAX_VALUES);
+                        wt_plot_pname(path), nmethods, nvalues, MAX_SERIES, MAX_VALUES);
     if (!methods || !x || !on_axis || !field)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl sweep with a NULL array", pname(path));
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl sweep with a NULL array", wt_plot_pname(path));
     double px[MAX_VALUES];
     double xmin = INFINITY, xmax = -INFINITY, ymax = 0.0;
     for (int k = 0; k < nvalues; k++) {
         if (!isfinite(x[k]) || (log_x && x[k] <= 0.0))
-            return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': swept value x[%d] = %g; expected finite%s", pname(path), k,
+            return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': swept value x[%d] = %g; expected finite%s", wt_plot_pname(path), k,
                             x[k], log_x ? " and > 0 for a log axis" : "");
         px[k] = log_x ? log10(x[k]) : x[k]; /* plbox "l" labels a log10 world axis */
         xmin = fmin(xmin, px[k]), xmax = fmax(xmax, px[k]);
@@ -328,24 +314,24 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
             return WT_ERROR(ctx, WT_ERR_INVALID,
                             "plot '%s': Strehl of method %ld at x[%ld] is %g on-axis, %g field; expected >= 0, or NaN "
                             "for a missing run",
-                            pname(path), i / nvalues, i % nvalues, on_axis[i], field[i]);
+                            wt_plot_pname(path), i / nvalues, i % nvalues, on_axis[i], field[i]);
         if (isfinite(on_axis[i])) ymax = fmax(ymax, on_axis[i] + (on_err && isfinite(on_err[i]) ? on_err[i] : 0.0));
         if (isfinite(field[i])) ymax = fmax(ymax, field[i] + (field_err && isfinite(field_err[i]) ? field_err[i] : 0.0));
     }
     for (int m = 0; m < nmethods; m++)
-        if (!methods[m]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': method name %d is NULL", pname(path), m);
+        if (!methods[m]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': method name %d is NULL", wt_plot_pname(path), m);
     double pad = xmax > xmin ? 0.04 * (xmax - xmin) : (log_x ? 0.25 : fmax(0.5, 0.1 * fabs(xmin)));
     xmin -= pad, xmax += pad;
     ymax = ymax > 0.0 ? 1.1 * ymax : 1.0; /* room above the best curve, 0 kept as the floor */
 
-    plot_job j;
-    int st = job_begin(&j, ctx, path);
+    wt_plot_job j;
+    int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
 
     plvpor(0.10, 0.68, 0.12, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
-    draw_axes(log_x ? "bcnstl" : "bcnst", "bcnstv", log_x ? "gl" : "g", "g");
-    draw_labels(xlabel, "LE Strehl", title);
+    wt_plot_axes(log_x ? "bcnstl" : "bcnst", "bcnstv", log_x ? "gl" : "g", "g");
+    wt_plot_labels(xlabel, "LE Strehl", title);
 
     for (int m = 0; m < nmethods; m++) {
         const double *on = on_axis + (long)m * nvalues, *fa = field + (long)m * nvalues;
@@ -371,7 +357,7 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
     char buf[NL][LABEL_MAX];
     for (int m = 0; m < nmethods; m++) {
         char name[LABEL_MAX - 16];
-        escape_text(name, sizeof name, methods[m]);
+        wt_plot_escape(name, sizeof name, methods[m]);
         for (int f = 0; f < 2; f++) {
             int i = 2 * m + f;
             snprintf(buf[i], LABEL_MAX, "%s %s", name, f ? "field" : "on-axis");
@@ -391,7 +377,7 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
              PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.12, C_BG,
              C_GRID, 1, 0, 0, 2 * nmethods, opt, 1.0, 0.95, 2.0, 0.0, tcol, text, NULL, NULL, NULL, NULL, lcol, lsty,
              lwid, lcol, sscale, snum, sym);
-    return job_end(&j);
+    return wt_plot_job_end(&j);
 }
 
 int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
@@ -399,20 +385,20 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
 {
     if (g < 1 || g > MAX_GRID)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl map of %d x %d cells; expected 1..%d per side",
-                        pname(path), g, g, MAX_GRID);
-    if (!coords || !strehl) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl map with a NULL array", pname(path));
+                        wt_plot_pname(path), g, g, MAX_GRID);
+    if (!coords || !strehl) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl map with a NULL array", wt_plot_pname(path));
     if (!isfinite(vmin) || !isfinite(vmax) || vmin > vmax)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': colour range [%g, %g]; expected finite vmin <= vmax",
-                        pname(path), vmin, vmax);
+                        wt_plot_pname(path), vmin, vmax);
     if (vmin == vmax) vmin -= 0.05, vmax += 0.05; /* a uniform field (min = max over the maps): one mid colour */
     for (int i = 0; i < g; i++)
         if (!isfinite(coords[i]) || (i > 0 && !(coords[i] > coords[i - 1])))
             return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': field coordinate %d = %g [arcsec]; expected finite and "
-                            "increasing", pname(path), i, coords[i]);
+                            "increasing", wt_plot_pname(path), i, coords[i]);
     for (long i = 0; i < (long)g * g; i++)
         if (isinf(strehl[i]))
             return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl of cell %ld is %g; expected finite (NaN: missing)",
-                            pname(path), i, strehl[i]);
+                            wt_plot_pname(path), i, strehl[i]);
 
     /* cell edges halfway between the evaluation directions, the outer ones mirrored */
     double e[MAX_GRID + 1];
@@ -424,8 +410,8 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
         e[g] = 2.0 * coords[g - 1] - e[g - 1];
     }
 
-    plot_job j;
-    int st = job_begin(&j, ctx, path);
+    wt_plot_job j;
+    int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
 
     plvpas(0.08, 0.78, 0.12, 0.90, 1.0);
@@ -452,7 +438,7 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
     plwidth(1.0);
     if (g <= 9) {
         /* label the evaluation directions themselves: they need not be multiples of a tick step */
-        draw_axes("bc", "bc", "", "");
+        wt_plot_axes("bc", "bc", "", "");
         for (int i = 0; i < g; i++) {
             char s[32];
             double f = (coords[i] - e[0]) / (e[g] - e[0]);
@@ -461,9 +447,9 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
             plmtex("lv", 0.6, f, 1.0, s);
         }
     } else {
-        draw_axes("bcnst", "bcnstv", "", "");
+        wt_plot_axes("bcnst", "bcnstv", "", "");
     }
-    draw_labels("field x [arcsec]", "field y [arcsec]", title);
+    wt_plot_labels("field x [arcsec]", "field y [arcsec]", title);
 
     /* each value in its cell; character height follows the cell so 8x8 maps stay legible */
     double chr = fmax(0.4, fmin(1.25, 7.5 / g));
@@ -478,7 +464,7 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
             } else {
                 snprintf(s, sizeof s, "%.3f", v);
                 double t = fmin(fmax((v - vmin) / (vmax - vmin), 0.0), 1.0);
-                plcol0(viridis_luminance(t) > 0.45 ? C_FG : C_WHITE);
+                plcol0(wt_plot_viridis_luminance(t) > 0.45 ? C_FG : C_WHITE);
             }
             plptex(0.5 * (e[c] + e[c + 1]), 0.5 * (e[r] + e[r + 1]), 1.0, 0.0, 0.5, s); /* centred on the point */
         }
@@ -502,7 +488,7 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
     plcolorbar(&cw, &ch, PL_COLORBAR_SHADE, PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.05, 0.0,
                0.05, 1.0, C_BG, C_FG, 1, 0.0, 0.0, 0, 0.0, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks,
                n_values, values);
-    return job_end(&j);
+    return wt_plot_job_end(&j);
 }
 
 /* "12.3" with about three significant digits, for the totals over the bars. */
@@ -516,13 +502,13 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
 {
     if (nmethods < 1 || nmethods > MAX_SERIES || nparts < 1 || nparts > MAX_SERIES)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': time bars of %d methods x %d parts; expected 1..%d x 1..%d",
-                        pname(path), nmethods, nparts, MAX_SERIES, MAX_SERIES);
+                        wt_plot_pname(path), nmethods, nparts, MAX_SERIES, MAX_SERIES);
     if (!methods || !parts || !times)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': time bars with a NULL array", pname(path));
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': time bars with a NULL array", wt_plot_pname(path));
     for (int m = 0; m < nmethods; m++)
-        if (!methods[m]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': method name %d is NULL", pname(path), m);
+        if (!methods[m]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': method name %d is NULL", wt_plot_pname(path), m);
     for (int k = 0; k < nparts; k++)
-        if (!parts[k]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': part name %d is NULL", pname(path), k);
+        if (!parts[k]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': part name %d is NULL", wt_plot_pname(path), k);
     double total[MAX_SERIES], tmax = 0.0;
     for (int m = 0; m < nmethods; m++) {
         total[m] = 0.0;
@@ -530,7 +516,7 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
             double t = times[(long)m * nparts + k];
             if (!isfinite(t) || t < 0.0)
                 return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': time of %s / %s is %g ms; expected finite and >= 0",
-                                pname(path), methods[m], parts[k], t);
+                                wt_plot_pname(path), methods[m], parts[k], t);
             total[m] += t;
         }
         tmax = fmax(tmax, total[m]);
@@ -538,14 +524,14 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
     double ymax = tmax > 0.0 ? 1.12 * tmax : 1.0; /* room for the totals printed over the bars */
     double xmin = 0.4, xmax = nmethods + 0.6, half = 0.3;
 
-    plot_job j;
-    int st = job_begin(&j, ctx, path);
+    wt_plot_job j;
+    int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
 
     plvpor(0.10, 0.72, 0.12, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
-    draw_axes("bc", "bcnstv", "", "g");
-    draw_labels("", "time per frame [ms]", title);
+    wt_plot_axes("bc", "bcnstv", "", "g");
+    wt_plot_labels("", "time per frame [ms]", title);
 
     char txt[LABEL_MAX];
     for (int m = 0; m < nmethods; m++) {
@@ -567,7 +553,7 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
         fmt_ms(txt, sizeof txt, total[m]);
         /* plptex centres the text on the point: lift it by about one character height */
         plptex(xc, total[m] + 0.045 * ymax, 1.0, 0.0, 0.5, txt);
-        plmtex("b", 1.8, (xc - xmin) / (xmax - xmin), 0.5, escape_text(txt, sizeof txt, methods[m]));
+        plmtex("b", 1.8, (xc - xmin) / (xmax - xmin), 0.5, wt_plot_escape(txt, sizeof txt, methods[m]));
     }
 
     /* legend of parts, listed top-down like the stack */
@@ -583,14 +569,14 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
         bpat[i] = 0;
         bscale[i] = 0.9;
         bwid[i] = 1.0;
-        text[i] = escape_text(buf[i], LABEL_MAX, parts[k]);
+        text[i] = wt_plot_escape(buf[i], LABEL_MAX, parts[k]);
     }
     PLFLT lw, lh;
     pllegend(&lw, &lh, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
              PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.06, C_BG,
              C_GRID, 1, 0, 0, nparts, opt, 1.0, 0.95, 2.0, 0.0, tcol, text, bcol, bpat, bscale, bwid, NULL, NULL, NULL,
              NULL, NULL, NULL, NULL);
-    return job_end(&j);
+    return wt_plot_job_end(&j);
 }
 
 int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, const char *ylabel, int ngroups,
@@ -599,13 +585,13 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
 {
     if (ngroups < 1 || ngroups > MAX_SERIES || nseries < 1 || nseries > MAX_SERIES)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': bars of %d groups x %d series; expected 1..%d x 1..%d",
-                        pname(path), ngroups, nseries, MAX_SERIES, MAX_SERIES);
+                        wt_plot_pname(path), ngroups, nseries, MAX_SERIES, MAX_SERIES);
     if (!groups || !series || !values)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': grouped bars with a NULL array", pname(path));
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': grouped bars with a NULL array", wt_plot_pname(path));
     for (int k = 0; k < ngroups; k++)
-        if (!groups[k]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': group name %d is NULL", pname(path), k);
+        if (!groups[k]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': group name %d is NULL", wt_plot_pname(path), k);
     for (int s = 0; s < nseries; s++)
-        if (!series[s]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': series name %d is NULL", pname(path), s);
+        if (!series[s]) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': series name %d is NULL", wt_plot_pname(path), s);
     double vmax = 0.0;
     for (int i = 0; i < ngroups * nseries; i++) {
         if (isfinite(values[i])) vmax = fmax(vmax, fabs(values[i]));
@@ -614,13 +600,13 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
     double ymax = vmax > 0.0 ? 1.12 * vmax : 1.0;
     double xmin = 0.4, xmax = ngroups + 0.6, w = 0.8 / nseries;
 
-    plot_job j;
-    int st = job_begin(&j, ctx, path);
+    wt_plot_job j;
+    int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
     plvpor(0.10, 0.78, 0.16, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
-    draw_axes("bc", "bcnstv", "", "g");
-    draw_labels("", ylabel, title);
+    wt_plot_axes("bc", "bcnstv", "", "g");
+    wt_plot_labels("", ylabel, title);
     char txt[LABEL_MAX];
     plschr(0.0, 0.8);
     for (int k = 0; k < ngroups; k++) {
@@ -651,7 +637,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
     plschr(0.0, 1.15);
     plcol0(C_FG);
     for (int k = 0; k < ngroups; k++)
-        plmtex("b", 1.8 + 1.2 * (k % 2), (k + 1.0 - xmin) / (xmax - xmin), 0.5, escape_text(txt, sizeof txt, groups[k]));
+        plmtex("b", 1.8 + 1.2 * (k % 2), (k + 1.0 - xmin) / (xmax - xmin), 0.5, wt_plot_escape(txt, sizeof txt, groups[k]));
 
     PLINT opt[MAX_SERIES + 1], tcol[MAX_SERIES + 1], bcol[MAX_SERIES + 1], bpat[MAX_SERIES + 1], lcol[MAX_SERIES + 1],
         lsty[MAX_SERIES + 1];
@@ -663,7 +649,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
         opt[n] = PL_LEGEND_COLOR_BOX;
         tcol[n] = C_FG, bcol[n] = C_PAL + s % N_PAL, bpat[n] = 0, bscale[n] = 0.9, bwid[n] = 1.0;
         lcol[n] = C_FG, lsty[n] = 1, lwid[n] = 1.0;
-        text[n] = escape_text(buf[s], LABEL_MAX, series[s]);
+        text[n] = wt_plot_escape(buf[s], LABEL_MAX, series[s]);
     }
     if (marks) {
         opt[n] = PL_LEGEND_LINE;
@@ -676,5 +662,5 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
              PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.06, C_BG, C_GRID, 1, 0, 0,
              n, opt, 1.0, 0.95, 2.0, 0.0, tcol, text, bcol, bpat, bscale, bwid, lcol, lsty, lwid, NULL, NULL, NULL,
              NULL);
-    return job_end(&j);
+    return wt_plot_job_end(&j);
 }

@@ -33,4 +33,47 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                          const char *const *groups, int nseries, const char *const *series, const double *values,
                          const double *marks);
 
+
+/* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`, issue 19 item 7) ---- */
+
+/* Where the subapertures are: the valid subapertures' centres and side, the annulus outline, the launch. */
+typedef struct wt_plot_pupil {
+    int nsub;                     /* valid subapertures */
+    const double *xc, *yc;        /* [nsub] centres in the pupil [m] (x right, y up) */
+    double side;                  /* subaperture side d [m] */
+    double diameter;              /* telescope diameter D [m] (outline) */
+    double obstruction;           /* central obstruction as a fraction of D [-] (outline) */
+    int has_launch;               /* 1: mark the laser launch position (launch_x, launch_y) [m] */
+    double launch_x, launch_y;
+} wt_plot_pupil;
+
+/* Truncation levels the spot mosaic frames (fractions of a subaperture's flux outside its detector field). */
+#define WT_PLOT_TRUNC_LEVELS 3
+extern const double wt_plot_trunc_levels[WT_PLOT_TRUNC_LEVELS]; /* 0.001, 0.01, 0.1 */
+
+/* The page of wt_plot_spots [px]: an integer number s >= 1 of screen pixels per detector pixel (s = 1 from
+ * about 1000 detector pixels across the window on), one screen pixel of gap between cells, the window
+ * holding the pupil and the launch; margins for the title, the colour bar and the legend. */
+void wt_plot_spots_page(const wt_plot_pupil *p, int ns, int *width, int *height);
+
+/* The spot mosaic: every valid subaperture's ns x ns image (img [nsub·ns²], pixel (ix, iy) at ix + ns·iy, x
+ * right, y up, as core/optics/spot.h) in its cell over the pupil, on a linear grey scale of I / I_max
+ * (I_max: the subaperture's own peak when normalise, else the brightest pixel of all; the colour bar says
+ * which); subaperture k framed in the colour of the highest level of wt_plot_trunc_levels that trunc[k]
+ * exceeds (trunc may be NULL); the launch marked. title and note: two lines above. Draws only the pixels
+ * brighter than the scale's first step, merged in runs of one colour (the E-ELT's 84 x 84 x 16² pixels in
+ * about a second). A big mosaic (s <= 2) gets three zoomed insets beside it: the subapertures nearest to the
+ * launch, farthest from it, and the worst truncated (or those across the launch direction), marked on it. */
+int wt_plot_spots(wt_context *ctx, const char *path, const char *title, const char *note, const wt_plot_pupil *p,
+                  int ns, const float *img, int normalise, const double *trunc);
+
+/* One or two maps of a value per subaperture over the pupil, side by side (1500 x 720 px; one: 900 x 650), each
+ * with its colour bar (label: its meaning and units) and subtitle (a newline splits it in two lines); values[m][k]
+ * of subaperture k (NaN: grey); the launch a star (the title may say so). The
+ * colour range of map m is [range[2m], range[2m+1]] where finite (range may be NULL), else its values' range
+ * (widened to ±1 % of the value when they are all equal). */
+int wt_plot_pupil_maps(wt_context *ctx, const char *path, const char *title, const wt_plot_pupil *p, int nmaps,
+                       const double *const *values, const double *range, const char *const *subtitles,
+                       const char *const *bar_labels);
+
 #endif

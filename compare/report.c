@@ -355,6 +355,11 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                     if (S[m * nv + v].mean.done)
                         fprintf(f, "![%s%s%s](map_%s_%d.png) ", a->methods[m], a->nv ? " " : "", val(a, v), a->methods[m], v);
             if (!missing) fprintf(f, "\n\n![time per frame](time_per_frame.png)");
+            if (a->spots[0])
+                fprintf(f, "\n\n## Diffractive sensor %s\n\nNoise-free spot images and centroid gain of the first "
+                           "diffractive sensor (what they show: [spots.md](spots.md)).\n\n![spot images of %s](spots_%s.png)"
+                           "\n\n![centroid gain and truncation of %s](gain_%s.png)",
+                        a->spots, a->spots, a->spots, a->spots, a->spots);
             fprintf(f, "\n\nFiles: results.h5 (all numbers, see README), summary.csv.\n");
         }
         if (fclose(f) != 0 || rename(tmp, path) != 0) return WT_ERROR(cli->ctx, WT_ERR_IO, "cannot write '%s'", path);

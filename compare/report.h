@@ -18,6 +18,7 @@ typedef struct wt_cmp_cases {
     long nseeds;          /* --seeds N (0: not given) */
     int ns;               /* seeds per method and sweep value (1: the configuration's sim.seed) */
     uint64_t seeds[WT_COMPARE_MAXS];
+    char spots[16];       /* the diffractive sensor whose pictures (compare/spots.h) are in DIR ("": none) */
 } wt_cmp_cases;
 
 /* Index of the case (method m, sweep value v, seed s) in the per-seed result arrays. */

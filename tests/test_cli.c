@@ -201,6 +201,79 @@ START_TEST(test_run_rejects_bad_frames)
 }
 END_TEST
 
+/* The PNG's width and height from its IHDR (0 when not a PNG). */
+static void png_size(const char *d, const char *name, unsigned *w, unsigned *h)
+{
+    char p[256];
+    unsigned char b[24] = {0};
+    snprintf(p, sizeof p, "%s/%s", d, name);
+    FILE *f = fopen(p, "rb");
+    *w = *h = 0;
+    if (!f) return;
+    if (fread(b, 1, 24, f) == 24 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8) && !memcmp(b + 12, "IHDR", 4)) {
+        *w = (unsigned)b[16] << 24 | (unsigned)b[17] << 16 | (unsigned)b[18] << 8 | b[19];
+        *h = (unsigned)b[20] << 24 | (unsigned)b[21] << 16 | (unsigned)b[22] << 8 | b[23];
+    }
+    fclose(f);
+}
+
+/* issue 19 item 7: `info --spots DIR` draws the first diffractive LGS; a geometric system is refused with
+ * nothing left behind; the compare report of a diffractive system links the same pictures. */
+START_TEST(test_info_spots)
+{
+    char out[128], p[256];
+    snprintf(out, sizeof out, "%s/spots/nested", dir); /* created like mkdir -p */
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s", out), 0);
+    /* the demo's 16 x 16 cells of 10 px: 4 screen px per detector px, no insets (wt_plot_spots_page) */
+    unsigned w, h;
+    png_size(out, "spots_LGS1.png", &w, &h);
+    ck_assert_msg(w == 1431 && h == 1051, "spots_LGS1.png is %u x %u", w, h);
+    ck_assert_msg(file_size(out, "spots_LGS1.png") > 20000, "spots_LGS1.png is (nearly) empty");
+    png_size(out, "gain_LGS1.png", &w, &h);
+    ck_assert_msg(w == 1500 && h == 720, "gain_LGS1.png is %u x %u", w, h);
+    snprintf(p, sizeof p, "%s/spots.md", out);
+    FILE *f = fopen(p, "r");
+    ck_assert_ptr_nonnull(f);
+    char text[8192] = {0};
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    ck_assert(!strncmp(text, "# wavetomo spot images: LGS1", 28));
+    ck_assert(strstr(text, "median NEA") && strstr(text, "worst truncation") && strstr(text, "spots_LGS1.png"));
+    /* again into the same directory: ours, replaced; another sensor by name */
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s --sensor lgs3", out), 0);
+    ck_assert(is_png(out, "spots_LGS3.png") && is_png(out, "gain_LGS3.png"));
+
+    /* a geometric system: a clear refusal, exit 1, no directory made */
+    snprintf(out, sizeof out, "%s/geo", dir);
+    ck_assert_int_eq(run("info data/presets/demo.cfg --no-nnz --spots %s", out), 1);
+    ck_assert(stderr_has("geometric"));
+    ck_assert(stderr_has("lgs.wfs.model"));
+    ck_assert_int_ne(access(out, F_OK), 0);
+    /* an unknown sensor names the ones there are; --sensor alone is a usage error */
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s --sensor LGS9", out), 1);
+    ck_assert(stderr_has("LGS1, LGS2"));
+    ck_assert_int_ne(access(out, F_OK), 0);
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --sensor LGS1"), 2);
+    ck_assert_int_eq(run("info --help"), 0);
+
+    /* compare on the diffractive demo writes and links the pictures */
+    snprintf(out, sizeof out, "%s/cmp", dir);
+    ck_assert_int_eq(run("compare --config data/presets/demo-diffractive.cfg --recon pcg3 --frames 8 --out %s --quiet",
+                         out),
+                     0);
+    ck_assert(is_png(out, "spots_LGS1.png") && is_png(out, "gain_LGS1.png"));
+    ck_assert(file_size(out, "spots.md") > 500);
+    snprintf(p, sizeof p, "%s/report.md", out);
+    f = fopen(p, "r");
+    ck_assert_ptr_nonnull(f);
+    n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    ck_assert(strstr(text, "(spots_LGS1.png)") && strstr(text, "(gain_LGS1.png)"));
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("cli");
@@ -210,6 +283,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_compare_writes_the_report);
     tcase_add_test(tc, test_build_run_chain_and_refusals);
     tcase_add_test(tc, test_run_rejects_bad_frames);
+    tcase_add_test(tc, test_info_spots);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -377,6 +377,117 @@ START_TEST(test_edge_inputs_draw)
 }
 END_TEST
 
+/* ---- the pupil pictures of a sensor (compare/plot_pupil.c) ---- */
+
+/* n x n subapertures of side d over a disc of diameter n d, each an ns x ns Gaussian spot elongated along the
+ * direction from the launch (lx, 0); trunc grows with the distance. */
+typedef struct {
+    int nsub, ns;
+    double xc[4096], yc[4096], trunc[4096];
+    float *img;
+    wt_plot_pupil p;
+} pupil_data;
+
+static void make_pupil(pupil_data *q, int n, int ns)
+{
+    const double d = 0.5, D = n * d, lx = 0.5 * D + 0.5;
+    q->nsub = 0, q->ns = ns;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            const double x = (i + 0.5 - 0.5 * n) * d, y = (j + 0.5 - 0.5 * n) * d;
+            if (hypot(x, y) > 0.5 * D || hypot(x, y) < 0.15 * D) continue;
+            q->xc[q->nsub] = x, q->yc[q->nsub] = y;
+            q->trunc[q->nsub] = 0.002 * hypot(x - lx, y) / d; /* up to ~0.1 x n: every frame level is used */
+            q->nsub++;
+        }
+    q->img = malloc((size_t)q->nsub * ns * ns * sizeof *q->img);
+    ck_assert_ptr_nonnull(q->img);
+    for (int k = 0; k < q->nsub; k++) {
+        const double ux = q->xc[k] - lx, uy = q->yc[k], r = hypot(ux, uy), len = 0.4 + 0.08 * r / d;
+        for (int iy = 0; iy < ns; iy++)
+            for (int ix = 0; ix < ns; ix++) {
+                const double x = ix - 0.5 * (ns - 1), y = iy - 0.5 * (ns - 1);
+                const double a = (x * ux + y * uy) / r, b = (-x * uy + y * ux) / r;
+                q->img[(size_t)k * ns * ns + ix + ns * iy] = (float)(100.0 * exp(-0.5 * (a * a / (len * len) + b * b / 0.36)));
+            }
+    }
+    q->p = (wt_plot_pupil){.nsub = q->nsub, .xc = q->xc, .yc = q->yc, .side = d, .diameter = D, .obstruction = 0.3,
+                           .has_launch = 1, .launch_x = lx, .launch_y = 0.0};
+}
+
+START_TEST(test_spots_and_maps_write_png)
+{
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), path[256];
+    static pupil_data q;
+    /* a small sensor (magnified cells) and a big one (one screen px per detector px, with the insets) */
+    const int sizes[2][2] = {{12, 8}, {60, 16}};
+    for (int c = 0; c < 2; c++) {
+        make_pupil(&q, sizes[c][0], sizes[c][1]);
+        int w = 0, h = 0;
+        wt_plot_spots_page(&q.p, q.ns, &w, &h);
+        ck_assert_int_ge(w, 900);
+        ck_assert_int_ge(h, 700);
+        snprintf(path, sizeof path, "%s/spots%d.png", dir, c);
+        const double t0 = wt_time_now();
+        ck_assert_msg(wt_plot_spots(ctx, path, "LGS1 #spots", "note", &q.p, q.ns, q.img, 1, q.trunc) == WT_OK, "%s",
+                      wt_error_message(ctx));
+        /* the 60 x 60 x 16² case (~2800 cells, 960² pixels) well inside the E-ELT's "a few seconds" */
+        ck_assert_msg(wt_time_now() - t0 < 20.0, "the mosaic took %.1f s", wt_time_now() - t0);
+        assert_png(path, (unsigned)w, (unsigned)h);
+        double *g = malloc((size_t)q.nsub * sizeof *g);
+        for (int k = 0; k < q.nsub; k++) g[k] = 1.0 - q.trunc[k];
+        g[0] = NAN; /* a missing value is drawn grey */
+        const double *maps[2] = {g, q.trunc}, range[4] = {NAN, NAN, 0.0, NAN};
+        const char *subs[2] = {"gain\nline 2", "truncation"}, *bars[2] = {"gain [rad/rad]", "truncation [-]"};
+        snprintf(path, sizeof path, "%s/gain%d.png", dir, c);
+        ck_assert_msg(wt_plot_pupil_maps(ctx, path, "maps", &q.p, 2, maps, range, subs, bars) == WT_OK, "%s",
+                      wt_error_message(ctx));
+        assert_png(path, 1500, 720);
+        snprintf(path, sizeof path, "%s/one%d.png", dir, c);
+        ck_assert_int_eq(wt_plot_pupil_maps(ctx, path, "one map", &q.p, 1, maps, NULL, subs, bars), WT_OK);
+        assert_png(path, 900, 650);
+        free(g);
+        free(q.img);
+    }
+    ck_assert_int_eq(count_entries(dir, ".tmp-"), 0);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* Bad inputs to the pupil pictures are refused before any file exists. */
+START_TEST(test_spots_invalid_refused)
+{
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), path[256];
+    static pupil_data q;
+    make_pupil(&q, 8, 6);
+    snprintf(path, sizeof path, "%s/s.png", dir);
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &q.p, 0, q.img, 1, q.trunc), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &q.p, q.ns, NULL, 1, q.trunc), WT_ERR_INVALID);
+    q.img[7] = NAN;
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &q.p, q.ns, q.img, 1, q.trunc), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "pixel 7"));
+    q.img[7] = 0.0f;
+    q.trunc[3] = INFINITY;
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &q.p, q.ns, q.img, 1, q.trunc), WT_ERR_INVALID);
+    q.trunc[3] = 0.0;
+    wt_plot_pupil bad = q.p;
+    bad.side = 0.0;
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &bad, q.ns, q.img, 1, q.trunc), WT_ERR_INVALID);
+    bad = q.p, bad.nsub = 0;
+    ck_assert_int_eq(wt_plot_spots(ctx, path, "t", "n", &bad, q.ns, q.img, 1, q.trunc), WT_ERR_INVALID);
+    const double *maps[1] = {q.trunc}, range[2] = {1.0, 0.0};
+    ck_assert_int_eq(wt_plot_pupil_maps(ctx, path, "t", &q.p, 3, maps, NULL, NULL, NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_pupil_maps(ctx, path, "t", &q.p, 1, maps, range, NULL, NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(count_entries(dir, ""), 0);
+    free(q.img);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("plot");
@@ -391,6 +502,8 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_replace_and_directory_path);
     tcase_add_test(tc, test_invalid_inputs_refused);
     tcase_add_test(tc, test_edge_inputs_draw);
+    tcase_add_test(tc, test_spots_and_maps_write_png);
+    tcase_add_test(tc, test_spots_invalid_refused);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -48,6 +48,7 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     ws->np = w->pupil_samples;
     ws->ns = w->pixels;
     ws->side = g->side;
+    ws->pixel = w->pixel;
     const int nsub = g->nsub, np = ws->np, ns = ws->ns;
     const size_t nsamp = (size_t)nsub * np * np, npix = (size_t)nsub * ns * ns;
 
@@ -291,4 +292,49 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
     b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
     return b;
+}
+
+/* g resolved along e and e_perp, or its symmetric part's eigenvalues when there is no direction */
+static void resolve_gain(const double g[4], double ex, double ey, int have_dir, double *par, double *perp)
+{
+    if (have_dir) {
+        *par = ex * (g[0] * ex + g[1] * ey) + ey * (g[2] * ex + g[3] * ey);
+        *perp = ey * (g[0] * ey - g[1] * ex) - ex * (g[2] * ey - g[3] * ex);
+        return;
+    }
+    const double a = g[0], b = 0.5 * (g[1] + g[2]), c = g[3];
+    const double m = 0.5 * (a + c), r = sqrt(0.25 * (a - c) * (a - c) + b * b);
+    *par = m - r, *perp = m + r;
+}
+
+int wt_sensing_gain_along(const wt_sensing *ws, int cog, double lx, double ly, double *g_par, double *g_perp)
+{
+    wt_context *ctx = ws->ctx;
+    const int nsub = ws->nsub, ns = ws->ns;
+    wt_centroid *c = ws->cen, *tmp = NULL;
+    float *dix = NULL, *diy = NULL;
+    int st = WT_OK;
+    if (cog) { /* the same reference through a whole-detector CoG, gain not applied (it is what we report) */
+        const size_t npix = (size_t)nsub * ns * ns;
+        WT_ALLOC(ctx, dix, npix, "reference derivatives");
+        WT_ALLOC(ctx, diy, npix, "reference derivatives");
+        WT_TRY(wt_spot_reference(ws->spot, 0.0, NULL, dix, diy));
+        wt_centroid_params cp = {.method = WT_CENTROID_COG, .pixel = ws->pixel};
+        WT_TRY(wt_centroid_alloc(ctx, &cp, nsub, ns, ws->i0, dix, diy, &tmp));
+        c = tmp;
+    }
+    for (int k = 0; k < nsub; k++) {
+        double g[4], par, perp;
+        wt_centroid_gain(c, k, g);
+        const double dx = ws->xc[k] - lx, dy = ws->yc[k] - ly, r = hypot(dx, dy);
+        const int dir = ws->lgs && r > 1e-9;
+        resolve_gain(g, dir ? dx / r : 0.0, dir ? dy / r : 0.0, dir, &par, &perp);
+        if (g_par) g_par[k] = par;
+        if (g_perp) g_perp[k] = perp;
+    }
+fail:
+    wt_centroid_free(tmp);
+    wt_free(ctx, dix);
+    wt_free(ctx, diy);
+    return st;
 }

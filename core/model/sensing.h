@@ -56,6 +56,7 @@ typedef struct wt_sensing {
     wt_context *ctx;
     int lgs, nsub, np, ns;
     double side;
+    double pixel;              /* detector pixel p [rad] */
     wt_spot *spot;             /* owned */
     wt_centroid *cen;          /* owned */
     double *xc, *yc;           /* [nsub] centres [m] */
@@ -92,5 +93,16 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
 /* Bytes the sensor holds: spot tables and workspaces, centroider, reference images, per-frame buffers. */
 size_t wt_sensing_memory(const wt_sensing *ws);
+
+/* The calibrated gain per subaperture resolved along the elongation (for the pictures of `wavetomo info --spots`):
+ * g the 2x2 gain g = ∂s/∂θ of wt_centroid_gain (before any correction), e_k the unit vector from the launch
+ * position (lx, ly) [m] to the subaperture's centre (the direction its LGS spot is elongated in):
+ *   g_par[k] = e_kᵀ g e_k, g_perp[k] = e_⊥ᵀ g e_⊥ [rad/rad];
+ * for an NGS (or a centre on the launch) the smaller and the larger eigenvalue of (g + gᵀ)/2 instead.
+ * cog = 0: the configured centroider's gain (the identity for the matched filter); cog = 1: the gain a
+ * centre of gravity over the whole detector would have on the same reference I0 (built here from the spot
+ * model's derivative images: allocates nsub·Ns² floats twice and a temporary centroider, ~two image
+ * computations). Either output may be NULL. */
+int wt_sensing_gain_along(const wt_sensing *ws, int cog, double lx, double ly, double *g_par, double *g_perp);
 
 #endif
