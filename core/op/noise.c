@@ -76,6 +76,27 @@ double wt_noise_lit_factor(double photons, double read_noise_e, double spot_fwhm
            wt_noise_variance(photons, read_noise_e, spot_fwhm, pixel, pixels, nea);
 }
 
+/* The one allocation the nine block arrays of n (n->nsub each) live in. */
+static int alloc_store(wt_noise *n)
+{
+    wt_context *ctx = n->ctx;
+    const int nsub = n->nsub;
+    int st = WT_OK;
+    WT_ALLOC(ctx, n->store, (size_t)9 * (size_t)nsub, "noise blocks");
+    double *p = n->store;
+    n->ia = p, p += nsub;
+    n->ib = p, p += nsub;
+    n->ic = p, p += nsub;
+    n->ca = p, p += nsub;
+    n->cb = p, p += nsub;
+    n->cc = p, p += nsub;
+    n->l11 = p, p += nsub;
+    n->l21 = p, p += nsub;
+    n->l22 = p;
+fail:
+    return st;
+}
+
 int wt_noise_alloc(wt_context *ctx, int nsub, double sigma2, double spot_fwhm, const double *beta, double tau,
                    int remove_tt, wt_noise **out)
 {
@@ -118,17 +139,7 @@ int wt_noise_alloc_scaled(wt_context *ctx, int nsub, double sigma2, const double
     n->sigma2 = sigma2;
     n->spot_fwhm = spot_fwhm;
     n->tau = tau;
-    WT_ALLOC(ctx, n->store, (size_t)9 * (size_t)nsub, "noise blocks");
-    double *p = n->store;
-    n->ia = p, p += nsub;
-    n->ib = p, p += nsub;
-    n->ic = p, p += nsub;
-    n->ca = p, p += nsub;
-    n->cb = p, p += nsub;
-    n->cc = p, p += nsub;
-    n->l11 = p, p += nsub;
-    n->l21 = p, p += nsub;
-    n->l22 = p;
+    WT_TRY(alloc_store(n));
 
     double g = tau / (spot_fwhm * spot_fwhm);
     for (int i = 0; i < nsub; i++) {
@@ -177,17 +188,7 @@ int wt_noise_alloc_blocks(wt_context *ctx, int nsub, const double *cov, double t
     n->nsub = nsub;
     n->remove_tt = remove_tt ? 1 : 0;
     n->tau = tau;
-    WT_ALLOC(ctx, n->store, (size_t)9 * (size_t)nsub, "noise blocks");
-    double *p = n->store;
-    n->ia = p, p += nsub;
-    n->ib = p, p += nsub;
-    n->ic = p, p += nsub;
-    n->ca = p, p += nsub;
-    n->cb = p, p += nsub;
-    n->cc = p, p += nsub;
-    n->l11 = p, p += nsub;
-    n->l21 = p, p += nsub;
-    n->l22 = p;
+    WT_TRY(alloc_store(n));
     double smin = INFINITY;
     for (int i = 0; i < nsub; i++) {
         const double a0 = cov[i], b0 = cov[nsub + i], c0 = cov[2 * nsub + i];

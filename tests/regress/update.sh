@@ -9,6 +9,7 @@
 # in the commit that updates this table (README "Regression table").
 #
 # usage: bash tests/regress/update.sh [NSEEDS]      (from the repository root, after `make`)
+#        ONLY=id1,id2 bash tests/regress/update.sh   recompute only those cases; the other rows are kept
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 NSEEDS=${1:-8}
@@ -20,7 +21,8 @@ PRESET=data/presets/demo.cfg
 FRAMES=60
 SETTLE=20
 LOW="lgs.wfs.nea_mas=20.0;ngs.wfs.nea_mas=0.05;lgs.sodium_fwhm_m=0.0;lgs.tt_jitter_arcsec=0.0"
-# case id, overrides (";"-separated), recon
+P42=data/presets/eelt-mcao-nea20-42.cfg
+# case id, overrides (";"-separated), recon[, preset (default $PRESET)]
 CASES=(
   "none-paper||none"
   "pcg3-paper||pcg3"
@@ -29,27 +31,34 @@ CASES=(
   "pcg3-low|$LOW|pcg3"
   "cg9-low|$LOW|cg9"
   "mvm-low|$LOW|mvm"
+  "pcg3-42||pcg3|$P42"
+  "cg9-42||cg9|$P42"
 )
 machine="$(uname -m) $(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | sed 's/.*: //; s/ \{2,\}/ /g' | cut -c1-40)"
 today=$(date -u +%F)
 printf 'case\tpreset\toverrides\trecon\tframes\tsettle\tseed\tfield_sr\tonaxis_sr\tfield_wfe_nm\ttol_field_sr\ttol_onaxis_sr\ttol_wfe_nm\tdate\tmachine\tnote\n' > "$TMP/table"
 for c in "${CASES[@]}"; do
-  IFS='|' read -r id ov recon <<< "$c"
+  IFS='|' read -r id ov recon preset <<< "$c"
+  PRE=${preset:-$PRESET}
+  if [ -n "${ONLY:-}" ] && [[ ",$ONLY," != *",$id,"* ]]; then
+    awk -F'\t' -v id="$id" '$1 == id' "$OUT" >> "$TMP/table"
+    continue
+  fi
   sets=(--set "loop.frames=$FRAMES" --set "evaluation.settle_frames=$SETTLE")
   if [ -n "$ov" ]; then IFS=';' read -ra kv <<< "$ov"; for x in "${kv[@]}"; do sets+=(--set "$x"); done; fi
   extra=()
   if [ "$recon" = mvm ]; then
-    "$BIN" build --config "$PRESET" "${sets[@]}" --out "$TMP/$id.M.h5" --quiet > /dev/null
+    "$BIN" build --config "$PRE" "${sets[@]}" --out "$TMP/$id.M.h5" --quiet > /dev/null
     extra=(--matrix "$TMP/$id.M.h5")
   fi
   : > "$TMP/$id.vals"
   for s in $(seq 1 "$NSEEDS"); do
-    "$BIN" sim --config "$PRESET" "${sets[@]}" --recon "$recon" "${extra[@]}" --seed "$s" --out "$TMP/$id.$s.h5" \
+    "$BIN" sim --config "$PRE" "${sets[@]}" --recon "$recon" "${extra[@]}" --seed "$s" --out "$TMP/$id.$s.h5" \
       --quiet --threads 1 > "$TMP/$id.$s.txt"
     awk '/LE Strehl/ {on=$4; fa=$7} /residual WFE/ {w=$(NF-1)} END {printf "%s %s %s\n", fa, on, w}' \
       "$TMP/$id.$s.txt" >> "$TMP/$id.vals"
   done
-  awk -v id="$id" -v pre="$PRESET" -v ov="$ov" -v rec="$recon" -v fr="$FRAMES" -v se="$SETTLE" -v d="$today" \
+  awk -v id="$id" -v pre="$PRE" -v ov="$ov" -v rec="$recon" -v fr="$FRAMES" -v se="$SETTLE" -v d="$today" \
       -v m="$machine" -v n="$NSEEDS" '
     { for (k = 1; k <= 3; k++) { x[NR, k] = $k; s[k] += $k; q[k] += $k * $k } }
     END {
