@@ -20,6 +20,7 @@
 #endif
 
 #include "../base/rng.h"
+#include "spot.h" /* wt_poisson: the detector's exact Poisson deviate */
 
 struct wt_centroid {
     wt_context *ctx;
@@ -529,50 +530,6 @@ void wt_centroid_noise_cov(const wt_centroid *c, double *cov) { memcpy(cov, c->c
 
 /* ---------- Monte-Carlo calibration ---------- */
 
-/* log k! : exact sum below 20, Stirling's series above (error < 1e-12 there) */
-static double log_factorial(long k)
-{
-    if (k < 20) {
-        double s = 0.0;
-        for (long q = 2; q <= k; q++) s += log((double)q);
-        return s;
-    }
-    const double x = (double)k, x2 = x * x;
-    return x * log(x) - x + 0.5 * log(2.0 * M_PI * x) + 1.0 / (12.0 * x) - 1.0 / (360.0 * x * x2) +
-           1.0 / (1260.0 * x * x2 * x2);
-}
-
-/* An exact Poisson deviate of mean mu ≥ 0: multiplication of uniforms (Knuth) below 10, the transformed
- * rejection with squeeze PTRS (W. Hörmann, Insurance: Math. Econ. 12, 39, 1993) above, whose cost does not
- * grow with mu. (core/optics/spot.c will carry the image module's sampler; one of the two should go when
- * the modules are integrated.) */
-static double poisson(wt_rng *rng, double mu)
-{
-    if (!(mu > 0.0)) return 0.0;
-    if (mu < 10.0) {
-        const double lim = exp(-mu);
-        double prod = 1.0;
-        long k = 0;
-        for (;;) {
-            prod *= wt_rng_uniform(rng);
-            if (prod <= lim) return (double)k;
-            k++;
-        }
-    }
-    const double slam = sqrt(mu), loglam = log(mu);
-    const double b = 0.931 + 2.53 * slam, a = -0.059 + 0.02483 * b;
-    const double invalpha = 1.1239 + 1.1328 / (b - 3.4), vr = 0.9277 - 3.6224 / (b - 2.0);
-    for (;;) {
-        const double u = wt_rng_uniform(rng) - 0.5, v = wt_rng_uniform(rng);
-        const double us = 0.5 - fabs(u);
-        const double kd = floor((2.0 * a / us + b) * u + mu + 0.43);
-        if (us >= 0.07 && v <= vr) return kd;
-        if (kd < 0.0 || (us < 0.013 && v > us)) continue;
-        if (log(v) + log(invalpha) - log(a / (us * us) + b) <= -mu + kd * loglam - log_factorial((long)kd))
-            return kd;
-    }
-}
-
 int wt_centroid_noise_mc(const wt_centroid *c, const float *images, int ndraws, uint64_t seed, double *cov,
                          double *mean)
 {
@@ -603,7 +560,7 @@ int wt_centroid_noise_mc(const wt_centroid *c, const float *images, int ndraws, 
             double mx = 0.0, my = 0.0, qxx = 0.0, qxy = 0.0, qyy = 0.0;
             for (int n = 0; n < ndraws; n++) {
                 for (size_t j = 0; j < npix; j++) {
-                    double v = poisson(&rng, (double)img[j] + b) - b;
+                    double v = wt_poisson(&rng, (double)img[j] + b) - b;
                     if (se > 0.0) v += se * wt_rng_normal(&rng);
                     d[j] = (float)v;
                 }
