@@ -884,6 +884,23 @@ START_TEST(test_auto_sensor_points)
     ck_assert_str_ne(a->matrix_sha256, e->matrix_sha256);
     wt_config_free(ctx, e);
     wt_config_free(ctx, a);
+    /* bad values are refused naming the key: a word other than "auto", 0, beyond 16 */
+    const char *bad[] = {"recon.sensor_points_per_subaperture=\"many\"", "recon.sensor_points_per_subaperture=0",
+                         "recon.sensor_points_per_subaperture=17", "ngs.wfs.tilt=\"x\""};
+    for (int i = 0; i < 4; i++) {
+        wt_config *x = NULL;
+        ck_assert_int_eq(read_preset(ctx, "eelt-mcao-nea20-42.cfg", 1, &bad[i], &x), WT_ERR_CONFIG);
+        ck_assert_ptr_null(x);
+        ck_assert_msg(strstr(wt_error_message(ctx), i < 3 ? "recon.sensor_points_per_subaperture" : "ngs.wfs.tilt"),
+                      "%s: %s", bad[i], wt_error_message(ctx));
+    }
+    /* Z-tilt needs the lit-area model (the Fried model averages cell gradients: a G-tilt), refused at set-up */
+    const char *zf[] = {"ngs.wfs.tilt=\"z\"", "recon.sensor_model=\"fried\""};
+    a = read_ok(ctx, "demo.cfg", 2, zf);
+    wt_system *sys = NULL;
+    ck_assert_int_eq(wt_system_alloc(ctx, a, &sys), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "ngs.wfs.tilt"));
+    wt_config_free(ctx, a);
     const char *third[] = {"recon.pcg3.layer_spacing_m=[0.3, 2.0, 2.0]", "recon.sensor_points_per_subaperture=auto"};
     a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 2, third);
     ck_assert_int_eq(a->sensor_points, 4); /* ceil(1 / 0.3) */
