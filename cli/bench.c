@@ -58,11 +58,11 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
     if (st < 0) return st;
     printf("\n%s: %lld unknowns in %d layers, %d sensors, %lld slopes (set-up %.2f s%s)\n", name,
            (long long)b.nunknowns, v->nlayers, sys->nsensors, (long long)sys->nslopes, b.setup,
-           v->jacobi ? ", incl. the exact Jacobi diagonal" : "");
+           v->preconditioner != WT_PRECOND_NONE ? ", incl. the preconditioner" : "");
     char label[64];
     snprintf(label, sizeof label, "%s: apply M", name);
     report(label, b.apply, b.flops, b.bytes);
-    snprintf(label, sizeof label, "%s: one %s iteration", name, v->jacobi ? "PCG" : "CG");
+    snprintf(label, sizeof label, "%s: one %s iteration", name, v->preconditioner != WT_PRECOND_NONE ? "PCG" : "CG");
     report(label, b.iteration, b.it_flops, b.it_bytes);
     snprintf(label, sizeof label, "%s: frame (%d iterations)", name, par.iterations);
     /* rhs ≈ half an apply; the initial residual continues the previous frame's (no apply of M,

@@ -50,8 +50,10 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
         *st_out = st;
         return;
     }
-    printf("\nreconstructor %s: %d layers, %s, %d iterations%s\n", name, v->nlayers,
-           v->jacobi ? "modified Jacobi PCG" : "CG", v->iterations,
+    char solver[48];
+    if (v->preconditioner == WT_PRECOND_NONE) snprintf(solver, sizeof solver, "CG");
+    else snprintf(solver, sizeof solver, "PCG (%s)", wt_precond_kind_name(v->preconditioner));
+    printf("\nreconstructor %s: %d layers, %s, %d iterations%s\n", name, v->nlayers, solver, v->iterations,
            v->fit_iterations > 0 ? " + fitting" : "");
     printf("  %-5s %10s %12s %9s %10s\n", "layer", "altitude_m", "grid", "spacing_m", "unknowns");
     for (int l = 0; l < v->nlayers; l++) {

@@ -212,7 +212,7 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->pcg3.size[2], 64);
     ck_assert_rel(c->pcg3.spacing[1], 1.0, ULP2, 0);
     ck_assert_int_eq(c->pcg3.iterations, 4);
-    ck_assert_int_eq(c->pcg3.jacobi, 3); /* coarse_ngs (docs/results.md §0d.2) */
+    ck_assert_int_eq(c->pcg3.preconditioner, 3); /* coarse_ngs (docs/results.md §0d.2) */
     ck_assert_int_eq(c->pcg3.coarse_levels, 2);
     ck_assert_int_eq(c->pcg3.fit_iterations, 0);
     ck_assert_int_eq(c->cg9.nlayers, 9);
@@ -224,7 +224,7 @@ START_TEST(test_eelt_preset)
         ck_assert_int_eq(c->cg9.size[i], 128);
     }
     ck_assert_int_eq(c->cg9.iterations, 20);
-    ck_assert_int_eq(c->cg9.jacobi, 2);
+    ck_assert_int_eq(c->cg9.preconditioner, 2);
     ck_assert_int_eq(c->cg9.fit_iterations, 10);
     ck_assert_rel(c->cg9.fit_regularization, 1e-3, ULP2, 0);
     ck_assert_int_eq(c->cg9.fit_sampling, 2);
@@ -474,8 +474,8 @@ START_TEST(test_overrides)
     ck_assert_rel(c->dm_pitch[2], 2.0, ULP2, 0);
     ck_assert_int_eq(base->exact_prior, 0);
     ck_assert_int_eq(c->exact_prior, 1);
-    ck_assert_int_eq(base->cg9.jacobi, 0);
-    ck_assert_int_eq(c->cg9.jacobi, 1);
+    ck_assert_int_eq(base->cg9.preconditioner, 0);
+    ck_assert_int_eq(c->cg9.preconditioner, 1);
     ck_assert_int_eq(base->noise, 1);
     ck_assert_int_eq(c->noise, 0);
     ck_assert(base->lgs_wfs.nea < 0.0);

@@ -10,6 +10,7 @@
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/params.h"
+#include "core/model/precond.h"
 #include "core/model/tomography.h"
 #include "core/op/shack_hartmann.h"
 #include "testmodel.h"
@@ -22,6 +23,7 @@ typedef struct {
     wt_config *cfg;
     wt_system *sys;
     wt_tomography *t;
+    wt_precond *p; /* the variant's preconditioner */
     int64_t n, ns, na;
 } fixture;
 
@@ -32,9 +34,11 @@ static void setup(fixture *f, int cg9, int nset, const char *const *set)
     ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
     wt_tomography_params tp;
     wt_tomography_params_from_config(f->cfg, &tp);
-    ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3", &tp,
-                                      &f->t) == WT_OK,
-                  "%s", wt_error_message(f->ctx));
+    const wt_recon_variant_config *v = cg9 ? &f->cfg->cg9 : &f->cfg->pcg3;
+    ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, v, cg9 ? "cg9" : "pcg3", &tp, &f->t) == WT_OK, "%s",
+                  wt_error_message(f->ctx));
+    const wt_precond_params pp = wt_precond_params_from_variant(v);
+    ck_assert_msg(wt_precond_alloc(f->ctx, f->t, &pp, &f->p) == WT_OK, "%s", wt_error_message(f->ctx));
     f->n = wt_tomography_nunknowns(f->t);
     f->ns = f->sys->nslopes;
     f->na = f->sys->nact;
@@ -42,6 +46,7 @@ static void setup(fixture *f, int cg9, int nset, const char *const *set)
 
 static void teardown(fixture *f)
 {
+    wt_precond_free(f->p);
     wt_tomography_free(f->t);
     wt_system_free(f->sys);
     wt_config_free(f->ctx, f->cfg);
@@ -183,7 +188,7 @@ START_TEST(test_normal_solve_matches_pcg)
         }
         test_slopes(&f, s, 41 + 7 * (k - 1));
         wt_pcg_result res;
-        int st = wt_tomography_solve(f.t, s, xp, 20000, 1e-12, NULL, &res);
+        int st = wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, xp, 20000, 1e-12, NULL, &res);
         ck_assert_msg(st == WT_OK, "PCG did not converge: %d its, %g", res.iterations, res.rel_resid);
         ck_assert_double_le(tu_rel_diff(x + (k - 1) * f.n, xp, f.n), 1e-9);
         free(s);
@@ -260,7 +265,7 @@ static void check_r_matches(int cg9, int nset, const char *const *set)
         test_slopes(&f, s, 51 + trial);
         memset(c, 0, f.n * sizeof *c);
         wt_pcg_result res;
-        ck_assert_int_eq(wt_tomography_solve(f.t, s, c, 20000, 1e-12, NULL, &res), WT_OK);
+        ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, c, 20000, 1e-12, NULL, &res), WT_OK);
         if (!cg9) {
             pcg3_commands(&f, c, a);
         } else {

@@ -6,6 +6,7 @@
 #include "core/model/fitting.h"
 #include "core/model/system.h"
 #include "core/model/params.h"
+#include "core/model/precond.h"
 #include "core/model/tomography.h"
 #include "core/op/noise.h"
 #include "core/op/projection.h"
@@ -22,6 +23,7 @@ typedef struct {
     wt_config *cfg;
     wt_system *sys;
     wt_tomography *t;
+    wt_precond *p; /* the variant's preconditioner */
 } fixture;
 
 static void setup(fixture *f, const char *path, int cg9, int nset, const char *const *set)
@@ -30,16 +32,21 @@ static void setup(fixture *f, const char *path, int cg9, int nset, const char *c
     ck_assert_msg(wt_config_read(f->ctx, path, nset, set, &f->cfg) == WT_OK, "%s", wt_error_message(f->ctx));
     ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
     f->t = NULL;
+    f->p = NULL;
     wt_tomography_params tp;
     wt_tomography_params_from_config(f->cfg, &tp);
-    if (cg9 >= 0)
-        ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, cg9 ? &f->cfg->cg9 : &f->cfg->pcg3, cg9 ? "cg9" : "pcg3",
-                                          &tp, &f->t) == WT_OK,
-                      "%s", wt_error_message(f->ctx));
+    if (cg9 >= 0) {
+        const wt_recon_variant_config *v = cg9 ? &f->cfg->cg9 : &f->cfg->pcg3;
+        ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, v, cg9 ? "cg9" : "pcg3", &tp, &f->t) == WT_OK, "%s",
+                      wt_error_message(f->ctx));
+        const wt_precond_params pp = wt_precond_params_from_variant(v);
+        ck_assert_msg(wt_precond_alloc(f->ctx, f->t, &pp, &f->p) == WT_OK, "%s", wt_error_message(f->ctx));
+    }
 }
 
 static void teardown(fixture *f)
 {
+    wt_precond_free(f->p);
     wt_tomography_free(f->t);
     wt_system_free(f->sys);
     wt_config_free(f->ctx, f->cfg);
@@ -65,11 +72,11 @@ START_TEST(test_ngs_lowrank_preconditioner)
     tu_tomo_slopes(a.t, ca, s);
     memset(ca, 0, n * sizeof *ca);
     wt_pcg_result ra, rb;
-    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 4, 0.0, ha, &ra), WT_OK);
-    ck_assert_int_eq(wt_tomography_solve(b.t, s, cb, 4, 0.0, hb, &rb), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(a.t, wt_precond_pcg(a.p), s, ca, 4, 0.0, ha, &ra), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(b.t, wt_precond_pcg(b.p), s, cb, 4, 0.0, hb, &rb), WT_OK);
     /* the converged solution x*, then the M-norm errors of the two 4-iteration iterates */
     double *xs = calloc(n, sizeof *xs), *e = malloc(n * sizeof *e), *me = malloc(n * sizeof *me), err[2];
-    ck_assert_int_eq(wt_tomography_solve(b.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK); /* reached 1e-12 */
+    ck_assert_int_eq(wt_tomography_solve(b.t, wt_precond_pcg(b.p), s, xs, 3000, 1e-12, NULL, NULL), WT_OK); /* reached 1e-12 */
     for (int k = 0; k < 2; k++) {
         const double *c = k ? cb : ca;
         for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
@@ -82,7 +89,7 @@ START_TEST(test_ngs_lowrank_preconditioner)
                   err[1], err[0], xn);
     /* the same fixed point: Jacobi alone, continued from the low-rank solution, finds nothing to change */
     memcpy(ca, xs, n * sizeof *ca);
-    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 10, 1e-11, NULL, &ra), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(a.t, wt_precond_pcg(a.p), s, ca, 10, 1e-11, NULL, &ra), WT_OK);
     ck_assert_int_eq(ra.iterations, 0);
     free(xs), free(e), free(me);
     free(s), free(ca), free(cb);
@@ -115,14 +122,14 @@ START_TEST(test_coarse_preconditioner)
     wt_pcg_result ra, rb, rx;
     /* P = M: one iteration (two allowed for rounding) */
     double *cx = calloc(n, sizeof *cx);
-    ck_assert_int_eq(wt_tomography_solve(x.t, s, cx, 2, 1e-9, NULL, &rx), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(x.t, wt_precond_pcg(x.p), s, cx, 2, 1e-9, NULL, &rx), WT_OK);
     ck_assert_msg(rx.rel_resid < 1e-9, "exact block: relative residual %g after %d iterations", rx.rel_resid,
                   rx.iterations);
     ck_assert_int_le(rx.iterations, 2);
-    ck_assert_int_eq(wt_tomography_solve(a.t, s, ca, 4, 0.0, NULL, &ra), WT_OK);
-    ck_assert_int_eq(wt_tomography_solve(b.t, s, cb, 4, 0.0, NULL, &rb), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(a.t, wt_precond_pcg(a.p), s, ca, 4, 0.0, NULL, &ra), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(b.t, wt_precond_pcg(b.p), s, cb, 4, 0.0, NULL, &rb), WT_OK);
     double *xs = calloc(n, sizeof *xs), *e = malloc(n * sizeof *e), *me = malloc(n * sizeof *me), err[2];
-    ck_assert_int_eq(wt_tomography_solve(a.t, s, xs, 3000, 1e-12, NULL, NULL), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(a.t, wt_precond_pcg(a.p), s, xs, 3000, 1e-12, NULL, NULL), WT_OK);
     for (int k = 0; k < 2; k++) {
         const double *c = k ? cb : ca;
         for (int64_t i = 0; i < n; i++) e[i] = c[i] - xs[i];
@@ -301,7 +308,7 @@ START_TEST(test_pcg_matches_dense_solve)
     memcpy(xd, b, n * sizeof *xd);
     ck_assert_int_eq(LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', n, 1, A, n, xd, n), 0);
     wt_pcg_result r;
-    int st = wt_tomography_solve(f.t, s, x, 3000, 1e-13, NULL, &r);
+    int st = wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, x, 3000, 1e-13, NULL, &r);
     ck_assert_msg(st == WT_OK, "PCG did not reach 1e-13 in 3000 iterations: %s (%d its, %g)",
                   wt_error_message(f.ctx), r.iterations, r.rel_resid);
     /* issue #2: within 1e-8 relative of the direct solve */
@@ -317,15 +324,15 @@ START_TEST(test_jacobi_beats_cg)
     fixture fj, fc;
     setup(&fj, DEMO, 0, 0, NULL);
     setup(&fc, DEMO, 0, 1, none);
-    ck_assert_ptr_nonnull(wt_tomography_jacobi_inverse(fj.t));
-    ck_assert_ptr_null(wt_tomography_jacobi_inverse(fc.t));
+    ck_assert_ptr_nonnull(wt_precond_jacobi_inverse(fj.p));
+    ck_assert_ptr_null(wt_precond_jacobi_inverse(fc.p));
     int64_t n = wt_tomography_nunknowns(fj.t), ns = fj.sys->nslopes;
     double *s = malloc(ns * sizeof *s), *x = calloc(n, sizeof *x);
     tu_randn(s, ns, 31);
     wt_pcg_result rj, rc;
-    ck_assert_int_eq(wt_tomography_solve(fj.t, s, x, 5000, 1e-6, NULL, &rj), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(fj.t, wt_precond_pcg(fj.p), s, x, 5000, 1e-6, NULL, &rj), WT_OK);
     memset(x, 0, n * sizeof *x);
-    ck_assert_int_eq(wt_tomography_solve(fc.t, s, x, 5000, 1e-6, NULL, &rc), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(fc.t, wt_precond_pcg(fc.p), s, x, 5000, 1e-6, NULL, &rc), WT_OK);
     ck_assert_msg(rj.iterations < rc.iterations, "Jacobi PCG %d iterations, CG %d", rj.iterations, rc.iterations);
     free(s), free(x);
     teardown(&fj);
@@ -343,7 +350,7 @@ START_TEST(test_jacobi_probing_is_exact)
         int64_t n = wt_tomography_nunknowns(f.t);
         double *d = malloc(n * sizeof *d);
         ck_assert_int_eq(wt_tomography_diag_bruteforce(f.t, d), WT_OK);
-        const double *jinv = wt_tomography_jacobi_inverse(f.t), *ad = wt_tomography_alpha_prior(f.t);
+        const double *jinv = wt_precond_jacobi_inverse(f.p), *ad = wt_tomography_alpha_prior(f.t);
         double worst = 0.0;
         for (int64_t i = 0; i < n; i++) {
             double ref = d[i] + ad[i];
@@ -363,7 +370,7 @@ START_TEST(test_nan_slopes_rejected)
     int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
     double *s = calloc(ns, sizeof *s), *x = calloc(n, sizeof *x);
     s[17] = NAN;
-    ck_assert_int_eq(wt_tomography_solve(f.t, s, x, 4, 0.0, NULL, NULL), WT_ERR_NUMERIC);
+    ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, x, 4, 0.0, NULL, NULL), WT_ERR_NUMERIC);
     ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "slope 17"));
     free(s), free(x);
     teardown(&f);
@@ -485,7 +492,7 @@ static double plate_scale_error(int tilt_z, int with_ngs)
     tu_tomo_slopes(f.t, c, s);
     memset(c, 0, n * sizeof *c);
     wt_pcg_result r;
-    wt_tomography_solve(f.t, s, c, 2000, 1e-12, NULL, &r);
+    wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, c, 2000, 1e-12, NULL, &r);
     double *rec = calloc(np, sizeof *rec);
     wt_tomography_layers(f.t, c, rec);
     for (int64_t i = 0; i < np; i++) rec[i] -= phi[i];
@@ -707,12 +714,12 @@ START_TEST(test_solve_continue_matches_warm_start)
                 tu_randn(ds, ns, 40 + frame);
                 for (int64_t i = 0; i < ns; i++) s[i] += 0.1 * ds[i] * fabs(s[i]);
             }
-            ck_assert_int_eq(wt_tomography_solve(f.t, s, ca, 4, 0.0, NULL, NULL), WT_OK);
+            ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, ca, 4, 0.0, NULL, NULL), WT_OK);
             /* cb's solves alternate with ca's on the same object: continuing must notice that the last
              * solve was on other unknowns and start afresh (bit-identical to a warm-started solve) */
             memcpy(cc, cb, n * sizeof *cc);
-            ck_assert_int_eq(wt_tomography_solve_continue(f.t, s, cb, 4, 0.0, NULL, NULL), WT_OK);
-            ck_assert_int_eq(wt_tomography_solve(f.t, s, cc, 4, 0.0, NULL, NULL), WT_OK);
+            ck_assert_int_eq(wt_tomography_solve_continue(f.t, wt_precond_pcg(f.p), s, cb, 4, 0.0, NULL, NULL), WT_OK);
+            ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, cc, 4, 0.0, NULL, NULL), WT_OK);
             for (int64_t i = 0; i < n; i++) ck_assert(cb[i] == cc[i]);
         }
         /* now continuing for real: one object, frames in a row */
@@ -726,8 +733,8 @@ START_TEST(test_solve_continue_matches_warm_start)
                 tu_randn(ds, ns, 40 + frame);
                 for (int64_t i = 0; i < ns; i++) s[i] += 0.1 * ds[i] * fabs(s[i]);
             }
-            ck_assert_int_eq(wt_tomography_solve(f.t, s, ca, 4, 0.0, NULL, NULL), WT_OK);
-            ck_assert_int_eq(wt_tomography_solve_continue(g.t, s, cb, 4, 0.0, NULL, NULL), WT_OK);
+            ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, ca, 4, 0.0, NULL, NULL), WT_OK);
+            ck_assert_int_eq(wt_tomography_solve_continue(g.t, wt_precond_pcg(g.p), s, cb, 4, 0.0, NULL, NULL), WT_OK);
             const double e = tu_rel_diff(cb, ca, n);
             if (e > worst) worst = e;
         }

@@ -304,8 +304,7 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
 {
     const double t0 = wt_time_now();
     const int cg9 = !strcmp(name, "cg9");
-    wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3;
-    var.jacobi = 0; /* the factorisation is exact: no Jacobi diagonal */
+    const wt_recon_variant_config var = cg9 ? cfg->cg9 : cfg->pcg3; /* exact factorisation: no preconditioner */
     wt_mvm_options opt;
     if (opt_in) opt = *opt_in;
     else wt_mvm_options_default(&opt);

@@ -122,7 +122,7 @@
      "the automatic layer_spacing_m is divided by this (default 1); refused beside a given layer_spacing_m"},                                                                                        \
     KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
     KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
-    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs", v.jacobi,                               \
+    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs", v.preconditioner,                       \
        "jacobi = modified Jacobi PCG, jacobi_ngs = the same plus the exact rank-r NGS term (Woodbury), "   \
        "coarse_ngs = jacobi_ngs with the coarse wavelet coefficients of all layers inverted as one exact "  \
        "block, none = plain CG"),                                                                          \

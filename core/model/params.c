@@ -33,6 +33,12 @@ wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *
     return fp;
 }
 
+wt_precond_params wt_precond_params_from_variant(const wt_recon_variant_config *var)
+{
+    wt_precond_params pp = {.kind = var->preconditioner, .coarse_levels = var->coarse_levels};
+    return pp;
+}
+
 void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int iterations, wt_reconstructor_params *par)
 {
     memset(par, 0, sizeof *par);
@@ -44,5 +50,6 @@ void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int ite
     par->tolerance = v->tolerance;
     par->fit_iterations = v->fit_iterations;
     wt_tomography_params_from_config(cfg, &par->tomography);
+    par->precond = wt_precond_params_from_variant(v);
     par->fitting = wt_fitting_params_from_variant(v);
 }

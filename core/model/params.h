@@ -1,11 +1,13 @@
 /* core/model/params.h: the configuration side of model: the small parameter structs the numerical
- * constructors take (wt_tomography_params, wt_fitting_params, wt_reconstructor_params), filled from a wt_config in one place,
- * so that no numerical object reaches back into the whole configuration for a value (α, τ, ε, …). */
+ * constructors take (wt_tomography_params, wt_precond_params, wt_fitting_params, wt_reconstructor_params),
+ * filled from a wt_config in one place, so that no numerical object reaches back into the whole
+ * configuration for a value (α, τ, ε, …). */
 #ifndef WT_PARAMS_H
 #define WT_PARAMS_H
 
 #include "../config/config.h"
 #include "fitting.h"
+#include "precond.h"
 #include "reconstructor.h"
 #include "tomography.h"
 
@@ -13,6 +15,8 @@
 void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params *par);
 /* ε and the sampling of a variant's fitting step (cg9; pcg3 has none, sampling ≤ 0 becomes 1). */
 wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *var);
+/* The preconditioner of a variant (recon.<variant>.preconditioner, coarse_levels). */
+wt_precond_params wt_precond_params_from_variant(const wt_recon_variant_config *var);
 /* The reconstructor of `kind` (WT_RECON_PCG3 or CG9; NONE: only warm_start) under cfg; iterations ≥ 0
  * overrides the variant's (P)CG iteration count. par->variant points into cfg (which must outlive the
  * reconstructor's allocation). */

@@ -17,6 +17,7 @@ struct wt_reconstructor {
     int warm;
     int cont;                /* c and a_fit are the last solves' results, untouched since: the next may continue */
     wt_tomography *tomo;
+    wt_precond *pre;         /* the tomography's preconditioner */
     wt_fitting *fit;
     double *c;               /* wavelet coefficients (warm start) */
     double *phi;             /* spatial layers */
@@ -158,6 +159,7 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
     r->tol = par->tolerance;
     r->fit_iterations = par->fit_iterations;
     WT_TRY(wt_tomography_alloc(ctx, sys, par->variant, wt_reconstructor_name(kind), &par->tomography, &r->tomo));
+    WT_TRY(wt_precond_alloc(ctx, r->tomo, &par->precond, &r->pre));
     int64_t n = wt_tomography_nunknowns(r->tomo);
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
@@ -202,6 +204,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
     if (!r) return;
     wt_free(r->ctx, r->sf);
     wt_free(r->ctx, r->af);
+    wt_precond_free(r->pre);
     wt_tomography_free(r->tomo);
     wt_fitting_free(r->fit);
     wt_free(r->ctx, r->c);
@@ -244,8 +247,9 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     /* warm: the previous frame's solve is continued, its recursive residual standing in for the initial
      * apply of M (wt_tomography_solve_continue) */
     const int fit_cont = r->cont;
-    int st = r->cont ? wt_tomography_solve_continue(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last)
-                     : wt_tomography_solve(r->tomo, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
+    const wt_pcg_precond P = wt_precond_pcg(r->pre);
+    int st = r->cont ? wt_tomography_solve_continue(r->tomo, P, s_ol, r->c, r->iterations, r->tol, NULL, &r->last)
+                     : wt_tomography_solve(r->tomo, P, s_ol, r->c, r->iterations, r->tol, NULL, &r->last);
     r->cont = r->warm && st >= 0;
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
@@ -273,3 +277,4 @@ void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, 
 
 wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r) { return r->last; }
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }
+wt_precond *wt_reconstructor_precond(wt_reconstructor *r) { return r->pre; }

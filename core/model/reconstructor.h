@@ -14,6 +14,7 @@
 #define WT_RECONSTRUCTOR_H
 
 #include "fitting.h"
+#include "precond.h"
 #include "system.h"
 #include "tomography.h"
 
@@ -36,6 +37,7 @@ typedef struct wt_reconstructor_params {
     int fit_iterations;                     /* cg9: CG iterations of the fitting step */
     const wt_recon_variant_config *variant; /* layers, grids, preconditioner (not owned; read at alloc only) */
     wt_tomography_params tomography;        /* α, τ, wavelet, prior, profile */
+    wt_precond_params precond;              /* the tomography's preconditioner: kind, coarse levels */
     wt_fitting_params fitting;              /* cg9: ε and the sampling of the fitting */
 } wt_reconstructor_params;
 
@@ -59,8 +61,9 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);
 /* Wall time [s] of the last apply's tomography and fitting parts; the last (P)CG result. */
 void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, double *fitting);
 wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r);
-/* The tomography object (NULL for none). */
+/* The tomography object and its preconditioner (NULL for none and mvm). */
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r);
+wt_precond *wt_reconstructor_precond(wt_reconstructor *r);
 /* Forget the warm-start state (the next apply starts from zero). */
 void wt_reconstructor_reset(wt_reconstructor *r);
 

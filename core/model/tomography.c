@@ -1,4 +1,4 @@
-/* core/model/tomography.c: normal operator, right-hand side, modified Jacobi diagonal and (P)CG solve
+/* core/model/tomography.c: normal operator, right-hand side and (P)CG solve
  * of the wavelet MAP tomography (paper eq. eqn_lse; SPEC §6). */
 #include "tomography.h"
 #include "sensing.h"
@@ -29,21 +29,6 @@ struct wt_tomography {
     wt_prior *prior[WT_MAX_LAYERS];
     int64_t n;
     double *alpha_d;
-    double *jinv;
-    /* NGS low-rank part of the preconditioner (see lowrank_*): P = J + R C_n Rᵀ */
-    int nlr;                  /* rank r: the NGS slopes (0: plain Jacobi) */
-    double *lr_Y;             /* n x r: J⁻¹ R */
-    double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ J⁻¹ R */
-    double *lr_w;             /* r */
-    double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
-    int64_t *lr_runs;         /* the row runs where Y is not all zero (wt_vec_runs) */
-    int lr_nruns;
-    /* coarse block of the preconditioner (coarse_ngs, see coarse_*): J replaced by B = J with the
-     * coarse coefficients' rows and columns of the LGS + prior part of M, inverted exactly */
-    int nc;                   /* coarse coefficients (0: none) */
-    int64_t *c_idx;           /* nc: their indices in c */
-    double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block */
-    double *c_w;              /* nc */
     int iterations;
     double tol;
     int S;                    /* sensors */
@@ -122,7 +107,7 @@ const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alph
 const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l) { return t->proj[m * t->L + l]; }
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
-const double *wt_tomography_jacobi_inverse(const wt_tomography *t) { return t->jinv; }
+int wt_tomography_threads(const wt_tomography *t) { return t->nthreads; }
 
 /* ---- Layer-binning model error of the LGS slopes (recon.model_error) ---------------------------------
  *
@@ -228,10 +213,6 @@ fail:
     wt_free(ctx, sl);
     return st;
 }
-
-static int compute_jacobi(wt_tomography *t);
-static int compute_coarse(wt_tomography *t, int coarse_levels);
-static int compute_lowrank(wt_tomography *t);
 
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
                         const char *variant_name, const wt_tomography_params *par, wt_tomography **out)
@@ -340,9 +321,6 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     }
     WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
-    if (var->jacobi) WT_TRY(compute_jacobi(t));
-    if (var->jacobi == 3) WT_TRY(compute_coarse(t, var->coarse_levels));
-    if (var->jacobi >= 2) WT_TRY(compute_lowrank(t));
     *out = t;
     return WT_OK;
 fail:
@@ -368,15 +346,6 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->projs);
     wt_free(ctx, t->noise);
     wt_free(ctx, t->alpha_d);
-    wt_free(ctx, t->jinv);
-    wt_free(ctx, t->lr_Y);
-    wt_free(ctx, t->lr_K);
-    wt_free(ctx, t->lr_w);
-    wt_free(ctx, t->lr_part);
-    wt_free(ctx, t->lr_runs);
-    wt_free(ctx, t->c_idx);
-    wt_free(ctx, t->c_L);
-    wt_free(ctx, t->c_w);
     wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
     wt_free(ctx, t);
@@ -530,405 +499,27 @@ static void apply_cb(void *user, const double *x, double *y)
     normal(t, t->work, x, y);
 }
 
-/* ---- NGS low-rank correction of the Jacobi preconditioner ----------------------------------------
- *
- * The NGS term of M is Σ_NGS Ãᵀ C̃⁻¹ Ã = G Ĉ⁻¹_NGS Gᵀ with G = [Ãᵀ e_k] over the r NGS slopes (r = 12
- * for one 2x2 and two 1x1 sensors): rank r, but weighted by NGS noise variances that can be 10⁵ times
- * smaller than the LGS ones (SPEC §11: 0.05 mas against 20 mas). A diagonal cannot describe it — the
- * NGS modes are global tip-tilt-like shapes — and the few PCG iterations then spend themselves on them
- * (PCG-3 at low noise lost its correction entirely). So P = J + G Ĉ⁻¹ Gᵀ = J + R C_n Rᵀ, with
- * R = G Ĉ⁻¹ = [Ãᵀ Ĉ⁻¹ e_k] (r right-hand sides) and C_n = (Ĉ⁻¹_NGS)⁻¹, is inverted by Woodbury:
- *   P⁻¹ = J⁻¹ − Y K⁻¹ Yᵀ,   Y = J⁻¹ R,   K = Ĉ⁻¹_NGS + Rᵀ J⁻¹ R   (r x r, Cholesky once),
- * which costs 4 r n flops per iteration on top of the diagonal. */
-/* ---- coarse block of the preconditioner (coarse_ngs) --------------------------------------------
- *
- * Jacobi treats every wavelet coefficient alone. At the coarse scales that is far from M: every LGS sees
- * the 3 layers' large-scale structure almost alike (their footprints overlap), so the layers' coarse
- * coefficients are strongly coupled and the few iterations leave the layer-difference modes behind
- * (at low noise the 4-iteration PCG-3 is 20-25 nm from its exact MAP, docs/results.md §0d). B replaces
- * J on the coarse coefficients of all layers together (each layer's top-left s x s square of the Mallat
- * layout, s = n / 2^(J − coarse_levels): the scaling block and the coarse_levels coarsest detail
- * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
- * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
- * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
- * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
- * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
-/* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
-WT_CPU_CLONES static void coarse_apply(wt_tomography *t, const double *r, double *z)
-{
-    const int64_t n = t->n;
-    for (int64_t i = 0; i < n; i++) z[i] = t->jinv[i] * r[i];
-    const int q = t->nc;
-    if (q == 0) return;
-    double *w = t->c_w;
-    const double *L = t->c_L;
-    for (int i = 0; i < q; i++) w[i] = r[t->c_idx[i]];
-    for (int i = 0; i < q; i++) { /* forward: L y = w (column-oriented) */
-        const double v = (w[i] /= L[i + (size_t)q * i]);
-        const double *col = L + (size_t)q * i;
-        for (int k = i + 1; k < q; k++) w[k] -= col[k] * v;
-    }
-    for (int i = q - 1; i >= 0; i--) { /* backward: Lᵀ x = y (column-oriented on Lᵀ, held above the diagonal) */
-        const double v = (w[i] /= L[i + (size_t)q * i]);
-        const double *col = L + (size_t)q * i;
-        for (int k = 0; k < i; k++) w[k] -= col[k] * v;
-    }
-    for (int i = 0; i < q; i++) z[t->c_idx[i]] = w[i];
-}
-
-/* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten) */
-static int cholesky(wt_context *ctx, int q, double *A, const char *what)
-{
-    for (int j = 0; j < q; j++) {
-        double d = A[j + (size_t)q * j];
-        for (int k = 0; k < j; k++) d -= A[j + (size_t)q * k] * A[j + (size_t)q * k];
-        if (!(d > 0.0) || !isfinite(d))
-            return WT_ERROR(ctx, WT_ERR_NUMERIC, "tomography: the %s matrix is not positive definite (pivot %d = %g)",
-                            what, j, d);
-        A[j + (size_t)q * j] = sqrt(d);
-        for (int i = j + 1; i < q; i++) {
-            double s = A[i + (size_t)q * j];
-            for (int k = 0; k < j; k++) s -= A[i + (size_t)q * k] * A[j + (size_t)q * k];
-            A[i + (size_t)q * j] = s / A[j + (size_t)q * j];
-        }
-    }
-    return WT_OK;
-}
-
-static int compute_coarse(wt_tomography *t, int coarse_levels)
-{
-    int st = WT_OK;
-    wt_context *ctx = t->ctx;
-    const wt_system *sys = t->sys;
-    const int64_t n = t->n;
-    double *e = NULL, *phi = NULL, *col = NULL;
-    int q = 0;
-    int side[WT_MAX_LAYERS];
-    for (int l = 0; l < t->L; l++) {
-        const int J = wt_wavelet_levels(t->wav[l]), k = coarse_levels < J ? coarse_levels : J;
-        side[l] = t->grid[l].nx >> (J - k);
-        q += side[l] * side[l];
-    }
-    if (q > 4096)
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: coarse_ngs with coarse_levels %d gives a block of %d "
-                        "coefficients; at most 4096 (lower coarse_levels)", coarse_levels, q);
-    WT_ALLOC(ctx, t->c_idx, q, "coarse indices");
-    WT_ALLOC(ctx, t->c_L, (size_t)q * q, "coarse block");
-    WT_ALLOC(ctx, t->c_w, q, "coarse work");
-    WT_ALLOC(ctx, e, n, "coarse probe");
-    WT_ALLOC(ctx, phi, n, "coarse probe layers");
-    WT_ALLOC(ctx, col, n, "coarse column");
-    {
-        int k = 0;
-        for (int l = 0; l < t->L; l++)
-            for (int j = 0; j < side[l]; j++)
-                for (int i = 0; i < side[l]; i++) t->c_idx[k++] = t->off[l] + i + (int64_t)t->grid[l].nx * j;
-    }
-    /* column j of the LGS + prior part of M: the NGS slopes of Γ P W⁻¹ e_j set to zero before the adjoint
-     * (the weight is block-diagonal per sensor, so this drops exactly their term) */
-    for (int j = 0; j < q; j++) {
-        e[t->c_idx[j]] = 1.0;
-        double *sl = t->work->slopes;
-        inverse_dwt(t, t->work, e, phi);
-        forward_slopes(t, t->work, phi, sl);
-        for (int m = sys->nlgs; m < sys->nsensors; m++)
-            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
-        adjoint_slopes(t, t->work, sl, col);
-        col[t->c_idx[j]] += t->alpha_d[t->c_idx[j]];
-        for (int i = 0; i < q; i++) t->c_L[i + (size_t)q * j] = col[t->c_idx[i]];
-        e[t->c_idx[j]] = 0.0;
-    }
-    /* symmetrise the rounding of the two triangles before the factorisation */
-    for (int j = 0; j < q; j++)
-        for (int i = j + 1; i < q; i++)
-            t->c_L[i + (size_t)q * j] = 0.5 * (t->c_L[i + (size_t)q * j] + t->c_L[j + (size_t)q * i]);
-    WT_TRY(cholesky(ctx, q, t->c_L, "coarse preconditioner"));
-    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L, so that the backward
-     * solve runs by contiguous columns too */
-    for (int i = 0; i < q; i++)
-        for (int k = 0; k < i; k++) t->c_L[k + (size_t)q * i] = t->c_L[i + (size_t)q * k];
-    t->nc = q;
-fail:
-    wt_free(ctx, e);
-    wt_free(ctx, phi);
-    wt_free(ctx, col);
-    return st;
-}
-
-/* K v = w in place by the Cholesky factor of K (lower, column-major) */
-static void lowrank_solve(const wt_tomography *t, double *w)
-{
-    const int q = t->nlr;
-    for (int i = 0; i < q; i++) {
-        double s = w[i];
-        for (int k = 0; k < i; k++) s -= t->lr_K[i + (size_t)q * k] * w[k];
-        w[i] = s / t->lr_K[i + (size_t)q * i];
-    }
-    for (int i = q - 1; i >= 0; i--) {
-        double s = w[i];
-        for (int k = i + 1; k < q; k++) s -= t->lr_K[k + (size_t)q * i] * w[k];
-        w[i] = s / t->lr_K[i + (size_t)q * i];
-    }
-}
-
-/* z = P⁻¹ r = B⁻¹ r − Y K⁻¹ Yᵀ r. B⁻¹ r (coarse_apply: mostly the coarse block's two triangular solves,
- * serial chains) and Yᵀ r (the r dots, which read r and not z) are independent: on two threads they run
- * side by side, then both threads share the update of z. Y is zero on ~60 % of the rows (the fine
- * wavelet coefficients away from the NGS footprints' rims): its runs of non-zero rows are skipped. */
-static void lowrank_precond(void *user, const double *r, double *z)
-{
-    wt_tomography *t = user;
-    const int64_t n = t->n;
-    const int q = t->nlr;
-    if (q == 0) {
-        coarse_apply(t, r, z);
-        return;
-    }
-#pragma omp parallel num_threads(t->nthreads)
-    {
-#ifdef _OPENMP
-        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
-#else
-        const int nt = 1, id = 0;
-#endif
-        if (t->nc > 0) {
-            if (id == 0) coarse_apply(t, r, z);
-            if (id == (nt > 1 ? 1 : 0)) {
-                wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, 0, WT_VEC_CHUNKS, t->lr_part);
-                wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
-                lowrank_solve(t, t->lr_w);
-            }
-#pragma omp barrier
-        } else {
-            /* no coarse block: J⁻¹ r and the dots' chunks split over the threads (the chunk sums land in fixed
-             * slots and are added in a fixed order: the same bits as on one thread) */
-            for (int64_t i = n * id / nt; i < n * (id + 1) / nt; i++) z[i] = t->jinv[i] * r[i];
-            wt_vec_dot_many_part(t->lr_Y, n, q, r, n, t->lr_runs, t->lr_nruns, WT_VEC_CHUNKS * id / nt,
-                                 WT_VEC_CHUNKS * (id + 1) / nt, t->lr_part);
-#pragma omp barrier
-#pragma omp single
-            {
-                wt_vec_dot_many_finish(q, t->lr_part, t->lr_w);
-                lowrank_solve(t, t->lr_w);
-            } /* (its implicit barrier: w is ready for every thread) */
-        }
-        wt_vec_sub_many_range(z, t->lr_Y, n, q, t->lr_w, t->lr_runs, t->lr_nruns, n * id / nt, n * (id + 1) / nt);
-    }
-}
-
-static int compute_lowrank(wt_tomography *t)
-{
-    int st = WT_OK;
-    wt_context *ctx = t->ctx;
-    const wt_system *sys = t->sys;
-    const int64_t n = t->n, ns = sys->nslopes;
-    double *e = NULL, *we = NULL, *cinv = NULL;
-    int q = 0, first = -1;
-    for (int m = 0; m < sys->nsensors; m++)
-        if (sys->sensors[m].kind == WT_SENSOR_NGS) {
-            if (first < 0) first = m;
-            q += sys->sensors[m].nslopes;
-        }
-    if (q == 0 || q > 64) return WT_OK; /* no NGS (or an unusual many-slope NGS set: Jacobi alone) */
-    const int64_t o0 = sys->sensors[first].offset; /* NGS slopes are the last, contiguous */
-    double *R = NULL;
-    WT_ALLOC(ctx, R, (size_t)n * q, "NGS preconditioner R");
-    WT_ALLOC(ctx, t->lr_Y, (size_t)n * q, "NGS preconditioner Y");
-    WT_ALLOC(ctx, t->lr_K, (size_t)q * q, "NGS preconditioner K");
-    WT_ALLOC(ctx, t->lr_w, q, "NGS preconditioner work");
-    WT_ALLOC(ctx, t->lr_part, (size_t)q * WT_VEC_CHUNKS, "NGS preconditioner work");
-    WT_ALLOC(ctx, t->lr_runs, n + 1, "NGS preconditioner runs");
-    WT_ALLOC(ctx, e, ns, "unit slope vector");
-    WT_ALLOC(ctx, we, ns, "weighted unit slope vector");
-    WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
-    for (int k = 0; k < q; k++) {
-        e[o0 + k] = 1.0;
-        adjoint_slopes(t, t->work, e, R + (size_t)k * n);
-        /* column k of Ĉ⁻¹_NGS: the noise weight of each NGS sensor applied to e_k */
-        memset(we, 0, (size_t)ns * sizeof *we);
-        for (int m = first; m < sys->nsensors; m++) {
-            const wt_sensor *s = &sys->sensors[m];
-            wt_noise_apply_weight(t->noise[m], 1.0, e + s->offset, we + s->offset);
-        }
-        for (int j = 0; j < q; j++) cinv[j + (size_t)q * k] = we[o0 + j];
-        e[o0 + k] = 0.0;
-    }
-    for (int k = 0; k < q; k++) coarse_apply(t, R + (size_t)n * k, t->lr_Y + (size_t)n * k);
-    t->lr_nruns = wt_vec_runs(t->lr_Y, n, q, n, t->lr_runs);
-    for (int k = 0; k < q; k++)
-        for (int j = 0; j <= k; j++) {
-            double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, t->lr_Y + (size_t)k * n, n);
-            t->lr_K[j + (size_t)q * k] = t->lr_K[k + (size_t)q * j] = v;
-        }
-    /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
-    WT_TRY(cholesky(ctx, q, t->lr_K, "NGS preconditioner"));
-    t->nlr = q;
-fail:
-    wt_free(ctx, R);
-    wt_free(ctx, e);
-    wt_free(ctx, we);
-    wt_free(ctx, cinv);
-    return st;
-}
-
-static int solve(wt_tomography *t, const double *s, double *c, int continuing, int max_iter, double rtol,
-                 double *history, wt_pcg_result *res)
+static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int continuing, int max_iter,
+                 double rtol, double *history, wt_pcg_result *res)
 {
     for (int64_t i = 0; i < t->sys->nslopes; i++)
         if (!isfinite(s[i]))
             return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
     adjoint_slopes(t, t->work, s, wt_pcg_rhs(t->pcg));
-    const int lowrank = t->nlr > 0 || t->nc > 0;
-    return wt_pcg_solve_rhs(t->pcg, apply_cb, t, lowrank ? NULL : t->jinv, lowrank ? lowrank_precond : NULL, t, c,
-                            continuing, max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history,
-                            res);
+    return wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
+                            max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
 }
 
-int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
-                        wt_pcg_result *res)
+int wt_tomography_solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int max_iter, double rtol,
+                        double *history, wt_pcg_result *res)
 {
-    return solve(t, s, c, 0, max_iter, rtol, history, res);
+    return solve(t, P, s, c, 0, max_iter, rtol, history, res);
 }
 
-int wt_tomography_solve_continue(wt_tomography *t, const double *s, double *c, int max_iter, double rtol,
-                                 double *history, wt_pcg_result *res)
+int wt_tomography_solve_continue(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int max_iter,
+                                 double rtol, double *history, wt_pcg_result *res)
 {
-    return solve(t, s, c, 1, max_iter, rtol, history, res);
-}
-
-/* ---- modified Jacobi diagonal ------------------------------------------------------------------ */
-
-/* Centre (in grid points, unwrapped) of the support of a periodic 1-D profile: the middle of the
- * complement of its largest circular run of zeros. */
-static double support_centre(const double *mag, int n)
-{
-    int best_len = 0, best_end = -1;
-    for (int start = 0; start < n; start++) {
-        if (mag[start] != 0.0) continue;
-        if (mag[(start + n - 1) % n] == 0.0 && best_len > 0 && start != 0) continue;
-        int len = 0;
-        while (len < n && mag[(start + len) % n] == 0.0) len++;
-        if (len > best_len) {
-            best_len = len;
-            best_end = start + len; /* first non-zero after the gap */
-        }
-    }
-    if (best_len == 0) return 0.5 * (n - 1);
-    double width = n - best_len; /* support occupies [best_end, best_end + width) */
-    return best_end + 0.5 * (width - 1);
-}
-
-/* Accumulates Σ_LGS ‖Ã_m e_λ‖²_{C̃⁻¹} for all coefficients of (layer l, level, orientation) coloured
- * with stride s. Buffers: field (n²), coef (n²), work (wavelet), ph (ncg), sl/z (max slopes). */
-static void probe_block(wt_tomography *t, int l, int level, int orient, int s, double *diag, double *coef,
-                        double *field, double *work, double *ph, double *sl, double *z, int a0, int b0)
-{
-    const wt_system *sys = t->sys;
-    const wt_grid *g = &t->grid[l];
-    const int n = g->nx, J = wt_wavelet_levels(t->wav[l]);
-    const int lev = level > J ? J : level;
-    const int m = n >> lev, step = 1 << lev;
-    const int se = s < m ? s : m;
-    const int bx = (orient == 1 || orient == 3) ? m : 0, by = (orient == 2 || orient == 3) ? m : 0;
-
-    /* where the k = 0 basis function of this block sits: centre of its support */
-    memset(coef, 0, (size_t)n * n * sizeof *coef);
-    coef[bx + (int64_t)n * by] = 1.0;
-    wt_wavelet_inverse(t->wav[l], coef, field, work);
-    double *colmag = ph, *rowmag = ph + n; /* the caller sizes ph for max(ncg, 2n) */
-    memset(colmag, 0, 2 * (size_t)n * sizeof *colmag);
-    for (int iy = 0; iy < n; iy++)
-        for (int ix = 0; ix < n; ix++) {
-            double v = fabs(field[ix + (int64_t)n * iy]);
-            colmag[ix] += v;
-            rowmag[iy] += v;
-        }
-    double cx0 = support_centre(colmag, n), cy0 = support_centre(rowmag, n);
-
-    /* the colour's probes */
-    memset(coef, 0, (size_t)n * n * sizeof *coef);
-    for (int j = b0; j < m; j += se)
-        for (int i = a0; i < m; i += se) coef[bx + i + (int64_t)n * (by + j)] = 1.0;
-    wt_wavelet_inverse(t->wav[l], coef, field, work);
-
-    const int nprobe = m / se;
-    for (int mm = 0; mm < sys->nlgs; mm++) {
-        const wt_sensor *s_ = &sys->sensors[mm];
-        memset(ph, 0, (size_t)t->ncg * sizeof *ph);
-        wt_projection_apply(t->proj[mm * t->L + l], 1.0, field, ph);
-        memset(sl, 0, (size_t)s_->nslopes * sizeof *sl);
-        wt_shack_hartmann_apply(s_->sh, 1.0, ph, sl);
-        memset(z, 0, (size_t)s_->nslopes * sizeof *z);
-        wt_noise_apply_inv(t->noise[mm], 1.0, sl, z);
-        double cone = s_->altitude > 0 ? 1.0 - t->alt[l] / s_->altitude : 1.0;
-        for (int k = 0; k < s_->nsub; k++) {
-            double q = sl[k] * z[k] + sl[s_->nsub + k] * z[s_->nsub + k];
-            if (q == 0.0) continue;
-            int pi = 0, pj = 0;
-            if (nprobe > 1) {
-                double x, y;
-                wt_shack_hartmann_centre(s_->sh, k, &x, &y);
-                double gx = (cone * x + s_->theta_x * t->alt[l] - g->x0) / g->dx;
-                double gy = (cone * y + s_->theta_y * t->alt[l] - g->y0) / g->dx;
-                double period = (double)step * se;
-                pi = (int)lround((gx - cx0 - (double)step * a0) / period);
-                pj = (int)lround((gy - cy0 - (double)step * b0) / period);
-                pi = ((pi % nprobe) + nprobe) % nprobe;
-                pj = ((pj % nprobe) + nprobe) % nprobe;
-            }
-            int64_t lam = bx + a0 + (int64_t)se * pi + (int64_t)n * (by + b0 + (int64_t)se * pj);
-            diag[t->off[l] + lam] += q;
-        }
-    }
-}
-
-static int compute_jacobi(wt_tomography *t)
-{
-    int st = WT_OK;
-    wt_context *ctx = t->ctx;
-    double *diag = NULL, *buf = NULL;
-    int N = wt_wavelet_order(t->wav[0]);
-    int s = 1;
-    while (s < 2 * N + 2) s *= 2;
-    int64_t maxn2 = 0, maxsl = 0;
-    for (int l = 0; l < t->L; l++)
-        if (wt_grid_size(&t->grid[l]) > maxn2) maxn2 = wt_grid_size(&t->grid[l]);
-    for (int m = 0; m < t->sys->nsensors; m++)
-        if (t->sys->sensors[m].nslopes > maxsl) maxsl = t->sys->sensors[m].nslopes;
-    int64_t phn = t->ncg > 2 * t->grid[0].nx ? t->ncg : 2 * t->grid[0].nx;
-    for (int l = 0; l < t->L; l++)
-        if (2 * t->grid[l].nx > phn) phn = 2 * t->grid[l].nx;
-    int64_t per = 2 * maxn2 + (int64_t)t->wsize + phn + 2 * maxsl;
-    int nth = t->nthreads;
-    WT_ALLOC(ctx, diag, t->n, "Jacobi diagonal");
-    WT_ALLOC(ctx, buf, (size_t)nth * per, "Jacobi probing workspace");
-
-    for (int l = 0; l < t->L; l++) {
-        int J = wt_wavelet_levels(t->wav[l]), n = t->grid[l].nx;
-        for (int level = 1; level <= J + 1; level++) {
-            int o0 = level <= J ? 1 : 0, o1 = level <= J ? 3 : 0;
-            for (int orient = o0; orient <= o1; orient++) {
-                int lev = level > J ? J : level, m = n >> lev, se = s < m ? s : m;
-#pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
-                for (int b0 = 0; b0 < se; b0++)
-                    for (int a0 = 0; a0 < se; a0++) {
-                        double *base = buf + (size_t)thread_id() * per;
-                        double *coef = base, *field = coef + maxn2, *work = field + maxn2;
-                        double *ph = work + t->wsize, *sl = ph + phn, *z = sl + maxsl;
-                        probe_block(t, l, level, orient, s, diag, coef, field, work, ph, sl, z, a0, b0);
-                    }
-            }
-        }
-    }
-    WT_ALLOC(ctx, t->jinv, t->n, "inverse Jacobi diagonal");
-    for (int64_t i = 0; i < t->n; i++) t->jinv[i] = 1.0 / (diag[i] + t->alpha_d[i]);
-    wt_free(ctx, diag);
-    wt_free(ctx, buf);
-    return WT_OK;
-fail:
-    wt_free(ctx, diag);
-    wt_free(ctx, buf);
-    return st;
+    return solve(t, P, s, c, 1, max_iter, rtol, history, res);
 }
 
 int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag)
@@ -962,8 +553,9 @@ fail:
 
 double wt_tomography_bytes(const wt_tomography *t)
 {
-    /* vectors of n: α D, J⁻¹, φ, b, the group accumulators, the 4 PCG vectors and its 2 right-hand sides */
-    double b = 8.0 * (double)t->n * (4.0 + (t->jinv ? 1.0 : 0.0) + 2.0 + 6.0);
+    /* vectors of n: α D, φ, b, the group accumulators, the 4 PCG vectors and its 2 right-hand sides (the
+     * preconditioner's are wt_precond_bytes) */
+    double b = 8.0 * (double)t->n * (4.0 + 2.0 + 6.0);
     b += 8.0 * (double)t->S * (double)t->ncg + 16.0 * (double)t->sys->nslopes + 8.0 * t->nthreads * (double)t->wsize;
     /* projection stencils: ~24 bytes per masked point and layer, plus the separable tables */
     b += 24.0 * (double)t->sys->ncorners * t->S * t->L;

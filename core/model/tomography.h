@@ -2,7 +2,10 @@
  *
  *   M c = Σ_m Ã_mᵀ Ĉ_m⁻¹ Ã_m c + α D c,     b = Σ_m Ã_mᵀ Ĉ_m⁻¹ s_m          (paper eq. eqn_lse)
  *   Ã_m = Γ_m P_m W⁻¹,  Ĉ_m⁻¹ = (I − T) C̃_m⁻¹ (I − T) for LGS, C̃_m⁻¹ for NGS  (eq. widehatc)
- *   J = diag(Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m) + α D                                      (modified Jacobi)
+ *
+ * The operator, its right-hand side and the (P)CG solve; the preconditioners (the modified Jacobi
+ * J = diag(Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m) + α D and those built on it) are core/model/precond.h's, built from this
+ * object's public operators and handed to the solve as a callback.
  *
  * Reconstruction layers: one per altitude of the chosen variant (recon.pcg3 or recon.cg9), each a
  * periodic n x n grid of spacing δ (wt_grid_layer) with its own DWT plan and prior D_ℓ. The prior needs
@@ -11,11 +14,6 @@
  * linearly in altitude (all of it to the end layer outside their range); a floor of 1e-3 keeps a layer
  * that receives nothing regularised.
  * Unknowns: wavelet coefficients of the layers, concatenated layer by layer (Mallat layout each).
- *
- * Modified Jacobi diagonal: exact (not averaged). It is computed by coloured probing: coefficients of
- * one layer, level and orientation on a sub-lattice of stride s (s ≥ 2N+2, N the Daubechies order) have
- * images Ã_m e_λ with disjoint supports in slope space, so one application per colour gives every
- * entry, attributing each subaperture's 2x2 quadratic form to the nearest probe.
  *
  * Workspaces (GSL's habit): wt_tomography_apply_ws takes a const operator and a caller-owned
  * wt_tomography_work, so two threads with one workspace each can apply one operator at once. The other
@@ -53,7 +51,7 @@ typedef struct wt_tomography_params {
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
 } wt_tomography_params;
 
-/* var: the reconstructor variant (cfg->pcg3 or cfg->cg9): layers, iterations, preconditioner; par: α,
+/* var: the reconstructor variant (cfg->pcg3 or cfg->cg9): layers, iterations, tolerance; par: α,
  * τ, the wavelet, the prior. A layer grid that does not cover some sensor's footprint is a
  * WT_ERR_CONFIG naming the variant, the layer and the sensor. */
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
@@ -80,9 +78,10 @@ const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
 const struct wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l);
 const struct wt_noise *wt_tomography_noise(const wt_tomography *t, int m);
 const wt_system *wt_tomography_system(const wt_tomography *t);
-/* α D (ncoef values) and, when the variant asks for it, the inverse Jacobi diagonal (else NULL). */
+/* α D (ncoef values). */
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
-const double *wt_tomography_jacobi_inverse(const wt_tomography *t);
+/* The OpenMP threads the applies run on (1 below ~16k unknowns, where a parallel region does not pay). */
+int wt_tomography_threads(const wt_tomography *t);
 
 /* What one application of M writes: one per concurrent caller. Allocates n (2 + WT_GROUPS) + S·ncg +
  * 2 nslopes + nthreads·wsize doubles; _free(NULL) is a no-op. */
@@ -100,24 +99,25 @@ void wt_tomography_apply(wt_tomography *t, double alpha, const double *c, double
 void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s);
 /* b ← b + α Σ Ã_mᵀ Ĉ_m⁻¹ s_m (s: all slopes, system order) */
 void wt_tomography_rhs(wt_tomography *t, double alpha, const double *s, double *b);
-/* Solve M c = b(s) by CG or Jacobi PCG (per the variant), warm-started from c.
- * max_iter / rtol override the variant's when ≥ 0. history: NULL or max_iter + 1 doubles. */
-int wt_tomography_solve(wt_tomography *t, const double *s, double *c, int max_iter, double rtol, double *history,
-                        wt_pcg_result *res);
+/* Solve M c = b(s) by PCG with the preconditioner P (wt_precond_pcg of core/model/precond.h; {NULL, NULL}:
+ * plain CG), warm-started from c. max_iter / rtol override the variant's when ≥ 0. history: NULL or
+ * max_iter + 1 doubles. */
+int wt_tomography_solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int max_iter, double rtol,
+                        double *history, wt_pcg_result *res);
 /* wt_tomography_solve continuing the previous solve on t (the reconstructor's warm start): c must hold
  * that solve's result, unchanged. M c is then the previous right-hand side minus the previous recursive
  * residual (wt_pcg_solve_rhs), which saves the initial apply of M: 4 + 1 → 4 applies in a PCG-3 frame.
  * Differs from wt_tomography_solve by the recursive residual's rounding drift only (not the same bits).
  * The first solve, and one after an error, applies M as wt_tomography_solve does. */
-int wt_tomography_solve_continue(wt_tomography *t, const double *s, double *c, int max_iter, double rtol,
-                                 double *history, wt_pcg_result *res);
+int wt_tomography_solve_continue(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int max_iter,
+                                 double rtol, double *history, wt_pcg_result *res);
 /* Spatial layers φ = W⁻¹ c (same length as c, layer by layer on their grids). */
 void wt_tomography_layers(wt_tomography *t, const double *c, double *phi);
 /* Compute the exact diagonal of Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m by brute force (one apply per unknown):
  * for tests of the probing. diag: ncoef values. */
 int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
 
-/* Bytes the object holds (operators, prior, preconditioner, workspace): for reports. */
+/* Bytes the object holds (operators, prior, workspace; the preconditioner's are wt_precond_bytes): for reports. */
 double wt_tomography_bytes(const wt_tomography *t);
 
 /* Work per application of M: floating-point operations and bytes moved (estimates for reports). */

@@ -56,8 +56,10 @@ int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm
     if (kind == WT_RECON_MVM) /* R and RA: 4 bytes an element in fp32, 2 in fp16/bf16 (+ the row scales) */
         res->memory = (cfg->mvm_precision ? 2.0 : 4.0) * (double)sys->nact * (double)(sys->nslopes + sys->nact) +
                       (cfg->mvm_precision ? 8.0 * (double)sys->nact : 0.0);
-    else if (kind != WT_RECON_NONE)
-        res->memory = wt_tomography_bytes(wt_reconstructor_tomography(wt_loop_reconstructor(lp)));
+    else if (kind != WT_RECON_NONE) {
+        wt_reconstructor *r = wt_loop_reconstructor(lp);
+        res->memory = wt_tomography_bytes(wt_reconstructor_tomography(r)) + wt_precond_bytes(wt_reconstructor_precond(r));
+    }
     res->done = 1;
 out:
     wt_loop_free(lp);

@@ -36,6 +36,12 @@ int wt_pcg_solve(wt_pcg *p, wt_linop_fn A, void *user, const double *inv_diag, c
 
 /* z = P⁻¹ r for a symmetric positive definite preconditioner P (z fully overwritten). */
 typedef void (*wt_precond_fn)(void *user, const double *r, double *z);
+/* A preconditioner handed through a caller that does not know its kind (the tomography's solve; the kinds are
+ * core/model/precond.h's): apply NULL means none, plain CG. */
+typedef struct wt_pcg_precond {
+    wt_precond_fn apply;
+    void *user;
+} wt_pcg_precond;
 /* The same with a general preconditioner P⁻¹ given as a callback. */
 int wt_pcg_solve_precond(wt_pcg *p, wt_linop_fn A, void *user, wt_precond_fn P, void *puser, const double *b,
                          double *x, int max_iter, double rtol, double *history, wt_pcg_result *res);

@@ -1,0 +1,527 @@
+/* core/model/precond.c: the preconditioners of the tomography's PCG (see precond.h):
+ *
+ *   J  = diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D                       exact, by coloured probing (paper's modified Jacobi)
+ *   B  = J with the coarse coefficients' block of the LGS + prior part of M      (coarse_ngs)
+ *   P  = B + R C_n Rᵀ,  P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ,  Y = B⁻¹ R,  K = Ĉ⁻¹_NGS + Rᵀ B⁻¹ R   (Woodbury, the NGS term)
+ *
+ * Built only from the tomography's public operators (slopes Ã, the adjoint Ãᵀ Ĉ⁻¹, the projections, noise
+ * models and wavelets it exposes), so the operator's file knows none of this. */
+#include "precond.h"
+
+#include <math.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "../la/vec.h"
+#include "../op/noise.h"
+#include "../op/projection.h"
+#include "../op/shack_hartmann.h"
+#include "../op/wavelet.h"
+
+struct wt_precond {
+    wt_context *ctx;
+    int kind;
+    int64_t n;                /* unknowns */
+    int nthreads;             /* the tomography's (small systems run serially) */
+    double *jinv;             /* n: J⁻¹ (NULL for none) */
+    /* NGS low-rank part (see lowrank_*): P = B + R C_n Rᵀ */
+    int nlr;                  /* rank r: the NGS slopes (0: none) */
+    double *lr_Y;             /* n x r: B⁻¹ R */
+    double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ B⁻¹ R */
+    double *lr_w;             /* r */
+    double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
+    int64_t *lr_runs;         /* the row runs where Y is not all zero (wt_vec_runs) */
+    int lr_nruns;
+    /* coarse block (coarse_ngs, see coarse_*): J replaced by B = J with the coarse coefficients' rows and
+     * columns of the LGS + prior part of M, inverted exactly */
+    int nc;                   /* coarse coefficients (0: none) */
+    int64_t *c_idx;           /* nc: their indices in c */
+    double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block, Lᵀ above */
+    double *c_w;              /* nc */
+};
+
+static const char *const kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs"};
+
+const char *wt_precond_kind_name(int kind) { return kind >= 0 && kind < WT_PRECOND_NKINDS ? kind_names[kind] : NULL; }
+
+int wt_precond_kind(const char *name)
+{
+    for (int k = 0; k < WT_PRECOND_NKINDS; k++)
+        if (name && !strcmp(name, kind_names[k])) return k;
+    return -1;
+}
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+/* ---- modified Jacobi diagonal ------------------------------------------------------------------ */
+
+/* Centre (in grid points, unwrapped) of the support of a periodic 1-D profile: the middle of the
+ * complement of its largest circular run of zeros. */
+static double support_centre(const double *mag, int n)
+{
+    int best_len = 0, best_end = -1;
+    for (int start = 0; start < n; start++) {
+        if (mag[start] != 0.0) continue;
+        if (mag[(start + n - 1) % n] == 0.0 && best_len > 0 && start != 0) continue;
+        int len = 0;
+        while (len < n && mag[(start + len) % n] == 0.0) len++;
+        if (len > best_len) {
+            best_len = len;
+            best_end = start + len; /* first non-zero after the gap */
+        }
+    }
+    if (best_len == 0) return 0.5 * (n - 1);
+    double width = n - best_len; /* support occupies [best_end, best_end + width) */
+    return best_end + 0.5 * (width - 1);
+}
+
+/* Accumulates Σ_LGS ‖Ã_m e_λ‖²_{C̃⁻¹} for all coefficients of (layer l, level, orientation) coloured
+ * with stride s: coefficients on a sub-lattice of stride s ≥ 2N+2 (N the Daubechies order) have images
+ * Ã_m e_λ with disjoint supports in slope space, so one application per colour gives every entry, each
+ * subaperture's 2x2 quadratic form attributed to the nearest probe. Buffers: field (n²), coef (n²), work
+ * (wavelet), ph (max(ncg, 2n)), sl/z (max slopes). */
+static void probe_block(const wt_tomography *t, int l, int level, int orient, int s, double *diag, double *coef,
+                        double *field, double *work, double *ph, double *sl, double *z, int a0, int b0)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    const wt_grid *g = wt_tomography_layer_grid(t, l);
+    const wt_wavelet *wav = wt_tomography_wavelet(t, l);
+    const double alt = wt_tomography_layer_altitude(t, l);
+    const int64_t off = wt_tomography_layer_offset(t, l), ncg = wt_grid_size(&sys->sense_grid);
+    const int n = g->nx, J = wt_wavelet_levels(wav);
+    const int lev = level > J ? J : level;
+    const int m = n >> lev, step = 1 << lev;
+    const int se = s < m ? s : m;
+    const int bx = (orient == 1 || orient == 3) ? m : 0, by = (orient == 2 || orient == 3) ? m : 0;
+
+    /* where the k = 0 basis function of this block sits: centre of its support */
+    memset(coef, 0, (size_t)n * n * sizeof *coef);
+    coef[bx + (int64_t)n * by] = 1.0;
+    wt_wavelet_inverse(wav, coef, field, work);
+    double *colmag = ph, *rowmag = ph + n; /* the caller sizes ph for max(ncg, 2n) */
+    memset(colmag, 0, 2 * (size_t)n * sizeof *colmag);
+    for (int iy = 0; iy < n; iy++)
+        for (int ix = 0; ix < n; ix++) {
+            double v = fabs(field[ix + (int64_t)n * iy]);
+            colmag[ix] += v;
+            rowmag[iy] += v;
+        }
+    double cx0 = support_centre(colmag, n), cy0 = support_centre(rowmag, n);
+
+    /* the colour's probes */
+    memset(coef, 0, (size_t)n * n * sizeof *coef);
+    for (int j = b0; j < m; j += se)
+        for (int i = a0; i < m; i += se) coef[bx + i + (int64_t)n * (by + j)] = 1.0;
+    wt_wavelet_inverse(wav, coef, field, work);
+
+    const int nprobe = m / se;
+    for (int mm = 0; mm < sys->nlgs; mm++) {
+        const wt_sensor *s_ = &sys->sensors[mm];
+        memset(ph, 0, (size_t)ncg * sizeof *ph);
+        wt_projection_apply(wt_tomography_projection(t, mm, l), 1.0, field, ph);
+        memset(sl, 0, (size_t)s_->nslopes * sizeof *sl);
+        wt_shack_hartmann_apply(s_->sh, 1.0, ph, sl);
+        memset(z, 0, (size_t)s_->nslopes * sizeof *z);
+        wt_noise_apply_inv(wt_tomography_noise(t, mm), 1.0, sl, z);
+        double cone = s_->altitude > 0 ? 1.0 - alt / s_->altitude : 1.0;
+        for (int k = 0; k < s_->nsub; k++) {
+            double q = sl[k] * z[k] + sl[s_->nsub + k] * z[s_->nsub + k];
+            if (q == 0.0) continue;
+            int pi = 0, pj = 0;
+            if (nprobe > 1) {
+                double x, y;
+                wt_shack_hartmann_centre(s_->sh, k, &x, &y);
+                double gx = (cone * x + s_->theta_x * alt - g->x0) / g->dx;
+                double gy = (cone * y + s_->theta_y * alt - g->y0) / g->dx;
+                double period = (double)step * se;
+                pi = (int)lround((gx - cx0 - (double)step * a0) / period);
+                pj = (int)lround((gy - cy0 - (double)step * b0) / period);
+                pi = ((pi % nprobe) + nprobe) % nprobe;
+                pj = ((pj % nprobe) + nprobe) % nprobe;
+            }
+            int64_t lam = bx + a0 + (int64_t)se * pi + (int64_t)n * (by + b0 + (int64_t)se * pj);
+            diag[off + lam] += q;
+        }
+    }
+}
+
+/* J⁻¹ = 1 / (diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D), the diagonal by probe_block over every layer, level,
+ * orientation and colour (~1 s at E-ELT pcg3 size). */
+static int compute_jacobi(wt_precond *p, const wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t);
+    const int64_t ncg = wt_grid_size(&sys->sense_grid);
+    const double *alpha_d = wt_tomography_alpha_prior(t);
+    double *diag = NULL, *buf = NULL;
+    int N = wt_wavelet_order(wt_tomography_wavelet(t, 0));
+    int s = 1;
+    while (s < 2 * N + 2) s *= 2;
+    int64_t maxn2 = 0, maxsl = 0, wsize = 0;
+    for (int l = 0; l < L; l++) {
+        if (wt_grid_size(wt_tomography_layer_grid(t, l)) > maxn2) maxn2 = wt_grid_size(wt_tomography_layer_grid(t, l));
+        if ((int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l)) > wsize)
+            wsize = (int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l));
+    }
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].nslopes > maxsl) maxsl = sys->sensors[m].nslopes;
+    int64_t phn = ncg;
+    for (int l = 0; l < L; l++)
+        if (2 * wt_tomography_layer_grid(t, l)->nx > phn) phn = 2 * wt_tomography_layer_grid(t, l)->nx;
+    int64_t per = 2 * maxn2 + wsize + phn + 2 * maxsl;
+    int nth = p->nthreads;
+    WT_ALLOC(ctx, diag, p->n, "Jacobi diagonal");
+    WT_ALLOC(ctx, buf, (size_t)nth * per, "Jacobi probing workspace");
+
+    for (int l = 0; l < L; l++) {
+        int J = wt_wavelet_levels(wt_tomography_wavelet(t, l)), n = wt_tomography_layer_grid(t, l)->nx;
+        for (int level = 1; level <= J + 1; level++) {
+            int o0 = level <= J ? 1 : 0, o1 = level <= J ? 3 : 0;
+            for (int orient = o0; orient <= o1; orient++) {
+                int lev = level > J ? J : level, m = n >> lev, se = s < m ? s : m;
+#pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
+                for (int b0 = 0; b0 < se; b0++)
+                    for (int a0 = 0; a0 < se; a0++) {
+                        double *base = buf + (size_t)thread_id() * per;
+                        double *coef = base, *field = coef + maxn2, *work = field + maxn2;
+                        double *ph = work + wsize, *sl = ph + phn, *z = sl + maxsl;
+                        probe_block(t, l, level, orient, s, diag, coef, field, work, ph, sl, z, a0, b0);
+                    }
+            }
+        }
+    }
+    WT_ALLOC(ctx, p->jinv, p->n, "inverse Jacobi diagonal");
+    for (int64_t i = 0; i < p->n; i++) p->jinv[i] = 1.0 / (diag[i] + alpha_d[i]);
+fail:
+    wt_free(ctx, diag);
+    wt_free(ctx, buf);
+    return st;
+}
+
+/* ---- coarse block (coarse_ngs) ------------------------------------------------------------------
+ *
+ * Jacobi treats every wavelet coefficient alone. At the coarse scales that is far from M: every LGS sees
+ * the 3 layers' large-scale structure almost alike (their footprints overlap), so the layers' coarse
+ * coefficients are strongly coupled and the few iterations leave the layer-difference modes behind
+ * (at low noise the 4-iteration PCG-3 is 20-25 nm from its exact MAP, docs/results.md §0d). B replaces
+ * J on the coarse coefficients of all layers together (each layer's top-left s x s square of the Mallat
+ * layout, s = n / 2^(J − coarse_levels): the scaling block and the coarse_levels coarsest detail
+ * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
+ * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
+ * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
+ * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
+ * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now
+ * around B: P = B + R C_n Rᵀ. */
+/* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
+WT_CPU_CLONES static void coarse_apply(const wt_precond *p, const double *r, double *z)
+{
+    const int64_t n = p->n;
+    for (int64_t i = 0; i < n; i++) z[i] = p->jinv[i] * r[i];
+    const int q = p->nc;
+    if (q == 0) return;
+    double *w = p->c_w;
+    const double *L = p->c_L;
+    for (int i = 0; i < q; i++) w[i] = r[p->c_idx[i]];
+    for (int i = 0; i < q; i++) { /* forward: L y = w (column-oriented) */
+        const double v = (w[i] /= L[i + (size_t)q * i]);
+        const double *col = L + (size_t)q * i;
+        for (int k = i + 1; k < q; k++) w[k] -= col[k] * v;
+    }
+    for (int i = q - 1; i >= 0; i--) { /* backward: Lᵀ x = y (column-oriented on Lᵀ, held above the diagonal) */
+        const double v = (w[i] /= L[i + (size_t)q * i]);
+        const double *col = L + (size_t)q * i;
+        for (int k = 0; k < i; k++) w[k] -= col[k] * v;
+    }
+    for (int i = 0; i < q; i++) z[p->c_idx[i]] = w[i];
+}
+
+/* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten) */
+static int cholesky(wt_context *ctx, int q, double *A, const char *what)
+{
+    for (int j = 0; j < q; j++) {
+        double d = A[j + (size_t)q * j];
+        for (int k = 0; k < j; k++) d -= A[j + (size_t)q * k] * A[j + (size_t)q * k];
+        if (!(d > 0.0) || !isfinite(d))
+            return WT_ERROR(ctx, WT_ERR_NUMERIC, "tomography: the %s matrix is not positive definite (pivot %d = %g)",
+                            what, j, d);
+        A[j + (size_t)q * j] = sqrt(d);
+        for (int i = j + 1; i < q; i++) {
+            double s = A[i + (size_t)q * j];
+            for (int k = 0; k < j; k++) s -= A[i + (size_t)q * k] * A[j + (size_t)q * k];
+            A[i + (size_t)q * j] = s / A[j + (size_t)q * j];
+        }
+    }
+    return WT_OK;
+}
+
+static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t);
+    const int64_t n = p->n;
+    const double *alpha_d = wt_tomography_alpha_prior(t);
+    double *e = NULL, *sl = NULL, *col = NULL;
+    int q = 0;
+    int side[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++) {
+        const int J = wt_wavelet_levels(wt_tomography_wavelet(t, l)), k = coarse_levels < J ? coarse_levels : J;
+        side[l] = wt_tomography_layer_grid(t, l)->nx >> (J - k);
+        q += side[l] * side[l];
+    }
+    if (q > 4096)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: coarse_ngs with coarse_levels %d gives a block of %d "
+                        "coefficients; at most 4096 (lower coarse_levels)", coarse_levels, q);
+    WT_ALLOC(ctx, p->c_idx, q, "coarse indices");
+    WT_ALLOC(ctx, p->c_L, (size_t)q * q, "coarse block");
+    WT_ALLOC(ctx, p->c_w, q, "coarse work");
+    WT_ALLOC(ctx, e, n, "coarse probe");
+    WT_ALLOC(ctx, sl, sys->nslopes, "coarse probe slopes");
+    WT_ALLOC(ctx, col, n, "coarse column");
+    {
+        int k = 0;
+        for (int l = 0; l < L; l++)
+            for (int j = 0; j < side[l]; j++)
+                for (int i = 0; i < side[l]; i++)
+                    p->c_idx[k++] = wt_tomography_layer_offset(t, l) + i + (int64_t)wt_tomography_layer_grid(t, l)->nx * j;
+    }
+    /* column j of the LGS + prior part of M: the NGS slopes of Γ P W⁻¹ e_j set to zero before the adjoint
+     * (the weight is block-diagonal per sensor, so this drops exactly their term) */
+    for (int j = 0; j < q; j++) {
+        e[p->c_idx[j]] = 1.0;
+        memset(sl, 0, (size_t)sys->nslopes * sizeof *sl);
+        wt_tomography_slopes(t, 1.0, e, sl);
+        for (int m = sys->nlgs; m < sys->nsensors; m++)
+            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
+        memset(col, 0, (size_t)n * sizeof *col);
+        wt_tomography_rhs(t, 1.0, sl, col);
+        col[p->c_idx[j]] += alpha_d[p->c_idx[j]];
+        for (int i = 0; i < q; i++) p->c_L[i + (size_t)q * j] = col[p->c_idx[i]];
+        e[p->c_idx[j]] = 0.0;
+    }
+    /* symmetrise the rounding of the two triangles before the factorisation */
+    for (int j = 0; j < q; j++)
+        for (int i = j + 1; i < q; i++)
+            p->c_L[i + (size_t)q * j] = 0.5 * (p->c_L[i + (size_t)q * j] + p->c_L[j + (size_t)q * i]);
+    WT_TRY(cholesky(ctx, q, p->c_L, "coarse preconditioner"));
+    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L, so that the backward
+     * solve runs by contiguous columns too */
+    for (int i = 0; i < q; i++)
+        for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
+    p->nc = q;
+fail:
+    wt_free(ctx, e);
+    wt_free(ctx, sl);
+    wt_free(ctx, col);
+    return st;
+}
+
+/* ---- NGS low-rank correction --------------------------------------------------------------------
+ *
+ * The NGS term of M is Σ_NGS Ãᵀ C̃⁻¹ Ã = G Ĉ⁻¹_NGS Gᵀ with G = [Ãᵀ e_k] over the r NGS slopes (r = 12
+ * for one 2x2 and two 1x1 sensors): rank r, but weighted by NGS noise variances that can be 10⁵ times
+ * smaller than the LGS ones (SPEC §11: 0.05 mas against 20 mas). A diagonal cannot describe it — the
+ * NGS modes are global tip-tilt-like shapes — and the few PCG iterations then spend themselves on them
+ * (PCG-3 at low noise lost its correction entirely). So P = B + G Ĉ⁻¹ Gᵀ = B + R C_n Rᵀ, with
+ * R = G Ĉ⁻¹ = [Ãᵀ Ĉ⁻¹ e_k] (r right-hand sides) and C_n = (Ĉ⁻¹_NGS)⁻¹, is inverted by Woodbury:
+ *   P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ,   Y = B⁻¹ R,   K = Ĉ⁻¹_NGS + Rᵀ B⁻¹ R   (r x r, Cholesky once),
+ * which costs 4 r n flops per iteration on top of B⁻¹. */
+
+/* K v = w in place by the Cholesky factor of K (lower, column-major) */
+static void lowrank_solve(const wt_precond *p, double *w)
+{
+    const int q = p->nlr;
+    for (int i = 0; i < q; i++) {
+        double s = w[i];
+        for (int k = 0; k < i; k++) s -= p->lr_K[i + (size_t)q * k] * w[k];
+        w[i] = s / p->lr_K[i + (size_t)q * i];
+    }
+    for (int i = q - 1; i >= 0; i--) {
+        double s = w[i];
+        for (int k = i + 1; k < q; k++) s -= p->lr_K[k + (size_t)q * i] * w[k];
+        w[i] = s / p->lr_K[i + (size_t)q * i];
+    }
+}
+
+/* z = P⁻¹ r = B⁻¹ r − Y K⁻¹ Yᵀ r. B⁻¹ r (coarse_apply: mostly the coarse block's two triangular solves,
+ * serial chains) and Yᵀ r (the r dots, which read r and not z) are independent: on two threads they run
+ * side by side, then both threads share the update of z. Y is zero on ~60 % of the rows (the fine
+ * wavelet coefficients away from the NGS footprints' rims): its runs of non-zero rows are skipped. */
+static void lowrank_apply(const wt_precond *p, const double *r, double *z)
+{
+    const int64_t n = p->n;
+    const int q = p->nlr;
+    if (q == 0) {
+        coarse_apply(p, r, z);
+        return;
+    }
+#pragma omp parallel num_threads(p->nthreads)
+    {
+#ifdef _OPENMP
+        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
+#else
+        const int nt = 1, id = 0;
+#endif
+        if (p->nc > 0) {
+            if (id == 0) coarse_apply(p, r, z);
+            if (id == (nt > 1 ? 1 : 0)) {
+                wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, 0, WT_VEC_CHUNKS, p->lr_part);
+                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
+                lowrank_solve(p, p->lr_w);
+            }
+#pragma omp barrier
+        } else {
+            /* no coarse block: J⁻¹ r and the dots' chunks split over the threads (the chunk sums land in fixed
+             * slots and are added in a fixed order: the same bits as on one thread) */
+            for (int64_t i = n * id / nt; i < n * (id + 1) / nt; i++) z[i] = p->jinv[i] * r[i];
+            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
+                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
+#pragma omp barrier
+#pragma omp single
+            {
+                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
+                lowrank_solve(p, p->lr_w);
+            } /* (its implicit barrier: w is ready for every thread) */
+        }
+        wt_vec_sub_many_range(z, p->lr_Y, n, q, p->lr_w, p->lr_runs, p->lr_nruns, n * id / nt, n * (id + 1) / nt);
+    }
+}
+
+static int compute_lowrank(wt_precond *p, wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_system *sys = wt_tomography_system(t);
+    const int64_t n = p->n, ns = sys->nslopes;
+    double *e = NULL, *we = NULL, *cinv = NULL;
+    int q = 0, first = -1;
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].kind == WT_SENSOR_NGS) {
+            if (first < 0) first = m;
+            q += sys->sensors[m].nslopes;
+        }
+    if (q == 0 || q > 64) return WT_OK; /* no NGS (or an unusual many-slope NGS set: B alone) */
+    const int64_t o0 = sys->sensors[first].offset; /* NGS slopes are the last, contiguous */
+    double *R = NULL;
+    WT_ALLOC(ctx, R, (size_t)n * q, "NGS preconditioner R");
+    WT_ALLOC(ctx, p->lr_Y, (size_t)n * q, "NGS preconditioner Y");
+    WT_ALLOC(ctx, p->lr_K, (size_t)q * q, "NGS preconditioner K");
+    WT_ALLOC(ctx, p->lr_w, q, "NGS preconditioner work");
+    WT_ALLOC(ctx, p->lr_part, (size_t)q * WT_VEC_CHUNKS, "NGS preconditioner work");
+    WT_ALLOC(ctx, p->lr_runs, n + 1, "NGS preconditioner runs");
+    WT_ALLOC(ctx, e, ns, "unit slope vector");
+    WT_ALLOC(ctx, we, ns, "weighted unit slope vector");
+    WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
+    for (int k = 0; k < q; k++) {
+        e[o0 + k] = 1.0;
+        wt_tomography_rhs(t, 1.0, e, R + (size_t)k * n); /* R was allocated zeroed: column k = Ãᵀ Ĉ⁻¹ e_k */
+        /* column k of Ĉ⁻¹_NGS: the noise weight of each NGS sensor applied to e_k */
+        memset(we, 0, (size_t)ns * sizeof *we);
+        for (int m = first; m < sys->nsensors; m++) {
+            const wt_sensor *s = &sys->sensors[m];
+            wt_noise_apply_weight(wt_tomography_noise(t, m), 1.0, e + s->offset, we + s->offset);
+        }
+        for (int j = 0; j < q; j++) cinv[j + (size_t)q * k] = we[o0 + j];
+        e[o0 + k] = 0.0;
+    }
+    for (int k = 0; k < q; k++) coarse_apply(p, R + (size_t)n * k, p->lr_Y + (size_t)n * k);
+    p->lr_nruns = wt_vec_runs(p->lr_Y, n, q, n, p->lr_runs);
+    for (int k = 0; k < q; k++)
+        for (int j = 0; j <= k; j++) {
+            double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, p->lr_Y + (size_t)k * n, n);
+            p->lr_K[j + (size_t)q * k] = p->lr_K[k + (size_t)q * j] = v;
+        }
+    /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
+    WT_TRY(cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
+    p->nlr = q;
+fail:
+    wt_free(ctx, R);
+    wt_free(ctx, e);
+    wt_free(ctx, we);
+    wt_free(ctx, cinv);
+    return st;
+}
+
+/* ---- the interface ------------------------------------------------------------------------------ */
+
+int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out)
+{
+    int st = WT_OK;
+    wt_precond *p = NULL;
+    *out = NULL;
+    if (!wt_precond_kind_name(par->kind))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "preconditioner kind %d: expected 0..%d (none, jacobi, jacobi_ngs, "
+                        "coarse_ngs)", par->kind, WT_PRECOND_NKINDS - 1);
+    WT_ALLOC(ctx, p, 1, "preconditioner");
+    p->ctx = ctx;
+    p->kind = par->kind;
+    p->n = wt_tomography_nunknowns(t);
+    p->nthreads = wt_tomography_threads(t);
+    if (p->kind != WT_PRECOND_NONE) WT_TRY(compute_jacobi(p, t));
+    if (p->kind == WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind >= WT_PRECOND_JACOBI_NGS) WT_TRY(compute_lowrank(p, t));
+    *out = p;
+    return WT_OK;
+fail:
+    wt_precond_free(p);
+    return st;
+}
+
+void wt_precond_free(wt_precond *p)
+{
+    if (!p) return;
+    wt_context *ctx = p->ctx;
+    wt_free(ctx, p->jinv);
+    wt_free(ctx, p->lr_Y);
+    wt_free(ctx, p->lr_K);
+    wt_free(ctx, p->lr_w);
+    wt_free(ctx, p->lr_part);
+    wt_free(ctx, p->lr_runs);
+    wt_free(ctx, p->c_idx);
+    wt_free(ctx, p->c_L);
+    wt_free(ctx, p->c_w);
+    wt_free(ctx, p);
+}
+
+void wt_precond_apply(const wt_precond *p, const double *r, double *z)
+{
+    if (p->kind == WT_PRECOND_NONE) memcpy(z, r, (size_t)p->n * sizeof *z);
+    else if (p->kind == WT_PRECOND_JACOBI)
+        for (int64_t i = 0; i < p->n; i++) z[i] = p->jinv[i] * r[i];
+    else lowrank_apply(p, r, z); /* B⁻¹ alone when there is no NGS term (and no coarse block: J⁻¹) */
+}
+
+void wt_precond_apply_cb(void *user, const double *r, double *z) { wt_precond_apply(user, r, z); }
+
+wt_pcg_precond wt_precond_pcg(const wt_precond *p)
+{
+    wt_pcg_precond none = {NULL, NULL};
+    if (!p || p->kind == WT_PRECOND_NONE) return none;
+    /* the callback's user is not const; apply changes only the scratch p points to */
+    return (wt_pcg_precond){wt_precond_apply_cb, (void *)p};
+}
+
+int wt_precond_kind_of(const wt_precond *p) { return p->kind; }
+const char *wt_precond_name(const wt_precond *p) { return kind_names[p->kind]; }
+const double *wt_precond_jacobi_inverse(const wt_precond *p) { return p->jinv; }
+int wt_precond_rank(const wt_precond *p) { return p->nlr; }
+int wt_precond_coarse_size(const wt_precond *p) { return p->nc; }
+
+double wt_precond_bytes(const wt_precond *p)
+{
+    if (!p) return 0.0;
+    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + p->nlr) + 8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) +
+           16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2);
+}

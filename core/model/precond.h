@@ -1,0 +1,67 @@
+/* core/model/precond.h: the preconditioners of the tomography's PCG (paper §6.1; docs/design.md
+ * "Preconditioner with the NGS low-rank term", "Coarse block of the preconditioner").
+ *
+ *   none        P = I                                   plain CG
+ *   jacobi      P = J = diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D       the paper's modified Jacobi, exact diagonal
+ *   jacobi_ngs  P = J + G Ĉ⁻¹_NGS Gᵀ                     plus the exact rank-r NGS term (Woodbury)
+ *   coarse_ngs  P = B + G Ĉ⁻¹_NGS Gᵀ                     B = J with the coarse wavelet coefficients of all
+ *                                                       layers as one exact block of the LGS + prior part of M
+ *
+ * where G = [Ãᵀ e_k] over the r NGS slopes. Every kind is symmetric positive definite; the PCG applies
+ * z = P⁻¹ r. The preconditioner is built from a finished tomography through its public operators (the
+ * operator's file knows none of them: a new kind grows this module only); the tomography's solve takes it
+ * as the callback of core/solve/pcg.h (wt_precond_pcg).
+ *
+ * Set-up (wt_precond_alloc) allocates and applies M and its parts through the tomography's own workspace
+ * (not concurrently with another use of that tomography); wt_precond_apply allocates nothing, runs OpenMP
+ * regions on the tomography's thread count, and writes scratch inside the object: one caller at a time.
+ */
+#ifndef WT_PRECOND_H
+#define WT_PRECOND_H
+
+#include "../solve/pcg.h"
+#include "tomography.h"
+
+/* The kinds, in the order of the configuration's recon.<variant>.preconditioner list
+ * ("none|jacobi|jacobi_ngs|coarse_ngs": the value wt_recon_variant_config.preconditioner holds). */
+enum { WT_PRECOND_NONE = 0, WT_PRECOND_JACOBI = 1, WT_PRECOND_JACOBI_NGS = 2, WT_PRECOND_COARSE_NGS = 3,
+       WT_PRECOND_NKINDS = 4 };
+
+typedef struct wt_precond wt_precond;
+
+typedef struct wt_precond_params {
+    int kind;          /* WT_PRECOND_* */
+    int coarse_levels; /* coarse_ngs: detail levels in the block besides the scaling coefficients [-] */
+} wt_precond_params;
+
+/* "none", "jacobi", "jacobi_ngs", "coarse_ngs"; NULL for an unknown kind. */
+const char *wt_precond_kind_name(int kind);
+/* The kind of a name, -1 for anything else. */
+int wt_precond_kind(const char *name);
+
+/* Build the preconditioner of kind par->kind for the tomography t (not owned; must outlive the object).
+ * Cost at E-ELT size: jacobi ~1 s (coloured probing), the NGS term r applies of the adjoint, coarse_ngs
+ * nc applies of M (3-10 s for nc = 384). WT_ERR_INVALID for an unknown kind, WT_ERR_CONFIG when the
+ * coarse block would exceed 4096 coefficients, WT_ERR_NUMERIC when a block is not positive definite. */
+int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out);
+void wt_precond_free(wt_precond *p);
+
+/* z = P⁻¹ r (n = wt_tomography_nunknowns values each; z overwritten, r and z distinct). */
+void wt_precond_apply(const wt_precond *p, const double *r, double *z);
+/* The same as the callback of core/solve/pcg.h (user: the wt_precond). */
+void wt_precond_apply_cb(void *user, const double *r, double *z);
+/* p as the tomography's solve takes it: {wt_precond_apply_cb, p}, or {NULL, NULL} for none and for
+ * p = NULL (plain CG: the iterates P = I would give, without the copy). */
+wt_pcg_precond wt_precond_pcg(const wt_precond *p);
+
+int wt_precond_kind_of(const wt_precond *p);
+const char *wt_precond_name(const wt_precond *p);
+/* J⁻¹ (n values), the inverse modified Jacobi diagonal every kind but none is built on; NULL for none. */
+const double *wt_precond_jacobi_inverse(const wt_precond *p);
+/* Sizes of the parts: the rank r of the NGS term (0: none) and the coefficients of the coarse block. */
+int wt_precond_rank(const wt_precond *p);
+int wt_precond_coarse_size(const wt_precond *p);
+/* Bytes the object holds (for reports); p = NULL gives 0. */
+double wt_precond_bytes(const wt_precond *p);
+
+#endif
