@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <stdlib.h>
 #include <sys/resource.h>
 
 #include "cli.h"
@@ -18,6 +19,8 @@ static void help(void)
 {
     printf("usage: wavetomo bench [CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--no-build] [--threads N]\n"
            "                      [--sensing DCONFIG] [--sensing-only] [--sensing-frames N] [--set key=value]...\n"
+           "       wavetomo bench [CONFIG] --pair-a key=value... --pair-b key=value... [--pair-recon pcg3|cg9]\n"
+           "                      [--reps N] [--pair-warm N] [--threads N] [--set key=value]...\n"
            "\n"
            "Times, on CONFIG (default data/presets/eelt-mcao.cfg): one application of the normal operator M\n"
            "for pcg3 and cg9, one PCG iteration, and a whole pcg3 frame (right-hand side + the configured\n"
@@ -37,7 +40,19 @@ static void help(void)
            "frames (default 7) on the --threads threads, with the parts, the sensors' set-up time and memory, and\n"
            "the flops and bytes per subaperture against the machine's DGEMM rate and triad bandwidth; next to the\n"
            "geometric sensors' time per frame of the closed loop above. --sensing-only times only the machine\n"
-           "and the sensing (--set applies to DCONFIG too).\n");
+           "and the sensing (--set applies to DCONFIG too).\n"
+           "\n"
+           "Paired mode (issue 20 §5), when --pair-a or --pair-b is given (and then only it): two configurations\n"
+           "side by side in one process. A = CONFIG with the --set overrides and then the --pair-a ones (each\n"
+           "key=value as for --set, repeatable), B the same with the --pair-b ones. Both reconstructors of\n"
+           "--pair-recon (default cg9) are built, then apply frame after frame, alternately (A B, B A, A B, ...),\n"
+           "to the same seeded slopes (temporally correlated like a loop's, warm-started): --pair-warm frames each\n"
+           "first (default 3), then --reps pairs (default 50). Reported: each side's set-up time and memory, the\n"
+           "median [p10, p90] of its frame time and of the frame's tomography and fitting parts, and the per-pair\n"
+           "ratio B/A of each, median [p10, p90]: the figure to quote, since the host's speed drifts between and\n"
+           "within runs and a ratio of frames measured side by side does not; the machine's load average before\n"
+           "and after; and |a_B - a_A| / |a_A| of the last frame's commands when both sides have one system.\n"
+           "Example: --pair-a 'recon.cg9.fit_solver=\"cg\"' --pair-b 'recon.cg9.fit_solver=\"cholesky\"'.\n");
 }
 
 static void report(const char *what, wt_bench_stats s, double flops, double bytes)
@@ -178,13 +193,39 @@ typedef struct {
     const char *path, *sensing;
     long reps, loop_frames, sensing_frames;
     int skip_loop, skip_build, sensing_only;
+    int npair[2];                          /* --pair-a, --pair-b overrides */
+    const char *pair[2][WT_CLI_MAX_SET];
+    const char *pair_recon;                /* --pair-recon */
+    long pair_warm;
 } bench_args;
 
 static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
     bench_args *a = user;
     const char *o = argv[*i], *v;
-    if (!strcmp(o, "--no-loop")) a->skip_loop = 1;
+    if (!strcmp(o, "--pair-a") || !strcmp(o, "--pair-b")) {
+        const int k = o[7] == 'b';
+        if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
+        if (!strchr(v, '=')) {
+            wt_cli_usage_error(cli, "%s expects key=value, got '%s'", o, v);
+            return -1;
+        }
+        if (a->npair[k] == WT_CLI_MAX_SET) {
+            wt_cli_usage_error(cli, "too many %s options (at most %d)", o, WT_CLI_MAX_SET);
+            return -1;
+        }
+        a->pair[k][a->npair[k]++] = v;
+    } else if (!strcmp(o, "--pair-recon")) {
+        if (!(a->pair_recon = wt_cli_value(cli, argc, argv, i))) return -1;
+        const int kind = wt_reconstructor_kind(a->pair_recon);
+        if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9) {
+            wt_cli_usage_error(cli, "--pair-recon expects pcg3 or cg9, got '%s'", a->pair_recon);
+            return -1;
+        }
+    } else if (!strcmp(o, "--pair-warm")) {
+        if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
+        if (wt_cli_int(cli, o, v, 0, 100000, &a->pair_warm) < 0) return -1;
+    } else if (!strcmp(o, "--no-loop")) a->skip_loop = 1;
     else if (!strcmp(o, "--sensing-only")) a->sensing_only = 1;
     else if (!strcmp(o, "--sensing")) {
         if (!(a->sensing = wt_cli_value(cli, argc, argv, i))) return -1;
@@ -222,11 +263,87 @@ static int bench_mvm_build(wt_cli *cli, const wt_system *sys)
     return st;
 }
 
+/* The 1, 5 and 15 minute load averages (/proc/loadavg), or "?" where there is none. */
+static void load_average(char *buf, size_t n)
+{
+    FILE *f = fopen("/proc/loadavg", "r");
+    double l[3];
+    if (f && fscanf(f, "%lf %lf %lf", &l[0], &l[1], &l[2]) == 3) snprintf(buf, n, "%.2f %.2f %.2f", l[0], l[1], l[2]);
+    else snprintf(buf, n, "?");
+    if (f) fclose(f);
+}
+
+/* The paired mode: configurations A and B (core/sim/bench.h wt_bench_pair_run), read from path with the
+ * common --set overrides and then each side's own. */
+static int bench_pair(wt_cli *cli, const char *path, const bench_args *args)
+{
+    const int kind = wt_reconstructor_kind(args->pair_recon ? args->pair_recon : "cg9");
+    const char *sides = "AB";
+    wt_config *cfg[2] = {NULL, NULL};
+    wt_system *sys[2] = {NULL, NULL};
+    const char **set = NULL;
+    int st = WT_OK;
+    const int pairs = (int)args->reps;
+    char before[64], after[64];
+    set = malloc((size_t)(cli->nset + WT_CLI_MAX_SET) * sizeof *set);
+    if (!set) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "bench: out of memory");
+    for (int k = 0; k < 2; k++) {
+        int n = 0;
+        for (int i = 0; i < cli->nset; i++) set[n++] = cli->set[i];
+        for (int i = 0; i < args->npair[k]; i++) set[n++] = args->pair[k][i];
+        if ((st = wt_config_read(cli->ctx, path, n, set, &cfg[k])) < 0) goto out;
+        if ((st = wt_system_alloc(cli->ctx, cfg[k], &sys[k])) < 0) goto out;
+    }
+    wt_reconstructor_params par[2];
+    for (int k = 0; k < 2; k++) wt_reconstructor_params_from_config(cfg[k], kind, -1, &par[k]);
+    printf("wavetomo bench, paired: %s, %s, %d OpenMP threads, %d pairs after %ld warm frames per side, alternating "
+           "A B / B A on the same slopes\n",
+           cfg[0]->path, wt_reconstructor_name(kind), wt_context_threads(cli->ctx), pairs, args->pair_warm);
+    for (int k = 0; k < 2; k++) {
+        printf("  %c:", sides[k]);
+        for (int i = 0; i < args->npair[k]; i++) printf(" %s", args->pair[k][i]);
+        printf("%s\n", args->npair[k] ? "" : " (CONFIG as it is)");
+    }
+    const wt_system *const cs[2] = {sys[0], sys[1]};
+    wt_bench_pair b;
+    load_average(before, sizeof before);
+    st = wt_bench_pair_run(cli->ctx, cs, par, kind, (int)args->pair_warm, pairs, &b);
+    load_average(after, sizeof after);
+    if (st < 0) goto out;
+    printf("  machine load average (1, 5, 15 min): %s before, %s after\n", before, after);
+    printf("  set-up: A %.2f s, B %.2f s; memory of the reconstructor: A %.1f MB, B %.1f MB\n", b.setup[0], b.setup[1],
+           b.memory[0] / 1e6, b.memory[1] / 1e6);
+    printf("  %-11s %28s %28s %30s\n", "part", "A median [p10, p90] ms", "B median [p10, p90] ms",
+           "B/A per pair median [p10, p90]");
+    const char *names[3] = {"frame", "tomography", "fitting"};
+    const wt_bench_stats *sa[3] = {&b.frame[0], &b.tomography[0], &b.fitting[0]};
+    const wt_bench_stats *sb[3] = {&b.frame[1], &b.tomography[1], &b.fitting[1]};
+    const wt_bench_stats *sr[3] = {&b.ratio_frame, &b.ratio_tomography, &b.ratio_fitting};
+    for (int q = 0; q < (kind == WT_RECON_CG9 ? 3 : 2); q++) {
+        char ca[48], cb[48], cr[48];
+        snprintf(ca, sizeof ca, "%.3f [%.3f, %.3f]", sa[q]->med * 1e3, sa[q]->p10 * 1e3, sa[q]->p90 * 1e3);
+        snprintf(cb, sizeof cb, "%.3f [%.3f, %.3f]", sb[q]->med * 1e3, sb[q]->p10 * 1e3, sb[q]->p90 * 1e3);
+        snprintf(cr, sizeof cr, "%.4f [%.4f, %.4f]", sr[q]->med, sr[q]->p10, sr[q]->p90);
+        printf("  %-11s %28s %28s %30s\n", names[q], ca, cb, cr);
+    }
+    if (b.command_diff >= 0.0)
+        printf("  commands of the last frame: |a_B - a_A| / |a_A| = %.3g (same slopes, warm-started each side)\n",
+               b.command_diff);
+    else printf("  (the two systems differ: no comparison of the commands)\n");
+out:
+    for (int k = 0; k < 2; k++) {
+        wt_system_free(sys[k]);
+        wt_config_free(cli->ctx, cfg[k]);
+    }
+    free(set);
+    return st;
+}
+
 int wt_cmd_bench(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo bench", help)) return 1;
-    bench_args args = {NULL, NULL, 50, 20, 7, 0, 0, 0};
+    bench_args args = {.reps = 50, .loop_frames = 20, .sensing_frames = 7, .pair_warm = 3};
     int rc = wt_cli_parse(&cli, argc, argv, bench_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -239,7 +356,12 @@ int wt_cmd_bench(int argc, char **argv)
     wt_config *cfg = NULL, *dcfg = NULL;
     wt_system *sys = NULL, *dsys = NULL;
     double geometric = -1.0;
-    int st = wt_cli_read_config(&cli, path, &cfg);
+    int st;
+    if (args.npair[0] || args.npair[1]) {
+        st = bench_pair(&cli, path ? path : cli.config_path, &args);
+        goto out;
+    }
+    st = wt_cli_read_config(&cli, path, &cfg);
     if (st < 0) goto out;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
     if (st < 0) goto out;

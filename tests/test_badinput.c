@@ -232,6 +232,10 @@ static const cli_case cli_cases[] = {
     {"run --recon mvm --telemetry %1$s/t.h5 --out %1$s/o.h5", 2, {"--recon mvm", "--matrix MATRIX.h5"}, "o.h5"},
     {"run --recon pcg9 --telemetry %1$s/t.h5 --out %1$s/o.h5", 2, {"pcg9", "pcg3 or cg9"}, "o.h5"},
     {"bench " DEMO " --reps 10junk", 2, {"--reps", "10junk"}, NULL},
+    {"bench " DEMO " --pair-b recon.alpha", 2, {"--pair-b expects key=value", "recon.alpha"}, NULL},
+    {"bench " DEMO " --pair-a recon.alpha=2 --pair-recon mvm", 2, {"--pair-recon", "pcg3 or cg9"}, NULL},
+    {"bench " DEMO " --pair-a recon.alpha=2 --pair-warm -1", 2, {"--pair-warm", "-1"}, NULL},
+    {"bench " DEMO " --pair-b recon.cg9.nokey=2", 1, {"recon.cg9.nokey", "unknown key"}, NULL},
     /* B and L through the command line: the key or the include named, exit 1, nothing written */
     {"sim --config " DEMO " --set loop.frames=4294967317 --out %1$s/x.h5", 1, {"loop.frames", "32-bit"}, "x.h5"},
     {"sim --config " DEMO " --set 'atmosphere.wind_speed_mps=[1e22, 10.0, 12.0, 18.0, 25.0]' --out %1$s/x.h5", 1,

@@ -148,6 +148,17 @@ int wt_fitting_solve_continue(wt_fitting *f, const double *phi, double *a, int m
 
 double wt_fitting_epsilon(const wt_fitting *f) { return f->eps; }
 
+double wt_fitting_bytes(const wt_fitting *f)
+{
+    /* projection stencils: ~24 bytes per sample point, per DM (H_j) and per layer (P_j), per direction, as
+     * wt_tomography_bytes counts them; the grids' workspaces; the CG's 4 vectors and 2 right-hand sides */
+    int64_t npts = 0;
+    for (int64_t i = 0; i < f->ncg; i++) npts += f->mask[i] != 0;
+    const double nd = (double)f->ndm_pts, na = (double)f->sys->nact;
+    return 24.0 * (double)npts * f->ndir * (f->sys->dm->ndms + f->L) + 8.0 * nd * (2.0 + WT_GROUPS) +
+           8.0 * (double)f->ndir * (double)f->ncg + 8.0 * na * 7.0 + (double)f->ncg;
+}
+
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
                      const double *altitudes, const wt_fitting_params *par, wt_fitting **out)
 {

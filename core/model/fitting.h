@@ -48,6 +48,8 @@ int wt_fitting_solve(wt_fitting *f, const double *phi, double *a, int max_iter, 
 int wt_fitting_solve_continue(wt_fitting *f, const double *phi, double *a, int max_iter, double rtol,
                               double *history, wt_pcg_result *res);
 double wt_fitting_epsilon(const wt_fitting *f);
+/* Bytes the object holds (projection stencils estimated, workspaces), for reports. */
+double wt_fitting_bytes(const wt_fitting *f);
 /* Fit given OPD maps instead of layers: maps holds ndir maps on the sample grid (nx*ny each, only the
  * sample points read), b = Σ H_jᵀ map_j; the solve is warm-started from a. */
 void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b);

@@ -276,5 +276,18 @@ void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, 
 }
 
 wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r) { return r->last; }
+double wt_reconstructor_bytes(const wt_reconstructor *r)
+{
+    if (r->kind == WT_RECON_MVM) /* R and RÂ: 4 bytes an element, 2 in fp16/bf16 plus the row scales */
+        return (r->mvm->precision ? 2.0 : 4.0) * (double)r->mvm->nact * (double)(r->mvm->nslopes + r->mvm->nact) +
+               (r->mvm->precision ? 8.0 * (double)r->mvm->nact : 0.0);
+    if (r->kind == WT_RECON_NONE) return 0.0;
+    const int64_t n = wt_tomography_nunknowns(r->tomo);
+    double b = wt_tomography_bytes(r->tomo) + wt_precond_bytes(r->pre) + 16.0 * (double)n;
+    if (r->fit) b += wt_fitting_bytes(r->fit) + 8.0 * (double)r->sys->nact;
+    if (r->cmap) b += 16.0 * (double)wt_sparse_nnz(r->cmap) + 8.0 * (double)(r->cmap->ncol + 1);
+    return b;
+}
+
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r) { return r->pre; }

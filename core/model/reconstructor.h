@@ -61,6 +61,9 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);
 /* Wall time [s] of the last apply's tomography and fitting parts; the last (P)CG result. */
 void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, double *fitting);
 wt_pcg_result wt_reconstructor_last_pcg(const wt_reconstructor *r);
+/* Bytes the reconstructor holds (tomography, preconditioner, fitting, command map, its vectors; for mvm
+ * the matrices), for reports. */
+double wt_reconstructor_bytes(const wt_reconstructor *r);
 /* The tomography object and its preconditioner (NULL for none and mvm). */
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r);
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r);

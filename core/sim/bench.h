@@ -49,6 +49,29 @@ typedef struct wt_bench_tomography {
 int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
                             const char *name, int reps, wt_bench_tomography *out);
 
+/* Paired timing (issue 20 §5): two reconstructors A and B of one kind (WT_RECON_PCG3 or CG9; two
+ * configurations, of one system or of two) applied frame after frame, alternately — A B, B A, A B, … (the
+ * order alternates so that neither side always runs on the caches and clock the other left) — to the
+ * same slopes: a seeded sequence s_t = 0.9 s_{t−1} + 0.44 n_t, n_t white with 1 µrad rms (temporally
+ * correlated like a loop's, so the warm start continues from a nearby frame; fixed-iteration solves do not
+ * depend on the values). The host's speed changes between runs and within one (other jobs, frequency
+ * scaling); the ratio of two frames measured side by side does not change with it, so the per-pair ratio
+ * B / A is the figure to quote, with its spread. `warm` frames per side first (untimed), then `pairs`
+ * pairs. Each side's slopes have its own system's length; when the two systems have the same slopes and
+ * actuators the sides see the same values and the commands are compared. */
+typedef struct wt_bench_pair {
+    double setup[2];                    /* wt_reconstructor_alloc of each side [s] */
+    double memory[2];                   /* wt_reconstructor_bytes of each side [bytes] */
+    wt_bench_stats frame[2];            /* wt_reconstructor_apply [s] */
+    wt_bench_stats tomography[2];       /* its tomography part (rhs + (P)CG + layers) [s] */
+    wt_bench_stats fitting[2];          /* its fitting part (cg9; 0 for pcg3) [s] */
+    wt_bench_stats ratio_frame, ratio_tomography, ratio_fitting; /* B / A per pair [-] (fitting: 0 for pcg3) */
+    double command_diff;                /* ‖a_B − a_A‖ / ‖a_A‖ of the last frame; −1 when the systems differ */
+} wt_bench_pair;
+
+int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_reconstructor_params par[2], int kind,
+                      int warm, int pairs, wt_bench_pair *out);
+
 /* The closed loop: warm frames, then `frames` timed frames. */
 typedef struct wt_bench_loop {
     double setup;            /* wt_loop_alloc_params [s] */
