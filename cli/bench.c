@@ -313,6 +313,15 @@ static int bench_pair(wt_cli *cli, const char *path, const bench_args *args)
     printf("  machine load average (1, 5, 15 min): %s before, %s after\n", before, after);
     printf("  set-up: A %.2f s, B %.2f s; memory of the reconstructor: A %.1f MB, B %.1f MB\n", b.setup[0], b.setup[1],
            b.memory[0] / 1e6, b.memory[1] / 1e6);
+    for (int k = 0; k < 2 && b.has_fitting; k++) {
+        const wt_fitting_stats *fs = &b.fit[k];
+        if (b.fit_solver[k] == WT_FIT_CHOLESKY)
+            printf("  %c's fitting: Cholesky of N (%lld non-zeros) assembled in %.2f s, factored in %.2f s (%s): L has "
+                   "%.3g non-zeros, %.1f MB held; the solves read %.1f MB per frame (split %.2g + %.2g | top %.2g)\n",
+                   sides[k], (long long)fs->nnz_matrix, fs->t_assemble, fs->t_factorize, fs->ordering, fs->nnz_factor,
+                   fs->factor_bytes / 1e6, 2.0 * fs->solve_bytes / 1e6, fs->split[0], fs->split[1], fs->split[2]);
+        else printf("  %c's fitting: CG, %d iterations per frame\n", sides[k], par[k].fit_iterations);
+    }
     printf("  %-11s %28s %28s %30s\n", "part", "A median [p10, p90] ms", "B median [p10, p90] ms",
            "B/A per pair median [p10, p90]");
     const char *names[3] = {"frame", "tomography", "fitting"};

@@ -1,4 +1,4 @@
-/* tests/test_sparse.c: CSC assembly, transpose and products against dense arithmetic. */
+/* tests/test_sparse.c: CSC assembly, transpose, products and sums against dense arithmetic. */
 #include "core/la/sparse.h"
 #include "testutil.h"
 
@@ -84,12 +84,41 @@ START_TEST(test_products_match_dense)
 }
 END_TEST
 
+/* αA + βB against the dense sum: every element is one or two products and one add, so equal to the dense
+ * formula exactly; canonical (sorted, no zeros: B − B cancels to an empty matrix); sizes checked. */
+START_TEST(test_add_matches_dense)
+{
+    wt_context *ctx = tu_context();
+    const int m = 29, n = 17;
+    wt_sparse *a = random_sparse(ctx, m, n, 0.3, 3, 0), *b = random_sparse(ctx, m, n, 0.25, 4, 1), *c, *z, *bad;
+    double da[29 * 17], db[29 * 17], dc[29 * 17];
+    dense_of(a, da);
+    dense_of(b, db);
+    ck_assert_int_eq(wt_sparse_add(a, 2.0, b, -0.5, &c), WT_OK);
+    dense_of(c, dc);
+    for (int i = 0; i < m * n; i++) ck_assert_double_eq(dc[i], 2.0 * da[i] + -0.5 * db[i]);
+    for (int j = 0; j < n; j++)
+        for (int64_t q = c->colptr[j]; q < c->colptr[j + 1]; q++) {
+            if (q > c->colptr[j]) ck_assert_int_lt(c->rowind[q - 1], c->rowind[q]);
+            ck_assert_double_ne(c->val[q], 0.0);
+        }
+    ck_assert_int_eq(wt_sparse_add(b, 1.0, b, -1.0, &z), WT_OK);
+    ck_assert_int_eq(wt_sparse_nnz(z), 0);
+    wt_sparse *at;
+    ck_assert_int_eq(wt_sparse_transpose(a, &at), WT_OK);
+    ck_assert_int_eq(wt_sparse_add(a, 1.0, at, 1.0, &bad), WT_ERR_INVALID);
+    wt_sparse_free(a), wt_sparse_free(b), wt_sparse_free(c), wt_sparse_free(z), wt_sparse_free(at);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("sparse");
     TCase *tc = tcase_create("core");
     tcase_add_test(tc, test_triplet_sums_duplicates_and_sorts);
     tcase_add_test(tc, test_products_match_dense);
+    tcase_add_test(tc, test_add_matches_dense);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -4,6 +4,28 @@
 
 #include <cholmod.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* wt_chol_prepare_one's plan of the single right-hand-side solves */
+typedef struct one_plan {
+    int ready;
+    int nthreads;           /* 1 or 2 */
+    int float32;            /* the packed values are float (else double) */
+    void *val;              /* L packed: supernode k's column j holds its rows j .. nsrow − 1 (the diagonal
+                               block's lower triangle, then the rows below), columns one after another */
+    int64_t *voff;          /* nsuper + 1: where supernode k's columns start in val */
+    int64_t *order;         /* the supernodes of group 0, group 1, then the top part, each in elimination order */
+    int64_t start[4];       /* order[start[g] .. start[g + 1]) is part g (0, 1: groups, 2: top) */
+    double entries[3];      /* entries of L per part */
+    double *y;              /* n: the permuted right-hand side / solution */
+    double *buf[2];         /* n each: a group's updates of top rows (forward) */
+    double *work[2];        /* max rows of a supernode, per group */
+    int64_t *top_rows;      /* the rows of the top part's columns (the only ones buf touches) */
+    int64_t ntop_rows;
+    int *is_top;            /* n: 1 for those rows */
+} one_plan;
 
 struct wt_chol {
     wt_context *ctx;
@@ -13,6 +35,7 @@ struct wt_chol {
     cholmod_dense *X, *Y, *E; /* solve workspace kept between calls (cholmod_l_solve2) */
     int64_t n, nnz;
     int factorized;
+    one_plan one;
 };
 
 #define WT_STR_(x) #x
@@ -101,9 +124,25 @@ fail:
     return st;
 }
 
+static void one_plan_free(wt_context *ctx, one_plan *p)
+{
+    wt_free(ctx, p->val);
+    wt_free(ctx, p->voff);
+    wt_free(ctx, p->order);
+    wt_free(ctx, p->y);
+    for (int g = 0; g < 2; g++) {
+        wt_free(ctx, p->buf[g]);
+        wt_free(ctx, p->work[g]);
+    }
+    wt_free(ctx, p->top_rows);
+    wt_free(ctx, p->is_top);
+    memset(p, 0, sizeof *p);
+}
+
 void wt_chol_free(wt_chol *c)
 {
     if (!c) return;
+    one_plan_free(c->ctx, &c->one);
     if (c->started) {
         if (c->L) cholmod_l_free_factor(&c->L, &c->cm);
         if (c->X) cholmod_l_free_dense(&c->X, &c->cm);
@@ -164,6 +203,7 @@ int wt_chol_factorize(wt_chol *c, const wt_sparse *upper)
     cholmod_sparse a = view_upper(upper);
     c->nnz = wt_sparse_nnz(upper);
     c->factorized = 0;
+    one_plan_free(c->ctx, &c->one); /* a plan of the old values: prepare again */
     int ok = cholmod_l_factorize(&a, c->L, &c->cm);
     if (!ok || c->cm.status < 0) return cholmod_failure(c, "cholmod_l_factorize");
     if (c->cm.status == CHOLMOD_NOT_POSDEF)
@@ -203,4 +243,348 @@ double wt_chol_solve_bytes(int64_t n, int64_t nrhs)
 {
     /* X, Y (n x nrhs each, Y may be sized up to the supernode block) and E */
     return 8.0 * (double)n * (double)nrhs * 3.0;
+}
+
+/* ---- single right-hand side, two threads (wt_chol_prepare_one, wt_chol_solve_one) ----------------------
+ *
+ * CHOLMOD's supernodal LLᵀ (final_asis): supernode k holds columns super[k] .. super[k+1) as one dense
+ * column-major block of nsrow = pi[k+1] − pi[k] rows (row indices s[pi[k] ..], the first nscol = the
+ * supernode's own columns) at x[px[k] ..]. Its parent in the supernodal elimination tree is the supernode
+ * of its first row below the diagonal block; with CHOLMOD's postorder, a subtree is a contiguous range of
+ * supernodes ending at its root. */
+
+int wt_chol_prepare_one(wt_chol *c, int float32, int nthreads)
+{
+    int st = WT_OK;
+    wt_context *ctx = c->ctx;
+    one_plan *p = &c->one;
+    const cholmod_factor *L = c->L;
+    int64_t *parent = NULL, *col2sup = NULL, *first = NULL, *task = NULL, *mark = NULL;
+    double *weight = NULL;
+    one_plan_free(ctx, p);
+    if (!c->factorized || !L->is_super || !L->is_ll)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_chol_prepare_one: needs a supernodal LL' factorisation first");
+    const int64_t n = c->n, ns = (int64_t)L->nsuper;
+    const int64_t *super = L->super, *pi = L->pi, *px = L->px, *srow = L->s;
+    WT_ALLOC(ctx, parent, ns, "solve plan");
+    WT_ALLOC(ctx, col2sup, n, "solve plan");
+    WT_ALLOC(ctx, first, ns, "solve plan");
+    WT_ALLOC(ctx, weight, ns, "solve plan");
+    WT_ALLOC(ctx, task, ns, "solve plan");
+    WT_ALLOC(ctx, mark, ns, "solve plan");
+    for (int64_t k = 0; k < ns; k++)
+        for (int64_t j = super[k]; j < super[k + 1]; j++) col2sup[j] = k;
+    /* parent, subtree weight (entries of L) and first supernode of each subtree (postorder: contiguous) */
+    for (int64_t k = 0; k < ns; k++) {
+        const int64_t nscol = super[k + 1] - super[k], nsrow = pi[k + 1] - pi[k];
+        parent[k] = nsrow > nscol ? col2sup[srow[pi[k] + nscol]] : -1;
+        if (parent[k] >= 0 && parent[k] <= k) {
+            st = WT_ERROR(ctx, WT_ERR_LIBRARY, "wt_chol_prepare_one: the supernodes are not in postorder");
+            goto fail;
+        }
+        first[k] = k;
+    }
+    for (int64_t k = 0; k < ns; k++) weight[k] += (double)(px[k + 1] - px[k]);
+    for (int64_t k = 0; k < ns; k++)
+        if (parent[k] >= 0) {
+            weight[parent[k]] += weight[k];
+            if (first[k] < first[parent[k]]) first[parent[k]] = first[k];
+        }
+    /* tasks: start with the roots; split the heaviest task into its root (→ top) and its children while it
+     * weighs more than half of what the tasks hold (a task that heavy keeps one thread alone busy) */
+    int64_t ntask = 0;
+    for (int64_t k = 0; k < ns; k++)
+        if (parent[k] < 0) task[ntask++] = k;
+    for (int guard = 0; guard < 64; guard++) {
+        double tot = 0.0, big = -1.0;
+        int64_t bi = -1;
+        for (int64_t t = 0; t < ntask; t++) {
+            tot += weight[task[t]];
+            if (weight[task[t]] > big) big = weight[task[t]], bi = t;
+        }
+        if (bi < 0 || big <= 0.5 * tot) break;
+        const int64_t r = task[bi];
+        int64_t nchild = 0;
+        for (int64_t k = first[r]; k < r; k++) nchild += parent[k] == r;
+        if (nchild == 0) break; /* a single supernode: nothing to split */
+        mark[r] = 1;            /* top part */
+        task[bi] = task[--ntask];
+        for (int64_t k = first[r]; k < r; k++)
+            if (parent[k] == r) task[ntask++] = k;
+    }
+    /* deal the tasks to two groups, heaviest first to the lighter group (ties: lower index first, so the plan
+     * is a function of the factor alone) */
+    for (int64_t a = 1; a < ntask; a++) { /* insertion sort by weight descending, then index */
+        const int64_t v = task[a];
+        int64_t b = a - 1;
+        while (b >= 0 && (weight[task[b]] < weight[v] || (weight[task[b]] == weight[v] && task[b] > v))) {
+            task[b + 1] = task[b];
+            b--;
+        }
+        task[b + 1] = v;
+    }
+    double gw[2] = {0.0, 0.0};
+    for (int64_t t = 0; t < ntask; t++) {
+        const int g = gw[1] < gw[0];
+        gw[g] += weight[task[t]];
+        for (int64_t k = first[task[t]]; k <= task[t]; k++) mark[k] = 2 + g;
+    }
+    WT_ALLOC(ctx, p->order, ns, "solve plan");
+    int64_t at = 0;
+    for (int part = 0; part < 3; part++) {
+        p->start[part] = at;
+        const int64_t want = part == 2 ? 1 : 2 + part;
+        p->entries[part] = 0.0;
+        for (int64_t k = 0; k < ns; k++)
+            if (mark[k] == want) {
+                p->order[at++] = k;
+                p->entries[part] += (double)(px[k + 1] - px[k]);
+            }
+    }
+    p->start[3] = at;
+    if (at != ns) {
+        st = WT_ERROR(ctx, WT_ERR_LIBRARY, "wt_chol_prepare_one: %lld of %lld supernodes placed", (long long)at, (long long)ns);
+        goto fail;
+    }
+    /* the top part's columns: the rows the groups' buffers carry */
+    p->ntop_rows = 0;
+    for (int64_t q = p->start[2]; q < p->start[3]; q++) p->ntop_rows += super[p->order[q] + 1] - super[p->order[q]];
+    WT_ALLOC(ctx, p->top_rows, p->ntop_rows + 1, "solve plan");
+    WT_ALLOC(ctx, p->is_top, n, "solve plan");
+    {
+        int64_t m = 0;
+        for (int64_t q = p->start[2]; q < p->start[3]; q++)
+            for (int64_t j = super[p->order[q]]; j < super[p->order[q] + 1]; j++) {
+                p->top_rows[m++] = j;
+                p->is_top[j] = 1;
+            }
+    }
+    int64_t maxrow = 1; /* a supernode's rows below its block and its columns (backward's partial dots) */
+    for (int64_t k = 0; k < ns; k++)
+        if (pi[k + 1] - pi[k] > maxrow) maxrow = pi[k + 1] - pi[k];
+    WT_ALLOC(ctx, p->y, n, "solve vector");
+    for (int g = 0; g < 2; g++) {
+        WT_ALLOC(ctx, p->buf[g], n, "solve buffer");
+        WT_ALLOC(ctx, p->work[g], maxrow, "solve workspace");
+    }
+    /* the packed copy: CHOLMOD keeps each diagonal block whole (its upper triangle unused), which the solves
+     * would stream for nothing (the root supernode alone is a dense 988² block at E-ELT) */
+    WT_ALLOC(ctx, p->voff, ns + 1, "packed factor offsets");
+    for (int64_t k = 0; k < ns; k++) {
+        const int64_t nscol = super[k + 1] - super[k], nsrow = pi[k + 1] - pi[k];
+        p->voff[k + 1] = p->voff[k] + nscol * nsrow - nscol * (nscol - 1) / 2;
+    }
+    p->float32 = float32 != 0;
+    p->val = wt_calloc(ctx, (size_t)p->voff[ns], float32 ? sizeof(float) : sizeof(double));
+    if (!p->val) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for the packed factor (%lld values)", (long long)p->voff[ns]);
+        goto fail;
+    }
+    {
+        const double *x = L->x;
+        for (int64_t k = 0; k < ns; k++) {
+            const int64_t nscol = super[k + 1] - super[k], nsrow = pi[k + 1] - pi[k];
+            int64_t o = p->voff[k];
+            for (int64_t j = 0; j < nscol; j++)
+                for (int64_t i = j; i < nsrow; i++, o++) {
+                    const double v = x[px[k] + i + nsrow * j];
+                    if (float32) ((float *)p->val)[o] = (float)v;
+                    else ((double *)p->val)[o] = v;
+                }
+        }
+    }
+    p->nthreads = nthreads >= 2 ? 2 : 1;
+    p->ready = 1;
+fail:
+    if (st < 0) one_plan_free(ctx, p);
+    wt_free(ctx, parent);
+    wt_free(ctx, col2sup);
+    wt_free(ctx, first);
+    wt_free(ctx, weight);
+    wt_free(ctx, task);
+    wt_free(ctx, mark);
+    return st;
+}
+
+double wt_chol_one_bytes(const wt_chol *c)
+{
+    if (!c->one.ready) return 0.0;
+    return (double)c->one.voff[c->L->nsuper] * (c->one.float32 ? 4.0 : 8.0);
+}
+
+void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top)
+{
+    *group0 = c->one.entries[0];
+    *group1 = c->one.entries[1];
+    *top = c->one.entries[2];
+}
+
+/* Supernode k packed (see one_plan.val), in double or float: column j starts at j (nscol + m) − j (j − 1) / 2
+ * with m = nsrow − nscol rows below the diagonal block, and holds L(j, j), L(j + 1 .. nscol − 1, j), then
+ * the m rows below. The kernels are written once over the value type (two copies by the macro) and cloned for
+ * AVX2/AVX-512 like the transforms. The dots keep 8 partial sums in fixed lanes (lane i % 8), added in a fixed
+ * order at the end: a loop that vectorises without reassociation (ISO C: no FMA contraction either), so every
+ * clone and every thread count gives the same bits. */
+#define ONE_COL(j, nscol, m) ((j) * ((nscol) + (m)) - (j) * ((j) - 1) / 2)
+#define ONE_KERNELS(T, SUF)                                                                                      \
+    static inline double dot_##SUF(const T *restrict a, const double *restrict b, int64_t m)                   \
+    {                                                                                                          \
+        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};                                              \
+        int64_t i = 0;                                                                                         \
+        for (; i + 8 <= m; i += 8)                                                                             \
+            for (int l = 0; l < 8; l++) acc[l] += (double)a[i + l] * b[i + l];                                 \
+        for (int l = 0; i + l < m; l++) acc[l] += (double)a[i + l] * b[i + l];                                 \
+        return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));              \
+    }                                                                                                          \
+    /* forward: y[k1 .. k2) ← L_kk⁻¹ y[k1 .. k2); then the rows below: w = L_bk y[k1 .. k2), and y[s_i] −= w_i  \
+     * (into the group's buffer, with the opposite sign, for a row of the top part) */                         \
+    WT_CPU_CLONES static void forward_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1,       \
+                                            int64_t nscol, int64_t nsrow, double *restrict y,                  \
+                                            double *restrict w, double *restrict buf, const int *restrict top) \
+    {                                                                                                          \
+        const int64_t m = nsrow - nscol;                                                                       \
+        double *restrict yk = y + k1;                                                                          \
+        for (int64_t j = 0; j < nscol; j++) {                                                                  \
+            const T *restrict col = v + ONE_COL(j, nscol, m);                                                  \
+            const double yj = (yk[j] /= (double)col[0]);                                                       \
+            const int64_t d = nscol - j;                                                                       \
+            for (int64_t i = 1; i < d; i++) yk[j + i] -= (double)col[i] * yj;                                  \
+        }                                                                                                      \
+        if (m == 0) return;                                                                                    \
+        for (int64_t i = 0; i < m; i++) w[i] = 0.0;                                                            \
+        int64_t j = 0;                                                                                         \
+        for (; j + 4 <= nscol; j += 4) { /* 4 columns a pass over w: the same adds, in the same order */      \
+            const T *restrict c0 = v + ONE_COL(j, nscol, m) + (nscol - j);                                     \
+            const T *restrict c1 = v + ONE_COL(j + 1, nscol, m) + (nscol - j - 1);                             \
+            const T *restrict c2 = v + ONE_COL(j + 2, nscol, m) + (nscol - j - 2);                             \
+            const T *restrict c3 = v + ONE_COL(j + 3, nscol, m) + (nscol - j - 3);                             \
+            const double y0 = yk[j], y1 = yk[j + 1], y2 = yk[j + 2], y3 = yk[j + 3];                           \
+            for (int64_t i = 0; i < m; i++)                                                                    \
+                w[i] = (((w[i] + (double)c0[i] * y0) + (double)c1[i] * y1) + (double)c2[i] * y2) +             \
+                       (double)c3[i] * y3;                                                                     \
+        }                                                                                                      \
+        for (; j < nscol; j++) {                                                                               \
+            const T *restrict col = v + ONE_COL(j, nscol, m) + (nscol - j);                                    \
+            const double yj = yk[j];                                                                           \
+            for (int64_t i = 0; i < m; i++) w[i] += (double)col[i] * yj;                                       \
+        }                                                                                                      \
+        const int64_t *restrict below = rows + nscol;                                                          \
+        if (buf) {                                                                                             \
+            for (int64_t i = 0; i < m; i++) {                                                                  \
+                const int64_t r = below[i];                                                                    \
+                if (top[r]) buf[r] += w[i];                                                                    \
+                else y[r] -= w[i];                                                                             \
+            }                                                                                                  \
+        } else                                                                                                 \
+            for (int64_t i = 0; i < m; i++) y[below[i]] -= w[i];                                               \
+    }                                                                                                          \
+    /* backward: y[k1 .. k2) ← L_kkᵀ⁻¹ (y[k1 .. k2) − L_bkᵀ y[rows below]) */                                  \
+    WT_CPU_CLONES static void backward_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1,      \
+                                             int64_t nscol, int64_t nsrow, double *restrict y,                 \
+                                             double *restrict w)                                               \
+    {                                                                                                          \
+        const int64_t m = nsrow - nscol;                                                                       \
+        double *restrict yk = y + k1;                                                                          \
+        for (int64_t i = 0; i < m; i++) w[i] = y[rows[nscol + i]];                                             \
+        /* the rows below first, 4 columns a pass over w (each dot in its own 8 lanes: the bits of dot_) */     \
+        double *restrict t = w + m;                                                                            \
+        int64_t j = 0;                                                                                         \
+        for (; j + 4 <= nscol && m > 0; j += 4) {                                                              \
+            const T *restrict c0 = v + ONE_COL(j, nscol, m) + (nscol - j);                                     \
+            const T *restrict c1 = v + ONE_COL(j + 1, nscol, m) + (nscol - j - 1);                             \
+            const T *restrict c2 = v + ONE_COL(j + 2, nscol, m) + (nscol - j - 2);                             \
+            const T *restrict c3 = v + ONE_COL(j + 3, nscol, m) + (nscol - j - 3);                             \
+            double a0[8] = {0}, a1[8] = {0}, a2[8] = {0}, a3[8] = {0};                                         \
+            int64_t i = 0;                                                                                     \
+            for (; i + 8 <= m; i += 8)                                                                         \
+                for (int l = 0; l < 8; l++) {                                                                  \
+                    const double wi = w[i + l];                                                                \
+                    a0[l] += (double)c0[i + l] * wi;                                                           \
+                    a1[l] += (double)c1[i + l] * wi;                                                           \
+                    a2[l] += (double)c2[i + l] * wi;                                                           \
+                    a3[l] += (double)c3[i + l] * wi;                                                           \
+                }                                                                                              \
+            for (int l = 0; i + l < m; l++) {                                                                  \
+                const double wi = w[i + l];                                                                    \
+                a0[l] += (double)c0[i + l] * wi;                                                               \
+                a1[l] += (double)c1[i + l] * wi;                                                               \
+                a2[l] += (double)c2[i + l] * wi;                                                               \
+                a3[l] += (double)c3[i + l] * wi;                                                               \
+            }                                                                                                  \
+            t[j] = ((a0[0] + a0[1]) + (a0[2] + a0[3])) + ((a0[4] + a0[5]) + (a0[6] + a0[7]));                  \
+            t[j + 1] = ((a1[0] + a1[1]) + (a1[2] + a1[3])) + ((a1[4] + a1[5]) + (a1[6] + a1[7]));              \
+            t[j + 2] = ((a2[0] + a2[1]) + (a2[2] + a2[3])) + ((a2[4] + a2[5]) + (a2[6] + a2[7]));              \
+            t[j + 3] = ((a3[0] + a3[1]) + (a3[2] + a3[3])) + ((a3[4] + a3[5]) + (a3[6] + a3[7]));              \
+        }                                                                                                      \
+        for (; j < nscol; j++) t[j] = dot_##SUF(v + ONE_COL(j, nscol, m) + (nscol - j), w, m);               \
+        for (int64_t jj = nscol - 1; jj >= 0; jj--) {                                                          \
+            const T *restrict col = v + ONE_COL(jj, nscol, m);                                                 \
+            const double s = t[jj] + dot_##SUF(col + 1, yk + jj + 1, nscol - jj - 1);                          \
+            yk[jj] = (yk[jj] - s) / (double)col[0];                                                            \
+        }                                                                                                      \
+    }
+
+ONE_KERNELS(double, d)
+ONE_KERNELS(float, f)
+
+/* Part `part` of the plan, forward or backward; buf: the group's buffer of top rows (forward, groups only). */
+static void one_part(const wt_chol *c, int part, int backward, double *w, double *buf, const int *top)
+{
+    const one_plan *p = &c->one;
+    const cholmod_factor *L = c->L;
+    const int64_t *super = L->super, *pi = L->pi, *srow = L->s;
+    const int64_t a = p->start[part], b = p->start[part + 1];
+    for (int64_t q = backward ? b - 1 : a; backward ? q >= a : q < b; q += backward ? -1 : 1) {
+        const int64_t k = p->order[q], k1 = super[k], nscol = super[k + 1] - k1, nsrow = pi[k + 1] - pi[k];
+        const int64_t *rows = srow + pi[k];
+        if (p->float32) {
+            const float *v = (const float *)p->val + p->voff[k];
+            if (backward) backward_f(v, rows, k1, nscol, nsrow, p->y, w);
+            else forward_f(v, rows, k1, nscol, nsrow, p->y, w, buf, top);
+        } else {
+            const double *v = (const double *)p->val + p->voff[k];
+            if (backward) backward_d(v, rows, k1, nscol, nsrow, p->y, w);
+            else forward_d(v, rows, k1, nscol, nsrow, p->y, w, buf, top);
+        }
+    }
+}
+
+int wt_chol_solve_one(wt_chol *c, const double *b, double *x)
+{
+    one_plan *p = &c->one;
+    if (!p->ready) return WT_ERROR(c->ctx, WT_ERR_INVALID, "wt_chol_solve_one: called before wt_chol_prepare_one");
+    const int64_t n = c->n, *perm = c->L->Perm;
+    for (int64_t i = 0; i < n; i++) p->y[i] = b[perm[i]]; /* P b */
+    for (int g = 0; g < 2; g++)
+        for (int64_t m = 0; m < p->ntop_rows; m++) p->buf[g][p->top_rows[m]] = 0.0;
+    /* forward: the two groups side by side, then their updates of the top rows (group 0's, then group 1's:
+     * the same order on any number of threads), then the top part */
+#pragma omp parallel num_threads(p->nthreads)
+    {
+#ifdef _OPENMP
+        const int id = omp_get_thread_num(), nt = omp_get_num_threads();
+#else
+        const int id = 0, nt = 1;
+#endif
+        for (int g = id; g < 2; g += nt) one_part(c, g, 0, p->work[g], p->buf[g], p->is_top);
+    }
+    for (int64_t m = 0; m < p->ntop_rows; m++) {
+        const int64_t r = p->top_rows[m];
+        p->y[r] -= p->buf[0][r];
+        p->y[r] -= p->buf[1][r];
+    }
+    one_part(c, 2, 0, p->work[0], NULL, NULL);
+    /* backward: the top part, then the groups side by side (each writes its own columns only) */
+    one_part(c, 2, 1, p->work[0], NULL, NULL);
+#pragma omp parallel num_threads(p->nthreads)
+    {
+#ifdef _OPENMP
+        const int id = omp_get_thread_num(), nt = omp_get_num_threads();
+#else
+        const int id = 0, nt = 1;
+#endif
+        for (int g = id; g < 2; g += nt) one_part(c, g, 1, p->work[g], NULL, NULL);
+    }
+    for (int64_t i = 0; i < n; i++) x[perm[i]] = p->y[i]; /* Pᵀ z */
+    return WT_OK;
 }

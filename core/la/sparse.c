@@ -298,3 +298,36 @@ fail:
     wt_sparse_free(c);
     return st;
 }
+
+int wt_sparse_add(const wt_sparse *a, double alpha, const wt_sparse *b, double beta, wt_sparse **out)
+{
+    int st = WT_OK;
+    wt_sparse *c = NULL;
+    *out = NULL;
+    if (a->nrow != b->nrow || a->ncol != b->ncol)
+        return WT_ERROR(a->ctx, WT_ERR_INVALID, "sparse add: %lld x %lld and %lld x %lld", (long long)a->nrow,
+                        (long long)a->ncol, (long long)b->nrow, (long long)b->ncol);
+    WT_TRY(wt_sparse_alloc(a->ctx, a->nrow, a->ncol, wt_sparse_nnz(a) + wt_sparse_nnz(b), &c));
+    int64_t p = 0;
+    for (int64_t j = 0; j < a->ncol; j++) { /* merge of two sorted row lists */
+        int64_t ka = a->colptr[j], kb = b->colptr[j];
+        const int64_t ea = a->colptr[j + 1], eb = b->colptr[j + 1];
+        while (ka < ea || kb < eb) {
+            const int64_t ra = ka < ea ? a->rowind[ka] : INT64_MAX, rb = kb < eb ? b->rowind[kb] : INT64_MAX;
+            double v;
+            int64_t r;
+            if (ra < rb) r = ra, v = alpha * a->val[ka++];
+            else if (rb < ra) r = rb, v = beta * b->val[kb++];
+            else r = ra, v = alpha * a->val[ka++] + beta * b->val[kb++];
+            if (v == 0.0) continue;
+            c->rowind[p] = r;
+            c->val[p++] = v;
+        }
+        c->colptr[j + 1] = p;
+    }
+    *out = c;
+    return WT_OK;
+fail:
+    wt_sparse_free(c);
+    return st;
+}

@@ -39,5 +39,8 @@ void wt_sparse_apply_t(const wt_sparse *a, double alpha, const double *x, double
 int wt_sparse_transpose(const wt_sparse *a, wt_sparse **out);
 /* C = A * B (allocates). */
 int wt_sparse_multiply(const wt_sparse *a, const wt_sparse *b, wt_sparse **out);
+/* C = α A + β B, A and B of one size and canonical (rows sorted in each column, no duplicates); C canonical,
+ * exact zeros dropped (allocates). */
+int wt_sparse_add(const wt_sparse *a, double alpha, const wt_sparse *b, double beta, wt_sparse **out);
 
 #endif

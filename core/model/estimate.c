@@ -123,7 +123,17 @@ static void tomography(const wt_config *c, const sizes *s, int kind, wt_estimate
         double samples = sq(c->lgs_wfs.subapertures * (v->fit_sampling > 0 ? v->fit_sampling : 1) + 1);
         term(e, 8.0 * s->neval * samples * (2.0 + c->ndms), "fitting maps and projections",
              "evaluation.grid, lgs.wfs.subapertures, recon.cg9.fit_sampling");
-        *flops += (v->fit_iterations + 1) * 2.0 * 8.0 * s->neval * samples * c->ndms;
+        if (v->fit_solver == 1) {
+            /* the Cholesky fitting: L of ~3.5 nact^1.5 entries (E-ELT 3.5e6 for 10027 actuators, demo 8.6e4 for
+             * 759), CHOLMOD's copy with ~30 % supernodal padding plus the solves' packed copy, and the assembly's
+             * N and sparse products (~150 entries an actuator, 3 copies at the peak); a frame: the right-hand side
+             * and 2 passes over L */
+            const double lnz = 3.5 * s->nact * sqrt(s->nact);
+            term(e, lnz * (1.3 * 8.0 + (v->fit_factor_precision ? 4.0 : 8.0)) + 3.0 * 16.0 * 150.0 * s->nact,
+                 "fitting Cholesky factor", "dm.actuators, dm.pitch_m, recon.cg9.fit_solver");
+            *flops += 2.0 * 8.0 * s->neval * samples * c->ndms + 4.0 * lnz;
+        } else
+            *flops += (v->fit_iterations + 1) * 2.0 * 8.0 * s->neval * samples * c->ndms;
     }
 }
 

@@ -1,4 +1,9 @@
-/* core/model/fitting.c: DM fitting over the evaluation directions by CG (paper eq. fit_step_min). */
+/* core/model/fitting.c: DM fitting over the evaluation directions (paper eq. fit_step_min):
+ *
+ *   (Σ_j H_jᵀ H_j + ε I) a = Σ_j H_jᵀ P_j φ,
+ *
+ * by warm-started CG on the matrix-free operator, or by the Cholesky factor of the assembled matrix
+ * (CHOLMOD, core/la/chol.h): the matrix is the same every frame, so the factor is computed once. */
 #include "fitting.h"
 
 #include <stdio.h>
@@ -7,6 +12,7 @@
 #include <omp.h>
 #endif
 
+#include "../la/chol.h"
 #include "../la/vec.h"
 #include "tomography.h"
 #include "../op/projection.h"
@@ -30,6 +36,10 @@ struct wt_fitting {
     double *pupil;          /* ndir x ncg */
     double *b;              /* nact: the public forms' scratch, the maps solve's right-hand side */
     wt_pcg *pcg;
+    int solver;             /* WT_FIT_CG or WT_FIT_CHOLESKY */
+    wt_chol *chol;          /* WT_FIT_CHOLESKY: the factor of N */
+    int factor_float32;     /* its solves read a float32 copy of L */
+    wt_fitting_stats stats;
 };
 
 /* out = Σ_j H_jᵀ S_j in, on the full DM grids: S_j = H_j (normal operator, in = DM grids) or P_j
@@ -98,10 +108,21 @@ void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
     wt_dm_restrict(f->sys->dm, f->grids, b);
 }
 
+/* a = N⁻¹ b by the factor (b and a distinct or the same); res and history as a CG that converged at once */
+static int direct(wt_fitting *f, const double *b, double *a, double *history, wt_pcg_result *res)
+{
+    const int64_t n = f->sys->nact;
+    if (res) *res = (wt_pcg_result){0, 0.0};
+    if (history) history[0] = 0.0;
+    (void)n;
+    return wt_chol_solve_one(f->chol, b, a);
+}
+
 int wt_fitting_solve_maps(wt_fitting *f, const double *maps, double *a, int max_iter, double rtol,
                           wt_pcg_result *res)
 {
     wt_fitting_rhs_maps(f, maps, f->b);
+    if (f->chol) return direct(f, f->b, a, NULL, res);
     return wt_pcg_solve(f->pcg, apply_cb, f, NULL, f->b, a, max_iter, rtol, NULL, res);
 }
 
@@ -130,6 +151,10 @@ fail:
 static int solve(wt_fitting *f, const double *phi, double *a, int continuing, int max_iter, double rtol,
                  double *history, wt_pcg_result *res)
 {
+    if (f->chol) {
+        rhs(f, phi, f->b);
+        return direct(f, f->b, a, history, res);
+    }
     rhs(f, phi, wt_pcg_rhs(f->pcg));
     return wt_pcg_solve_rhs(f->pcg, apply_cb, f, NULL, NULL, NULL, a, continuing, max_iter, rtol, history, res);
 }
@@ -147,6 +172,95 @@ int wt_fitting_solve_continue(wt_fitting *f, const double *phi, double *a, int m
 }
 
 double wt_fitting_epsilon(const wt_fitting *f) { return f->eps; }
+int wt_fitting_solver(const wt_fitting *f) { return f->solver; }
+void wt_fitting_stats_get(const wt_fitting *f, wt_fitting_stats *stats) { *stats = f->stats; }
+
+int wt_fitting_assemble(const wt_fitting *f, wt_sparse **out)
+{
+    int st = WT_OK;
+    wt_context *ctx = f->ctx;
+    const wt_system *sys = f->sys;
+    const int64_t ndm = f->ndm_pts;
+    wt_sparse *sum = NULL, *H = NULL, *Ht = NULL, *HtH = NULL, *t = NULL;
+    wt_triplet *tr = NULL;
+    int64_t *act = NULL;
+    *out = NULL;
+    /* Σ_j H_jᵀ H_j on the full DM grids, direction after direction (a running sum: the 25 products side by
+     * side would hold ~6 times the sum's non-zeros) */
+    for (int j = 0; j < f->ndir; j++) {
+        WT_TRY(wt_projection_assemble(f->dm[j], &H));
+        WT_TRY(wt_sparse_transpose(H, &Ht));
+        WT_TRY(wt_sparse_multiply(Ht, H, &HtH));
+        wt_sparse_free(H);
+        wt_sparse_free(Ht);
+        H = Ht = NULL;
+        if (!sum) {
+            sum = HtH;
+        } else {
+            WT_TRY(wt_sparse_add(sum, 1.0, HtH, 1.0, &t));
+            wt_sparse_free(sum);
+            wt_sparse_free(HtH);
+            sum = t;
+            t = NULL;
+        }
+        HtH = NULL;
+    }
+    /* the active actuators' rows and columns, + ε on the diagonal (wt_dm_restrict ∘ · ∘ wt_dm_expand + εI) */
+    WT_ALLOC(ctx, act, ndm, "fitting actuator map");
+    wt_dm_actuator_index(sys->dm, act);
+    WT_TRY(wt_triplet_alloc(ctx, sys->nact, sys->nact, (sum ? wt_sparse_nnz(sum) : 0) + sys->nact, &tr));
+    for (int64_t c = 0; c < ndm; c++) {
+        if (act[c] < 0) continue;
+        for (int64_t k = sum ? sum->colptr[c] : 0; k < (sum ? sum->colptr[c + 1] : 0); k++)
+            if (act[sum->rowind[k]] >= 0) WT_TRY(wt_triplet_add(tr, act[sum->rowind[k]], act[c], sum->val[k]));
+        WT_TRY(wt_triplet_add(tr, act[c], act[c], f->eps));
+    }
+    WT_TRY(wt_triplet_compress(tr, out));
+fail:
+    wt_sparse_free(sum);
+    wt_sparse_free(H);
+    wt_sparse_free(Ht);
+    wt_sparse_free(HtH);
+    wt_sparse_free(t);
+    wt_triplet_free(tr);
+    wt_free(ctx, act);
+    return st;
+}
+
+/* WT_FIT_CHOLESKY's set-up: N assembled, analysed and factored; one solve sizes CHOLMOD's workspace so that
+ * no frame allocates. */
+static int factorize(wt_fitting *f, double regularization)
+{
+    int st = WT_OK;
+    wt_sparse *N = NULL;
+    double t0 = wt_time_now();
+    WT_TRY(wt_fitting_assemble(f, &N));
+    f->stats.t_assemble = wt_time_now() - t0;
+    f->stats.nnz_matrix = wt_sparse_nnz(N);
+    t0 = wt_time_now();
+    WT_TRY(wt_chol_analyze(f->ctx, N, &f->chol));
+    st = wt_chol_factorize(f->chol, N);
+    if (st == WT_ERR_NUMERIC) {
+        char detail[1024];
+        snprintf(detail, sizeof detail, "%s", wt_error_message(f->ctx));
+        st = WT_ERROR(f->ctx, WT_ERR_NUMERIC, "fitting: the normal matrix Σ HᵀH + εI (ε = %g, recon.cg9.fit_regularization "
+                      "= %g) is not positive definite: raise recon.cg9.fit_regularization (%s)", f->eps, regularization,
+                      detail);
+    }
+    if (st < 0) goto fail;
+    WT_TRY(wt_chol_prepare_one(f->chol, f->factor_float32, f->nthreads > 1 ? 2 : 1));
+    f->stats.t_factorize = wt_time_now() - t0;
+    wt_chol_info info;
+    wt_chol_info_get(f->chol, &info);
+    f->stats.nnz_factor = info.nnz_factor;
+    f->stats.factor_bytes = info.factor_bytes + wt_chol_one_bytes(f->chol);
+    f->stats.ordering = info.ordering;
+    f->stats.solve_bytes = wt_chol_one_bytes(f->chol);
+    wt_chol_split(f->chol, &f->stats.split[0], &f->stats.split[1], &f->stats.split[2]);
+fail:
+    wt_sparse_free(N);
+    return st;
+}
 
 double wt_fitting_bytes(const wt_fitting *f)
 {
@@ -156,7 +270,8 @@ double wt_fitting_bytes(const wt_fitting *f)
     for (int64_t i = 0; i < f->ncg; i++) npts += f->mask[i] != 0;
     const double nd = (double)f->ndm_pts, na = (double)f->sys->nact;
     return 24.0 * (double)npts * f->ndir * (f->sys->dm->ndms + f->L) + 8.0 * nd * (2.0 + WT_GROUPS) +
-           8.0 * (double)f->ndir * (double)f->ncg + 8.0 * na * 7.0 + (double)f->ncg;
+           8.0 * (double)f->ndir * (double)f->ncg + 8.0 * na * 7.0 + (double)f->ncg + f->stats.factor_bytes +
+           (f->chol ? 8.0 * 5.0 * na : 0.0); /* the solves' vectors: y, the two buffers, the workspaces */
 }
 
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
@@ -166,7 +281,12 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     int st = WT_OK;
     wt_fitting *f = NULL;
     *out = NULL;
+    if (par->solver != WT_FIT_CG && par->solver != WT_FIT_CHOLESKY)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "fitting solver %d: expected %d (cg) or %d (cholesky) "
+                        "(recon.cg9.fit_solver)", par->solver, WT_FIT_CG, WT_FIT_CHOLESKY);
     WT_ALLOC(ctx, f, 1, "fitting");
+    f->solver = par->solver;
+    f->factor_float32 = par->factor_float32 != 0;
     f->ctx = ctx;
     f->sys = sys;
     f->ndir = sys->neval;
@@ -250,6 +370,7 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
         wt_free(ctx, y);
         wt_free(ctx, diag_grid);
     }
+    if (f->solver == WT_FIT_CHOLESKY) WT_TRY(factorize(f, regularization));
     *out = f;
     return WT_OK;
 fail:
@@ -287,5 +408,6 @@ void wt_fitting_free(wt_fitting *f)
     wt_free(ctx, f->pupil);
     wt_free(ctx, f->b);
     wt_pcg_free(f->pcg);
+    wt_chol_free(f->chol);
     wt_free(ctx, f);
 }

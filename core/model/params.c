@@ -29,7 +29,9 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
 wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *var)
 {
     wt_fitting_params fp = {.regularization = var->fit_regularization,
-                            .sampling = var->fit_sampling > 0 ? var->fit_sampling : 1};
+                            .sampling = var->fit_sampling > 0 ? var->fit_sampling : 1,
+                            .solver = var->fit_solver,
+                            .factor_float32 = var->fit_factor_precision == 1};
     return fp;
 }
 

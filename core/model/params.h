@@ -13,7 +13,7 @@
 
 /* α, τ, the wavelet, the prior and the atmosphere profile of cfg; source = cfg->path (not copied). */
 void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params *par);
-/* ε and the sampling of a variant's fitting step (cg9; pcg3 has none, sampling ≤ 0 becomes 1). */
+/* ε, the sampling and the solver of a variant's fitting step (cg9; pcg3 has none, sampling ≤ 0 becomes 1). */
 wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *var);
 /* The preconditioner of a variant (recon.<variant>.preconditioner, coarse_levels). */
 wt_precond_params wt_precond_params_from_variant(const wt_recon_variant_config *var);

@@ -291,3 +291,4 @@ double wt_reconstructor_bytes(const wt_reconstructor *r)
 
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r) { return r->pre; }
+const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r) { return r->fit; }

@@ -67,6 +67,8 @@ double wt_reconstructor_bytes(const wt_reconstructor *r);
 /* The tomography object and its preconditioner (NULL for none and mvm). */
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r);
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r);
+/* The fitting (cg9; NULL otherwise). */
+const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r);
 /* Forget the warm-start state (the next apply starts from zero). */
 void wt_reconstructor_reset(wt_reconstructor *r);
 

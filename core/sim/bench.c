@@ -201,6 +201,12 @@ int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_r
         if ((st = wt_reconstructor_alloc(ctx, sys[k], kind, &par[k], &r[k])) < 0) goto out;
         out->setup[k] = wt_time_now() - t0;
         out->memory[k] = wt_reconstructor_bytes(r[k]);
+        const wt_fitting *fit = wt_reconstructor_fitting(r[k]);
+        if (fit) {
+            out->has_fitting = 1;
+            out->fit_solver[k] = wt_fitting_solver(fit);
+            wt_fitting_stats_get(fit, &out->fit[k]);
+        }
         s[k] = calloc((size_t)sys[k]->nslopes, sizeof *s[k]);
         a[k] = calloc((size_t)sys[k]->nact, sizeof *a[k]);
         if (!s[k] || !a[k]) {

@@ -67,6 +67,9 @@ typedef struct wt_bench_pair {
     wt_bench_stats fitting[2];          /* its fitting part (cg9; 0 for pcg3) [s] */
     wt_bench_stats ratio_frame, ratio_tomography, ratio_fitting; /* B / A per pair [-] (fitting: 0 for pcg3) */
     double command_diff;                /* ‖a_B − a_A‖ / ‖a_A‖ of the last frame; −1 when the systems differ */
+    int has_fitting;                    /* cg9: fit below holds each side's fitting set-up */
+    int fit_solver[2];                  /* WT_FIT_CG or WT_FIT_CHOLESKY */
+    wt_fitting_stats fit[2];            /* the direct solver's set-up (zeros for CG) */
 } wt_bench_pair;
 
 int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_reconstructor_params par[2], int kind,
