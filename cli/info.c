@@ -99,8 +99,11 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
             wt_tomography_free(t);
             return;
         }
-        printf("  fitting over %d directions, Tikhonov epsilon %.3g (relative %g)\n", sys->neval,
-               wt_fitting_epsilon(f), v->fit_regularization);
+        printf("  fitting over %d directions, Tikhonov epsilon %.3g (relative %g), %s\n", sys->neval,
+               wt_fitting_epsilon(f), v->fit_regularization,
+               v->fit_solver == WT_FIT_CHOLESKY ? (v->fit_factor_precision ? "Cholesky (factor read in fp32)"
+                                                                            : "Cholesky (factor read in fp64)")
+                                                : "CG");
         wt_fitting_free(f);
     }
     wt_tomography_free(t);

@@ -222,7 +222,9 @@ START_TEST(test_cholesky_equals_converged_cg)
     wt_tomography *t;
     ck_assert_int_eq(wt_tomography_alloc(f.ctx, f.sys, &f.cfg->cg9, "cg9", &tp, &t), WT_OK);
     wt_fitting_params fp = wt_fitting_params_from_variant(&f.cfg->cg9);
-    ck_assert_int_eq(fp.solver, WT_FIT_CG); /* the schema's default */
+    ck_assert_int_eq(fp.solver, WT_FIT_CHOLESKY); /* the preset's (and the schema's) default */
+    ck_assert_int_eq(fp.factor_float32, 1);
+    fp.solver = WT_FIT_CG;
     wt_fitting *fcg, *fch;
     ck_assert_int_eq(wt_fitting_alloc_for(f.ctx, t, &fp, &fcg), WT_OK);
     fp.solver = WT_FIT_CHOLESKY;

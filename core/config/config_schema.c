@@ -247,14 +247,14 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
      "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
      "q > 1 = every point of the d/q grid inside the pupil (optional, default 2)"},
-    {"recon.cg9.fit_solver", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(cg9.fit_solver), NOCOUNT, 0, 0, "cg|cholesky", 0,
+    {"recon.cg9.fit_solver", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(cg9.fit_solver), NOCOUNT, 0, 0, "cg|cholesky", 1,
      "solver of the fitting's normal equations: cg = fit_iterations warm-started CG iterations per frame, "
      "cholesky = the normal matrix assembled and factored once (CHOLMOD) at set-up, a frame the right-hand side "
-     "and two triangular solves, exact (fit_iterations unused) (optional, default cg)"},
+     "and two triangular solves, the exact fit (fit_iterations unused) (optional, default cholesky)"},
     {"recon.cg9.fit_factor_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(cg9.fit_factor_precision), NOCOUNT, 0, 0,
-     "fp64|fp32", 0,
+     "fp64|fp32", 1,
      "cholesky: the factor's values as the per-frame solves read them: fp64, or fp32 (half the bytes; the "
-     "arithmetic stays double; the solution moves by ~1e-7 relative) (optional, default fp64)"},
+     "arithmetic stays double; the commands move by ~1e-5 relative at E-ELT) (optional, default fp32)"},
 };
 _Static_assert(sizeof wt_config_priv_keys / sizeof wt_config_priv_keys[0] == WT_CONFIG_PRIV_NKEYS,
                "WT_CONFIG_PRIV_NKEYS (config_private.h) must be the number of keys of the table");
