@@ -90,7 +90,9 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
                "(p99 %.2f ms over %d frames)\n",
                par.iterations, b.frame.med * 1e3, b.frame.med / 2e-3, b.frame.p99 * 1e3, reps);
     if (b.has_fitting) {
-        snprintf(label, sizeof label, "%s: fitting (%d CG iterations)", name, par.fit_iterations);
+        if (par.fitting.solver == WT_FIT_CHOLESKY)
+            snprintf(label, sizeof label, "%s: fitting (Cholesky, %s)", name, par.fitting.factor_float32 ? "fp32" : "fp64");
+        else snprintf(label, sizeof label, "%s: fitting (%d CG iterations)", name, par.fit_iterations);
         printf("%-34s %9.3f ms  [%7.3f, %7.3f, %7.3f]\n", label, b.fitting.med * 1e3, b.fitting.p10 * 1e3,
                b.fitting.p90 * 1e3, b.fitting.p99 * 1e3);
     }

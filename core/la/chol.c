@@ -295,7 +295,7 @@ int wt_chol_prepare_one(wt_chol *c, int float32, int nthreads)
     int64_t ntask = 0;
     for (int64_t k = 0; k < ns; k++)
         if (parent[k] < 0) task[ntask++] = k;
-    for (int guard = 0; guard < 64; guard++) {
+    for (int64_t split = 0; split < ns; split++) { /* each split moves one supernode to the top part */
         double tot = 0.0, big = -1.0;
         int64_t bi = -1;
         for (int64_t t = 0; t < ntask; t++) {

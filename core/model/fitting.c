@@ -111,10 +111,8 @@ void wt_fitting_rhs_maps(wt_fitting *f, const double *maps, double *b)
 /* a = N⁻¹ b by the factor (b and a distinct or the same); res and history as a CG that converged at once */
 static int direct(wt_fitting *f, const double *b, double *a, double *history, wt_pcg_result *res)
 {
-    const int64_t n = f->sys->nact;
     if (res) *res = (wt_pcg_result){0, 0.0};
     if (history) history[0] = 0.0;
-    (void)n;
     return wt_chol_solve_one(f->chol, b, a);
 }
 

@@ -37,7 +37,7 @@ typedef struct wt_fitting_params {
 /* What the direct solver's set-up cost (all zero for WT_FIT_CG). */
 typedef struct wt_fitting_stats {
     double t_assemble;     /* assembly of N from the 2 ndir sparse products H_jᵀ H_j [s] */
-    double t_factorize;    /* CHOLMOD analysis + numeric factorisation (+ one solve that sizes its workspace) [s] */
+    double t_factorize;    /* CHOLMOD analysis + numeric factorisation + the solves' packed copy and plan [s] */
     int64_t nnz_matrix;    /* non-zeros of N (both triangles) */
     double nnz_factor;     /* non-zeros of its Cholesky factor L */
     double factor_bytes;   /* bytes CHOLMOD holds for L [bytes] */
@@ -48,7 +48,7 @@ typedef struct wt_fitting_stats {
 
 /* layers: the reconstruction layer grids and altitudes (the tomography's); nlayers = 0 makes a fitting
  * that only fits given maps (wt_fitting_solve_maps). par->solver WT_FIT_CHOLESKY assembles and factors N here
- * (E-ELT: see docs/results.md); an unknown solver is WT_ERR_INVALID, a factorisation that fails
+ * (E-ELT: ~3 s, docs/results.md §13); an unknown solver is WT_ERR_INVALID, a factorisation that fails
  * WT_ERR_NUMERIC naming recon.cg9.fit_regularization. */
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
                      const double *altitudes, const wt_fitting_params *par, wt_fitting **out);
