@@ -28,7 +28,7 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps
+.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps docs
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo
 
@@ -123,6 +123,11 @@ test: deps check-deps
 demo: all
 	$(BIN)/wavetomo compare --config data/presets/demo.cfg --recon mvm,pcg3,cg9 --out out/demo
 
+# docs/config.md, the configuration reference, from the validator's own table (tests/test_docs.c checks it).
+docs: all
+	@bash docs/config.sh $(BIN)/wavetomo > docs/config.md.tmp && mv docs/config.md.tmp docs/config.md
+	@echo "docs/config.md written from wavetomo info --keys"
+
 bench: all
 	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg --sensing data/presets/eelt-mcao-diffractive.cfg
 
@@ -139,7 +144,7 @@ debug-test: deps
 	$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug OPT="$(SAN)" \
 	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" test
 
-# libFuzzer targets of the readers (tests/fuzz, README "Fuzzing"; not part of `make test`, which needs no
+# libFuzzer targets of the readers (tests/fuzz, docs/testing.md "Fuzzing"; not part of `make test`, which needs no
 # clang): the library is rebuilt with clang, coverage instrumentation, ASan and UBSan in build/fuzz/obj;
 # each target runs FUZZ_SECONDS seconds on its corpus build/fuzz/corpus/NAME (seeded from build/fuzz/seeds);
 # a crash, leak, UBSan report, input slower than 5 s or allocation above 512 MB is saved as
