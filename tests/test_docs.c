@@ -152,6 +152,26 @@ static int line_of(const char *text, const char *at)
     return n;
 }
 
+/* `wavetomo CMD --help` and the global help, once per command */
+static struct {
+    char cmd[32];
+    char *text;
+} helps[32];
+static int nhelp;
+
+static const char *help_of(const char *c)
+{
+    for (int i = 0; i < nhelp; i++)
+        if (!strcmp(helps[i].cmd, c)) return helps[i].text;
+    ck_assert_int_lt(nhelp, 32);
+    char helpcmd[1200];
+    snprintf(helpcmd, sizeof helpcmd, "%s %s --help 2>&1; %s --help", wt, c, wt);
+    helps[nhelp].text = slurp_cmd(helpcmd);
+    ck_assert_ptr_nonnull(helps[nhelp].text);
+    snprintf(helps[nhelp].cmd, sizeof helps[nhelp].cmd, "%s", c);
+    return helps[nhelp++].text;
+}
+
 START_TEST(test_config_md_is_generated)
 {
     char cmd[700];
@@ -189,10 +209,7 @@ START_TEST(test_commands_and_options_exist)
                 continue;
             }
             /* the options of an invocation line (and its "\" continuations), comments cut */
-            char helpcmd[1200];
-            snprintf(helpcmd, sizeof helpcmd, "%s %s --help 2>&1; %s --help", wt, c, wt);
-            char *help = slurp_cmd(helpcmd);
-            ck_assert_ptr_nonnull(help);
+            const char *help = help_of(c);
             const char *q = p + m[0].rm_eo;
             for (;;) {
                 const char *eol = strchr(q, '\n');
@@ -218,12 +235,13 @@ START_TEST(test_commands_and_options_exist)
                 if (!eol || len == 0 || q[len - 1] != '\\') break;
                 q = eol + 1;
             }
-            free(help);
         }
         free(text);
     }
     regfree(&re);
     free(cmds);
+    for (int i = 0; i < nhelp; i++) free(helps[i].text);
+    nhelp = 0;
     ck_assert_msg(seen > 30, "only %d command invocations found in the docs", seen);
     ck_assert_msg(bad == 0, "%d unknown commands or options in the docs:\n%s", bad, report);
 }
