@@ -14,7 +14,8 @@ OPT     ?= -O3 -fno-math-errno
 NATIVE  ?= 0
 ARCH    := $(if $(filter 1,$(NATIVE)),-march=native,)
 WARN    := -Wall -Wextra -Werror -Wno-unknown-pragmas -Wshadow -Wmissing-prototypes -Wstrict-prototypes
-CFLAGS  += -std=c11 -D_DEFAULT_SOURCE $(OPT) $(ARCH) $(WARN) -fopenmp -I. -I/usr/include/suitesparse
+# include/: the public headers (wavetomo/*.h), which core/base/base.h includes too
+CFLAGS  += -std=c11 -D_DEFAULT_SOURCE $(OPT) $(ARCH) $(WARN) -fopenmp -I. -Iinclude -I/usr/include/suitesparse
 LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
 
 BUILD   ?= build
@@ -68,7 +69,7 @@ FORCE:
 # -Wconversion where the code is clean of it today (core/base, config, io, la, solve; op, model, build and
 # sim are not yet: ~360 mostly int64 -> size_t index conversions)
 $(BUILD)/core/base/%.o $(BUILD)/core/config/%.o $(BUILD)/core/io/%.o $(BUILD)/core/la/%.o \
-$(BUILD)/core/solve/%.o: WARN += -Wconversion
+$(BUILD)/core/solve/%.o $(BUILD)/core/rtc/%.o: WARN += -Wconversion
 
 $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	@mkdir -p $(dir $@)
@@ -113,7 +114,7 @@ regress-commands-update: deps
 # between the library's files, from `nm` of its objects (tests/check_deps.sh).
 check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
-	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="$(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
+	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
 test: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
@@ -156,7 +157,7 @@ fuzz-deps:
 
 $(FUZZ)/fuzz_%: tests/fuzz/fuzz_%.c tests/fuzz/fuzz.h $(FUZZ)/obj/libwavetomo.a
 	@$(if $(V),,echo "  FUZZ/LD $@")
-	$(Q)clang -std=c11 -D_DEFAULT_SOURCE -I. -DWT_FUZZ_ROOT='"$(CURDIR)"' $(FUZZ_SAN) -fsanitize=fuzzer $(PKG_CFLAGS) \
+	$(Q)clang -std=c11 -D_DEFAULT_SOURCE -I. -Iinclude -DWT_FUZZ_ROOT='"$(CURDIR)"' $(FUZZ_SAN) -fsanitize=fuzzer $(PKG_CFLAGS) \
 	    -o $@ $< $(FUZZ)/obj/libwavetomo.a $(FUZZ_LIBS)
 
 $(FUZZ)/obj/libwavetomo.a: FORCE
