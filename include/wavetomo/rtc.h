@@ -25,7 +25,8 @@
  * (9 layers, CG and the fitting step), matrix-free and warm-started frame to frame (recon.warm_start);
  * or a stored MVM (MATRIX.h5 of `wavetomo build`), whose R and R Â are applied as float32 GEMVs: with
  * the MVM, r = R s + (R Â) a_t (Â is not needed at run time), or r = R s with WT_RTC_SLOPES_OL.
- * These are the computations of `wavetomo run` (which uses this API) and of `wavetomo sim`'s loop.
+ * These are the computations of `wavetomo run` (which uses this API) and of `wavetomo sim`'s loop (which
+ * forms s_ol itself: with the MVM it applies R s_ol, the WT_RTC_SLOPES_OL form).
  *
  * Ordering (the same as every wavetomo file's "layout" group):
  *   slopes    sensor by sensor, the LGS first, then the NGS (wt_rtc_sensor: name, offset, count); within a
