@@ -1,5 +1,6 @@
 # wavetomo — top-level build.  `make` installs missing Debian packages (as root), builds
-# build/libwavetomo.a and bin/wavetomo.  `make test`, `make demo`, `make bench`, `make debug`.
+# build/libwavetomo.a, build/libwavetomo.so and bin/wavetomo.  `make test`, `make demo`, `make bench`,
+# `make debug`, `make install PREFIX=/usr/local DESTDIR=...`, `make uninstall`.
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
                 libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
@@ -14,7 +15,12 @@ OPT     ?= -O3 -fno-math-errno
 NATIVE  ?= 0
 ARCH    := $(if $(filter 1,$(NATIVE)),-march=native,)
 WARN    := -Wall -Wextra -Werror -Wno-unknown-pragmas -Wshadow -Wmissing-prototypes -Wstrict-prototypes
-CFLAGS  += -std=c11 -D_DEFAULT_SOURCE $(OPT) $(ARCH) $(WARN) -fopenmp -I. -I/usr/include/suitesparse
+# -fPIC: the same objects make libwavetomo.a and libwavetomo.so. -fno-semantic-interposition keeps the
+# optimiser's freedom of a non-PIC build (inlining of the library's own global functions): nobody
+# interposes them, and the shared library exports only the public API anyway (core/wavetomo.map).
+PIC     := -fPIC -fno-semantic-interposition
+# include/: the public headers (wavetomo/*.h), which core/base/base.h includes too
+CFLAGS  += -std=c11 -D_DEFAULT_SOURCE $(OPT) $(ARCH) $(WARN) $(PIC) -fopenmp -I. -Iinclude -I/usr/include/suitesparse
 LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
 
 BUILD   ?= build
@@ -28,9 +34,21 @@ CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIB       := $(BUILD)/libwavetomo.a
 
-.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps
+# The version is the public header's (include/wavetomo/version.h); the soname carries the major number.
+version_part = $(shell sed -n 's/^\#define WT_VERSION_$(1) \([0-9][0-9]*\).*/\1/p' include/wavetomo/version.h)
+VERSION_MAJOR := $(call version_part,MAJOR)
+VERSION   := $(VERSION_MAJOR).$(call version_part,MINOR).$(call version_part,PATCH)
+SONAME    := libwavetomo.so.$(VERSION_MAJOR)
+SHLIB     := $(BUILD)/libwavetomo.so.$(VERSION)
+MAN       := $(BUILD)/wavetomo.1
+PCFILE    := $(BUILD)/wavetomo.pc
+# The public headers: the whole promise of the shared library (docs/c-api.md)
+PUBLIC_H  := $(sort $(wildcard include/wavetomo/*.h))
+
+.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
+        install uninstall docs
 all: deps
-	@$(MAKE) --no-print-directory $(BIN)/wavetomo
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB)
 
 # Install what is missing, and nothing when everything is there (dpkg-query is the check).
 deps:
@@ -68,7 +86,7 @@ FORCE:
 # -Wconversion where the code is clean of it today (core/base, config, io, la, solve; op, model, build and
 # sim are not yet: ~360 mostly int64 -> size_t index conversions)
 $(BUILD)/core/base/%.o $(BUILD)/core/config/%.o $(BUILD)/core/io/%.o $(BUILD)/core/la/%.o \
-$(BUILD)/core/solve/%.o: WARN += -Wconversion
+$(BUILD)/core/solve/%.o $(BUILD)/core/rtc/%.o: WARN += -Wconversion
 
 $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	@mkdir -p $(dir $@)
@@ -83,6 +101,21 @@ $(BIN)/wavetomo: $(CLI_OBJ) $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  LD      $@")
 	$(Q)$(CC) $(CFLAGS) -o $@ $(CLI_OBJ) $(LIB) $(PKG_LIBS) $(MPI_LIBS) $(LDLIBS)
+
+# The shared library: the same objects, exporting only the public API (the version script; the executable
+# and the tests link the archive, which keeps every symbol). -z defs: every dependency is linked in;
+# --as-needed drops those the library does not use (PLplot is the report driver's).
+$(SHLIB): $(CORE_OBJ) core/wavetomo.map
+	@mkdir -p $(dir $@)
+	@$(if $(V),,echo "  LD      $@")
+	$(Q)$(CC) -shared $(CFLAGS) -Wl,-soname,$(SONAME) -Wl,--version-script=core/wavetomo.map -Wl,-z,defs \
+	    -Wl,--as-needed -o $@ $(CORE_OBJ) $(PKG_LIBS) $(LDLIBS)
+	$(Q)ln -sf $(notdir $@) $(BUILD)/$(SONAME) && ln -sf $(SONAME) $(BUILD)/libwavetomo.so
+
+# The man page, from the commands' own --help (cli/man.sh; no help2man needed)
+$(MAN): $(BIN)/wavetomo cli/man.sh
+	@$(if $(V),,echo "  MAN     $@")
+	$(Q)bash cli/man.sh $(BIN)/wavetomo $(VERSION) > $@.tmp && mv $@.tmp $@
 
 # Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
 # is only for the report driver).
@@ -101,6 +134,62 @@ $(BUILD)/tests/regress_commands: tests/regress/commands.c $(LIB)
 	@$(if $(V),,echo "  CC/LD   $@")
 	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) -o $@ $< $(LIB) $(PKG_LIBS) $(LDLIBS)
 
+# make install [PREFIX=/usr/local] [DESTDIR=staging]: the C library (shared with its soname links, and
+# static), the public headers, the pkg-config file, the executable, its man page, the presets and the
+# data they read, the C API's documentation and example. make uninstall removes exactly these.
+PREFIX     ?= /usr/local
+BINDIR     ?= $(PREFIX)/bin
+LIBDIR     ?= $(PREFIX)/lib
+INCLUDEDIR ?= $(PREFIX)/include
+DATADIR    ?= $(PREFIX)/share
+MANDIR     ?= $(DATADIR)/man
+PKGDATADIR := $(DATADIR)/wavetomo
+DOCDIR     ?= $(DATADIR)/doc/wavetomo
+PRESETS    := $(sort $(wildcard data/presets/*.cfg))
+SODIUM     := $(sort $(wildcard data/sodium/*.txt))
+PC_REQUIRES := openblas lapacke hdf5-serial fftw3 fftw3f libconfig
+
+# the directories below the prefix are written relative to it (${prefix}/lib): `pkg-config --define-prefix`
+# then finds a tree that was moved, or is still in its DESTDIR
+pc_rel = $(patsubst $(PREFIX)/%,$${prefix}/%,$(1))
+$(PCFILE): wavetomo.pc.in include/wavetomo/version.h Makefile
+	@mkdir -p $(dir $@)
+	$(Q)sed -e 's|@PREFIX@|$(PREFIX)|; s|@LIBDIR@|$(call pc_rel,$(LIBDIR))|; s|@INCLUDEDIR@|$(call pc_rel,$(INCLUDEDIR))|' \
+	    -e 's|@PKGDATADIR@|$(call pc_rel,$(PKGDATADIR))|; s|@VERSION@|$(VERSION)|; s|@REQUIRES@|$(PC_REQUIRES)|' $< > $@
+# always rewritten (a sed): the prefix of this install goes into it
+.PHONY: $(PCFILE)
+
+install: all
+	@$(MAKE) --no-print-directory $(MAN) $(PCFILE)
+	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(INCLUDEDIR)/wavetomo \
+	    $(DESTDIR)$(MANDIR)/man1 $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
+	    $(DESTDIR)$(DOCDIR)/examples
+	install -m 755 $(BIN)/wavetomo $(DESTDIR)$(BINDIR)/wavetomo
+	install -m 755 $(SHLIB) $(DESTDIR)$(LIBDIR)/
+	ln -sf $(notdir $(SHLIB)) $(DESTDIR)$(LIBDIR)/$(SONAME)
+	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libwavetomo.so
+	install -m 644 $(LIB) $(DESTDIR)$(LIBDIR)/libwavetomo.a
+	install -m 644 $(PCFILE) $(DESTDIR)$(LIBDIR)/pkgconfig/wavetomo.pc
+	install -m 644 $(PUBLIC_H) $(DESTDIR)$(INCLUDEDIR)/wavetomo/
+	install -m 644 $(MAN) $(DESTDIR)$(MANDIR)/man1/wavetomo.1
+	install -m 644 $(PRESETS) $(DESTDIR)$(PKGDATADIR)/presets/
+	install -m 644 $(SODIUM) $(DESTDIR)$(PKGDATADIR)/sodium/
+	install -m 644 docs/c-api.md $(DESTDIR)$(DOCDIR)/
+	install -m 644 examples/rtc_loop.c $(DESTDIR)$(DOCDIR)/examples/
+	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
+
+uninstall:
+	rm -f $(DESTDIR)$(BINDIR)/wavetomo $(DESTDIR)$(LIBDIR)/libwavetomo.so.$(VERSION) \
+	    $(DESTDIR)$(LIBDIR)/$(SONAME) $(DESTDIR)$(LIBDIR)/libwavetomo.so $(DESTDIR)$(LIBDIR)/libwavetomo.a \
+	    $(DESTDIR)$(LIBDIR)/pkgconfig/wavetomo.pc $(DESTDIR)$(MANDIR)/man1/wavetomo.1 \
+	    $(PUBLIC_H:include/wavetomo/%=$(DESTDIR)$(INCLUDEDIR)/wavetomo/%) \
+	    $(PRESETS:data/presets/%=$(DESTDIR)$(PKGDATADIR)/presets/%) \
+	    $(SODIUM:data/sodium/%=$(DESTDIR)$(PKGDATADIR)/sodium/%) \
+	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c
+	@rmdir $(DESTDIR)$(INCLUDEDIR)/wavetomo $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
+	    $(DESTDIR)$(PKGDATADIR) $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(DOCDIR) 2>/dev/null || true
+	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
+
 regress-commands: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(BUILD)/tests/regress_commands
 	@BUILD=$(BUILD) BIN=$(BIN) bash tests/regress/commands.sh
@@ -113,15 +202,26 @@ regress-commands-update: deps
 # between the library's files, from `nm` of its objects (tests/check_deps.sh).
 check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
-	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="$(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
+	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
+# The suites, among them tests/test_install's checks of `make install` into a temporary DESTDIR made here
+# (by this make, with its variables: a make run from inside a suite would not know them); the programs it
+# builds against a sanitized library (make debug-test) need the sanitizers too (WT_INSTALL_CFLAGS).
 test: deps check-deps
-	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(TEST_BIN)
-	@BUILD=$(BUILD) BIN=$(BIN) bash tests/run.sh $(TEST_BIN)
+	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB) $(TEST_BIN)
+	@d=$$(mktemp -d /tmp/wt-install.XXXXXX) && \
+	$(MAKE) --no-print-directory -s install DESTDIR=$$d PREFIX=/usr/local > $$d.log 2>&1 || { cat $$d.log; rm -rf $$d $$d.log; exit 1; }; \
+	rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
+	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN); rc=$$?; rm -rf $$d; exit $$rc
 
 # The main job: MVM, PCG-3 and CG-9 side by side in closed loop on the demo system, with the report.
 demo: all
 	$(BIN)/wavetomo compare --config data/presets/demo.cfg --recon mvm,pcg3,cg9 --out out/demo
+
+# docs/config.md, the configuration reference, from the validator's own table (tests/test_docs.c checks it).
+docs: all
+	@bash docs/config.sh $(BIN)/wavetomo > docs/config.md.tmp && mv docs/config.md.tmp docs/config.md
+	@echo "docs/config.md written from wavetomo info --keys"
 
 bench: all
 	$(BIN)/wavetomo bench data/presets/eelt-mcao.cfg --sensing data/presets/eelt-mcao-diffractive.cfg
@@ -139,7 +239,7 @@ debug-test: deps
 	$(MAKE) --no-print-directory BUILD=build-debug BIN=bin-debug OPT="$(SAN)" \
 	    LDLIBS="-lcholmod -lsuitesparseconfig -lm -fopenmp -fsanitize=address,undefined" test
 
-# libFuzzer targets of the readers (tests/fuzz, README "Fuzzing"; not part of `make test`, which needs no
+# libFuzzer targets of the readers (tests/fuzz, docs/testing.md "Fuzzing"; not part of `make test`, which needs no
 # clang): the library is rebuilt with clang, coverage instrumentation, ASan and UBSan in build/fuzz/obj;
 # each target runs FUZZ_SECONDS seconds on its corpus build/fuzz/corpus/NAME (seeded from build/fuzz/seeds);
 # a crash, leak, UBSan report, input slower than 5 s or allocation above 512 MB is saved as
@@ -156,7 +256,7 @@ fuzz-deps:
 
 $(FUZZ)/fuzz_%: tests/fuzz/fuzz_%.c tests/fuzz/fuzz.h $(FUZZ)/obj/libwavetomo.a
 	@$(if $(V),,echo "  FUZZ/LD $@")
-	$(Q)clang -std=c11 -D_DEFAULT_SOURCE -I. -DWT_FUZZ_ROOT='"$(CURDIR)"' $(FUZZ_SAN) -fsanitize=fuzzer $(PKG_CFLAGS) \
+	$(Q)clang -std=c11 -D_DEFAULT_SOURCE -I. -Iinclude -DWT_FUZZ_ROOT='"$(CURDIR)"' $(FUZZ_SAN) -fsanitize=fuzzer $(PKG_CFLAGS) \
 	    -o $@ $< $(FUZZ)/obj/libwavetomo.a $(FUZZ_LIBS)
 
 $(FUZZ)/obj/libwavetomo.a: FORCE

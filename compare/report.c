@@ -360,7 +360,7 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                            "diffractive sensor (what they show: [spots.md](spots.md)).\n\n![spot images of %s](spots_%s.png)"
                            "\n\n![centroid gain and truncation of %s](gain_%s.png)",
                         a->spots, a->spots, a->spots, a->spots, a->spots);
-            fprintf(f, "\n\nFiles: results.h5 (all numbers, see README), summary.csv.\n");
+            fprintf(f, "\n\nFiles: results.h5 (all numbers, docs/formats.md), summary.csv.\n");
         }
         if (fclose(f) != 0 || rename(tmp, path) != 0) return WT_ERROR(cli->ctx, WT_ERR_IO, "cannot write '%s'", path);
     }

@@ -1,5 +1,6 @@
 /* runtime/run.c: `wavetomo run`: apply a stored MVM (float32 GEMV, POLC form) or the matrix-free
- * wavelet reconstructor to every frame of a telemetry file, and time it (SPEC §7, §9). */
+ * wavelet reconstructor to every frame of a telemetry file, and time it (SPEC §7, §9), through the
+ * public per-frame API (include/wavetomo/rtc.h) in its WT_RTC_RAW mode. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -7,11 +8,10 @@
 
 #include "cli/cli.h"
 #include "core/io/h5.h"
-#include "core/solve/mvm.h"
-#include "core/model/params.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 #include "core/model/estimate.h"
+#include "core/rtc/rtc.h"
 
 static void help(void)
 {
@@ -91,11 +91,10 @@ int wt_cmd_run(int argc, char **argv)
     wt_h5_series *out_rec = NULL, *out_time = NULL;
     wt_config *cfg = NULL, *tcfg = NULL;
     wt_system *sys = NULL;
-    wt_mvm *m = NULL;
-    wt_reconstructor *rec = NULL;
+    wt_rtc *rtc = NULL;
     char *ttext = NULL;
     float *sf = NULL, *af = NULL, *rf = NULL;
-    double *sd = NULL, *ad = NULL, *times = NULL;
+    double *times = NULL;
     int st;
     if ((st = wt_cli_check_output(&cli, args.out, 0, args.tel, args.matrix)) < 0) goto fail;
     if ((st = wt_h5_open(cli.ctx, args.tel, &tr)) < 0) goto fail;
@@ -133,19 +132,15 @@ int wt_cmd_run(int argc, char **argv)
                           (long long)F, (long long)dims[0]);
             goto fail;
         }
-        if ((st = wt_mvm_read(cli.ctx, args.matrix, use, sys->nact, sys->nslopes, &m, NULL)) < 0) goto fail;
-    } else {
-        wt_reconstructor_params rp;
-        wt_reconstructor_params_from_config(use, kind, (int)args.iters, &rp);
-        if ((st = wt_reconstructor_alloc(cli.ctx, sys, kind, &rp, &rec)) < 0) goto fail;
     }
+    /* the matrix (refused unless built for this system) or the reconstructor; the frames carry s_ol (pcg3,
+     * cg9) or s with the applied commands (the MVM's R s + (R Â) a), so no Â is built */
+    if ((st = wt_rtc_open_system(cli.ctx, sys, kind, args.matrix, (int)args.iters, 1, &rtc)) < 0) goto fail;
     sf = malloc((size_t)sys->nslopes * sizeof *sf);
     af = malloc((size_t)sys->nact * sizeof *af);
     rf = malloc((size_t)sys->nact * sizeof *rf);
-    sd = malloc((size_t)sys->nslopes * sizeof *sd);
-    ad = malloc((size_t)sys->nact * sizeof *ad);
     times = malloc((size_t)(F > 0 ? F : 1) * sizeof *times);
-    if (!sf || !af || !rf || !sd || !ad || !times) {
+    if (!sf || !af || !rf || !times) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory for the frame buffers");
         goto fail;
     }
@@ -161,19 +156,14 @@ int wt_cmd_run(int argc, char **argv)
     for (int64_t t = 0; t < F; t++) {
         /* the reader refuses NaN/Inf, naming the dataset, frame and column (issue 10, H) */
         if ((st = wt_h5_read_rows(tr, sname, WT_H5_F32, t, 1, sf)) < 0) goto fail;
-        if (kind == WT_RECON_MVM) {
-            if ((st = wt_h5_read_rows(tr, "commands", WT_H5_F32, t, 1, af)) < 0) goto fail;
-            double t0 = wt_time_now();
-            /* R s_ol = R s + (R Â) a: the stored POLC form, no Â needed at run time */
-            wt_mvm_apply(m, sf, af, rf);
-            times[t] = wt_time_now() - t0;
-        } else {
-            for (int64_t i = 0; i < sys->nslopes; i++) sd[i] = sf[i];
-            double t0 = wt_time_now();
-            if ((st = wt_reconstructor_apply(rec, sd, ad)) < 0) goto fail;
-            times[t] = wt_time_now() - t0;
-            for (int64_t i = 0; i < sys->nact; i++) rf[i] = (float)ad[i];
-        }
+        /* the MVM: R s_ol = R s + (R Â) a, the stored POLC form with the telemetry's applied commands (no Â
+         * at run time); pcg3 / cg9: R s_ol of the telemetry's pseudo-open-loop slopes */
+        if (kind == WT_RECON_MVM && (st = wt_h5_read_rows(tr, "commands", WT_H5_F32, t, 1, af)) < 0) goto fail;
+        st = kind == WT_RECON_MVM
+                 ? wt_rtc_frame_f32(rtc, sf, sys->nslopes, af, WT_RTC_RAW, rf, sys->nact)
+                 : wt_rtc_frame_f32(rtc, sf, sys->nslopes, NULL, WT_RTC_RAW | WT_RTC_SLOPES_OL, rf, sys->nact);
+        if (st < 0) goto fail;
+        times[t] = wt_rtc_frame_time(rtc);
         double ms = times[t] * 1e3;
         if ((st = wt_h5_series_append(out_rec, WT_H5_F32, rf)) < 0) goto fail;
         if ((st = wt_h5_series_append(out_time, WT_H5_F64, &ms)) < 0) goto fail;
@@ -204,9 +194,8 @@ cleanup:
     wt_h5_abort(w);
     wt_h5_close(tr);
     wt_free(cli.ctx, ttext);
-    free(sf), free(af), free(rf), free(sd), free(ad), free(times);
-    wt_mvm_free(m);
-    wt_reconstructor_free(rec);
+    free(sf), free(af), free(rf), free(times);
+    wt_rtc_close(rtc);
     wt_system_free(sys);
     wt_config_free(cli.ctx, cfg);
     wt_config_free(cli.ctx, tcfg);

@@ -33,7 +33,7 @@ static void help(void)
            "  --iters N        (P)CG iterations per frame (overrides recon.<variant>.iterations)\n"
            "  --no-noise       noise-free sensors (sim.noise = false)\n"
            "  --out RUN.h5     result file: per-direction LE Strehl and WFE, per-frame Strehl, timings,\n"
-           "                   the configuration, seed and versions (see README, 'Result files')\n"
+           "                   the configuration, seed and versions (docs/formats.md)\n"
            "  --telemetry F    also write per frame the measured and pseudo-open-loop slopes and the\n"
            "                   applied commands (float32), for `wavetomo run`\n"
            "  --dump-screens   add the layer screens of frame 0 and the residual OPD maps of the last\n"

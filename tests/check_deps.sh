@@ -4,7 +4,9 @@
 #
 #   base ← config        (the configuration layer: libconfig text -> wt_config, the schema)
 #   base ← io            (the file layer: HDF5, plain data only, no configuration, no numerical module)
-#   base ← la ← op ← solve ← model ← {build, sim} ← drivers (cli, builder, runtime, compare)
+#   base ← la ← op ← solve ← model ← {build, sim, rtc} ← drivers (cli, builder, runtime, compare)
+#   public (include/wavetomo/*.h: the installed headers) ← every module; they include only each other
+#   rtc: the per-frame API of include/wavetomo/rtc.h over model and solve
 #   base ← la ← optics   (diffractive sensing: sodium profile, spot images, centroiders, their noise)
 #   solve and above may use config and io; model and above may use optics.
 #
@@ -17,27 +19,30 @@ cd "$(dirname "$0")/.."
 CC=${CC:-gcc}
 CPPFLAGS_EXTRA=${CPPFLAGS_EXTRA:-}
 declare -A ALLOW=(
-  [base]="base"
-  [config]="base config"
-  [io]="base io"
-  [la]="base la"
-  [op]="base la op"
-  [solve]="base la op config io solve"
-  [optics]="base la optics"
-  [model]="base la op config io solve optics model"
-  [build]="base la op config io solve optics model build"
-  [sim]="base la op config io solve optics model sim"
-  [driver]="base la op config io solve optics model build sim driver"
+  [public]="public"
+  [base]="public base"
+  [config]="public base config"
+  [io]="public base io"
+  [la]="public base la"
+  [op]="public base la op"
+  [solve]="public base la op config io solve"
+  [optics]="public base la optics"
+  [model]="public base la op config io solve optics model"
+  [build]="public base la op config io solve optics model build"
+  [sim]="public base la op config io solve optics model sim"
+  [rtc]="public base la op config io solve optics model rtc"
+  [driver]="public base la op config io solve optics model build sim rtc driver"
 )
 module() { # path relative to the root -> module name
   case "$1" in
+    include/wavetomo/*) echo public ;;
     core/*/*) local m=${1#core/}; echo "${m%%/*}" ;;
     cli/* | builder/* | runtime/* | compare/*) echo driver ;;
     *) echo external ;;
   esac
 }
 bad=0
-files=$(ls core/*/*.c core/*/*.h cli/*.c cli/*.h builder/*.c runtime/*.c compare/*.c compare/*.h 2>/dev/null)
+files=$(ls include/wavetomo/*.h core/*/*.c core/*/*.h cli/*.c cli/*.h builder/*.c runtime/*.c compare/*.c compare/*.h 2>/dev/null)
 for f in $files; do
   mf=$(module "$f")
   [ -n "${ALLOW[$mf]:-}" ] || { echo "check-deps: $f: unknown module '$mf'"; bad=1; continue; }
@@ -56,7 +61,8 @@ done
 # direct include edges, file level and module level, through tsort (a loop is an error)
 edges=$(for f in $files; do
   for i in $(grep -o '^#include "[^"]*"' "$f" | sed 's/#include "//; s/"$//'); do
-    if [ -e "$(dirname "$f")/$i" ]; then t=$(realpath -m --relative-to=. "$(dirname "$f")/$i"); else t=$i; fi
+    if [ -e "$(dirname "$f")/$i" ]; then t=$(realpath -m --relative-to=. "$(dirname "$f")/$i")
+    elif [ -e "include/$i" ]; then t=include/$i; else t=$i; fi
     echo "$f $t"
   done
 done)
@@ -81,5 +87,5 @@ else
   echo "check-deps: ${BUILD:-build}/core not built, call circles not checked"
 fi
 rm -f /tmp/check_deps.$$
-if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow base ← la ← op ← solve ← model ← {build, sim} ← drivers, config and io on base only; no include or call circle"; fi
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {build, sim, rtc} ← drivers, config and io on base only; no include or call circle"; fi
 exit $bad

@@ -767,7 +767,7 @@ END_TEST
 
 /* --threads N also sets OpenBLAS's pool (issue 10): `run` with the stored MVM and with pcg3 gives the
  * same bits with 1 and 2 threads (each command of the GEMV is one dot product computed by one thread; the
- * PCG's reductions have a fixed static split). The build is not bit-identical (README). */
+ * PCG's reductions have a fixed static split). The build is not bit-identical (docs/refusals.md). */
 static void read_all(const char *path, const char *name, float *out, size_t n)
 {
     wt_context *ctx = tu_context();

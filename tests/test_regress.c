@@ -137,7 +137,7 @@ Suite *make_suite(void)
 {
     Suite *s = suite_create("regress");
     TCase *tc = tcase_create("table");
-    tcase_set_timeout(tc, 600);
+    tcase_set_timeout(tc, 1200);
     tcase_add_test(tc, test_regression_table);
     tcase_add_test(tc, test_number_parser);
     suite_add_tcase(s, tc);

@@ -161,3 +161,6 @@ double wt_time_now(void)
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
+
+const char *wt_version(void) { return WT_VERSION_STRING; }
+int wt_version_number(void) { return WT_VERSION_NUMBER; }

@@ -1,6 +1,6 @@
 /* core/base/base.h: status codes, the context (error, allocator and log hooks), timers.
  *
- * Conventions (docs/design.md):
+ * Conventions (docs/design.md, docs/c-api.md):
  *  - every fallible function returns an int status: WT_OK = 0, errors < 0, warnings > 0;
  *  - the library never exits or prints; errors are recorded in the caller's wt_context with the
  *    file, line and a message, and handed to the context's error hook if one is set;
@@ -14,60 +14,17 @@
 #include <stdint.h>
 #include <stdarg.h>
 
-#define WT_VERSION "0.1.0"
+/* The public part of this module: the status codes, the context and its hooks (wavetomo/context.h),
+ * the version (wavetomo/version.h). What follows here is the library's internal side. */
+#include "wavetomo/context.h"
+#include "wavetomo/version.h"
 
-enum {
-    WT_OK = 0,
-    /* warnings (> 0): the result is usable */
-    WT_WARN_MAXITER = 1,   /* an iterative solver stopped at its iteration cap before its tolerance */
-    WT_WARN_BREAKDOWN = 2, /* an iterative solver stopped early at a breakdown at rounding level (pᵀAp or rᵀz
-                              no longer > 0): the last iterate is kept and its residual reported */
-    /* errors (< 0) */
-    WT_ERR_NOMEM = -1,     /* an allocation failed */
-    WT_ERR_INVALID = -2,   /* a bad argument or inconsistent sizes */
-    WT_ERR_CONFIG = -3,    /* a configuration file or override is malformed or out of range */
-    WT_ERR_IO = -4,        /* a file could not be read or written */
-    WT_ERR_LIBRARY = -5,   /* an external library (HDF5, CHOLMOD, FFTW, LAPACK) reported a failure */
-    WT_ERR_NUMERIC = -6,   /* NaN/Inf, breakdown, loss of positive definiteness */
-    WT_ERR_FORMAT = -7,    /* a file has the wrong shape, type or provenance */
-    WT_ERR_INTERRUPTED = -8 /* stopped by SIGINT/SIGTERM/SIGHUP at a point where the caller keeps what is done */
-};
-
-/* Human-readable name of a status code; never NULL. */
-const char *wt_strerror(int status);
-
-typedef struct wt_context wt_context;
-
-typedef void (*wt_error_hook)(void *user, int status, const char *file, int line, const char *msg);
-typedef void (*wt_log_hook)(void *user, int level, const char *msg);
-typedef void *(*wt_malloc_hook)(void *user, size_t size);
-typedef void (*wt_free_hook)(void *user, void *ptr);
-
-enum { WT_LOG_ERROR = 0, WT_LOG_WARN = 1, WT_LOG_INFO = 2, WT_LOG_DEBUG = 3 };
-
-/* Create a context with default hooks: malloc/free, no error hook, no logging.
- * Returns NULL only when the context itself cannot be allocated. */
-wt_context *wt_context_alloc(void);
-void wt_context_free(wt_context *ctx);
-
-void wt_context_set_error_hook(wt_context *ctx, wt_error_hook hook, void *user);
-void wt_context_set_log_hook(wt_context *ctx, wt_log_hook hook, void *user, int max_level);
-/* Replace the allocator (tests count allocations or inject failures with it). */
-void wt_context_set_allocator(wt_context *ctx, wt_malloc_hook m, wt_free_hook f, void *user);
-/* Threads the library may use in its OpenMP regions (<= 0: all the machine offers). A positive count also
- * becomes OpenMP's default for the calling thread (omp_set_num_threads): the context-free kernels use that. */
-void wt_context_set_threads(wt_context *ctx, int nthreads);
-int wt_context_threads(const wt_context *ctx);
+#define WT_VERSION WT_VERSION_STRING
 
 /* Record an error (or warning) and return its status. Use through WT_ERROR. */
 int wt_error_set(wt_context *ctx, int status, const char *file, int line, const char *fmt, ...)
     __attribute__((format(printf, 5, 6)));
 #define WT_ERROR(ctx, status, ...) wt_error_set((ctx), (status), __FILE__, __LINE__, __VA_ARGS__)
-/* The last recorded message ("" if none) and its status. */
-const char *wt_error_message(const wt_context *ctx);
-int wt_error_status(const wt_context *ctx);
-void wt_error_clear(wt_context *ctx);
-
 void wt_log(wt_context *ctx, int level, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 /* Allocation through the context's hooks. Sizes are checked for overflow (n * size).

@@ -265,6 +265,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
             st = wt_projection_alloc(ctx, 1, &t->grid[l], &t->alt[l], s->altitude, s->theta_x, s->theta_y,
                                      &sys->sense_grid, wt_shack_hartmann_corner_mask(s->sh), 0,
                                      &t->proj[m * t->L + l]);
+            if (st == WT_ERR_NOMEM) goto fail; /* not a grid too small: keep the allocation's own status */
             if (st < 0) {
                 char detail[1024];
                 snprintf(detail, sizeof detail, "%s", wt_error_message(ctx));

@@ -112,7 +112,7 @@ int wt_budget_nruns(const wt_system *sys, int nmethods);
 int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *cfg, int nmethods,
                            const char *const *methods, const wt_budget_result *res, int argc, char **argv);
 
-/* The datasets of results.h5 (README "Error budget"): per method "<method>/<term>" [nm] with the analytic
+/* The datasets of results.h5 (docs/formats.md "budget: results.h5"): per method "<method>/<term>" [nm] with the analytic
  * values as attributes, "<method>/runs/<run>", "<method>/closure"; the root attribute "methods". */
 struct wt_h5_writer;
 int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *methods, const wt_budget_result *res);

@@ -2,7 +2,7 @@
  * result file: per-frame short-exposure Strehl (field average and on-axis, Maréchal, SPEC §8), per-frame
  * residual rms per evaluation direction, optional telemetry (s_t, s_ol = s_t + Â a_t and a_t of paper
  * Algorithm POLC, float32 series), the long-exposure results, the per-part timings and the screen and
- * residual dumps. The datasets and their units are README's "Result files".
+ * residual dumps. The datasets and their units are in docs/formats.md.
  *
  * Through core/io/h5.h only (plain data); the caller opens, documents (provenance, layout) and commits
  * the files. alloc allocates everything; wt_sim_record_frame allocates nothing.

@@ -1,4 +1,4 @@
-/* tests/fuzz/fuzz.h: what the libFuzzer targets of issue 10 share (`make fuzz`, README "Fuzzing").
+/* tests/fuzz/fuzz.h: what the libFuzzer targets of issue 10 share (`make fuzz`, docs/testing.md "Fuzzing").
  *
  * Each target feeds its bytes to one reader of the library and only asks that the reader returns (a
  * status, a message) without a crash, a leak, a hang, an UBSan report or an allocation beyond

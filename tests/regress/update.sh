@@ -6,7 +6,7 @@
 # realisation scatter of the same case over seeds 1..NSEEDS (one sample standard deviation of each
 # metric, floored at the printed resolution). A change of the code that moves a case by more than one
 # realisation sigma on the same seed is a real change of the physics or numerics, and must be explained
-# in the commit that updates this table (README "Regression table").
+# in the commit that updates this table (docs/testing.md "Regression table").
 #
 # usage: bash tests/regress/update.sh [NSEEDS]      (from the repository root, after `make`)
 #        ONLY=id1,id2 bash tests/regress/update.sh   recompute only those cases; the other rows are kept

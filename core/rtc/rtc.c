@@ -1,0 +1,425 @@
+/* core/rtc/rtc.c: the per-frame reconstructor API (include/wavetomo/rtc.h): set-up from a configuration
+ * or a stored MVM, then frames of pseudo-open-loop control around the reconstructors of core/model and
+ * the MVM of core/solve. The numerics are theirs; this file checks the boundary and keeps the loop's
+ * state (the command queue of the delay), in the same operations as core/sim/loop.c's POLC step. */
+#include "rtc.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "../io/h5.h"
+#include "../model/interaction.h"
+#include "../model/params.h"
+#include "../model/reconstructor.h"
+#include "../solve/mvm.h"
+
+struct wt_rtc {
+    wt_context *ctx;
+    wt_config *own_cfg;     /* parsed by a public open (freed by close); NULL when the caller's */
+    wt_system *own_sys;     /* built by a public open; NULL when the caller's */
+    const wt_system *sys;
+    int kind;               /* WT_RECON_PCG3, _CG9 or _MVM */
+    char recon[16];         /* "pcg3", "cg9", "mvm-pcg3", "mvm-cg9" */
+    wt_reconstructor *rec;  /* pcg3 / cg9 */
+    wt_interaction *ia;     /* pcg3 / cg9: Â of s_ol = s + Â a_t */
+    wt_mvm *mvm;            /* the MVM: R and R Â */
+    int delay;              /* d [frames] */
+    double gain, rate;      /* g [1], frame rate [Hz] */
+    int64_t ns, na;
+    double **ring;          /* d + 1 command vectors: ring[q mod (d+1)] = a_q, q counting the POLC frames */
+    int64_t q;              /* POLC frames since open or reset (the queue's clock; WT_RTC_RAW frames do not tick) */
+    int64_t frames;         /* all frames since open or reset (named in messages) */
+    double *s, *a, *r;      /* the frame in double: slopes (then s_ol), applied a_t, reconstruction r (and the
+                             * f32 entry's commands) */
+    float *sf, *af, *rf;    /* float32: the MVM's GEMV operands, the f32 entry's conversions */
+    double frame_time;      /* wall time of the last frame [s] */
+};
+
+static const char *nonfinite(double v) { return isnan(v) ? "NaN" : "Inf"; }
+
+/* "slope 17 (LGS2 s_y of valid subaperture 5)": what index i of a frame is */
+static void describe_slope(const wt_system *sys, int64_t i, char *buf, size_t n)
+{
+    for (int m = 0; m < sys->nsensors; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        if (i < s->offset || i >= s->offset + s->nslopes) continue;
+        const int64_t k = i - s->offset;
+        snprintf(buf, n, "%s s_%c of valid subaperture %lld", s->name, k < s->nsub ? 'x' : 'y',
+                 (long long)(k < s->nsub ? k : k - s->nsub));
+        return;
+    }
+    snprintf(buf, n, "?");
+}
+
+static void describe_actuator(const wt_system *sys, int64_t i, char *buf, size_t n)
+{
+    const wt_dm *dm = sys->dm;
+    for (int k = 0; k < dm->ndms; k++)
+        if (i >= dm->offset[k] && i < dm->offset[k] + dm->nactive[k]) {
+            snprintf(buf, n, "DM %d active actuator %lld", k + 1, (long long)(i - dm->offset[k]));
+            return;
+        }
+    snprintf(buf, n, "?");
+}
+
+int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const char *matrix, int iterations,
+                       int only_ol, wt_rtc **out)
+{
+    int st = WT_OK;
+    wt_rtc *rtc = NULL;
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: no place for the instance (out is NULL)");
+    *out = NULL;
+    if (!ctx || !sys) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: NULL context or system");
+    const wt_config *cfg = sys->cfg;
+    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor %s: expected pcg3, cg9 or a stored MVM",
+                        wt_reconstructor_name(kind));
+    if ((kind == WT_RECON_MVM) != (matrix != NULL))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %s", matrix ? "a matrix file is for the MVM only"
+                                                                       : "the MVM needs its matrix file");
+    WT_ALLOC(ctx, rtc, 1, "per-frame reconstructor");
+    rtc->ctx = ctx;
+    rtc->sys = sys;
+    rtc->kind = kind;
+    rtc->delay = cfg->delay;
+    rtc->gain = cfg->gain;
+    rtc->rate = cfg->rate;
+    rtc->ns = rtc->sys->nslopes;
+    rtc->na = rtc->sys->nact;
+    if (kind == WT_RECON_MVM) {
+        char variant[16] = "";
+        WT_TRY(wt_mvm_read(ctx, matrix, cfg, rtc->na, rtc->ns, &rtc->mvm, variant));
+        snprintf(rtc->recon, sizeof rtc->recon, "mvm-%.8s", variant);
+    } else {
+        wt_reconstructor_params rp;
+        wt_reconstructor_params_from_config(cfg, kind, iterations, &rp);
+        WT_TRY(wt_reconstructor_alloc(ctx, rtc->sys, kind, &rp, &rtc->rec));
+        if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, rtc->sys, &rtc->ia));
+        snprintf(rtc->recon, sizeof rtc->recon, "%s", wt_reconstructor_name(kind));
+    }
+    WT_ALLOC(ctx, rtc->ring, rtc->delay + 1, "command queue");
+    for (int k = 0; k <= rtc->delay; k++) WT_ALLOC(ctx, rtc->ring[k], rtc->na, "command queue");
+    WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");
+    WT_ALLOC(ctx, rtc->a, rtc->na, "applied commands");
+    WT_ALLOC(ctx, rtc->r, rtc->na, "reconstruction");
+    WT_ALLOC(ctx, rtc->sf, rtc->ns, "float32 slopes");
+    WT_ALLOC(ctx, rtc->af, rtc->na, "float32 applied commands");
+    WT_ALLOC(ctx, rtc->rf, rtc->na, "float32 reconstruction");
+    *out = rtc;
+    return WT_OK;
+fail:
+    wt_rtc_close(rtc);
+    return st;
+}
+
+/* The public opens: the system of a parsed configuration, then the instance on it, which owns both. */
+static int open_owned(wt_context *ctx, wt_config *cfg, int kind, const char *matrix, wt_rtc **out)
+{
+    wt_system *sys = NULL;
+    int st = wt_system_alloc(ctx, cfg, &sys);
+    if (st >= 0) st = wt_rtc_open_system(ctx, sys, kind, matrix, -1, 0, out);
+    if (st < 0) {
+        wt_system_free(sys);
+        wt_config_free(ctx, cfg);
+        return st;
+    }
+    (*out)->own_sys = sys;
+    (*out)->own_cfg = cfg;
+    return st;
+}
+
+static int recon_kind(wt_context *ctx, const char *recon, int *kind)
+{
+    *kind = recon ? wt_reconstructor_kind(recon) : -1;
+    if (*kind == WT_RECON_PCG3 || *kind == WT_RECON_CG9) return WT_OK;
+    return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor '%s': expected \"pcg3\" or \"cg9\"%s",
+                    recon ? recon : "(NULL)", *kind == WT_RECON_MVM ? " (open a stored MVM with wt_rtc_open_mvm)" : "");
+}
+
+static int check_open_args(wt_context *ctx, const void *what, const char *name, int nset, const char *const *set,
+                           wt_rtc **out)
+{
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: no place for the instance (out is NULL)");
+    *out = NULL;
+    if (!ctx) return WT_ERR_INVALID; /* nowhere to say why */
+    if (!what) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: no %s given (NULL)", name);
+    if (nset < 0 || (nset > 0 && !set))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %d overrides but %s", nset,
+                        nset < 0 ? "a negative count" : "no array (NULL)");
+    return WT_OK;
+}
+
+int wt_rtc_open(wt_context *ctx, const char *recon, const char *config_file, int nset, const char *const *set,
+                wt_rtc **out)
+{
+    int st, kind;
+    wt_config *cfg = NULL;
+    if ((st = check_open_args(ctx, config_file, "configuration file", nset, set, out)) < 0) return st;
+    if ((st = recon_kind(ctx, recon, &kind)) < 0) return st;
+    if ((st = wt_config_read(ctx, config_file, nset, set, &cfg)) < 0) return st;
+    return open_owned(ctx, cfg, kind, NULL, out);
+}
+
+int wt_rtc_open_text(wt_context *ctx, const char *recon, const char *config_text, int nset,
+                     const char *const *set, wt_rtc **out)
+{
+    int st, kind;
+    wt_config *cfg = NULL;
+    if ((st = check_open_args(ctx, config_text, "configuration text", nset, set, out)) < 0) return st;
+    if ((st = recon_kind(ctx, recon, &kind)) < 0) return st;
+    if ((st = wt_config_parse(ctx, config_text, "(configuration text)", nset, set, &cfg)) < 0) return st;
+    return open_owned(ctx, cfg, kind, NULL, out);
+}
+
+int wt_rtc_open_mvm(wt_context *ctx, const char *matrix_file, const char *config_file, int nset,
+                    const char *const *set, wt_rtc **out)
+{
+    int st;
+    wt_config *cfg = NULL;
+    if ((st = check_open_args(ctx, matrix_file, "matrix file", nset, set, out)) < 0) return st;
+    if (config_file) {
+        if ((st = wt_config_read(ctx, config_file, nset, set, &cfg)) < 0) return st;
+    } else {
+        /* the configuration the matrix was built with (its provenance, dataset "config") */
+        wt_h5_reader *r = NULL;
+        char *text = NULL, name[1100];
+        if ((st = wt_h5_open(ctx, matrix_file, &r)) < 0) return st;
+        st = wt_h5_read_string(r, "config", &text);
+        wt_h5_close(r);
+        if (st < 0) return st;
+        snprintf(name, sizeof name, "%s:config", matrix_file);
+        st = wt_config_parse(ctx, text, name, nset, set, &cfg);
+        wt_free(ctx, text);
+        if (st < 0) return st;
+    }
+    return open_owned(ctx, cfg, WT_RECON_MVM, matrix_file, out);
+}
+
+void wt_rtc_close(wt_rtc *rtc)
+{
+    if (!rtc) return;
+    wt_context *ctx = rtc->ctx;
+    if (rtc->ring)
+        for (int k = 0; k <= rtc->delay; k++) wt_free(ctx, rtc->ring[k]);
+    wt_free(ctx, rtc->ring);
+    wt_free(ctx, rtc->s);
+    wt_free(ctx, rtc->a);
+    wt_free(ctx, rtc->r);
+    wt_free(ctx, rtc->sf);
+    wt_free(ctx, rtc->af);
+    wt_free(ctx, rtc->rf);
+    wt_reconstructor_free(rtc->rec);
+    wt_interaction_free(rtc->ia);
+    wt_mvm_free(rtc->mvm);
+    wt_system_free(rtc->own_sys);
+    wt_config_free(ctx, rtc->own_cfg);
+    wt_free(ctx, rtc);
+}
+
+void wt_rtc_reset(wt_rtc *rtc)
+{
+    if (!rtc) return;
+    for (int k = 0; k <= rtc->delay; k++) memset(rtc->ring[k], 0, (size_t)rtc->na * sizeof *rtc->ring[k]);
+    if (rtc->rec) wt_reconstructor_reset(rtc->rec);
+    rtc->q = rtc->frames = 0;
+    rtc->frame_time = 0.0;
+}
+
+/* The boundary of a frame: the instance, the buffers, their sizes, the flags. */
+static int check_frame(wt_rtc *rtc, const void *slopes, int64_t nslopes, unsigned flags, const void *commands,
+                       int64_t nactuators)
+{
+    if (!rtc) return WT_ERR_INVALID; /* no context to say why */
+    if (!slopes || !commands)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "frame %lld: %s buffer is NULL", (long long)rtc->frames,
+                        slopes ? "the commands" : "the slopes");
+    if (nslopes != rtc->ns || nactuators != rtc->na)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID,
+                        "frame %lld: %lld slopes and %lld commands given, the system (%s) has %lld slopes and %lld "
+                        "commands",
+                        (long long)rtc->frames, (long long)nslopes, (long long)nactuators, rtc->sys->source,
+                        (long long)rtc->ns, (long long)rtc->na);
+    if (flags & ~(unsigned)(WT_RTC_RAW | WT_RTC_SLOPES_OL))
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "frame %lld: unknown flags 0x%x", (long long)rtc->frames,
+                        flags & ~(unsigned)(WT_RTC_RAW | WT_RTC_SLOPES_OL));
+    if (rtc->rec && !rtc->ia && !(flags & WT_RTC_SLOPES_OL))
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID,
+                        "frame %lld: this instance was opened for pseudo-open-loop slopes only (WT_RTC_SLOPES_OL)",
+                        (long long)rtc->frames);
+    return WT_OK;
+}
+
+#define CHECK_FINITE(rtc, x, n, what, describe)                                                                 \
+    do {                                                                                                      \
+        for (int64_t i_ = 0; i_ < (n); i_++)                                                                  \
+            if (!isfinite((x)[i_])) {                                                                         \
+                char d_[96];                                                                                  \
+                describe((rtc)->sys, i_, d_, sizeof d_);                                                      \
+                return WT_ERROR((rtc)->ctx, WT_ERR_NUMERIC, "frame %lld: %s %lld (%s) is %s",                 \
+                                (long long)(rtc)->frames, (what), (long long)i_, d_, nonfinite((double)(x)[i_])); \
+            }                                                                                                 \
+    } while (0)
+
+/* After r (double, na) of a frame with a_t: the commands of the frame into rtc->r (RAW: r itself; else
+ * the integrator, a_{t+d} = a_{t+d-1} + g (r − a_t), queued) — the loop's operations (core/sim/loop.c). */
+static const double *finish(wt_rtc *rtc, const double *a_t, unsigned flags)
+{
+    if (flags & WT_RTC_RAW) return rtc->r;
+    const int D1 = rtc->delay + 1;
+    const double *prev = rtc->ring[(rtc->q + rtc->delay - 1) % D1];
+    double *next = rtc->ring[(rtc->q + rtc->delay) % D1];
+    for (int64_t k = 0; k < rtc->na; k++) next[k] = prev[k] + rtc->gain * (rtc->r[k] - a_t[k]);
+    rtc->q++;
+    return next;
+}
+
+/* r = R s_ol in double for the iterative reconstructors; s (the caller's slopes, or rtc->s holding a
+ * converted copy) and a_t. */
+static int reconstruct(wt_rtc *rtc, const double *s, const double *a_t, unsigned flags)
+{
+    if (s != rtc->s) memcpy(rtc->s, s, (size_t)rtc->ns * sizeof *rtc->s);
+    if (!(flags & WT_RTC_SLOPES_OL)) wt_interaction_apply(rtc->ia, 1.0, a_t, rtc->s);
+    return wt_reconstructor_apply(rtc->rec, rtc->s, rtc->r);
+}
+
+int wt_rtc_frame(wt_rtc *rtc, const double *slopes, int64_t nslopes, const double *applied, unsigned flags,
+                 double *commands, int64_t nactuators)
+{
+    int st = check_frame(rtc, slopes, nslopes, flags, commands, nactuators);
+    if (st < 0) return st;
+    const double t0 = wt_time_now();
+    CHECK_FINITE(rtc, slopes, rtc->ns, "slope", describe_slope);
+    if (applied) CHECK_FINITE(rtc, applied, rtc->na, "applied command", describe_actuator);
+    const double *a_t = applied ? applied : rtc->ring[rtc->q % (rtc->delay + 1)];
+    if (rtc->mvm) {
+        /* r = R s + (R Â) a_t in float32, the stored POLC form (`wavetomo run`), or R s_ol */
+        for (int64_t i = 0; i < rtc->ns; i++) rtc->sf[i] = (float)slopes[i];
+        if (!(flags & WT_RTC_SLOPES_OL))
+            for (int64_t k = 0; k < rtc->na; k++) rtc->af[k] = (float)a_t[k];
+        wt_mvm_apply(rtc->mvm, rtc->sf, (flags & WT_RTC_SLOPES_OL) ? NULL : rtc->af, rtc->rf);
+        for (int64_t k = 0; k < rtc->na; k++) rtc->r[k] = rtc->rf[k];
+    } else if ((st = reconstruct(rtc, slopes, a_t, flags)) < 0) {
+        return st;
+    }
+    const double *c = finish(rtc, a_t, flags);
+    memcpy(commands, c, (size_t)rtc->na * sizeof *commands);
+    rtc->frames++;
+    rtc->frame_time = wt_time_now() - t0;
+    return st;
+}
+
+int wt_rtc_frame_f32(wt_rtc *rtc, const float *slopes, int64_t nslopes, const float *applied, unsigned flags,
+                     float *commands, int64_t nactuators)
+{
+    int st = check_frame(rtc, slopes, nslopes, flags, commands, nactuators);
+    if (st < 0) return st;
+    const double t0 = wt_time_now();
+    CHECK_FINITE(rtc, slopes, rtc->ns, "slope", describe_slope);
+    if (applied) CHECK_FINITE(rtc, applied, rtc->na, "applied command", describe_actuator);
+    const int polc_term = !(flags & WT_RTC_SLOPES_OL);
+    if (rtc->mvm && (flags & WT_RTC_RAW) && (applied || !polc_term)) {
+        /* the caller's floats straight into the GEMVs: R s + (R Â) a, or R s_ol (`wavetomo run --matrix`) */
+        wt_mvm_apply(rtc->mvm, slopes, polc_term ? applied : NULL, commands);
+        rtc->frames++;
+        rtc->frame_time = wt_time_now() - t0;
+        return WT_OK;
+    }
+    /* otherwise the double frame on converted copies (the queue holds doubles) */
+    const double *a_t = rtc->ring[rtc->q % (rtc->delay + 1)];
+    if (applied) {
+        for (int64_t k = 0; k < rtc->na; k++) rtc->a[k] = applied[k];
+        a_t = rtc->a;
+    }
+    if (rtc->mvm) {
+        if (polc_term)
+            for (int64_t k = 0; k < rtc->na; k++) rtc->af[k] = (float)a_t[k];
+        wt_mvm_apply(rtc->mvm, slopes, polc_term ? rtc->af : NULL, rtc->rf);
+        for (int64_t k = 0; k < rtc->na; k++) rtc->r[k] = rtc->rf[k];
+    } else {
+        for (int64_t i = 0; i < rtc->ns; i++) rtc->s[i] = slopes[i];
+        if ((st = reconstruct(rtc, rtc->s, a_t, flags)) < 0) return st;
+    }
+    const double *c = finish(rtc, a_t, flags);
+    for (int64_t k = 0; k < rtc->na; k++) commands[k] = (float)c[k];
+    rtc->frames++;
+    rtc->frame_time = wt_time_now() - t0;
+    return st;
+}
+
+int64_t wt_rtc_nslopes(const wt_rtc *rtc) { return rtc->ns; }
+int64_t wt_rtc_nactuators(const wt_rtc *rtc) { return rtc->na; }
+int wt_rtc_nsensors(const wt_rtc *rtc) { return rtc->sys->nsensors; }
+int wt_rtc_ndms(const wt_rtc *rtc) { return rtc->sys->dm->ndms; }
+const char *wt_rtc_recon(const wt_rtc *rtc) { return rtc->recon; }
+int wt_rtc_delay(const wt_rtc *rtc) { return rtc->delay; }
+double wt_rtc_gain(const wt_rtc *rtc) { return rtc->gain; }
+double wt_rtc_rate(const wt_rtc *rtc) { return rtc->rate; }
+int64_t wt_rtc_frames(const wt_rtc *rtc) { return rtc->frames; }
+double wt_rtc_frame_time(const wt_rtc *rtc) { return rtc->frame_time; }
+
+int wt_rtc_sensor_info(const wt_rtc *rtc, int m, wt_rtc_sensor *info)
+{
+    if (m < 0 || m >= rtc->sys->nsensors || !info)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "wt_rtc_sensor_info: sensor %d of %d%s", m, rtc->sys->nsensors,
+                        info ? "" : " (info is NULL)");
+    const wt_sensor *s = &rtc->sys->sensors[m];
+    memset(info, 0, sizeof *info);
+    snprintf(info->name, sizeof info->name, "%s", s->name);
+    info->kind = s->kind == WT_SENSOR_LGS ? WT_RTC_LGS : WT_RTC_NGS;
+    info->nsub = s->nsub;
+    info->offset = s->offset;
+    info->theta_x = s->theta_x;
+    info->theta_y = s->theta_y;
+    info->altitude = s->altitude;
+    return WT_OK;
+}
+
+int wt_rtc_subapertures(const wt_rtc *rtc, int m, double *xy)
+{
+    if (m < 0 || m >= rtc->sys->nsensors || !xy)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "wt_rtc_subapertures: sensor %d of %d%s", m, rtc->sys->nsensors,
+                        xy ? "" : " (xy is NULL)");
+    const wt_sensor *s = &rtc->sys->sensors[m];
+    for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &xy[2 * k], &xy[2 * k + 1]);
+    return WT_OK;
+}
+
+int wt_rtc_dm_info(const wt_rtc *rtc, int k, wt_rtc_dm *info)
+{
+    const wt_dm *dm = rtc->sys->dm;
+    if (k < 0 || k >= dm->ndms || !info)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "wt_rtc_dm_info: DM %d of %d%s", k, dm->ndms,
+                        info ? "" : " (info is NULL)");
+    memset(info, 0, sizeof *info);
+    info->altitude = dm->altitude[k];
+    info->pitch = dm->grid[k].dx;
+    info->nactive = dm->nactive[k];
+    info->offset = dm->offset[k];
+    info->nx = dm->grid[k].nx;
+    info->ny = dm->grid[k].ny;
+    info->x0 = dm->grid[k].x0;
+    info->y0 = dm->grid[k].y0;
+    return WT_OK;
+}
+
+/* The command order of core/op/dm.h: DM by DM, active actuators in grid-index order (as the "layout"
+ * group of the output files, cli/output.c). */
+int wt_rtc_actuators(const wt_rtc *rtc, double *xy, int32_t *index)
+{
+    if (!xy) return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "wt_rtc_actuators: xy is NULL");
+    const wt_dm *dm = rtc->sys->dm;
+    int64_t q = 0;
+    for (int k = 0; k < dm->ndms; k++) {
+        const wt_grid *g = &dm->grid[k];
+        for (int iy = 0; iy < g->ny; iy++)
+            for (int ix = 0; ix < g->nx; ix++) {
+                if (!dm->active[k][ix + (int64_t)g->nx * iy]) continue;
+                xy[2 * q] = g->x0 + ix * g->dx;
+                xy[2 * q + 1] = g->y0 + iy * g->dx;
+                if (index) index[3 * q] = k, index[3 * q + 1] = ix, index[3 * q + 2] = iy;
+                q++;
+            }
+    }
+    return WT_OK;
+}
