@@ -22,10 +22,9 @@
 typedef struct level {
     int64_t nsq;      /* squares with at least one active actuator */
     int64_t *start;   /* nsq + 1: square s holds actuators idx[start[s] … start[s+1]) */
-    int8_t *rank;     /* nsq: columns of Q_s (0 … 4) */
-    int64_t *qoff;    /* nsq: Q_s (m x rank, column-major) at q + qoff[s] */
     int64_t *idx;     /* nact: command index of each actuator, square by square */
-    double *q;
+    double *q;        /* 4 nact: row i of Q_s (4 values, zero beyond its rank) at q + 4 i, i in start[s] …:
+                       * one gather of x per actuator feeds all four dot products */
     int64_t dim;      /* Σ rank = dim V_j */
 } level;
 
@@ -50,6 +49,7 @@ struct wt_scale_gain {
  * returns the rank. */
 static int square_basis(int m, const double *u, const double *v, double *q)
 {
+    memset(q, 0, 4 * (size_t)m * sizeof *q);
     int r = 0;
     for (int c = 0; c < 4; c++) {
         double *f = q + (size_t)m * r, n0 = 0.0;
@@ -78,14 +78,12 @@ static int square_basis(int m, const double *u, const double *v, double *q)
 static void level_free(wt_context *ctx, level *lv)
 {
     wt_free(ctx, lv->start);
-    wt_free(ctx, lv->rank);
-    wt_free(ctx, lv->qoff);
     wt_free(ctx, lv->idx);
     wt_free(ctx, lv->q);
 }
 
 /* Level j of the bilinear basis: squares of side b = 2^(L+1−j) of every DM's embedded grid. cmd[k][p] is
- * the command index of DM k's grid point p (−1 when inactive); uv holds 2 b² doubles. */
+ * the command index of DM k's grid point p (−1 when inactive); uv holds 6 b² doubles (coordinates, Q_s). */
 static int level_alloc(wt_scale_gain *g, int j, int64_t *const *cmd, double *uv, level *lv)
 {
     wt_context *ctx = g->ctx;
@@ -96,12 +94,10 @@ static int level_alloc(wt_scale_gain *g, int j, int64_t *const *cmd, double *uv,
     int64_t nsq = 0;
     for (int k = 0; k < dm->ndms; k++) nsq += (int64_t)(g->n[k] / b) * (g->n[k] / b);
     WT_ALLOC(ctx, lv->start, nsq + 1, "scale-dependent gain: squares");
-    WT_ALLOC(ctx, lv->rank, nsq, "scale-dependent gain: squares");
-    WT_ALLOC(ctx, lv->qoff, nsq, "scale-dependent gain: squares");
     WT_ALLOC(ctx, lv->idx, nact, "scale-dependent gain: actuators");
     WT_ALLOC(ctx, lv->q, 4 * nact, "scale-dependent gain: square bases");
-    int64_t s = 0, a = 0, qo = 0;
-    double *u = uv, *v = uv + (size_t)b * b;
+    int64_t s = 0, a = 0;
+    double *u = uv, *v = uv + (size_t)b * b, *qc = uv + 2 * (size_t)b * b; /* qc: Q_s by columns */
     for (int k = 0; k < dm->ndms; k++) {
         const wt_grid *gr = &dm->grid[k];
         const int n = g->n[k], ox = (n - gr->nx) / 2, oy = (n - gr->ny) / 2;
@@ -122,10 +118,9 @@ static int level_alloc(wt_scale_gain *g, int j, int64_t *const *cmd, double *uv,
                 }
                 if (m == 0) continue;
                 lv->start[s] = a;
-                lv->qoff[s] = qo;
-                lv->rank[s] = (int8_t)square_basis(m, u, v, lv->q + qo);
-                qo += (int64_t)m * lv->rank[s];
-                lv->dim += lv->rank[s];
+                lv->dim += square_basis(m, u, v, qc);
+                for (int i = 0; i < m; i++)
+                    for (int t = 0; t < 4; t++) lv->q[4 * (a + i) + t] = qc[i + (size_t)m * t];
                 a += m;
                 s++;
             }
@@ -184,7 +179,7 @@ int wt_scale_gain_alloc(wt_context *ctx, const wt_dm *dm, const wt_scale_gain_pa
             int64_t c = dm->offset[k];
             for (int64_t q = 0; q < wt_grid_size(&dm->grid[k]); q++) cmd[k][q] = dm->active[k][q] ? c++ : -1;
         }
-        WT_ALLOC(ctx, uv, 2 * (size_t)nmax * nmax, "scale-dependent gain: square coordinates");
+        WT_ALLOC(ctx, uv, 6 * (size_t)nmax * nmax, "scale-dependent gain: square coordinates and bases");
         for (int j = 0; j < L; j++) WT_TRY(level_alloc(g, j, cmd, uv, &g->lev[j]));
         goto done;
     }
@@ -253,23 +248,22 @@ int64_t wt_scale_gain_dim(const wt_scale_gain *g, int j)
     return d;
 }
 
-/* y ← y + c P x for the bilinear V_j of lv */
+/* y ← y + c P x for the bilinear V_j of lv: per square w = c Q_sᵀ x_s, then y_s += Q_s w */
 static void project_add(const level *lv, double c, const double *x, double *y)
 {
     for (int64_t s = 0; s < lv->nsq; s++) {
-        const int64_t *idx = lv->idx + lv->start[s];
-        const int m = (int)(lv->start[s + 1] - lv->start[s]), r = lv->rank[s];
-        const double *q = lv->q + lv->qoff[s];
-        double w[4];
-        for (int t = 0; t < r; t++) { /* w = c Q_sᵀ x_s */
-            double d = 0.0;
-            for (int i = 0; i < m; i++) d += q[i + (size_t)m * t] * x[idx[i]];
-            w[t] = c * d;
+        const int64_t i0 = lv->start[s], i1 = lv->start[s + 1];
+        const int64_t *idx = lv->idx;
+        const double *q = lv->q;
+        double w0 = 0.0, w1 = 0.0, w2 = 0.0, w3 = 0.0;
+        for (int64_t i = i0; i < i1; i++) {
+            const double xi = x[idx[i]], *qi = q + 4 * i;
+            w0 += qi[0] * xi, w1 += qi[1] * xi, w2 += qi[2] * xi, w3 += qi[3] * xi;
         }
-        for (int i = 0; i < m; i++) { /* y_s += Q_s w */
-            double d = 0.0;
-            for (int t = 0; t < r; t++) d += q[i + (size_t)m * t] * w[t];
-            y[idx[i]] += d;
+        w0 *= c, w1 *= c, w2 *= c, w3 *= c;
+        for (int64_t i = i0; i < i1; i++) {
+            const double *qi = q + 4 * i;
+            y[idx[i]] += qi[0] * w0 + qi[1] * w1 + qi[2] * w2 + qi[3] * w3;
         }
     }
 }
