@@ -4,7 +4,7 @@
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
                 libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
-                openmpi-bin libopenmpi-dev
+                openmpi-bin libopenmpi-dev python3-numpy python3-h5py python3-pytest
 
 CC      ?= gcc
 PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig plplot
@@ -136,7 +136,8 @@ $(BUILD)/tests/regress_commands: tests/regress/commands.c $(LIB)
 
 # make install [PREFIX=/usr/local] [DESTDIR=staging]: the C library (shared with its soname links, and
 # static), the public headers, the pkg-config file, the executable, its man page, the presets and the
-# data they read, the C API's documentation and example. make uninstall removes exactly these.
+# data they read, the C and Python APIs' documentation and the C example, the Python package. make
+# uninstall removes exactly these (and the bytecode Python may have written beside the package).
 PREFIX     ?= /usr/local
 BINDIR     ?= $(PREFIX)/bin
 LIBDIR     ?= $(PREFIX)/lib
@@ -145,6 +146,12 @@ DATADIR    ?= $(PREFIX)/share
 MANDIR     ?= $(DATADIR)/man
 PKGDATADIR := $(DATADIR)/wavetomo
 DOCDIR     ?= $(DATADIR)/doc/wavetomo
+# the Python package (python/wavetomo, ctypes over the shared library: nothing to compile) where Debian's
+# interpreter looks for a prefix's modules: /usr/local/lib/python3.X/dist-packages; it finds the library
+# and the executable relative to itself (docs/python-api.md)
+PYTHON     ?= /usr/bin/python3
+PYTHONDIR  ?= $(LIBDIR)/python$(shell $(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null || echo 3)/dist-packages
+PY_SRC     := $(sort $(wildcard python/wavetomo/*.py))
 PRESETS    := $(sort $(wildcard data/presets/*.cfg))
 SODIUM     := $(sort $(wildcard data/sodium/*.txt))
 PC_REQUIRES := openblas lapacke hdf5-serial fftw3 fftw3f libconfig
@@ -163,7 +170,7 @@ install: all
 	@$(MAKE) --no-print-directory $(MAN) $(PCFILE)
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(INCLUDEDIR)/wavetomo \
 	    $(DESTDIR)$(MANDIR)/man1 $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
-	    $(DESTDIR)$(DOCDIR)/examples
+	    $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(PYTHONDIR)/wavetomo
 	install -m 755 $(BIN)/wavetomo $(DESTDIR)$(BINDIR)/wavetomo
 	install -m 755 $(SHLIB) $(DESTDIR)$(LIBDIR)/
 	ln -sf $(notdir $(SHLIB)) $(DESTDIR)$(LIBDIR)/$(SONAME)
@@ -174,8 +181,9 @@ install: all
 	install -m 644 $(MAN) $(DESTDIR)$(MANDIR)/man1/wavetomo.1
 	install -m 644 $(PRESETS) $(DESTDIR)$(PKGDATADIR)/presets/
 	install -m 644 $(SODIUM) $(DESTDIR)$(PKGDATADIR)/sodium/
-	install -m 644 docs/c-api.md $(DESTDIR)$(DOCDIR)/
+	install -m 644 docs/c-api.md docs/python-api.md $(DESTDIR)$(DOCDIR)/
 	install -m 644 examples/rtc_loop.c $(DESTDIR)$(DOCDIR)/examples/
+	install -m 644 $(PY_SRC) $(DESTDIR)$(PYTHONDIR)/wavetomo/
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
 
 uninstall:
@@ -185,9 +193,12 @@ uninstall:
 	    $(PUBLIC_H:include/wavetomo/%=$(DESTDIR)$(INCLUDEDIR)/wavetomo/%) \
 	    $(PRESETS:data/presets/%=$(DESTDIR)$(PKGDATADIR)/presets/%) \
 	    $(SODIUM:data/sodium/%=$(DESTDIR)$(PKGDATADIR)/sodium/%) \
-	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c
+	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/python-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c \
+	    $(PY_SRC:python/wavetomo/%=$(DESTDIR)$(PYTHONDIR)/wavetomo/%)
+	rm -rf $(DESTDIR)$(PYTHONDIR)/wavetomo/__pycache__
 	@rmdir $(DESTDIR)$(INCLUDEDIR)/wavetomo $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
-	    $(DESTDIR)$(PKGDATADIR) $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(DOCDIR) 2>/dev/null || true
+	    $(DESTDIR)$(PKGDATADIR) $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(DOCDIR) $(DESTDIR)$(PYTHONDIR)/wavetomo \
+	    2>/dev/null || true
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
 
 regress-commands: deps
@@ -204,7 +215,8 @@ check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
 	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
-# The suites, among them tests/test_install's checks of `make install` into a temporary DESTDIR made here
+# The suites, among them the Python package's pytest suite (tests/test_python.sh reports it as a Check
+# suite, so its tests count in the closing tally) and tests/test_install's checks of `make install` into a temporary DESTDIR made here
 # (by this make, with its variables: a make run from inside a suite would not know them); the programs it
 # builds against a sanitized library (make debug-test) need the sanitizers too (WT_INSTALL_CFLAGS).
 test: deps check-deps
@@ -212,7 +224,8 @@ test: deps check-deps
 	@d=$$(mktemp -d /tmp/wt-install.XXXXXX) && \
 	$(MAKE) --no-print-directory -s install DESTDIR=$$d PREFIX=/usr/local > $$d.log 2>&1 || { cat $$d.log; rm -rf $$d $$d.log; exit 1; }; \
 	rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
-	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN); rc=$$?; rm -rf $$d; exit $$rc
+	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN) tests/test_python.sh; rc=$$?; \
+	    rm -rf $$d; exit $$rc
 
 # The main job: MVM, PCG-3 and CG-9 side by side in closed loop on the demo system, with the report.
 demo: all

@@ -221,6 +221,20 @@ int wt_cmd_info(int argc, char **argv)
     printf("total active actuators: %lld\n", (long long)sys->nact);
     printf("evaluation: %d directions (%dx%d, %.1f arcsec spacing) at %.0f nm\n", sys->neval, cfg->eval_grid,
            cfg->eval_grid, cfg->eval_spacing / WT_ARCSEC, cfg->eval_wavelength * 1e9);
+    printf("loop: %.0f Hz, delay %d frames, ", cfg->rate, cfg->delay);
+    if (cfg->ngain_levels == 0) {
+        printf("integrator gain %g\n", cfg->gain);
+    } else if (cfg->gain_basis == 0) { /* loop.gain_levels (core/sim/scale_gain.h): V_j bilinear on squares of 2^(L+1-j) */
+        const int L = cfg->ngain_levels - 1;
+        printf("integrator gain per scale of the DM commands (bilinear bands, squares of N actuators):");
+        for (int j = 0; j <= L; j++) printf(" %d: %g%s", 2 << (L - j), cfg->gain_levels[j], j < L ? "," : "\n");
+    } else { /* Daubechies: band j > 0 is detail level L + 1 - j, features of 2^level pitches */
+        const int L = cfg->ngain_levels - 1;
+        printf("integrator gain per scale of the DM commands (Daubechies-%d DWT, %d levels): scaling %g", cfg->wavelet_order,
+               L, cfg->gain_levels[0]);
+        for (int j = 1; j <= L; j++) printf(", %d pitches %g", 1 << (L + 1 - j), cfg->gain_levels[j]);
+        printf("\n");
+    }
 
     int64_t nnz_c = 0;
     for (int m = 0; m < sys->nsensors; m++) nnz_c += 4LL * sys->sensors[m].nsub;

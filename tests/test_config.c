@@ -303,7 +303,8 @@ START_TEST(test_matrix_hash)
     ck_assert_int_eq(wt_config_read(ctx, path, 0, NULL, &base), WT_OK);
     ck_assert_int_eq(strlen(base->matrix_sha256), 64);
     const char *same[] = {"sim.seed=7", "loop.gain=0.3", "atmosphere.wind_speed_mps=[1.0, 2.0, 3.0, 4.0, 5.0]",
-                          "recon.pcg3.iterations=9", "lgs.tt_jitter_arcsec=0.5", "loop.frames=50"};
+                          "recon.pcg3.iterations=9", "lgs.tt_jitter_arcsec=0.5", "loop.frames=50",
+                          "loop.gain_levels=[0.6, 0.4]"};
     const char *differ[] = {"recon.alpha=2.0", "lgs.wfs.photons=50.0", "recon.tau=0.5", "dm.field_radius_arcsec=80.0",
                             "atmosphere.r0_m=0.15", "evaluation.spacing_arcsec=20.0"};
     for (size_t i = 0; i < sizeof same / sizeof *same; i++) {
@@ -506,6 +507,16 @@ START_TEST(test_overrides)
         {"dm.pitch_m=[0.5, 1, 1]", "mismatched element type", "write 1.0, not 1"},
         {"loop.frames=1; lgs = 3", "--set loop.frames=1; lgs = 3: expected one value", ""},
         {"recon.prior=best", "--set recon.prior=best: key 'recon.prior': value \"best\" is not accepted", "\"paper\", \"exact\""},
+        /* the scale-dependent gain (core/sim/scale_gain.h): each gain in (0, 1], 2 or more bands, no more than the
+         * smallest DM grid holds (DM 2: 13 + 2 guard = 15 actuators in 16 points: squares of 16, 4 bands) */
+        {"loop.gain_levels=[0.6, 0.0]", "key 'loop.gain_levels', element [1]: value 0 is out of range", "(0, 1]"},
+        {"loop.gain_levels=[0.6, 1.2]", "key 'loop.gain_levels', element [1]: value 1.2 is out of range", "(0, 1]"},
+        {"loop.gain_levels=[0.6]", "key 'loop.gain_levels': has 1 elements", "2..16"},
+        {"loop.gain_levels=0.6", "key 'loop.gain_levels': expected a list", "got a number 0.6"},
+        {"loop.gain_levels=[0.6, 0.5, 0.4, 0.4, 0.3]", "key 'loop.gain_levels' has 5 values, but DM 2's grid of 15",
+         "expected 2 ... 4 values"},
+        {"loop.gain_basis=\"haar\"", "key 'loop.gain_basis': value \"haar\" is not accepted", "\"bilinear\", \"daubechies\""},
+        {"loop.gain_basis=\"daubechies\"", "key 'loop.gain_basis' is given without 'loop.gain_levels'", ""},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         wt_config *x = (wt_config *)1;
@@ -515,6 +526,34 @@ START_TEST(test_overrides)
         const char *m = wt_error_message(ctx);
         ck_assert_msg(strstr(m, bad[i].want1) && strstr(m, bad[i].want2), "%s: message \"%s\"", bad[i].ov, m);
     }
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* loop.gain_levels / loop.gain_basis: optional; left out, the single gain (no band, nothing in the canonical
+ * text, so today's files keep their text and hashes); given, read in order and written to the text. */
+START_TEST(test_gain_levels)
+{
+    wt_context *ctx = tu_context();
+    wt_config *base = parse_ok(ctx, VALID, 0, NULL);
+    ck_assert_int_eq(base->ngain_levels, 0);
+    ck_assert_int_eq(base->gain_basis, 0);
+    ck_assert_ptr_null(strstr(base->canonical, "gain_levels"));
+    ck_assert_ptr_null(strstr(base->canonical, "gain_basis"));
+    const char *ov[] = {"loop.gain_levels=[0.6, 0.5, 0.4, 0.3]", "loop.gain_basis=\"daubechies\""};
+    wt_config *c = parse_ok(ctx, VALID, 1, ov);
+    ck_assert_int_eq(c->ngain_levels, 4);
+    ck_assert_rel(c->gain_levels[0], 0.6, ULP2, 0);
+    ck_assert_rel(c->gain_levels[3], 0.3, ULP2, 0);
+    ck_assert_int_eq(c->gain_basis, 0);
+    ck_assert_ptr_nonnull(strstr(c->canonical, "gain_levels"));
+    ck_assert_str_eq(c->matrix_sha256, base->matrix_sha256);
+    wt_config_free(ctx, c);
+    c = parse_ok(ctx, VALID, 2, ov);
+    ck_assert_int_eq(c->gain_basis, 1);
+    ck_assert_ptr_nonnull(strstr(c->canonical, "gain_basis = \"daubechies\""));
+    wt_config_free(ctx, c);
+    wt_config_free(ctx, base);
     wt_context_free(ctx);
 }
 END_TEST
@@ -733,8 +772,11 @@ START_TEST(test_reference)
         }
     }
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
-     * they chose does), nor do lgs.sodium_profile and its hash when left out (the demo) */
-    ck_assert_int_eq(nkeys + 4, nlines);
+     * they chose does), nor do lgs.sodium_profile and its hash, loop.gain_levels and loop.gain_basis when left
+     * out (the demo) */
+    ck_assert_int_eq(nkeys + 6, nlines);
+    ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_levels "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_basis "));
     ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile "));
     ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile_sha256 "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.pcg3.layer_oversampling "));
@@ -1009,6 +1051,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_matrix_hash);
     tcase_add_test(tc, test_sodium_profile_hash);
     tcase_add_test(tc, test_overrides);
+    tcase_add_test(tc, test_gain_levels);
     tcase_add_test(tc, test_file_overrides);
     tcase_add_loop_test(tc, test_bad_inputs, 0, (int)(sizeof bad_cases / sizeof bad_cases[0]));
     tcase_add_test(tc, test_files);

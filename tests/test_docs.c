@@ -12,7 +12,7 @@
  * and SPEC.md (the physics, no keys) are not checked. */
 static const char *const docs[] = {"README.md",          "docs/guide.md",  "docs/config.md", "docs/formats.md",
                                    "docs/refusals.md",   "docs/testing.md", "docs/python.md", "docs/benchmarks.md",
-                                   "docs/design.md",     "docs/c-api.md",  NULL};
+                                   "docs/design.md",     "docs/c-api.md",  "docs/python-api.md", NULL};
 
 static char wt[512], dir[64];
 

@@ -5,7 +5,8 @@
  * functions, builds programs against the installed copy from clean directories with
  * `pkg-config --cflags --libs wavetomo` (shared, and static from Libs.private / Requires.private) and runs
  * them, runs examples/rtc_loop.c on telemetry made by the installed executable from the installed
- * presets (its commands equal `wavetomo run`'s), and finally `make uninstall` leaves nothing behind.
+ * presets (its commands equal `wavetomo run`'s), imports the installed Python package with nothing but the
+ * tree to find the library and executable by, and finally `make uninstall` leaves nothing behind.
  * WT_INSTALL_CFLAGS: flags the programs are built with too (the sanitizers of a make debug-test build). */
 #include <stdarg.h>
 #include <sys/stat.h>
@@ -217,6 +218,29 @@ START_TEST(test_example_rtc_loop)
 }
 END_TEST
 
+/* The installed Python package, imported by Debian's interpreter from the installed tree alone (no
+ * LD_LIBRARY_PATH, no WAVETOMO_LIB / WAVETOMO_BIN, from a clean directory): it finds the installed library
+ * and executable relative to itself, opens a reconstructor on an installed preset and runs a sim. */
+START_TEST(test_python_against_install)
+{
+    SH_OK("ls -d %s%s/lib/python3*/dist-packages/wavetomo/__init__.py %s%s/share/doc/wavetomo/python-api.md", dest,
+          prefix, dest, prefix);
+    SH_OK("env -u LD_LIBRARY_PATH -u WAVETOMO_LIB -u WAVETOMO_BIN PYTHONDONTWRITEBYTECODE=1 "
+          "PYTHONPATH=\"$(echo %s%s/lib/python3*/dist-packages)\" /usr/bin/python3 -c '"
+          "import wavetomo, numpy as np\n"
+          "rec = wavetomo.Reconstructor(\"'$SHARE'/presets/demo.cfg\", \"pcg3\", set={\"loop.gain\": 0.5})\n"
+          "a = rec(np.zeros(rec.nslopes, np.float32))\n"
+          "res = wavetomo.sim(\"'$SHARE'/presets/demo.cfg\", frames=2, threads=1)\n"
+          "print(wavetomo.version(), wavetomo.library_path(), wavetomo.executable(), rec.recon, rec.nslopes, rec.gain,\n"
+          "      a.dtype, res[\"frames\"], res.attrs[\"wavetomo_version\"])'",
+          dest, prefix);
+    char want[1024];
+    snprintf(want, sizeof want, WT_VERSION_STRING " %s%s/lib/libwavetomo.so." WT_VERSION_STRING " %s%s/bin/wavetomo "
+             "pcg3 1548 0.5 float32 2 " WT_VERSION_STRING "\n", dest, prefix, dest, prefix);
+    ck_assert_str_eq(out(), want);
+}
+END_TEST
+
 /* make uninstall removes everything make install put there (last: it empties the tree). */
 START_TEST(test_uninstall)
 {
@@ -235,6 +259,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_exports);
     tcase_add_test(tc, test_build_against_install);
     tcase_add_test(tc, test_example_rtc_loop);
+    tcase_add_test(tc, test_python_against_install);
     tcase_add_test(tc, test_uninstall);
     suite_add_tcase(s, tc);
     return s;

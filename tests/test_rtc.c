@@ -1,8 +1,8 @@
 /* tests/test_rtc.c: the public per-frame API (include/wavetomo/rtc.h): its commands are `wavetomo run`'s
  * bit for bit (pcg3, cg9, the MVM; float32 and float64 entries), its POLC is the closed loop's
  * (core/sim/loop.c) bit for bit, a frame allocates nothing, reset and RAW frames keep the state they
- * promise, instances run concurrently, the orderings are the output files' layout, and bad input is
- * refused with a message naming it. The demo preset throughout; `wavetomo sim/build/run` made the files
+ * promise, instances run concurrently, the orderings are the output files' layout, Â is the frame's POLC
+ * term, and bad input is refused with a message naming it. The demo preset throughout; `wavetomo sim/build/run` made the files
  * ($BIN/wavetomo, which make test builds first). */
 #include <pthread.h>
 #include <stdarg.h>
@@ -229,8 +229,8 @@ START_TEST(test_polc_equals_loop)
 }
 END_TEST
 
-/* The frame call allocates nothing through the context (every mode, both entries, reset), and close
- * frees everything open allocated. */
+/* The frame call allocates nothing through the context (every mode, both entries, reset), nor does Â
+ * (wt_rtc_interaction, _t), and close frees everything open allocated. */
 START_TEST(test_no_allocation_per_frame)
 {
     const int k = _i;
@@ -250,9 +250,12 @@ START_TEST(test_no_allocation_per_frame)
         ck_assert_int_ge(wt_rtc_frame_f32(rtc, sf, ns, NULL, 0, af, na), 0);
         ck_assert_int_ge(wt_rtc_frame_f32(rtc, sf, ns, af, WT_RTC_RAW, af, na), 0);
         ck_assert_int_ge(wt_rtc_frame_f32(rtc, sf, ns, NULL, WT_RTC_RAW | WT_RTC_SLOPES_OL, af, na), 0);
+        ck_assert_int_eq(wt_rtc_interaction_t(rtc, s, ns, a, na), WT_OK);
+        ck_assert_int_eq(wt_rtc_interaction(rtc, a, na, s, ns), WT_OK);
         wt_rtc_reset(rtc);
     }
-    ck_assert_msg(al.count == before, "%s: %ld allocations in 15 frames", wt_rtc_recon(rtc), al.count - before);
+    ck_assert_msg(al.count == before, "%s: %ld allocations in 15 frames and 6 applications of Â", wt_rtc_recon(rtc),
+                  al.count - before);
     wt_rtc_close(rtc);
     ck_assert_int_eq(al.live, 0);
     free(s), free(a), free(sf), free(af);
@@ -545,6 +548,66 @@ START_TEST(test_open_out_of_memory)
 }
 END_TEST
 
+/* Â through the API (wt_rtc_interaction): the frame's POLC term (a frame given `applied` a equals a frame on
+ * s + Â a flagged WT_RTC_SLOPES_OL, bit for bit), its transpose (<Â a, s> = <a, Âᵀ s> within 1e-12
+ * relative: two sums of ~10^3 products, each rounded at 1e-16), one operator whatever the instance (pcg3,
+ * the MVM, "none"), and refusals naming what is wrong. "none" is the system alone: frames return zeros,
+ * its configuration is the text it was opened with, read back unchanged. */
+START_TEST(test_interaction)
+{
+    wt_context *ctx = tu_context();
+    wt_rtc *p = open_case(ctx, 0), *q = open_case(ctx, 0), *mvm = open_case(ctx, 2), *none = NULL;
+    char *text = read_text("tel.h5", "config");
+    ck_assert_msg(wt_rtc_open_text(ctx, "none", text, 0, NULL, &none) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_str_eq(wt_rtc_recon(none), "none");
+    ck_assert_str_eq(wt_rtc_config(none), text);
+    ck_assert_str_eq(wt_rtc_config(p), text);
+    const int64_t ns = wt_rtc_nslopes(p), na = wt_rtc_nactuators(p);
+    ck_assert_int_eq(wt_rtc_nslopes(none), ns);
+    ck_assert_int_eq(wt_rtc_nactuators(none), na);
+    double *a = malloc((size_t)na * sizeof *a), *s = malloc((size_t)ns * sizeof *s), *y = malloc((size_t)ns * sizeof *y),
+           *y2 = malloc((size_t)ns * sizeof *y2), *at = malloc((size_t)na * sizeof *at),
+           *c1 = malloc((size_t)na * sizeof *c1), *c2 = malloc((size_t)na * sizeof *c2);
+    tu_randn(a, na, 11);
+    tu_randn(s, ns, 12);
+    for (int64_t i = 0; i < na; i++) a[i] *= 1e-7; /* commands [m] */
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6; /* slopes [rad] */
+    ck_assert_int_eq(wt_rtc_interaction(p, a, na, y, ns), WT_OK);
+    ck_assert(tu_norm(y, ns) > 0.0);
+    ck_assert_int_eq(wt_rtc_interaction(mvm, a, na, y2, ns), WT_OK);
+    ck_assert(!memcmp(y, y2, (size_t)ns * sizeof *y));
+    ck_assert_int_eq(wt_rtc_interaction(none, a, na, y2, ns), WT_OK);
+    ck_assert(!memcmp(y, y2, (size_t)ns * sizeof *y));
+    ck_assert_int_eq(wt_rtc_interaction_t(p, s, ns, at, na), WT_OK);
+    const double lhs = tu_dot(y, s, ns), rhs = tu_dot(a, at, na);
+    ck_assert_msg(fabs(lhs - rhs) <= 1e-12 * tu_norm(y, ns) * tu_norm(s, ns), "<Aa, s> %.17g, <a, A's> %.17g", lhs, rhs);
+    /* the POLC term: R (s + Â a) from the caller equals the frame's own s_ol */
+    for (int64_t i = 0; i < ns; i++) y2[i] = s[i] + y[i];
+    ck_assert_int_ge(wt_rtc_frame(p, s, ns, a, WT_RTC_RAW, c1, na), 0);
+    ck_assert_int_ge(wt_rtc_frame(q, y2, ns, NULL, WT_RTC_RAW | WT_RTC_SLOPES_OL, c2, na), 0);
+    ck_assert(!memcmp(c1, c2, (size_t)na * sizeof *c1));
+    ck_assert(tu_norm(c1, na) > 0.0);
+    ck_assert_int_eq(wt_rtc_frame(none, s, ns, NULL, 0, c1, na), WT_OK);
+    for (int64_t i = 0; i < na; i++) ck_assert(c1[i] == 0.0);
+    /* refusals */
+    ck_assert_int_eq(wt_rtc_interaction(p, a, na - 1, y, ns), WT_ERR_INVALID);
+    ck_assert_msg(has(ctx, "wt_rtc_interaction") && has(ctx, "needs"), "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_rtc_interaction_t(p, s, ns, NULL, na), WT_ERR_INVALID);
+    a[5] = NAN;
+    ck_assert_int_eq(wt_rtc_interaction(p, a, na, y, ns), WT_ERR_NUMERIC);
+    ck_assert_msg(has(ctx, "command 5 (DM 1 active actuator 5) is NaN"), "%s", wt_error_message(ctx));
+    s[3] = INFINITY;
+    ck_assert_int_eq(wt_rtc_interaction_t(p, s, ns, at, na), WT_ERR_NUMERIC);
+    ck_assert_msg(has(ctx, "slope 3 (LGS1 s_x of valid subaperture 3) is Inf"), "%s", wt_error_message(ctx));
+    free(a), free(s), free(y), free(y2), free(at), free(c1), free(c2), free(text);
+    wt_rtc_close(p);
+    wt_rtc_close(q);
+    wt_rtc_close(mvm);
+    wt_rtc_close(none);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* `wavetomo run`'s instance (internal open on its system, pseudo-open-loop slopes only, no Â built)
  * refuses a frame that would need Â, and runs the others. */
 START_TEST(test_only_ol)
@@ -563,7 +626,9 @@ START_TEST(test_only_ol)
     ck_assert_int_ge(wt_rtc_frame(rtc, s, sys->nslopes, a, WT_RTC_SLOPES_OL | WT_RTC_RAW, a, sys->nact), 0);
     wt_rtc *bad;
     ck_assert_int_eq(wt_rtc_open_system(ctx, sys, WT_RECON_MVM, NULL, -1, 1, &bad), WT_ERR_INVALID);
-    ck_assert_int_eq(wt_rtc_open_system(ctx, sys, WT_RECON_NONE, NULL, -1, 0, &bad), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_rtc_interaction(rtc, a, sys->nact, s, sys->nslopes), WT_ERR_INVALID);
+    ck_assert_msg(has(ctx, "no Â"), "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_rtc_open_system(ctx, sys, 42, NULL, -1, 0, &bad), WT_ERR_INVALID);
     ck_assert_ptr_null(bad);
     free(s), free(a);
     wt_rtc_close(rtc);
@@ -589,6 +654,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_bad_frames);
     tcase_add_test(tc, test_bad_open);
     tcase_add_test(tc, test_open_out_of_memory);
+    tcase_add_test(tc, test_interaction);
     tcase_add_test(tc, test_only_ol);
     suite_add_tcase(s, tc);
     return s;

@@ -18,6 +18,7 @@
 #define WT_MAX_GS 16
 #define WT_MAX_DMS 8
 #define WT_MAX_EVAL 225 /* 15 x 15 evaluation directions */
+#define WT_MAX_GAIN_BANDS 16 /* loop.gain_levels: the scaling block and up to 15 wavelet levels */
 #define WT_ARCSEC (M_PI / (180.0 * 3600.0)) /* radians per arcsecond */
 
 typedef struct wt_sensor_config {
@@ -140,6 +141,9 @@ typedef struct wt_config {
     int frames;
     int delay;                       /* frames between measurement and application (2 in the paper) */
     double gain;                     /* integrator gain g */
+    int ngain_levels;                /* 0: the single gain; else L + 1 (core/sim/scale_gain.h) */
+    double gain_levels[WT_MAX_GAIN_BANDS]; /* gain per spatial band of the DM commands, coarsest first */
+    int gain_basis;                  /* the bands: 0 bilinear multiwavelets, 1 Daubechies DWT */
 
     /* simulation */
     int points_per_subaperture;      /* simulation grid points per LGS subaperture side */

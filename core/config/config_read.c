@@ -448,7 +448,10 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
             return WT_OK;
         }
         if (ks->flags & F_OPT) {
-            *(double *)dst = ks->def;
+            /* an optional list left out has no elements; a scalar takes its default */
+            if (wt_config_priv_is_list(ks->type)) *(int *)((char *)cfg + ks->count_off) = 0;
+            else if (ks->type == K_FLOAT) *(double *)dst = ks->def;
+            else *(int *)dst = (int)ks->def; /* K_INT, K_BOOL, K_ENUM (the index of the choice) */
             return WT_OK;
         }
         if (wt_config_priv_is_list(ks->type)) {
@@ -685,6 +688,34 @@ static int resolve_sodium_sha256(pstate *ps, wt_config *cfg)
     return WT_OK;
 }
 
+/* loop.gain_levels: L + 1 values need every DM's grid (actuators + 2 guard rings per side), embedded in
+ * the smallest power of two n, to hold squares (or a Daubechies scaling block) of 2^(L+1) actuators:
+ * L + 1 <= log2 n (core/sim/scale_gain.h). loop.gain_basis means nothing without them. */
+static int check_gain_levels(pstate *ps, const wt_config *cfg)
+{
+    char loc[512], oth[512];
+    const int k = find_key("loop.gain_levels"), kb = find_key("loop.gain_basis");
+    if (cfg->ngain_levels == 0) {
+        if (ps->set[kb])
+            return FAIL(ps, kb, ps->set[kb], "key 'loop.gain_basis' is given without 'loop.gain_levels': it chooses "
+                        "the bands of a scale-dependent gain; give the gains or leave it out");
+        return WT_OK;
+    }
+    for (int d = 0; d < cfg->ndms; d++) {
+        const int side = cfg->dm_actuators[d] + 2 * cfg->dm_guard_rings;
+        int n = 1, lmax = 0;
+        while (n < side) n *= 2, lmax++;
+        if (cfg->ngain_levels > lmax)
+            return FAIL(ps, k, ps->set[k], "key 'loop.gain_levels' has %d values, but DM %d's grid of %d actuators "
+                        "per side ('dm.actuators' [%d] = %d at %s, plus 2 x 'dm.guard_rings' = %d) embeds in %d "
+                        "points, whose coarsest band of %d values would need squares of %d; expected 2 ... %d values",
+                        cfg->ngain_levels, d + 1, side, d, cfg->dm_actuators[d],
+                        where_elem(ps, find_key("dm.actuators"), d, oth, sizeof oth), cfg->dm_guard_rings, n,
+                        cfg->ngain_levels, 1 << cfg->ngain_levels, lmax);
+    }
+    return WT_OK;
+}
+
 static int check_consistency(pstate *ps, wt_config *cfg)
 {
     char loc[512], oth[512];
@@ -720,6 +751,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
     if ((st = resolve_sodium_sha256(ps, cfg)) < 0) return st;
+    if ((st = check_gain_levels(ps, cfg)) < 0) return st;
 
     for (int t = 0; t < 2; t++) {
         const char *pre = t ? "ngs.wfs" : "lgs.wfs";

@@ -210,6 +210,18 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("loop.frames", 0, 1, INF, frames, "frames to run"),
     KI("loop.delay_frames", 0, 1, 2, delay, "frames between measurement and application"),
     KF("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, "integrator gain g"),
+    {"loop.gain_levels", K_FLOATS, F_OPT | F_LO_OPEN, 0.0, 1.0, "", 1, CF(gain_levels), CF(ngain_levels), 2,
+     WT_MAX_GAIN_BANDS, NULL, 0,
+     "integrator gain per spatial scale of the DM commands, coarsest first: [g_0, ..., g_L]; band 0 = what is "
+     "bilinear over squares of 2^(L+1) actuators (piston, tip, tilt, saddle), band j = what squares of 2^(L+1-j) "
+     "add, band L = what is not bilinear over 4x4 squares (features of 2 pitches); each DM's grid embedded "
+     "centred in the smallest power of two n, L + 1 <= log2 n for every DM; G = sum g_j Pi_j is symmetric with "
+     "eigenvalues g_j (docs/design.md); replaces loop.gain in the integrator, which still sets the error budget "
+     "and loop_noise_average; left out: loop.gain at every scale"},
+    {"loop.gain_basis", K_ENUM, F_OPT, 0, 0, "", 1, CF(gain_basis), NOCOUNT, 0, 0, "bilinear|daubechies", 0,
+     "bands of loop.gain_levels: bilinear = orthonormal bilinear multiwavelets of the active actuators (a tilt "
+     "is all band 0); daubechies = the zero-padded periodic DWT of order recon.wavelet_order, band j = its "
+     "detail level L+1-j (the edge of the active disk leaks a tilt into the detail bands) (default bilinear)"},
 
     KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
     {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,

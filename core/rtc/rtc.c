@@ -19,10 +19,10 @@ struct wt_rtc {
     wt_config *own_cfg;     /* parsed by a public open (freed by close); NULL when the caller's */
     wt_system *own_sys;     /* built by a public open; NULL when the caller's */
     const wt_system *sys;
-    int kind;               /* WT_RECON_PCG3, _CG9 or _MVM */
-    char recon[16];         /* "pcg3", "cg9", "mvm-pcg3", "mvm-cg9" */
-    wt_reconstructor *rec;  /* pcg3 / cg9 */
-    wt_interaction *ia;     /* pcg3 / cg9: Â of s_ol = s + Â a_t */
+    int kind;               /* WT_RECON_PCG3, _CG9, _MVM or _NONE */
+    char recon[16];         /* "pcg3", "cg9", "mvm-pcg3", "mvm-cg9", "none" */
+    wt_reconstructor *rec;  /* pcg3 / cg9 / none (r = 0) */
+    wt_interaction *ia;     /* Â (s_ol = s + Â a_t; wt_rtc_interaction); NULL for an only-OL instance */
     wt_mvm *mvm;            /* the MVM: R and R Â */
     int delay;              /* d [frames] */
     double gain, rate;      /* g [1], frame rate [Hz] */
@@ -72,8 +72,8 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
     *out = NULL;
     if (!ctx || !sys) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: NULL context or system");
     const wt_config *cfg = sys->cfg;
-    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor %s: expected pcg3, cg9 or a stored MVM",
+    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM && kind != WT_RECON_NONE)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor %s: expected pcg3, cg9, none or a stored MVM",
                         wt_reconstructor_name(kind));
     if ((kind == WT_RECON_MVM) != (matrix != NULL))
         return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %s", matrix ? "a matrix file is for the MVM only"
@@ -95,9 +95,10 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
         wt_reconstructor_params rp;
         wt_reconstructor_params_from_config(cfg, kind, iterations, &rp);
         WT_TRY(wt_reconstructor_alloc(ctx, rtc->sys, kind, &rp, &rtc->rec));
-        if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, rtc->sys, &rtc->ia));
         snprintf(rtc->recon, sizeof rtc->recon, "%s", wt_reconstructor_name(kind));
     }
+    /* Â: the POLC term of pcg3 / cg9 frames, and wt_rtc_interaction for every kind (the MVM's frames use R Â) */
+    if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, rtc->sys, &rtc->ia));
     WT_ALLOC(ctx, rtc->ring, rtc->delay + 1, "command queue");
     for (int k = 0; k <= rtc->delay; k++) WT_ALLOC(ctx, rtc->ring[k], rtc->na, "command queue");
     WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");
@@ -132,8 +133,9 @@ static int open_owned(wt_context *ctx, wt_config *cfg, int kind, const char *mat
 static int recon_kind(wt_context *ctx, const char *recon, int *kind)
 {
     *kind = recon ? wt_reconstructor_kind(recon) : -1;
-    if (*kind == WT_RECON_PCG3 || *kind == WT_RECON_CG9) return WT_OK;
-    return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor '%s': expected \"pcg3\" or \"cg9\"%s",
+    if (*kind == WT_RECON_PCG3 || *kind == WT_RECON_CG9 || *kind == WT_RECON_NONE) return WT_OK;
+    return WT_ERROR(ctx, WT_ERR_INVALID,
+                    "wt_rtc_open: reconstructor '%s': expected \"pcg3\" or \"cg9\" (or \"none\": the system alone)%s",
                     recon ? recon : "(NULL)", *kind == WT_RECON_MVM ? " (open a stored MVM with wt_rtc_open_mvm)" : "");
 }
 
@@ -346,6 +348,59 @@ int wt_rtc_frame_f32(wt_rtc *rtc, const float *slopes, int64_t nslopes, const fl
     rtc->frame_time = wt_time_now() - t0;
     return st;
 }
+
+/* The boundary of an interaction call: the operator was built, the sizes are the system's, the input is
+ * finite (the frame's checks and messages). */
+static int check_interaction(wt_rtc *rtc, const char *fn, const void *in, int64_t nin, int64_t want_in, const void *out,
+                             int64_t nout, int64_t want_out)
+{
+    if (!rtc) return WT_ERR_INVALID; /* no context to say why */
+    if (!rtc->ia)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "%s: this instance was opened for pseudo-open-loop slopes only (no Â)",
+                        fn);
+    if (!in || !out) return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "%s: %s buffer is NULL", fn, in ? "the output" : "the input");
+    if (nin != want_in || nout != want_out)
+        return WT_ERROR(rtc->ctx, WT_ERR_INVALID, "%s: %lld values in and %lld out given, the system (%s) needs %lld and %lld",
+                        fn, (long long)nin, (long long)nout, rtc->sys->source, (long long)want_in, (long long)want_out);
+    return WT_OK;
+}
+
+int wt_rtc_interaction(wt_rtc *rtc, const double *commands, int64_t nactuators, double *slopes, int64_t nslopes)
+{
+    int st = check_interaction(rtc, "wt_rtc_interaction", commands, nactuators, rtc ? rtc->na : 0, slopes, nslopes,
+                               rtc ? rtc->ns : 0);
+    if (st < 0) return st;
+    for (int64_t i = 0; i < rtc->na; i++)
+        if (!isfinite(commands[i])) {
+            char d[96];
+            describe_actuator(rtc->sys, i, d, sizeof d);
+            return WT_ERROR(rtc->ctx, WT_ERR_NUMERIC, "wt_rtc_interaction: command %lld (%s) is %s", (long long)i, d,
+                            nonfinite(commands[i]));
+        }
+    /* s = 0 + Â a: the frame's s_ol = s + Â a_t with s = 0, in the same operations */
+    memset(slopes, 0, (size_t)rtc->ns * sizeof *slopes);
+    wt_interaction_apply(rtc->ia, 1.0, commands, slopes);
+    return WT_OK;
+}
+
+int wt_rtc_interaction_t(wt_rtc *rtc, const double *slopes, int64_t nslopes, double *commands, int64_t nactuators)
+{
+    int st = check_interaction(rtc, "wt_rtc_interaction_t", slopes, nslopes, rtc ? rtc->ns : 0, commands, nactuators,
+                               rtc ? rtc->na : 0);
+    if (st < 0) return st;
+    for (int64_t i = 0; i < rtc->ns; i++)
+        if (!isfinite(slopes[i])) {
+            char d[96];
+            describe_slope(rtc->sys, i, d, sizeof d);
+            return WT_ERROR(rtc->ctx, WT_ERR_NUMERIC, "wt_rtc_interaction_t: slope %lld (%s) is %s", (long long)i, d,
+                            nonfinite(slopes[i]));
+        }
+    memset(commands, 0, (size_t)rtc->na * sizeof *commands);
+    wt_interaction_apply_t(rtc->ia, 1.0, slopes, commands);
+    return WT_OK;
+}
+
+const char *wt_rtc_config(const wt_rtc *rtc) { return rtc->sys->cfg->canonical; }
 
 int64_t wt_rtc_nslopes(const wt_rtc *rtc) { return rtc->ns; }
 int64_t wt_rtc_nactuators(const wt_rtc *rtc) { return rtc->na; }

@@ -1,4 +1,5 @@
-/* core/sim/loop.c: closed-loop MCAO simulation with POLC (SPEC §7, paper Algorithm POLC). */
+/* core/sim/loop.c: closed-loop MCAO simulation with POLC (SPEC §7, paper Algorithm POLC), with a single
+ * integrator gain g or one per wavelet scale of the commands (G, core/sim/scale_gain.h). */
 #include "loop.h"
 
 #include <math.h>
@@ -42,6 +43,8 @@ struct wt_loop {
     wt_reconstructor *rec;
     int delay;
     double gain;
+    wt_scale_gain *sg;            /* loop.gain_levels: G per wavelet band in place of g (else NULL) */
+    double *gerr, *gwork;         /* sg: R s_ol − a_t (nact) and G's workspace */
     double **ring;                /* delay + 1 command vectors: a_t at slot t mod (delay + 1) */
     double *s, *s_ol, *a_rec, *applied;
     double *rms;                  /* ndir */
@@ -234,6 +237,11 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     } else {
         WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, &par->recon, &lp->rec));
     }
+    if (par->scale_gain.nbands > 0) {
+        WT_TRY(wt_scale_gain_alloc(ctx, sys->dm, &par->scale_gain, &lp->sg));
+        WT_ALLOC(ctx, lp->gerr, sys->nact, "scale-dependent gain");
+        WT_ALLOC(ctx, lp->gwork, wt_scale_gain_work_size(lp->sg) + 1, "scale-dependent gain");
+    }
     WT_ALLOC(ctx, lp->ring, lp->delay + 1, "command history");
     for (int k = 0; k <= lp->delay; k++) WT_ALLOC(ctx, lp->ring[k], sys->nact, "command history");
     WT_ALLOC(ctx, lp->s, sys->nslopes, "slopes");
@@ -298,6 +306,9 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->rms);
     wt_fitting_free(lp->fit);
     wt_free(ctx, lp->maps);
+    wt_scale_gain_free(lp->sg);
+    wt_free(ctx, lp->gerr);
+    wt_free(ctx, lp->gwork);
     wt_free(ctx, lp);
 }
 
@@ -500,7 +511,7 @@ int wt_loop_step(wt_loop *lp)
     double t2e = wt_time_now();
     lp->times.evaluation += t2e - t2;
 
-    /* 4. POLC: s_ol = s + Â a_t;  a_{t+d} = a_{t+d-1} + g (R s_ol − a_t) */
+    /* 4. POLC: s_ol = s + Â a_t;  a_{t+d} = a_{t+d-1} + g (R s_ol − a_t), or G (R s_ol − a_t) */
     memcpy(lp->s_ol, lp->s, (size_t)sys->nslopes * sizeof *lp->s_ol);
     wt_interaction_apply(lp->ia, 1.0, lp->applied, lp->s_ol);
     double t3 = wt_time_now();
@@ -516,6 +527,11 @@ int wt_loop_step(wt_loop *lp)
     double *next = lp->ring[(t + lp->delay) % D1];
     if (lp->opt.recon == WT_RECON_NONE) {
         memset(next, 0, (size_t)sys->nact * sizeof *next);
+    } else if (lp->sg) {
+        /* G = g I (all gains equal) adds (1 g) e_k to prev_k: the single gain's bits */
+        for (int64_t k = 0; k < sys->nact; k++) lp->gerr[k] = lp->a_rec[k] - lp->applied[k];
+        memcpy(next, prev, (size_t)sys->nact * sizeof *next);
+        wt_scale_gain_apply(lp->sg, 1.0, lp->gerr, next, lp->gwork);
     } else {
         for (int64_t k = 0; k < sys->nact; k++) next[k] = prev[k] + lp->gain * (lp->a_rec[k] - lp->applied[k]);
     }

@@ -6,7 +6,8 @@
  * fine grid (average gradient over the illuminated part, SPEC §4), plus noise (photon + read, elongated
  * 2x2 covariance with τ = 1) and a random tip-tilt per LGS. The evaluation directions give the residual
  * OPD and its Strehl (SPEC §8). Pseudo-open-loop control with a delay of d frames (d = 2 in the paper):
- *   s_ol = s_t + Â a_t,   a_{t+d} = a_{t+d−1} + g (R s_ol − a_t).
+ *   s_ol = s_t + Â a_t,   a_{t+d} = a_{t+d−1} + g (R s_ol − a_t),
+ * or, with a gain per spatial scale, G = Σ_j g_j Π_j in place of g (core/sim/scale_gain.h).
  *
  * Budget modes (wt_loop_options.open_loop …): the instantaneous open loop evaluates a_t = R s_t (or the
  * best fit to the true turbulence) in the frame it was measured; the closed-loop path does not change.
@@ -21,6 +22,7 @@
 #include "../model/reconstructor.h"
 #include "../model/system.h"
 #include "atmosphere.h"
+#include "scale_gain.h"
 #include "strehl.h"
 
 typedef struct wt_loop wt_loop;
@@ -54,6 +56,8 @@ typedef struct wt_loop_params {
     double rate;                     /* frame rate [Hz] */
     int delay;                       /* frames between measurement and application */
     double gain;                     /* integrator gain g [1] */
+    wt_scale_gain_params scale_gain; /* nbands > 0: G = Σ_j g_j Π_j per wavelet band of the commands
+                                      * (core/sim/scale_gain.h) in place of g; 0: the single gain */
     int points_per_subaperture;      /* simulation grid points per LGS subaperture side */
     double diameter;                 /* pupil diameter D [m] */
     double obstruction;              /* central obstruction, fraction of D */

@@ -25,6 +25,8 @@
  * (9 layers, CG and the fitting step), matrix-free and warm-started frame to frame (recon.warm_start);
  * or a stored MVM (MATRIX.h5 of `wavetomo build`), whose R and R Â are applied as float32 GEMVs: with
  * the MVM, r = R s + (R Â) a_t (Â is not needed at run time), or r = R s with WT_RTC_SLOPES_OL.
+ * Or "none": the system alone, for its sizes, orderings, configuration and Â (wt_rtc_interaction); its
+ * reconstruction is r = 0 (`wavetomo sim --recon none`: the DMs stay flat).
  * These are the computations of `wavetomo run` (which uses this API) and of `wavetomo sim`'s loop (which
  * forms s_ol itself: with the MVM it applies R s_ol, the WT_RTC_SLOPES_OL form).
  *
@@ -62,7 +64,7 @@ enum {
     WT_RTC_SLOPES_OL = 2  /* the slopes given are already pseudo-open-loop: s_ol = s */
 };
 
-/* Open reconstructor `recon` ("pcg3" or "cg9") for the system of a configuration file, with nset
+/* Open reconstructor `recon` ("pcg3", "cg9" or "none") for the system of a configuration file, with nset
  * "key=value" overrides applied after the file's own (the command line's --set; NULL when nset is 0).
  * Paths in the file (an @include, lgs.sodium_profile) are relative to the file. [out] *out, or NULL on
  * failure with the message in ctx (WT_ERR_IO: the file is missing; WT_ERR_CONFIG: a bad key or value,
@@ -99,12 +101,26 @@ int wt_rtc_frame_f32(wt_rtc *rtc, const float *slopes, int64_t nslopes, const fl
  * starts from zero, the frame count from 0. Allocates nothing. */
 void wt_rtc_reset(wt_rtc *rtc);
 
+/* The DM-to-slope interaction Â (paper Algorithm POLC, SPEC §7): slopes = Â commands, the slopes [rad] the
+ * sensors see of the DMs' commands [m] (the term a frame adds, s_ol = s + Â a_t, in the same operations);
+ * and its transpose, commands = Âᵀ slopes. Buffers of the system's sizes (WT_ERR_INVALID otherwise, naming
+ * both); a NaN or Inf input is refused (WT_ERR_NUMERIC, naming it). The output is overwritten. Allocates
+ * nothing; uses the instance's workspace: one thread at a time per instance, as frames. Every public open
+ * builds Â (for the MVM too, whose frames use R Â instead). */
+int wt_rtc_interaction(wt_rtc *rtc, const double *commands, int64_t nactuators, double *slopes, int64_t nslopes);
+int wt_rtc_interaction_t(wt_rtc *rtc, const double *slopes, int64_t nslopes, double *commands, int64_t nactuators);
+
+/* The effective configuration as libconfig text: the file's (or the matrix's) with the overrides applied
+ * and every key given, as the "config" dataset of wavetomo's output files. Owned by the instance (valid
+ * until close). */
+const char *wt_rtc_config(const wt_rtc *rtc);
+
 /* Sizes and the loop's parameters. */
 int64_t wt_rtc_nslopes(const wt_rtc *rtc);
 int64_t wt_rtc_nactuators(const wt_rtc *rtc);
 int wt_rtc_nsensors(const wt_rtc *rtc);
 int wt_rtc_ndms(const wt_rtc *rtc);
-/* "pcg3", "cg9", "mvm-pcg3" or "mvm-cg9" (the MVM and the variant it was built from) */
+/* "pcg3", "cg9", "none", "mvm-pcg3" or "mvm-cg9" (the MVM and the variant it was built from) */
 const char *wt_rtc_recon(const wt_rtc *rtc);
 int wt_rtc_delay(const wt_rtc *rtc);     /* d [frames] */
 double wt_rtc_gain(const wt_rtc *rtc);   /* g [1] */

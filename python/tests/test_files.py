@@ -1,0 +1,82 @@
+"""python/tests/test_files.py: the readers of every output file (docs/formats.md): the kind found from the
+datasets, strings and scalars as Python values, the matrices as the MVM applies them, and refusals of
+incomplete, foreign and wrong-kind files naming what is wrong."""
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+import wavetomo
+from conftest import DEMO, FRAMES
+
+
+def test_kinds_and_values(files):
+    kinds = {"run": "run", "tel": "telemetry", "matrix": "matrix", "cmds_pcg3": "commands"}
+    for key, kind in kinds.items():
+        r = wavetomo.read(files[key])
+        assert r.kind == kind and r.attrs["wavetomo_version"] == wavetomo.version() and r.attrs["complete"] == 1
+        assert isinstance(r.config, str) and r.config.startswith("telescope")
+        assert r.layout is not None and r.layout.nactuators == 759
+    run = wavetomo.read_run(files["run"])
+    assert isinstance(run["strehl_le_field"], float) and isinstance(run["frames"], int) and run["frames"] == FRAMES
+    assert run.group("eval")["strehl_le"] is run["eval/strehl_le"] and run.units("eval/wfe_le") == "nm"
+    assert run["frame/rms"].shape == (FRAMES, 25) and run.meta["frame/time"]["columns"].startswith("atmosphere")
+    # the field summaries are the per-direction values' mean and rms (docs/formats.md)
+    assert run["strehl_le_field"] == pytest.approx(run["eval/strehl_le"].mean(), rel=1e-12)
+    assert run["wfe_le_field"] == pytest.approx(np.sqrt((run["eval/wfe_le"] ** 2).mean()), rel=1e-12)
+    tel = wavetomo.read_telemetry(files["tel"])
+    assert tel["slopes"].dtype == np.float32 and tel["slopes"].shape == (FRAMES, 1548)
+    assert tel["commands"].shape == (FRAMES, 759)
+    cmds = wavetomo.read_commands(files["cmds_pcg3"])
+    assert cmds["reconstruction"].shape == (FRAMES, 759) and cmds["time"].shape == (FRAMES,)
+
+
+def test_matrix(files):
+    """The MVM the reader gives (R, R Â as float32) is the one `wavetomo run` applies: R s + (R Â) a
+    equals its output within 1e-5 of the norm (float32 GEMVs of ~2300 terms summed in another order)."""
+    m = wavetomo.read_matrix(files["matrix"])
+    assert isinstance(m, wavetomo.MatrixResult) and m.attrs["precision"] == "fp32" and m.attrs["variant"] == "pcg3"
+    tel = wavetomo.read_telemetry(files["tel_mvm"])
+    ref = wavetomo.read_commands(files["cmds_mvm"])["reconstruction"]
+    for t in range(FRAMES):
+        r = m.R @ tel["slopes"][t] + m.RA @ tel["commands"][t]
+        assert np.linalg.norm(r - ref[t]) <= 1e-5 * np.linalg.norm(ref[t])
+
+
+def test_matrix_half(files, tmp_path):
+    """A 16-bit matrix (fp16, one power-of-two scale per row) reads back as the float32 matrix it rounds:
+    within 2^-11 of each row's largest entry (half precision's 11-bit significand), where a missing row
+    scale is off by orders of magnitude; and its Reconstructor agrees with R @ s to 1e-5."""
+    p = wavetomo.build(DEMO, tmp_path / "Mh.h5", set={"recon.mvm_precision": "fp16"}, threads=1)
+    h, f = wavetomo.read_matrix(p), wavetomo.read_matrix(files["matrix"])
+    assert h.attrs["precision"] == "fp16" and h["R"].dtype == np.float16
+    err = np.abs(h.R - f.R).max(axis=1) / np.abs(f.R).max(axis=1)
+    assert err.max() <= 2.0 ** -11
+    s = wavetomo.read_telemetry(files["tel"])["slopes_ol"][0]
+    rec = wavetomo.Reconstructor(matrix=p)
+    r = rec(s, raw=True, slopes_ol=True)
+    assert np.linalg.norm(r - h.R @ s) <= 1e-5 * np.linalg.norm(r)
+
+
+def test_refusals(files, tmp_path):
+    """Missing, not HDF5, incomplete (an interrupted run's), and of another kind: each named."""
+    with pytest.raises(wavetomo.FileError):
+        wavetomo.read(tmp_path / "none.h5")
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not hdf5")
+    with pytest.raises(wavetomo.FormatError, match="not an HDF5 file"):
+        wavetomo.read(junk)
+    cut = tmp_path / "cut.h5"
+    shutil.copy(files["run"], cut)
+    with h5py.File(cut, "r+") as f:
+        del f.attrs["complete"]
+    with pytest.raises(wavetomo.FormatError, match="incomplete"):
+        wavetomo.read_run(cut)
+    with pytest.raises(wavetomo.FormatError) as e:
+        wavetomo.read_run(files["tel"])
+    assert "is not a RUN.h5" in str(e.value) and "no strehl_le_field" in str(e.value)
+    with pytest.raises(wavetomo.FormatError, match="is not a MATRIX.h5"):
+        wavetomo.read_matrix(files["cmds_mvm"])
+    with pytest.raises(wavetomo.FormatError, match="results.h5 of wavetomo compare"):
+        wavetomo.read_compare(files["run"])

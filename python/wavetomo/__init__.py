@@ -1,0 +1,46 @@
+"""wavetomo: wavelet MAP tomography for MCAO, from Python (docs/python-api.md).
+
+    import wavetomo
+    rec = wavetomo.Reconstructor("data/presets/demo.cfg", "pcg3")   # or cg9, or matrix="M.h5"
+    a = rec(s)                      # one frame: slopes [rad] -> DM commands [m], POLC inside
+    res = wavetomo.sim("data/presets/demo.cfg", "cg9", frames=50)   # `wavetomo sim`, read back
+    res["eval/strehl_le"].reshape(5, 5)
+
+The per-frame objects (System, Reconstructor) call libwavetomo.so through ctypes; the runs (sim, compare,
+budget, build, run) call the `wavetomo` executable; the readers use h5py.
+"""
+from . import _lib
+from .commands import budget, build, compare, executable, run, sim
+from .config import overrides, parse as parse_config
+from .errors import (CommandError, ConfigError, Error, FileError, FormatError, InterruptedRun, InvalidError,
+                     LibraryError, NoMemoryError, NumericError, SolverWarning)
+from .files import (MatrixResult, Result, read, read_budget, read_commands, read_compare, read_matrix, read_run,
+                    read_telemetry)
+from .layout import ARCSEC, DM, Layout, Sensor
+from .rtc import Reconstructor, System
+
+
+def version():
+    """The version of the C library loaded ("0.1.0")."""
+    return _lib.lib.wt_version().decode()
+
+
+def library_path():
+    """The file of the C library loaded."""
+    import os
+    if os.sep in _lib.path:
+        return os.path.realpath(_lib.path)
+    with open("/proc/self/maps") as f:  # found by the loader's search
+        for line in f:
+            if "libwavetomo.so" in line:
+                return os.path.realpath(line.split(None, 5)[-1].strip())
+    return _lib.path
+
+
+__version__ = version()
+
+__all__ = ["System", "Reconstructor", "Sensor", "DM", "Layout", "ARCSEC", "sim", "compare", "budget", "build", "run",
+           "executable", "read", "read_run", "read_telemetry", "read_matrix", "read_commands", "read_compare",
+           "read_budget", "Result", "MatrixResult", "overrides", "parse_config", "version", "library_path", "Error",
+           "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError", "NumericError",
+           "FormatError", "InterruptedRun", "CommandError", "SolverWarning"]
