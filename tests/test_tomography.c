@@ -806,7 +806,7 @@ Suite *make_suite(void)
 {
     Suite *s = suite_create("tomography");
     TCase *tc = tcase_create("core");
-    tcase_set_timeout(tc, 300);
+    tcase_set_timeout(tc, 900);
     tcase_add_test(tc, test_eelt_sizes);
     tcase_add_test(tc, test_ngs_lowrank_preconditioner);
     tcase_add_test(tc, test_coarse_preconditioner);
