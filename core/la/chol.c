@@ -549,6 +549,22 @@ static void one_part(const wt_chol *c, int part, int backward, double *w, double
     }
 }
 
+/* The two thread groups' parts of one sweep side by side (forward: each into its own update buffer of the top
+ * rows; backward: each writes its own columns only), one group per thread when there are two. */
+static void groups(const wt_chol *c, one_plan *p, int backward)
+{
+#pragma omp parallel num_threads(p->nthreads)
+    {
+#ifdef _OPENMP
+        const int id = omp_get_thread_num(), nt = omp_get_num_threads();
+#else
+        const int id = 0, nt = 1;
+#endif
+        for (int g = id; g < 2; g += nt)
+            one_part(c, g, backward, p->work[g], backward ? NULL : p->buf[g], backward ? NULL : p->is_top);
+    }
+}
+
 int wt_chol_solve_one(wt_chol *c, const double *b, double *x)
 {
     one_plan *p = &c->one;
@@ -559,15 +575,7 @@ int wt_chol_solve_one(wt_chol *c, const double *b, double *x)
         for (int64_t m = 0; m < p->ntop_rows; m++) p->buf[g][p->top_rows[m]] = 0.0;
     /* forward: the two groups side by side, then their updates of the top rows (group 0's, then group 1's:
      * the same order on any number of threads), then the top part */
-#pragma omp parallel num_threads(p->nthreads)
-    {
-#ifdef _OPENMP
-        const int id = omp_get_thread_num(), nt = omp_get_num_threads();
-#else
-        const int id = 0, nt = 1;
-#endif
-        for (int g = id; g < 2; g += nt) one_part(c, g, 0, p->work[g], p->buf[g], p->is_top);
-    }
+    groups(c, p, 0);
     for (int64_t m = 0; m < p->ntop_rows; m++) {
         const int64_t r = p->top_rows[m];
         p->y[r] -= p->buf[0][r];
@@ -576,15 +584,7 @@ int wt_chol_solve_one(wt_chol *c, const double *b, double *x)
     one_part(c, 2, 0, p->work[0], NULL, NULL);
     /* backward: the top part, then the groups side by side (each writes its own columns only) */
     one_part(c, 2, 1, p->work[0], NULL, NULL);
-#pragma omp parallel num_threads(p->nthreads)
-    {
-#ifdef _OPENMP
-        const int id = omp_get_thread_num(), nt = omp_get_num_threads();
-#else
-        const int id = 0, nt = 1;
-#endif
-        for (int g = id; g < 2; g += nt) one_part(c, g, 1, p->work[g], NULL, NULL);
-    }
+    groups(c, p, 1);
     for (int64_t i = 0; i < n; i++) x[perm[i]] = p->y[i]; /* Pᵀ z */
     return WT_OK;
 }

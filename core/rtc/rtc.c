@@ -365,18 +365,25 @@ static int check_interaction(wt_rtc *rtc, const char *fn, const void *in, int64_
     return WT_OK;
 }
 
+/* Refuses the first NaN/Inf of an input of n values, naming it as a slope or a command (0: all finite). */
+static int check_finite(wt_rtc *rtc, const char *fn, const double *v, int64_t n, int slopes)
+{
+    for (int64_t i = 0; i < n; i++)
+        if (!isfinite(v[i])) {
+            char d[96];
+            if (slopes) describe_slope(rtc->sys, i, d, sizeof d);
+            else describe_actuator(rtc->sys, i, d, sizeof d);
+            return WT_ERROR(rtc->ctx, WT_ERR_NUMERIC, "%s: %s %lld (%s) is %s", fn, slopes ? "slope" : "command",
+                            (long long)i, d, nonfinite(v[i]));
+        }
+    return WT_OK;
+}
+
 int wt_rtc_interaction(wt_rtc *rtc, const double *commands, int64_t nactuators, double *slopes, int64_t nslopes)
 {
     int st = check_interaction(rtc, "wt_rtc_interaction", commands, nactuators, rtc ? rtc->na : 0, slopes, nslopes,
                                rtc ? rtc->ns : 0);
-    if (st < 0) return st;
-    for (int64_t i = 0; i < rtc->na; i++)
-        if (!isfinite(commands[i])) {
-            char d[96];
-            describe_actuator(rtc->sys, i, d, sizeof d);
-            return WT_ERROR(rtc->ctx, WT_ERR_NUMERIC, "wt_rtc_interaction: command %lld (%s) is %s", (long long)i, d,
-                            nonfinite(commands[i]));
-        }
+    if (st < 0 || (st = check_finite(rtc, "wt_rtc_interaction", commands, rtc->na, 0)) < 0) return st;
     /* s = 0 + Â a: the frame's s_ol = s + Â a_t with s = 0, in the same operations */
     memset(slopes, 0, (size_t)rtc->ns * sizeof *slopes);
     wt_interaction_apply(rtc->ia, 1.0, commands, slopes);
@@ -387,14 +394,7 @@ int wt_rtc_interaction_t(wt_rtc *rtc, const double *slopes, int64_t nslopes, dou
 {
     int st = check_interaction(rtc, "wt_rtc_interaction_t", slopes, nslopes, rtc ? rtc->ns : 0, commands, nactuators,
                                rtc ? rtc->na : 0);
-    if (st < 0) return st;
-    for (int64_t i = 0; i < rtc->ns; i++)
-        if (!isfinite(slopes[i])) {
-            char d[96];
-            describe_slope(rtc->sys, i, d, sizeof d);
-            return WT_ERROR(rtc->ctx, WT_ERR_NUMERIC, "wt_rtc_interaction_t: slope %lld (%s) is %s", (long long)i, d,
-                            nonfinite(slopes[i]));
-        }
+    if (st < 0 || (st = check_finite(rtc, "wt_rtc_interaction_t", slopes, rtc->ns, 1)) < 0) return st;
     memset(commands, 0, (size_t)rtc->na * sizeof *commands);
     wt_interaction_apply_t(rtc->ia, 1.0, slopes, commands);
     return WT_OK;
