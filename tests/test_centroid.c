@@ -153,6 +153,63 @@ START_TEST(test_tilt_cog)
 }
 END_TEST
 
+/* The CoG of noisy pixels stays within the hull of the window's pixel centres (centroid.h): a frame whose
+ * window sum is a small positive number beside large moments (negative pixels from read noise) would put
+ * the ratio far outside the window; it is clamped per axis to ±(Nw−1)p/2, relative to the reference
+ * centroid. A noise-free spot near the window's edge is not touched (all weights ≥ 0), so the clamp is
+ * not a limit on the linear range. */
+START_TEST(test_cog_clamped_to_window)
+{
+    wt_context *ctx = tu_context();
+    const int ns = 8, nw = 6;
+    spot s0 = {.flux = 100, .sl = 0.8 * PIX, .ss = 0.8 * PIX, .tx = 0.1 * PIX, .ty = -0.2 * PIX};
+    float *ref, *dx, *dy;
+    render_sensor(&s0, 1, ns, &ref, &dx, &dy);
+    wt_centroid_params p = params(WT_CENTROID_COG, 0, 3.0);
+    p.window = nw;
+    p.apply_gain = 0;
+    wt_centroid *c = make(ctx, &p, 1, ns, ref, dx, dy);
+    double sl[2], r[2];
+    wt_centroid_apply(c, ref, r); /* zero: the reference */
+    /* the raw reference centroid x0: the CoG of I0 in the window, computed here */
+    double n0 = 0, x0 = 0, y0 = 0;
+    const int off = (ns - nw) / 2;
+    for (int iy = off; iy < off + nw; iy++)
+        for (int ix = off; ix < off + nw; ix++) {
+            const double w = ref[ix + ns * iy];
+            n0 += w, x0 += (ix - 0.5 * (ns - 1)) * PIX * w, y0 += (iy - 0.5 * (ns - 1)) * PIX * w;
+        }
+    x0 /= n0, y0 /= n0;
+    /* +50 e- at the window's right column (row 3), −49.9 at its left column (row 4): sum 0.1, moment along
+     * x ~ 50·5p: the unclamped ratio is ~2500 p */
+    float *img = calloc(ns * ns, sizeof *img);
+    img[(off + nw - 1) + ns * 3] = 50.0f;
+    img[off + ns * 4] = -49.9f;
+    wt_centroid_apply(c, img, sl);
+    const double h = 0.5 * (nw - 1) * PIX;
+    ck_assert_double_eq_tol(sl[0], h - x0, 1e-12 * PIX);
+    ck_assert_msg(sl[1] >= -h - y0 - 1e-12 * PIX && sl[1] <= h - y0 + 1e-12 * PIX, "y %g outside the hull", sl[1]);
+    /* the mirror image: clamped at the other side */
+    memset(img, 0, ns * ns * sizeof *img);
+    img[(off + nw - 1) + ns * 3] = -49.9f;
+    img[off + ns * 4] = 50.0f;
+    wt_centroid_apply(c, img, sl);
+    ck_assert_double_eq_tol(sl[0], -h - x0, 1e-12 * PIX);
+    /* a noise-free spot centred 2 pixels off (near the window's edge) is its plain CoG, not clamped */
+    spot s1 = s0;
+    s1.tx = 2.0 * PIX;
+    render(&s1, ns, img, NULL, NULL);
+    double m = 0, mx = 0;
+    for (int iy = off; iy < off + nw; iy++)
+        for (int ix = off; ix < off + nw; ix++) m += img[ix + ns * iy], mx += (ix - 0.5 * (ns - 1)) * PIX * img[ix + ns * iy];
+    wt_centroid_apply(c, img, sl);
+    ck_assert_double_eq_tol(sl[0], mx / m - x0, 1e-9 * PIX);
+    wt_centroid_free(c);
+    free(img), free(ref), free(dx), free(dy);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_truncated_gain)
 {
     /* An elongated spot (σl = 3p at 30°) truncated by an 8² detector: the CoG sees only the inner part of
@@ -792,6 +849,7 @@ Suite *make_suite(void)
     TCase *tc = tcase_create("core");
     tcase_set_timeout(tc, 120);
     tcase_add_test(tc, test_tilt_cog);
+    tcase_add_test(tc, test_cog_clamped_to_window);
     tcase_add_test(tc, test_truncated_gain);
     tcase_add_test(tc, test_gain_fd);
     tcase_add_test(tc, test_mf_flux_column);

@@ -10,8 +10,11 @@
  *  - slopes out [rad]: [s_x of every subaperture…, s_y…] (docs/design.md "Conventions").
  *
  * Estimators (x_j, y_j the pixel angles, W the window of Nw x Nw pixels centred on the detector):
- *  - CoG:   s = Σ_W x_j d_j / Σ_W d_j;
- *  - tCoG:  the same with d_j replaced by max(d_j − T, 0), T a fixed threshold per subaperture [e⁻]:
+ *  - CoG:   s = Σ_W x_j d_j / Σ_W d_j, clamped per axis to the hull of the window's pixel centres
+ *           (±(Nw−1)p/2): noise makes pixels negative, and where Σ_W d nears zero the ratio leaves the
+ *           window, a heavy tail no covariance describes (centroid.c); a noise-free image is never clamped;
+ *  - tCoG:  the same with d_j replaced by max(d_j − T, 0), T a fixed threshold per subaperture [e⁻]
+ *           (non-negative weights: the clamp never acts):
  *             T = threshold_noise · √(σe² + B) + threshold_peak · max_j I0_j.
  *           The first term is a multiple of the noise of an empty pixel (after background subtraction):
  *           k ≈ 3 removes the read/background noise of the pixels the spot does not reach, which is what
