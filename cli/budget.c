@@ -30,6 +30,10 @@ static void help(void)
            "  --recon LIST   comma-separated, from cg9, pcg3, mvm (default cg9); mvm is built or read from\n"
            "                 DIR/cache/ as `wavetomo compare` does\n"
            "  --frames N     frames per closed-loop run (loop.frames)   --seed S   random seed (sim.seed)\n"
+           "  --open-loop M  the instantaneous runs: flat (the sensors see the turbulence, DMs flat) or polc\n"
+           "                 (they see it minus the previous frame's reconstruction: a diffractive sensor's\n"
+           "                 spot stays in its centroider's linear range); default polc with a diffractive\n"
+           "                 sensor, else flat\n"
            "  --dry-run      print the estimated peak memory and run time and the keys that drive them; stop\n"
            "  --max-memory S refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n");
 }
@@ -39,7 +43,7 @@ typedef struct {
     int nm;
     const char *out, *seed;
     long frames;
-    int quiet;
+    int quiet, open_loop;
     double start;
     wt_progress pr; /* the current run's progress line */
     char text[192];
@@ -49,9 +53,16 @@ static int option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
     budget_args *a = user;
     const char *o = argv[*i], *v;
-    if (strcmp(o, "--recon") && strcmp(o, "--out") && strcmp(o, "--seed") && strcmp(o, "--frames")) return 0;
+    if (strcmp(o, "--recon") && strcmp(o, "--out") && strcmp(o, "--seed") && strcmp(o, "--frames") &&
+        strcmp(o, "--open-loop"))
+        return 0;
     if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
     if (!strcmp(o, "--out")) a->out = v;
+    else if (!strcmp(o, "--open-loop")) {
+        if (!strcmp(v, "flat")) a->open_loop = WT_LOOP_OPEN_FLAT;
+        else if (!strcmp(v, "polc")) a->open_loop = WT_LOOP_OPEN_POLC;
+        else return wt_cli_usage_error(cli, "--open-loop expects flat or polc, got '%s'", v), -1;
+    }
     else if (!strcmp(o, "--seed")) a->seed = v;
     else if (!strcmp(o, "--frames")) return wt_cli_int(cli, o, v, 2, 10000000, &a->frames) < 0 ? -1 : 1;
     else {
@@ -151,6 +162,7 @@ int wt_cmd_budget(int argc, char **argv)
     wt_budget_options_default(&o, cfg->seed);
     o.progress = progress;
     o.user = &a;
+    o.open_loop = a.open_loop;
     if ((st = wt_budget_compute(cli.ctx, sys, &o, a.nm, kinds, (const wt_mvm *const *)mvm, R)) < 0) goto fail;
     if ((st = write_h5(&cli, &a, cfg, R, argc, argv)) < 0) goto fail;
     snprintf(path, sizeof path, "%s/report.md", a.out);

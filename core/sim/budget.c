@@ -278,11 +278,21 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
                           .perfect_fit = opt->fit_iterations, .first_frame = first};
     if ((st = run_loop(ctx, sys, &fo, first, frames, "fitting (true turbulence)", &ps, &fit)) < 0) return st;
 
+    int olmode = opt->open_loop;
+    if (olmode != 0 && olmode != WT_LOOP_OPEN_FLAT && olmode != WT_LOOP_OPEN_POLC)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "budget options: open_loop = %d: must be 0 (automatic), WT_LOOP_OPEN_FLAT or "
+                        "WT_LOOP_OPEN_POLC", olmode);
+    if (!olmode) {
+        olmode = WT_LOOP_OPEN_FLAT;
+        for (int i = 0; i < sys->nsensors; i++)
+            if (sys->sensors[i].diffr) olmode = WT_LOOP_OPEN_POLC;
+    }
     const double gain_n = wt_budget_noise_gain(cfg->gain, cfg->delay), servo_band = wt_budget_servo_band_limited(cfg);
     for (int m = 0; m < nmethods; m++) {
         wt_budget_result *r = &res[m];
         memset(r, 0, sizeof *r);
         r->recon = recon[m];
+        r->open_loop = olmode;
         r->run[WT_BUDGET_RUN_FIT] = fit;
         const char *name = wt_reconstructor_name(recon[m]);
         wt_loop_options base = {.recon = recon[m], .mvm = mvm ? mvm[m] : NULL, .iterations = -1, .seed = opt->seed};
@@ -295,10 +305,13 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         for (size_t k = 0; k < sizeof plan / sizeof plan[0]; k++) {
             if (plan[k].noise && !cfg->noise) continue; /* filled from the noise-free runs below */
             wt_loop_options lo = base;
-            lo.open_loop = plan[k].open;
+            /* the pure-noise run keeps the flat open loop: without turbulence the sensors see a flat
+             * wavefront either way. The pseudo-open loop carries its state from frame 0. */
+            const int polc = plan[k].open && plan[k].turb && olmode == WT_LOOP_OPEN_POLC;
+            lo.open_loop = !plan[k].open ? WT_LOOP_CLOSED : polc ? WT_LOOP_OPEN_POLC : WT_LOOP_OPEN_FLAT;
             lo.noise = plan[k].noise;
             lo.no_turbulence = !plan[k].turb;
-            lo.first_frame = plan[k].open ? (plan[k].turb ? first : settle) : 0;
+            lo.first_frame = plan[k].open && !polc ? (plan[k].turb ? first : settle) : 0;
             long last = plan[k].turb ? frames : settle + opt->noise_draws;
             snprintf(label, sizeof label, "%s: %s", name, plan[k].what);
             if ((st = run_loop(ctx, sys, &lo, lo.first_frame, last, label, &ps, &r->run[plan[k].run])) < 0) return st;
@@ -351,7 +364,14 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
             cfg->path, cfg->frames, cfg->rate, cfg->settle_frames, cfg->gain, cfg->delay, (unsigned long long)cfg->seed,
             cfg->eval_grid, cfg->eval_wavelength * 1e9);
     for (int i = 0; i < argc; i++) fprintf(f, " %s", argv[i]);
-    fprintf(f, "\n```\n\n| term [nm] |");
+    fprintf(f, "\n```\n\n");
+    if (nmethods > 0 && res[0].open_loop == WT_LOOP_OPEN_POLC)
+        fprintf(f, "Instantaneous runs: **pseudo-open loop** (the sensors see the turbulence minus the previous frame's "
+                   "reconstruction, R (s + Â a) is applied to the same frame; the diffractive sensors stay in their "
+                   "linear range, where a flat open loop would move the spots by the full turbulence).\n\n");
+    else
+        fprintf(f, "Instantaneous runs: **flat open loop** (the sensors see the turbulence with the DMs flat).\n\n");
+    fprintf(f, "| term [nm] |");
     for (int m = 0; m < nmethods; m++) fprintf(f, " %s measured | %s analytic |", methods[m], methods[m]);
     fprintf(f, "\n|---|");
     for (int m = 0; m < nmethods; m++) fprintf(f, "---|---|");
@@ -426,6 +446,8 @@ int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *
     int st = WT_OK;
     for (int m = 0; m < nmethods; m++) snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", m ? "," : "", methods[m]);
     st = wt_h5_attr_write_string(w, "/", "methods", list);
+    if (st >= 0 && nmethods > 0)
+        st = wt_h5_attr_write_string(w, "/", "open_loop", res[0].open_loop == WT_LOOP_OPEN_POLC ? "polc" : "flat");
     for (int m = 0; m < nmethods && st >= 0; m++) {
         const wt_budget_result *r = &res[m];
         for (int k = 0; k < WT_BUDGET_NTERMS && st >= 0; k++) {

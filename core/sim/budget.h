@@ -5,7 +5,9 @@
  *   fitting      σ²_fit: the DMs fitted to the true turbulence along the evaluation directions (no
  *                sensors; the cg9 fitting: its sampling, ε and the guard ring), evaluated like the loop
  *   tomography   σ²_OL,nf − σ²_fit: instantaneous open loop on noise-free slopes (tomography, aliasing,
- *                the reconstructor's model error)
+ *                the reconstructor's model error); with diffractive sensors (or on request) the
+ *                instantaneous pseudo-open loop, whose sensors see the previous frame's residual, so the
+ *                term keeps the centroiders in their linear range (core/sim/loop.h WT_LOOP_OPEN_POLC)
  *   noise (OL)   σ²_OL − σ²_OL,nf: the same open loop with noise
  *   noise (CL)   σ²_CL − σ²_CL,nf: the closed loop with noise minus without
  *   servo        σ²_CL,nf − σ²_OL,nf: the closed loop (delay, integrator) minus the instantaneous one
@@ -33,6 +35,7 @@
 #define WT_BUDGET_H
 
 #include "../model/system.h"
+#include "loop.h"
 
 struct wt_mvm;
 
@@ -68,6 +71,7 @@ typedef struct wt_budget_run {
 
 typedef struct wt_budget_result {
     int recon;
+    int open_loop;                      /* the instantaneous runs' form used (WT_LOOP_OPEN_FLAT / _POLC) */
     wt_budget_run run[WT_BUDGET_NRUNS];
     double term[WT_BUDGET_NTERMS];      /* measured [nm] */
     double analytic[WT_BUDGET_NTERMS];  /* analytic [nm], NaN where none */
@@ -89,6 +93,10 @@ typedef struct wt_budget_options {
     int noise_draws;      /* pure-noise frames of the analytic noise term */
     int warmup;           /* open-loop frames run before the settle period (for the warm starts) */
     double rim_width;     /* [m] */
+    int open_loop;        /* the instantaneous runs: WT_LOOP_OPEN_FLAT (DMs flat in the sensors) or
+                           * WT_LOOP_OPEN_POLC (the previous reconstruction in them: core/sim/loop.h); 0:
+                           * automatic, POLC when a sensor is diffractive (a spot of the full open-loop
+                           * turbulence leaves the centroider's linear range), else flat */
     wt_budget_progress_fn progress;
     void *user;
 } wt_budget_options;

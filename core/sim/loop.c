@@ -250,9 +250,16 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     WT_ALLOC(ctx, lp->applied, sys->nact, "applied commands");
     WT_ALLOC(ctx, lp->rms, sys->neval, "residual rms");
     wt_strehl_le_init(&lp->le, sys->neval);
-    if (opt->first_frame < 0 || (opt->first_frame > 0 && !opt->open_loop) || (opt->perfect_fit && !opt->open_loop)) {
-        st = WT_ERROR(ctx, WT_ERR_INVALID, "first_frame %ld / perfect_fit %d: open-loop options without open_loop",
-                      opt->first_frame, opt->perfect_fit);
+    if (opt->open_loop < WT_LOOP_CLOSED || opt->open_loop > WT_LOOP_OPEN_POLC) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "open_loop = %d: must be WT_LOOP_CLOSED, _OPEN_FLAT or _OPEN_POLC",
+                      opt->open_loop);
+        goto fail;
+    }
+    if (opt->first_frame < 0 || (opt->first_frame > 0 && opt->open_loop != WT_LOOP_OPEN_FLAT) ||
+        (opt->perfect_fit && opt->open_loop != WT_LOOP_OPEN_FLAT)) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID,
+                      "first_frame %ld / perfect_fit %d: options of the flat open loop only (open_loop = %d)",
+                      opt->first_frame, opt->perfect_fit, opt->open_loop);
         goto fail;
     }
     lp->t = opt->first_frame;
@@ -441,8 +448,66 @@ static int step_open_loop(wt_loop *lp)
     return WT_OK;
 }
 
+/* Instantaneous pseudo-open loop (WT_LOOP_OPEN_POLC, loop.h): the sensors see φ_t minus the previous
+ * frame's reconstruction a_{t−1} (lp->applied), â_t = R (s_t + Â a_{t−1}) is evaluated against φ_t in the
+ * same frame and applied in the next. The sensors' residual is a closed loop's (the change of φ over one
+ * frame plus the reconstruction error), so a diffractive sensor works in its linear range. */
+static int step_polc_instant(wt_loop *lp)
+{
+    const wt_system *sys = lp->sys;
+    const long t = lp->t;
+    const double time = (double)t / lp->par.rate;
+    const int64_t nf = lp->nfine;
+    int err = WT_OK;
+    double t0 = wt_time_now();
+    wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
+    if (!lp->opt.no_turbulence)
+        err = wt_atmosphere_project_many(lp->atm, time, lp->nlos, lp->los, &lp->fine, 1.0);
+    else
+        for (int i = 0; i < lp->nlos; i++)
+            for (int64_t k = 0; k < nf; k++)
+                if (lp->los[i].mask[k]) lp->los[i].out[k] = 0.0;
+    if (err < 0) return err;
+    double t1 = wt_time_now();
+    lp->times.atmosphere += t1 - t0;
+    dm_ground(lp);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(wt_context_threads(lp->ctx))
+    for (int i = 0; i < sys->nsensors; i++) {
+        double *o = lp->opd + (size_t)i * nf;
+        dm_subtract(lp, i, o);
+        sense(lp, i, t, o);
+    }
+    if ((err = sense_diffractive(lp, t, sys->nsensors)) < 0) return err;
+    double t2 = wt_time_now();
+    lp->times.sensors += t2 - t1;
+    memcpy(lp->s_ol, lp->s, (size_t)sys->nslopes * sizeof *lp->s_ol);
+    wt_interaction_apply(lp->ia, 1.0, lp->applied, lp->s_ol);
+    if ((err = wt_reconstructor_apply(lp->rec, lp->s_ol, lp->a_rec)) < 0) return err;
+    double t3 = wt_time_now();
+    lp->times.reconstruction += t3 - t2;
+    if (lp->opt.recon == WT_RECON_NONE) memset(lp->a_rec, 0, (size_t)sys->nact * sizeof *lp->a_rec);
+    for (int64_t k = 0; k < sys->nact; k++)
+        if (!isfinite(lp->a_rec[k]))
+            return WT_ERROR(lp->ctx, WT_ERR_NUMERIC, "frame %ld: command %lld is %g (the pseudo-open loop diverged)", t,
+                            (long long)k, lp->a_rec[k]);
+    memcpy(lp->applied, lp->a_rec, (size_t)sys->nact * sizeof *lp->applied);
+    wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
+    dm_ground(lp);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(wt_context_threads(lp->ctx))
+    for (int j = 0; j < sys->neval; j++) {
+        double *o = lp->opd + (size_t)(sys->nsensors + j) * nf;
+        dm_subtract(lp, sys->nsensors + j, o);
+        lp->rms[j] = wt_strehl_rms(o, lp->pupil, nf);
+    }
+    evaluate(lp);
+    lp->times.evaluation += wt_time_now() - t3;
+    lp->t++;
+    return WT_OK;
+}
+
 int wt_loop_step(wt_loop *lp)
 {
+    if (lp->opt.open_loop == WT_LOOP_OPEN_POLC) return step_polc_instant(lp);
     if (lp->opt.open_loop) return step_open_loop(lp);
     const wt_system *sys = lp->sys;
     const int D1 = lp->delay + 1;

@@ -10,7 +10,8 @@
  * or, with a gain per spatial scale, G = Σ_j g_j Π_j in place of g (core/sim/scale_gain.h).
  *
  * Budget modes (wt_loop_options.open_loop …): the instantaneous open loop evaluates a_t = R s_t (or the
- * best fit to the true turbulence) in the frame it was measured; the closed-loop path does not change.
+ * best fit to the true turbulence) in the frame it was measured, with the DMs flat in the sensors or (the
+ * pseudo-open-loop form) the previous reconstruction in them; the closed-loop path does not change.
  *
  * Randomness: the atmosphere draws from wt_rng streams (seed, layer); the noise of sensor m in frame t
  * from stream (seed, 2^32 + 64 t + m). The same seed gives bit-identical results for any thread count.
@@ -27,6 +28,8 @@
 
 typedef struct wt_loop wt_loop;
 
+enum { WT_LOOP_CLOSED = 0, WT_LOOP_OPEN_FLAT = 1, WT_LOOP_OPEN_POLC = 2 };
+
 typedef struct wt_loop_options {
     int recon;          /* WT_RECON_NONE / PCG3 / CG9 / MVM */
     const struct wt_mvm *mvm; /* WT_RECON_MVM: the control matrix (not owned; must outlive the loop) */
@@ -34,9 +37,16 @@ typedef struct wt_loop_options {
     uint64_t seed;      /* random seed (the driver passes the config's unless overridden) */
     int noise;          /* 0: noise-free sensors (no photon/read noise, no LGS tip-tilt) */
     /* Error-budget modes (core/sim/budget.h); all zero: the closed loop above. */
-    int open_loop;      /* 1: instantaneous open loop: the sensors see the turbulence alone (DMs flat), and
-                         * the commands reconstructed from them are applied to the same frame's evaluation
-                         * (no delay, no integrator, no POLC) */
+    int open_loop;      /* WT_LOOP_OPEN_FLAT (1): instantaneous open loop: the sensors see the turbulence
+                         * alone (DMs flat), and the commands reconstructed from them are applied to the
+                         * same frame's evaluation (no delay, no integrator, no POLC).
+                         * WT_LOOP_OPEN_POLC (2): instantaneous pseudo-open loop: the sensors see the
+                         * turbulence minus the previous frame's reconstruction (a closed loop's small
+                         * residual, inside a diffractive sensor's linear range), â_t = R (s_t + Â a_{t−1})
+                         * is applied to the same frame's evaluation and becomes a_t (gain 1, no delay).
+                         * With linear sensors whose Â is the truth's it is the flat open loop; with spots
+                         * and centroiders it is the open loop they can actually measure. Runs from frame 0
+                         * (first_frame 0): its state is the previous reconstruction. */
     int perfect_fit;    /* > 0 (open loop only): no sensors, no reconstructor: the DMs are fitted to the
                          * true turbulence along the evaluation directions by the cg9 fitting (its sampling,
                          * ε and the guard ring) with this many CG iterations, warm-started */
