@@ -448,6 +448,23 @@ static int step_open_loop(wt_loop *lp)
     return WT_OK;
 }
 
+/* The turbulence of `time` along every line of sight into lp->opd, in one batched projection (each layer
+ * read once per row band for all lines of sight; the same bits as one projection per line of sight), or
+ * zero on the masked points without turbulence; its time goes to times.atmosphere. */
+static int project_all(wt_loop *lp, double time)
+{
+    const double t0 = wt_time_now();
+    int err = WT_OK;
+    if (!lp->opt.no_turbulence) /* sets the masked points (los[i].set) */
+        err = wt_atmosphere_project_many(lp->atm, time, lp->nlos, lp->los, &lp->fine, 1.0);
+    else
+        for (int i = 0; i < lp->nlos; i++)
+            for (int64_t k = 0; k < lp->nfine; k++)
+                if (lp->los[i].mask[k]) lp->los[i].out[k] = 0.0;
+    lp->times.atmosphere += wt_time_now() - t0;
+    return err;
+}
+
 /* Instantaneous pseudo-open loop (WT_LOOP_OPEN_POLC, loop.h): the sensors see φ_t minus the previous
  * frame's reconstruction a_{t−1} (lp->applied), â_t = R (s_t + Â a_{t−1}) is evaluated against φ_t in the
  * same frame and applied in the next. The sensors' residual is a closed loop's (the change of φ over one
@@ -459,17 +476,9 @@ static int step_polc_instant(wt_loop *lp)
     const double time = (double)t / lp->par.rate;
     const int64_t nf = lp->nfine;
     int err = WT_OK;
-    double t0 = wt_time_now();
     wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
-    if (!lp->opt.no_turbulence)
-        err = wt_atmosphere_project_many(lp->atm, time, lp->nlos, lp->los, &lp->fine, 1.0);
-    else
-        for (int i = 0; i < lp->nlos; i++)
-            for (int64_t k = 0; k < nf; k++)
-                if (lp->los[i].mask[k]) lp->los[i].out[k] = 0.0;
-    if (err < 0) return err;
+    if ((err = project_all(lp, time)) < 0) return err;
     double t1 = wt_time_now();
-    lp->times.atmosphere += t1 - t0;
     dm_ground(lp);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(wt_context_threads(lp->ctx))
     for (int i = 0; i < sys->nsensors; i++) {
@@ -520,19 +529,11 @@ int wt_loop_step(wt_loop *lp)
     memcpy(lp->applied, lp->ring[t % D1], (size_t)sys->nact * sizeof *lp->applied);
     wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
 
-    /* 1. the turbulence along every line of sight, in one batched projection (each layer read once per
-     * row band for all lines of sight; the same bits as one projection per line of sight). */
-    double t0 = wt_time_now(), c_sens = 0.0, c_eval = 0.0;
-    int err = WT_OK;
-    if (!lp->opt.no_turbulence) /* sets the masked points (los[i].set) */
-        err = wt_atmosphere_project_many(lp->atm, time, lp->nlos, lp->los, &lp->fine, 1.0);
-    else
-        for (int i = 0; i < lp->nlos; i++)
-            for (int64_t k = 0; k < nf; k++)
-                if (lp->los[i].mask[k]) lp->los[i].out[k] = 0.0;
+    /* 1. the turbulence along every line of sight (project_all) */
+    double c_sens = 0.0, c_eval = 0.0;
+    int err = project_all(lp, time);
     if (err < 0) return err;
     double t1 = wt_time_now();
-    lp->times.atmosphere += t1 - t0;
 
     /* 2.–3. every line of sight in one parallel region: minus the DMs, then the truth sensor with its
      * noise, or the residual rms of the evaluation directions, EVAL_GROUP at a time (the rms sums of a
