@@ -355,6 +355,37 @@ static wt_config *read_with_profile(wt_context *ctx, const char *file, const cha
     return c;
 }
 
+/* sim.noise enters the matrix identity exactly when a diffractive sensor uses the tCoG (calibrated at the
+ * operating noise when the simulation has noise: core/optics/centroid.h), for the LGS or the NGS. */
+START_TEST(test_noise_hash_tcog)
+{
+    wt_context *ctx = tu_context();
+    struct { const char *lgs, *ngs; int in; } cases[] = {
+        {"mf", "tcog", 1}, {"tcog", "cog", 1}, {"mf", "cog", 0}, {"cog", "mf", 0}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char l[64], n[64];
+        snprintf(l, sizeof l, "lgs.wfs.centroider=\"%s\"", cases[i].lgs);
+        snprintf(n, sizeof n, "ngs.wfs.centroider=\"%s\"", cases[i].ngs);
+        const char *on[] = {l, n, "sim.noise=true"}, *off[] = {l, n, "sim.noise=false"};
+        wt_config *a = NULL, *b = NULL;
+        ck_assert_int_eq(read_preset(ctx, "demo-diffractive.cfg", 3, on, &a), WT_OK);
+        ck_assert_int_eq(read_preset(ctx, "demo-diffractive.cfg", 3, off, &b), WT_OK);
+        ck_assert_msg((strcmp(a->matrix_sha256, b->matrix_sha256) != 0) == cases[i].in,
+                      "lgs %s, ngs %s: sim.noise %s the matrix hash", cases[i].lgs, cases[i].ngs,
+                      cases[i].in ? "left" : "changed");
+        /* the geometric model of the same sensors: never */
+        const char *gon[] = {l, n, "sim.noise=true", "lgs.wfs.model=\"geometric\"", "ngs.wfs.model=\"geometric\""};
+        const char *goff[] = {l, n, "sim.noise=false", "lgs.wfs.model=\"geometric\"", "ngs.wfs.model=\"geometric\""};
+        wt_config *c = NULL, *d = NULL;
+        ck_assert_int_eq(read_preset(ctx, "demo-diffractive.cfg", 5, gon, &c), WT_OK);
+        ck_assert_int_eq(read_preset(ctx, "demo-diffractive.cfg", 5, goff, &d), WT_OK);
+        ck_assert_str_eq(c->matrix_sha256, d->matrix_sha256);
+        wt_config_free(ctx, a), wt_config_free(ctx, b), wt_config_free(ctx, c), wt_config_free(ctx, d);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_sodium_profile_hash)
 {
     wt_context *ctx = tu_context();
@@ -1050,6 +1081,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_canonical);
     tcase_add_test(tc, test_matrix_hash);
     tcase_add_test(tc, test_sodium_profile_hash);
+    tcase_add_test(tc, test_noise_hash_tcog);
     tcase_add_test(tc, test_overrides);
     tcase_add_test(tc, test_gain_levels);
     tcase_add_test(tc, test_file_overrides);

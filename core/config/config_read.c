@@ -815,6 +815,19 @@ static int affects_matrix(const pstate *ps, const char *path)
                 on |= config_setting_get_bool(ps->set[k]);
         return on;
     }
+    /* a diffractive tCoG is calibrated at the operating noise when the simulation has noise (its reference
+     * and gain, so its covariance: core/optics/centroid.h), so sim.noise shapes the noise model then */
+    if (!strcmp(path, "sim.noise")) {
+        int on = 0;
+        for (const char *t = "ln"; *t; t++) {
+            const int km = find_key(*t == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
+            const int kc = find_key(*t == 'l' ? "lgs.wfs.centroider" : "ngs.wfs.centroider");
+            const char *m = km >= 0 && ps->set[km] ? config_setting_get_string(ps->set[km]) : NULL;
+            const char *c = kc >= 0 && ps->set[kc] ? config_setting_get_string(ps->set[kc]) : NULL;
+            on |= m && c && !strcmp(m, "diffractive") && !strcmp(c, "tcog");
+        }
+        return on;
+    }
     /* the diffractive sensor's keys shape the noise model only when that sensor type is diffractive */
     static const char *const diffr[] = {".model", ".centroider", ".apply_gain", ".tcog_threshold", ".window_pixels",
                                         ".background_e", ".pupil_samples", ".fft_size", ".cells_per_pixel",

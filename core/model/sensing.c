@@ -158,6 +158,8 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
                              .threshold_peak = w->threshold_peak,
                              .mf_flux = 0,
                              .apply_gain = w->apply_gain,
+                             /* calibrated at the operating flux and noise when the simulation has noise */
+                             .noise_calibrated = w->centroider == WT_CENTROID_TCOG && cfg->noise,
                              .pixel = w->pixel,
                              .background = w->background_e,
                              .read_noise = w->read_noise_e};

@@ -179,13 +179,15 @@ void wt_centroid_apply(const wt_centroid *c, const float *images, double *slopes
 /* Y = max(X − T, 0) for X ~ N(mu, var): its mean and variance (mu' = mu − T, a = mu'/σ):
  *   E[Y] = mu' Φ(a) + σ φ(a),   Var[Y] = mu'² Φ(a)(1 − Φ(a)) + σ² Φ(a) + mu' σ φ(a)(1 − 2Φ(a)) − σ² φ(a)²,
  * written with Φ and 1 − Φ separately (the smaller of the two from erfc, the other as 1 minus it) so the
- * variance of a pixel far above T does not come from the difference of two large numbers. */
-static void clipped_moments(double mu, double var, double t, double *m, double *v)
+ * variance of a pixel far above T does not come from the difference of two large numbers. dm: dE[Y]/dμ
+ * when var = μ + c (Poisson plus a constant), for the noise-calibrated gain. */
+static void clipped_moments(double mu, double var, double t, double *m, double *v, double *dm)
 {
     const double mp = mu - t;
     if (!(var > 0.0)) {
         *m = mp > 0.0 ? mp : 0.0;
         *v = 0.0;
+        *dm = mp > 0.0 ? 1.0 : 0.0;
         return;
     }
     const double sd = sqrt(var), a = mp / sd;
@@ -193,6 +195,9 @@ static void clipped_moments(double mu, double var, double t, double *m, double *
     const double cdf = a >= 0.0 ? 1.0 - tail : tail, ccdf = a >= 0.0 ? tail : 1.0 - tail;
     const double pdf = exp(-0.5 * a * a) / sqrt(2.0 * M_PI);
     *m = mp * cdf + sd * pdf;
+    /* d E[Y]/dμ with var = μ + c (the pixel's Poisson part follows its mean): ∂/∂μ' = Φ(a), ∂/∂σ = φ(a),
+     * dσ/dμ = 1/(2σ) */
+    *dm = cdf + pdf / (2.0 * sd);
     const double vv = mp * mp * cdf * ccdf + var * cdf + mp * sd * pdf * (ccdf - cdf) - var * pdf * pdf;
     *v = vv > 0.0 ? vv : 0.0;
 }
@@ -244,18 +249,18 @@ static int setup_cog(wt_centroid *c, int i, const float *r, const float *dx, con
                 g[2] += (yj - y0) * dx[j];
                 g[3] += (yj - y0) * dy[j];
             }
-            if (tcog) { /* the clipped pixel's mean and variance, kept in work for the loop below */
-                double m, v;
-                clipped_moments(r[j], r[j] + noise_var, t, &m, &v);
-                work[2 * j] = m;
-                work[2 * j + 1] = v;
+            if (tcog) { /* the clipped pixel's mean, variance and dE/dμ, kept in work for the loops below */
+                double m, v, dm;
+                clipped_moments(r[j], r[j] + noise_var, t, &m, &v, &dm);
+                work[3 * j] = m;
+                work[3 * j + 1] = v;
+                work[3 * j + 2] = dm;
                 m0 += m;
                 mx += xj * m;
                 my += yj * m;
             }
         }
     for (int k = 0; k < 4; k++) g[k] /= n0;
-    memcpy(c->gain + 4 * (size_t)i, g, sizeof g);
     /* centre and normalisation of the noise propagation: I0's for the CoG, the clipped means' for tCoG */
     double nn = n0, xc = x0, yc = y0;
     if (tcog) {
@@ -263,12 +268,34 @@ static int setup_cog(wt_centroid *c, int i, const float *r, const float *dx, con
         xc = mx / m0;
         yc = my / m0;
     }
+    if (tcog && c->par.noise_calibrated) {
+        /* the expected estimator at the operating flux and noise: its value on I0 is the reference, its
+         * derivative Σ (x_j − x_c) dE[w_j]/dμ_j ∂I0_j/∂θ / Σ E[w_j] the gain (what a calibration of the
+         * reference slopes and of the centroid gain with noisy frames measures) */
+        if (!(m0 > 0.0))
+            return WT_ERROR(c->ctx, WT_ERR_INVALID, "centroid: ref: subaperture %d: the clipped pixels' mean flux is %g e-",
+                            i, m0);
+        c->ref_s[i] = xc;
+        c->ref_s[c->nsub + i] = yc;
+        for (int k = 0; k < 4; k++) g[k] = 0.0;
+        for (int iy = c->off; iy < c->off + c->nw; iy++)
+            for (int ix = c->off; ix < c->off + c->nw; ix++) {
+                const int j = ix + ns * iy;
+                const double xj = (ix - c->c0) * p - xc, yj = (iy - c->c0) * p - yc, dm = work[3 * j + 2];
+                g[0] += xj * dm * dx[j];
+                g[1] += xj * dm * dy[j];
+                g[2] += yj * dm * dx[j];
+                g[3] += yj * dm * dy[j];
+            }
+        for (int k = 0; k < 4; k++) g[k] /= m0;
+    }
+    memcpy(c->gain + 4 * (size_t)i, g, sizeof g);
     double sxx = 0.0, sxy = 0.0, syy = 0.0;
     for (int iy = c->off; iy < c->off + c->nw; iy++)
         for (int ix = c->off; ix < c->off + c->nw; ix++) {
             const int j = ix + ns * iy;
             const double xj = (ix - c->c0) * p - xc, yj = (iy - c->c0) * p - yc;
-            const double v = tcog ? work[2 * j + 1] : r[j] + noise_var;
+            const double v = tcog ? work[3 * j + 1] : r[j] + noise_var;
             sxx += xj * xj * v;
             sxy += xj * yj * v;
             syy += yj * yj * v;
@@ -426,6 +453,8 @@ static int check_params(wt_context *ctx, const wt_centroid_params *par, int nsub
                         "use 0 or Ns = %d", par->window, ns);
     if (par->mf_flux != 0 && par->mf_flux != 1)
         return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: mf_flux = %d: must be 0 or 1", par->mf_flux);
+    if (par->noise_calibrated != 0 && par->noise_calibrated != 1)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: noise_calibrated = %d: must be 0 or 1", par->noise_calibrated);
     if (par->apply_gain != 0 && par->apply_gain != 1)
         return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: apply_gain = %d: must be 0 or 1", par->apply_gain);
     if ((st = check_finite_param(ctx, "pixel", par->pixel, 0.0, 1, INFINITY)) < 0) return st;
@@ -456,7 +485,7 @@ int wt_centroid_alloc(wt_context *ctx, const wt_centroid_params *par, int nsub, 
 {
     int st = WT_OK;
     wt_centroid *c = NULL;
-    double *work = NULL; /* tCoG: the clipped pixels' mean and variance, 2·Ns² */
+    double *work = NULL; /* tCoG: the clipped pixels' mean, variance and dE/dμ, 3·Ns² */
     if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "centroid: out is NULL");
     *out = NULL;
     if ((st = check_params(ctx, par, nsub, ns)) < 0) return st;
@@ -479,7 +508,7 @@ int wt_centroid_alloc(wt_context *ctx, const wt_centroid_params *par, int nsub, 
     WT_ALLOC(ctx, c->cov, 3 * (size_t)nsub, "the noise covariance");
     WT_ALLOC(ctx, c->thr, (size_t)nsub, "the thresholds");
     if (par->method == WT_CENTROID_MF) WT_ALLOC(ctx, c->rows, 2 * npix * (size_t)nsub, "the matched-filter rows");
-    if (par->method == WT_CENTROID_TCOG) WT_ALLOC(ctx, work, 2 * npix, "the threshold workspace");
+    if (par->method == WT_CENTROID_TCOG) WT_ALLOC(ctx, work, 3 * npix, "the threshold workspace");
 
     /* Set-up is serial (the first error stops it, with its message): measured ~0.02 s (CoG), ~0.15 s
      * (tCoG: an erfc per pixel), ~0.05 s (MF) for a 5112-subaperture sensor of 16² pixels. */

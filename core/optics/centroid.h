@@ -29,7 +29,16 @@
  * the MF is zero there by construction), so a flat wavefront gives zero slopes.
  *
  * Gain: the 2x2 response g = ∂s/∂θ at zero [rad/rad], from the derivative images (the linearisation of
- * the estimator; the identity for the MF by construction). With apply_gain the slopes are g⁻¹ s, which
+ * the estimator; the identity for the MF by construction).
+ * Noise calibration (tCoG, noise_calibrated): clipping turns zero-mean noise into positive weight — an empty
+ * pixel's E[max(d − T, 0)] > 0 — so at a low threshold the mean tCoG of I0 is pulled towards the window's
+ * centre and its response to a tilt is diluted, both against the noise-free linearisation: a bias and a gain
+ * error at the operating flux (measured: the E-ELT loop at 100 e⁻ with T = 0.1 × peak diverged). With
+ * noise_calibrated the reference is the expected estimator's value on I0, (x_c, y_c) = Σ (x_j, y_j) E[w_j] /
+ * Σ E[w_j], and the gain its derivative, g_ab = Σ (a_j − a_c) (dE[w_j]/dμ_j) ∂I0_j/∂θ_b / Σ E[w_j], both
+ * under the Gaussian approximation below (dE[w]/dμ = Φ(α) + φ(α)/(2σ), σ² = μ + B + σe²): what calibrating
+ * the reference slopes and the centroid gain on noisy frames at the operating flux measures. A noise-free
+ * simulation keeps the noise-free calibration (a noisy one would bias it). With apply_gain the slopes are g⁻¹ s, which
  * restores the slope of a truncated (elongated) spot whose CoG gain is < 1.
  *
  * Noise covariance (2x2 per subaperture, [rad²]), first-order propagation of V through the estimator
@@ -75,6 +84,8 @@ typedef struct wt_centroid_params {
     double threshold_peak;  /* tCoG: f in the same, in [0, 1) [-] */
     int mf_flux;            /* MF: 1 adds the I0 column to G (slopes blind to flux changes) */
     int apply_gain;         /* 1: slopes and covariance are corrected by the inverse gain g⁻¹ */
+    int noise_calibrated;   /* tCoG: 1 calibrates the reference slope and the gain on the expected estimator
+                               under the noise (see "Noise calibration" above), 0 on the noise-free I0 */
     double pixel;           /* p: pixel scale [rad], > 0 */
     double background;      /* B: background per pixel per frame [e⁻], ≥ 0 */
     double read_noise;      /* σe: read noise per pixel [e⁻ rms], ≥ 0 */
