@@ -27,7 +27,7 @@ BUILD   ?= build
 BIN     ?= bin
 
 CORE_SRC  := $(sort $(wildcard core/*/*.c))
-CLI_SRC   := $(sort $(wildcard cli/*.c builder/*.c runtime/*.c compare/*.c))
+CLI_SRC   := $(sort $(wildcard cli/*.c builder/*.c runtime/*.c compare/*.c app/*.c))
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
 CORE_OBJ  := $(CORE_SRC:%.c=$(BUILD)/%.o)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <sys/resource.h>
 
+#include "builder/build.h"
 #include "cli/cli.h"
 #include "cli/mpi.h"
 #include "core/io/h5.h"

@@ -94,9 +94,6 @@ void wt_progress_start(wt_progress *p, const char *label, const char *unit, long
 void wt_progress_update(wt_progress *p, long done, const char *extra);
 void wt_progress_end(wt_progress *p);
 
-/* Subcommands */
-int wt_cmd_info(int argc, char **argv);
-int wt_cmd_bench(int argc, char **argv);
 
 
 
@@ -116,11 +113,5 @@ int wt_cli_ensure_dir(wt_context *ctx, const char *path);
 struct wt_mvm;
 int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, struct wt_system *sys, int argc, char **argv,
                       struct wt_mvm **out, double *build_s);
-
-int wt_cmd_sim(int argc, char **argv);
-int wt_cmd_budget(int argc, char **argv);
-int wt_cmd_build(int argc, char **argv);
-int wt_cmd_run(int argc, char **argv);
-int wt_cmd_compare(int argc, char **argv);
 
 #endif

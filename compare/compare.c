@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "cli/mpi.h"
+#include "compare/compare.h"
 #include "compare/report.h"
 #include "compare/spots.h"
 #include "core/io/h5.h"

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "runtime/runtime.h"
 #include "cli/cli.h"
 #include "core/io/h5.h"
 #include "core/model/reconstructor.h"

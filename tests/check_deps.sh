@@ -4,7 +4,8 @@
 #
 #   base ← config        (the configuration layer: libconfig text -> wt_config, the schema)
 #   base ← io            (the file layer: HDF5, plain data only, no configuration, no numerical module)
-#   base ← la ← op ← solve ← model ← {build, sim, rtc} ← drivers (cli, builder, runtime, compare)
+#   base ← la ← op ← solve ← model ← {build, sim, rtc} ← cli ← drivers (builder, runtime, compare) ← app
+#   (cli: the drivers' shared plumbing; app: the executable's dispatcher and its inspection commands)
 #   public (include/wavetomo/*.h: the installed headers) ← every module; they include only each other
 #   rtc: the per-frame API of include/wavetomo/rtc.h over model and solve
 #   base ← la ← optics   (diffractive sensing: sodium profile, spot images, centroiders, their noise)
@@ -31,18 +32,22 @@ declare -A ALLOW=(
   [build]="public base la op config io solve optics model build"
   [sim]="public base la op config io solve optics model sim"
   [rtc]="public base la op config io solve optics model rtc"
-  [driver]="public base la op config io solve optics model build sim rtc driver"
+  [cli]="public base la op config io solve optics model build sim rtc cli"
+  [driver]="public base la op config io solve optics model build sim rtc cli driver"
+  [app]="public base la op config io solve optics model build sim rtc cli driver app"
 )
 module() { # path relative to the root -> module name
   case "$1" in
     include/wavetomo/*) echo public ;;
     core/*/*) local m=${1#core/}; echo "${m%%/*}" ;;
-    cli/* | builder/* | runtime/* | compare/*) echo driver ;;
+    cli/*) echo cli ;;
+    builder/* | runtime/* | compare/*) echo driver ;;
+    app/*) echo app ;;
     *) echo external ;;
   esac
 }
 bad=0
-files=$(ls include/wavetomo/*.h core/*/*.c core/*/*.h cli/*.c cli/*.h builder/*.c runtime/*.c compare/*.c compare/*.h 2>/dev/null)
+files=$(ls include/wavetomo/*.h core/*/*.c core/*/*.h cli/*.c cli/*.h builder/*.c builder/*.h runtime/*.c runtime/*.h compare/*.c compare/*.h app/*.c app/*.h 2>/dev/null)
 for f in $files; do
   mf=$(module "$f")
   [ -n "${ALLOW[$mf]:-}" ] || { echo "check-deps: $f: unknown module '$mf'"; bad=1; continue; }
@@ -86,6 +91,22 @@ if [ -n "$OBJ" ]; then
 else
   echo "check-deps: ${BUILD:-build}/core not built, call circles not checked"
 fi
+# calls between the executable's objects (cli, drivers, app) and into them: each must go to a module the
+# table allows (the dispatcher above the commands, the plumbing below them: no call runs back up)
+DOBJ=$(for c in cli/*.c builder/*.c runtime/*.c compare/*.c app/*.c; do o=${BUILD:-build}/${c%.c}.o; [ -f "$o" ] && echo "$o"; done)
+if [ -n "$DOBJ" ]; then
+  ddefs=$(nm -A --defined-only $DOBJ 2>/dev/null | awk '$2 ~ /^[TDRB]$/ {split($1, a, ":"); print a[1], $3}')
+  dedges=$(nm -A -u $DOBJ 2>/dev/null | awk '{split($1, a, ":"); print a[1], $NF}' |
+    awk 'NR == FNR {def[$2] = $1; next} ($2 in def) && def[$2] != $1 {print $1, def[$2], $2}' <(echo "$ddefs") - | sort -u)
+  while read -r a b name; do
+    [ -n "$a" ] || continue
+    ma=$(module "${a#${BUILD:-build}/}"); mb=$(module "${b#${BUILD:-build}/}")
+    case " ${ALLOW[$ma]} " in
+      *" $mb "*) ;;
+      *) echo "check-deps: ${a#${BUILD:-build}/} ($ma) calls $name of ${b#${BUILD:-build}/} ($mb): a call running back up"; bad=1 ;;
+    esac
+  done <<< "$dedges"
+fi
 rm -f /tmp/check_deps.$$
-if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {build, sim, rtc} ← drivers, config and io on base only; no include or call circle"; fi
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {build, sim, rtc} ← cli ← drivers ← app, config and io on base only; no include or call circle, no call running back up"; fi
 exit $bad

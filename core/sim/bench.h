@@ -9,7 +9,7 @@
  * distribution over repetitions, summarised by its median and 10th/90th/99th percentiles.
  *
  * These functions allocate their own buffers (they are set-up-time tools, not per-frame code), read no
- * configuration (the caller passes parameter structs) and print nothing: the driver (cli/bench.c) does.
+ * configuration (the caller passes parameter structs) and print nothing: the driver (app/bench.c) does.
  */
 #ifndef WT_BENCH_H
 #define WT_BENCH_H

@@ -1,4 +1,4 @@
-/* cli/bench.c: `wavetomo bench`: reconstructor kernel timings with flop/byte counts, against the
+/* app/bench.c: `wavetomo bench`: reconstructor kernel timings with flop/byte counts, against the
  * machine's own limits measured in the same run (a STREAM-like triad and an OpenBLAS DGEMM). The
  * timings are core/sim/bench.h's; this file parses, prints and times the MVM build. */
 #include <cblas.h>
@@ -8,7 +8,8 @@
 #include <stdlib.h>
 #include <sys/resource.h>
 
-#include "cli.h"
+#include "app/commands.h"
+#include "cli/cli.h"
 #include "core/build/mvm_build.h"
 #include "core/la/half.h"
 #include "core/model/params.h"

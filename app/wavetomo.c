@@ -1,8 +1,13 @@
-/* cli/wavetomo.c: the `wavetomo` executable: git-style dispatch to subcommands. */
+/* app/wavetomo.c: the `wavetomo` executable: git-style dispatch to the subcommands (app/commands.h), the
+ * top of the drivers: nothing calls back into it. */
 #include <stdio.h>
 #include <string.h>
 
-#include "cli.h"
+#include "app/commands.h"
+#include "builder/build.h"
+#include "compare/compare.h"
+#include "runtime/runtime.h"
+#include "cli/cli.h"
 #include "core/io/h5.h"
 
 static void usage(FILE *f)

@@ -1,8 +1,9 @@
-/* cli/info.c: `wavetomo info`: the derived sizes of a configured system. */
+/* app/info.c: `wavetomo info`: the derived sizes of a configured system. */
 #include <stdio.h>
 #include <string.h>
 
-#include "cli.h"
+#include "app/commands.h"
+#include "cli/cli.h"
 #include "compare/spots.h"
 #include "core/model/sensing.h"
 #include "core/la/half.h"

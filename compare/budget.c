@@ -1,9 +1,10 @@
-/* cli/budget.c: `wavetomo budget`: the error budget of SPEC §11 (core/sim/budget.h) for one or more
+/* compare/budget.c: `wavetomo budget`: the error budget of SPEC §11 (core/sim/budget.h) for one or more
  * reconstructors: DIR/results.h5, DIR/report.md and DIR/budget.png. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
+#include "compare/compare.h"
 #include "cli/cli.h"
 #include "compare/plot.h"
 #include "core/io/h5.h"

@@ -1,0 +1,11 @@
+/* app/commands.h: the two subcommands that live with the dispatcher (app/wavetomo.c): the inspection tools.
+ * Every other subcommand is declared by its driver's header (builder/build.h, runtime/runtime.h,
+ * compare/compare.h). Each parses its own options with cli/cli.h, calls the library and returns the
+ * process exit code (0 success, 1 failure with a message, 2 usage error). */
+#ifndef WT_APP_COMMANDS_H
+#define WT_APP_COMMANDS_H
+
+int wt_cmd_info(int argc, char **argv);  /* app/info.c: the derived sizes of a system, its spots */
+int wt_cmd_bench(int argc, char **argv); /* app/bench.c: kernel timings */
+
+#endif

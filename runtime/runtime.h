@@ -1,0 +1,9 @@
+/* runtime/runtime.h: the frame-by-frame commands: `wavetomo sim` (the closed loop, runtime/sim.c) and
+ * `wavetomo run` (a reconstructor over telemetry, runtime/run.c). Each returns the process exit code. */
+#ifndef WT_RUNTIME_RUNTIME_H
+#define WT_RUNTIME_RUNTIME_H
+
+int wt_cmd_sim(int argc, char **argv);
+int wt_cmd_run(int argc, char **argv);
+
+#endif
