@@ -238,18 +238,23 @@ double wt_psf_strehl(const wt_psf *p, int j)
     return p->frames ? m / p->frames : 0.0;
 }
 
-int wt_psf_write_images(wt_h5_writer *w, const char *group, int ndir, int n, const float *img, const double *strehl,
-                        double wavelength, double pixel_lod, double pixel_rad, long frames, int every, int fft_size)
+int wt_psf_write_images(wt_h5_writer *w, const char *group, int nrun, int ndir, int n, const float *img,
+                        const double *strehl, double wavelength, double pixel_lod, double pixel_rad, long frames,
+                        int every, int fft_size)
 {
     char name[256], sname[256];
     snprintf(name, sizeof name, "%s/image", group);
     snprintf(sname, sizeof sname, "%s/strehl_peak", group);
-    int64_t d3[3] = {ndir, n, n}, d1[1] = {ndir};
+    const int lead = nrun > 0;
+    int64_t d3[4] = {nrun, ndir, n, n}, d1[2] = {nrun, ndir};
     int st;
-    if ((st = wt_h5_write(w, name, WT_H5_F32, WT_H5_F32, 3, d3, img, "",
-                          "long-exposure PSF per evaluation direction (index as eval/theta_x), n x n pixels (row = y, "
-                          "pixel (ix, iy) at angle ((ix - n/2), (iy - n/2)) x pixel scale), normalised so the "
-                          "diffraction-limited PSF of the same pupil peaks at 1")) < 0 ||
+    if ((st = wt_h5_write(w, name, WT_H5_F32, WT_H5_F32, 3 + lead, d3 + !lead, img, "",
+                          lead ? "long-exposure PSF per seed and evaluation direction (index as eval/theta_x), n x n "
+                                 "pixels (row = y, pixel (ix, iy) at angle ((ix - n/2), (iy - n/2)) x pixel scale), "
+                                 "normalised so the diffraction-limited PSF of the same pupil peaks at 1"
+                               : "long-exposure PSF per evaluation direction (index as eval/theta_x), n x n pixels "
+                                 "(row = y, pixel (ix, iy) at angle ((ix - n/2), (iy - n/2)) x pixel scale), "
+                                 "normalised so the diffraction-limited PSF of the same pupil peaks at 1")) < 0 ||
         (st = wt_h5_attr_write_double(w, name, "wavelength_nm", wavelength * 1e9)) < 0 ||
         (st = wt_h5_attr_write_double(w, name, "pixel_lambda_over_d", pixel_lod)) < 0 ||
         (st = wt_h5_attr_write_double(w, name, "pixel_mas", pixel_rad * RAD2MAS)) < 0 ||
@@ -258,7 +263,7 @@ int wt_psf_write_images(wt_h5_writer *w, const char *group, int ndir, int n, con
         (st = wt_h5_attr_write_int64(w, name, "fft_size", fft_size)) < 0 ||
         (st = wt_h5_attr_write_string(w, name, "normalisation", "diffraction-limited peak = 1")) < 0)
         return st;
-    if ((st = wt_h5_write(w, sname, WT_H5_F64, WT_H5_F64, 1, d1, strehl, "",
+    if ((st = wt_h5_write(w, sname, WT_H5_F64, WT_H5_F64, 1 + lead, d1 + !lead, strehl, "",
                           "PSF-peak Strehl per evaluation direction: the peak of the long-exposure PSF (compare "
                           "with the Marechal eval/strehl_le)")) < 0)
         return st;
@@ -277,7 +282,7 @@ int wt_psf_write(const wt_psf *p, wt_h5_writer *w, const char *group)
         wt_psf_image(p, j, img + nn * j);
         s[j] = wt_psf_strehl(p, j);
     }
-    st = wt_psf_write_images(w, group, p->ndir, p->n, img, s, p->par.wavelength, wt_psf_pixel_lod(p), p->pixel,
+    st = wt_psf_write_images(w, group, 0, p->ndir, p->n, img, s, p->par.wavelength, wt_psf_pixel_lod(p), p->pixel,
                              p->frames, p->par.every, p->N);
 fail:
     wt_free(p->ctx, img);

@@ -68,9 +68,10 @@ double wt_psf_strehl(const wt_psf *p, int j);
 /* The images into w under `group`: group/image [ndir, n, n] float32 and group/strehl_peak [ndir], with the
  * attributes of docs/formats.md (units, pixel scale in λ/D and mas, wavelength, frames, every, N). */
 int wt_psf_write(const wt_psf *p, wt_h5_writer *w, const char *group);
-/* The same from plain arrays (the compare driver gathers images of runs done elsewhere): img [ndir n n],
- * strehl [ndir]. */
-int wt_psf_write_images(wt_h5_writer *w, const char *group, int ndir, int n, const float *img, const double *strehl,
-                        double wavelength, double pixel_lod, double pixel_rad, long frames, int every, int fft_size);
+/* The same from plain arrays (the compare driver gathers images of runs done elsewhere): nrun = 0: img [ndir n n],
+ * strehl [ndir]; nrun > 0: nrun runs (seeds) of them, img [nrun ndir n n], strehl [nrun ndir]. */
+int wt_psf_write_images(wt_h5_writer *w, const char *group, int nrun, int ndir, int n, const float *img,
+                        const double *strehl, double wavelength, double pixel_lod, double pixel_rad, long frames,
+                        int every, int fft_size);
 
 #endif
