@@ -63,12 +63,12 @@ static const field fields[] = {
     {"reconstructor_memory", "B", "memory of the reconstructor's matrices/operators [method, sweep value]", OFF(memory), 0},
     {"time_parts", "ms", "time per frame by part [method, sweep value, part]; parts in the attribute 'parts'", OFF(parts), 2},
     {"strehl_psf", "", "PSF-peak Strehl (peak of the long-exposure PSF, psf/) [method, sweep value, evaluation "
-     "direction]; 0 with sim.psf_every = 0", OFF(psf_strehl), 1},
+     "direction]; 0 with sim.psf_interval_frames = 0", OFF(psf_strehl), 1},
     {"strehl_psf_on_axis", "", "PSF-peak Strehl on axis [method, sweep value]", OFF(psf_on_axis), 0},
     {"strehl_psf_field", "", "PSF-peak Strehl averaged over the field [method, sweep value]", OFF(psf_field), 0},
-    {"psf_frames", "", "frames in the long-exposure PSFs (every sim.psf_every-th after the settle frames) [method, "
+    {"psf_frames", "", "frames in the long-exposure PSFs (every sim.psf_interval_frames-th after the settle frames) [method, "
      "sweep value]", OFF(psf_frames), 0},
-    {"psf_time_per_frame", "ms", "wall time of the PSF images per simulated frame (part of time_per_frame) [method, "
+    {"time_psf", "ms", "wall time of the PSF images per simulated frame (part of time_per_frame) [method, "
      "sweep value]", OFF(psf_ms), 0},
 };
 #define NFIELDS ((int)(sizeof fields / sizeof *fields))
@@ -191,7 +191,7 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
             char group[200];
             snprintf(group, sizeof group, "psf/%s_%d", a->methods[m], v);
             st = wt_psf_write_images(w, group, ns, nd, n, img, sp, cfg->eval_wavelength, r0->psf_pixel_lod,
-                                     r0->psf_pixel_mas * 1e-3 * WT_ARCSEC, (long)r0->psf_frames, cfg->psf_every,
+                                     r0->psf_pixel_mas * 1e-3 * WT_ARCSEC, (long)r0->psf_frames, cfg->psf_interval,
                                      (int)r0->psf_fft);
             free(img), free(sp);
         }
@@ -261,7 +261,7 @@ out:
 }
 
 /* --resume: the per-frame residuals and PSFs of the cases done (what write_extra wrote); a file without them
- * (sim.psf_every = 0) leaves them NULL. */
+ * (sim.psf_interval_frames = 0) leaves them NULL. */
 static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_cmp_cases *a, wt_compare_result *R,
                       int64_t frames, wt_cmp_extra *X)
 {
@@ -447,7 +447,7 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
             fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
                        "settle window; PSF-peak Strehl: the peak of the long-exposure PSF at the same wavelength (every "
                        "%d frames after the settle window, normalised to the diffraction-limited peak). They agree at "
-                       "high Strehl; at low Strehl they differ (docs/guide.md: which to use).\n\n", cfg->psf_every);
+                       "high Strehl; at low Strehl they differ (docs/guide.md: which to use).\n\n", cfg->psf_interval);
             fprintf(f, "| method | %s | LE Strehl on-axis (Maréchal) | LE Strehl field (Maréchal) | PSF-peak Strehl on-axis "
                        "| PSF-peak Strehl field | WFE field [nm] | ms/frame | reconstruction ms "
                        "| reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|---|---|\n", a->nv ? a->key : "–");

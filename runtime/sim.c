@@ -151,7 +151,7 @@ int wt_cmd_sim(int argc, char **argv)
     for (long t = 0; t < frames; t++) {
         const double f0 = wt_time_now();
         if ((st = wt_loop_step(lp)) < 0 || (st = wt_sim_record_frame(rec, lp, wt_time_now() - f0)) < 0) goto fail;
-        if (psf) { /* the long-exposure PSFs (sim.psf_every): timed apart from the loop's parts */
+        if (psf) { /* the long-exposure PSFs (sim.psf_interval_frames): timed apart from the loop's parts */
             const double p0 = wt_time_now();
             const double *maps[WT_MAX_EVAL];
             for (int j = 0; j < sys->neval; j++) maps[j] = wt_loop_residual(lp, j);
@@ -175,7 +175,7 @@ int wt_cmd_sim(int argc, char **argv)
     if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
     if (psf && ((st = wt_psf_write(psf, w, "psf")) < 0 ||
                 (st = wt_h5_write_double(w, "timing/psf", tpsf / frames * 1e3, "ms",
-                                         "mean wall time per frame of the long-exposure PSFs (sim.psf_every; included "
+                                         "mean wall time per frame of the long-exposure PSFs (sim.psf_interval_frames; included "
                                          "in timing/total, in no part of frame/time)")) < 0))
         goto fail;
     if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
@@ -205,7 +205,7 @@ int wt_cmd_sim(int argc, char **argv)
         double pf = 0.0;
         for (int j = 0; j < sys->neval; j++) pf += wt_psf_strehl(psf, j) / sys->neval;
         printf("  PSF-peak Strehl on-axis %.4f   field average %.4f (long-exposure PSF of %ld frames, one in %d; "
-               "LE Strehl above: Marechal)\n", wt_psf_strehl(psf, sys->eval_centre), pf, wt_psf_frames(psf), cfg->psf_every);
+               "LE Strehl above: Marechal)\n", wt_psf_strehl(psf, sys->eval_centre), pf, wt_psf_frames(psf), cfg->psf_interval);
     }
     printf("  residual WFE on-axis %.1f nm   field rms %.1f nm\n", wt_strehl_le_wfe(le, sys->eval_centre) * 1e9,
            sqrt(fwfe) * 1e9);

@@ -227,7 +227,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
      "seed of the turbulence and noise generators, up to 2^63 - 1 (read as 64 bits, no L suffix needed)"},
     KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
-    {"sim.psf_every", K_INT, F_DEFAULT, 0, 1000000, "", 1, CF(psf_every), NOCOUNT, 0, 0, NULL, 10,
+    {"sim.psf_interval_frames", K_INT, F_DEFAULT, 0, 1000000, "", 1, CF(psf_interval), NOCOUNT, 0, 0, NULL, 10,
      "long-exposure PSF per evaluation direction at evaluation.wavelength_nm (core/sim/psf.h): the image of every "
      "N-th frame after the settle frames is added (Nyquist-sampled FFT of the pupil field); 0 = no PSFs "
      "(optional, default 10)"},
