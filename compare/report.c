@@ -144,7 +144,7 @@ static int write_statistics(wt_h5_writer *w, const wt_cmp_cases *a, const wt_com
     return st;
 }
 
-/* series/wfe_field [method, sweep value, seed, frame] (NaN: not run) and psf/<method>_<v>/ per seed (zeros: not
+/* series/wfe_field [method, sweep value, seed, frame] (0: not run; the readers refuse NaN) and psf/<method>_<v>/ per seed (zeros: not
  * run) for the cases that kept them. */
 static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, const wt_config *cfg, const wt_system *sys,
                        const wt_compare_result *R, const wt_cmp_extra *X)
@@ -158,11 +158,11 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
         if (!buf) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory writing the per-frame residuals");
         for (int c = 0; c < nc; c++)
             for (long t = 0; t < F; t++)
-                buf[(size_t)c * F + t] = R[c].done && X->wfe[c] && t < (long)R[c].frames ? X->wfe[c][t] : NAN;
+                buf[(size_t)c * F + t] = R[c].done && X->wfe[c] && t < (long)R[c].frames ? X->wfe[c][t] : 0.0;
         int64_t d[4] = {nm, nv, ns, F};
         st = wt_h5_write(w, "series/wfe_field", WT_H5_F64, WT_H5_F64, 4, d, buf, "nm",
                          "field-rms residual wavefront error of each frame, sqrt(mean over the directions of the "
-                         "piston-removed variance) [method, sweep value, seed, frame]; NaN: not run; the long-exposure "
+                         "piston-removed variance) [method, sweep value, seed, frame]; 0: not run; the long-exposure "
                          "wfe_le_field averages the variance over the frames from settle_frames on");
         if (st >= 0) st = wt_h5_attr_write_int64(w, "series/wfe_field", "settle_frames", cfg->settle_frames);
         free(buf);

@@ -629,6 +629,9 @@ static const struct bad_case {
     {"negative PSF interval", "seed = 1;", "seed = 1; psf_interval_frames = -1;", 1, NULL,
      {"key 'sim.psf_interval_frames': value -1 is out of range", "[0, 1000000]", ""}},
     {"PSF interval not an integer", "seed = 1;", "seed = 1; psf_interval_frames = 2.5;", 1, NULL, {"sim.psf_interval_frames", "", ""}},
+    {"odd PSF image", "seed = 1;", "seed = 1; psf_pixels = 65;", 1, NULL, {"key 'sim.psf_pixels': value 65 is odd", "", ""}},
+    {"PSF image too small", "seed = 1;", "seed = 1; psf_pixels = 4;", 1, NULL,
+     {"key 'sim.psf_pixels': value 4 is out of range", "[8, 4096]", ""}},
     {"duplicate key", "r0_m = 0.129;", "r0_m = 0.129; r0_m = 0.2;", 1, NULL, {"syntax error", "duplicate", ""}},
 };
 

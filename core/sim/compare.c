@@ -22,7 +22,7 @@ const char *wt_compare_part_name(int k)
 void wt_compare_psf_params(const wt_config *cfg, wt_psf_params *par)
 {
     *par = (wt_psf_params){.wavelength = cfg->eval_wavelength, .diameter = cfg->diameter, .every = cfg->psf_interval,
-                           .settle = cfg->settle_frames, .sampling = 2.0, .pixels = 0};
+                           .settle = cfg->settle_frames, .sampling = 2.0, .pixels = cfg->psf_pixels};
 }
 
 int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,

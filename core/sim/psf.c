@@ -100,11 +100,9 @@ int wt_psf_alloc(wt_context *ctx, const wt_grid *grid, const uint8_t *mask, int 
     need = need > p->nc ? need : p->nc;
     need = need > p->nr ? need : p->nr;
     p->N = good_size(need);
-    p->n = par->pixels ? par->pixels : (p->N < WT_PSF_DEFAULT_PIXELS ? p->N - p->N % 2 : WT_PSF_DEFAULT_PIXELS);
-    if (p->n > p->N) {
-        st = WT_ERROR(ctx, WT_ERR_INVALID, "psf: %d image pixels asked for, the padded FFT has %d", p->n, p->N);
-        goto fail;
-    }
+    /* an image cannot hold more than the transform's N samples per side */
+    p->n = par->pixels ? par->pixels : WT_PSF_DEFAULT_PIXELS;
+    if (p->n > p->N) p->n = p->N - p->N % 2;
     p->scale = 1.0 / ((double)np * (double)np);
     p->pixel = par->wavelength / (p->N * grid->dx);
     WT_ALLOC(ctx, p->mask, (size_t)p->nr * p->nc, "psf pupil");
@@ -177,13 +175,16 @@ static void image_one(const wt_psf *p, const double *opd, workspace *w, double *
         memset(a + nc, 0, (size_t)(N - nc) * sizeof *a);
     }
     fftwf_execute_dft(p->prow, A, A);
-    /* the n kept x frequencies kx = c − h (mod N), each a column of nr values padded to N, transformed in y */
-    for (int c = 0; c < n; c++) {
-        const int kx = (c - h + N) % N;
-        fftwf_complex *b = B + (size_t)c * N;
-        for (int r = 0; r < nr; r++) b[r][0] = A[(size_t)r * N + kx][0], b[r][1] = A[(size_t)r * N + kx][1];
-        memset(b + nr, 0, (size_t)(N - nr) * sizeof *b);
+    /* the n kept x frequencies kx = c − h (mod N), each a column of nr values padded to N, transformed in y;
+     * gathered row by row (a row's kept values are two runs of h: a few cache lines) into B (L2-sized) */
+    for (int r = 0; r < nr; r++) {
+        const fftwf_complex *a = A + (size_t)r * N;
+        for (int c = 0; c < n; c++) {
+            const int kx = c < h ? N - h + c : c - h;
+            B[(size_t)c * N + r][0] = a[kx][0], B[(size_t)c * N + r][1] = a[kx][1];
+        }
     }
+    for (int c = 0; c < n; c++) memset(B + (size_t)c * N + nr, 0, (size_t)(N - nr) * sizeof *B);
     fftwf_execute_dft(p->pcol, B, B);
     for (int c = 0; c < n; c++) {
         const fftwf_complex *b = B + (size_t)c * N;

@@ -37,10 +37,11 @@ typedef struct wt_psf_params {
     int every;         /* take every `every`-th frame after the settle window (≥ 1) */
     int settle;        /* frames before the first taken */
     double sampling;   /* q: pixels per λ/D at least (2 = Nyquist; ≥ 1) */
-    int pixels;        /* image side n kept around the centre (even; ≤ N; 0: min(N, WT_PSF_DEFAULT_PIXELS)) */
+    int pixels;        /* image side n kept around the centre (even; more than N: N rounded down to even;
+                        * 0: WT_PSF_DEFAULT_PIXELS) */
 } wt_psf_params;
 
-#define WT_PSF_DEFAULT_PIXELS 128
+#define WT_PSF_DEFAULT_PIXELS 64
 
 /* Plan the images of ndir directions of residuals on `grid` inside `mask` (copied). Allocates and plans;
  * fails with a message on a bad parameter or a NULL FFTW plan. */
