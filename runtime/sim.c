@@ -35,6 +35,7 @@ static void help(void)
            "  --iters N        (P)CG iterations per frame (overrides recon.<variant>.iterations)\n"
            "  --no-noise       noise-free sensors (sim.noise = false)\n"
            "  --out RUN.h5     result file: per-direction LE Strehl and WFE, per-frame Strehl, timings,\n"
+           "                   the long-exposure PSFs and their peak Strehl (sim.psf_interval_frames),\n"
            "                   the configuration, seed and versions (docs/formats.md)\n"
            "  --telemetry F    also write per frame the measured and pseudo-open-loop slopes and the\n"
            "                   applied commands (float32), for `wavetomo run`\n"
