@@ -444,10 +444,14 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
             if (missing)
                 fprintf(f, "**Incomplete: %d of %d runs are missing (interrupted); `--resume` with the same options runs "
                            "them.**\n\n", missing, a->nm * nv * a->ns);
-            fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
-                       "settle window; PSF-peak Strehl: the peak of the long-exposure PSF at the same wavelength (every "
-                       "%d frames after the settle window, normalised to the diffraction-limited peak). They agree at "
-                       "high Strehl; at low Strehl they differ (docs/guide.md: which to use).\n\n", cfg->psf_interval);
+            if (cfg->psf_interval > 0)
+                fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
+                           "settle window; PSF-peak Strehl: the peak of the long-exposure PSF at the same wavelength (every "
+                           "%d frames after the settle window, normalised to the diffraction-limited peak). They agree at "
+                           "high Strehl; at low Strehl they differ (docs/guide.md: which to use).\n\n", cfg->psf_interval);
+            else
+                fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
+                           "settle window; no PSFs (sim.psf_interval_frames = 0).\n\n");
             fprintf(f, "| method | %s | LE Strehl on-axis (Maréchal) | LE Strehl field (Maréchal) | PSF-peak Strehl on-axis "
                        "| PSF-peak Strehl field | WFE field [nm] | ms/frame | reconstruction ms "
                        "| reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|---|---|\n", a->nv ? a->key : "–");
