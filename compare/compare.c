@@ -31,7 +31,9 @@ static void help(void)
            "Runs the closed loop for each reconstructor and each value of the swept key on identical\n"
            "turbulence and noise (the same seed), and writes DIR/results.h5, DIR/summary.csv, DIR/report.md\n"
            "and PNG figures: LE Strehl against the swept key (on-axis solid, field average dashed), LE Strehl\n"
-           "maps over the field per method, and the time per frame per method.\n"
+           "maps over the field per method, the time per frame per method, the long-exposure PSFs over the field\n"
+           "per method (log scale, PSF-peak Strehl in each panel; sim.psf_interval_frames) and the residual WFE\n"
+           "of every frame per method with the settle window (the loop's convergence).\n"
            "\n"
            "  --recon LIST   comma-separated, from mvm, pcg3, cg9, none (default mvm,pcg3,cg9)\n"
            "  --sweep K=V,.. a configuration key and its values (libconfig syntax each), e.g.\n"
@@ -236,7 +238,7 @@ static int deal(wt_context *ctx, const wt_cmp_cases *a, const case_costs *cc, co
 
 /* The seeds of method m at sweep value v that this rank runs: the MVM is loaded (or built and cached) once. */
 static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int *owner, int rank, wt_config *cfg,
-                     wt_system *sys, int argc, char **argv, wt_compare_result *R)
+                     wt_system *sys, int argc, char **argv, wt_compare_result *R, wt_cmp_extra *X)
 {
     int kind = wt_reconstructor_kind(a->methods[m]), st = WT_OK;
     wt_mvm *mvm = NULL;
@@ -254,12 +256,23 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
         wt_progress_start(&p.pr, p.label, "frames", cfg->frames);
         p.pr.enabled &= !cli->quiet;
         wt_compare_result *res = &R[c];
-        st = wt_compare_run(cli->ctx, sys, kind, mvm, build, a->seeds[s], on_frame, &p, res);
+        wt_free(cli->ctx, X->wfe[c]), wt_free(cli->ctx, X->psf[c]);
+        X->wfe[c] = NULL, X->psf[c] = NULL;
+        if (!(X->wfe[c] = wt_malloc(cli->ctx, (size_t)cfg->frames, sizeof(double)))) {
+            st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the per-frame residuals");
+            break;
+        }
+        wt_compare_series ser = {.wfe = X->wfe[c]};
+        st = wt_compare_run(cli->ctx, sys, kind, mvm, build, a->seeds[s], on_frame, &p, res, &ser);
+        X->psf[c] = ser.psf;
         build = 0.0; /* the build counts in the set-up of the first seed that used it */
         wt_progress_end(&p.pr);
         if (st >= 0 && !cli->quiet)
             fprintf(stderr, "  %-28s LE Strehl on-axis %.4f field %.4f, WFE %.1f nm, %.1f ms/frame (reconstruction %.2f ms)\n",
                     p.label, res->on_axis, res->field, res->wfe_field, res->total, res->parts[2] + res->parts[3]);
+        if (st >= 0 && !cli->quiet && res->psf_frames > 0)
+            fprintf(stderr, "  %-28s PSF-peak Strehl on-axis %.4f field %.4f (%.0f frames, %.2f ms/frame)\n", "",
+                    res->psf_on_axis, res->psf_field, res->psf_frames, res->psf_ms);
     }
     wt_mvm_free(mvm);
     return st;
@@ -288,6 +301,34 @@ static int gather(wt_mpi *mp, const wt_cmp_cases *a, const int *owner, int statu
             if (owner[c] == r && tmp[c].done) R[c] = tmp[c];
     }
     free(tmp);
+    return 0;
+}
+
+/* MPI, after gather: the per-frame residuals and PSF images of the cases done by the other ranks, case by case
+ * in index order (sizes from the gathered R: frames, psf_pixels). */
+static int gather_extra(wt_mpi *mp, wt_context *ctx, const wt_cmp_cases *a, const int *owner, const wt_compare_result *R,
+                        int neval, wt_cmp_extra *X)
+{
+    const int nc = a->nm * (a->nv ? a->nv : 1) * a->ns;
+    if (mp->size <= 1) return 0;
+    for (int c = 0; c < nc; c++) {
+        if (owner[c] <= 0 || !R[c].done || (mp->rank && owner[c] != mp->rank)) continue;
+        const size_t nw = (size_t)R[c].frames, np = (size_t)neval * (size_t)R[c].psf_pixels * (size_t)R[c].psf_pixels;
+        if (mp->rank) {
+            if (wt_mpi_send(mp, X->wfe[c], nw * sizeof(double), 0, 13) < 0 ||
+                (np && wt_mpi_send(mp, X->psf[c], np * sizeof(float), 0, 14) < 0))
+                return -1;
+            continue;
+        }
+        wt_free(ctx, X->wfe[c]), wt_free(ctx, X->psf[c]);
+        X->wfe[c] = wt_malloc(ctx, nw, sizeof(double));
+        X->psf[c] = np ? wt_malloc(ctx, np, sizeof(float)) : NULL;
+        if (!X->wfe[c] || (np && !X->psf[c]))
+            return fprintf(stderr, "wavetomo compare: error: out of memory gathering the PSFs\n"), -1;
+        if (wt_mpi_recv(mp, X->wfe[c], nw * sizeof(double), owner[c], 13) < 0 ||
+            (np && wt_mpi_recv(mp, X->psf[c], np * sizeof(float), owner[c], 14) < 0))
+            return -1;
+    }
     return 0;
 }
 
@@ -333,6 +374,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     int nv = a.nv ? a.nv : 1, st = WT_OK, base_nset = cli.nset, ndone = 0, nc = 0, bad = 0, others = 0;
     char sweep_set[1200], cache[2100];
     wt_compare_result *R = NULL;
+    wt_cmp_extra X = {NULL, NULL};
     int *owner = NULL;
     case_costs *cc = calloc(1, sizeof *cc);
     wt_config *cfg = NULL, *first = NULL;
@@ -354,7 +396,9 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     nc = a.nm * nv * a.ns;
     R = calloc((size_t)nc, sizeof *R);
     owner = calloc((size_t)nc, sizeof *owner);
-    if (!R || !owner) {
+    X.wfe = calloc((size_t)nc, sizeof *X.wfe);
+    X.psf = calloc((size_t)nc, sizeof *X.psf);
+    if (!R || !owner || !X.wfe || !X.psf) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory");
         goto fail;
     }
@@ -373,7 +417,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     if (mp->rank == 0 && ((st = wt_cli_ensure_dir(cli.ctx, a.out)) < 0 || (st = wt_cli_ensure_dir(cli.ctx, cache)) < 0 ||
                           (st = wt_cmp_check_outputs(&cli, &a)) < 0 ||
                           (spots >= 0 && (st = wt_spots_check_outputs(&cli, first_sys, spots, a.out, results_h5)) < 0) ||
-                          (a.resume && (st = wt_cmp_read_previous(&cli, &a, &plan, R, &ndone)) < 0)))
+                          (a.resume && (st = wt_cmp_read_previous(&cli, &a, &plan, R, &X, &ndone)) < 0)))
         bad = 1;
     if (wt_mpi_max_int(mp, &bad) < 0) bad = 1;
     if (st < 0) goto fail;
@@ -393,7 +437,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
         if (!todo) continue;
         if (v > 0 && (st = open_case(&cli, &a, base_nset, v, sweep_set, sizeof sweep_set, &cfg, &sys)) < 0) break;
         for (int m = 0; m < a.nm && !wt_interrupt_pending() && st >= 0; m++) {
-            st = run_cases(&cli, &a, m, v, owner, mp->rank, v ? cfg : first, v ? sys : first_sys, argc, argv, R);
+            st = run_cases(&cli, &a, m, v, owner, mp->rank, v ? cfg : first, v ? sys : first_sys, argc, argv, R, &X);
             if (st == WT_ERR_INTERRUPTED) st = WT_OK;
         }
         wt_system_free(sys), wt_config_free(cli.ctx, cfg);
@@ -401,7 +445,9 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     }
     /* a failed rank still hands in what it finished: rank 0 writes every finished case */
     if (st < 0) rc = wt_cli_fail(&cli, st), st = WT_OK;
-    if (gather(mp, &a, owner, rc ? -1 : WT_OK, R, &others) < 0) goto quiet_fail;
+    if (gather(mp, &a, owner, rc ? -1 : WT_OK, R, &others) < 0 ||
+        gather_extra(mp, cli.ctx, &a, owner, R, first_sys->neval, &X) < 0)
+        goto quiet_fail;
     if (mp->rank) goto cleanup;
     int sig = wt_interrupt_pending();
     if (spots >= 0) {
@@ -414,7 +460,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
         if ((st = wt_spots_write(&cli, first_sys, spots, a.out, cmd)) < 0) goto fail;
         snprintf(a.spots, sizeof a.spots, "%s", first_sys->sensors[spots].name);
     }
-    if ((st = wt_cmp_write_all(&cli, &a, &plan, first, first_sys, R, argc, argv)) < 0) goto fail;
+    if ((st = wt_cmp_write_all(&cli, &a, &plan, first, first_sys, R, &X, argc, argv)) < 0) goto fail;
     if (others) {
         fprintf(stderr, "%s: %d MPI rank(s) failed (messages above): the finished cases are in %s (rerun with --resume "
                         "for the rest)\n", cli.prog, others, a.out);
@@ -438,6 +484,9 @@ cleanup:
     wt_interrupt_defer(0);
     wt_system_free(sys), wt_config_free(cli.ctx, cfg);
     wt_system_free(first_sys), wt_config_free(cli.ctx, first);
+    for (int c = 0; c < nc && X.wfe; c++) wt_free(cli.ctx, X.wfe[c]);
+    for (int c = 0; c < nc && X.psf; c++) wt_free(cli.ctx, X.psf[c]);
+    free(X.wfe), free(X.psf);
     free(R);
     free(owner);
     free(cc);

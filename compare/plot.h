@@ -33,6 +33,20 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                          const char *const *groups, int nseries, const char *const *series, const double *values,
                          const double *marks);
 
+/* Long-exposure PSFs over the field (issue 21 §5): a g x g mosaic, panel i + g j at field column i (x right) and
+ * row j (y up) as wt_plot_strehl_map, each the central part (at most WT_PLOT_PSF_SHOW pixels across) of the n x n
+ * image img[(i + g j) n²] (pixel (ix, iy) at ix + n iy, x right, y up; core/sim/psf.h), in log10 over 5 decades
+ * below the diffraction-limited peak (= 1), with the panel's PSF-peak Strehl strehl[i + g j] printed in it and a
+ * colour bar; coords: the field positions [arcsec] of the g columns/rows; pixel_lod: the pixel [λ/D] (axis scale). */
+#define WT_PLOT_PSF_SHOW 64
+int wt_plot_psf_mosaic(wt_context *ctx, const char *path, const char *title, int g, const double *coords, int n,
+                       double pixel_lod, const float *img, const double *strehl);
+
+/* Residual WFE per frame [nm] of each method (wfe[m * nframes + t]; NaN: none), thin, with its running
+ * long-exposure value sqrt(mean of wfe² over frames settle..t) thick from the settle frame on, on a log y axis;
+ * the settle window [0, settle) shaded. */
+int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
+                       long nframes, const double *wfe, int settle);
 
 /* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`, issue 19 item 7) ---- */
 

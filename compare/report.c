@@ -9,6 +9,7 @@
 
 #include "compare/plot.h"
 #include "core/io/h5.h"
+#include "core/sim/psf.h"
 
 #define NP WT_COMPARE_NPART
 
@@ -33,7 +34,13 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
         for (int v = 0; v < nv; v++) {
             snprintf(path, sizeof path, "%s/map_%s_%d.png", a->out, a->methods[m], v);
             if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
+            snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
+            if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
         }
+    for (int v = 0; v < nv; v++) {
+        snprintf(path, sizeof path, "%s/wfe_per_frame_%d.png", a->out, v);
+        if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
+    }
     return WT_OK;
 }
 
@@ -55,6 +62,14 @@ static const field fields[] = {
     {"setup_time", "s", "set-up time incl. an MVM build [method, sweep value]", OFF(setup), 0},
     {"reconstructor_memory", "B", "memory of the reconstructor's matrices/operators [method, sweep value]", OFF(memory), 0},
     {"time_parts", "ms", "time per frame by part [method, sweep value, part]; parts in the attribute 'parts'", OFF(parts), 2},
+    {"strehl_psf", "", "PSF-peak Strehl (peak of the long-exposure PSF, psf/) [method, sweep value, evaluation "
+     "direction]; 0 with sim.psf_interval_frames = 0", OFF(psf_strehl), 1},
+    {"strehl_psf_on_axis", "", "PSF-peak Strehl on axis [method, sweep value]", OFF(psf_on_axis), 0},
+    {"strehl_psf_field", "", "PSF-peak Strehl averaged over the field [method, sweep value]", OFF(psf_field), 0},
+    {"psf_frames", "", "frames in the long-exposure PSFs (every sim.psf_interval_frames-th after the settle frames) [method, "
+     "sweep value]", OFF(psf_frames), 0},
+    {"time_psf", "ms", "wall time of the PSF images per simulated frame (part of time_per_frame) [method, "
+     "sweep value]", OFF(psf_ms), 0},
 };
 #define NFIELDS ((int)(sizeof fields / sizeof *fields))
 
@@ -129,9 +144,63 @@ static int write_statistics(wt_h5_writer *w, const wt_cmp_cases *a, const wt_com
     return st;
 }
 
+/* series/wfe_field [method, sweep value, seed, frame] (0: not run; the readers refuse NaN) and psf/<method>_<v>/ per seed (zeros: not
+ * run) for the cases that kept them. */
+static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, const wt_config *cfg, const wt_system *sys,
+                       const wt_compare_result *R, const wt_cmp_extra *X)
+{
+    int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, nc = nm * nv * ns, nd = sys->neval;
+    long F = 0;
+    for (int c = 0; c < nc; c++)
+        if (R[c].done && X->wfe[c] && R[c].frames > F) F = (long)R[c].frames;
+    if (F > 0) {
+        double *buf = malloc((size_t)nc * F * sizeof *buf);
+        if (!buf) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory writing the per-frame residuals");
+        for (int c = 0; c < nc; c++)
+            for (long t = 0; t < F; t++)
+                buf[(size_t)c * F + t] = R[c].done && X->wfe[c] && t < (long)R[c].frames ? X->wfe[c][t] : 0.0;
+        int64_t d[4] = {nm, nv, ns, F};
+        st = wt_h5_write(w, "series/wfe_field", WT_H5_F64, WT_H5_F64, 4, d, buf, "nm",
+                         "field-rms residual wavefront error of each frame, sqrt(mean over the directions of the "
+                         "piston-removed variance) [method, sweep value, seed, frame]; 0: not run; the long-exposure "
+                         "wfe_le_field averages the variance over the frames from settle_frames on");
+        if (st >= 0) st = wt_h5_attr_write_int64(w, "series/wfe_field", "settle_frames", cfg->settle_frames);
+        free(buf);
+    }
+    for (int m = 0; m < nm && st >= 0; m++)
+        for (int v = 0; v < nv && st >= 0; v++) {
+            int first = -1;
+            for (int k = 0; k < ns; k++)
+                if (R[wt_cmp_case(a, m, v, k)].done && X->psf[wt_cmp_case(a, m, v, k)] && first < 0) first = k;
+            if (first < 0) continue;
+            const wt_compare_result *r0 = &R[wt_cmp_case(a, m, v, first)];
+            const int n = (int)r0->psf_pixels;
+            const size_t per = (size_t)nd * n * n;
+            float *img = calloc((size_t)ns * per, sizeof *img);
+            double *sp = calloc((size_t)ns * nd, sizeof *sp);
+            if (!img || !sp) {
+                free(img), free(sp);
+                return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory writing the PSFs");
+            }
+            for (int k = 0; k < ns; k++) {
+                const int c = wt_cmp_case(a, m, v, k);
+                if (!R[c].done || !X->psf[c] || (int)R[c].psf_pixels != n) continue;
+                memcpy(img + per * k, X->psf[c], per * sizeof *img);
+                memcpy(sp + (size_t)nd * k, R[c].psf_strehl, (size_t)nd * sizeof *sp);
+            }
+            char group[200];
+            snprintf(group, sizeof group, "psf/%s_%d", a->methods[m], v);
+            st = wt_psf_write_images(w, group, ns, nd, n, img, sp, cfg->eval_wavelength, r0->psf_pixel_lod,
+                                     r0->psf_pixel_mas * 1e-3 * WT_ARCSEC, (long)r0->psf_frames, cfg->psf_interval,
+                                     (int)r0->psf_fft);
+            free(img), free(sp);
+        }
+    return st;
+}
+
 static int write_results(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
-                         const wt_system *sys, const wt_compare_result *R, const wt_compare_summary *S, int argc,
-                         char **argv)
+                         const wt_system *sys, const wt_compare_result *R, const wt_compare_summary *S,
+                         const wt_cmp_extra *X, int argc, char **argv)
 {
     int st, nm = a->nm, nv = cols(a), nd = sys->neval, ns = a->ns, nc = nm * nv * ns;
     char path[2200];
@@ -178,6 +247,7 @@ static int write_results(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
         st = wt_h5_write(w, "eval/theta_x", WT_H5_F64, WT_H5_F64, 1, dn, tx, "arcsec", "evaluation direction x");
         if (st >= 0) st = wt_h5_write(w, "eval/theta_y", WT_H5_F64, WT_H5_F64, 1, dn, ty, "arcsec", "evaluation direction y");
     }
+    if (st >= 0) st = write_extra(cli, w, a, cfg, sys, R, X);
     if (st >= 0) {
         st = wt_h5_commit(w);
         w = NULL;
@@ -190,8 +260,64 @@ out:
     return st;
 }
 
+/* --resume: the per-frame residuals and PSFs of the cases done (what write_extra wrote); a file without them
+ * (sim.psf_interval_frames = 0) leaves them NULL. */
+static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_cmp_cases *a, wt_compare_result *R,
+                      int64_t frames, wt_cmp_extra *X)
+{
+    int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, nc = nm * nv * ns, rank = 0;
+    int64_t dims[WT_H5_MAX_RANK] = {0};
+    for (int c = 0; c < nc; c++)
+        if (R[c].done) R[c].frames = (double)frames;
+    if (wt_h5_exists(r, "series/wfe_field") == 1) {
+        int64_t e[4] = {nm, nv, ns, frames};
+        double *buf = malloc((size_t)nc * frames * sizeof *buf);
+        if (!buf) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory reading %s", path);
+        st = wt_h5_read(r, "series/wfe_field", WT_H5_F64, 4, e, NULL, buf, (size_t)nc * frames);
+        for (int c = 0; c < nc && st >= 0; c++) {
+            if (!R[c].done) continue;
+            if (!(X->wfe[c] = wt_malloc(cli->ctx, (size_t)frames, sizeof(double)))) st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory");
+            else memcpy(X->wfe[c], buf + (size_t)c * frames, (size_t)frames * sizeof *buf);
+        }
+        free(buf);
+    }
+    for (int m = 0; m < nm && st >= 0; m++)
+        for (int v = 0; v < nv && st >= 0; v++) {
+            char name[256];
+            snprintf(name, sizeof name, "psf/%s_%d/image", a->methods[m], v);
+            if (wt_h5_exists(r, name) != 1) continue;
+            if ((st = wt_h5_dims(r, name, &rank, dims)) < 0) break;
+            if (rank != 4 || dims[0] != ns || dims[1] < 1 || dims[1] > WT_MAX_EVAL || dims[2] != dims[3] || dims[2] < 2) {
+                st = WT_ERROR(cli->ctx, WT_ERR_FORMAT, "%s: dataset '%s' is not [seed, direction, n, n]", path, name);
+                break;
+            }
+            const size_t per = (size_t)dims[1] * dims[2] * dims[3];
+            float *img = malloc((size_t)ns * per * sizeof *img);
+            if (!img) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory reading %s", path);
+            st = wt_h5_read(r, name, WT_H5_F32, 4, dims, NULL, img, (size_t)ns * per);
+            double lod = 0.0, mas = 0.0;
+            int64_t fft = 0;
+            if (st >= 0) st = wt_h5_attr_read_double(r, name, "pixel_lambda_over_d", &lod);
+            if (st >= 0) st = wt_h5_attr_read_double(r, name, "pixel_mas", &mas);
+            if (st >= 0) st = wt_h5_attr_read_int64(r, name, "fft_size", &fft);
+            for (int k = 0; k < ns && st >= 0; k++) {
+                const int c = wt_cmp_case(a, m, v, k);
+                if (!R[c].done) continue;
+                if (!(X->psf[c] = wt_malloc(cli->ctx, per, sizeof(float)))) {
+                    st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory");
+                    break;
+                }
+                memcpy(X->psf[c], img + per * k, per * sizeof *img);
+                R[c].psf_pixels = (double)dims[2], R[c].psf_pixel_lod = lod, R[c].psf_pixel_mas = mas;
+                R[c].psf_fft = (double)fft;
+            }
+            free(img);
+        }
+    return st;
+}
+
 int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *want, wt_compare_result *R,
-                         int *ndone)
+                         wt_cmp_extra *X, int *ndone)
 {
     char path[2200], name[128], *s = NULL;
     wt_h5_reader *r = NULL;
@@ -245,6 +371,7 @@ int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
     }
     for (int c = 0; c < nc && st >= 0; c++)
         if (done[c] == 1) R[c].done = 1, ++*ndone;
+    if (st >= 0) st = read_extra(cli, r, path, a, R, have.frames, X);
     free(buf);
     free(done);
     wt_h5_close(r);
@@ -300,7 +427,7 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
         if (!f) return WT_ERROR(cli->ctx, WT_ERR_IO, "cannot write '%s': %s", tmp, strerror(errno));
         if (!doc)
             fprintf(f, "method,%s,strehl_le_on_axis,strehl_le_field,wfe_field_nm,time_per_frame_ms,reconstruction_ms,"
-                       "setup_s,reconstructor_memory_bytes,done%s\n", key,
+                       "setup_s,reconstructor_memory_bytes,done%s,strehl_psf_on_axis,strehl_psf_field,psf_frames\n", key,
                     a->ns > 1 ? ",seeds_done,strehl_le_on_axis_se,strehl_le_field_se,wfe_field_nm_se" : "");
         else {
             fprintf(f, "# wavetomo comparison\n\nSystem `%s` (config hash `%.16s`), %d frames at %.0f Hz (%d settle), seed "
@@ -317,8 +444,17 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
             if (missing)
                 fprintf(f, "**Incomplete: %d of %d runs are missing (interrupted); `--resume` with the same options runs "
                            "them.**\n\n", missing, a->nm * nv * a->ns);
-            fprintf(f, "| method | %s | LE Strehl on-axis | LE Strehl field | WFE field [nm] | ms/frame | reconstruction ms "
-                       "| reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|\n", a->nv ? a->key : "–");
+            if (cfg->psf_interval > 0)
+                fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
+                           "settle window; PSF-peak Strehl: the peak of the long-exposure PSF at the same wavelength (every "
+                           "%d frames after the settle window, normalised to the diffraction-limited peak). They agree at "
+                           "high Strehl; at low Strehl they differ (docs/guide.md: which to use).\n\n", cfg->psf_interval);
+            else
+                fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
+                           "settle window; no PSFs (sim.psf_interval_frames = 0).\n\n");
+            fprintf(f, "| method | %s | LE Strehl on-axis (Maréchal) | LE Strehl field (Maréchal) | PSF-peak Strehl on-axis "
+                       "| PSF-peak Strehl field | WFE field [nm] | ms/frame | reconstruction ms "
+                       "| reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|---|---|\n", a->nv ? a->key : "–");
         }
         for (int m = 0; m < a->nm; m++)
             for (int v = 0; v < nv; v++) {
@@ -333,17 +469,22 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                 if (!doc && a->ns > 1)
                     fprintf(f, ",%d,%.5f,%.5f,%.2f", q->nseeds, q->se[WT_METRIC_ON_AXIS], q->se[WT_METRIC_FIELD],
                             q->se[WT_METRIC_WFE]);
+                if (!doc && r->done && r->psf_frames > 0)
+                    fprintf(f, ",%.5f,%.5f,%.0f", r->psf_on_axis, r->psf_field, r->psf_frames);
+                else if (!doc)
+                    fprintf(f, ",,,0");
                 if (!doc) fprintf(f, "\n");
                 else if (r->done) {
                     fprintf(f, "| %s | %s | ", a->methods[m], vs);
                     pm(f, a, 4, r->on_axis, q->se[WT_METRIC_ON_AXIS]);
                     fprintf(f, " | ");
                     pm(f, a, 4, r->field, q->se[WT_METRIC_FIELD]);
-                    fprintf(f, " | ");
+                    if (r->psf_frames > 0) fprintf(f, " | %.4f | %.4f | ", r->psf_on_axis, r->psf_field);
+                    else fprintf(f, " | – | – | ");
                     pm(f, a, 1, r->wfe_field, q->se[WT_METRIC_WFE]);
                     fprintf(f, " | %.1f | %.2f | %.1f |\n", r->total, r->parts[2] + r->parts[3], r->memory / 1e6);
                 } else
-                    fprintf(f, "| %s | %s | missing%s | | | | | |\n", a->methods[m], vs,
+                    fprintf(f, "| %s | %s | missing%s | | | | | | | |\n", a->methods[m], vs,
                             a->ns > 1 && q->nseeds ? " (some seeds)" : "");
             }
         if (doc && a->ns > 1 && a->nm > 1) write_differences(f, a, R);
@@ -355,6 +496,22 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                     if (S[m * nv + v].mean.done)
                         fprintf(f, "![%s%s%s](map_%s_%d.png) ", a->methods[m], a->nv ? " " : "", val(a, v), a->methods[m], v);
             if (!missing) fprintf(f, "\n\n![time per frame](time_per_frame.png)");
+            fprintf(f, "\n\n## Convergence\n\nThe residual WFE of each frame (field rms, thin) and its running "
+                       "long-exposure value from the settle window on (thick, ending at the WFE of the table); the "
+                       "grey band is the settle window, left out of every average%s.\n\n", a->ns > 1 ? " (first seed)" : "");
+            for (int v = 0; v < nv; v++) fprintf(f, "![residual WFE per frame%s%s](wfe_per_frame_%d.png) ", a->nv ? " " : "", val(a, v), v);
+            int psfs = 0;
+            for (int c = 0; c < a->nm * nv; c++) psfs += S[c].mean.done && S[c].mean.psf_frames > 0;
+            if (psfs) {
+                fprintf(f, "\n\n## Long-exposure PSFs\n\nOne panel per evaluation direction, placed as on the sky, log10 "
+                           "of the PSF normalised to the diffraction-limited peak (so a panel's peak is its PSF-peak "
+                           "Strehl, printed in it)%s; arrays in results.h5 psf/.\n\n", a->ns > 1 ? ", mean of the seeds" : "");
+                for (int v = 0; v < nv; v++)
+                    for (int m = 0; m < a->nm; m++)
+                        if (S[m * nv + v].mean.done && S[m * nv + v].mean.psf_frames > 0)
+                            fprintf(f, "![PSFs %s%s%s](psf_%s_%d.png) ", a->methods[m], a->nv ? " " : "", val(a, v),
+                                    a->methods[m], v);
+            }
             if (a->spots[0])
                 fprintf(f, "\n\n## Diffractive sensor %s\n\nNoise-free spot images and centroid gain of the first "
                            "diffractive sensor (what they show: [spots.md](spots.md)).\n\n![spot images of %s](spots_%s.png)"
@@ -368,7 +525,60 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
 }
 
 /* The figures; the sweep curve and the time bars only when every case is done (no holes in a curve). */
-static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_summary *S, int missing)
+/* The PSF mosaics (mean of the seeds done) and the per-frame residual curves (first seed done of each method). */
+static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_result *R,
+                       const wt_compare_summary *S, const wt_cmp_extra *X, const double *coords)
+{
+    int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, g = sys->cfg->eval_grid, nd = sys->neval;
+    char path[2200], title[256];
+    for (int v = 0; v < nv && st >= 0; v++) {
+        long F = 0;
+        int first[WT_COMPARE_MAXM];
+        for (int m = 0; m < nm; m++) {
+            first[m] = -1;
+            for (int k = ns - 1; k >= 0; k--)
+                if (R[wt_cmp_case(a, m, v, k)].done && X->wfe[wt_cmp_case(a, m, v, k)]) first[m] = wt_cmp_case(a, m, v, k);
+            if (first[m] >= 0 && R[first[m]].frames > F) F = (long)R[first[m]].frames;
+        }
+        if (F < 2) continue;
+        double *y = malloc((size_t)nm * F * sizeof *y);
+        if (!y) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the residual curves");
+        for (int m = 0; m < nm; m++)
+            for (long t = 0; t < F; t++)
+                y[(size_t)m * F + t] = first[m] >= 0 && t < (long)R[first[m]].frames ? X->wfe[first[m]][t] : NAN;
+        snprintf(path, sizeof path, "%s/wfe_per_frame_%d.png", a->out, v);
+        snprintf(title, sizeof title, "residual WFE per frame%s%s%s%s", a->nv ? ", " : "", a->nv ? a->key : "",
+                 a->nv ? "=" : "", val(a, v));
+        st = wt_plot_wfe_frames(cli->ctx, path, title, nm, (const char *const *)a->methods, F, y,
+                                sys->cfg->settle_frames);
+        free(y);
+    }
+    for (int c = 0; c < nm * nv && st >= 0; c++) {
+        if (!S[c].mean.done || S[c].mean.psf_frames <= 0) continue;
+        const int m = c / nv, v = c % nv, n = (int)lround(S[c].mean.psf_pixels);
+        const size_t per = (size_t)nd * n * n;
+        float *img = calloc(per, sizeof *img);
+        if (!img) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the PSF mosaic");
+        int k = 0;
+        for (int s2 = 0; s2 < ns; s2++) {
+            const int cc = wt_cmp_case(a, m, v, s2);
+            if (!R[cc].done || !X->psf[cc] || (int)R[cc].psf_pixels != n) continue;
+            for (size_t i = 0; i < per; i++) img[i] += X->psf[cc][i];
+            k++;
+        }
+        for (size_t i = 0; i < per && k > 1; i++) img[i] /= (float)k;
+        snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
+        snprintf(title, sizeof title, "long-exposure PSFs, %s%s%s%s%s, %.0f nm", a->methods[m],
+                 a->nv ? ", " : "", a->nv ? a->key : "", a->nv ? "=" : "", val(a, v), sys->cfg->eval_wavelength * 1e9);
+        if (k) st = wt_plot_psf_mosaic(cli->ctx, path, title, g, coords, n, S[c].mean.psf_pixel_lod, img,
+                                       S[c].mean.psf_strehl);
+        free(img);
+    }
+    return st;
+}
+
+static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_result *R,
+                      const wt_compare_summary *S, const wt_cmp_extra *X, int missing)
 {
     int st, nm = a->nm, nv = cols(a), g = sys->cfg->eval_grid;
     char path[2200], title[256];
@@ -409,6 +619,7 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
         if (a->ns > 1) snprintf(title + strlen(title), sizeof title - strlen(title), ", mean of %d seeds", a->ns);
         if ((st = wt_plot_strehl_map(cli->ctx, path, title, g, coords, S[c].mean.strehl, vmin, vmax)) < 0) return st;
     }
+    if ((st = extra_plots(cli, a, sys, R, S, X, coords)) < 0) return st;
     if (missing) return WT_OK;
     double times[WT_COMPARE_MAXM * NP];
     const char *names[NP];
@@ -422,16 +633,16 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
 }
 
 int wt_cmp_write_all(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
-                     const wt_system *sys, const wt_compare_result *R, int argc, char **argv)
+                     const wt_system *sys, const wt_compare_result *R, const wt_cmp_extra *X, int argc, char **argv)
 {
     int st, missing = 0, nmv = a->nm * cols(a);
     wt_compare_summary *S = malloc((size_t)nmv * sizeof *S);
     if (!S) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory summarising the seeds");
     for (int c = 0; c < nmv; c++) wt_compare_summarise(R + (size_t)c * a->ns, a->ns, &S[c]);
     for (int c = 0; c < nmv * a->ns; c++) missing += !R[c].done;
-    if ((st = write_results(cli, a, plan, cfg, sys, R, S, argc, argv)) >= 0 &&
+    if ((st = write_results(cli, a, plan, cfg, sys, R, S, X, argc, argv)) >= 0 &&
         (st = write_text(cli, a, cfg, R, S, missing, argc, argv)) >= 0)
-        st = make_plots(cli, a, sys, S, missing);
+        st = make_plots(cli, a, sys, R, S, X, missing);
     free(S);
     return st;
 }

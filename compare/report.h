@@ -21,6 +21,14 @@ typedef struct wt_cmp_cases {
     char spots[16];       /* the diffractive sensor whose pictures (compare/spots.h) are in DIR ("": none) */
 } wt_cmp_cases;
 
+/* What the cases keep for the figures beside their numbers, per case (wt_cmp_case index; NULL: none), all
+ * allocated in the command's context: the field-rms residual of every frame [nm] (R[c].frames values) and the
+ * long-exposure PSFs [neval n n] (n = R[c].psf_pixels; core/sim/psf.h). */
+typedef struct wt_cmp_extra {
+    double **wfe;
+    float **psf;
+} wt_cmp_extra;
+
 /* Index of the case (method m, sweep value v, seed s) in the per-seed result arrays. */
 static inline int wt_cmp_case(const wt_cmp_cases *a, int m, int v, int s)
 {
@@ -32,11 +40,11 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a);
 /* --resume: read DIR/results.h5, refuse it when its plan is not `want` (naming what differs), and copy the
  * cases it has done into R (per seed, indexed by wt_cmp_case). *ndone: how many. */
 int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *want, wt_compare_result *R,
-                         int *ndone);
+                         wt_cmp_extra *X, int *ndone);
 /* results.h5, summary.csv, report.md and the figures from the per-seed results R; with several seeds the
  * tables and curves show the mean ± standard error over the seeds and the paired differences between the
  * methods (core/sim/compare.h), results.h5 keeps every seed's values; cases not done are marked missing. */
 int wt_cmp_write_all(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
-                     const wt_system *sys, const wt_compare_result *R, int argc, char **argv);
+                     const wt_system *sys, const wt_compare_result *R, const wt_cmp_extra *X, int argc, char **argv);
 
 #endif

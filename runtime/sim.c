@@ -12,6 +12,8 @@
 #include "core/sim/loop.h"
 #include "core/model/estimate.h"
 #include "core/sim/record.h"
+#include "core/sim/compare.h"
+#include "core/sim/psf.h"
 
 static void help(void)
 {
@@ -34,6 +36,7 @@ static void help(void)
            "  --iters N        (P)CG iterations per frame (overrides recon.<variant>.iterations)\n"
            "  --no-noise       noise-free sensors (sim.noise = false)\n"
            "  --out RUN.h5     result file: per-direction LE Strehl and WFE, per-frame Strehl, timings,\n"
+           "                   the long-exposure PSFs and their peak Strehl (sim.psf_interval_frames),\n"
            "                   the configuration, seed and versions (docs/formats.md)\n"
            "  --telemetry F    also write per frame the measured and pseudo-open-loop slopes and the\n"
            "                   applied commands (float32), for `wavetomo run`\n"
@@ -114,6 +117,8 @@ int wt_cmd_sim(int argc, char **argv)
     wt_mvm *mvm = NULL;
     wt_h5_writer *w = NULL, *tw = NULL;
     wt_sim_record *rec = NULL;
+    wt_psf *psf = NULL;
+    double tpsf = 0.0;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind)) >= 0) goto cleanup; /* --dry-run, or too big */
@@ -130,6 +135,11 @@ int wt_cmd_sim(int argc, char **argv)
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;
+    wt_psf_params pp;
+    wt_compare_psf_params(cfg, &pp);
+    if (pp.every > 0 &&
+        (st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pp, &psf)) < 0)
+        goto fail;
     double setup = wt_time_now() - t0;
     if (tel && (st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
     if ((st = wt_sim_record_alloc(cli.ctx, sys, frames, cfg->eval_wavelength, tw, &rec)) < 0) goto fail;
@@ -143,6 +153,13 @@ int wt_cmd_sim(int argc, char **argv)
     for (long t = 0; t < frames; t++) {
         const double f0 = wt_time_now();
         if ((st = wt_loop_step(lp)) < 0 || (st = wt_sim_record_frame(rec, lp, wt_time_now() - f0)) < 0) goto fail;
+        if (psf) { /* the long-exposure PSFs (sim.psf_interval_frames): timed apart from the loop's parts */
+            const double p0 = wt_time_now();
+            const double *maps[WT_MAX_EVAL];
+            for (int j = 0; j < sys->neval; j++) maps[j] = wt_loop_residual(lp, j);
+            wt_psf_frame(psf, t, maps);
+            tpsf += wt_time_now() - p0;
+        }
         double se = wt_sim_record_field_strehl(rec, t);
         sum_field += se;
         char extra[64];
@@ -158,6 +175,11 @@ int wt_cmd_sim(int argc, char **argv)
     if ((st = wt_sim_record_write(rec, w, lp, cfg->settle_frames)) < 0) goto fail;
     if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
     if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
+    if (psf && ((st = wt_psf_write(psf, w, "psf")) < 0 ||
+                (st = wt_h5_write_double(w, "timing/psf", tpsf / frames * 1e3, "ms",
+                                         "mean wall time per frame of the long-exposure PSFs (sim.psf_interval_frames; included "
+                                         "in timing/total, in no part of frame/time)")) < 0))
+        goto fail;
     if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
     if ((st = wt_h5_write_double(w, "timing/setup", setup, "s", "set-up time (atmosphere, operators)")) < 0) goto fail;
     if (tw) {
@@ -180,7 +202,13 @@ int wt_cmd_sim(int argc, char **argv)
     }
     wt_loop_times tm = wt_loop_get_times(lp);
     printf("%s: %ld frames (%ld averaged) at %.0f nm\n", recon, frames, le->frames, cfg->eval_wavelength * 1e9);
-    printf("  LE Strehl on-axis %.4f   field average %.4f\n", wt_strehl_le_strehl(le, sys->eval_centre), field);
+    printf("  LE Strehl (Marechal) on-axis %.4f   field average %.4f\n", wt_strehl_le_strehl(le, sys->eval_centre), field);
+    if (psf) {
+        double pf = 0.0;
+        for (int j = 0; j < sys->neval; j++) pf += wt_psf_strehl(psf, j) / sys->neval;
+        printf("  PSF-peak Strehl on-axis %.4f   field average %.4f (long-exposure PSF of %ld frames, one in %d; "
+               "LE Strehl above: Marechal)\n", wt_psf_strehl(psf, sys->eval_centre), pf, wt_psf_frames(psf), cfg->psf_interval);
+    }
     printf("  residual WFE on-axis %.1f nm   field rms %.1f nm\n", wt_strehl_le_wfe(le, sys->eval_centre) * 1e9,
            sqrt(fwfe) * 1e9);
     printf("  time per frame %.2f ms (%.2f frames/s): atmosphere %.2f, sensors %.2f, reconstruction %.2f, "
@@ -188,12 +216,14 @@ int wt_cmd_sim(int argc, char **argv)
            run / frames * 1e3, frames / run, tm.atmosphere / frames * 1e3, tm.sensors / frames * 1e3,
            tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
            tm.evaluation / frames * 1e3, setup);
+    if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
     printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");
     goto cleanup;
 fail:
     rc = wt_cli_fail(&cli, st);
 cleanup:
     wt_sim_record_free(rec);
+    wt_psf_free(psf);
     wt_h5_abort(w);
     wt_h5_abort(tw);
     wt_loop_free(lp);

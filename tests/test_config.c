@@ -548,6 +548,7 @@ START_TEST(test_overrides)
          "expected 2 ... 4 values"},
         {"loop.gain_basis=\"haar\"", "key 'loop.gain_basis': value \"haar\" is not accepted", "\"bilinear\", \"daubechies\""},
         {"loop.gain_basis=\"daubechies\"", "key 'loop.gain_basis' is given without 'loop.gain_levels'", ""},
+        {"sim.psf_interval_frames=2000000", "--set sim.psf_interval_frames=2000000: key 'sim.psf_interval_frames': value 2000000 is out of range", "[0, 1000000]"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         wt_config *x = (wt_config *)1;
@@ -656,6 +657,12 @@ static const struct bad_case {
      {"recon.cg9.fit_solver", "", ""}},
     {"settle past the end", "settle_frames = 20;", "settle_frames = 200;", 1, NULL, {"key 'evaluation.settle_frames': value 200 is not below 'loop.frames' = 200", "", ""}},
     {"negative seed", "seed = 1;", "seed = -3;", 1, NULL, {"key 'sim.seed': value -3 is out of range", ">= 0", ""}},
+    {"negative PSF interval", "seed = 1;", "seed = 1; psf_interval_frames = -1;", 1, NULL,
+     {"key 'sim.psf_interval_frames': value -1 is out of range", "[0, 1000000]", ""}},
+    {"PSF interval not an integer", "seed = 1;", "seed = 1; psf_interval_frames = 2.5;", 1, NULL, {"sim.psf_interval_frames", "", ""}},
+    {"odd PSF image", "seed = 1;", "seed = 1; psf_pixels = 65;", 1, NULL, {"key 'sim.psf_pixels': value 65 is odd", "", ""}},
+    {"PSF image too small", "seed = 1;", "seed = 1; psf_pixels = 4;", 1, NULL,
+     {"key 'sim.psf_pixels': value 4 is out of range", "[8, 4096]", ""}},
     {"duplicate key", "r0_m = 0.129;", "r0_m = 0.129; r0_m = 0.2;", 1, NULL, {"syntax error", "duplicate", ""}},
 };
 

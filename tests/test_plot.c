@@ -488,6 +488,67 @@ START_TEST(test_spots_invalid_refused)
 }
 END_TEST
 
+/* The PSF mosaic and the per-frame residual curves (compare/plot_psf.c, issue 21 §5): complete PNGs of their
+ * sizes, the data reaching the picture (another Strehl / another curve gives other bytes), nothing written on a
+ * refusal (an odd or oversized image, a negative or NaN PSF value, a settle window past the frames, a residual
+ * of 0 nm on the log axis). */
+static void psf_data(float *img, int g, int n, double width)
+{
+    for (int p = 0; p < g * g; p++)
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) {
+                const double x = ix - n / 2, y = iy - n / 2, r2 = (x * x + y * y) / (width * width);
+                img[(size_t)p * n * n + ix + (size_t)n * iy] = (float)(0.5 * exp(-r2) + 1e-4 / (1.0 + r2));
+            }
+}
+
+START_TEST(test_psf_and_wfe_figures)
+{
+    enum { G = 3, NPX = 32, F = 60 };
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), a[256], b[256];
+    snprintf(a, sizeof a, "%s/psf_a.png", dir);
+    snprintf(b, sizeof b, "%s/psf_b.png", dir);
+    static float img[G * G * NPX * NPX];
+    double st[G * G], c3[G] = {-30.0, 0.0, 30.0}, w[2 * F];
+    for (int i = 0; i < G * G; i++) st[i] = 0.5;
+    psf_data(img, G, NPX, 1.5);
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "PSFs", G, c3, NPX, 0.5, img, st), WT_OK);
+    assert_png(a, 960, 920);
+    st[4] = 0.25; /* another Strehl printed in a panel, and another core */
+    psf_data(img, G, NPX, 2.5);
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, b, "PSFs", G, c3, NPX, 0.5, img, st), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "mosaics of different PSFs are identical");
+    for (int m = 0; m < 2; m++)
+        for (int t = 0; t < F; t++) w[m * F + t] = 400.0 + 1200.0 * exp(-t / 3.0) + 10.0 * m + 5.0 * sin(t);
+    snprintf(a, sizeof a, "%s/wfe_a.png", dir);
+    snprintf(b, sizeof b, "%s/wfe_b.png", dir);
+    const char *const two[2] = {"pcg3", "cg9"};
+    ck_assert_int_eq(wt_plot_wfe_frames(ctx, a, "WFE", 2, two, F, w, 20), WT_OK);
+    assert_png(a, 900, 650);
+    w[F + 30] = NAN; /* a frame missing breaks the line: still drawn */
+    ck_assert_int_eq(wt_plot_wfe_frames(ctx, b, "WFE", 2, two, F, w, 20), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "curves of different residuals are identical");
+    ck_assert_int_eq(count_entries(dir, ""), 4);
+
+    snprintf(a, sizeof a, "%s/refused.png", dir);
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "t", G, c3, NPX + 1, 0.5, img, st), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "t", 16, c3, NPX, 0.5, img, st), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "t", G, c3, NPX, 0.0, img, st), WT_ERR_INVALID);
+    img[5] = -1.0f;
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "t", G, c3, NPX, 0.5, img, st), WT_ERR_INVALID);
+    img[5] = NAN;
+    ck_assert_int_eq(wt_plot_psf_mosaic(ctx, a, "t", G, c3, NPX, 0.5, img, st), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_wfe_frames(ctx, a, "t", 2, two, F, w, F), WT_ERR_INVALID);
+    w[3] = 0.0;
+    ck_assert_int_eq(wt_plot_wfe_frames(ctx, a, "t", 2, two, F, w, 20), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_wfe_frames(ctx, a, "t", 0, two, F, w, 20), WT_ERR_INVALID);
+    ck_assert_int_eq(count_entries(dir, ""), 4);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("plot");
@@ -504,6 +565,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_edge_inputs_draw);
     tcase_add_test(tc, test_spots_and_maps_write_png);
     tcase_add_test(tc, test_spots_invalid_refused);
+    tcase_add_test(tc, test_psf_and_wfe_figures);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -149,6 +149,8 @@ typedef struct wt_config {
     int points_per_subaperture;      /* simulation grid points per LGS subaperture side */
     uint64_t seed;
     int noise;                       /* 0: noise-free sensors (the truth adds no noise) */
+    int psf_interval;                /* long-exposure PSFs: every N-th frame after the settle frames (0: none) */
+    int psf_pixels;                  /* side of the stored PSF images (even) */
 
     /* reconstructor */
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */

@@ -18,8 +18,9 @@ enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS, K_STR /* a pat
 /* F_AUTO: may be absent or "auto" (layer grids, sensor points, the sodium profile's hash); then config_grid.c chooses the value from the system
  * and it is written into the canonical text and the matrix hash as if the file had given it. */
 /* F_HEX: a K_STR that is not a path but 64 hexadecimal digits (a SHA-256), stored in a char[65]. */
+/* F_EVEN: an even integer (sim.psf_pixels: an image centred on pixel n/2). */
 enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32, F_DEFAULT = 64, F_AUTO = 128,
-       F_HEX = 256 };
+       F_HEX = 256, F_EVEN = 512 };
 
 typedef struct wt_config_priv_key_spec {
     const char *path;    /* dotted libconfig path */
@@ -38,7 +39,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 118 };
+enum { WT_CONFIG_PRIV_NKEYS = 120 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }

@@ -29,6 +29,7 @@ static const char *noun(const wt_config_priv_key_spec *ks)
 {
     return ks->flags & F_POW2 ? "a power of two"
            : ks->flags & F_ODD ? "an odd integer"
+           : ks->flags & F_EVEN ? "an even integer"
            : wt_config_priv_is_int(ks->type) ? "an integer"
                                              : "a number";
 }
@@ -390,6 +391,8 @@ static int read_scalar(pstate *ps, int k, const config_setting_t *s, int elem, d
         return FAIL(ps, k, s, "key '%s'%s: value %s is not a power of two; expected %s", ks->path, ix, v, want);
     if ((ks->flags & F_ODD) && !(iv & 1))
         return FAIL(ps, k, s, "key '%s'%s: value %s is even; expected %s", ks->path, ix, v, want);
+    if ((ks->flags & F_EVEN) && (iv & 1))
+        return FAIL(ps, k, s, "key '%s'%s: value %s is odd; expected %s", ks->path, ix, v, want);
     *out = x;
     return WT_OK;
 }

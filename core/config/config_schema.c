@@ -227,6 +227,13 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
      "seed of the turbulence and noise generators, up to 2^63 - 1 (read as 64 bits, no L suffix needed)"},
     KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
+    {"sim.psf_interval_frames", K_INT, F_DEFAULT, 0, 1000000, "", 1, CF(psf_interval), NOCOUNT, 0, 0, NULL, 10,
+     "long-exposure PSF per evaluation direction at evaluation.wavelength_nm (core/sim/psf.h): the image of every "
+     "N-th frame after the settle frames is added (Nyquist-sampled FFT of the pupil field); 0 = no PSFs "
+     "(optional, default 10)"},
+    {"sim.psf_pixels", K_INT, F_DEFAULT | F_EVEN, 8, 4096, "", 1, CF(psf_pixels), NOCOUNT, 0, 0, NULL, 64,
+     "side of the stored PSF images, even, around the centre, at most the padded FFT's N (Nyquist: 2 pixels per "
+     "lambda/D, so 64 = +-16 lambda/D) (optional, default 64)"},
 
     KF("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, "prior weight alpha"),
     KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
@@ -308,7 +315,11 @@ void wt_config_print_reference(FILE *f)
         const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
         char core[96];
         wt_config_priv_range(ks, core, sizeof core);
-        snprintf(rng, sizeof rng, "%s%s", ks->flags & F_POW2 ? "pow2, " : ks->flags & F_ODD ? "odd, " : "", core);
+        snprintf(rng, sizeof rng, "%s%s", ks->flags & F_POW2   ? "pow2, "
+                                      : ks->flags & F_ODD  ? "odd, "
+                                      : ks->flags & F_EVEN ? "even, "
+                                                           : "",
+                 core);
         if (wt_config_priv_is_list(ks->type)) {
             size_t l = strlen(rng);
             snprintf(rng + l, sizeof rng - l, "; %d..%d values", ks->minlen, ks->maxlen);

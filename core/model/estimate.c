@@ -20,6 +20,11 @@
 #define SPOT_FLOP_RATE 8e9    /* image flops (wt_spot_cost) per s, 2 threads (0.126 Mflop in ~15 µs of wall) */
 #define SPOT_NOISE_NS 30e-9   /* s per pixel of Poisson + Gaussian noise, 2 threads */
 #define SPOT_MC_NS 95e-9      /* s per pixel draw of the Monte-Carlo calibration, 2 threads (centroid.h: 190 thread-ns) */
+/* the long-exposure PSFs (core/sim/psf.c), one thread, measured at the E-ELT size (336 pupil points across, N = 672,
+ * 64 pixels: ~30 ms per frame taken for 25 directions when quiet, 60-80 ms at a load average of 10) */
+#define PSF_POINT_NS 8e-9     /* s per pupil point: phase, reduction, sin/cos, store */
+#define PSF_FFT_RATE 20e9     /* FFT flops (5 N log2 N per transform) per s, float32 */
+#define PSF_TOUCH_NS 2e-9     /* s per complex sample zeroed or gathered (the padding, the kept columns) */
 
 typedef struct {
     double nvalid, ncorners, nslopes, nlgs_slopes, nact, nfine, nlos, screen, neval, nsensors;
@@ -173,6 +178,16 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
         term(e, SIM_BASE_BYTES, "FFTW and thread pools", "-");
         term(e, frames * (16.0 + 4.0 * s.neval), "per-frame results", "loop.frames (%.0f), evaluation.grid", frames);
         e->seconds = frames * NS_POINT * s.nfine * (s.nlos * c->nlayers + s.neval * c->ndms);
+        if (c->psf_interval > 0) {
+            /* pupil points across (nr rows), the padded N ≥ 2 nr, the kept n pixels; images taken */
+            const double nr = c->lgs_wfs.subapertures * c->points_per_subaperture, N = 2.0 * nr;
+            const double n = fmin((double)c->psf_pixels, N), taken = ceil((frames - c->settle_frames) / c->psf_interval);
+            term(e, 12.0 * s.neval * n * n + 2.0 * 8.0 * (nr + n) * N, "long-exposure PSFs",
+                 "sim.psf_pixels (%.0f), evaluation.grid, sim.points_per_subaperture, 2 threads' FFT rows", n);
+            e->seconds += fmax(taken, 0.0) * s.neval *
+                          (PSF_POINT_NS * M_PI / 4.0 * nr * nr + 5.0 * N * log2(N) * (nr + n) / PSF_FFT_RATE +
+                           PSF_TOUCH_NS * (nr + n) * N);
+        }
     }
     if (req->task == WT_TASK_SIM || req->task == WT_TASK_RUN) {
         if (req->recon == WT_RECON_MVM) {

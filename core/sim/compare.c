@@ -10,6 +10,7 @@
 
 #include "../base/sha256.h"
 #include "../model/tomography.h"
+#include "psf.h"
 
 const char *wt_compare_part_name(int k)
 {
@@ -18,21 +19,47 @@ const char *wt_compare_part_name(int k)
     return k >= 0 && k < WT_COMPARE_NPART ? names[k] : "?";
 }
 
+void wt_compare_psf_params(const wt_config *cfg, wt_psf_params *par)
+{
+    *par = (wt_psf_params){.wavelength = cfg->eval_wavelength, .diameter = cfg->diameter, .every = cfg->psf_interval,
+                           .settle = cfg->settle_frames, .sampling = 2.0, .pixels = cfg->psf_pixels};
+}
+
 int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
-                   wt_compare_frame_fn fn, void *user, wt_compare_result *res)
+                   wt_compare_frame_fn fn, void *user, wt_compare_result *res, wt_compare_series *ser)
 {
     const wt_config *cfg = sys->cfg;
     wt_loop *lp = NULL;
+    wt_psf *psf = NULL;
     memset(res, 0, sizeof *res);
+    if (ser) ser->psf = NULL;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = seed, .noise = cfg->noise};
     double t0 = wt_time_now();
     int st = wt_loop_alloc(ctx, sys, &o, &lp);
     if (st < 0) return st;
+    wt_psf_params pp;
+    wt_compare_psf_params(cfg, &pp);
+    if (pp.every > 0 &&
+        (st = wt_psf_alloc(ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pp, &psf)) < 0)
+        goto out;
     res->setup = wt_time_now() - t0 + build_s;
-    double r0 = wt_time_now(), sum = 0.0;
+    double r0 = wt_time_now(), sum = 0.0, tpsf = 0.0;
+    const double *maps[WT_MAX_EVAL];
     for (long t = 0; t < cfg->frames; t++) {
         if ((st = wt_loop_step(lp)) < 0) goto out;
         sum += wt_loop_field_strehl(lp);
+        if (ser && ser->wfe) {
+            const double *rms = wt_loop_rms(lp);
+            double v = 0.0;
+            for (int j = 0; j < sys->neval; j++) v += rms[j] * rms[j];
+            ser->wfe[t] = sqrt(v / sys->neval) * 1e9;
+        }
+        if (psf) {
+            const double p0 = wt_time_now();
+            for (int j = 0; j < sys->neval; j++) maps[j] = wt_loop_residual(lp, j);
+            wt_psf_frame(psf, t, maps);
+            tpsf += wt_time_now() - p0;
+        }
         if (fn && fn(user, t + 1, sum / (t + 1))) {
             st = WT_ERROR(ctx, WT_ERR_INTERRUPTED, "stopped at frame %ld of %d", t + 1, cfg->frames);
             goto out;
@@ -48,6 +75,25 @@ int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm
     }
     res->on_axis = res->strehl[sys->eval_centre];
     res->wfe_field = sqrt(fw);
+    res->frames = cfg->frames;
+    if (psf) {
+        for (int j = 0; j < sys->neval; j++) {
+            res->psf_strehl[j] = wt_psf_strehl(psf, j);
+            res->psf_field += res->psf_strehl[j] / sys->neval;
+        }
+        res->psf_on_axis = res->psf_strehl[sys->eval_centre];
+        res->psf_frames = (double)wt_psf_frames(psf);
+        res->psf_pixels = wt_psf_pixels(psf);
+        res->psf_pixel_lod = wt_psf_pixel_lod(psf);
+        res->psf_pixel_mas = wt_psf_pixel_scale(psf) / WT_ARCSEC * 1e3;
+        res->psf_fft = wt_psf_fft_size(psf);
+        res->psf_ms = tpsf / cfg->frames * 1e3;
+        if (ser) {
+            const size_t nn = (size_t)wt_psf_pixels(psf) * wt_psf_pixels(psf);
+            WT_ALLOC(ctx, ser->psf, nn * sys->neval, "PSF images");
+            for (int j = 0; j < sys->neval; j++) wt_psf_image(psf, j, ser->psf + nn * j);
+        }
+    }
     wt_loop_times tm = wt_loop_get_times(lp);
     double v[WT_COMPARE_NPART] = {tm.atmosphere, tm.sensors, tm.reconstruction, tm.fitting, tm.control, tm.evaluation};
     for (int k = 0; k < WT_COMPARE_NPART; k++) res->parts[k] = v[k] / cfg->frames * 1e3;
@@ -62,6 +108,8 @@ int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm
     }
     res->done = 1;
 out:
+fail:
+    wt_psf_free(psf);
     wt_loop_free(lp);
     return st;
 }
@@ -88,7 +136,7 @@ void wt_compare_mean_se(const double *x, int n, double *mean, double *se)
 
 /* wt_compare_summarise averages a result as an array of doubles up to `done`: it must stay all doubles there */
 _Static_assert(offsetof(wt_compare_result, done) ==
-                   sizeof(double) * (2 * WT_MAX_EVAL + 3 + WT_COMPARE_NPART + 3),
+                   sizeof(double) * (3 * WT_MAX_EVAL + 3 + WT_COMPARE_NPART + 3 + 9),
                "wt_compare_result: the fields before 'done' must be the doubles wt_compare_summarise averages");
 
 void wt_compare_summarise(const wt_compare_result *r, int ns, wt_compare_summary *out)

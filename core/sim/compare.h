@@ -22,6 +22,14 @@ typedef struct wt_compare_result {
     double on_axis, field, wfe_field;             /* on-axis Strehl, field-mean Strehl, field-rms WFE [nm] */
     double parts[WT_COMPARE_NPART];               /* wall time per frame by part [ms] */
     double total, setup, memory;                  /* ms per frame, set-up [s] (incl. an MVM build), bytes */
+    /* the long-exposure PSFs (core/sim/psf.h; all 0 when sim.psf_interval_frames = 0) */
+    double psf_strehl[WT_MAX_EVAL];               /* PSF-peak Strehl per evaluation direction */
+    double psf_on_axis, psf_field;                /* on-axis, field mean */
+    double psf_frames, psf_pixels;                /* frames taken, image side n */
+    double psf_pixel_lod, psf_pixel_mas;          /* pixel scale [λ/D], [mas] */
+    double psf_fft;                               /* the padded FFT's size N */
+    double psf_ms;                                /* wall time of the images per simulated frame [ms] */
+    double frames;                                /* frames run (loop.frames of the case) */
     int done;                                     /* 1: the case ran to its last frame */
 } wt_compare_result;
 
@@ -32,11 +40,23 @@ const char *wt_compare_part_name(int k);
  * stop the case (it is then not done: WT_ERR_INTERRUPTED). */
 typedef int (*wt_compare_frame_fn)(void *user, long frame, double mean_field_strehl);
 
+/* What a case keeps beside its numbers, for the report's figures (NULL pointers: not kept). */
+typedef struct wt_compare_series {
+    double *wfe;  /* [loop.frames], caller's: the field-rms residual of each frame, sqrt(mean_j σ_j²) [nm] */
+    float *psf;   /* set by wt_compare_run when sim.psf_interval_frames > 0: the LE PSFs [neval n n] (psf.h's layout),
+                   * allocated in ctx (wt_free(ctx, ·) by the caller); NULL otherwise */
+} wt_compare_series;
+
 /* Run one case: the closed loop of reconstructor `kind` (mvm: the matrix `mvm`, built in build_s seconds)
  * on sys for its configuration's loop.frames and noise with random seed `seed` (turbulence and noise: the
- * loop's only random input), and reduce it into *res (res->done = 1). */
+ * loop's only random input), and reduce it into *res (res->done = 1); with sim.psf_interval_frames > 0 the long-exposure
+ * PSFs too (core/sim/psf.h). ser: NULL, or what to keep of the frames. */
 int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
-                   wt_compare_frame_fn fn, void *user, wt_compare_result *res);
+                   wt_compare_frame_fn fn, void *user, wt_compare_result *res, wt_compare_series *ser);
+/* The parameters of the long-exposure PSFs of cfg (sim.psf_interval_frames, evaluation wavelength, settle frames,
+ * Nyquist sampling); every = 0: none. */
+struct wt_psf_params;
+void wt_compare_psf_params(const wt_config *cfg, struct wt_psf_params *par);
 
 /* ---- statistics over seeds (issue 11: `compare --seeds N`) ----------------------------------------------
  * Each seed is an independent realisation of the turbulence and noise; every method runs on the same seeds,

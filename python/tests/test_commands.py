@@ -9,7 +9,7 @@ from conftest import DEMO, FRAMES, SEED, cli
 
 # wall times differ from run to run; everything else is deterministic (docs/formats.md)
 TIMES = ("timing/", "frame/time", "time", "setup_time", "time_per_frame", "time_parts", "seeds/setup_time",
-         "seeds/time_per_frame", "seeds/time_parts", "build/time")
+         "seeds/time_per_frame", "seeds/time_parts", "seeds/time_psf", "build/time")
 PROVENANCE = ("created_utc", "command_line")
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import wavetomo
-from conftest import DEMO, FRAMES
+from conftest import DEMO, FRAMES, cli
 
 
 def test_kinds_and_values(files):
@@ -80,3 +80,28 @@ def test_refusals(files, tmp_path):
         wavetomo.read_matrix(files["cmds_mvm"])
     with pytest.raises(wavetomo.FormatError, match="results.h5 of wavetomo compare"):
         wavetomo.read_compare(files["run"])
+
+
+def test_psf(files, tmp_path):
+    """The long-exposure PSFs of a run (sim.psf_interval_frames, docs/formats.md): an image per direction, its peak is the
+    PSF-peak Strehl, below the diffraction-limited 1; compare's per method, per seed, with the per-frame WFE."""
+    run = wavetomo.read_run(files["run"])
+    p = run.psf()
+    n = p["image"].shape[-1]
+    assert p["image"].dtype == np.float32 and p["image"].shape == (25, n, n)
+    assert p["pixel_lambda_over_d"] <= 0.5 and p["wavelength_nm"] == 2200.0 and p["frames"] >= 1
+    assert p["pixel_mas"] == pytest.approx(p["pixel_lambda_over_d"] * 2.2e-6 / 8.0 * 206264806.2, rel=1e-9)
+    # the peak in double, the image in float32: the same value rounded once
+    assert np.array_equal(p["strehl_peak"].astype(np.float32), p["image"].reshape(25, -1).max(axis=1))
+    assert np.all((p["strehl_peak"] > 0) & (p["strehl_peak"] <= 1))
+    off = wavetomo.sim(DEMO, "pcg3", frames=4, seed=2, set={"sim.psf_interval_frames": 0}, threads=1)
+    assert off.psf() is None and "psf/image" not in off
+    d = tmp_path / "cmp"
+    cli("compare", "--config", DEMO, "--recon", "pcg3,none", "--frames", FRAMES, "--out", d)
+    c = wavetomo.read_compare(d)
+    q = c.psf("pcg3")
+    assert q["image"].shape == (1, 25, n, n) and q["strehl_peak"].shape == (1, 25)
+    assert np.allclose(c["strehl_psf"][0, 0], q["strehl_peak"][0])
+    assert c["series/wfe_field"].shape == (2, 1, 1, FRAMES) and c.units("series/wfe_field") == "nm"
+    with pytest.raises(ValueError):
+        c.psf("cg9")

@@ -99,6 +99,28 @@ class Result(dict):
                                   self["layout/%s/subaperture_centre" % name]))
         return Layout(sensors, self["layout/actuator_index"], self["layout/actuator_position"])
 
+    def psf(self, method=None, value=0):
+        """The long-exposure PSFs (sim.psf_interval_frames > 0; None without them) as a dict: "image" (directions, n, n)
+        for a run file, (seeds, directions, n, n) for compare's method `method` at sweep value index `value`;
+        "strehl_peak" (the PSF-peak Strehl, [seeds,] directions); "theta_x", "theta_y" [arcsec] of the
+        directions; and the image attributes: "pixel_lambda_over_d", "pixel_mas", "wavelength_nm", "frames",
+        "every", "fft_size". Pixel (ix, iy) of an n x n image is at ((ix - n/2), (iy - n/2)) pixels, x right,
+        y up; normalised so that the diffraction-limited PSF peaks at 1 (docs/formats.md)."""
+        if self.kind == "compare":
+            if method not in self.methods:
+                raise ValueError("method %r: the file has %s" % (method, ", ".join(self.methods)))
+            group = "psf/%s_%d" % (method, value)
+        else:
+            group = "psf"
+        if group + "/image" not in self:
+            return None
+        m = self.meta.get(group + "/image", {})
+        out = {k: m.get(k) for k in ("pixel_lambda_over_d", "pixel_mas", "wavelength_nm", "frames", "every",
+                                      "fft_size")}
+        out.update(image=self[group + "/image"], strehl_peak=self[group + "/strehl_peak"],
+                   theta_x=self["eval/theta_x"], theta_y=self["eval/theta_y"])
+        return out
+
 
 class MatrixResult(Result):
     """MATRIX.h5: R and RA as stored (float32, or float16 / bfloat16 scaled per row: attrs["precision"]),
