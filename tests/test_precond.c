@@ -512,8 +512,13 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_multilevel_condition, 0, 2);
     tcase_add_test(tc, test_multilevel_reaches_direct);
     tcase_add_test(tc, test_names_and_refusals);
-    tcase_add_test(tc, test_allocation_failures);
     suite_add_tcase(s, tc);
+    /* every kind's set-up, once per allocation it makes (~30 for multilevel): a few seconds here, several
+     * minutes under AddressSanitizer on a loaded machine */
+    TCase *ta = tcase_create("alloc");
+    tcase_set_timeout(ta, 900);
+    tcase_add_test(ta, test_allocation_failures);
+    suite_add_tcase(s, ta);
     return s;
 }
 
