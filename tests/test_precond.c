@@ -62,9 +62,11 @@ static double dot(const double *x, const double *y, int64_t n) { return tu_dot(x
  * and r), so |xᵀẑ − xᵀz| ≤ γ_n (|x|ᵀ|B⁻¹||y| + |xᵀY| |K⁻¹| |Yᵀy|), γ_n ≈ n u. The terms are of the order
  * of the diagonal part |x|ᵀ J⁻¹ |y|: B⁻¹ is J⁻¹ outside the coarse block, and Y K⁻¹ Yᵀ ≼ B⁻¹ because
  * P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ ≽ 0; the factor 16 covers the few operations per summand and the coarse block's
- * coupling. So the test asks |xᵀP⁻¹y − yᵀP⁻¹x| ≤ 16 n u · |x|ᵀ J⁻¹ |y| (|x|ᵀ|y| for none). Measured:
- * ≤ 2.4e-3 of that bound (coarse_ngs, pcg3, low noise); a transposed Woodbury factor or a wrong sign
- * misses it by orders of magnitude. */
+ * coupling. So the test asks |xᵀP⁻¹y − yᵀP⁻¹x| ≤ 16 n u · |x|ᵀ J⁻¹ |y| (|x|ᵀ|y| for none). multilevel's
+ * B⁻¹ is not J⁻¹ on its layer blocks: there the scale takes |B_b⁻¹| itself (Σ_b |x_b|ᵀ |B_b⁻¹| |y_b|, each
+ * block inverted here by LAPACK from wt_precond_block), whose entries exceed J⁻¹'s by up to the block's
+ * condition. Measured: ≤ 2.4e-3 of that bound (coarse_ngs and multilevel, pcg3, low noise); a transposed
+ * Woodbury factor or a wrong sign misses it by orders of magnitude. */
 START_TEST(test_symmetric_positive_definite)
 {
     const int variant = _i / 2, low = _i % 2;
@@ -90,7 +92,25 @@ START_TEST(test_symmetric_positive_definite)
             wt_precond_apply(p, y, py);
             const double a = dot(x, py, n), b = dot(y, px, n);
             double scale = 0.0;
-            for (int64_t i = 0; i < n; i++) scale += fabs(x[i]) * (jinv ? jinv[i] : 1.0) * fabs(y[i]);
+            const int64_t nb = wt_precond_nblocks(p);
+            int64_t idx[WT_MAX_LAYERS];
+            double blk[WT_MAX_LAYERS * WT_MAX_LAYERS];
+            int *inblock = calloc(n, sizeof *inblock);
+            for (int64_t bb = 0; bb < nb; bb++) { /* multilevel: |x_b|ᵀ |B_b⁻¹| |y_b| */
+                const lapack_int q = wt_precond_block(p, bb, idx, blk);
+                ck_assert_int_eq(LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', q, blk, q), 0);
+                ck_assert_int_eq(LAPACKE_dpotri(LAPACK_COL_MAJOR, 'L', q, blk, q), 0);
+                for (int a2 = 0; a2 < q; a2++) {
+                    inblock[idx[a2]] = 1;
+                    for (int c2 = 0; c2 < q; c2++) {
+                        const double v = a2 >= c2 ? blk[a2 + q * c2] : blk[c2 + q * a2]; /* lower triangle */
+                        scale += fabs(x[idx[a2]]) * fabs(v) * fabs(y[idx[c2]]);
+                    }
+                }
+            }
+            for (int64_t i = 0; i < n; i++)
+                if (!inblock[i]) scale += fabs(x[i]) * (jinv ? jinv[i] : 1.0) * fabs(y[i]);
+            free(inblock);
             const double bound = 16.0 * (double)n * 1.1e-16 * scale;
             ck_assert_msg(fabs(a - b) <= bound, "%s %s %s: xᵀP⁻¹y %.17g, yᵀP⁻¹x %.17g, |diff| %.3g > %.3g",
                           variant ? "cg9" : "pcg3", low ? "low noise" : "paper noise", wt_precond_kind_name(kind), a,
