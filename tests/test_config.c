@@ -650,7 +650,7 @@ static const struct bad_case {
     {"layer size below 2^J", "wavelet_levels = 3;", "wavelet_levels = 5;", 1, "layer_size = [32, 16, 32];",
      {"key 'recon.pcg3.layer_size', element [1]: value 16 is smaller than 2^recon.wavelet_levels = 2^5 = 32", "t.cfg:", ""}},
     {"unknown prior", "prior = \"paper\";", "prior = \"papr\";", 1, NULL, {"key 'recon.prior': value \"papr\" is not accepted", "\"paper\", \"exact\"", ""}},
-    {"unknown preconditioner", "preconditioner = \"jacobi\";", "preconditioner = \"ilu\";", 1, NULL, {"key 'recon.pcg3.preconditioner': value \"ilu\"", "\"none\", \"jacobi\", \"jacobi_ngs\"", ""}},
+    {"unknown preconditioner", "preconditioner = \"jacobi\";", "preconditioner = \"ilu\";", 1, NULL, {"key 'recon.pcg3.preconditioner': value \"ilu\"", "\"none\", \"jacobi\", \"jacobi_ngs\"", "\"coarse_ngs\", \"multilevel\""}},
     {"unknown fitting solver", "    fit_iterations = 4;\n", "    fit_iterations = 4; fit_solver = \"lu\";\n", 1, NULL,
      {"key 'recon.cg9.fit_solver': value \"lu\"", "\"cg\", \"cholesky\"", ""}},
     {"fitting solver not a string", "    fit_iterations = 4;\n", "    fit_iterations = 4; fit_solver = 1;\n", 1, NULL,

@@ -69,10 +69,12 @@ typedef struct wt_recon_variant_config {
     int grid_base_dm[WT_MAX_LAYERS]; /* WT_GRID_AUTO: -1 when grid_base is d, else the DM index (0-based) */
     int iterations;                  /* (P)CG iterations per frame */
     double tolerance;                /* relative residual to stop at; 0: always run `iterations` */
-    int preconditioner;              /* index in "none|jacobi|jacobi_ngs|coarse_ngs" (WT_PRECOND_* of
+    int preconditioner;              /* index in "none|jacobi|jacobi_ngs|coarse_ngs|multilevel" (WT_PRECOND_* of
                                         core/model/precond.h): 0 plain CG, 1 modified Jacobi, 2 Jacobi + NGS
-                                        low-rank term, 3 that with the coarse coefficients as one exact block */
-    int coarse_levels;               /* coarse_ngs: detail levels in the coarse block besides the scaling block */
+                                        low-rank term, 3 that with the coarse coefficients as one exact block,
+                                        4 that with the layers' blocks per detail position below it */
+    int coarse_levels;               /* coarse_ngs, multilevel: detail levels in the coarse block besides the
+                                        scaling block */
     int loop_noise_average;          /* 1: the sensors' σ² times the integrator's noise gain Σh² */
     int fit_iterations;              /* fitting CG iterations (cg9 only; 0 for pcg3) */
     double fit_regularization;       /* fitting Tikhonov weight, relative to the mean diagonal of H^T H */

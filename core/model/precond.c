@@ -40,9 +40,15 @@ struct wt_precond {
     int64_t *c_idx;           /* nc: their indices in c */
     double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block, Lᵀ above */
     double *c_w;              /* nc */
+    /* layer blocks below the coarse square (multilevel, see compute_layer_blocks) */
+    int64_t nb;               /* blocks (0: none) */
+    int64_t *b_start;         /* nb + 1: block b's unknowns are b_idx[b_start[b] .. b_start[b + 1]) */
+    int64_t *b_fac;           /* nb + 1: its factor starts at b_L[b_fac[b]] */
+    int64_t *b_idx;           /* the unknowns of the blocks, block after block, layer order within one */
+    double *b_L;              /* packed Cholesky factors, rows of L, each row's last entry 1 / L_aa */
 };
 
-static const char *const kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs"};
+static const char *const kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel"};
 
 const char *wt_precond_kind_name(int kind) { return kind >= 0 && kind < WT_PRECOND_NKINDS ? kind_names[kind] : NULL; }
 
@@ -224,10 +230,8 @@ fail:
  * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now
  * around B: P = B + R C_n Rᵀ. */
 /* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
-WT_CPU_CLONES static void coarse_apply(const wt_precond *p, const double *r, double *z)
+WT_CPU_CLONES static void coarse_solve(const wt_precond *p, const double *r, double *z)
 {
-    const int64_t n = p->n;
-    for (int64_t i = 0; i < n; i++) z[i] = p->jinv[i] * r[i];
     const int q = p->nc;
     if (q == 0) return;
     double *w = p->c_w;
@@ -245,6 +249,7 @@ WT_CPU_CLONES static void coarse_apply(const wt_precond *p, const double *r, dou
     }
     for (int i = 0; i < q; i++) z[p->c_idx[i]] = w[i];
 }
+
 
 /* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten) */
 static int cholesky(wt_context *ctx, int q, double *A, const char *what)
@@ -265,6 +270,13 @@ static int cholesky(wt_context *ctx, int q, double *A, const char *what)
     return WT_OK;
 }
 
+/* Side of layer l's coarse square: the scaling block and the coarse_levels coarsest detail levels */
+static int coarse_side(const wt_tomography *t, int l, int coarse_levels)
+{
+    const int J = wt_wavelet_levels(wt_tomography_wavelet(t, l)), k = coarse_levels < J ? coarse_levels : J;
+    return wt_tomography_layer_grid(t, l)->nx >> (J - k);
+}
+
 static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
 {
     int st = WT_OK;
@@ -277,13 +289,12 @@ static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
     int q = 0;
     int side[WT_MAX_LAYERS];
     for (int l = 0; l < L; l++) {
-        const int J = wt_wavelet_levels(wt_tomography_wavelet(t, l)), k = coarse_levels < J ? coarse_levels : J;
-        side[l] = wt_tomography_layer_grid(t, l)->nx >> (J - k);
+        side[l] = coarse_side(t, l, coarse_levels);
         q += side[l] * side[l];
     }
     if (q > 4096)
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: coarse_ngs with coarse_levels %d gives a block of %d "
-                        "coefficients; at most 4096 (lower coarse_levels)", coarse_levels, q);
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: %s with coarse_levels %d gives a block of %d "
+                        "coefficients; at most 4096 (lower coarse_levels)", kind_names[p->kind], coarse_levels, q);
     WT_ALLOC(ctx, p->c_idx, q, "coarse indices");
     WT_ALLOC(ctx, p->c_L, (size_t)q * q, "coarse block");
     WT_ALLOC(ctx, p->c_w, q, "coarse work");
@@ -326,6 +337,294 @@ fail:
     wt_free(ctx, sl);
     wt_free(ctx, col);
     return st;
+}
+
+/* ---- layer blocks below the coarse block (multilevel) -------------------------------------------
+ *
+ * What is left after the coarse block is the coupling of the layers at the finer scales. Every LGS sees the
+ * sum of the layers along its line of sight, shifted by θ_m h_l (≤ 5.2 m at 18 km for the E-ELT's 60"
+ * asterism, ≤ 0.33 m below 1.2 km) and scaled by the cone 1 − h_l/H: a wavelet of layer l and the one at
+ * the same place and scale on layer l' land on nearly the same subapertures of every LGS whenever the shift
+ * is small against the wavelet's size — the 5 ground layers at every level, all layers at the coarser ones.
+ * Jacobi sees each alone, so the iterations must separate them; the prior alone tells them apart.
+ * multilevel groups the unknowns by their place in the Mallat layout: block b holds, for one detail
+ * position (x, y) (one level, orientation and translate), the coefficient at (x, y) of every layer whose
+ * grid has it outside the coarse square, and B_ml holds the exact q x q block of
+ *   M̃ = Σ_LGS Ãᵀ C̃⁻¹ Ã + α D            (C̃: the LGS noise without the tip-tilt removal, as J's)
+ * on those unknowns (q ≤ L), the coarse block on the coarse square, and nothing between blocks: a block
+ * Jacobi over a partition of the unknowns, whose blocks are principal submatrices of the SPD M̃, so B_ml is
+ * SPD. Its diagonal is J's. A layer of another size pairs by its Mallat position, which is the same
+ * physical place and scale when the layers span the same period (pcg3's 128 x 0.5 m and 64 x 1 m). The
+ * entries come by J's coloured probing (probe_block), one forward apply per layer and colour: the images
+ * of one layer's probes are disjoint, each subaperture's 2x2 form S_lᵀ C̃⁻¹ S_l' belongs to entry (l, l')
+ * of the block whose probe is nearest to it on both layers, and to no block when the two nearest
+ * probes differ (that entry lies between blocks). Each block is Cholesky-factored; apply: per block a
+ * gather, two triangular solves of order q (2 q² flops) and a scatter, 2 L flops per unknown. */
+
+/* Mallat position (x, y) of an n x n layer with coarse square side sc: the detail block side m (a power of
+ * two), or 0 inside the coarse square */
+static int detail_side(int x, int y, int sc)
+{
+    int v = x > y ? x : y;
+    if (v < sc) return 0;
+    int m = 1;
+    while (2 * m <= v) m *= 2;
+    return m;
+}
+
+/* Accumulates into the blocks (acc: q x q each, column-major, at a_off[b]) the entries of every block of
+ * Mallat detail side m, orientation orient and colour (a0, b0) (stride se): the layers in lay[0..nl-1]
+ * (those with this block outside their coarse square), their probe fields' support centres cx/cy. Buffers:
+ * coef (maxn2), work (wavelet), fields (nl x maxn2), ph (ncg), sl/z (nl x maxsl each), key (nl). */
+static void probe_layer_blocks(const wt_tomography *t, int m, int orient, int se, int a0, int b0, int nl,
+                               const int *lay, const double *cx, const double *cy, const int *slot,
+                               const int64_t *gid, int nmax, const int64_t *a_off, const int *gq, double *acc,
+                               double *coef, double *work, double *fields, int64_t maxn2, double *ph, double *sl,
+                               double *z, int64_t maxsl, int *key)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    const int64_t ncg = wt_grid_size(&sys->sense_grid);
+    const int bx = (orient == 1 || orient == 3) ? m : 0, by = (orient == 2 || orient == 3) ? m : 0;
+    const int nprobe = m / se;
+    for (int a = 0; a < nl; a++) {
+        const int l = lay[a], n = wt_tomography_layer_grid(t, l)->nx;
+        memset(coef, 0, (size_t)n * n * sizeof *coef);
+        for (int j = b0; j < m; j += se)
+            for (int i = a0; i < m; i += se) coef[bx + i + (int64_t)n * (by + j)] = 1.0;
+        wt_wavelet_inverse(wt_tomography_wavelet(t, l), coef, fields + a * maxn2, work);
+    }
+    for (int mm = 0; mm < sys->nlgs; mm++) {
+        const wt_sensor *s_ = &sys->sensors[mm];
+        for (int a = 0; a < nl; a++) {
+            const int l = lay[a];
+            memset(ph, 0, (size_t)ncg * sizeof *ph);
+            wt_projection_apply(wt_tomography_projection(t, mm, l), 1.0, fields + a * maxn2, ph);
+            double *sa = sl + a * maxsl, *za = z + a * maxsl;
+            memset(sa, 0, (size_t)s_->nslopes * sizeof *sa);
+            wt_shack_hartmann_apply(s_->sh, 1.0, ph, sa);
+            memset(za, 0, (size_t)s_->nslopes * sizeof *za);
+            wt_noise_apply_inv(wt_tomography_noise(t, mm), 1.0, sa, za);
+        }
+        for (int k = 0; k < s_->nsub; k++) {
+            double x = 0.0, y = 0.0;
+            int any = 0;
+            for (int a = 0; a < nl; a++) {
+                const double *sa = sl + a * maxsl;
+                key[a] = -1;
+                if (sa[k] == 0.0 && sa[s_->nsub + k] == 0.0) continue;
+                if (!any) wt_shack_hartmann_centre(s_->sh, k, &x, &y);
+                any = 1;
+                int pi = 0, pj = 0;
+                if (nprobe > 1) { /* the nearest probe on layer l, as probe_block attributes it */
+                    const int l = lay[a];
+                    const wt_grid *g = wt_tomography_layer_grid(t, l);
+                    const double alt = wt_tomography_layer_altitude(t, l);
+                    const double cone = s_->altitude > 0 ? 1.0 - alt / s_->altitude : 1.0;
+                    const int n = g->nx, step = n / m;
+                    const double gx = (cone * x + s_->theta_x * alt - g->x0) / g->dx;
+                    const double gy = (cone * y + s_->theta_y * alt - g->y0) / g->dx;
+                    const double period = (double)step * se;
+                    pi = (int)lround((gx - cx[a] - (double)step * a0) / period);
+                    pj = (int)lround((gy - cy[a] - (double)step * b0) / period);
+                    pi = ((pi % nprobe) + nprobe) % nprobe;
+                    pj = ((pj % nprobe) + nprobe) % nprobe;
+                }
+                key[a] = pi + nprobe * pj;
+            }
+            if (!any) continue;
+            for (int a = 0; a < nl; a++) {
+                if (key[a] < 0) continue;
+                const int pi = key[a] % nprobe, pj = key[a] / nprobe;
+                const int64_t b = gid[bx + a0 + (int64_t)se * pi + (int64_t)nmax * (by + b0 + (int64_t)se * pj)];
+                const int q = gq[b];
+                double *A = acc + a_off[b];
+                const double *sa = sl + a * maxsl;
+                for (int c = a; c < nl; c++) {
+                    if (key[c] != key[a]) continue;
+                    const double *zc = z + c * maxsl;
+                    A[slot[a] + (int64_t)q * slot[c]] += sa[k] * zc[k] + sa[s_->nsub + k] * zc[s_->nsub + k];
+                }
+            }
+        }
+    }
+}
+
+/* The blocks of B_ml below the coarse square (sc[l]: each layer's coarse square side) */
+static int compute_layer_blocks(wt_precond *p, const wt_tomography *t, const int *sc)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t);
+    const int64_t ncg = wt_grid_size(&sys->sense_grid);
+    const double *alpha_d = wt_tomography_alpha_prior(t);
+    int64_t *gid = NULL, *a_off = NULL;
+    int *gq = NULL;
+    double *acc = NULL, *buf = NULL;
+    int nmax = 0;
+    for (int l = 0; l < L; l++)
+        if (wt_tomography_layer_grid(t, l)->nx > nmax) nmax = wt_tomography_layer_grid(t, l)->nx;
+    /* the partition: one block per Mallat detail position of the largest grid that some layer has outside
+     * its coarse square */
+    WT_ALLOC(ctx, gid, (size_t)nmax * nmax, "multilevel block map");
+    int64_t nb = 0, nidx = 0, nfac = 0, nacc = 0;
+    for (int64_t xy = 0; xy < (int64_t)nmax * nmax; xy++) {
+        const int x = (int)(xy % nmax), y = (int)(xy / nmax);
+        int q = 0;
+        for (int l = 0; l < L; l++) {
+            const int n = wt_tomography_layer_grid(t, l)->nx;
+            if (x < n && y < n && detail_side(x, y, sc[l])) q++;
+        }
+        gid[xy] = q ? nb++ : -1;
+        nidx += q;
+        nfac += q * (q + 1) / 2;
+        nacc += (int64_t)q * q;
+    }
+    p->nb = nb;
+    WT_ALLOC(ctx, p->b_start, nb + 1, "multilevel block starts");
+    WT_ALLOC(ctx, p->b_fac, nb + 1, "multilevel factor starts");
+    WT_ALLOC(ctx, p->b_idx, nidx > 0 ? nidx : 1, "multilevel block indices");
+    WT_ALLOC(ctx, p->b_L, nfac > 0 ? nfac : 1, "multilevel block factors");
+    WT_ALLOC(ctx, gq, nb > 0 ? nb : 1, "multilevel block sizes");
+    WT_ALLOC(ctx, a_off, nb + 1, "multilevel block offsets");
+    WT_ALLOC(ctx, acc, nacc > 0 ? nacc : 1, "multilevel blocks");
+    {
+        int64_t b = 0, i = 0, f = 0, o = 0;
+        for (int64_t xy = 0; xy < (int64_t)nmax * nmax; xy++) {
+            if (gid[xy] < 0) continue;
+            const int x = (int)(xy % nmax), y = (int)(xy / nmax);
+            p->b_start[b] = i;
+            p->b_fac[b] = f;
+            a_off[b] = o;
+            int q = 0;
+            for (int l = 0; l < L; l++) {
+                const int n = wt_tomography_layer_grid(t, l)->nx;
+                if (x < n && y < n && detail_side(x, y, sc[l]))
+                    p->b_idx[i + q++] = wt_tomography_layer_offset(t, l) + x + (int64_t)n * y;
+            }
+            gq[b] = q;
+            i += q;
+            f += q * (q + 1) / 2;
+            o += (int64_t)q * q;
+            b++;
+        }
+        p->b_start[nb] = i;
+        p->b_fac[nb] = f;
+        a_off[nb] = o;
+    }
+
+    /* the probing, block side by block side (the layers' levels pair by side) */
+    int N = wt_wavelet_order(wt_tomography_wavelet(t, 0));
+    int s = 1;
+    while (s < 2 * N + 2) s *= 2;
+    int64_t maxn2 = 0, maxsl = 0, wsize = 0;
+    for (int l = 0; l < L; l++) {
+        if (wt_grid_size(wt_tomography_layer_grid(t, l)) > maxn2) maxn2 = wt_grid_size(wt_tomography_layer_grid(t, l));
+        if ((int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l)) > wsize)
+            wsize = (int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l));
+    }
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].nslopes > maxsl) maxsl = sys->sensors[m].nslopes;
+    int64_t phn = ncg > 2 * nmax ? ncg : 2 * nmax;
+    const int nth = p->nthreads;
+    const int64_t per = maxn2 + wsize + (int64_t)L * maxn2 + phn + 2 * (int64_t)L * maxsl + L;
+    WT_ALLOC(ctx, buf, (size_t)nth * per, "multilevel probing workspace");
+    for (int m = nmax / 2; m >= 1; m /= 2)
+        for (int orient = 1; orient <= 3; orient++) {
+            int lay[WT_MAX_LAYERS], slot[WT_MAX_LAYERS], nl = 0;
+            double cx[WT_MAX_LAYERS], cy[WT_MAX_LAYERS];
+            for (int l = 0; l < L; l++) {
+                const int n = wt_tomography_layer_grid(t, l)->nx;
+                if (2 * m > n || m < sc[l]) continue; /* not in this grid, or in its coarse square */
+                slot[nl] = nl;
+                lay[nl] = l;
+                /* the support centre of the block's k = 0 basis function, as probe_block finds it */
+                double *coef = buf, *field = buf + maxn2, *work = buf + 2 * maxn2, *mag = work + wsize;
+                const int bx = (orient == 1 || orient == 3) ? m : 0, by = (orient == 2 || orient == 3) ? m : 0;
+                memset(coef, 0, (size_t)n * n * sizeof *coef);
+                coef[bx + (int64_t)n * by] = 1.0;
+                wt_wavelet_inverse(wt_tomography_wavelet(t, l), coef, field, work);
+                memset(mag, 0, 2 * (size_t)n * sizeof *mag);
+                for (int iy = 0; iy < n; iy++)
+                    for (int ix = 0; ix < n; ix++) {
+                        double v = fabs(field[ix + (int64_t)n * iy]);
+                        mag[ix] += v;
+                        mag[n + iy] += v;
+                    }
+                cx[nl] = support_centre(mag, n);
+                cy[nl] = support_centre(mag + n, n);
+                nl++;
+            }
+            if (nl == 0) continue;
+            /* a layer's slot in its blocks: the layers in a block are those of lay[] (the same set for every
+             * position of this side and orientation), in increasing order */
+            const int se = s < m ? s : m;
+#pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
+            for (int b0 = 0; b0 < se; b0++)
+                for (int a0 = 0; a0 < se; a0++) {
+                    double *base = buf + (size_t)thread_id() * per;
+                    double *coef = base, *work = coef + maxn2, *fields = work + wsize, *ph = fields + L * maxn2;
+                    double *sl = ph + phn, *z = sl + L * maxsl;
+                    int key[WT_MAX_LAYERS];
+                    probe_layer_blocks(t, m, orient, se, a0, b0, nl, lay, cx, cy, slot, gid, nmax, a_off, gq, acc,
+                                       coef, work, fields, maxn2, ph, sl, z, maxsl, key);
+                }
+        }
+    /* the prior on the diagonal, the lower triangle from the upper, and the factors */
+    for (int64_t b = 0; b < nb; b++) {
+        const int q = gq[b];
+        double *A = acc + a_off[b];
+        for (int a = 0; a < q; a++) {
+            A[a + (int64_t)q * a] += alpha_d[p->b_idx[p->b_start[b] + a]];
+            for (int c = a + 1; c < q; c++) A[c + (int64_t)q * a] = A[a + (int64_t)q * c];
+        }
+        WT_TRY(cholesky(ctx, q, A, "multilevel layer block"));
+        /* packed by rows of L: row a holds L[a][0..a], the last entry stored as 1/L[a][a] */
+        double *F = p->b_L + p->b_fac[b];
+        for (int a = 0, f = 0; a < q; a++) {
+            for (int c = 0; c < a; c++) F[f++] = A[a + (int64_t)q * c];
+            F[f++] = 1.0 / A[a + (int64_t)q * a];
+        }
+    }
+fail:
+    wt_free(ctx, gid);
+    wt_free(ctx, a_off);
+    wt_free(ctx, gq);
+    wt_free(ctx, acc);
+    wt_free(ctx, buf);
+    return st;
+}
+
+/* z[b's unknowns] = B_b⁻¹ r[b's unknowns] for the blocks [b0, b1) */
+WT_CPU_CLONES static void layer_blocks_apply(const wt_precond *p, const double *r, double *z, int64_t b0, int64_t b1)
+{
+    for (int64_t b = b0; b < b1; b++) {
+        const int64_t *idx = p->b_idx + p->b_start[b];
+        const int q = (int)(p->b_start[b + 1] - p->b_start[b]);
+        const double *F = p->b_L + p->b_fac[b];
+        double w[WT_MAX_LAYERS];
+        for (int a = 0, f = 0; a < q; a++) { /* forward: L y = r */
+            double v = r[idx[a]];
+            for (int c = 0; c < a; c++) v -= F[f++] * w[c];
+            w[a] = v * F[f++];
+        }
+        for (int a = q - 1; a >= 0; a--) { /* backward: Lᵀ x = y, row a of L is column a of Lᵀ */
+            const double *row = F + (int64_t)a * (a + 1) / 2;
+            const double v = (w[a] *= row[a]);
+            for (int c = 0; c < a; c++) w[c] -= row[c] * v;
+        }
+        for (int a = 0; a < q; a++) z[idx[a]] = w[a];
+    }
+}
+
+/* z = B⁻¹ r on one thread: J⁻¹ (coarse_ngs, jacobi_ngs) or the layer blocks (multilevel) below the coarse
+ * block's exact solve */
+static void coarse_apply(const wt_precond *p, const double *r, double *z)
+{
+    if (p->nb > 0) layer_blocks_apply(p, r, z, 0, p->nb);
+    else
+        for (int64_t i = 0; i < p->n; i++) z[i] = p->jinv[i] * r[i];
+    coarse_solve(p, r, z);
 }
 
 /* ---- NGS low-rank correction --------------------------------------------------------------------
@@ -374,7 +673,23 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
 #else
         const int nt = 1, id = 0;
 #endif
-        if (p->nc > 0) {
+        if (p->nb > 0) {
+            /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them, the
+             * dots' chunks split (each block's solve and each chunk sum does not depend on the thread that
+             * runs it: the same bits on any thread count) */
+#pragma omp single nowait
+            coarse_solve(p, r, z);
+#pragma omp for schedule(dynamic, 1) nowait
+            for (int c = 0; c < 64; c++) layer_blocks_apply(p, r, z, p->nb * c / 64, p->nb * (c + 1) / 64);
+            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
+                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
+#pragma omp barrier
+#pragma omp single
+            {
+                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
+                lowrank_solve(p, p->lr_w);
+            }
+        } else if (p->nc > 0) {
             if (id == 0) coarse_apply(p, r, z);
             if (id == (nt > 1 ? 1 : 0)) {
                 wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, 0, WT_VEC_CHUNKS, p->lr_part);
@@ -463,14 +778,19 @@ int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params 
     *out = NULL;
     if (!wt_precond_kind_name(par->kind))
         return WT_ERROR(ctx, WT_ERR_INVALID, "preconditioner kind %d: expected 0..%d (none, jacobi, jacobi_ngs, "
-                        "coarse_ngs)", par->kind, WT_PRECOND_NKINDS - 1);
+                        "coarse_ngs, multilevel)", par->kind, WT_PRECOND_NKINDS - 1);
     WT_ALLOC(ctx, p, 1, "preconditioner");
     p->ctx = ctx;
     p->kind = par->kind;
     p->n = wt_tomography_nunknowns(t);
     p->nthreads = wt_tomography_threads(t);
     if (p->kind != WT_PRECOND_NONE) WT_TRY(compute_jacobi(p, t));
-    if (p->kind == WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind >= WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind == WT_PRECOND_MULTILEVEL) {
+        int sc[WT_MAX_LAYERS];
+        for (int l = 0; l < wt_tomography_nlayers(t); l++) sc[l] = coarse_side(t, l, par->coarse_levels);
+        WT_TRY(compute_layer_blocks(p, t, sc));
+    }
     if (p->kind >= WT_PRECOND_JACOBI_NGS) WT_TRY(compute_lowrank(p, t));
     *out = p;
     return WT_OK;
@@ -492,6 +812,10 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->c_idx);
     wt_free(ctx, p->c_L);
     wt_free(ctx, p->c_w);
+    wt_free(ctx, p->b_start);
+    wt_free(ctx, p->b_fac);
+    wt_free(ctx, p->b_idx);
+    wt_free(ctx, p->b_L);
     wt_free(ctx, p);
 }
 
@@ -518,10 +842,32 @@ const char *wt_precond_name(const wt_precond *p) { return kind_names[p->kind]; }
 const double *wt_precond_jacobi_inverse(const wt_precond *p) { return p->jinv; }
 int wt_precond_rank(const wt_precond *p) { return p->nlr; }
 int wt_precond_coarse_size(const wt_precond *p) { return p->nc; }
+int64_t wt_precond_nblocks(const wt_precond *p) { return p->nb; }
+
+int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block)
+{
+    if (b < 0 || b >= p->nb) return -1;
+    const int q = (int)(p->b_start[b + 1] - p->b_start[b]);
+    const double *F = p->b_L + p->b_fac[b];
+    if (idx)
+        for (int a = 0; a < q; a++) idx[a] = p->b_idx[p->b_start[b] + a];
+    if (block) /* (L Lᵀ)_ac = Σ_k≤min(a,c) L_ak L_ck, L_aa = 1 / the stored last entry of row a */
+        for (int a = 0; a < q; a++)
+            for (int c = 0; c < q; c++) {
+                const double *ra = F + (int64_t)a * (a + 1) / 2, *rc = F + (int64_t)c * (c + 1) / 2;
+                const int k1 = a < c ? a : c;
+                double v = 0.0;
+                for (int k = 0; k <= k1; k++)
+                    v += (k == a ? 1.0 / ra[a] : ra[k]) * (k == c ? 1.0 / rc[c] : rc[k]);
+                block[a + (int64_t)q * c] = v;
+            }
+    return q;
+}
 
 double wt_precond_bytes(const wt_precond *p)
 {
     if (!p) return 0.0;
     return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + p->nlr) + 8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) +
-           16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2);
+           16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
+           (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0);
 }

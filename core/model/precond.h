@@ -6,6 +6,10 @@
  *   jacobi_ngs  P = J + G Ĉ⁻¹_NGS Gᵀ                     plus the exact rank-r NGS term (Woodbury)
  *   coarse_ngs  P = B + G Ĉ⁻¹_NGS Gᵀ                     B = J with the coarse wavelet coefficients of all
  *                                                       layers as one exact block of the LGS + prior part of M
+ *   multilevel  P = B_ml + G Ĉ⁻¹_NGS Gᵀ                  B_ml = coarse_ngs's exact coarse block, and below it,
+ *                                                       per detail level, orientation and position, the
+ *                                                       L x L block of the L layers' coefficients there
+ *                                                       (docs/design.md "Multilevel preconditioner")
  *
  * where G = [Ãᵀ e_k] over the r NGS slopes. Every kind is symmetric positive definite; the PCG applies
  * z = P⁻¹ r. The preconditioner is built from a finished tomography through its public operators (the
@@ -23,25 +27,27 @@
 #include "tomography.h"
 
 /* The kinds, in the order of the configuration's recon.<variant>.preconditioner list
- * ("none|jacobi|jacobi_ngs|coarse_ngs": the value wt_recon_variant_config.preconditioner holds). */
+ * ("none|jacobi|jacobi_ngs|coarse_ngs|multilevel": the value wt_recon_variant_config.preconditioner holds). */
 enum { WT_PRECOND_NONE = 0, WT_PRECOND_JACOBI = 1, WT_PRECOND_JACOBI_NGS = 2, WT_PRECOND_COARSE_NGS = 3,
-       WT_PRECOND_NKINDS = 4 };
+       WT_PRECOND_MULTILEVEL = 4, WT_PRECOND_NKINDS = 5 };
 
 typedef struct wt_precond wt_precond;
 
 typedef struct wt_precond_params {
     int kind;          /* WT_PRECOND_* */
-    int coarse_levels; /* coarse_ngs: detail levels in the block besides the scaling coefficients [-] */
+    int coarse_levels; /* coarse_ngs, multilevel: detail levels in the coarse block besides the scaling
+                          coefficients [-] */
 } wt_precond_params;
 
-/* "none", "jacobi", "jacobi_ngs", "coarse_ngs"; NULL for an unknown kind. */
+/* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel"; NULL for an unknown kind. */
 const char *wt_precond_kind_name(int kind);
 /* The kind of a name, -1 for anything else. */
 int wt_precond_kind(const char *name);
 
 /* Build the preconditioner of kind par->kind for the tomography t (not owned; must outlive the object).
  * Cost at E-ELT size: jacobi ~1 s (coloured probing), the NGS term r applies of the adjoint, coarse_ngs
- * nc applies of M (3-10 s for nc = 384). WT_ERR_INVALID for an unknown kind, WT_ERR_CONFIG when the
+ * nc applies of M (3-10 s for nc = 384), multilevel that and L forward applies per colour of every
+ * detail level below the coarse block (~the cost of the Jacobi probing). WT_ERR_INVALID for an unknown kind, WT_ERR_CONFIG when the
  * coarse block would exceed 4096 coefficients, WT_ERR_NUMERIC when a block is not positive definite. */
 int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out);
 void wt_precond_free(wt_precond *p);
@@ -58,9 +64,15 @@ int wt_precond_kind_of(const wt_precond *p);
 const char *wt_precond_name(const wt_precond *p);
 /* J⁻¹ (n values), the inverse modified Jacobi diagonal every kind but none is built on; NULL for none. */
 const double *wt_precond_jacobi_inverse(const wt_precond *p);
-/* Sizes of the parts: the rank r of the NGS term (0: none) and the coefficients of the coarse block. */
+/* Sizes of the parts: the rank r of the NGS term (0: none), the coefficients of the coarse block, and the
+ * multilevel kind's layer blocks (0 for the other kinds). */
 int wt_precond_rank(const wt_precond *p);
 int wt_precond_coarse_size(const wt_precond *p);
+int64_t wt_precond_nblocks(const wt_precond *p);
+/* Block b of the multilevel kind (0 <= b < wt_precond_nblocks): its size q (<= the layers), and when idx /
+ * block are not NULL, its q unknowns' indices (increasing) and the q x q block of B_ml it inverts (column-
+ * major; the lower triangle of L Lᵀ, recomputed from the stored factor). For tests; -1 for a bad b. */
+int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block);
 /* Bytes the object holds (for reports); p = NULL gives 0. */
 double wt_precond_bytes(const wt_precond *p);
 
