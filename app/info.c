@@ -100,7 +100,9 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
             wt_tomography_free(t);
             return;
         }
-        printf("  fitting over %d directions, Tikhonov epsilon %.3g (relative %g), %s\n", sys->neval,
+        printf("  fitting over %d directions, sampled %s %.3g m (recon.cg9.fit_points_per_subaperture %d), Tikhonov "
+               "epsilon %.3g (relative %g), %s\n", sys->neval, v->fit_sampling == 1 ? "at the Fried corners," : "every",
+               sys->d / v->fit_sampling, v->fit_sampling,
                wt_fitting_epsilon(f), v->fit_regularization,
                v->fit_solver == WT_FIT_CHOLESKY ? (v->fit_factor_precision ? "Cholesky (factor read in fp32)"
                                                                             : "Cholesky (factor read in fp64)")

@@ -23,10 +23,11 @@ static void help(void)
            "Error budget of the residual over the field (mean over the evaluation directions, frames after\n"
            "the settle period), each term measured by runs on the same seed that remove one cause: fitting\n"
            "(the DMs fitted to the true turbulence, no sensors), tomography + aliasing + model error (open\n"
-           "loop, noise-free, no delay), noise (open loop and closed loop), servo lag (closed vs open loop),\n"
-           "tip-tilt and pupil rim (outer 1 m) of the closed loop, and the total (closed loop with noise),\n"
+           "loop, noise-free, no delay), noise (open loop and closed loop), servo lag (closed loop with exact\n"
+           "POLC vs open loop), the POLC model error (the model's interaction vs exact POLC), tip-tilt and\n"
+           "pupil rim (outer 1 m) of the closed loop, and the total (closed loop with noise),\n"
            "with the analytic estimates and a quadrature closure check. Writes DIR/results.h5,\n"
-           "DIR/report.md and DIR/budget.png. Per method: 5 runs (2 without noise), plus one fitting run.\n"
+           "DIR/report.md and DIR/budget.png. Per method: 6 runs (3 without noise), plus one fitting run.\n"
            "\n"
            "  --recon LIST   comma-separated, from cg9, pcg3, mvm (default cg9); mvm is built or read from\n"
            "                 DIR/cache/ as `wavetomo compare` does\n"
@@ -114,14 +115,14 @@ static int write_h5(wt_cli *cli, const budget_args *a, const wt_config *cfg, con
     return st;
 }
 
-/* Issue 10, C: per method 5 closed/open-loop runs and one fitting run (an MVM adds its build); -1: go on. */
+/* Issue 10, C: per method 6 closed/open-loop runs and one fitting run (an MVM adds its build); -1: go on. */
 static int estimate(wt_cli *cli, const budget_args *a, const wt_config *cfg)
 {
     wt_estimate total = {0}, e;
     for (int m = 0; m < a->nm; m++) {
         int kind = wt_reconstructor_kind(a->methods[m]);
         wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames}, &e);
-        e.seconds *= 6.0;
+        e.seconds *= 7.0;
         wt_estimate_add(&total, &e);
         if (kind != WT_RECON_MVM) continue;
         wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0}, &e);

@@ -993,6 +993,58 @@ START_TEST(test_auto_sensor_points)
 }
 END_TEST
 
+/* recon.cg9.fit_points_per_subaperture left out (the presets): the fewest q with d/q no coarser than half the
+ * finer of the finest cg9 layer and the finest DM pitch: 2 on the E-ELT and the demo (0.5 m layers and DM,
+ * d = 0.5 m), 4 on the 42x42 preset (0.5 m layers, 1 m DM, d = 1 m), 2 there with 1 m layers (min(1, 1)/2 =
+ * 0.5 m), 8 with 0.25 m layers (1 / (0.5 · 0.25)); written into the canonical text
+ * (same hash as the value given explicitly); an explicit value is kept; bad values are refused naming the key. */
+START_TEST(test_auto_fit_points)
+{
+    wt_context *ctx = tu_context();
+    const char *presets[] = {"eelt-mcao.cfg", "eelt-mcao-nea20.cfg", "demo.cfg", "eelt-mcao-nea20-42.cfg"};
+    const int want[] = {2, 2, 2, 4};
+    for (int i = 0; i < 4; i++) {
+        wt_config *a = read_ok(ctx, presets[i], 0, NULL);
+        ck_assert_msg(a->cg9.fit_sampling == want[i], "%s: %d", presets[i], a->cg9.fit_sampling);
+        wt_config_free(ctx, a);
+    }
+    const char *metre[] = {"recon.cg9.layer_oversampling=1.0"};
+    wt_config *a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, metre);
+    ck_assert_int_eq(a->cg9.fit_sampling, 2);
+    wt_config_free(ctx, a);
+    const char *quarter[] = {"recon.cg9.layer_oversampling=4.0"};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, quarter);
+    ck_assert_int_eq(a->cg9.fit_sampling, 8);
+    wt_config_free(ctx, a);
+    const char *four[] = {"recon.cg9.fit_points_per_subaperture=4"};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 0, NULL);
+    wt_config *e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, four);
+    ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+    ck_assert_str_eq(a->canonical, e->canonical);
+    wt_config_free(ctx, e);
+    const char *two[] = {"recon.cg9.fit_points_per_subaperture=2"};
+    e = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, two);
+    ck_assert_int_eq(e->cg9.fit_sampling, 2);
+    ck_assert_str_ne(a->canonical, e->canonical);
+    wt_config_free(ctx, e);
+    wt_config_free(ctx, a);
+    const char *word[] = {"recon.cg9.fit_points_per_subaperture=\"auto\""};
+    a = read_ok(ctx, "eelt-mcao-nea20-42.cfg", 1, word);
+    ck_assert_int_eq(a->cg9.fit_sampling, 4);
+    wt_config_free(ctx, a);
+    const char *bad[] = {"recon.cg9.fit_points_per_subaperture=\"many\"", "recon.cg9.fit_points_per_subaperture=0",
+                         "recon.cg9.fit_points_per_subaperture=17"};
+    for (int i = 0; i < 3; i++) {
+        wt_config *x = NULL;
+        ck_assert_int_eq(read_preset(ctx, "eelt-mcao-nea20-42.cfg", 1, &bad[i], &x), WT_ERR_CONFIG);
+        ck_assert_ptr_null(x);
+        ck_assert_msg(strstr(wt_error_message(ctx), "recon.cg9.fit_points_per_subaperture"), "%s: %s", bad[i],
+                      wt_error_message(ctx));
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_auto_grid_combinations)
 {
     wt_context *ctx = tu_context();
@@ -1099,6 +1151,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_auto_grid_oversampling);
     tcase_add_test(tc, test_auto_grid_combinations);
     tcase_add_test(tc, test_auto_sensor_points);
+    tcase_add_test(tc, test_auto_fit_points);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);
     return s;

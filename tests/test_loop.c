@@ -280,6 +280,54 @@ START_TEST(test_prior_aliasing_finest_level)
 }
 END_TEST
 
+/* The budget's exact POLC (wt_loop_options.true_polc): the pseudo-open-loop slopes s − S(−H a) of a closed loop
+ * are the truth sensors' slopes of the turbulence alone, S(φ), because S is linear: frame by frame they equal the
+ * slopes an open loop on the same seed measures, to rounding (each slope is a sum of ~(p+1)² weighted differences
+ * of OPD values of the size of φ and of the DM shape: n u ≈ 1e-14 of the slopes' scale; 1e-10 allows for both
+ * maps). The model's POLC s + Â a differs from S(φ) by Â's model error, far above that (it would pass the same
+ * comparison only if the option did nothing). An open loop with the option is refused. */
+START_TEST(test_exact_polc)
+{
+    const char *set[] = {"sim.noise=false", "loop.frames=12", "evaluation.settle_frames=2"};
+    wt_context *ctx = tu_context();
+    wt_config *cfg;
+    wt_system *sys;
+    ck_assert_msg(wt_config_read(ctx, DEMO, 3, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+    wt_loop *ol, *cl, *cm, *bad = NULL;
+    wt_loop_options oo = {.recon = WT_RECON_CG9, .iterations = -1, .seed = cfg->seed, .open_loop = 1};
+    wt_loop_options oc = {.recon = WT_RECON_CG9, .iterations = -1, .seed = cfg->seed, .true_polc = 1};
+    wt_loop_options om = {.recon = WT_RECON_CG9, .iterations = -1, .seed = cfg->seed};
+    ck_assert_msg(wt_loop_alloc(ctx, sys, &oo, &ol) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_loop_alloc(ctx, sys, &oc, &cl) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_loop_alloc(ctx, sys, &om, &cm) == WT_OK, "%s", wt_error_message(ctx));
+    double worst = 0.0, model = 0.0;
+    for (int t = 0; t < cfg->frames; t++) {
+        ck_assert(wt_loop_step(ol) == WT_OK && wt_loop_step(cl) == WT_OK && wt_loop_step(cm) == WT_OK);
+        const double *s = wt_loop_slopes(ol), *e = wt_loop_slopes_ol(cl), *m = wt_loop_slopes_ol(cm);
+        double smax = 0.0, amax = 0.0, d = 0.0, dm = 0.0;
+        for (int64_t k = 0; k < sys->nslopes; k++) smax = fmax(smax, fabs(s[k]));
+        for (int64_t k = 0; k < sys->nact; k++) amax = fmax(amax, fabs(wt_loop_applied(cl)[k]));
+        if (t >= 3) ck_assert_msg(amax > 0.0, "frame %d: the DMs are still flat", t);
+        for (int64_t k = 0; k < sys->nslopes; k++) d = fmax(d, fabs(e[k] - s[k])), dm = fmax(dm, fabs(m[k] - s[k]));
+        worst = fmax(worst, d / smax);
+        if (t >= 3) model = fmax(model, dm / smax);
+    }
+    ck_assert_msg(worst <= 1e-10, "exact POLC: largest difference from the open loop's slopes %g of the slopes' scale", worst);
+    ck_assert_msg(model > 1e-4, "the model's POLC equals the truth's to %g: the comparison shows nothing", model);
+    wt_loop_options ob = oo;
+    ob.true_polc = 1;
+    ck_assert(wt_loop_alloc(ctx, sys, &ob, &bad) == WT_ERR_INVALID && bad == NULL);
+    ck_assert(strstr(wt_error_message(ctx), "true_polc") != NULL);
+    wt_loop_free(ol);
+    wt_loop_free(cl);
+    wt_loop_free(cm);
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* E-ELT size, a few frames: sizes and finite Strehl values in [0, 1]. */
 START_TEST(test_eelt_smoke)
 {
@@ -323,6 +371,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_noise_covariance_matches_model);
     tcase_add_test(tc, test_prior_matches_simulated_screens);
     tcase_add_test(tc, test_prior_aliasing_finest_level);
+    tcase_add_test(tc, test_exact_polc);
     tcase_add_test(tc, test_eelt_smoke);
     suite_add_tcase(s, tc);
     return s;

@@ -664,6 +664,32 @@ static int resolve_sensor_points(pstate *ps, wt_config *cfg)
     return WT_OK;
 }
 
+/* recon.cg9.fit_points_per_subaperture left out (or "auto"): the smallest q with d/q ≤ half the finer of the
+ * finest cg9 layer spacing and the finest DM pitch (within the 15 digits of the canonical text), at most the
+ * schema's 16: two samples per cell of the finest grid the fit reads or writes, so that the sampled least
+ * squares ‖H a − P φ‖² approaches the integral over the pupil (docs/results.md §18); written into the
+ * canonical text like the automatic grids. The E-ELT and demo presets: q = 2, the 42x42 preset: q = 4. */
+static int resolve_fit_points(pstate *ps, wt_config *cfg)
+{
+    const int k = find_key("recon.cg9.fit_points_per_subaperture");
+    if (ps->set[k]) return WT_OK;
+    double fine = INFINITY;
+    for (int i = 0; i < cfg->cg9.nlayers; i++) fine = fmin(fine, cfg->cg9.spacing[i]);
+    for (int i = 0; i < cfg->ndms; i++) fine = fmin(fine, cfg->dm_pitch[i]);
+    const double d = cfg->diameter / cfg->lgs_wfs.subapertures;
+    int q = isfinite(fine) ? (int)ceil(d / (0.5 * fine) * (1.0 - 1e-12)) : 2;
+    cfg->cg9.fit_sampling = q < 1 ? 1 : q > 16 ? 16 : q;
+    const char *leaf;
+    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
+    if (!s || !config_setting_set_int(s, cfg->cg9.fit_sampling))
+        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                        wt_config_priv_keys[k].path);
+    ps->set[k] = s;
+    return WT_OK;
+}
+
 /* lgs.sodium_profile_sha256 left out (or "auto") for a diffractive LGS with a profile file: the SHA-256 of
  * the file's bytes, written into the canonical text so that the matrix hash follows the profile's contents
  * (an MVM built with one profile is refused after the file changes). A file that cannot be hashed here
@@ -753,6 +779,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
+    if ((st = resolve_fit_points(ps, cfg)) < 0) return st;
     if ((st = resolve_sodium_sha256(ps, cfg)) < 0) return st;
     if ((st = check_gain_levels(ps, cfg)) < 0) return st;
 

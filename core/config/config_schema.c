@@ -264,9 +264,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
     KF("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
-    {"recon.cg9.fit_points_per_subaperture", K_INT, F_DEFAULT, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
+    {"recon.cg9.fit_points_per_subaperture", K_INT, F_AUTO, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
      "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
-     "q > 1 = every point of the d/q grid inside the pupil (optional, default 2)"},
+     "q > 1 = every point of the d/q grid inside the pupil; when left out (or \"auto\") the smallest q with d/q "
+     "no coarser than half the finer of the finest cg9 layer spacing and the finest DM pitch (a fit sampled "
+     "coarser leaves the DMs free between its points: docs/results.md §18)"},
     {"recon.cg9.fit_solver", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(cg9.fit_solver), NOCOUNT, 0, 0, "cg|cholesky", 1,
      "solver of the fitting's normal equations: cg = fit_iterations warm-started CG iterations per frame, "
      "cholesky = the normal matrix assembled and factored once (CHOLMOD) at set-up, a frame the right-hand side "

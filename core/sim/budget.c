@@ -14,20 +14,22 @@
 #include "loop.h"
 
 const char *const wt_budget_term_names[WT_BUDGET_NTERMS] = {
-    "fitting", "tomography", "noise_ol", "noise_cl", "servo", "tiptilt", "rim", "interior", "total"};
+    "fitting", "tomography", "noise_ol", "noise_cl", "servo", "polc", "tiptilt", "rim", "interior", "total"};
 const char *const wt_budget_term_desc[WT_BUDGET_NTERMS] = {
     "fitting: DMs fitted to the true turbulence over the evaluation directions (no sensors)",
     "tomography + aliasing + model error: open loop on noise-free slopes, minus fitting in quadrature",
     "noise propagation, open loop: open loop with noise minus without, in quadrature",
     "noise propagation, closed loop: closed loop with noise minus without, in quadrature",
-    "servo lag: closed loop minus instantaneous open loop (noise-free), in quadrature",
+    "servo lag: closed loop with exact POLC (the truth sensors' slopes of the DM shapes) minus instantaneous open loop (noise-free), in quadrature",
+    "POLC model error: closed loop with the model's interaction Â minus with exact POLC (noise-free), in quadrature",
     "tip-tilt part of the closed-loop residual (with noise)",
     "closed-loop residual in the outer annulus of the pupil (its part of total^2)",
     "closed-loop residual inside the annulus (rim^2 + interior^2 = total^2)",
     "total: closed loop with noise (as `wavetomo sim`)"};
 const char *const wt_budget_run_names[WT_BUDGET_NRUNS] = {"fitting",          "open_loop_noise_free",
                                                           "open_loop",        "closed_loop_noise_free",
-                                                          "closed_loop",      "noise_only"};
+                                                          "closed_loop",      "noise_only",
+                                                          "closed_loop_noise_free_exact_polc"};
 
 void wt_budget_options_default(wt_budget_options *o, uint64_t seed)
 {
@@ -249,7 +251,18 @@ static int run_loop(wt_context *ctx, const wt_system *sys, const wt_loop_options
     return st;
 }
 
-int wt_budget_nruns(const wt_system *sys, int nmethods) { return 1 + nmethods * (sys->cfg->noise ? 5 : 2); }
+/* The exact-POLC run needs geometric truth sensors (core/sim/loop.h true_polc). */
+static int exact_polc(const wt_system *sys)
+{
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].diffr) return 0;
+    return 1;
+}
+
+int wt_budget_nruns(const wt_system *sys, int nmethods)
+{
+    return 1 + nmethods * ((sys->cfg->noise ? 5 : 2) + exact_polc(sys));
+}
 
 /* sign(a − b) √|a − b| of two rms values [m] → nm */
 static double quad_diff(double a, double b)
@@ -296,22 +309,25 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->run[WT_BUDGET_RUN_FIT] = fit;
         const char *name = wt_reconstructor_name(recon[m]);
         wt_loop_options base = {.recon = recon[m], .mvm = mvm ? mvm[m] : NULL, .iterations = -1, .seed = opt->seed};
-        struct { int run, open, noise, turb; const char *what; } plan[] = {
-            {WT_BUDGET_RUN_OL_NF, 1, 0, 1, "open loop, noise-free"},
-            {WT_BUDGET_RUN_OL, 1, 1, 1, "open loop, noise"},
-            {WT_BUDGET_RUN_NOISE, 1, 1, 0, "pure noise"},
-            {WT_BUDGET_RUN_CL_NF, 0, 0, 1, "closed loop, noise-free"},
-            {WT_BUDGET_RUN_CL, 0, 1, 1, "closed loop, noise"}};
+        struct { int run, open, noise, turb, polc; const char *what; } plan[] = {
+            {WT_BUDGET_RUN_OL_NF, 1, 0, 1, 0, "open loop, noise-free"},
+            {WT_BUDGET_RUN_OL, 1, 1, 1, 0, "open loop, noise"},
+            {WT_BUDGET_RUN_NOISE, 1, 1, 0, 0, "pure noise"},
+            {WT_BUDGET_RUN_CL_NF, 0, 0, 1, 0, "closed loop, noise-free"},
+            {WT_BUDGET_RUN_CL_NF_POLC, 0, 0, 1, 1, "closed loop, noise-free, exact POLC"},
+            {WT_BUDGET_RUN_CL, 0, 1, 1, 0, "closed loop, noise"}};
         for (size_t k = 0; k < sizeof plan / sizeof plan[0]; k++) {
             if (plan[k].noise && !cfg->noise) continue; /* filled from the noise-free runs below */
+            if (plan[k].polc && !exact_polc(sys)) continue;
             wt_loop_options lo = base;
             /* the pure-noise run keeps the flat open loop: without turbulence the sensors see a flat
              * wavefront either way. The pseudo-open loop carries its state from frame 0. */
-            const int polc = plan[k].open && plan[k].turb && olmode == WT_LOOP_OPEN_POLC;
-            lo.open_loop = !plan[k].open ? WT_LOOP_CLOSED : polc ? WT_LOOP_OPEN_POLC : WT_LOOP_OPEN_FLAT;
+            const int pseudo = plan[k].open && plan[k].turb && olmode == WT_LOOP_OPEN_POLC;
+            lo.open_loop = !plan[k].open ? WT_LOOP_CLOSED : pseudo ? WT_LOOP_OPEN_POLC : WT_LOOP_OPEN_FLAT;
             lo.noise = plan[k].noise;
             lo.no_turbulence = !plan[k].turb;
-            lo.first_frame = plan[k].open && !polc ? (plan[k].turb ? first : settle) : 0;
+            lo.true_polc = plan[k].polc;
+            lo.first_frame = plan[k].open && !pseudo ? (plan[k].turb ? first : settle) : 0;
             long last = plan[k].turb ? frames : settle + opt->noise_draws;
             snprintf(label, sizeof label, "%s: %s", name, plan[k].what);
             if ((st = run_loop(ctx, sys, &lo, lo.first_frame, last, label, &ps, &r->run[plan[k].run])) < 0) return st;
@@ -325,7 +341,13 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->term[WT_BUDGET_TOMOGRAPHY] = quad_diff(R[WT_BUDGET_RUN_OL_NF].wfe, R[WT_BUDGET_RUN_FIT].wfe);
         r->term[WT_BUDGET_NOISE_OL] = quad_diff(R[WT_BUDGET_RUN_OL].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
         r->term[WT_BUDGET_NOISE_CL] = quad_diff(R[WT_BUDGET_RUN_CL].wfe, R[WT_BUDGET_RUN_CL_NF].wfe);
-        r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+        if (exact_polc(sys)) {
+            r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+            r->term[WT_BUDGET_POLC] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_CL_NF_POLC].wfe);
+        } else {
+            r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+            r->term[WT_BUDGET_POLC] = NAN;
+        }
         r->term[WT_BUDGET_TIPTILT] = R[WT_BUDGET_RUN_CL].tiptilt * 1e9;
         r->term[WT_BUDGET_RIM] = R[WT_BUDGET_RUN_CL].rim * 1e9;
         r->term[WT_BUDGET_INTERIOR] = quad_diff(R[WT_BUDGET_RUN_CL].wfe, R[WT_BUDGET_RUN_CL].rim);
@@ -341,7 +363,8 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->fitting_ground = wt_budget_fitting_analytic(cfg, 0.23, 1);
         r->servo_band = servo_band;
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +
-                    signed_square(r->term[WT_BUDGET_SERVO]) + signed_square(r->term[WT_BUDGET_NOISE_OL]) * gain_n;
+                    signed_square(r->term[WT_BUDGET_SERVO]) + (isfinite(r->term[WT_BUDGET_POLC]) ? signed_square(r->term[WT_BUDGET_POLC]) : 0.0) +
+                    signed_square(r->term[WT_BUDGET_NOISE_OL]) * gain_n;
         r->sum = copysign(sqrt(fabs(s2)), s2);
         r->closure = r->term[WT_BUDGET_TOTAL] > 0.0 ? r->sum / r->term[WT_BUDGET_TOTAL] - 1.0 : 0.0;
     }
@@ -393,7 +416,7 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     for (int k = 0; k < WT_BUDGET_NTERMS; k++) fprintf(f, "- **%s**: %s.\n", wt_budget_term_names[k], wt_budget_term_desc[k]);
     const double gn = wt_budget_noise_gain(cfg->gain, cfg->delay);
     fprintf(f, "\nA negative quadrature difference means the removed cause helped (the run without it is worse).\n\n"
-               "**Closure**: fitting² + tomography² + servo² + noise_OL² × Σh² (the integrator's noise gain, %.3f here; "
+               "**Closure**: fitting² + tomography² + servo² + polc² + noise_OL² × Σh² (the integrator's noise gain, %.3f here; "
                "g/(2−g) = %.3f would hold for delay 1) against total², tolerance ±%.0f %% in nm:\n\n",
             gn, cfg->gain / (2.0 - cfg->gain), 100.0 * WT_BUDGET_CLOSURE_TOL);
     for (int m = 0; m < nmethods; m++) {
@@ -425,6 +448,7 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     for (int m = 0; m < nmethods; m++) fprintf(f, "---|");
     fprintf(f, "\n");
     for (int k = 0; k < WT_BUDGET_NRUNS; k++) {
+        if (k == WT_BUDGET_RUN_CL_NF_POLC && !isfinite(r0->term[WT_BUDGET_POLC])) continue; /* not run */
         fprintf(f, "| %s |", wt_budget_run_names[k]);
         for (int m = 0; m < nmethods; m++) {
             const wt_budget_run *u = &res[m].run[k];

@@ -10,12 +10,17 @@
  *                term keeps the centroiders in their linear range (core/sim/loop.h WT_LOOP_OPEN_POLC)
  *   noise (OL)   σ²_OL − σ²_OL,nf: the same open loop with noise
  *   noise (CL)   σ²_CL − σ²_CL,nf: the closed loop with noise minus without
- *   servo        σ²_CL,nf − σ²_OL,nf: the closed loop (delay, integrator) minus the instantaneous one
+ *   servo        σ²_CL,nf,S − σ²_OL,nf: the closed loop (delay, integrator) whose pseudo-open-loop slopes add
+ *                the truth sensors' own measurement of the applied DM shapes (exact POLC: its reconstructor
+ *                sees the turbulence's slopes, as the open loop does) minus the instantaneous open loop
+ *   polc         σ²_CL,nf − σ²_CL,nf,S: the POLC model error, the model's Â a in place of the truth sensors'
+ *                slopes of the DM shapes (servo² + polc² = σ²_CL,nf − σ²_OL,nf). Diffractive sensors have
+ *                no exact POLC run: their servo is σ²_CL,nf − σ²_OL,nf and polc is NaN
  *   tip-tilt     the tip/tilt part of the closed loop's residual (least-squares plane per direction)
  *   rim/interior the residual variance in the outer annulus of width w (1 m) / inside it; they add to σ²_CL
  *   total        σ²_CL: the closed loop with noise (what `wavetomo sim` gives)
  * A term given as a quadrature difference is sign(Δ) √|Δ| (negative: the "removed" cause helped).
- * Closure: fitting² + tomography² + servo² + noise_OL² · Σh² against total² (the open-loop noise through
+ * Closure: fitting² + tomography² + servo² + polc² + noise_OL² · Σh² against total² (the open-loop noise through
  * the integrator's noise gain; the closed-loop noise itself would make the sum telescope exactly).
  *
  * Analytic estimates [nm at any λ, computed at the evaluation wavelength λ, r0_λ = r0 (λ/500 nm)^(6/5)]:
@@ -45,6 +50,7 @@ enum {
     WT_BUDGET_NOISE_OL,
     WT_BUDGET_NOISE_CL,
     WT_BUDGET_SERVO,
+    WT_BUDGET_POLC,
     WT_BUDGET_TIPTILT,
     WT_BUDGET_RIM,
     WT_BUDGET_INTERIOR,
@@ -57,7 +63,7 @@ extern const char *const wt_budget_term_desc[WT_BUDGET_NTERMS];
 
 /* The runs of one method (and the shared fitting run), field values of frames ≥ settle [m]. */
 enum { WT_BUDGET_RUN_FIT, WT_BUDGET_RUN_OL_NF, WT_BUDGET_RUN_OL, WT_BUDGET_RUN_CL_NF, WT_BUDGET_RUN_CL,
-       WT_BUDGET_RUN_NOISE, WT_BUDGET_NRUNS };
+       WT_BUDGET_RUN_NOISE, WT_BUDGET_RUN_CL_NF_POLC, WT_BUDGET_NRUNS };
 extern const char *const wt_budget_run_names[WT_BUDGET_NRUNS];
 
 typedef struct wt_budget_run {

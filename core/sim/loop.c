@@ -54,6 +54,8 @@ struct wt_loop {
     wt_loop_times times;
     wt_fitting *fit;              /* perfect_fit: the fitting of given maps */
     double *maps;                 /* perfect_fit: true OPD along each evaluation direction on its samples */
+    double *dm_opd;               /* true_polc: per sensor, −(the DM shapes along its line of sight) (nsensors x nfine) */
+    double *s_dm;                 /* true_polc: the truth sensors' slopes of dm_opd (nslopes) */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -262,6 +264,16 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
                       opt->first_frame, opt->perfect_fit, opt->open_loop);
         goto fail;
     }
+    if (opt->true_polc) {
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr || opt->open_loop) {
+                st = WT_ERROR(ctx, WT_ERR_INVALID, "true_polc: a closed loop of geometric sensors only (%s)",
+                              opt->open_loop ? "open loop" : sys->sensors[m].name);
+                goto fail;
+            }
+        WT_ALLOC(ctx, lp->dm_opd, (size_t)sys->nsensors * lp->nfine, "true POLC maps");
+        WT_ALLOC(ctx, lp->s_dm, sys->nslopes, "true POLC slopes");
+    }
     lp->t = opt->first_frame;
     if (opt->perfect_fit > 0) {
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
@@ -313,6 +325,8 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->rms);
     wt_fitting_free(lp->fit);
     wt_free(ctx, lp->maps);
+    wt_free(ctx, lp->dm_opd);
+    wt_free(ctx, lp->s_dm);
     wt_scale_gain_free(lp->sg);
     wt_free(ctx, lp->gerr);
     wt_free(ctx, lp->gwork);
@@ -559,6 +573,13 @@ int wt_loop_step(wt_loop *lp)
         } else {
             const int i = item - ngroups;
             double *o = lp->opd + (size_t)i * nf;
+            if (lp->opt.true_polc) {
+                /* the truth sensor's slopes of −(DM shapes): its own (exact, linear) interaction */
+                double *z = lp->dm_opd + (size_t)i * nf;
+                memset(z, 0, (size_t)nf * sizeof *z);
+                dm_subtract(lp, i, z);
+                wt_wfs_measure(lp->wfs[i], z, lp->s_dm + sys->sensors[i].offset);
+            }
             dm_subtract(lp, i, o);
             sense(lp, i, t, o);
             c_sens += wt_time_now() - a1;
@@ -579,7 +600,10 @@ int wt_loop_step(wt_loop *lp)
 
     /* 4. POLC: s_ol = s + Â a_t;  a_{t+d} = a_{t+d-1} + g (R s_ol − a_t), or G (R s_ol − a_t) */
     memcpy(lp->s_ol, lp->s, (size_t)sys->nslopes * sizeof *lp->s_ol);
-    wt_interaction_apply(lp->ia, 1.0, lp->applied, lp->s_ol);
+    if (lp->opt.true_polc)
+        for (int64_t k = 0; k < sys->nslopes; k++) lp->s_ol[k] -= lp->s_dm[k];
+    else
+        wt_interaction_apply(lp->ia, 1.0, lp->applied, lp->s_ol);
     double t3 = wt_time_now();
     lp->times.control += t3 - t2e;
     st = wt_reconstructor_apply(lp->rec, lp->s_ol, lp->a_rec);

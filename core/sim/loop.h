@@ -53,6 +53,10 @@ typedef struct wt_loop_options {
     int no_turbulence;  /* 1: no atmosphere (the reconstruction of pure noise) */
     long first_frame;   /* open loop: the first frame run (frames before the settle period carry nothing
                          * to later open-loop frames but the warm start) */
+    int true_polc;      /* 1 (closed loop, geometric sensors): POLC adds the truth sensors' measurement of the
+                         * applied DM shapes, s_ol = s − S(−H a), in place of the model's Â a: the pseudo-open-
+                         * loop slopes are then exactly those of the turbulence, so the closed loop differs
+                         * from the open loop by the delay and the integrator only (budget: servo vs POLC) */
 } wt_loop_options;
 
 /* Cumulative wall time per part [s]. */
