@@ -162,6 +162,25 @@ static void probe_block(const wt_tomography *t, int l, int level, int orient, in
 
 /* J⁻¹ = 1 / (diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D), the diagonal by probe_block over every layer, level,
  * orientation and colour (~1 s at E-ELT pcg3 size). */
+/* What the coloured probing of M needs, from the tomography: the colouring's period s (the smallest power of
+ * two ≥ 2N + 2 for Daubechies-N wavelets: probes that far apart do not overlap in M), the largest layer
+ * grid, sensor slope count and wavelet workspace (the per-thread buffers). */
+static void probe_sizes(const wt_tomography *t, int *s, int64_t *maxn2, int64_t *maxsl, int64_t *wsize)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t), N = wt_wavelet_order(wt_tomography_wavelet(t, 0));
+    *s = 1;
+    while (*s < 2 * N + 2) *s *= 2;
+    *maxn2 = *maxsl = *wsize = 0;
+    for (int l = 0; l < L; l++) {
+        if (wt_grid_size(wt_tomography_layer_grid(t, l)) > *maxn2) *maxn2 = wt_grid_size(wt_tomography_layer_grid(t, l));
+        if ((int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l)) > *wsize)
+            *wsize = (int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l));
+    }
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].nslopes > *maxsl) *maxsl = sys->sensors[m].nslopes;
+}
+
 static int compute_jacobi(wt_precond *p, const wt_tomography *t)
 {
     int st = WT_OK;
@@ -171,17 +190,9 @@ static int compute_jacobi(wt_precond *p, const wt_tomography *t)
     const int64_t ncg = wt_grid_size(&sys->sense_grid);
     const double *alpha_d = wt_tomography_alpha_prior(t);
     double *diag = NULL, *buf = NULL;
-    int N = wt_wavelet_order(wt_tomography_wavelet(t, 0));
-    int s = 1;
-    while (s < 2 * N + 2) s *= 2;
-    int64_t maxn2 = 0, maxsl = 0, wsize = 0;
-    for (int l = 0; l < L; l++) {
-        if (wt_grid_size(wt_tomography_layer_grid(t, l)) > maxn2) maxn2 = wt_grid_size(wt_tomography_layer_grid(t, l));
-        if ((int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l)) > wsize)
-            wsize = (int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l));
-    }
-    for (int m = 0; m < sys->nsensors; m++)
-        if (sys->sensors[m].nslopes > maxsl) maxsl = sys->sensors[m].nslopes;
+    int s;
+    int64_t maxn2, maxsl, wsize;
+    probe_sizes(t, &s, &maxn2, &maxsl, &wsize);
     int64_t phn = ncg;
     for (int l = 0; l < L; l++)
         if (2 * wt_tomography_layer_grid(t, l)->nx > phn) phn = 2 * wt_tomography_layer_grid(t, l)->nx;
@@ -514,17 +525,9 @@ static int compute_layer_blocks(wt_precond *p, const wt_tomography *t, const int
     }
 
     /* the probing, block side by block side (the layers' levels pair by side) */
-    int N = wt_wavelet_order(wt_tomography_wavelet(t, 0));
-    int s = 1;
-    while (s < 2 * N + 2) s *= 2;
-    int64_t maxn2 = 0, maxsl = 0, wsize = 0;
-    for (int l = 0; l < L; l++) {
-        if (wt_grid_size(wt_tomography_layer_grid(t, l)) > maxn2) maxn2 = wt_grid_size(wt_tomography_layer_grid(t, l));
-        if ((int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l)) > wsize)
-            wsize = (int64_t)wt_wavelet_work_size(wt_tomography_wavelet(t, l));
-    }
-    for (int m = 0; m < sys->nsensors; m++)
-        if (sys->sensors[m].nslopes > maxsl) maxsl = sys->sensors[m].nslopes;
+    int s;
+    int64_t maxn2, maxsl, wsize;
+    probe_sizes(t, &s, &maxn2, &maxsl, &wsize);
     int64_t phn = ncg > 2 * nmax ? ncg : 2 * nmax;
     const int nth = p->nthreads;
     const int64_t per = maxn2 + wsize + (int64_t)L * maxn2 + phn + 2 * (int64_t)L * maxsl + L;
