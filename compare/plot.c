@@ -472,23 +472,32 @@ int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int
     plschr(0.0, 1.15);
     plcol0(C_FG);
 
-    /* A shaded bar of many thin levels rather than PL_COLORBAR_GRADIENT: the cairo driver of PLplot 5.15
-     * leaks the cairo pattern of every plgradient call. */
+    wt_plot_colour_bar(vmin, vmax, "LE Strehl", 0.0, 0.05, 0.0, 0.05, 1.0);
+    return wt_plot_job_end(&j);
+}
+
+/* A shaded colour bar of cmap1 from vmin to vmax right of the viewport (offset and yoff from it, width x
+ * length in viewport units), labelled, ticks every `tick` (0: PLplot's choice). Many thin levels rather than
+ * PL_COLORBAR_GRADIENT: the cairo driver of PLplot 5.15 leaks the cairo pattern of every plgradient call. */
+void wt_plot_colour_bar(double vmin, double vmax, const char *label, double tick, double offset, double yoff,
+                        double width, double length)
+{
     enum { NLEV = 101 };
     PLFLT levels[NLEV];
     for (int i = 0; i < NLEV; i++) levels[i] = vmin + (vmax - vmin) * i / (NLEV - 1.0);
+    char buf[LABEL_MAX];
     PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
-    const char *labels[1] = {"LE Strehl"};
+    const char *labels[1] = {wt_plot_escape(buf, sizeof buf, label)};
     const char *axis_opts[1] = {"bcvtm"};
-    PLFLT ticks[1] = {0.0};
+    PLFLT ticks[1] = {tick};
     PLINT sub_ticks[1] = {0};
     PLINT n_values[1] = {NLEV};
     const PLFLT *values[1] = {levels};
     PLFLT cw, ch;
-    plcolorbar(&cw, &ch, PL_COLORBAR_SHADE, PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.05, 0.0,
-               0.05, 1.0, C_BG, C_FG, 1, 0.0, 0.0, 0, 0.0, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks,
+    plcol0(C_FG);
+    plcolorbar(&cw, &ch, PL_COLORBAR_SHADE, PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, offset, yoff,
+               width, length, C_BG, C_FG, 1, 0.0, 0.0, 0, 0.0, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks,
                n_values, values);
-    return wt_plot_job_end(&j);
 }
 
 /* "12.3" with about three significant digits, for the totals over the bars. */

@@ -45,6 +45,9 @@ const char *wt_plot_escape(char *dst, size_t n, const char *src);
 /* Axes with a light grid; x label, y label and title of the current viewport. */
 void wt_plot_axes(const char *xopt, const char *yopt, const char *xgrid, const char *ygrid);
 void wt_plot_labels(const char *xlabel, const char *ylabel, const char *title);
+/* A labelled shaded colour bar of cmap1 from vmin to vmax right of the viewport (plot.c). */
+void wt_plot_colour_bar(double vmin, double vmax, const char *label, double tick, double offset, double yoff,
+                        double width, double length);
 /* Relative luminance of cmap1 (wt_plot_viridis) at t in [0, 1]: black or white text on it. */
 double wt_plot_viridis_luminance(double t);
 const char *wt_plot_pname(const char *path);

@@ -74,20 +74,7 @@ int wt_plot_psf_mosaic(wt_context *ctx, const char *path, const char *title, int
     snprintf(txt, sizeof txt, "field x; a panel: +-%.1f lambda/D (%.3g lambda/D per pixel)", half, pixel_lod);
     wt_plot_labels(txt, "field y", title);
     /* colour bar: log10 of I / I_diffraction-limited peak */
-    enum { NLEV = 101 };
-    PLFLT levels[NLEV];
-    for (int i = 0; i < NLEV; i++) levels[i] = -PSF_DECADES + PSF_DECADES * i / (NLEV - 1.0);
-    PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
-    const char *labels[1] = {"log10 PSF (diffraction-limited peak = 0)"};
-    const char *axis_opts[1] = {"bcvtm"};
-    PLFLT ticks[1] = {1.0};
-    PLINT sub_ticks[1] = {0};
-    PLINT n_values[1] = {NLEV};
-    const PLFLT *values[1] = {levels};
-    PLFLT cw, ch;
-    plcolorbar(&cw, &ch, PL_COLORBAR_SHADE, PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0,
-               0.035, 1.0, C_BG, C_FG, 1, 0.0, 0.0, 0, 0.0, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks,
-               n_values, values);
+    wt_plot_colour_bar(-PSF_DECADES, 0.0, "log10 PSF (diffraction-limited peak = 0)", 1.0, 0.03, 0.0, 0.035, 1.0);
     return wt_plot_job_end(&j);
 }
 

@@ -121,25 +121,10 @@ static void draw_outline_launch(const wt_plot_pupil *p, PLINT outline_col, doubl
     }
 }
 
-/* A shaded colour bar of cmap1 from vmin to vmax right of the viewport, labelled. */
+/* A shaded colour bar of cmap1 right of the viewport (wt_plot_colour_bar), 0.04 wide. */
 static void colour_bar(double vmin, double vmax, const char *label, double offset, double yoff, double length)
 {
-    enum { NLEV = 101 };
-    PLFLT levels[NLEV];
-    for (int i = 0; i < NLEV; i++) levels[i] = vmin + (vmax - vmin) * i / (NLEV - 1.0);
-    char buf[LABEL_MAX];
-    PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
-    const char *labels[1] = {wt_plot_escape(buf, sizeof buf, label)};
-    const char *axis_opts[1] = {"bcvtm"};
-    PLFLT ticks[1] = {0.0};
-    PLINT sub_ticks[1] = {0};
-    PLINT n_values[1] = {NLEV};
-    const PLFLT *values[1] = {levels};
-    PLFLT cw, ch;
-    plcol0(C_FG);
-    plcolorbar(&cw, &ch, PL_COLORBAR_SHADE, PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, offset, yoff,
-               0.04, length, C_BG, C_FG, 1, 0.0, 0.0, 0, 0.0, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks,
-               n_values, values);
+    wt_plot_colour_bar(vmin, vmax, label, 0.0, offset, yoff, 0.04, length);
 }
 
 /* The cells of the subapertures that overlap the window w = {x0, x1, y0, y1} [m]: a black square each (a
