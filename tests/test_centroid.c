@@ -851,6 +851,9 @@ START_TEST(test_bad_input)
     p.threshold_peak = 1.0;
     expect_reject(ctx, &p, nsub, ns, ref, dx, dy, "threshold_peak");
     p.threshold_peak = 0;
+    p.noise_calibrated = 2;
+    expect_reject(ctx, &p, nsub, ns, ref, dx, dy, "noise_calibrated");
+    p.noise_calibrated = 0;
     p.method = 7;
     expect_reject(ctx, &p, nsub, ns, ref, dx, dy, "method");
     p.method = WT_CENTROID_COG;
