@@ -73,7 +73,13 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
                gs, g->dx, (long long)wt_grid_size(g), wt_tomography_layer_fraction(t, l), how);
     }
     long long n = (long long)wt_tomography_nunknowns(t);
-    printf("  total unknowns: %lld; prior D: %lld non-zeros (diagonal)\n", n, n);
+    if (v->prior == WT_CFG_PRIOR_FULL)
+        printf("  total unknowns: %lld; prior: full von Karman covariance per layer, applied by FFT "
+               "(recon.%s.prior = \"full\")\n", n, name);
+    else
+        printf("  total unknowns: %lld; prior: %s diagonal D, %lld non-zeros (recon.%s.prior = \"%s\")\n", n,
+               v->prior == WT_CFG_PRIOR_EXACT ? "exact" : "the paper's", n, name,
+               v->prior == WT_CFG_PRIOR_EXACT ? "exact" : "paper");
     if (count_nnz) {
         int64_t gp[2 * WT_MAX_GS], a[2 * WT_MAX_GS];
         st = wt_tomography_count_nnz(t, gp, a);

@@ -258,6 +258,7 @@ static const cli_case cli_cases[] = {
     {"compare --config " DEMO " --recon pcg3,mvm --max-memory 10M --out %1$s/c", 1, {"estimated peak memory", ""}, "c"},
     {"budget --config " DEMO " --max-memory 10M --out %1$s/b", 1, {"estimated peak memory", ""}, "b"},
     {"budget --config " DEMO " --open-loop closed --out %1$s/b", 2, {"--open-loop", "'closed'"}, "b"},
+    {"build --config " DEMO " --set 'recon.prior=\"full\"' --out %1$s/M.h5", 1, {"recon.prior", "\"full\""}, "M.h5"},
     {"sim --config " DEMO " --max-memory 0.5 --out %1$s/x.h5", 2, {"--max-memory", "'0.5'"}, "x.h5"},
     {"sim --config " DEMO " --max-memory 4Q --out %1$s/x.h5", 2, {"--max-memory", "'4Q'"}, "x.h5"},
     {"sim --config " DEMO " --max-memory inf --out %1$s/x.h5", 2, {"--max-memory", "'inf'"}, "x.h5"},

@@ -1045,6 +1045,47 @@ START_TEST(test_auto_fit_points)
 }
 END_TEST
 
+/* recon.<variant>.prior: given, it wins; left out (or "auto"), recon.prior when given, else the variant's
+ * default (pcg3 paper, cg9 full: config.h); the resolved value is written into the canonical text, so an
+ * explicit value equal to the resolved one gives the same text and matrix hash, and another value another. */
+START_TEST(test_variant_priors)
+{
+    wt_context *ctx = tu_context();
+    const char *none[] = {"recon.prior=\"auto\""};
+    wt_config *a = parse_ok(ctx, VALID, 1, none);
+    ck_assert_int_eq(a->exact_prior, -1);
+    ck_assert_int_eq(a->pcg3.prior, WT_PRIOR_DEFAULT_PCG3);
+    ck_assert_int_eq(a->cg9.prior, WT_PRIOR_DEFAULT_CG9);
+    const char *expl[] = {"recon.prior=\"auto\"", "recon.pcg3.prior=\"paper\"", "recon.cg9.prior=\"full\""};
+    wt_config *e = parse_ok(ctx, VALID, 3, expl);
+    ck_assert_str_eq(a->canonical, e->canonical);
+    ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);
+    wt_config_free(ctx, e);
+    const char *glob[] = {"recon.prior=\"exact\""};
+    e = parse_ok(ctx, VALID, 1, glob);
+    ck_assert_int_eq(e->pcg3.prior, WT_CFG_PRIOR_EXACT);
+    ck_assert_int_eq(e->cg9.prior, WT_CFG_PRIOR_EXACT);
+    ck_assert_str_ne(a->matrix_sha256, e->matrix_sha256);
+    wt_config_free(ctx, e);
+    const char *mixed[] = {"recon.prior=\"exact\"", "recon.cg9.prior=\"paper\""};
+    e = parse_ok(ctx, VALID, 2, mixed);
+    ck_assert_int_eq(e->pcg3.prior, WT_CFG_PRIOR_EXACT);
+    ck_assert_int_eq(e->cg9.prior, WT_CFG_PRIOR_PAPER);
+    ck_assert(strstr(e->canonical, "prior = \"paper\";") != NULL);
+    wt_config_free(ctx, e);
+    wt_config_free(ctx, a);
+    const char *bad[] = {"recon.cg9.prior=\"diagonal\"", "recon.pcg3.prior=3"};
+    for (int i = 0; i < 2; i++) {
+        wt_config *x = NULL;
+        ck_assert_int_eq(wt_config_parse(ctx, VALID, "test.cfg", 1, &bad[i], &x), WT_ERR_CONFIG);
+        ck_assert_ptr_null(x);
+        ck_assert_msg(strstr(wt_error_message(ctx), i ? "recon.pcg3.prior" : "recon.cg9.prior") &&
+                          strstr(wt_error_message(ctx), "\"full\""), "%s: %s", bad[i], wt_error_message(ctx));
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_auto_grid_combinations)
 {
     wt_context *ctx = tu_context();
@@ -1152,6 +1193,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_auto_grid_combinations);
     tcase_add_test(tc, test_auto_sensor_points);
     tcase_add_test(tc, test_auto_fit_points);
+    tcase_add_test(tc, test_variant_priors);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);
     return s;

@@ -1,8 +1,10 @@
 /* tests/test_prior.c: the wavelet prior (core/op/prior.c): the exact coefficient variances against a
  * dense W C Wᵀ built by brute force, the trace identity on E-ELT grids, the paper form's factor-2
- * agreement with the exact variances, scaling with the Cn² fraction, the exact kind, the von Kármán
- * spectrum against a hand value, and rejected input. */
+ * agreement with the exact variances, scaling with the Cn² fraction, the exact kind, the full kind's
+ * C⁻¹ against a dense inverse, the von Kármán spectrum against a hand value, and rejected input. */
 #include "testutil.h"
+
+#include <lapacke.h>
 
 #include "core/op/prior.h"
 
@@ -255,6 +257,72 @@ static void expect_reject(wt_context *ctx, const wt_wavelet *w, double spacing, 
                   wt_error_message(ctx));
 }
 
+START_TEST(test_full_vs_dense)
+{
+    /* The full kind: wt_prior_apply_full against the inverse of the dense periodic covariance built
+     * directly from the spectrum (the cos sum of test_exact_vs_dense, no FFT), and its diagonal in the
+     * wavelet basis against e_λᵀ W C⁻¹ Wᵀ e_λ from that inverse. C's condition number on this grid is
+     * Φ(0)/Φ(κ_max) ≈ 1e5, so the dense inverse carries ~1e-11 relative round-off: 1e-8 is far below a
+     * normalisation slip (n², L², the halved spectrum's factor 2) and far above rounding. Also: α scales
+     * the apply, and C⁻¹ is symmetric positive definite on random vectors. */
+    wt_context *ctx = tu_context();
+    const int n = 8, J = 2, order = 2, nn = n * n;
+    const double spacing = 0.5, fraction = 0.3, L = n * spacing;
+    wt_wavelet *w = make_wavelet(ctx, n, order, J);
+    wt_prior *p = make_prior(ctx, w, spacing, fraction, WT_PRIOR_FULL);
+    ck_assert_int_eq(wt_prior_kind(p), WT_PRIOR_FULL);
+    double *C = malloc((size_t)nn * nn * sizeof *C);
+    for (int j = 0; j < nn; j++)
+        for (int i = 0; i < nn; i++) {
+            int dx = (i % n) - (j % n), dy = (i / n) - (j / n);
+            double v = 0.0;
+            for (int ky = -n / 2; ky < n / 2; ky++)
+                for (int kx = -n / 2; kx < n / 2; kx++)
+                    v += wt_von_karman_psd(sqrt((double)(kx * kx + ky * ky)) / L, R0, fraction, L0) / (L * L) *
+                         cos(2.0 * M_PI * (double)(kx * dx + ky * dy) / n);
+            C[i + (size_t)nn * j] = v;
+        }
+    double *Ci = calloc((size_t)nn * nn, sizeof *Ci); /* C⁻¹ by Cholesky */
+    for (int i = 0; i < nn; i++) Ci[i + (size_t)nn * i] = 1.0;
+    ck_assert_int_eq(LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', nn, nn, C, nn, Ci, nn), 0);
+    double cmax = 0.0;
+    for (size_t k = 0; k < (size_t)nn * nn; k++) cmax = fmax(cmax, fabs(Ci[k]));
+    double *e = calloc(nn, sizeof *e), *y = malloc(nn * sizeof *y), *work = malloc(wt_prior_work_size(p) * sizeof *work);
+    double worst = 0.0;
+    for (int j = 0; j < nn; j++) {
+        e[j] = 1.0;
+        wt_prior_apply_full(p, 2.5, e, y, work);
+        e[j] = 0.0;
+        for (int i = 0; i < nn; i++) worst = fmax(worst, fabs(y[i] - 2.5 * Ci[i + (size_t)nn * j]));
+    }
+    ck_assert_msg(worst <= 1e-8 * 2.5 * cmax, "apply_full vs dense C^-1: worst %g of %g", worst, 2.5 * cmax);
+    /* the diagonal in the wavelet basis: (W C⁻¹ Wᵀ)_λλ = bᵀ C⁻¹ b, b = Wᵀ e_λ */
+    const double *D = wt_prior_diag(p);
+    double *b = malloc(nn * sizeof *b), *ww = malloc((wt_wavelet_work_size(w) + 1) * sizeof *ww);
+    for (int lam = 0; lam < nn; lam++) {
+        memset(e, 0, nn * sizeof *e);
+        e[lam] = 1.0;
+        wt_wavelet_inverse(w, e, b, ww);
+        double v = 0.0;
+        for (int j = 0; j < nn; j++)
+            for (int i = 0; i < nn; i++) v += b[i] * Ci[i + (size_t)nn * j] * b[j];
+        ck_assert_rel(D[lam], v, 1e-8, 0);
+    }
+    /* symmetric and positive on random vectors */
+    double *u = malloc(nn * sizeof *u), *v2 = malloc(nn * sizeof *v2), *Cu = malloc(nn * sizeof *Cu), *Cv = malloc(nn * sizeof *Cv);
+    tu_randn(u, nn, 5);
+    tu_randn(v2, nn, 6);
+    wt_prior_apply_full(p, 1.0, u, Cu, work);
+    wt_prior_apply_full(p, 1.0, v2, Cv, work);
+    ck_assert_rel(tu_dot(u, Cv, nn), tu_dot(v2, Cu, nn), 1e-10, 0);
+    ck_assert_double_gt(tu_dot(u, Cu, nn), 0.0);
+    free(C), free(Ci), free(e), free(y), free(work), free(b), free(ww), free(u), free(v2), free(Cu), free(Cv);
+    wt_prior_free(p);
+    wt_wavelet_free(w);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_bad_input)
 {
     wt_context *ctx = tu_context();
@@ -268,7 +336,8 @@ START_TEST(test_bad_input)
     expect_reject(ctx, w, 0.5, R0, 0.5, -25.0, WT_PRIOR_PAPER, "L0");
     expect_reject(ctx, w, 0.5, R0, 0.5, INFINITY, WT_PRIOR_PAPER, "L0");
     expect_reject(ctx, w, 0.0, R0, 0.5, L0, WT_PRIOR_PAPER, "spacing");
-    expect_reject(ctx, w, 0.5, R0, 0.5, L0, 4, "kind"); /* 2 is the WT_PRIOR_ALIASED flag */
+    expect_reject(ctx, w, 0.5, R0, 0.5, L0, 8, "kind"); /* 2 is the WT_PRIOR_ALIASED flag, 4 WT_PRIOR_FULL */
+    expect_reject(ctx, w, 0.5, R0, 0.5, L0, 5, "kind"); /* FULL | EXACT */
     expect_reject(ctx, w, 0.5, R0, 0.5, L0, -1, "kind");
     expect_reject(ctx, NULL, 0.5, R0, 0.5, L0, WT_PRIOR_PAPER, "wavelet");
     wt_prior_free(NULL);
@@ -315,6 +384,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_paper_factor2);
     tcase_add_test(tc, test_fraction_scaling);
     tcase_add_test(tc, test_exact_kind);
+    tcase_add_test(tc, test_full_vs_dense);
     tcase_add_test(tc, test_bad_input);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);

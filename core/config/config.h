@@ -53,6 +53,15 @@ typedef struct wt_sensor_config {
 
 enum { WT_WFS_GEOMETRIC = 0, WT_WFS_DIFFRACTIVE = 1 };
 
+/* The reconstructors' priors (recon.prior, recon.<variant>.prior: the index in "paper|exact|full") and each
+ * variant's default when both keys are left out (docs/design.md "The prior"): the full covariance where
+ * quality is the point (cg9), the paper's diagonal where the 2 ms frame is (pcg3). */
+enum { WT_CFG_PRIOR_PAPER = 0, WT_CFG_PRIOR_EXACT = 1, WT_CFG_PRIOR_FULL = 2 };
+#define WT_PRIOR_DEFAULT_PCG3 WT_CFG_PRIOR_PAPER
+#define WT_PRIOR_DEFAULT_PCG3_TEXT "\"paper\""
+#define WT_PRIOR_DEFAULT_CG9 WT_CFG_PRIOR_FULL
+#define WT_PRIOR_DEFAULT_CG9_TEXT "\"full\""
+
 /* How a reconstruction variant's layer grids were chosen (wt_recon_variant_config.grid_auto). */
 enum { WT_GRID_EXPLICIT = 0, WT_GRID_AUTO_SIZE = 1, WT_GRID_AUTO = 2 };
 
@@ -76,6 +85,8 @@ typedef struct wt_recon_variant_config {
     int coarse_levels;               /* coarse_ngs, multilevel: detail levels in the coarse block besides the
                                         scaling block */
     int loop_noise_average;          /* 1: the sensors' σ² times the integrator's noise gain Σh² */
+    int prior;                       /* index in "paper|exact|full" (WT_CFG_PRIOR_*): resolved from recon.prior or
+                                        the variant's default when left out */
     int fit_iterations;              /* fitting CG iterations (cg9 only; 0 for pcg3) */
     double fit_regularization;       /* fitting Tikhonov weight, relative to the mean diagonal of H^T H */
     int fit_sampling;                /* fitting sample points per subaperture side (1: Fried corners) */
@@ -164,7 +175,8 @@ typedef struct wt_config {
     double tau;                      /* elongation weight τ of the reconstructor's noise model */
     int wavelet_order;               /* Daubechies order N (2N taps) */
     int wavelet_levels;              /* J */
-    int exact_prior;                 /* 0: paper's diagonal D, 1: exact diag(W C Wᵀ) */
+    int exact_prior;                 /* recon.prior as given (WT_CFG_PRIOR_*), or -1 when left out; the variants'
+                                        resolved values are in pcg3.prior and cg9.prior */
     int warm_start;
     wt_recon_variant_config pcg3;    /* layers at the DM altitudes, no fitting */
     wt_recon_variant_config cg9;     /* layers at the atmosphere altitudes, fitting over the evaluation directions */

@@ -690,6 +690,31 @@ static int resolve_fit_points(pstate *ps, wt_config *cfg)
     return WT_OK;
 }
 
+/* recon.<variant>.prior left out (or "auto"): recon.prior when given, else the variant's default
+ * (WT_PRIOR_DEFAULT_*, config.h); written into the canonical text like the automatic grids, so the text
+ * (and an MVM's identity) says which prior each variant used. */
+static int resolve_priors(pstate *ps, wt_config *cfg)
+{
+    static const char *const words[] = {"paper", "exact", "full"};
+    const int kg = find_key("recon.prior");
+    if (!ps->set[kg]) cfg->exact_prior = -1;
+    for (int v = 0; v < 2; v++) {
+        const int k = find_key(v ? "recon.cg9.prior" : "recon.pcg3.prior");
+        wt_recon_variant_config *var = v ? &cfg->cg9 : &cfg->pcg3;
+        if (ps->set[k]) continue;
+        var->prior = ps->set[kg] ? cfg->exact_prior : v ? WT_PRIOR_DEFAULT_CG9 : WT_PRIOR_DEFAULT_PCG3;
+        const char *leaf;
+        config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+        if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+        if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
+        if (!s || !config_setting_set_string(s, words[var->prior]))
+            return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                            wt_config_priv_keys[k].path);
+        ps->set[k] = s;
+    }
+    return WT_OK;
+}
+
 /* lgs.sodium_profile_sha256 left out (or "auto") for a diffractive LGS with a profile file: the SHA-256 of
  * the file's bytes, written into the canonical text so that the matrix hash follows the profile's contents
  * (an MVM built with one profile is refused after the file changes). A file that cannot be hashed here
@@ -780,6 +805,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
     if ((st = resolve_fit_points(ps, cfg)) < 0) return st;
+    if ((st = resolve_priors(ps, cfg)) < 0) return st;
     if ((st = resolve_sodium_sha256(ps, cfg)) < 0) return st;
     if ((st = check_gain_levels(ps, cfg)) < 0) return st;
 

@@ -108,7 +108,12 @@
                     "DMs around it, the end DM outside their range)"
 #define PCG3_COVER " and the active actuators of the DMs the layer is read at"
 
-#define VARIANT(pre, v, spacing_rule, cover)                                                                                    \
+#define PRIOR_CHOICES "paper|exact|full"
+#define PRIOR_DESC "paper = the paper's scale-only diagonal D in the wavelet basis, exact = the exact diagonal "   \
+                   "diag(W C W^T), full = the von Karman covariance C itself on the periodic layer grid, applied by " \
+                   "FFT (not diagonal; not for the MVM, whose sparse normal matrix cannot hold it)"
+
+#define VARIANT(pre, v, spacing_rule, cover, prior_default)                                                                     \
     KFL(pre ".layer_altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
         "reconstruction layer altitudes, strictly increasing"),                                            \
     {pre ".layer_spacing_m", K_FLOATS, F_LO_OPEN | F_AUTO, 0.0, 100.0, "m", 1, CF(v.spacing), CF(v.nlayers), 1,   \
@@ -133,7 +138,10 @@
     {pre ".loop_noise_average", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(v.loop_noise_average), NOCOUNT, 0, 0, NULL, 0, \
      "noise model of the loop's command: the sensors' noise variance times the integrator's noise gain "   \
      "(the sum of its squared impulse response for loop.gain and loop.delay_frames, 0.389 for 0.4 and 2); " \
-     "the model error is not averaged (optional, default false)"}
+     "the model error is not averaged (optional, default false)"},                                        \
+    {pre ".prior", K_ENUM, F_AUTO, 0, 0, "", 1, CF(v.prior), NOCOUNT, 0, 0, PRIOR_CHOICES, 0,                    \
+     "the variant's prior: " PRIOR_DESC "; left out (or \"auto\"): recon.prior when given, else "            \
+     prior_default " (docs/design.md) (optional)"}
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("telescope.diameter_m", GT0(100.0), "m", 1, diameter, "pupil diameter D"),
@@ -240,7 +248,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
     KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
     KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
-    KE("recon.prior", "paper|exact", exact_prior, "prior diagonal: paper = scale-only D of the paper, exact = diag(W C W^T)"),
+    {"recon.prior", K_ENUM, F_AUTO, 0, 0, "", 1, CF(exact_prior), NOCOUNT, 0, 0, PRIOR_CHOICES, 0,
+     "the prior of both variants (each variant's recon.<variant>.prior overrides it): " PRIOR_DESC
+     "; left out (or \"auto\"): each variant's default (optional)"},
     {"recon.prior_aliasing", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(prior_aliasing), NOCOUNT, 0, 0, NULL, 0,
      "prior variances of grid samples: the power above the layer grid's Nyquist frequency folded back "
      "(optional, default false)"},
@@ -259,8 +269,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
      "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
      "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},
-    VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER),
-    VARIANT("recon.cg9", cg9, CG9_SPACING, ""),
+    VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT),
+    VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT),
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
     KF("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization,
        "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),

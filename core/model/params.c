@@ -13,7 +13,7 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
     par->tau = cfg->tau;
     par->wavelet_order = cfg->wavelet_order;
     par->wavelet_levels = cfg->wavelet_levels;
-    par->prior_flags = (cfg->exact_prior ? WT_PRIOR_EXACT : WT_PRIOR_PAPER) | (cfg->prior_aliasing ? WT_PRIOR_ALIASED : 0);
+    par->prior_flags = cfg->prior_aliasing ? WT_PRIOR_ALIASED : 0; /* the kind is the variant's (wt_tomography_alloc) */
     par->r0 = cfg->r0;
     par->L0 = cfg->L0;
     par->natm = cfg->nlayers;

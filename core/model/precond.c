@@ -295,7 +295,6 @@ static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
     const wt_system *sys = wt_tomography_system(t);
     const int L = wt_tomography_nlayers(t);
     const int64_t n = p->n;
-    const double *alpha_d = wt_tomography_alpha_prior(t);
     double *e = NULL, *sl = NULL, *col = NULL;
     int q = 0;
     int side[WT_MAX_LAYERS];
@@ -329,7 +328,11 @@ static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
             memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
         memset(col, 0, (size_t)n * sizeof *col);
         wt_tomography_rhs(t, 1.0, sl, col);
-        col[p->c_idx[j]] += alpha_d[p->c_idx[j]];
+        /* the prior's column: α D_jj, or the full prior's coupling of the layer's coefficients */
+        for (int l = 0; l < L; l++) {
+            const int64_t a = wt_tomography_layer_offset(t, l), b = a + wt_grid_size(wt_tomography_layer_grid(t, l));
+            if (p->c_idx[j] >= a && p->c_idx[j] < b) wt_tomography_prior_apply_layer(t, l, e + a, col + a);
+        }
         for (int i = 0; i < q; i++) p->c_L[i + (size_t)q * j] = col[p->c_idx[i]];
         e[p->c_idx[j]] = 0.0;
     }

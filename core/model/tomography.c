@@ -29,6 +29,9 @@ struct wt_tomography {
     wt_prior *prior[WT_MAX_LAYERS];
     int64_t n;
     double *alpha_d;
+    double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
+    int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
+    size_t pwsize;            /* its work per thread (doubles) */
     int iterations;
     double tol;
     int S;                    /* sensors */
@@ -56,6 +59,8 @@ struct wt_tomography_work {
     double *weighted; /* nslopes */
     double *wwork;    /* nthreads x wsize wavelet workspace */
     double *b;        /* n: the applies' scratch, the solve's right-hand side */
+    double *pphi;     /* full prior: n, α C_φ⁻¹ φ per layer */
+    double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
 };
 
 static int thread_id(void)
@@ -104,6 +109,22 @@ double wt_tomography_model_error(const wt_tomography *t, int m) { return t->mode
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
+int wt_tomography_full_prior(const wt_tomography *t) { return t->full_prior; }
+
+void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y)
+{
+    const int64_t a = t->off[l], nl = t->off[l + 1] - a;
+    if (!t->full_prior) {
+        for (int64_t i = 0; i < nl; i++) y[i] += t->alpha_d[a + i] * c[i];
+        return;
+    }
+    wt_tomography_work *w = t->work;
+    double *phi = w->phi + a, *q = w->pphi + a;
+    wt_wavelet_inverse(t->wav[l], c, phi, w->wwork);
+    wt_prior_apply_full(t->prior[l], t->alpha, phi, q, w->pwork);
+    wt_wavelet_forward(t->wav[l], q, phi, w->wwork);
+    for (int64_t i = 0; i < nl; i++) y[i] += phi[i];
+}
 const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l) { return t->proj[m * t->L + l]; }
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
@@ -236,15 +257,21 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     bin_profile(par, t->L, t->alt, t->frac);
 
     WT_ALLOC(ctx, t->alpha_d, t->n, "prior diagonal");
+    t->alpha = par->alpha;
+    const int kind = var->prior == WT_CFG_PRIOR_FULL ? WT_PRIOR_FULL : var->prior == WT_CFG_PRIOR_EXACT ? WT_PRIOR_EXACT
+                                                                                                : WT_PRIOR_PAPER;
+    const int prior_flags = kind | (par->prior_flags & WT_PRIOR_ALIASED);
+    t->full_prior = kind == WT_PRIOR_FULL;
     for (int l = 0; l < t->L; l++) {
         int levels = par->wavelet_levels;
         WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, par->wavelet_order, levels, &t->wav[l]));
-        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, par->r0, t->frac[l], par->L0, par->prior_flags,
+        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, par->r0, t->frac[l], par->L0, prior_flags,
                               &t->prior[l]));
         const double *d = wt_prior_diag(t->prior[l]);
         for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = par->alpha * d[i];
         size_t ws = wt_wavelet_work_size(t->wav[l]);
         if (ws > t->wsize) t->wsize = ws;
+        if (wt_prior_work_size(t->prior[l]) > t->pwsize) t->pwsize = wt_prior_work_size(t->prior[l]);
     }
 
     t->S = sys->nsensors;
@@ -367,6 +394,10 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
     WT_ALLOC(ctx, w->weighted, t->sys->nslopes, "weighted slope workspace");
     WT_ALLOC(ctx, w->wwork, (size_t)t->nthreads * t->wsize, "wavelet workspace");
     WT_ALLOC(ctx, w->b, t->n, "right-hand side");
+    if (t->full_prior) {
+        WT_ALLOC(ctx, w->pphi, t->n, "full prior term");
+        WT_ALLOC(ctx, w->pwork, (size_t)t->nthreads * t->pwsize, "full prior workspace");
+    }
     *out = w;
     return WT_OK;
 fail:
@@ -385,6 +416,8 @@ void wt_tomography_work_free(wt_tomography_work *w)
     wt_free(ctx, w->weighted);
     wt_free(ctx, w->wwork);
     wt_free(ctx, w->b);
+    wt_free(ctx, w->pphi);
+    wt_free(ctx, w->pwork);
     wt_free(ctx, w);
 }
 
@@ -412,8 +445,9 @@ static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const 
     adjoint_prior(t, w, slopes, NULL, c);
 }
 
-/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given). The group sum, the transform and the prior term
- * of a layer run in one task (the same per-element operations as three passes). */
+/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given; with the full prior + W w->pphi, the α C_φ⁻¹ φ of
+ * cx's layers, which normal() leaves there). The group sum, the transform and the prior term of a layer run
+ * in one task (the same per-element operations as three passes). */
 static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c)
 {
@@ -451,8 +485,10 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
             for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
             w->phi[i] = v;
         }
+        if (cx && t->full_prior)
+            for (int64_t i = a; i < b; i++) w->phi[i] += w->pphi[i];
         wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)thread_id() * t->wsize);
-        if (cx)
+        if (cx && !t->full_prior)
             for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
     }
 }
@@ -461,6 +497,12 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
     inverse_dwt(t, w, c, w->phi);
+    if (t->full_prior) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+        for (int l = 0; l < t->L; l++)
+            wt_prior_apply_full(t->prior[l], t->alpha, w->phi + t->off[l], w->pphi + t->off[l],
+                                w->pwork + (size_t)thread_id() * t->pwsize);
+    }
     forward_slopes(t, w, w->phi, w->slopes);
     adjoint_prior(t, w, w->slopes, c, y);
 }

@@ -39,7 +39,7 @@ typedef struct wt_tomography_params {
     double tau;            /* elongation weight τ of the reconstructor's noise model C̃ */
     int wavelet_order;     /* Daubechies order N (2N taps) */
     int wavelet_levels;    /* J */
-    int prior_flags;       /* WT_PRIOR_PAPER or WT_PRIOR_EXACT, | WT_PRIOR_ALIASED (core/op/prior.h) */
+    int prior_flags;       /* WT_PRIOR_ALIASED or 0 (core/op/prior.h); the kind is the variant's prior */
     double r0;             /* Fried parameter at 500 nm [m] */
     double L0;             /* outer scale [m] */
     int natm;              /* the atmosphere's Cn² profile, binned onto the reconstruction layers: */
@@ -80,6 +80,13 @@ const struct wt_noise *wt_tomography_noise(const wt_tomography *t, int m);
 const wt_system *wt_tomography_system(const wt_tomography *t);
 /* α D (ncoef values). */
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
+/* 1 when the prior is the full (non-diagonal) form: alpha_prior is then only its diagonal, and no sparse
+ * assembly of the operator (the MVM) can hold it. */
+int wt_tomography_full_prior(const wt_tomography *t);
+/* y += the prior part of M times c, for c nonzero in layer l only (y: that layer's n_l coefficients, c the
+ * same): α D c, or with the full prior α W C_φ⁻¹ Wᵀ c. Set-up use (the preconditioners' exact blocks): it
+ * uses the object's own workspace. */
+void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y);
 /* The OpenMP threads the applies run on (1 below ~16k unknowns, where a parallel region does not pay). */
 int wt_tomography_threads(const wt_tomography *t);
 

@@ -17,11 +17,15 @@
  * blocks; the approximation block takes its exact variance (see the diagonal loop). On the E-ELT grids
  * this puts D⁻¹ within 0.64-1.8x of the exact variance at every level and orientation.
  * Exact form: D_λλ = 1 / var(level, orientation).
+ * Full form: the prior term φᵀ C_φ⁻¹ φ itself. With the unnormalised DFT F, C_φ = F⁻¹ Λ F, Λ_k = n² Φ(κ_k)/L²,
+ * so C_φ⁻¹ φ = F*[(L²/(n⁴ Φ(κ_k))) F φ] (F* = FFTW's backward transform), and
+ * (W C_φ⁻¹ Wᵀ)_λλ = Σ_k |ŵ(k)|² L²/(n⁴ Φ(κ_k)), one FFT per (level, orientation) as above.
  */
 #include "prior.h"
 
 #include <fftw3.h>
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 #define LAMBDA0 500e-9 /* reference wavelength of r0 [m] */
@@ -34,6 +38,8 @@ struct wt_prior {
     double scale;       /* c_ℓ of the paper form [m^(-5/3)]: D = profile [m^(-11/3)] / c [1/m²] */
     double *var;        /* exact variance [m²] at [level * 4 + orient], level 1 … J+1 */
     double *diag;       /* D_λλ [1/m²], n*n in the wavelet layout */
+    double *inv;        /* full form: L²/(n⁴ Φ(κ_k)) on the r2c half spectrum, n x (n/2 + 1) */
+    fftw_plan r2c, c2r; /* full form: planned unaligned, executed with the caller's work arrays */
 };
 
 double wt_von_karman_psd(double kappa, double r0, double fraction, double L0)
@@ -62,16 +68,32 @@ void wt_prior_free(wt_prior *p)
 {
     if (!p) return;
     wt_context *ctx = p->ctx;
+    if (p->r2c) fftw_destroy_plan(p->r2c);
+    if (p->c2r) fftw_destroy_plan(p->c2r);
     wt_free(ctx, p->var);
     wt_free(ctx, p->diag);
+    wt_free(ctx, p->inv);
     wt_free(ctx, p);
 }
 
-/* var[level*4 + orient] for every (level, orientation) by one inverse DWT and one real FFT each.
- * The r2c transform keeps kx = 0 … n/2; the other half of the spectrum is the conjugate mirror, so the
- * columns 0 < kx < n/2 count twice. */
+/* Φ(κ_k) of the mode (kx, ky) of the periodic n x n grid of side L, aliased or not (core/op/prior.h) */
+static double mode_psd(int kx, int ky, int n, double L, double r0, double fraction, double L0, int aliased)
+{
+    double psd = 0.0;
+    const int A = aliased ? 4 : 0;
+    for (int b = -A; b <= A; b++)
+        for (int a = -A; a <= A; a++) {
+            double fx = (double)kx + (double)a * n, fy = (double)ky + (double)b * n;
+            psd += wt_von_karman_psd(sqrt(fx * fx + fy * fy) / L, r0, fraction, L0);
+        }
+    return psd;
+}
+
+/* var[level*4 + orient] for every (level, orientation) by one inverse DWT and one real FFT each: the
+ * diagonal of W C_φ Wᵀ, or with `inverse` that of W C_φ⁻¹ Wᵀ. The r2c transform keeps kx = 0 … n/2; the
+ * other half of the spectrum is the conjugate mirror, so the columns 0 < kx < n/2 count twice. */
 static int exact_variances(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction,
-                           double L0, int aliased, double *var)
+                           double L0, int aliased, int inverse, double *var)
 {
     int st = WT_OK;
     const int n = wt_wavelet_n(w), J = wt_wavelet_levels(w), nh = n / 2 + 1;
@@ -88,14 +110,9 @@ static int exact_variances(wt_context *ctx, const wt_wavelet *w, double spacing,
     for (int iy = 0; iy < n; iy++) {
         int ky = iy <= n / 2 ? iy : iy - n;
         for (int kx = 0; kx < nh; kx++) {
-            double mult = (kx == 0 || 2 * kx == n) ? 1.0 : 2.0, psd = 0.0;
-            const int A = aliased ? 4 : 0;
-            for (int b = -A; b <= A; b++)
-                for (int a = -A; a <= A; a++) {
-                    double fx = (double)kx + (double)a * n, fy = (double)ky + (double)b * n;
-                    psd += wt_von_karman_psd(sqrt(fx * fx + fy * fy) / L, r0, fraction, L0);
-                }
-            spec[(size_t)iy * nh + kx] = mult * psd / (L * L);
+            double mult = (kx == 0 || 2 * kx == n) ? 1.0 : 2.0;
+            double psd = mode_psd(kx, ky, n, L, r0, fraction, L0, aliased);
+            spec[(size_t)iy * nh + kx] = mult * (inverse ? L * L / ((double)n * n * n * n * psd) : psd / (L * L));
         }
     }
     /* The planner is FFTW's one global (non-thread-safe) state: plan with FFTW_ESTIMATE, which neither
@@ -133,6 +150,37 @@ fail:
     return st;
 }
 
+/* The full form's multipliers L²/(n⁴ Φ(κ_k)) and its two plans. The planner is FFTW's global state: plans
+ * are made here, at set-up, with FFTW_ESTIMATE (no arrays touched, the same algorithm every run: same bits);
+ * every thread executes them on its own 64-byte aligned work arrays (wt_prior_apply_full). */
+static int full_operator(wt_context *ctx, wt_prior *p, double r0, double fraction, int aliased)
+{
+    int st = WT_OK;
+    const int n = p->n, nh = n / 2 + 1;
+    const double L = n * p->spacing;
+    double *a = NULL;
+    fftw_complex *c = NULL;
+    WT_ALLOC(ctx, p->inv, (size_t)n * nh, "prior inverse spectrum");
+    for (int iy = 0; iy < n; iy++) {
+        int ky = iy <= n / 2 ? iy : iy - n;
+        for (int kx = 0; kx < nh; kx++)
+            p->inv[(size_t)iy * nh + kx] = L * L / ((double)n * n * n * n * mode_psd(kx, ky, n, L, r0, fraction, p->L0, aliased));
+    }
+    a = fftw_malloc((size_t)n * n * sizeof *a);
+    c = fftw_malloc((size_t)n * nh * sizeof *c);
+    if (!a || !c) {
+        st = WT_ERROR(ctx, WT_ERR_NOMEM, "prior: out of memory for the %d x %d FFT plans' arrays", n, n);
+        goto fail;
+    }
+    p->r2c = fftw_plan_dft_r2c_2d(n, n, a, c, FFTW_ESTIMATE);
+    p->c2r = fftw_plan_dft_c2r_2d(n, n, c, a, FFTW_ESTIMATE);
+    if (!p->r2c || !p->c2r) st = WT_ERROR(ctx, WT_ERR_LIBRARY, "prior: FFTW could not plan the %d x %d transforms", n, n);
+fail:
+    fftw_free(a);
+    fftw_free(c);
+    return st;
+}
+
 int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction, double L0,
                    int kind, wt_prior **out)
 {
@@ -153,10 +201,10 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
         return WT_ERROR(ctx, WT_ERR_INVALID, "prior: outer scale L0 = %g m, expected finite and > 0", L0);
     const int aliased = (kind & WT_PRIOR_ALIASED) != 0;
     kind &= ~WT_PRIOR_ALIASED;
-    if (kind != WT_PRIOR_PAPER && kind != WT_PRIOR_EXACT)
+    if (kind != WT_PRIOR_PAPER && kind != WT_PRIOR_EXACT && kind != WT_PRIOR_FULL)
         return WT_ERROR(ctx, WT_ERR_INVALID,
-                        "prior: kind = %d, expected WT_PRIOR_PAPER (%d) or WT_PRIOR_EXACT (%d)", kind,
-                        WT_PRIOR_PAPER, WT_PRIOR_EXACT);
+                        "prior: kind = %d, expected WT_PRIOR_PAPER (%d), WT_PRIOR_EXACT (%d) or WT_PRIOR_FULL (%d)",
+                        kind, WT_PRIOR_PAPER, WT_PRIOR_EXACT, WT_PRIOR_FULL);
 
     const int n = wt_wavelet_n(w), J = wt_wavelet_levels(w);
     WT_ALLOC(ctx, p, 1, "prior");
@@ -169,7 +217,17 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
     WT_ALLOC(ctx, p->var, (size_t)(J + 2) * 4, "prior variance table");
     for (int i = 0; i < (J + 2) * 4; i++) p->var[i] = NAN;
     WT_ALLOC(ctx, p->diag, (size_t)n * n, "prior diagonal");
-    WT_TRY(exact_variances(ctx, w, spacing, r0, fraction, L0, aliased, p->var));
+    WT_TRY(exact_variances(ctx, w, spacing, r0, fraction, L0, aliased, 0, p->var));
+    double *ivar = NULL; /* full form: diag(W C_φ⁻¹ Wᵀ) per (level, orientation) */
+    if (kind == WT_PRIOR_FULL) {
+        WT_ALLOC(ctx, ivar, (size_t)(J + 2) * 4, "prior inverse-covariance diagonal");
+        st = exact_variances(ctx, w, spacing, r0, fraction, L0, aliased, 1, ivar);
+        if (st == WT_OK) st = full_operator(ctx, p, r0, fraction, aliased);
+        if (st < 0) {
+            wt_free(ctx, ivar);
+            goto fail;
+        }
+    }
 
     /* c_ℓ: geometric-mean fit of var · profile over the 3J detail blocks, i.e. the least-squares fit of
      * log D⁻¹ to log var; the approximation block is left out because its variance is dominated by the
@@ -192,11 +250,13 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
              * spectrum, so no single κ in the paper profile stands for it at every J (1/(δ 2^(J+1)) is
              * within 1.15x on the E-ELT J = 5 grids but 3-50x off at J = 3): both forms take its exact
              * variance. It is (n/2^J)² coefficients, the layer's largest scales. */
-            double d = (kind == WT_PRIOR_EXACT || orient == 0)
+            double d = kind == WT_PRIOR_FULL ? ivar[level * 4 + orient]
+                       : (kind == WT_PRIOR_EXACT || orient == 0)
                            ? 1.0 / p->var[level * 4 + orient]
                            : paper_profile(L0, detail_kappa(spacing, level, orient)) / p->scale;
             p->diag[ix + (size_t)n * iy] = d;
         }
+    wt_free(ctx, ivar);
     *out = p;
     return WT_OK;
 fail:
@@ -205,6 +265,33 @@ fail:
 }
 
 const double *wt_prior_diag(const wt_prior *p) { return p->diag; }
+int wt_prior_kind(const wt_prior *p) { return p->kind; }
+
+/* The caller's work holds, from its first 64-byte boundary, the transforms' input, spectrum and output:
+ * FFTW runs its SIMD codelets only on arrays aligned as those it planned with (fftw_malloc's), and
+ * wt_malloc promises 16 bytes. */
+#define PRIOR_ALIGN_SLACK 8 /* doubles */
+size_t wt_prior_work_size(const wt_prior *p)
+{
+    return p->kind == WT_PRIOR_FULL ? PRIOR_ALIGN_SLACK + 2 * (size_t)p->n * p->n + 2 * (size_t)p->n * (p->n / 2 + 1) : 0;
+}
+
+void wt_prior_apply_full(const wt_prior *p, double alpha, const double *phi, double *out, double *work)
+{
+    const size_t n2 = (size_t)p->n * p->n, nc = (size_t)p->n * (p->n / 2 + 1);
+    double *in = (double *)(((uintptr_t)work + 63) & ~(uintptr_t)63);
+    fftw_complex *hat = (fftw_complex *)(in + n2);
+    double *res = in + n2 + 2 * nc;
+    memcpy(in, phi, n2 * sizeof *in); /* FFTW may use its input as scratch */
+    fftw_execute_dft_r2c(p->r2c, in, hat);
+    for (size_t k = 0; k < nc; k++) {
+        const double m = alpha * p->inv[k];
+        hat[k][0] *= m;
+        hat[k][1] *= m;
+    }
+    fftw_execute_dft_c2r(p->c2r, hat, res);
+    memcpy(out, res, n2 * sizeof *out);
+}
 
 double wt_prior_level_variance(const wt_prior *p, int level, int orient)
 {

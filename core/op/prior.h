@@ -11,6 +11,10 @@
  * variance at every level and orientation for the preset grids; tests/test_prior.c).
  * Exact form: D_λλ = 1 / (W C_φ Wᵀ)_λλ, evaluated by FFT for each level and orientation (periodic
  * stationarity makes it constant within a level and orientation).
+ * Full form (not diagonal, a reference for the diagonal forms): the prior term is φᵀ C_φ⁻¹ φ with the
+ * periodic stationary covariance itself, applied by FFT (wt_prior_apply_full: C_φ⁻¹ has the eigenvalues
+ * L²/(n² Φ(κ_k)) on the DFT modes); its diagonal in the wavelet basis, diag(W C_φ⁻¹ Wᵀ), is what
+ * wt_prior_diag returns (the Jacobi preconditioners read it).
  *
  * Von Kármán OPD spectrum of a layer with Cn² fraction f: Φ(κ) = (λ0/2π)² 0.0229 f r0^(-5/3)
  * (κ² + L0^(-2))^(-11/6), κ in cycles/m, λ0 = 500 nm (SPEC §2). Units of D: 1/m² (coefficients in m).
@@ -21,7 +25,7 @@
 #include "../base/base.h"
 #include "wavelet.h"
 
-enum { WT_PRIOR_PAPER = 0, WT_PRIOR_EXACT = 1 };
+enum { WT_PRIOR_PAPER = 0, WT_PRIOR_EXACT = 1, WT_PRIOR_FULL = 4 };
 /* Flag or-ed into kind: the variances are those of grid SAMPLES of the continuous screen, whose
  * spectrum carries the power above the grid's Nyquist frequency folded back (aliased):
  *   Φ_δ(κ) = Σ_{a,b} Φ(κ + (a, b)/δ),  |a|, |b| ≤ 4 (the rest of the sum is below 0.5 % at the finest level).
@@ -35,8 +39,15 @@ typedef struct wt_prior wt_prior;
 int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction, double L0,
                    int kind, wt_prior **out);
 void wt_prior_free(wt_prior *p);
-/* D_λλ for the n*n coefficients in the layout of core/op/wavelet.h [1/m²]. */
+/* D_λλ for the n*n coefficients in the layout of core/op/wavelet.h [1/m²]; for WT_PRIOR_FULL the
+ * diagonal of W C_φ⁻¹ Wᵀ. */
 const double *wt_prior_diag(const wt_prior *p);
+int wt_prior_kind(const wt_prior *p); /* WT_PRIOR_PAPER, WT_PRIOR_EXACT or WT_PRIOR_FULL (without the aliasing flag) */
+/* WT_PRIOR_FULL only: out = alpha C_φ⁻¹ phi on the layer grid (n*n values in the layout of wt_grid; phi
+ * and out distinct) [1/m² · m]. Allocates nothing; thread-safe with a work array of wt_prior_work_size
+ * doubles per concurrent call. */
+void wt_prior_apply_full(const wt_prior *p, double alpha, const double *phi, double *out, double *work);
+size_t wt_prior_work_size(const wt_prior *p);
 /* Exact variance (W C_φ Wᵀ)_λλ [m²] of a coefficient of level (1 … J+1) and orientation (0 … 3). */
 double wt_prior_level_variance(const wt_prior *p, int level, int orient);
 /* The fitted normalisation c_ℓ. */
