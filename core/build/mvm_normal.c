@@ -275,8 +275,10 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     else wt_mvm_options_default(&opt);
     if (opt.block <= 0) opt.block = 256;
     if (wt_tomography_full_prior(t))
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "MVM: recon.prior = \"full\" is a dense operator on every layer and cannot be "
-                        "assembled as a sparse normal matrix; build the MVM with recon.prior = \"paper\" or \"exact\"");
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "MVM of %1$s: recon.%1$s.prior = \"full\" (the von Karman covariance, dense on "
+                        "every layer) cannot be assembled into the sparse normal matrix; build it with --set "
+                        "'recon.%1$s.prior=\"paper\"' (or \"exact\", the diagonal forms), and run it with the same setting",
+                        wt_tomography_variant(t));
     wt_mvm_normal *nm = NULL;
     wt_mvm_priv_templates *tp = NULL;
     wt_mvm_priv_col_pool pool = {0};

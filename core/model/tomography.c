@@ -110,6 +110,7 @@ int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->of
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
 int wt_tomography_full_prior(const wt_tomography *t) { return t->full_prior; }
+const char *wt_tomography_variant(const wt_tomography *t) { return t->variant; }
 
 void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y)
 {

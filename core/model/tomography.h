@@ -83,6 +83,7 @@ const double *wt_tomography_alpha_prior(const wt_tomography *t);
 /* 1 when the prior is the full (non-diagonal) form: alpha_prior is then only its diagonal, and no sparse
  * assembly of the operator (the MVM) can hold it. */
 int wt_tomography_full_prior(const wt_tomography *t);
+const char *wt_tomography_variant(const wt_tomography *t); /* "pcg3" or "cg9" (as allocated) */
 /* y += the prior part of M times c, for c nonzero in layer l only (y: that layer's n_l coefficients, c the
  * same): α D c, or with the full prior α W C_φ⁻¹ Wᵀ c. Set-up use (the preconditioners' exact blocks): it
  * uses the object's own workspace. */
