@@ -497,12 +497,17 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
 static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
-    inverse_dwt(t, w, c, w->phi);
     if (t->full_prior) {
+        /* each layer's task transforms it and applies its prior while it is in cache */
 #pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-        for (int l = 0; l < t->L; l++)
+        for (int l = 0; l < t->L; l++) {
+            const int id = thread_id();
+            wt_wavelet_inverse(t->wav[l], c + t->off[l], w->phi + t->off[l], w->wwork + (size_t)id * t->wsize);
             wt_prior_apply_full(t->prior[l], t->alpha, w->phi + t->off[l], w->pphi + t->off[l],
-                                w->pwork + (size_t)thread_id() * t->pwsize);
+                                w->pwork + (size_t)id * t->pwsize);
+        }
+    } else {
+        inverse_dwt(t, w, c, w->phi);
     }
     forward_slopes(t, w, w->phi, w->slopes);
     adjoint_prior(t, w, w->slopes, c, y);
