@@ -205,7 +205,9 @@ START_TEST(test_eelt_preset)
     ck_assert_rel(c->tau, 0.8, ULP2, 0);
     ck_assert_int_eq(c->wavelet_order, 3);
     ck_assert_int_eq(c->wavelet_levels, 5);
-    ck_assert_int_eq(c->exact_prior, 0);
+    ck_assert_int_eq(c->exact_prior, -1); /* left out: each variant's default */
+    ck_assert_int_eq(c->pcg3.prior, WT_CFG_PRIOR_PAPER);
+    ck_assert_int_eq(c->cg9.prior, WT_CFG_PRIOR_FULL);
     ck_assert_int_eq(c->warm_start, 1);
     ck_assert_int_eq(c->pcg3.nlayers, 3);
     ck_assert_int_eq(c->pcg3.size[0], 128);

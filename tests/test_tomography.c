@@ -200,9 +200,11 @@ END_TEST
  * defect. */
 START_TEST(test_normal_operator_consistency)
 {
+    /* the diagonal prior (the full one: test_full_prior_operator) */
+    const char *paper[] = {"recon.prior=\"paper\""};
     for (int v = 0; v < 2; v++) {
         fixture f;
-        setup(&f, DEMO, v, 0, NULL);
+        setup(&f, DEMO, v, 1, paper);
         int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
         double *c = malloc(n * sizeof *c), *c2 = malloc(n * sizeof *c2), *y = malloc(n * sizeof *y),
                *y2 = malloc(n * sizeof *y2), *s = malloc(ns * sizeof *s), *as = malloc(ns * sizeof *as),
