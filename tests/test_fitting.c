@@ -262,6 +262,10 @@ START_TEST(test_cholesky_equals_converged_cg)
         wt_fitting_rhs(fch, 1.0, phi, bf);
         wt_fitting_rhs(fref, 1.0, phi, br);
         ck_assert_int_eq(memcmp(bf, br, na * sizeof *bf), 0);
+        memset(bf, 0, na * sizeof *bf), memset(br, 0, na * sizeof *br);
+        wt_fitting_apply(fch, 0.7, acg, bf); /* the normal operator (CG's) through H_j instead of P_j */
+        wt_fitting_apply(fref, 0.7, acg, br);
+        ck_assert_int_eq(memcmp(bf, br, na * sizeof *bf), 0);
         ck_assert_int_eq(wt_fitting_solve(fref, phi, ach2, 5, 0.5, NULL, NULL), WT_OK);
         ck_assert_int_eq(memcmp(ach, ach2, na * sizeof *ach), 0);
         free(bf), free(br);

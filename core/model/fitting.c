@@ -34,6 +34,8 @@ struct wt_fitting {
     double *acc;            /* WT_GROUPS x ndm_pts */
     int *group;             /* direction → accumulator group */
     double *pupil;          /* WT_GROUPS x ncg (fast) or ndir x ncg (reference): P_j φ or H_j a on the samples */
+    double *rowwork;        /* WT_GROUPS x nrowwork: wt_projection_apply_rows' layer rows (fast) */
+    int64_t nrowwork;
     double *b;              /* nact: the public forms' scratch, the maps solve's right-hand side */
     wt_pcg *pcg;
     int solver;             /* WT_FIT_CG or WT_FIT_CHOLESKY */
@@ -58,9 +60,14 @@ static void project_back(wt_fitting *f, wt_projection *const *src, const double 
              * the core's L2 between P_j and H_jᵀ); the reference kernels give each direction its own (25
              * buffers, 5.7 MB, streamed through memory): the same values, the same bits */
             double *pu = f->pupil + (size_t)(f->reference ? j : g) * f->ncg;
-            memset(pu, 0, (size_t)f->ncg * sizeof *pu);
-            wt_projection_apply(src[j], 1.0, in, pu);
-            wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+            if (f->reference) {
+                memset(pu, 0, (size_t)f->ncg * sizeof *pu);
+                wt_projection_apply(src[j], 1.0, in, pu);
+            } else { /* the sample points overwritten (H_jᵀ reads no other) */
+                wt_projection_apply_rows(src[j], 1.0, in, pu, f->rowwork + (size_t)g * f->nrowwork, 0);
+            }
+            if (f->reference) wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+            else wt_projection_apply_t_side(f->dm[j], 1.0, pu, acc);
         }
     }
     wt_vec_sum_groups(f->acc, nd, out);
@@ -331,6 +338,11 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
         wt_free(ctx, cost);
     }
     WT_ALLOC(ctx, f->pupil, (size_t)(f->reference ? f->ndir : WT_GROUPS) * f->ncg, "fitting pupil workspace");
+    for (int j = 0; j < f->ndir; j++) {
+        if (wt_projection_rows_work(f->dm[j]) > f->nrowwork) f->nrowwork = wt_projection_rows_work(f->dm[j]);
+        if (f->layer[j] && wt_projection_rows_work(f->layer[j]) > f->nrowwork) f->nrowwork = wt_projection_rows_work(f->layer[j]);
+    }
+    WT_ALLOC(ctx, f->rowwork, (size_t)WT_GROUPS * f->nrowwork, "fitting row workspace");
     WT_ALLOC(ctx, f->b, sys->nact, "fitting right-hand side");
     WT_TRY(wt_pcg_alloc(ctx, sys->nact, &f->pcg));
 
@@ -410,6 +422,7 @@ void wt_fitting_free(wt_fitting *f)
     wt_free(ctx, f->acc);
     wt_free(ctx, f->group);
     wt_free(ctx, f->pupil);
+    wt_free(ctx, f->rowwork);
     wt_free(ctx, f->b);
     wt_pcg_free(f->pcg);
     wt_chol_free(f->chol);
