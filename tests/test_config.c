@@ -657,6 +657,8 @@ static const struct bad_case {
      {"key 'recon.cg9.fit_solver': value \"lu\"", "\"cg\", \"cholesky\"", ""}},
     {"fitting solver not a string", "    fit_iterations = 4;\n", "    fit_iterations = 4; fit_solver = 1;\n", 1, NULL,
      {"recon.cg9.fit_solver", "", ""}},
+    {"unknown fitting kernels", "    fit_iterations = 4;\n", "    fit_iterations = 4; fit_kernels = \"simd\";\n", 1, NULL,
+     {"key 'recon.cg9.fit_kernels': value \"simd\"", "\"fast\", \"reference\"", ""}},
     {"settle past the end", "settle_frames = 20;", "settle_frames = 200;", 1, NULL, {"key 'evaluation.settle_frames': value 200 is not below 'loop.frames' = 200", "", ""}},
     {"negative seed", "seed = 1;", "seed = -3;", 1, NULL, {"key 'sim.seed': value -3 is out of range", ">= 0", ""}},
     {"negative PSF interval", "seed = 1;", "seed = 1; psf_interval_frames = -1;", 1, NULL,
@@ -799,7 +801,7 @@ START_TEST(test_reference)
         const char *u = strrchr(path, '_');
         if (u && strcmp(u, "_e") && strcmp(u, "_fractions") && !strstr(path, "warm_start") && !strstr(path, "_size") &&
             !strstr(path, "_order") && !strstr(path, "_levels") && !strstr(path, "_frames") && !strstr(path, "_fraction") &&
-            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "_precision") && !strstr(path, "noise_average") && !strstr(path, "_solver") &&
+            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "_precision") && !strstr(path, "noise_average") && !strstr(path, "_solver") && !strstr(path, "_kernels") &&
             /* the diffractive sensor's keys without a unit (counts, switches, seeds, ratios) */
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
             !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&

@@ -251,6 +251,26 @@ START_TEST(test_cholesky_equals_converged_cg)
     ck_assert_double_eq(hist[0], 0.0);
     ck_assert_int_eq(wt_fitting_solve_continue(fch, phi, ach2, 10, 0.0, NULL, NULL), WT_OK);
     ck_assert_int_eq(memcmp(ach, ach2, na * sizeof *ach), 0);
+    /* the reference kernels (recon.cg9.fit_kernels = "reference": a pupil buffer per direction, the plain
+     * solve loops) give the same bits as the fast ones, the right-hand side and the commands */
+    {
+        wt_fitting *fref;
+        fp.reference = 1;
+        ck_assert_int_eq(wt_fitting_alloc_for(f.ctx, t, &fp, &fref), WT_OK);
+        fp.reference = 0;
+        double *bf = calloc(na, sizeof *bf), *br = calloc(na, sizeof *br);
+        wt_fitting_rhs(fch, 1.0, phi, bf);
+        wt_fitting_rhs(fref, 1.0, phi, br);
+        ck_assert_int_eq(memcmp(bf, br, na * sizeof *bf), 0);
+        memset(bf, 0, na * sizeof *bf), memset(br, 0, na * sizeof *br);
+        wt_fitting_apply(fch, 0.7, acg, bf); /* the normal operator (CG's) through H_j instead of P_j */
+        wt_fitting_apply(fref, 0.7, acg, br);
+        ck_assert_int_eq(memcmp(bf, br, na * sizeof *bf), 0);
+        ck_assert_int_eq(wt_fitting_solve(fref, phi, ach2, 5, 0.5, NULL, NULL), WT_OK);
+        ck_assert_int_eq(memcmp(ach, ach2, na * sizeof *ach), 0);
+        free(bf), free(br);
+        wt_fitting_free(fref);
+    }
     /* CG's true residual */
     wt_fitting_rhs(fcg, 1.0, phi, b);
     tu_fitting_apply(fcg, na, acg, r);

@@ -287,6 +287,93 @@ START_TEST(test_layers_per_point_bits)
 }
 END_TEST
 
+/* wt_projection_apply_rows (X rows along x computed once, then combined along y) and wt_projection_apply_t_side
+ * (layers side by side per point) do the operations of apply and apply_t on the same operands in the same
+ * order: the same bits. Geometries: the fitting's (0.25 m samples in the pupil, 0.5 m layers, sources at
+ * infinity, 1 to 9 layers; DMs of 0.5 and 1 m seen beyond their edge, clamped), the LGS cone on the 0.5 m
+ * corners (0.5 and 1 m layers, a layer row read by one or two target rows), and 33 layers (beyond the rows
+ * pass's 32: apply's loops). accumulate = 0 overwrites the sample points with what a zeroed array
+ * accumulates and leaves the others as they were. */
+static void check_rows_side(const wt_projection *p, const uint8_t *mask, unsigned long seed)
+{
+    const long nin = wt_projection_nin(p), nout = wt_projection_nout(p);
+    double *x = malloc(nin * sizeof *x), *y = malloc(nout * sizeof *y), *ref = malloc(nout * sizeof *ref);
+    double *work = malloc(wt_projection_rows_work(p) * sizeof *work);
+    double *u = malloc(nin * sizeof *u), *v = malloc(nin * sizeof *v);
+    tu_randn(x, nin, seed);
+    tu_randn(y, nout, seed + 1);
+    memcpy(ref, y, nout * sizeof *y);
+    wt_projection_apply(p, -0.83, x, ref);
+    wt_projection_apply_rows(p, -0.83, x, y, work, 1);
+    ck_assert_mem_eq(y, ref, nout * sizeof *y);
+    /* overwrite: the sample points as on a zeroed array, the rest (here NaN) untouched */
+    for (long i = 0; i < nout; i++) y[i] = NAN, ref[i] = 0.0;
+    wt_projection_apply(p, 0.61, x, ref);
+    wt_projection_apply_rows(p, 0.61, x, y, work, 0);
+    for (long i = 0; i < nout; i++)
+        if (!mask || mask[i]) ck_assert_mem_eq(&y[i], &ref[i], sizeof *y);
+        else ck_assert(isnan(y[i]));
+    /* the adjoint side by side */
+    tu_randn(y, nout, seed + 2);
+    tu_randn(u, nin, seed + 3);
+    memcpy(v, u, nin * sizeof *u);
+    wt_projection_apply_t(p, 1.7, y, u);
+    wt_projection_apply_t_side(p, 1.7, y, v);
+    ck_assert_mem_eq(u, v, nin * sizeof *u);
+    free(x), free(y), free(ref), free(work), free(u), free(v);
+}
+
+START_TEST(test_rows_and_side_bits)
+{
+    wt_context *ctx = tu_context();
+    /* the fitting: 169² samples every 0.25 m in the 42 m pupil, 9 layers of 128² at 0.5 m up to 18 km, and the
+     * DMs (85² at 0.5 m, 47² and 53² at 1 m, clamped) along the field's corner and centre directions */
+    const wt_grid fine = wt_grid_centred(169, 0.25);
+    uint8_t *pm = malloc(169 * 169);
+    wt_pupil_mask_points(42.0, 0.28, &fine, pm);
+    const double alts9[9] = {47.0, 140.0, 281.0, 562.0, 1125.0, 2250.0, 4500.0, 9000.0, 18000.0};
+    wt_grid g9[9];
+    for (int l = 0; l < 9; l++) g9[l] = wt_grid_layer(128, 0.5);
+    const double dirs[3][2] = {{-60 * ARCSEC, 60 * ARCSEC}, {0.0, 0.0}, {30 * ARCSEC, -17 * ARCSEC}};
+    for (int d = 0; d < 3; d++)
+        for (int nl = 1; nl <= 9; nl += (nl < 4 ? 1 : 5)) { /* 1, 2, 3, 4, 9 */
+            wt_projection *p = make(ctx, nl, g9 + 9 - nl, alts9 + 9 - nl, 0.0, dirs[d][0], dirs[d][1], &fine, pm, 0);
+            check_rows_side(p, pm, 100 + 10 * d + nl);
+            wt_projection_free(p);
+        }
+    const wt_grid dm[3] = {wt_grid_centred(85, 0.5), wt_grid_centred(47, 1.0), wt_grid_centred(53, 1.0)};
+    const double dmh[3] = {0.0, 4000.0, 12700.0};
+    for (int d = 0; d < 3; d++) {
+        wt_projection *p = make(ctx, 3, dm, dmh, 0.0, dirs[d][0] * 1.41, dirs[d][1] * 1.41, &fine, pm, 1);
+        check_rows_side(p, pm, 200 + d);
+        wt_projection_free(p);
+    }
+    /* the LGS cone on the corners, 0.5 and 1 m layers; clamped (no mask) and covered (mask) */
+    uint8_t mask[85 * 85];
+    const wt_grid t = corner_grid(mask);
+    wt_grid g[6];
+    double h[6];
+    for (int l = 0; l < 6; l++) {
+        g[l] = wt_grid_layer(l % 2 ? 64 : 128, l % 2 ? 1.0 : 0.5);
+        h[l] = 2500.0 * l;
+    }
+    for (int clamp = 0; clamp <= 1; clamp++) {
+        wt_projection *p = make(ctx, 6, g, h, clamp ? 0.0 : 90000.0, 25 * ARCSEC, -40 * ARCSEC, &t, clamp ? NULL : mask, clamp);
+        check_rows_side(p, clamp ? NULL : mask, 300 + clamp);
+        wt_projection_free(p);
+    }
+    /* 33 small layers, clamped */
+    wt_grid g33[33];
+    double h33[33];
+    for (int l = 0; l < 33; l++) g33[l] = wt_grid_layer(32, 1.0), h33[l] = 300.0 * l;
+    wt_projection *p = make(ctx, 33, g33, h33, 0.0, 10 * ARCSEC, 20 * ARCSEC, &t, mask, 1);
+    check_rows_side(p, mask, 400);
+    wt_projection_free(p);
+    free(pm);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_outside_rejected)
 {
     wt_context *ctx = tu_context();
@@ -415,6 +502,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_ground_layer_same_everywhere);
     tcase_add_test(tc, test_cone_and_shift);
     tcase_add_test(tc, test_layers_per_point_bits);
+    tcase_add_test(tc, test_rows_and_side_bits);
     tcase_add_test(tc, test_outside_rejected);
     tcase_add_test(tc, test_clamp);
     tcase_add_test(tc, test_allocation);

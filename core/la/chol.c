@@ -36,6 +36,7 @@ struct wt_chol {
     int64_t n, nnz;
     int factorized;
     one_plan one;
+    int one_reference;        /* the single right-hand-side solves use the reference kernels */
 };
 
 #define WT_STR_(x) #x
@@ -406,6 +407,8 @@ fail:
     return st;
 }
 
+void wt_chol_one_reference(wt_chol *c, int reference) { c->one_reference = reference != 0; }
+
 double wt_chol_one_bytes(const wt_chol *c)
 {
     if (!c->one.ready) return 0.0;
@@ -421,35 +424,109 @@ void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top
 
 /* Supernode k packed (see one_plan.val), in double or float: column j starts at j (nscol + m) − j (j − 1) / 2
  * with m = nsrow − nscol rows below the diagonal block, and holds L(j, j), L(j + 1 .. nscol − 1, j), then
- * the m rows below. The kernels are written once over the value type (two copies by the macro) and cloned for
- * AVX2/AVX-512 like the transforms. The dots keep 8 partial sums in fixed lanes (lane i % 8), added in a fixed
- * order at the end: a loop that vectorises without reassociation (ISO C: no FMA contraction either), so every
- * clone and every thread count gives the same bits. */
+ * the m rows below. The kernels are written once over the value type and the variant (four copies by the
+ * macro) and cloned for AVX2/AVX-512 like the transforms. The dots keep 8 partial sums in fixed lanes
+ * (lane i % 8), added in a fixed order at the end (ISO C: no FMA contraction), so every clone, variant and
+ * thread count gives the same bits.
+ *
+ * Two variants of the same arithmetic (issue 20 §2): "ref", the plain loops (GCC left the float dots' lanes
+ * scalar: one vcvtss2sd + vmulsd + vaddsd per entry), kept as the bit-for-bit oracle of tests/test_chol.c and
+ * the baseline of the paired bench (recon.cg9.fit_kernels = "reference"); "fast", the lanes as one GCC vector
+ * (8 doubles: one load, conversion, multiply and add per 8 entries in the AVX-512 clone), and the forward
+ * block's next two y carried in registers (its divide no longer waits on reloading what a vector store of the
+ * previous column wrote). */
 #define ONE_COL(j, nscol, m) ((j) * ((nscol) + (m)) - (j) * ((j) - 1) / 2)
-#define ONE_KERNELS(T, SUF)                                                                                      \
-    static inline double dot_##SUF(const T *restrict a, const double *restrict b, int64_t m)                   \
+typedef double v8d __attribute__((vector_size(64)));
+/* 8 lanes of partial sums: an array (ref) or one vector (fast); both are indexed acc[l] */
+#define ACC8_ref(x) double x[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
+#define ACC8_fast(x) v8d x = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
+/* acc[l] += a[i + l] b[i + l], l < 8 */
+#define DOT8_ref(SUF, acc, a, b, i) for (int l = 0; l < 8; l++) acc[l] += (double)(a)[(i) + l] * (b)[(i) + l]
+#define DOT8_fast(SUF, acc, a, b, i)                                                                             \
+    do {                                                                                                       \
+        v8d x_, z_;                                                                                            \
+        load8_##SUF(&x_, (a) + (i));                                                                           \
+        load8_d(&z_, (b) + (i));                                                                               \
+        acc += x_ * z_;                                                                                        \
+    } while (0)
+/* the rows below, 4 columns a pass: acc_c[l] += c_c[i + l] w[i + l] */
+#define DOT8x4_ref(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                    \
+    for (int l = 0; l < 8; l++) {                                                                              \
+        const double wi = w[(i) + l];                                                                          \
+        a0[l] += (double)c0[(i) + l] * wi;                                                                     \
+        a1[l] += (double)c1[(i) + l] * wi;                                                                     \
+        a2[l] += (double)c2[(i) + l] * wi;                                                                     \
+        a3[l] += (double)c3[(i) + l] * wi;                                                                     \
+    }
+#define DOT8x4_fast(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                   \
+    do {                                                                                                       \
+        v8d wi_, x0_, x1_, x2_, x3_;                                                                           \
+        load8_d(&wi_, (w) + (i));                                                                              \
+        load8_##SUF(&x0_, (c0) + (i));                                                                         \
+        load8_##SUF(&x1_, (c1) + (i));                                                                         \
+        load8_##SUF(&x2_, (c2) + (i));                                                                         \
+        load8_##SUF(&x3_, (c3) + (i));                                                                         \
+        a0 += x0_ * wi_;                                                                                       \
+        a1 += x1_ * wi_;                                                                                       \
+        a2 += x2_ * wi_;                                                                                       \
+        a3 += x3_ * wi_;                                                                                       \
+    } while (0)
+/* forward's diagonal block: y[j] /= L(j, j), then y[j + i] −= L(j + i, j) y[j], column after column */
+#define FWD_BLOCK_ref(T, v, yk, nscol, m)                                                                        \
+    for (int64_t j = 0; j < nscol; j++) {                                                                      \
+        const T *restrict col = v + ONE_COL(j, nscol, m);                                                      \
+        const double yj = (yk[j] /= (double)col[0]);                                                           \
+        const int64_t d = nscol - j;                                                                           \
+        for (int64_t i = 1; i < d; i++) yk[j + i] -= (double)col[i] * yj;                                      \
+    }
+#define FWD_BLOCK_fast(T, v, yk, nscol, m)                                                                       \
+    do {                                                                                                       \
+        /* y[j] and y[j + 1] as the previous columns left them, in registers: column j's divide waits on one \
+         * multiply-subtract, and the value it loads from memory (y[j + 2]) is needed a column later */        \
+        double n1 = yk[0], n2 = nscol > 1 ? yk[1] : 0.0;                                                       \
+        for (int64_t j = 0; j < nscol; j++) {                                                                  \
+            const T *restrict col = v + ONE_COL(j, nscol, m);                                                  \
+            const double yj = n1 / (double)col[0];                                                             \
+            yk[j] = yj;                                                                                        \
+            const int64_t d = nscol - j;                                                                       \
+            if (d > 1) n1 = n2 - (double)col[1] * yj;                                                          \
+            if (d > 2) n2 = yk[j + 2] - (double)col[2] * yj;                                                   \
+            for (int64_t i = 3; i < d; i++) yk[j + i] -= (double)col[i] * yj;                                  \
+        }                                                                                                      \
+    } while (0)
+
+/* 8 consecutive values (unaligned) as doubles: one vector load (+ conversion) in every clone; through a
+ * pointer, since a 64-byte vector return would cross the default clone's ABI */
+#define LOAD8(T, SUF)                                                                                            \
+    typedef T wt_v8_##SUF __attribute__((vector_size(8 * sizeof(T))));                                       \
+    static inline __attribute__((always_inline)) void load8_##SUF(v8d *out, const T *restrict a)               \
     {                                                                                                          \
-        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};                                              \
+        wt_v8_##SUF x;                                                                                         \
+        memcpy(&x, a, sizeof x);                                                                               \
+        *out = __builtin_convertvector(x, v8d);                                                                \
+    }
+LOAD8(double, d)
+LOAD8(float, f)
+
+#define ONE_KERNELS(T, SUF, V)                                                                                   \
+    static inline double dot_##V##_##SUF(const T *restrict a, const double *restrict b, int64_t m)              \
+    {                                                                                                          \
+        ACC8_##V(acc);                                                                                         \
         int64_t i = 0;                                                                                         \
-        for (; i + 8 <= m; i += 8)                                                                             \
-            for (int l = 0; l < 8; l++) acc[l] += (double)a[i + l] * b[i + l];                                 \
+        for (; i + 8 <= m; i += 8) DOT8_##V(SUF, acc, a, b, i);                                                \
         for (int l = 0; i + l < m; l++) acc[l] += (double)a[i + l] * b[i + l];                                 \
         return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));              \
     }                                                                                                          \
     /* forward: y[k1 .. k2) ← L_kk⁻¹ y[k1 .. k2); then the rows below: w = L_bk y[k1 .. k2), and y[s_i] −= w_i  \
      * (into the group's buffer, with the opposite sign, for a row of the top part) */                         \
-    WT_CPU_CLONES static void forward_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1,       \
-                                            int64_t nscol, int64_t nsrow, double *restrict y,                  \
-                                            double *restrict w, double *restrict buf, const int *restrict top) \
+    WT_CPU_CLONES static void forward_##V##_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1, \
+                                                  int64_t nscol, int64_t nsrow, double *restrict y,            \
+                                                  double *restrict w, double *restrict buf,                    \
+                                                  const int *restrict top)                                     \
     {                                                                                                          \
         const int64_t m = nsrow - nscol;                                                                       \
         double *restrict yk = y + k1;                                                                          \
-        for (int64_t j = 0; j < nscol; j++) {                                                                  \
-            const T *restrict col = v + ONE_COL(j, nscol, m);                                                  \
-            const double yj = (yk[j] /= (double)col[0]);                                                       \
-            const int64_t d = nscol - j;                                                                       \
-            for (int64_t i = 1; i < d; i++) yk[j + i] -= (double)col[i] * yj;                                  \
-        }                                                                                                      \
+        FWD_BLOCK_##V(T, v, yk, nscol, m);                                                                     \
         if (m == 0) return;                                                                                    \
         for (int64_t i = 0; i < m; i++) w[i] = 0.0;                                                            \
         int64_t j = 0;                                                                                         \
@@ -479,9 +556,9 @@ void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top
             for (int64_t i = 0; i < m; i++) y[below[i]] -= w[i];                                               \
     }                                                                                                          \
     /* backward: y[k1 .. k2) ← L_kkᵀ⁻¹ (y[k1 .. k2) − L_bkᵀ y[rows below]) */                                  \
-    WT_CPU_CLONES static void backward_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1,      \
-                                             int64_t nscol, int64_t nsrow, double *restrict y,                 \
-                                             double *restrict w)                                               \
+    WT_CPU_CLONES static void backward_##V##_##SUF(const T *restrict v, const int64_t *restrict rows,           \
+                                                   int64_t k1, int64_t nscol, int64_t nsrow,                   \
+                                                   double *restrict y, double *restrict w)                     \
     {                                                                                                          \
         const int64_t m = nsrow - nscol;                                                                       \
         double *restrict yk = y + k1;                                                                          \
@@ -494,16 +571,12 @@ void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top
             const T *restrict c1 = v + ONE_COL(j + 1, nscol, m) + (nscol - j - 1);                             \
             const T *restrict c2 = v + ONE_COL(j + 2, nscol, m) + (nscol - j - 2);                             \
             const T *restrict c3 = v + ONE_COL(j + 3, nscol, m) + (nscol - j - 3);                             \
-            double a0[8] = {0}, a1[8] = {0}, a2[8] = {0}, a3[8] = {0};                                         \
+            ACC8_##V(a0);                                                                                      \
+            ACC8_##V(a1);                                                                                      \
+            ACC8_##V(a2);                                                                                      \
+            ACC8_##V(a3);                                                                                      \
             int64_t i = 0;                                                                                     \
-            for (; i + 8 <= m; i += 8)                                                                         \
-                for (int l = 0; l < 8; l++) {                                                                  \
-                    const double wi = w[i + l];                                                                \
-                    a0[l] += (double)c0[i + l] * wi;                                                           \
-                    a1[l] += (double)c1[i + l] * wi;                                                           \
-                    a2[l] += (double)c2[i + l] * wi;                                                           \
-                    a3[l] += (double)c3[i + l] * wi;                                                           \
-                }                                                                                              \
+            for (; i + 8 <= m; i += 8) DOT8x4_##V(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i);                  \
             for (int l = 0; i + l < m; l++) {                                                                  \
                 const double wi = w[i + l];                                                                    \
                 a0[l] += (double)c0[i + l] * wi;                                                               \
@@ -516,16 +589,18 @@ void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top
             t[j + 2] = ((a2[0] + a2[1]) + (a2[2] + a2[3])) + ((a2[4] + a2[5]) + (a2[6] + a2[7]));              \
             t[j + 3] = ((a3[0] + a3[1]) + (a3[2] + a3[3])) + ((a3[4] + a3[5]) + (a3[6] + a3[7]));              \
         }                                                                                                      \
-        for (; j < nscol; j++) t[j] = dot_##SUF(v + ONE_COL(j, nscol, m) + (nscol - j), w, m);               \
+        for (; j < nscol; j++) t[j] = dot_##V##_##SUF(v + ONE_COL(j, nscol, m) + (nscol - j), w, m);          \
         for (int64_t jj = nscol - 1; jj >= 0; jj--) {                                                          \
             const T *restrict col = v + ONE_COL(jj, nscol, m);                                                 \
-            const double s = t[jj] + dot_##SUF(col + 1, yk + jj + 1, nscol - jj - 1);                          \
+            const double s = t[jj] + dot_##V##_##SUF(col + 1, yk + jj + 1, nscol - jj - 1);                    \
             yk[jj] = (yk[jj] - s) / (double)col[0];                                                            \
         }                                                                                                      \
     }
 
-ONE_KERNELS(double, d)
-ONE_KERNELS(float, f)
+ONE_KERNELS(double, d, ref)
+ONE_KERNELS(float, f, ref)
+ONE_KERNELS(double, d, fast)
+ONE_KERNELS(float, f, fast)
 
 /* Part `part` of the plan, forward or backward; buf: the group's buffer of top rows (forward, groups only). */
 static void one_part(const wt_chol *c, int part, int backward, double *w, double *buf, const int *top)
@@ -537,14 +612,23 @@ static void one_part(const wt_chol *c, int part, int backward, double *w, double
     for (int64_t q = backward ? b - 1 : a; backward ? q >= a : q < b; q += backward ? -1 : 1) {
         const int64_t k = p->order[q], k1 = super[k], nscol = super[k + 1] - k1, nsrow = pi[k + 1] - pi[k];
         const int64_t *rows = srow + pi[k];
-        if (p->float32) {
-            const float *v = (const float *)p->val + p->voff[k];
-            if (backward) backward_f(v, rows, k1, nscol, nsrow, p->y, w);
-            else forward_f(v, rows, k1, nscol, nsrow, p->y, w, buf, top);
+        const void *v = p->float32 ? (const void *)((const float *)p->val + p->voff[k])
+                                   : (const void *)((const double *)p->val + p->voff[k]);
+        const int kind = 2 * c->one_reference + p->float32;
+        if (backward) {
+            switch (kind) {
+            case 0: backward_fast_d(v, rows, k1, nscol, nsrow, p->y, w); break;
+            case 1: backward_fast_f(v, rows, k1, nscol, nsrow, p->y, w); break;
+            case 2: backward_ref_d(v, rows, k1, nscol, nsrow, p->y, w); break;
+            default: backward_ref_f(v, rows, k1, nscol, nsrow, p->y, w); break;
+            }
         } else {
-            const double *v = (const double *)p->val + p->voff[k];
-            if (backward) backward_d(v, rows, k1, nscol, nsrow, p->y, w);
-            else forward_d(v, rows, k1, nscol, nsrow, p->y, w, buf, top);
+            switch (kind) {
+            case 0: forward_fast_d(v, rows, k1, nscol, nsrow, p->y, w, buf, top); break;
+            case 1: forward_fast_f(v, rows, k1, nscol, nsrow, p->y, w, buf, top); break;
+            case 2: forward_ref_d(v, rows, k1, nscol, nsrow, p->y, w, buf, top); break;
+            default: forward_ref_f(v, rows, k1, nscol, nsrow, p->y, w, buf, top); break;
+            }
         }
     }
 }

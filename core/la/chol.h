@@ -65,6 +65,9 @@ int wt_chol_solve(wt_chol *c, int64_t nrhs, const double *b, int64_t ldb, double
  * wt_chol_solve_one allocates nothing; b and x may be the same array. WT_ERR_INVALID before a preparation. */
 int wt_chol_prepare_one(wt_chol *c, int float32, int nthreads);
 int wt_chol_solve_one(wt_chol *c, const double *b, double *x);
+/* reference = 1: wt_chol_solve_one runs the plain reference kernels instead of the vectorised ones (the same
+ * bits, slower: the oracle of the tests and the baseline of the paired bench); 0 (the default): the fast ones. */
+void wt_chol_one_reference(wt_chol *c, int reference);
 /* The split: entries of L in the two groups and in the top part (for reports and tests). */
 void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top);
 /* Bytes of the packed copy wt_chol_solve_one reads (each solve reads it once; 0 before a preparation). */

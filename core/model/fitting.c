@@ -33,12 +33,15 @@ struct wt_fitting {
     double *ygrid;          /* ndm_pts: Σ Hᵀ H on the grids */
     double *acc;            /* WT_GROUPS x ndm_pts */
     int *group;             /* direction → accumulator group */
-    double *pupil;          /* ndir x ncg */
+    double *pupil;          /* WT_GROUPS x ncg (fast) or ndir x ncg (reference): P_j φ or H_j a on the samples */
+    double *rowwork;        /* WT_GROUPS x nrowwork: wt_projection_apply_rows' layer rows (fast) */
+    int64_t nrowwork;
     double *b;              /* nact: the public forms' scratch, the maps solve's right-hand side */
     wt_pcg *pcg;
     int solver;             /* WT_FIT_CG or WT_FIT_CHOLESKY */
     wt_chol *chol;          /* WT_FIT_CHOLESKY: the factor of N */
     int factor_float32;     /* its solves read a float32 copy of L */
+    int reference;          /* the frame's reference kernels (wt_fitting_params.reference) */
     wt_fitting_stats stats;
 };
 
@@ -53,10 +56,18 @@ static void project_back(wt_fitting *f, wt_projection *const *src, const double 
         memset(acc, 0, (size_t)nd * sizeof *acc);
         for (int j = 0; j < f->ndir; j++) {
             if (f->group[j] != g) continue;
-            double *pu = f->pupil + (size_t)j * f->ncg;
-            memset(pu, 0, (size_t)f->ncg * sizeof *pu);
-            wt_projection_apply(src[j], 1.0, in, pu);
-            wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+            /* a group's directions one after another through the group's buffer (228 KB at E-ELT: it stays in
+             * the core's L2 between P_j and H_jᵀ); the reference kernels give each direction its own (25
+             * buffers, 5.7 MB, streamed through memory): the same values, the same bits */
+            double *pu = f->pupil + (size_t)(f->reference ? j : g) * f->ncg;
+            if (f->reference) {
+                memset(pu, 0, (size_t)f->ncg * sizeof *pu);
+                wt_projection_apply(src[j], 1.0, in, pu);
+            } else { /* the sample points overwritten (H_jᵀ reads no other) */
+                wt_projection_apply_rows(src[j], 1.0, in, pu, f->rowwork + (size_t)g * f->nrowwork, 0);
+            }
+            if (f->reference) wt_projection_apply_t(f->dm[j], 1.0, pu, acc);
+            else wt_projection_apply_t_side(f->dm[j], 1.0, pu, acc);
         }
     }
     wt_vec_sum_groups(f->acc, nd, out);
@@ -247,6 +258,7 @@ static int factorize(wt_fitting *f, double regularization)
     }
     if (st < 0) goto fail;
     WT_TRY(wt_chol_prepare_one(f->chol, f->factor_float32, f->nthreads > 1 ? 2 : 1));
+    wt_chol_one_reference(f->chol, f->reference);
     f->stats.t_factorize = wt_time_now() - t0;
     wt_chol_info info;
     wt_chol_info_get(f->chol, &info);
@@ -268,7 +280,7 @@ double wt_fitting_bytes(const wt_fitting *f)
     for (int64_t i = 0; i < f->ncg; i++) npts += f->mask[i] != 0;
     const double nd = (double)f->ndm_pts, na = (double)f->sys->nact;
     return 24.0 * (double)npts * f->ndir * (f->sys->dm->ndms + f->L) + 8.0 * nd * (2.0 + WT_GROUPS) +
-           8.0 * (double)f->ndir * (double)f->ncg + 8.0 * na * 7.0 + (double)f->ncg + f->stats.factor_bytes +
+           8.0 * (f->reference ? f->ndir : WT_GROUPS) * (double)f->ncg + 8.0 * na * 7.0 + (double)f->ncg + f->stats.factor_bytes +
            (f->chol ? 8.0 * 5.0 * na : 0.0); /* the solves' vectors: y, the two buffers, the workspaces */
 }
 
@@ -285,6 +297,7 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
     WT_ALLOC(ctx, f, 1, "fitting");
     f->solver = par->solver;
     f->factor_float32 = par->factor_float32 != 0;
+    f->reference = par->reference != 0;
     f->ctx = ctx;
     f->sys = sys;
     f->ndir = sys->neval;
@@ -324,7 +337,12 @@ int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const w
         wt_vec_groups(f->ndir, cost, f->group);
         wt_free(ctx, cost);
     }
-    WT_ALLOC(ctx, f->pupil, (size_t)f->ndir * f->ncg, "fitting pupil workspace");
+    WT_ALLOC(ctx, f->pupil, (size_t)(f->reference ? f->ndir : WT_GROUPS) * f->ncg, "fitting pupil workspace");
+    for (int j = 0; j < f->ndir; j++) {
+        if (wt_projection_rows_work(f->dm[j]) > f->nrowwork) f->nrowwork = wt_projection_rows_work(f->dm[j]);
+        if (f->layer[j] && wt_projection_rows_work(f->layer[j]) > f->nrowwork) f->nrowwork = wt_projection_rows_work(f->layer[j]);
+    }
+    WT_ALLOC(ctx, f->rowwork, (size_t)WT_GROUPS * f->nrowwork, "fitting row workspace");
     WT_ALLOC(ctx, f->b, sys->nact, "fitting right-hand side");
     WT_TRY(wt_pcg_alloc(ctx, sys->nact, &f->pcg));
 
@@ -404,6 +422,7 @@ void wt_fitting_free(wt_fitting *f)
     wt_free(ctx, f->acc);
     wt_free(ctx, f->group);
     wt_free(ctx, f->pupil);
+    wt_free(ctx, f->rowwork);
     wt_free(ctx, f->b);
     wt_pcg_free(f->pcg);
     wt_chol_free(f->chol);

@@ -32,6 +32,10 @@ typedef struct wt_fitting_params {
     int sampling;          /* sample points per subaperture side: 1 = Fried corners, q > 1 = d/q pupil grid */
     int solver;            /* WT_FIT_CG (default, 0) or WT_FIT_CHOLESKY */
     int factor_float32;    /* WT_FIT_CHOLESKY: 1 = the solves read a float32 copy of L (accumulating in double) */
+    int reference;         /* 1 = the frame's reference kernels (each direction through its own zeroed pupil buffer
+                              by wt_projection_apply / apply_t, the Cholesky solves' plain loops): the same bits
+                              as the fast ones (wt_projection_apply_rows / apply_t_side, a buffer per group, the
+                              vectorised solves), slower (tests, the paired bench) */
 } wt_fitting_params;
 
 /* What the direct solver's set-up cost (all zero for WT_FIT_CG). */

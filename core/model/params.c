@@ -31,7 +31,8 @@ wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *
     wt_fitting_params fp = {.regularization = var->fit_regularization,
                             .sampling = var->fit_sampling > 0 ? var->fit_sampling : 1,
                             .solver = var->fit_solver,
-                            .factor_float32 = var->fit_factor_precision == 1};
+                            .factor_float32 = var->fit_factor_precision == 1,
+                            .reference = var->fit_kernels == 1};
     return fp;
 }
 

@@ -46,6 +46,7 @@ struct wt_projection {
     int narrow;       /* 1: along every run, every layer's columns are non-decreasing and span at most 6
                          cells over 8 points (apply_layers_avx512's condition) */
     int32_t nrun;     /* runs of consecutive masked target points within a row */
+    int cx0, cx1;     /* the columns [cx0, cx1) the runs cover, all rows together (apply_rows' x range) */
     int32_t *run_row, *run_lo, *run_hi; /* [nrun] row iy and columns [lo, hi) */
 };
 
@@ -192,6 +193,12 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
         }
     }
 
+    p->cx0 = tnx;
+    p->cx1 = 0;
+    for (int64_t r = 0; r < nrun; r++) {
+        if (p->run_lo[r] < p->cx0) p->cx0 = p->run_lo[r];
+        if (p->run_hi[r] > p->cx1) p->cx1 = p->run_hi[r];
+    }
     int64_t offset = 0;
     for (int l = 0; l < nlayers; l++) {
         const wt_grid *g = &layers[l];
@@ -427,6 +434,142 @@ void wt_projection_apply(const wt_projection *p, double alpha, const double *res
     }
 }
 
+/* ---- wt_projection_apply by layer rows (projection.h) ---------------------------------------------------- */
+
+/* layers of the rows pass (its slots live on the stack); more go through wt_projection_apply, the same bits */
+#define WT_PROJ_ROWS_MAX 32
+
+int64_t wt_projection_rows_work(const wt_projection *p) { return 2 * (int64_t)p->nlayers * p->tnx; }
+
+/* X[ix] = u0 R[j] + u1 R[j + 1] (j = cbase, u = the column weights) for ix in [cx0, cx1): the bracket of
+ * run_term, its operations in its order */
+WT_SCALAR_LOOPS static void xrow_plain(const int32_t *restrict cb, const double *restrict w0,
+                                       const double *restrict w1, const double *restrict row, int cx0, int cx1,
+                                       double *restrict X)
+{
+    for (int ix = cx0; ix < cx1; ix++) {
+        const int32_t j = cb[ix];
+        X[ix] = w0[ix] * row[j] + w1[ix] * row[j + 1];
+    }
+}
+
+#ifdef WT_PROJ_AVX512
+/* The same 8 columns at a time where their stencils span at most 6 cells (one masked load of the row and a
+ * lane permutation, as apply_layers_avx512 does); elsewhere the scalar expression. */
+__attribute__((target("avx512f"))) static void xrow_avx512(const int32_t *restrict cb, const double *restrict w0,
+                                                          const double *restrict w1, const double *restrict row,
+                                                          int cx0, int cx1, double *restrict X)
+{
+    int ix = cx0;
+    for (; ix + 8 <= cx1; ix += 8) {
+        const int32_t J = cb[ix], span = cb[ix + 7] - J;
+        if (span >= 0 && span <= 6) {
+            const __mmask8 m = (__mmask8)((1u << (span + 2)) - 1u);
+            const __m512d b = _mm512_maskz_loadu_pd(m, row + J);
+            const __m256i d32 = _mm256_sub_epi32(_mm256_loadu_si256((const __m256i *)(cb + ix)), _mm256_set1_epi32(J));
+            const __m512i d = _mm512_cvtepi32_epi64(d32), d1 = _mm512_add_epi64(d, _mm512_set1_epi64(1));
+            const __m512d u0 = _mm512_loadu_pd(w0 + ix), u1 = _mm512_loadu_pd(w1 + ix);
+            _mm512_storeu_pd(X + ix, _mm512_add_pd(_mm512_mul_pd(u0, _mm512_permutexvar_pd(d, b)),
+                                                   _mm512_mul_pd(u1, _mm512_permutexvar_pd(d1, b))));
+        } else {
+            xrow_plain(cb, w0, w1, row, ix, ix + 8, X);
+        }
+    }
+    xrow_plain(cb, w0, w1, row, ix, cx1, X);
+}
+#endif
+
+/* The rows pass: per target row, every layer's two X rows brought up to date (the previous target row's
+ * often serve: the upper one becomes the lower one), then y += a0 X_R + a1 X_{R+1} per layer along each run
+ * (contiguous: the compiler vectorises it, in the AVX-512 build of this function with 512-bit lanes). */
+static inline __attribute__((always_inline)) void apply_rows_body(const wt_projection *p, double alpha,
+                                                                  const double *restrict layers,
+                                                                  double *restrict points, double *restrict work,
+                                                                  int accumulate, int avx512)
+{
+    const int nl = p->nlayers, tnx = p->tnx, tny = p->tny, cx0 = p->cx0, cx1 = p->cx1;
+    int64_t key[2 * WT_PROJ_ROWS_MAX];   /* the layer offset of the row X slot (l, s) holds, −1: none */
+    double *slot[2 * WT_PROJ_ROWS_MAX];
+    for (int l = 0; l < nl; l++)
+        for (int s = 0; s < 2; s++) {
+            key[2 * l + s] = -1;
+            slot[2 * l + s] = work + (size_t)(2 * l + s) * tnx;
+        }
+    for (int32_t r = 0; r < p->nrun;) {
+        const int iy = p->run_row[r];
+        int32_t r1 = r;
+        while (r1 < p->nrun && p->run_row[r1] == iy) r1++;
+        double *X0[WT_PROJ_ROWS_MAX], *X1[WT_PROJ_ROWS_MAX];
+        for (int l = 0; l < nl; l++) {
+            const int64_t k0 = p->rbase[(size_t)l * tny + iy], k1 = k0 + p->lnx[l];
+            int64_t *kk = key + 2 * l;
+            double **ss = slot + 2 * l;
+            if (kk[1] == k0) { /* the previous upper row is this lower one */
+                double *t = ss[0];
+                ss[0] = ss[1], ss[1] = t;
+                kk[0] = k0, kk[1] = -1;
+            }
+            const int32_t *cb = p->cbase + (size_t)l * tnx;
+            const double *w0 = p->cw0 + (size_t)l * tnx, *w1 = p->cw1 + (size_t)l * tnx;
+            for (int s = 0; s < 2; s++) {
+                const int64_t want = s ? k1 : k0;
+                if (kk[s] == want) continue;
+#ifdef WT_PROJ_AVX512
+                if (avx512) xrow_avx512(cb, w0, w1, layers + want, cx0, cx1, ss[s]);
+                else
+#endif
+                    xrow_plain(cb, w0, w1, layers + want, cx0, cx1, ss[s]);
+                kk[s] = want;
+            }
+            X0[l] = ss[0];
+            X1[l] = ss[1];
+        }
+        double *restrict y = points + (int64_t)iy * tnx;
+        for (; r < r1; r++) {
+            const int lo = p->run_lo[r], hi = p->run_hi[r];
+            for (int l = 0; l < nl; l++) {
+                const size_t kr = (size_t)l * tny + iy;
+                const double a0 = alpha * p->rw0[kr], a1 = alpha * p->rw1[kr];
+                const double *restrict x0 = X0[l], *restrict x1 = X1[l];
+                if (l == 0 && !accumulate) /* 0 + term: what a zeroed y accumulates, signed zeros included */
+                    for (int ix = lo; ix < hi; ix++) y[ix] = 0.0 + (a0 * x0[ix] + a1 * x1[ix]);
+                else
+                    for (int ix = lo; ix < hi; ix++) y[ix] += a0 * x0[ix] + a1 * x1[ix];
+            }
+        }
+    }
+    (void)avx512;
+}
+
+#ifdef WT_PROJ_AVX512
+__attribute__((target("avx512f"))) static void apply_rows_avx512(const wt_projection *p, double alpha,
+                                                                const double *restrict layers,
+                                                                double *restrict points, double *restrict work,
+                                                                int accumulate)
+{
+    apply_rows_body(p, alpha, layers, points, work, accumulate, 1);
+}
+#endif
+
+void wt_projection_apply_rows(const wt_projection *p, double alpha, const double *restrict layers,
+                              double *restrict points, double *restrict work, int accumulate)
+{
+    if (p->nlayers > WT_PROJ_ROWS_MAX) {
+        if (!accumulate)
+            for (int32_t r = 0; r < p->nrun; r++)
+                for (int ix = p->run_lo[r]; ix < p->run_hi[r]; ix++) points[(int64_t)p->run_row[r] * p->tnx + ix] = 0.0;
+        wt_projection_apply(p, alpha, layers, points);
+        return;
+    }
+#ifdef WT_PROJ_AVX512
+    if (__builtin_cpu_supports("avx512f")) {
+        apply_rows_avx512(p, alpha, layers, points, work, accumulate);
+        return;
+    }
+#endif
+    apply_rows_body(p, alpha, layers, points, work, accumulate, 0);
+}
+
 WT_SCALAR_LOOPS
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *restrict points, double *restrict layers)
 {
@@ -471,6 +614,77 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
             r0[jc + 1] += a0 * s1;
             r1[jc + 1] += a1 * s1;
         }
+    }
+}
+
+/* apply_t with the layers side by side (NL ≤ 4 at compile time): each layer's column-pair sums are one
+ * dependency chain along the run (two adds per point, each waiting on the last); run one layer after
+ * another, a point costs the chain's add latency per layer, side by side the layers' chains overlap. Layer
+ * k's updates go to its own part of the layers array in the order of apply_t, hence the same bits. */
+WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_t_side(const int NL, const wt_projection *p,
+                                                                               double alpha,
+                                                                               const double *restrict points,
+                                                                               double *restrict layers)
+{
+    const int tnx = p->tnx, tny = p->tny;
+    for (int32_t r = 0; r < p->nrun; r++) {
+        const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
+        const double *restrict y = points + (int64_t)iy * tnx;
+        double *r0[4], *r1[4], a0[4], a1[4], s0[4], s1[4];
+        const int32_t *cb[4];
+        const double *w0[4], *w1[4];
+        int32_t jc[4];
+        for (int k = 0; k < NL; k++) {
+            const size_t kr = (size_t)k * tny + iy;
+            r0[k] = layers + p->rbase[kr];
+            r1[k] = r0[k] + p->lnx[k];
+            a0[k] = alpha * p->rw0[kr];
+            a1[k] = alpha * p->rw1[kr];
+            cb[k] = p->cbase + (size_t)k * tnx;
+            w0[k] = p->cw0 + (size_t)k * tnx;
+            w1[k] = p->cw1 + (size_t)k * tnx;
+            jc[k] = cb[k][lo];
+            s0[k] = s1[k] = 0.0;
+        }
+        for (int ix = lo; ix < hi; ix++) {
+            const double yv = y[ix];
+            for (int k = 0; k < NL; k++) {
+                const int32_t j = cb[k][ix];
+                if (j != jc[k]) {
+                    r0[k][jc[k]] += a0[k] * s0[k];
+                    r1[k][jc[k]] += a1[k] * s0[k];
+                    if (j == jc[k] + 1) {
+                        s0[k] = s1[k];
+                    } else {
+                        r0[k][jc[k] + 1] += a0[k] * s1[k];
+                        r1[k][jc[k] + 1] += a1[k] * s1[k];
+                        s0[k] = 0.0;
+                    }
+                    s1[k] = 0.0;
+                    jc[k] = j;
+                }
+                s0[k] += w0[k][ix] * yv;
+                s1[k] += w1[k][ix] * yv;
+            }
+        }
+        for (int k = 0; k < NL; k++) {
+            r0[k][jc[k]] += a0[k] * s0[k];
+            r1[k][jc[k]] += a1[k] * s0[k];
+            r0[k][jc[k] + 1] += a0[k] * s1[k];
+            r1[k][jc[k] + 1] += a1[k] * s1[k];
+        }
+    }
+}
+
+void wt_projection_apply_t_side(const wt_projection *p, double alpha, const double *restrict points,
+                                double *restrict layers)
+{
+    switch (p->nlayers) {
+    case 1: apply_t_side(1, p, alpha, points, layers); break;
+    case 2: apply_t_side(2, p, alpha, points, layers); break;
+    case 3: apply_t_side(3, p, alpha, points, layers); break;
+    case 4: apply_t_side(4, p, alpha, points, layers); break;
+    default: wt_projection_apply_t(p, alpha, points, layers); break;
     }
 }
 

@@ -35,9 +35,28 @@ int64_t wt_projection_nout(const wt_projection *p); /* target grid points (nx*ny
 
 /* points <- points + alpha * P layers */
 void wt_projection_apply(const wt_projection *p, double alpha, const double *layers, double *points);
+/* The same, bit for bit, computed layer row by layer row: every term of apply is
+ *   a0 (u0 r0[j] + u1 r0[j+1]) + a1 (u0 r1[j] + u1 r1[j+1])
+ * (u: the column stencil, a: the row stencil, r0, r1: the two layer rows), and its bracket X_R = u0 R[j] +
+ * u1 R[j+1] depends on the layer row R and the target column only; a layer row is read by the ~h/d target
+ * rows of its cell (2 for the fitting's 0.25 m samples of 0.5 m layers) and by the target rows of the cell
+ * below, so each X_R is computed once (along the whole row), kept while target rows need it, and a target
+ * point adds a0 X_R + a1 X_{R+1} per layer, in layer order: the same operations on the same operands.
+ * Faster where target rows outnumber layer rows (the fitting: 4x fewer interpolations along x, and the
+ * rest contiguous vector arithmetic). work: wt_projection_rows_work(p) doubles (2 rows per layer) of the
+ * caller's (no allocation). accumulate = 0: the masked points are overwritten with the values a zeroed array
+ * would accumulate (0 + the terms: the same bits, signed zeros included; the other points are not touched),
+ * so the caller need not clear points. */
+int64_t wt_projection_rows_work(const wt_projection *p);
+void wt_projection_apply_rows(const wt_projection *p, double alpha, const double *layers, double *points,
+                              double *work, int accumulate);
 /* layers <- layers + alpha * Pᵀ points (scatter; serial within one call, thread-safe across calls
  * that write different layer arrays) */
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *points, double *layers);
+/* The same as wt_projection_apply_t, bit for bit, with up to 4 layers side by side per point (more: one after
+ * another, as apply_t): faster where the per-point sums along a run, one dependency chain per layer, bound
+ * the loop (the fitting's 3 DMs). */
+void wt_projection_apply_t_side(const wt_projection *p, double alpha, const double *points, double *layers);
 /* The explicit matrix P: nout x nin. */
 int wt_projection_assemble(const wt_projection *p, wt_sparse **out);
 
