@@ -33,6 +33,19 @@ static wt_prior *make_prior(wt_context *ctx, const wt_wavelet *w, double spacing
     return p;
 }
 
+/* The periodic covariance built directly from the spectrum, as a function of the offset (dx, dy):
+ *     C(dx, dy) = Σ_{k ∈ [−n/2, n/2)²} Φ(|k|/L)/L² cos(2π k·(dx, dy)/n),
+ * summed over the full signed lattice (no Hermitian halving, no FFT): the reference of the FFT forms. */
+static double periodic_cov(int n, double L, double fraction, int dx, int dy)
+{
+    double s = 0.0;
+    for (int ky = -n / 2; ky < n / 2; ky++)
+        for (int kx = -n / 2; kx < n / 2; kx++)
+            s += wt_von_karman_psd(sqrt((double)(kx * kx + ky * ky)) / L, R0, fraction, L0) / (L * L) *
+                 cos(2.0 * M_PI * (double)(kx * dx + ky * dy) / n);
+    return s;
+}
+
 START_TEST(test_psd_hand)
 {
     /* Φ(0.1) for r0 = 0.129 m, f = 1, L0 = 25 m, by hand:
@@ -53,10 +66,8 @@ END_TEST
 
 START_TEST(test_exact_vs_dense)
 {
-    /* diag(W C Wᵀ) with C the periodic covariance built directly from the spectrum,
-     *     C(j, j') = Σ_{k ∈ [−n/2, n/2)²} Φ(|k|/L)/L² cos(2π k·(j − j')/n),
-     * summed over the full signed lattice (no Hermitian halving, no FFT) and W from n² forward
-     * transforms of unit vectors. Both sides are sums of a few thousand positive-ish terms in double:
+    /* diag(W C Wᵀ) with C the periodic covariance built directly from the spectrum (periodic_cov) and W
+     * from n² forward transforms of unit vectors. Both sides are sums of a few thousand positive-ish terms in double:
      * agreement to 1e-10 relative is round-off; a normalisation slip (a factor n², L², 2 for the
      * halved spectrum, the Nyquist column) shows up at O(1). */
     wt_context *ctx = tu_context();
@@ -67,16 +78,7 @@ START_TEST(test_exact_vs_dense)
 
     double *cov = calloc(nn, sizeof *cov); /* C as a function of the offset (dx, dy) */
     for (int dy = 0; dy < n; dy++)
-        for (int dx = 0; dx < n; dx++) {
-            double s = 0.0;
-            for (int ky = -n / 2; ky < n / 2; ky++)
-                for (int kx = -n / 2; kx < n / 2; kx++) {
-                    double kappa = sqrt((double)(kx * kx + ky * ky)) / L;
-                    s += wt_von_karman_psd(kappa, R0, fraction, L0) / (L * L) *
-                         cos(2.0 * M_PI * (double)(kx * dx + ky * dy) / n);
-                }
-            cov[dx + n * dy] = s;
-        }
+        for (int dx = 0; dx < n; dx++) cov[dx + n * dy] = periodic_cov(n, L, fraction, dx, dy);
     double *W = malloc((size_t)nn * nn * sizeof *W); /* W[λ + nn*j] = (W e_j)_λ */
     double *work = malloc((wt_wavelet_work_size(w) + 1) * sizeof *work);
     for (int j = 0; j < nn; j++) {
@@ -273,15 +275,8 @@ START_TEST(test_full_vs_dense)
     ck_assert_int_eq(wt_prior_kind(p), WT_PRIOR_FULL);
     double *C = malloc((size_t)nn * nn * sizeof *C);
     for (int j = 0; j < nn; j++)
-        for (int i = 0; i < nn; i++) {
-            int dx = (i % n) - (j % n), dy = (i / n) - (j / n);
-            double v = 0.0;
-            for (int ky = -n / 2; ky < n / 2; ky++)
-                for (int kx = -n / 2; kx < n / 2; kx++)
-                    v += wt_von_karman_psd(sqrt((double)(kx * kx + ky * ky)) / L, R0, fraction, L0) / (L * L) *
-                         cos(2.0 * M_PI * (double)(kx * dx + ky * dy) / n);
-            C[i + (size_t)nn * j] = v;
-        }
+        for (int i = 0; i < nn; i++)
+            C[i + (size_t)nn * j] = periodic_cov(n, L, fraction, (i % n) - (j % n), (i / n) - (j / n));
     double *Ci = calloc((size_t)nn * nn, sizeof *Ci); /* C⁻¹ by Cholesky */
     for (int i = 0; i < nn; i++) Ci[i + (size_t)nn * i] = 1.0;
     ck_assert_int_eq(LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', nn, nn, C, nn, Ci, nn), 0);
