@@ -622,8 +622,15 @@ void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
         for (int j = 0; j < J; j++) lev += m2 / (double)(1 << (2 * j));
         f += 2.0 * 8.0 * N * lev;             /* forward + inverse */
         b += 2.0 * 2.0 * 8.0 * lev * 2.0;     /* read + write each level, both passes, both transforms */
-        f += 2.0 * m2;                        /* α D c */
-        b += 3.0 * 8.0 * m2;
+        if (t->full_prior) {
+            /* α C⁻¹ φ: a real FFT and its inverse (~2.5 m² log₂ m² flops each), the complex scaling; the
+             * copies in and out and the transforms' passes over the layer and its half spectrum */
+            f += 5.0 * m2 * log2(m2) + 3.0 * m2;
+            b += 6.0 * 8.0 * m2;
+        } else {
+            f += 2.0 * m2; /* α D c */
+            b += 3.0 * 8.0 * m2;
+        }
     }
     /* per sensor: bilinear projection (4 mult-adds per point and layer) and its transpose; Fried (4
      * adds + 1 scale per slope) and transpose; the 2x2 weight (~8 flops per subaperture + T) */
