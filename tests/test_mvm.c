@@ -27,8 +27,9 @@ typedef struct {
     int64_t n, ns, na;
 } fixture;
 
-/* An MVM holds a diagonal prior only: cg9 (default "full") takes the paper's here, the same for the matrix
- * and the matrix-free operator it is checked against. */
+/* cg9's default prior is the full one (N dense); the fixture takes the paper's (the sparse CHOLMOD path)
+ * unless a test's settings ask for the full one (setup_v), the same for the matrix and the matrix-free
+ * operator it is checked against. */
 static void setup(fixture *f, int cg9, int nset, const char *const *set)
 {
     f->ctx = tu_context();
@@ -130,6 +131,12 @@ START_TEST(test_atilde_matches_slopes)
 }
 END_TEST
 
+/* The full prior (α W C_φ⁻¹ Wᵀ on every layer) makes N dense: the builder forms and factorises it by
+ * LAPACK instead of CHOLMOD. The tests below run both paths: v = 0, 1 pcg3 / cg9 with the diagonal
+ * prior, v = 2, 3 the same with the full one. */
+static const char *const full_prior[2][1] = {{"recon.pcg3.prior=\"full\""}, {"recon.cg9.prior=\"full\""}};
+static void setup_v(fixture *f, int v) { setup(f, v & 1, v >> 1, v >> 1 ? full_prior[v & 1] : NULL); }
+
 static wt_mvm_normal *normal(fixture *f)
 {
     wt_mvm_normal *nm = NULL;
@@ -138,12 +145,14 @@ static wt_mvm_normal *normal(fixture *f)
 }
 
 /* N + B Q Bᵀ is the matrix-free M (tip-tilt removal and NGS in the low-rank part): same sums in another
- * order, 1e-12 relative. The rank is 4 per LGS plus the NGS slopes. */
+ * order, 1e-12 relative. The rank is 4 per LGS plus the NGS slopes. With the full prior the dense N's
+ * layer blocks are the operator's own prior columns (FFT round trips: rounding 1e-15 of the prior). */
 START_TEST(test_normal_apply_matches)
 {
-    for (int v = 0; v < 2; v++) {
+    for (int v = 0; v < 4; v++) {
         fixture f;
-        setup(&f, v, 0, NULL);
+        setup_v(&f, v);
+        ck_assert_int_eq(wt_tomography_full_prior(f.t), v >> 1);
         wt_mvm_normal *nm = normal(&f);
         int rank = 4 * f.sys->nlgs;
         for (int m = f.sys->nlgs; m < f.sys->nsensors; m++) rank += f.sys->sensors[m].nslopes;
@@ -160,6 +169,10 @@ START_TEST(test_normal_apply_matches)
         wt_mvm_normal_stats(nm, &st);
         ck_assert_int_gt(st.nnz_normal, f.n);
         ck_assert_double_ge(st.nnz_factor, (double)st.nnz_normal); /* L holds at least N's upper pattern */
+        if (v >> 1) {
+            ck_assert_str_eq(st.ordering, "dense (LAPACK)");
+            ck_assert_double_eq(st.nnz_factor, 0.5 * (double)f.n * (double)(f.n + 1));
+        }
         free(x);
         free(y1);
         free(y2);
@@ -169,15 +182,15 @@ START_TEST(test_normal_apply_matches)
 }
 END_TEST
 
-/* M⁻¹ b by CHOLMOD + Woodbury equals PCG run to 1e-12. The direct solve's own residual through the
+/* M⁻¹ b by CHOLMOD (LAPACK with the full prior) + Woodbury equals PCG run to 1e-12. The direct solve's own residual through the
  * matrix-free M must be at rounding level (1e-10 allows κ ~ 1e5 times ε); the two solutions agree to
  * 1e-9 (PCG's residual 1e-12 times the condition number of M). Several right-hand sides at once check
  * the block path. */
 START_TEST(test_normal_solve_matches_pcg)
 {
-    for (int v = 0; v < 2; v++) {
+    for (int v = 0; v < 4; v++) {
         fixture f;
-        setup(&f, v, 0, NULL);
+        setup_v(&f, v);
         wt_mvm_normal *nm = normal(&f);
         const int k = 3;
         double *s = malloc(f.ns * sizeof *s), *b = malloc(k * f.n * sizeof *b), *x = malloc(k * f.n * sizeof *x),
@@ -315,6 +328,14 @@ START_TEST(test_r_matches_pcg3_split) { check_r_matches(0, 3, pcg3_split); }
 END_TEST
 
 START_TEST(test_r_matches_cg9) { check_r_matches(1, 0, NULL); }
+END_TEST
+
+/* The full prior: the dense path's R is the converged matrix-free MAP with the full prior, both variants. */
+START_TEST(test_r_matches_full_prior)
+{
+    check_r_matches(0, 1, full_prior[0]);
+    check_r_matches(1, 1, full_prior[1]);
+}
 END_TEST
 
 /* RÂ = R · Â with the dense Â: the builder forms it from the double-precision rows before rounding,
@@ -508,6 +529,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_r_matches_pcg3);
     tcase_add_test(tc, test_r_matches_pcg3_split);
     tcase_add_test(tc, test_r_matches_cg9);
+    tcase_add_test(tc, test_r_matches_full_prior);
     tcase_add_test(tc, test_ra_matches);
     tcase_add_test(tc, test_orderings);
     tcase_add_test(tc, test_budget_refuses);

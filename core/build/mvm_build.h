@@ -28,6 +28,11 @@
  * chosen over CHOLMOD's update/downdate because the correction is indefinite (a downdate after an
  * update) and dense in its columns, which would touch all of L for every rank-1 step, while SMW costs
  * one n x r block solve at set-up and two thin GEMMs per block of right-hand sides.
+ * The full prior (recon.<variant>.prior = "full": α W C_φ⁻¹ Wᵀ, every pair of a layer's coefficients
+ * coupled) makes N dense: it is formed as an n x n array (the sparse GᵀG, then each layer's prior block
+ * column by column from the tomography's own prior apply) and factorised by LAPACK's dpotrf; solves by
+ * dpotrs; the Woodbury correction is the same. n² doubles: 4.8 GB for pcg3 at E-ELT size (24576
+ * unknowns), 174 GB for cg9 (refused by the budget, naming the prior).
  *
  * Memory: the build checks an estimate of its peak against opt->memory_budget before each large
  * allocation (the sparse Ã and N from exact symbolic counts, the factor from CHOLMOD's symbolic

@@ -1,7 +1,8 @@
 /* core/build/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
  * eqn_lse): N = Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m + α D assembled column by column (Ã from mvm_assemble.c) and
  * factorised by CHOLMOD, the LGS tip-tilt removal and the NGS as the low-rank B Q Bᵀ, and solves with
- * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm_build.h). */
+ * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm_build.h). With the full prior
+ * (α W C_φ⁻¹ Wᵀ, dense on every layer) N is formed dense and factorised by LAPACK instead. */
 #include "mvm_private.h"
 
 #include <cblas.h>
@@ -123,8 +124,10 @@ struct wt_mvm_normal {
     int64_t n, ns;
     int nth;
     wt_sparse *gp;      /* Γ P: nslopes x n (kept: the builder maps layers to slopes with it) */
-    wt_sparse *N;       /* upper triangle of N (NULL unless keep_matrix) */
-    wt_chol *chol;
+    wt_sparse *N;       /* upper triangle of N (NULL unless keep_matrix; sparse path) */
+    wt_chol *chol;      /* sparse path: CHOLMOD's factor of N */
+    double *L;          /* dense path (full prior): n x n column-major, N's Cholesky factor in the lower triangle */
+    double *Nd;         /* dense path with keep_matrix: N's lower triangle */
     int r;              /* rank of the correction */
     double *B, *Z;      /* n x r each: B and N⁻¹ B */
     double *Q;          /* r x r */
@@ -142,6 +145,7 @@ const wt_sparse *wt_mvm_priv_normal_gp(const wt_mvm_normal *nm) { return nm->gp;
 
 double wt_mvm_priv_normal_cholmod_peak(const wt_mvm_normal *nm)
 {
+    if (!nm->chol) return 0.0;
     wt_chol_info ci;
     wt_chol_info_get(nm->chol, &ci);
     return ci.peak_bytes;
@@ -154,6 +158,8 @@ void wt_mvm_normal_free(wt_mvm_normal *nm)
     wt_sparse_free(nm->gp);
     wt_sparse_free(nm->N);
     wt_chol_free(nm->chol);
+    wt_free(ctx, nm->L);
+    wt_free(ctx, nm->Nd);
     wt_free(ctx, nm->B);
     wt_free(ctx, nm->Z);
     wt_free(ctx, nm->Q);
@@ -177,6 +183,71 @@ static void adjoint_column(const wt_mvm_normal *nm, const double *z, double *c, 
         int64_t off = wt_tomography_layer_offset(nm->t, l);
         wt_wavelet_forward(wt_tomography_wavelet(nm->t, l), c + off, c + off, work);
     }
+}
+
+/* X = N⁻¹ B (nrhs columns, leading dimensions ldb, ldx ≥ n; b and x may be the same array): CHOLMOD's
+ * factor, or the dense one by LAPACK (dpotrs works in place, so b is copied to x first). */
+static int factor_solve(const wt_mvm_normal *nm, int64_t nrhs, const double *b, int64_t ldb, double *x, int64_t ldx)
+{
+    if (!nm->L) return wt_chol_solve(nm->chol, nrhs, b, ldb, x, ldx);
+    const int64_t n = nm->n;
+    if (x != b)
+        for (int64_t j = 0; j < nrhs; j++) memcpy(x + j * ldx, b + j * ldb, (size_t)n * sizeof *x);
+    lapack_int info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'L', (lapack_int)n, (lapack_int)nrhs, nm->L, (lapack_int)n, x,
+                                     (lapack_int)ldx);
+    if (info != 0) return WT_ERROR(nm->ctx, WT_ERR_LIBRARY, "LAPACKE_dpotrs (dense normal matrix) returned %d", (int)info);
+    return WT_OK;
+}
+
+/* The dense path of the full prior: L = the lower triangle of N (its sparse upper triangle Nu holds
+ * GᵀG + α diag(W C_φ⁻¹ Wᵀ)) with each layer's diagonal block replaced by the whole α W C_φ⁻¹ Wᵀ,
+ * formed column by column by the tomography's own prior apply (so the matrix is the operator's, to
+ * rounding), then factorised in place by LAPACK's blocked Cholesky (OpenBLAS threads). */
+static int dense_factor(wt_mvm_normal *nm, const wt_sparse *Nu, int keep_matrix)
+{
+    int st = WT_OK;
+    wt_context *ctx = nm->ctx;
+    const int64_t n = nm->n;
+    const double *ad = wt_tomography_alpha_prior(nm->t);
+    double *e = NULL, *y = NULL;
+    WT_ALLOC(ctx, nm->L, (size_t)n * n, "dense normal matrix");
+    for (int64_t j = 0; j < n; j++)
+        for (int64_t k = Nu->colptr[j]; k < Nu->colptr[j + 1]; k++) nm->L[j + (size_t)n * Nu->rowind[k]] = Nu->val[k];
+    int64_t nmax = 0;
+    for (int l = 0; l < wt_tomography_nlayers(nm->t); l++) {
+        int64_t nl = wt_tomography_layer_offset(nm->t, l + 1) - wt_tomography_layer_offset(nm->t, l);
+        if (nl > nmax) nmax = nl;
+    }
+    WT_ALLOC(ctx, e, nmax, "unit vector");
+    WT_ALLOC(ctx, y, nmax, "prior column");
+    for (int l = 0; l < wt_tomography_nlayers(nm->t); l++) {
+        const int64_t a = wt_tomography_layer_offset(nm->t, l), nl = wt_tomography_layer_offset(nm->t, l + 1) - a;
+        for (int64_t j = 0; j < nl; j++) {
+            e[j] = 1.0;
+            memset(y, 0, (size_t)nl * sizeof *y);
+            wt_tomography_prior_apply_layer(nm->t, l, e, y);
+            e[j] = 0.0;
+            y[j] -= ad[a + j]; /* N's diagonal already holds the prior's diagonal */
+            double *col = nm->L + (size_t)n * (a + j) + a;
+            for (int64_t i = j; i < nl; i++) col[i] += y[i];
+        }
+    }
+    if (keep_matrix) {
+        WT_ALLOC(ctx, nm->Nd, (size_t)n * n, "dense normal matrix copy");
+        memcpy(nm->Nd, nm->L, (size_t)n * n * sizeof *nm->Nd);
+    }
+    lapack_int info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', (lapack_int)n, nm->L, (lapack_int)n);
+    if (info != 0) {
+        st = WT_ERROR(ctx, info < 0 ? WT_ERR_LIBRARY : WT_ERR_NUMERIC,
+                      "LAPACKE_dpotrf of the dense %lld x %lld MAP normal matrix (full prior) returned %d%s",
+                      (long long)n, (long long)n, (int)info,
+                      info > 0 ? " (not positive definite at that column: check recon.alpha and the noise model)" : "");
+        goto fail;
+    }
+fail:
+    wt_free(ctx, e);
+    wt_free(ctx, y);
+    return st;
 }
 
 /* B = [Ãᵀ U_m, Ãᵀ V_m per LGS, Ã_ngsᵀ], Q block-diagonal (see mvm_build.h). */
@@ -247,7 +318,7 @@ static int build_lowrank(wt_mvm_normal *nm)
         adjoint_column(nm, zs + (size_t)k * ns, nm->B + (size_t)k * n, work + wt_mvm_priv_thread() * ws);
 
     /* Z = N⁻¹ B, K = I + Q (Bᵀ Z), LU */
-    WT_TRY(wt_chol_solve(nm->chol, r, nm->B, n, nm->Z, n));
+    WT_TRY(factor_solve(nm, r, nm->B, n, nm->Z, n));
     double *btz = zs; /* reuse: r x r ≤ ns x r */
     cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, r, r, (int)n, 1.0, nm->B, (int)n, nm->Z, (int)n, 0.0, btz, r);
     cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, r, r, r, 1.0, Q, r, btz, r, 0.0, nm->K, r);
@@ -274,11 +345,6 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     if (opt_in) opt = *opt_in;
     else wt_mvm_options_default(&opt);
     if (opt.block <= 0) opt.block = 256;
-    if (wt_tomography_full_prior(t))
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "MVM of %1$s: recon.%1$s.prior = \"full\" (the von Karman covariance, dense on "
-                        "every layer) cannot be assembled into the sparse normal matrix; build it with --set "
-                        "'recon.%1$s.prior=\"paper\"' (or \"exact\", the diagonal forms), and run it with the same setting",
-                        wt_tomography_variant(t));
     wt_mvm_normal *nm = NULL;
     wt_mvm_priv_templates *tp = NULL;
     wt_mvm_priv_col_pool pool = {0};
@@ -308,6 +374,19 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     int rank = 4 * sys->nlgs;
     for (int m = sys->nlgs; m < sys->nsensors; m++) rank += sys->sensors[m].nslopes;
     const double lowrank_bytes = 16.0 * (double)n * rank;
+    /* The full prior couples every pair of a layer's coefficients: N is dense (n² doubles, a copy with
+     * keep_matrix), refused here, before any assembly, when that cannot fit. */
+    const int dense = wt_tomography_full_prior(t);
+    const double dense_bytes = dense ? 8.0 * (double)n * (double)n * (keep_matrix ? 2.0 : 1.0) : 0.0;
+    if (dense) {
+        snprintf(detail, sizeof detail,
+                 "the dense %lld x %lld normal matrix of recon.%s.prior = \"full\" %.3g GB, low rank %.3g GB, reserved "
+                 "for R, RÂ and the blocks %.3g GB; the diagonal priors \"paper\" and \"exact\" keep it sparse",
+                 (long long)n, (long long)n, wt_tomography_variant(t), dense_bytes / 1e9, lowrank_bytes / 1e9,
+                 reserve / 1e9);
+        WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N", reserve + dense_bytes + lowrank_bytes,
+                                        detail));
+    }
 
     /* Γ P, the basis templates, and the 2x2 Cholesky factors of the LGS weights */
     wt_mvm_priv_progress(&opt, "assemble", 0, 2 * n);
@@ -380,6 +459,12 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
                                     gp_bytes + 2.0 * n_bytes + 8.0 * S->nnz_normal, detail));
     WT_TRY(wt_sparse_alloc(ctx, n, n, S->nnz_normal, &N));
     memcpy(N->colptr, colptr, (size_t)(n + 1) * sizeof *colptr);
+    if (dense) {
+        snprintf(detail, sizeof detail, "N sparse %.3g GB and dense %.3g GB, Γ P %.3g GB, low rank %.3g GB, reserved %.3g GB",
+                 n_bytes / 1e9, dense_bytes / 1e9, gp_bytes / 1e9, lowrank_bytes / 1e9, reserve / 1e9);
+        WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
+                                        reserve + gp_bytes + n_bytes + dense_bytes + lowrank_bytes, detail));
+    }
     wt_mvm_priv_fill_columns(&pool, N, normal_column, &nc, &opt, "normal", n, 2 * n);
     wt_mvm_priv_pool_free(&pool);
     wt_sparse_free(G);
@@ -388,48 +473,61 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     S->t_normal = wt_time_now() - tt;
     tt = wt_time_now();
 
-    /* symbolic analysis: the factor's size is known before its memory is committed */
-    wt_mvm_priv_progress(&opt, "analyze", 0, 1);
-    WT_TRY(wt_chol_analyze(ctx, N, &nm->chol));
-    wt_chol_info ci;
-    wt_chol_info_get(nm->chol, &ci);
-    S->nnz_factor = ci.nnz_factor;
-    S->factor_bytes = ci.factor_bytes;
-    S->factor_flops = ci.flops;
-    S->ordering = ci.ordering;
-    S->t_analyze = wt_time_now() - tt;
-    wt_mvm_priv_progress(&opt, "analyze", 1, 1);
-    snprintf(detail, sizeof detail,
-             "N %.3g GB, CHOLMOD's factorisation %.3g GB (factor %.3g GB of %.4g non-zeros, %s ordering, plus its "
-             "permuted copy of N and workspace), Γ P %.3g GB",
-             n_bytes / 1e9, ci.factorize_bytes / 1e9, ci.factor_bytes / 1e9, ci.nnz_factor, ci.ordering, gp_bytes / 1e9);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
-                                    gp_bytes + n_bytes + ci.factorize_bytes, detail));
-    double solve_ws = wt_chol_solve_bytes(n, opt.block > rank ? opt.block : rank) + 16.0 * rank * opt.block;
-    double final_bytes = reserve + gp_bytes + ci.factor_bytes + lowrank_bytes + solve_ws + (keep_matrix ? n_bytes : 0.0);
-    snprintf(detail, sizeof detail,
-             "Cholesky factor %.3g GB, low rank %.3g GB, solve workspace %.3g GB, Γ P %.3g GB, reserved for the caller "
-             "(R, RÂ, blocks) %.3g GB",
-             ci.factor_bytes / 1e9, lowrank_bytes / 1e9, solve_ws / 1e9, gp_bytes / 1e9, reserve / 1e9);
-    WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "solving", final_bytes, detail));
+    if (dense) {
+        /* the full prior: N dense, factorised by LAPACK (its bytes were checked with the sparse N above) */
+        wt_mvm_priv_progress(&opt, "factorize", 0, 1);
+        S->nnz_factor = 0.5 * (double)n * (double)(n + 1);
+        S->factor_bytes = dense_bytes;
+        S->factor_flops = (double)n * n * n / 3.0;
+        S->ordering = "dense (LAPACK)";
+        S->t_analyze = 0.0;
+        WT_TRY(dense_factor(nm, N, keep_matrix));
+        wt_sparse_free(N);
+        N = NULL;
+        S->t_factorize = wt_time_now() - tt;
+        wt_mvm_priv_progress(&opt, "factorize", 1, 1);
+    } else {
+        /* symbolic analysis: the factor's size is known before its memory is committed */
+        wt_mvm_priv_progress(&opt, "analyze", 0, 1);
+        WT_TRY(wt_chol_analyze(ctx, N, &nm->chol));
+        wt_chol_info ci;
+        wt_chol_info_get(nm->chol, &ci);
+        S->nnz_factor = ci.nnz_factor;
+        S->factor_bytes = ci.factor_bytes;
+        S->factor_flops = ci.flops;
+        S->ordering = ci.ordering;
+        S->t_analyze = wt_time_now() - tt;
+        wt_mvm_priv_progress(&opt, "analyze", 1, 1);
+        snprintf(detail, sizeof detail,
+                 "N %.3g GB, CHOLMOD's factorisation %.3g GB (factor %.3g GB of %.4g non-zeros, %s ordering, plus its "
+                 "permuted copy of N and workspace), Γ P %.3g GB",
+                 n_bytes / 1e9, ci.factorize_bytes / 1e9, ci.factor_bytes / 1e9, ci.nnz_factor, ci.ordering, gp_bytes / 1e9);
+        WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "factorising N",
+                                        gp_bytes + n_bytes + ci.factorize_bytes, detail));
+        double solve_ws = wt_chol_solve_bytes(n, opt.block > rank ? opt.block : rank) + 16.0 * rank * opt.block;
+        double final_bytes = reserve + gp_bytes + ci.factor_bytes + lowrank_bytes + solve_ws + (keep_matrix ? n_bytes : 0.0);
+        snprintf(detail, sizeof detail,
+                 "Cholesky factor %.3g GB, low rank %.3g GB, solve workspace %.3g GB, Γ P %.3g GB, reserved for the caller "
+                 "(R, RÂ, blocks) %.3g GB",
+                 ci.factor_bytes / 1e9, lowrank_bytes / 1e9, solve_ws / 1e9, gp_bytes / 1e9, reserve / 1e9);
+        WT_TRY(wt_mvm_priv_check_budget(ctx, &opt, &S->peak_estimate, "solving", final_bytes, detail));
 
-    tt = wt_time_now();
-    wt_mvm_priv_progress(&opt, "factorize", 0, 1);
-    WT_TRY(wt_chol_factorize(nm->chol, N));
-    S->t_factorize = wt_time_now() - tt;
-    wt_mvm_priv_progress(&opt, "factorize", 1, 1);
-    if (keep_matrix) nm->N = N;
-    else wt_sparse_free(N);
-    N = NULL;
-
+        tt = wt_time_now();
+        wt_mvm_priv_progress(&opt, "factorize", 0, 1);
+        WT_TRY(wt_chol_factorize(nm->chol, N));
+        S->t_factorize = wt_time_now() - tt;
+        wt_mvm_priv_progress(&opt, "factorize", 1, 1);
+        if (keep_matrix) nm->N = N;
+        else wt_sparse_free(N);
+        N = NULL;
+    }
     tt = wt_time_now();
     WT_TRY(build_lowrank(nm));
     WT_ALLOC(ctx, nm->s1, (size_t)nm->r * nm->maxblock, "Woodbury scratch");
     WT_ALLOC(ctx, nm->s2, (size_t)nm->r * nm->maxblock, "Woodbury scratch");
     S->rank = nm->r;
     S->t_lowrank = wt_time_now() - tt;
-    wt_chol_info_get(nm->chol, &ci);
-    S->cholmod_peak = ci.peak_bytes;
+    S->cholmod_peak = wt_mvm_priv_normal_cholmod_peak(nm);
     *out = nm;
     nm = NULL;
 fail:
@@ -449,6 +547,11 @@ fail:
 
 int wt_mvm_normal_apply(const wt_mvm_normal *nm, const double *x, double *y)
 {
+    const int r = nm->r, n = (int)nm->n;
+    if (nm->Nd) {
+        cblas_dsymv(CblasColMajor, CblasLower, n, 1.0, nm->Nd, n, x, 1, 0.0, y, 1);
+        goto lowrank;
+    }
     if (!nm->N)
         return WT_ERROR(nm->ctx, WT_ERR_INVALID, "wt_mvm_normal_apply: N was not kept (keep_matrix = 0 at alloc)");
     const wt_sparse *N = nm->N;
@@ -459,7 +562,7 @@ int wt_mvm_normal_apply(const wt_mvm_normal *nm, const double *x, double *y)
             y[i] += N->val[k] * x[j];
             if (i != j) y[j] += N->val[k] * x[i];
         }
-    const int r = nm->r, n = (int)nm->n;
+lowrank:
     cblas_dgemv(CblasColMajor, CblasTrans, n, r, 1.0, nm->B, n, x, 1, 0.0, nm->s1, 1);
     cblas_dgemv(CblasColMajor, CblasNoTrans, r, r, 1.0, nm->Q, r, nm->s1, 1, 0.0, nm->s2, 1);
     cblas_dgemv(CblasColMajor, CblasNoTrans, n, r, 1.0, nm->B, n, nm->s2, 1, 1.0, y, 1);
@@ -475,7 +578,7 @@ int wt_mvm_normal_solve(wt_mvm_normal *nm, int64_t nrhs, const double *b, double
         int nb = (int)(nrhs - j0 < nm->maxblock ? nrhs - j0 : nm->maxblock);
         double *xb = x + j0 * n;
         /* x = N⁻¹ b, then x −= Z K⁻¹ Q (Bᵀ x) */
-        if ((st = wt_chol_solve(nm->chol, nb, b + j0 * n, n, xb, n)) < 0) return st;
+        if ((st = factor_solve(nm, nb, b + j0 * n, n, xb, n)) < 0) return st;
         cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, r, nb, (int)n, 1.0, nm->B, (int)n, xb, (int)n, 0.0, nm->s1, r);
         cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, r, nb, r, 1.0, nm->Q, r, nm->s1, r, 0.0, nm->s2, r);
         lapack_int info = LAPACKE_dgetrs(LAPACK_COL_MAJOR, 'N', r, nb, nm->K, r, nm->ipiv, nm->s2, r);

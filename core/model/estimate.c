@@ -13,6 +13,7 @@
 #define NS_POINT 4.0e-9       /* s per bilinear read (fine point x layer x line of sight), one thread */
 #define FLOP_RATE 8.0e9       /* reconstructor flops per s, one thread (stencil-bound; §2: 30 Mflop in 3.2 ms) */
 #define STREAM_RATE 28e9      /* bytes per s of a float32 GEMV (§2: sgemv of R at 28.1 GB/s, 2 threads) */
+#define DENSE_RATE 80e9      /* flops per s of LAPACK's dense Cholesky and triangular solves, 2 threads (DGEMM ~97) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
 /* Diffractive sensors (core/optics/spot.h; `make bench-spot` on the E-ELT LGS, 2 threads, 2026-11-25): */
@@ -212,10 +213,14 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
         const wt_recon_variant_config *v = req->recon == WT_RECON_CG9 ? &c->cg9 : &c->pcg3;
         const char *name = req->recon == WT_RECON_CG9 ? "cg9" : "pcg3";
         double n = unknowns(v), nnz_l = 10.5 * pow(n, 1.5), nnz_n = nnz_l / 2.5;
+        /* the full prior makes N dense: n² doubles, factorised and solved by LAPACK */
+        const int dense = v->prior == WT_CFG_PRIOR_FULL;
+        if (dense) nnz_l = 0.5 * n * n;
         /* two phases: assembling N (Lᵀ Ã_LGS and its transpose, ~60 J non-zeros per LGS slope and layer,
          * 12 B each, with N) and solving (R, RÂ, the factor, the blocks); the larger one is the peak */
         double nnz_a = 60.0 * c->wavelet_levels * s.nlgs_slopes * v->nlayers;
-        double assemble = 24.0 * nnz_a + 12.0 * nnz_n, factor = 12.0 * nnz_l + 2.0 * 12.0 * nnz_n;
+        double assemble = 24.0 * nnz_a + 12.0 * nnz_n;
+        double factor = dense ? 8.0 * n * n + 12.0 * nnz_n : 12.0 * nnz_l + 2.0 * 12.0 * nnz_n;
         double blocks = 8.0 * n * (256.0 + 4.0 * c->nlgs + 8.0) + (req->recon == WT_RECON_CG9 ? 8.0 * s.nact * s.nact : 0.0);
         if (assemble > mvm_bytes + factor + blocks)
             term(e, assemble, "assembling Ã and N", "recon.%s.layer_size (%.3g unknowns), lgs.wfs.subapertures, lgs.count,"
@@ -223,11 +228,16 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
         else {
             term(e, mvm_bytes, "R and RÂ (float32)", "lgs.wfs.subapertures, lgs.count, dm.actuators (%.0f x %.0f)",
                  s.nact, s.nslopes);
-            term(e, factor, "Cholesky factor and N", "recon.%s.layer_size (%.3g unknowns: factor ~%.3g non-zeros)", name,
-                 n, nnz_l);
+            if (dense)
+                term(e, factor, "dense N and its Cholesky factor", "recon.%s.layer_size (%.3g unknowns), recon.%s.prior "
+                     "(\"full\": N dense; \"paper\" keeps it sparse)", name, n, name);
+            else
+                term(e, factor, "Cholesky factor and N", "recon.%s.layer_size (%.3g unknowns: factor ~%.3g non-zeros)",
+                     name, n, nnz_l);
             term(e, blocks, "solve blocks, low rank, fitting", "recon.%s.layer_size, dm.actuators", name);
         }
-        e->seconds = 4.0 * s.nact * nnz_l / SOLVE_RATE + NORMAL_NS * nnz_n;
+        e->seconds = dense ? (n * n * n / 3.0 + 2.0 * n * n * s.nact) / DENSE_RATE + NORMAL_NS * nnz_n
+                           : 4.0 * s.nact * nnz_l / SOLVE_RATE + NORMAL_NS * nnz_n;
         if (req->recon == WT_RECON_CG9) e->seconds += 8.0 * sq(s.nact) * s.nact / 3.0 / SOLVE_RATE; /* the fitting */
     }
     /* the diffractive sensors' set-up (every command), their images in every simulated frame */
