@@ -206,7 +206,7 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->wavelet_order, 3);
     ck_assert_int_eq(c->wavelet_levels, 5);
     ck_assert_int_eq(c->exact_prior, -1); /* left out: each variant's default */
-    ck_assert_int_eq(c->pcg3.prior, WT_CFG_PRIOR_PAPER);
+    ck_assert_int_eq(c->pcg3.prior, WT_CFG_PRIOR_FULL);
     ck_assert_int_eq(c->cg9.prior, WT_CFG_PRIOR_FULL);
     ck_assert_int_eq(c->warm_start, 1);
     ck_assert_int_eq(c->pcg3.nlayers, 3);
@@ -1050,7 +1050,7 @@ START_TEST(test_auto_fit_points)
 END_TEST
 
 /* recon.<variant>.prior: given, it wins; left out (or "auto"), recon.prior when given, else the variant's
- * default (pcg3 paper, cg9 full: config.h); the resolved value is written into the canonical text, so an
+ * default (both full: config.h); the resolved value is written into the canonical text, so an
  * explicit value equal to the resolved one gives the same text and matrix hash, and another value another. */
 START_TEST(test_variant_priors)
 {
@@ -1060,7 +1060,7 @@ START_TEST(test_variant_priors)
     ck_assert_int_eq(a->exact_prior, -1);
     ck_assert_int_eq(a->pcg3.prior, WT_PRIOR_DEFAULT_PCG3);
     ck_assert_int_eq(a->cg9.prior, WT_PRIOR_DEFAULT_CG9);
-    const char *expl[] = {"recon.prior=\"auto\"", "recon.pcg3.prior=\"paper\"", "recon.cg9.prior=\"full\""};
+    const char *expl[] = {"recon.prior=\"auto\"", "recon.pcg3.prior=\"full\"", "recon.cg9.prior=\"full\""};
     wt_config *e = parse_ok(ctx, VALID, 3, expl);
     ck_assert_str_eq(a->canonical, e->canonical);
     ck_assert_str_eq(a->matrix_sha256, e->matrix_sha256);

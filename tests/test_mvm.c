@@ -27,13 +27,13 @@ typedef struct {
     int64_t n, ns, na;
 } fixture;
 
-/* cg9's default prior is the full one (N dense); the fixture takes the paper's (the sparse CHOLMOD path)
- * unless a test's settings ask for the full one (setup_v), the same for the matrix and the matrix-free
- * operator it is checked against. */
+/* The default prior is the full one (N dense); the fixture takes the paper's for both variants (the sparse
+ * CHOLMOD path) unless a test's settings ask for the full one (setup_v), the same for the matrix and the
+ * matrix-free operator it is checked against. */
 static void setup(fixture *f, int cg9, int nset, const char *const *set)
 {
     f->ctx = tu_context();
-    const char *all[16] = {"recon.cg9.prior=\"paper\""};
+    const char *all[16] = {"recon.prior=\"paper\""};
     ck_assert_int_lt(nset, 16);
     for (int i = 0; i < nset; i++) all[i + 1] = set[i];
     ck_assert_msg(wt_config_read(f->ctx, DEMO, nset + 1, all, &f->cfg) == WT_OK, "%s", wt_error_message(f->ctx));

@@ -520,13 +520,18 @@ END_TEST
  * equal on a quadratic): a broken NGS model, T projection or sign leaves it near the no-NGS value. Measured
  * (2026-11-25): 0.46 without NGS, 0.09 (G) and 0.16 (Z) with: the MAP does not give back a pure plate
  * scale exactly even from exact NGS tilts (its prior interpolates the field between the three NGS), a known
- * gap of the low-order path (docs/results.md §0e). */
+ * gap of the low-order path (docs/results.md §0e). The test runs with the paper's diagonal prior, where the
+ * NGS path is what moves the figure. With the full prior (the default since session 11) the same converged
+ * MAP gives 0.20 without NGS and 0.18 (G) / 0.16 (Z) with (6000 iterations to converge): it puts more of the
+ * focus at h from the LGS alone, and the NGS move the inner field little (not yet understood: perhaps the
+ * NGS tilts are explained by structure outside the LGS footprints), so there the figure cannot tell a working
+ * NGS path from a broken one (docs/results.md §23). */
 static double plate_scale_error(int tilt_z, int with_ngs)
 {
-    const char *set[] = {"lgs.wfs.nea_mas=5.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0",
+    const char *set[] = {"lgs.wfs.nea_mas=5.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0", "recon.pcg3.prior=\"paper\"",
                          tilt_z ? "ngs.wfs.tilt=\"z\"" : "ngs.wfs.tilt=\"g\"", "ngs.azimuths_deg=[]", "ngs.subapertures=[]"};
     fixture f;
-    setup(&f, DEMO, 0, with_ngs ? 4 : 6, set);
+    setup(&f, DEMO, 0, with_ngs ? 5 : 7, set);
     const wt_system *sys = f.sys;
     const int L = wt_tomography_nlayers(f.t), top = L - 1;
     const int64_t n = wt_tomography_nunknowns(f.t), ns = sys->nslopes;

@@ -54,11 +54,11 @@ typedef struct wt_sensor_config {
 enum { WT_WFS_GEOMETRIC = 0, WT_WFS_DIFFRACTIVE = 1 };
 
 /* The reconstructors' priors (recon.prior, recon.<variant>.prior: the index in "paper|exact|full") and each
- * variant's default when both keys are left out (docs/design.md "The prior"): the full covariance where
- * quality is the point (cg9), the paper's diagonal where the 2 ms frame is (pcg3). */
+ * variant's default when both keys are left out (docs/design.md "The prior"): the full covariance for both
+ * since session 11 (pcg3's MVM holds it as a dense normal matrix; docs/results.md §23). */
 enum { WT_CFG_PRIOR_PAPER = 0, WT_CFG_PRIOR_EXACT = 1, WT_CFG_PRIOR_FULL = 2 };
-#define WT_PRIOR_DEFAULT_PCG3 WT_CFG_PRIOR_PAPER
-#define WT_PRIOR_DEFAULT_PCG3_TEXT "\"paper\""
+#define WT_PRIOR_DEFAULT_PCG3 WT_CFG_PRIOR_FULL
+#define WT_PRIOR_DEFAULT_PCG3_TEXT "\"full\""
 #define WT_PRIOR_DEFAULT_CG9 WT_CFG_PRIOR_FULL
 #define WT_PRIOR_DEFAULT_CG9_TEXT "\"full\""
 
