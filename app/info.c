@@ -75,7 +75,8 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
     long long n = (long long)wt_tomography_nunknowns(t);
     if (v->prior == WT_CFG_PRIOR_FULL)
         printf("  total unknowns: %lld; prior: full von Karman covariance per layer, applied by FFT "
-               "(recon.%s.prior = \"full\")\n", n, name);
+               "(recon.%s.prior = \"full\"; an MVM of it has a dense normal matrix, %.3g GB)\n", n, name,
+               8.0 * (double)n * (double)n / 1e9);
     else
         printf("  total unknowns: %lld; prior: %s diagonal D, %lld non-zeros (recon.%s.prior = \"%s\")\n", n,
                v->prior == WT_CFG_PRIOR_EXACT ? "exact" : "the paper's", n, name,
