@@ -469,10 +469,9 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
             nz[k] = t->noise[m];
             x[k] = slopes + s->offset;
             ws[k] = w->weighted + s->offset;
-            memset(ws[k], 0, (size_t)s->nslopes * sizeof *ws[k]);
             k++;
         }
-        wt_noise_apply_weight_many(nz, k, 1.0, x, ws);
+        wt_noise_set_weight_many(nz, k, x, ws);
         for (int m = 0; m < t->S; m++)
             if (t->group[m] == g)
                 wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
