@@ -244,6 +244,37 @@ START_TEST(test_weight_many)
 }
 END_TEST
 
+/* The overwriting weight (the adjoint's, without clearing its slopes first) is the accumulating one on +0 bit
+ * for bit: batches of 1 to 4, a size change, a sensor without the tip-tilt removal; x with exact zeros of both
+ * signs (where 0 + v and v differ) and y full of NaN before (every entry written). */
+START_TEST(test_set_weight_many)
+{
+    wt_context *ctx = tu_context();
+    enum { K = 8 };
+    const int nsub[K] = {300, 300, 300, 300, 300, 120, 300, 301}, tt[K] = {1, 1, 1, 1, 1, 1, 0, 1};
+    wt_noise *ns[K];
+    double *x[K], *y1[K], *y2[K];
+    for (int j = 0; j < K; j++) {
+        const size_t n2 = 2 * (size_t)nsub[j];
+        ns[j] = make_noise(ctx, nsub[j], 0.8 - 0.1 * j, tt[j]);
+        x[j] = malloc(n2 * sizeof *x[j]);
+        y1[j] = malloc(n2 * sizeof *y1[j]);
+        y2[j] = calloc(n2, sizeof *y2[j]);
+        tu_randn(x[j], n2, 50 + j);
+        for (size_t i = 0; i < n2; i += 11) x[j][i] = (i / 11) % 2 ? -0.0 : 0.0;
+        for (size_t i = 0; i < n2; i++) y1[j][i] = NAN;
+    }
+    wt_noise_set_weight_many((const wt_noise *const *)ns, K, (const double *const *)x, y1);
+    wt_noise_apply_weight_many((const wt_noise *const *)ns, K, 1.0, (const double *const *)x, y2);
+    for (int j = 0; j < K; j++) {
+        ck_assert_mem_eq(y1[j], y2[j], 2 * (size_t)nsub[j] * sizeof *y1[j]);
+        wt_noise_free(ns[j]);
+        free(x[j]), free(y1[j]), free(y2[j]);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_assemble)
 {
     wt_context *ctx = tu_context();
@@ -575,6 +606,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_tt_projection);
     tcase_add_test(tc, test_weight);
     tcase_add_test(tc, test_weight_many);
+    tcase_add_test(tc, test_set_weight_many);
     tcase_add_test(tc, test_assemble);
     tcase_add_test(tc, test_variance_formula);
     tcase_add_test(tc, test_elongation_hand);

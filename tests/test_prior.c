@@ -318,6 +318,32 @@ START_TEST(test_full_vs_dense)
 }
 END_TEST
 
+/* wt_prior_apply_full on 64-byte aligned layers (the tomography's) runs the FFTs on them in place of the work
+ * arrays: the same codelets on the same values, so the bits of the copying path (layers at an odd offset), and
+ * the input left as it was. The E-ELT ground layer's size, 128². */
+START_TEST(test_full_aligned_same_bits)
+{
+    wt_context *ctx = tu_context();
+    const int n = 128, nn = n * n;
+    wt_wavelet *w = make_wavelet(ctx, n, 3, 5);
+    wt_prior *p = make_prior(ctx, w, 0.5, 0.4, WT_PRIOR_FULL);
+    double *raw = malloc((4 * (size_t)nn + 64) * sizeof *raw), *work = malloc(wt_prior_work_size(p) * sizeof *work);
+    double *a = (double *)(((uintptr_t)raw + 63) & ~(uintptr_t)63), *ya = a + nn; /* aligned: direct */
+    double *b = ya + nn + 1, *yb = b + nn;                                         /* odd offsets: copies */
+    tu_randn(a, nn, 71);
+    memcpy(b, a, nn * sizeof *a);
+    wt_prior_apply_full(p, 0.7, a, ya, work);
+    wt_prior_apply_full(p, 0.7, b, yb, work);
+    ck_assert_mem_eq(ya, yb, nn * sizeof *ya);
+    ck_assert_mem_eq(a, b, nn * sizeof *a);
+    ck_assert_double_gt(tu_norm(ya, nn), 0.0);
+    free(raw), free(work);
+    wt_prior_free(p);
+    wt_wavelet_free(w);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_bad_input)
 {
     wt_context *ctx = tu_context();
@@ -380,6 +406,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_fraction_scaling);
     tcase_add_test(tc, test_exact_kind);
     tcase_add_test(tc, test_full_vs_dense);
+    tcase_add_test(tc, test_full_aligned_same_bits);
     tcase_add_test(tc, test_bad_input);
     tcase_add_test(tc, test_alloc_failure);
     suite_add_tcase(s, tc);

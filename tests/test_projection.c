@@ -287,6 +287,111 @@ START_TEST(test_layers_per_point_bits)
 }
 END_TEST
 
+/* An aligned layer (the ground layer under the corner grid: the same spacing, origins 22 points apart) is read and
+ * written contiguously; it must give the bits of the bilinear definition, whose zero weights add ±0 terms:
+ *   apply:   y += a0 (1·x[j] + 0·x[j+1]) + a1 (1·x[j+nx] + 0·x[j+nx+1]),  a0 = α, a1 = α·0,
+ *   apply_t: the column-pair sums s0 = Σ 1·y, s1 = Σ 0·y along each run, each column written when left behind
+ *            (the loop of wt_projection_apply_t for any layer, restated here).
+ * x and y hold exact zeros of both signs among random values (the cases where a ±0 term could show); y and the
+ * layers start without −0, as every caller's cleared arrays do. Checked alone and under two 1 m layers (the LGS
+ * stack; the AVX-512 kernel where the machine has it). */
+static void aligned_reference(int nl, const wt_grid *g, const double *h, double H, const wt_grid *t,
+                              const uint8_t *mask, double alpha, const double *x, const double *y0, double *y)
+{
+    wt_context *ctx = tu_context();
+    memcpy(y, y0, (size_t)wt_grid_size(t) * sizeof *y);
+    /* the ground layer's term first (layer order), by the definition; the others by their own one-layer apply */
+    for (int iy = 0; iy < t->ny; iy++)
+        for (int ix = 0; ix < t->nx; ix++) {
+            const long k = (long)iy * t->nx + ix;
+            if (!mask[k]) continue;
+            const long j = (long)(iy + 22) * 128 + ix + 22;
+            const double a0 = alpha * 1.0, a1 = alpha * 0.0;
+            y[k] += a0 * (1.0 * x[j] + 0.0 * x[j + 1]) + a1 * (1.0 * x[j + 128] + 0.0 * x[j + 129]);
+        }
+    double *tmp = malloc((size_t)wt_grid_size(t) * sizeof *tmp);
+    long off = wt_grid_size(&g[0]);
+    for (int l = 1; l < nl; l++) { /* the point's sum continues in layer order: add layer l's term to it */
+        wt_projection *q = make(ctx, 1, &g[l], &h[l], H, 0.0, 0.0, t, mask, 0);
+        memcpy(tmp, y, (size_t)wt_grid_size(t) * sizeof *y);
+        wt_projection_apply(q, alpha, x + off, tmp);
+        memcpy(y, tmp, (size_t)wt_grid_size(t) * sizeof *y);
+        wt_projection_free(q);
+        off += wt_grid_size(&g[l]);
+    }
+    free(tmp);
+    wt_context_free(ctx);
+}
+
+START_TEST(test_aligned_layer_bits)
+{
+    wt_context *ctx = tu_context();
+    uint8_t mask[85 * 85];
+    const wt_grid t = corner_grid(mask);
+    wt_grid g[3];
+    layers3(g);
+    const long nt = 85 * 85;
+    for (int nl = 1; nl <= 3; nl += 2) {
+        wt_projection *p = make(ctx, nl, g, alts3, 90000.0, 0.0, 0.0, &t, mask, 0);
+        const long nin = wt_projection_nin(p);
+        double *x = malloc(nin * sizeof *x), *y0 = malloc(nt * sizeof *y0), *y = malloc(nt * sizeof *y);
+        double *ref = malloc(nt * sizeof *ref), *u = malloc(nin * sizeof *u), *v = malloc(nin * sizeof *v);
+        tu_randn(x, nin, 90 + nl);
+        tu_randn(y0, nt, 95 + nl);
+        for (long i = 0; i < nin; i += 7) x[i] = (i / 7) % 2 ? -0.0 : 0.0;
+        for (long i = 0; i < nt; i += 5) y0[i] = 0.0;
+        for (int cleared = 0; cleared <= 1; cleared++) {
+            if (cleared) memset(y0, 0, nt * sizeof *y0);
+            memcpy(y, y0, nt * sizeof *y);
+            wt_projection_apply(p, -0.83, x, y);
+            aligned_reference(nl, g, alts3, 90000.0, &t, mask, -0.83, x, y0, ref);
+            ck_assert_mem_eq(y, ref, nt * sizeof *y);
+        }
+        if (nl == 1) {
+            /* the transpose: the general loop (s0, s1 per column pair) on the ground layer's stencil */
+            tu_randn(y, nt, 97);
+            for (long i = 0; i < nt; i += 5) y[i] = (i / 5) % 2 ? -0.0 : 0.0;
+            tu_randn(u, nin, 98);
+            memcpy(v, u, nin * sizeof *u);
+            wt_projection_apply_t(p, 1.7, y, u);
+            const double a0 = 1.7 * 1.0, a1 = 1.7 * 0.0;
+            for (int iy = 0; iy < 85; iy++)
+                for (int lo = 0; lo < 85;) {
+                    if (!mask[iy * 85 + lo]) {
+                        lo++;
+                        continue;
+                    }
+                    int hi = lo;
+                    while (hi < 85 && mask[iy * 85 + hi]) hi++;
+                    double *r0 = v + (long)(iy + 22) * 128 + 22, *r1 = r0 + 128;
+                    int jc = lo;
+                    double s0 = 0.0, s1 = 0.0;
+                    for (int ix = lo; ix < hi; ix++) {
+                        if (ix != jc) { /* j = jc + 1 */
+                            r0[jc] += a0 * s0;
+                            r1[jc] += a1 * s0;
+                            s0 = s1;
+                            s1 = 0.0;
+                            jc = ix;
+                        }
+                        s0 += 1.0 * y[iy * 85 + ix];
+                        s1 += 0.0 * y[iy * 85 + ix];
+                    }
+                    r0[jc] += a0 * s0;
+                    r1[jc] += a1 * s0;
+                    r0[jc + 1] += a0 * s1;
+                    r1[jc + 1] += a1 * s1;
+                    lo = hi;
+                }
+            ck_assert_mem_eq(u, v, nin * sizeof *u);
+        }
+        free(x), free(y0), free(y), free(ref), free(u), free(v);
+        wt_projection_free(p);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* wt_projection_apply_rows (X rows along x computed once, then combined along y) and wt_projection_apply_t_side
  * (layers side by side per point) do the operations of apply and apply_t on the same operands in the same
  * order: the same bits. Geometries: the fitting's (0.25 m samples in the pupil, 0.5 m layers, sources at
@@ -502,6 +607,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_ground_layer_same_everywhere);
     tcase_add_test(tc, test_cone_and_shift);
     tcase_add_test(tc, test_layers_per_point_bits);
+    tcase_add_test(tc, test_aligned_layer_bits);
     tcase_add_test(tc, test_rows_and_side_bits);
     tcase_add_test(tc, test_outside_rejected);
     tcase_add_test(tc, test_clamp);

@@ -59,6 +59,15 @@ double wt_vec_dot(const double *x, const double *y, int64_t n)
     return sum_parts(part);
 }
 
+int64_t wt_vec_chunk_len(int64_t n) { return (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS; }
+
+void wt_vec_dot_part(const double *x, const double *y, int64_t n, int c0, int c1, double *part)
+{
+    chunk_dots(x, y, n, wt_vec_chunk_len(n), c0, c1, part);
+}
+
+double wt_vec_dot_finish(const double *part) { return sum_parts(part); }
+
 /* s[k] += Σ_{i ∈ [a, b)} X_k[i] y[i] for k < B, B a compile-time constant (always inlined from the
  * switch below): the B sums are B chains in registers, each in index order. */
 static inline __attribute__((always_inline)) void dots_block(const int B, const double *restrict X, int64_t ld,

@@ -18,6 +18,13 @@
 
 /* Σ x_i y_i, parallel for long vectors, bit-identical for any thread count. */
 double wt_vec_dot(const double *x, const double *y, int64_t n);
+/* wt_vec_dot in pieces for a caller's own parallel region: the chunk sums of chunks [c0, c1) into part
+ * (WT_VEC_CHUNKS slots; 8 chunks side by side, as wt_vec_dot), and their ordered total; the chunks' rows:
+ * chunk c is [c len, min((c + 1) len, n)), len = wt_vec_chunk_len(n). The same bits as wt_vec_dot whatever
+ * the split of the chunks. */
+int64_t wt_vec_chunk_len(int64_t n);
+void wt_vec_dot_part(const double *x, const double *y, int64_t n, int c0, int c1, double *part);
+double wt_vec_dot_finish(const double *part);
 
 /* Dots of q ≤ WT_VEC_MAX_MANY columns X_k = X + k ld against one y, and the fused update
  * z ← z − Σ_k v_k X_k (each element taking the columns in order k = 0, 1, …): the same bits as q calls

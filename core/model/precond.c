@@ -34,12 +34,15 @@ struct wt_precond {
     double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
     int64_t *lr_runs;         /* the row runs where Y is not all zero (wt_vec_runs) */
     int lr_nruns;
+    double *lr_Yr;            /* n x r row-major (row i's r values side by side): Yᵀ r's r chains as vector lanes */
     /* coarse block (coarse_ngs, see coarse_*): J replaced by B = J with the coarse coefficients' rows and
      * columns of the LGS + prior part of M, inverted exactly */
     int nc;                   /* coarse coefficients (0: none) */
     int64_t *c_idx;           /* nc: their indices in c */
     double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block, Lᵀ above */
     double *c_w;              /* nc */
+    int64_t *c_free;          /* the runs [c_free[2j], c_free[2j+1]) of unknowns outside the coarse block */
+    int c_nfree;
     /* layer blocks below the coarse square (multilevel, see compute_layer_blocks) */
     int64_t nb;               /* blocks (0: none) */
     int64_t *b_start;         /* nb + 1: block b's unknowns are b_idx[b_start[b] .. b_start[b + 1]) */
@@ -346,6 +349,19 @@ static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
     for (int i = 0; i < q; i++)
         for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
     p->nc = q;
+    /* the runs of unknowns outside the block (J⁻¹ r there, beside the coarse solve on another thread) */
+    for (int64_t i = 0; i < n; i++) e[i] = 0.0;
+    for (int j = 0; j < q; j++) e[p->c_idx[j]] = 1.0;
+    WT_ALLOC(ctx, p->c_free, 2 * (size_t)(q + 1), "coarse block complement");
+    for (int64_t i = 0; i < n;) {
+        if (e[i] != 0.0) {
+            i++;
+            continue;
+        }
+        p->c_free[2 * p->c_nfree] = i;
+        while (i < n && e[i] == 0.0) i++;
+        p->c_free[2 * p->c_nfree++ + 1] = i;
+    }
 fail:
     wt_free(ctx, e);
     wt_free(ctx, sl);
@@ -660,6 +676,50 @@ static void lowrank_solve(const wt_precond *p, double *w)
     }
 }
 
+/* Yᵀ r's chunk sums from the row-major copy: s[k] += Y[i, k] r[i] for i in index order within a chunk, each k
+ * its own chain, as wt_vec_dot_many_part sums them (the same bits), the B chains side by side as vector lanes
+ * (B a compile-time constant: always inlined) */
+static inline __attribute__((always_inline)) void rdots_block(const int B, const double *restrict Yr,
+                                                              const double *restrict y, int64_t a, int64_t b,
+                                                              double *restrict s)
+{
+    double acc[WT_VEC_MAX_MANY];
+    for (int k = 0; k < B; k++) acc[k] = s[k];
+    for (int64_t i = a; i < b; i++) {
+        const double v = y[i];
+        const double *restrict row = Yr + i * B;
+        for (int k = 0; k < B; k++) acc[k] += row[k] * v;
+    }
+    for (int k = 0; k < B; k++) s[k] = acc[k];
+}
+
+WT_CPU_CLONES static void rdots_part(const wt_precond *p, const double *y, int c0, int c1)
+{
+    const int64_t n = p->n, len = wt_vec_chunk_len(n);
+    const int q = p->nlr;
+    for (int c = c0; c < c1; c++) {
+        const int64_t a = (int64_t)c * len, b = a + len < n ? a + len : n;
+        double s[WT_VEC_MAX_MANY];
+        for (int k = 0; k < q; k++) s[k] = 0.0;
+        int j0 = 0, j1 = p->lr_nruns; /* the first run ending after a (the runs are sorted) */
+        while (j0 < j1) {
+            const int mid = (j0 + j1) / 2;
+            if (p->lr_runs[2 * mid + 1] <= a) j0 = mid + 1;
+            else j1 = mid;
+        }
+        for (int j = j0; j < p->lr_nruns && p->lr_runs[2 * j] < b; j++) {
+            const int64_t lo = p->lr_runs[2 * j] > a ? p->lr_runs[2 * j] : a;
+            const int64_t hi = p->lr_runs[2 * j + 1] < b ? p->lr_runs[2 * j + 1] : b;
+            if (lo >= hi) continue;
+            if (q == 12) /* the E-ELT's 3 NGS */ rdots_block(12, p->lr_Yr, y, lo, hi, s);
+            else
+                for (int64_t i = lo; i < hi; i++)
+                    for (int k = 0; k < q; k++) s[k] += p->lr_Yr[i * q + k] * y[i];
+        }
+        for (int k = 0; k < q; k++) p->lr_part[(int64_t)k * WT_VEC_CHUNKS + c] = s[k];
+    }
+}
+
 /* z = P⁻¹ r = B⁻¹ r − Y K⁻¹ Yᵀ r. B⁻¹ r (coarse_apply: mostly the coarse block's two triangular solves,
  * serial chains) and Yᵀ r (the r dots, which read r and not z) are independent: on two threads they run
  * side by side, then both threads share the update of z. Y is zero on ~60 % of the rows (the fine
@@ -696,9 +756,13 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
                 lowrank_solve(p, p->lr_w);
             }
         } else if (p->nc > 0) {
-            if (id == 0) coarse_apply(p, r, z);
+            /* thread 0 the coarse solve (z on the coarse unknowns), thread 1 J⁻¹ r on the others (the same
+             * values coarse_apply leaves there) and the dots from Y's row-major copy */
+            if (id == 0) coarse_solve(p, r, z);
             if (id == (nt > 1 ? 1 : 0)) {
-                wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, 0, WT_VEC_CHUNKS, p->lr_part);
+                for (int j = 0; j < p->c_nfree; j++)
+                    for (int64_t i = p->c_free[2 * j]; i < p->c_free[2 * j + 1]; i++) z[i] = p->jinv[i] * r[i];
+                rdots_part(p, r, 0, WT_VEC_CHUNKS);
                 wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
                 lowrank_solve(p, p->lr_w);
             }
@@ -767,6 +831,9 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
     /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
     WT_TRY(cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
     p->nlr = q;
+    WT_ALLOC(ctx, p->lr_Yr, (size_t)n * q, "NGS preconditioner Y (rows)");
+    for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < q; k++) p->lr_Yr[i * q + k] = p->lr_Y[(size_t)k * n + i];
 fail:
     wt_free(ctx, R);
     wt_free(ctx, e);
@@ -816,6 +883,8 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->lr_part);
     wt_free(ctx, p->lr_runs);
     wt_free(ctx, p->c_idx);
+    wt_free(ctx, p->c_free);
+    wt_free(ctx, p->lr_Yr);
     wt_free(ctx, p->c_L);
     wt_free(ctx, p->c_w);
     wt_free(ctx, p->b_start);
@@ -873,7 +942,8 @@ int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block
 double wt_precond_bytes(const wt_precond *p)
 {
     if (!p) return 0.0;
-    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + p->nlr) + 8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) +
+    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Yr ? 2.0 : 1.0) * p->nlr) +
+           8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
            (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0);
 }

@@ -328,6 +328,81 @@ void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, 
     }
 }
 
+/* y = Ĉ⁻¹ x for B sensors of one size with the tip-tilt removal, y overwritten: the bits of weight_batch(B, ns,
+ * 1.0, x, y) on y cleared to +0, in four passes of which two are contiguous vector arithmetic:
+ *   means (B·2 chains, as weight_batch), v = C̃⁻¹ (x − T x) stored as y = 0 + v (what +0 += 1·v gives), the
+ *   means of v summed from y (0 + v differs from v only for v = −0, and a chain that starts at +0 never holds −0,
+ *   so adding +0 or −0 to it gives the same bits), and y −= mean. */
+/* y = 0 + C̃⁻¹ (x − (ax, ay)) block by block: the halves as restrict parameters, so that the loop vectorises */
+static inline __attribute__((always_inline)) void set_products(int m, const double *restrict xx,
+                                                               const double *restrict xy, const double *restrict ia,
+                                                               const double *restrict ib, const double *restrict ic,
+                                                               double ax, double ay, double *restrict yx,
+                                                               double *restrict yy)
+{
+    for (int i = 0; i < m; i++) {
+        const double u = xx[i] - ax, v = xy[i] - ay;
+        yx[i] = 0.0 + (ia[i] * u + ib[i] * v);
+        yy[i] = 0.0 + (ib[i] * u + ic[i] * v);
+    }
+}
+
+static inline __attribute__((always_inline)) void set_batch(const int B, const wt_noise *const *ns,
+                                                            const double *const *x, double *const *y)
+{
+    const int m = ns[0]->nsub;
+    double mx[MANY], my[MANY], svx[MANY], svy[MANY];
+    for (int q = 0; q < B; q++) mx[q] = my[q] = svx[q] = svy[q] = 0.0;
+    for (int i = 0; i < m; i++)
+        for (int q = 0; q < B; q++) {
+            mx[q] += x[q][i];
+            my[q] += x[q][m + i];
+        }
+    for (int q = 0; q < B; q++) {
+        mx[q] /= m;
+        my[q] /= m;
+    }
+    for (int q = 0; q < B; q++) {
+        set_products(m, x[q], x[q] + m, ns[q]->ia, ns[q]->ib, ns[q]->ic, mx[q], my[q], y[q], y[q] + m);
+    }
+    for (int i = 0; i < m; i++)
+        for (int q = 0; q < B; q++) {
+            svx[q] += y[q][i];
+            svy[q] += y[q][m + i];
+        }
+    for (int q = 0; q < B; q++) {
+        const double dx = 1.0 * svx[q] / m, dy = 1.0 * svy[q] / m;
+        double *restrict yy = y[q];
+        for (int i = 0; i < m; i++) {
+            yy[i] -= dx;
+            yy[m + i] -= dy;
+        }
+    }
+}
+
+WT_CPU_CLONES void wt_noise_set_weight_many(const wt_noise *const *ns, int k, const double *const *x, double *const *y)
+{
+    int j = 0;
+    while (j < k) {
+        int b = 1;
+        if (ns[j]->remove_tt)
+            while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
+        switch (b) {
+        case 4: set_batch(4, ns + j, x + j, y + j); break;
+        case 3: set_batch(3, ns + j, x + j, y + j); break;
+        case 2: set_batch(2, ns + j, x + j, y + j); break;
+        default:
+            if (ns[j]->remove_tt) set_batch(1, ns + j, x + j, y + j);
+            else {
+                for (int i = 0; i < 2 * ns[j]->nsub; i++) y[j][i] = 0.0;
+                wt_noise_apply_inv(ns[j], 1.0, x[j], y[j]);
+            }
+            break;
+        }
+        j += b;
+    }
+}
+
 void wt_noise_remove_tt(const wt_noise *n, double *x)
 {
     const int m = n->nsub;

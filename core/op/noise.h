@@ -71,6 +71,10 @@ void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, dou
  * waits on the adder's latency (~3 cycles per subaperture), k of them share that wait. */
 void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, const double *const *x,
                                 double *const *y);
+/* y[j] = Ĉ⁻¹ x[j] for j < k, overwritten: bit for bit what clearing y[j] to +0 and wt_noise_apply_weight_many(ns, k,
+ * 1.0, x, y) give, with the products and the final update as contiguous (vectorised) passes and only the sums
+ * as chains. x[j] and y[j] must not alias. */
+void wt_noise_set_weight_many(const wt_noise *const *ns, int k, const double *const *x, double *const *y);
 /* x <- (I − T) x: remove the global tip and tilt in place. */
 void wt_noise_remove_tt(const wt_noise *n, double *x);
 /* The inverse 2x2 block of subaperture i: {a, b, c} with C̃_i⁻¹ = [[a, b], [b, c]]. */

@@ -282,15 +282,26 @@ void wt_prior_apply_full(const wt_prior *p, double alpha, const double *phi, dou
     double *in = (double *)(((uintptr_t)work + 63) & ~(uintptr_t)63);
     fftw_complex *hat = (fftw_complex *)(in + n2);
     double *res = in + n2 + 2 * nc;
-    memcpy(in, phi, n2 * sizeof *in); /* FFTW may use its input as scratch */
-    fftw_execute_dft_r2c(p->r2c, in, hat);
+    /* FFTW runs a plan on other arrays only with the planning arrays' alignment (its SIMD codelets): the work
+     * arrays are 64-byte aligned, and so are phi and out where the caller keeps its layers at 64-byte
+     * boundaries (the tomography does): then the transforms read and write them directly, the same codelets on
+     * the same values (an out-of-place r2c preserves its input: FFTW's default for every kind but c2r). */
+    const int direct = ((uintptr_t)phi & 63) == 0 && ((uintptr_t)out & 63) == 0;
+    if (direct) fftw_execute_dft_r2c(p->r2c, (double *)phi, hat);
+    else {
+        memcpy(in, phi, n2 * sizeof *in);
+        fftw_execute_dft_r2c(p->r2c, in, hat);
+    }
     for (size_t k = 0; k < nc; k++) {
         const double m = alpha * p->inv[k];
         hat[k][0] *= m;
         hat[k][1] *= m;
     }
-    fftw_execute_dft_c2r(p->c2r, hat, res);
-    memcpy(out, res, n2 * sizeof *out);
+    if (direct) fftw_execute_dft_c2r(p->c2r, hat, out);
+    else {
+        fftw_execute_dft_c2r(p->c2r, hat, res);
+        memcpy(out, res, n2 * sizeof *out);
+    }
 }
 
 double wt_prior_level_variance(const wt_prior *p, int level, int orient)

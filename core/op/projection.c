@@ -43,8 +43,13 @@ struct wt_projection {
     double *cw01;     /* [nlayers * tnx][2]: (cw0, cw1) side by side, for the two-lane kernels */
     int32_t *rbase;   /* [nlayers * tny] layer offset + (bottom row) * nx_ℓ: the stencil's row start */
     double *rw0, *rw1; /* [nlayers * tny] weights of the bottom and top rows */
-    int narrow;       /* 1: along every run, every layer's columns are non-decreasing and span at most 6
-                         cells over 8 points (apply_layers_avx512's condition) */
+    int narrow;       /* 1: the runs are 16 points long on average and along every run, every layer's columns
+                         (the aligned layers' aside) are non-decreasing and span at most 6 cells over 8 points
+                         (apply_layers_avx512's condition) */
+    uint8_t *aligned; /* [nlayers] 1: the layer's stencil is the identity on every run (weights exactly (1, 0) in
+                         x and y, columns advancing by one point per point: the ground layer under a sample grid
+                         of its spacing and origin), so apply reads and apply_t writes it contiguously */
+    int any_aligned;
     int32_t nrun;     /* runs of consecutive masked target points within a row */
     int cx0, cx1;     /* the columns [cx0, cx1) the runs cover, all rows together (apply_rows' x range) */
     int32_t *run_row, *run_lo, *run_hi; /* [nrun] row iy and columns [lo, hi) */
@@ -102,6 +107,7 @@ void wt_projection_free(wt_projection *p)
     wt_free(ctx, p->run_row);
     wt_free(ctx, p->run_lo);
     wt_free(ctx, p->run_hi);
+    wt_free(ctx, p->aligned);
     wt_free(ctx, p);
 }
 
@@ -161,6 +167,7 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
     WT_ALLOC(ctx, p->rbase, (size_t)nlayers * tny, "projection row stencils");
     WT_ALLOC(ctx, p->rw0, (size_t)nlayers * tny, "projection row weights");
     WT_ALLOC(ctx, p->rw1, (size_t)nlayers * tny, "projection row weights");
+    WT_ALLOC(ctx, p->aligned, nlayers, "projection layer flags");
     WT_ALLOC(ctx, cok, (size_t)nlayers * tnx, "projection scratch");
     WT_ALLOC(ctx, rok, (size_t)nlayers * tny, "projection scratch");
 
@@ -226,9 +233,28 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
     }
     p->nin = offset;
 
-    p->narrow = 1;
+    for (int l = 0; l < nlayers; l++) {
+        int al = 1;
+        for (int64_t r = 0; r < nrun && al; r++) {
+            const size_t kr = (size_t)l * tny + p->run_row[r];
+            if (!(p->rw0[kr] == 1.0 && p->rw1[kr] == 0.0)) al = 0;
+            for (int ix = p->run_lo[r]; ix < p->run_hi[r] && al; ix++) {
+                const size_t kc = (size_t)l * tnx + ix;
+                if (!(p->cw0[kc] == 1.0 && p->cw1[kc] == 0.0) || (ix > p->run_lo[r] && p->cbase[kc] != p->cbase[kc - 1] + 1))
+                    al = 0;
+            }
+        }
+        p->aligned[l] = (uint8_t)al;
+        p->any_aligned |= al;
+    }
+    /* the 8-point blocks need long runs: below 16 points a run on average (the NGS models' rims, ~4) most points
+     * would take the scalar tail, slower than the two-lane kernel */
+    int64_t npts = 0;
+    for (int64_t r = 0; r < nrun; r++) npts += p->run_hi[r] - p->run_lo[r];
+    p->narrow = npts >= 16 * nrun;
     for (int64_t r = 0; r < nrun && p->narrow; r++)
         for (int l = 0; l < nlayers && p->narrow; l++) {
+            if (p->aligned[l]) continue;
             const int32_t *cb = p->cbase + (size_t)l * tnx;
             for (int ix = p->run_lo[r]; ix < p->run_hi[r] && p->narrow; ix++)
                 if ((ix + 1 < p->run_hi[r] && cb[ix + 1] < cb[ix]) || (ix + 7 < p->run_hi[r] && cb[ix + 7] - cb[ix] > 6))
@@ -287,6 +313,7 @@ typedef struct {
     const int32_t *cb[4];
     const double *w0[4], *w1[4];
     double a0[4], a1[4];
+    int al[4]; /* p->aligned of the layer */
 } run_rows;
 
 static inline __attribute__((always_inline)) void run_setup(const wt_projection *p, int l0, int nl, int iy, double alpha,
@@ -302,13 +329,24 @@ static inline __attribute__((always_inline)) void run_setup(const wt_projection 
         q->cb[k] = p->cbase + (size_t)l * p->tnx;
         q->w0[k] = p->cw0 + (size_t)l * p->tnx;
         q->w1[k] = p->cw1 + (size_t)l * p->tnx;
+        q->al[k] = p->aligned[l];
     }
 }
 
 /* Layer k's term at target point ix: the scalar definition of the apply's arithmetic (unused where the
- * two-lane kernel runs and the AVX-512 one is not built: clang, the fuzz build) */
+ * two-lane kernel runs and the AVX-512 one is not built: clang, the fuzz build).
+ * An aligned layer's term is a0 r0[j]: with u = (1, 0) and a = (α, 0) the definition is
+ * α (r0[j] + 0·r0[j+1]) + 0·(…), which for finite values is α r0[j] exactly unless that is zero, and then a
+ * zero whose sign may differ; added to the accumulator it gives the same bits unless the accumulator holds
+ * −0 (never, where it starts from a cleared array: a sum that starts at +0 never becomes −0). */
+static inline __attribute__((always_inline)) double aligned_term(const run_rows *q, int k, int ix)
+{
+    return q->a0[k] * q->r0[k][q->cb[k][ix]];
+}
+
 static inline __attribute__((always_inline, unused)) double run_term(const run_rows *q, int k, int ix)
 {
+    if (q->al[k]) return aligned_term(q, k, ix);
     const int32_t j = q->cb[k][ix];
     const double u0 = q->w0[k][ix], u1 = q->w1[k][ix];
     return q->a0[k] * (u0 * q->r0[k][j] + u1 * q->r0[k][j + 1]) + q->a1[k] * (u0 * q->r1[k][j] + u1 * q->r1[k][j + 1]);
@@ -341,6 +379,10 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
         for (int ix = lo; ix < hi; ix++) {
             __m128d acc = _mm_load_sd(y + ix);
             for (int k = 0; k < NL; k++) {
+                if (q.al[k]) {
+                    acc = _mm_add_sd(acc, _mm_set_sd(aligned_term(&q, k, ix)));
+                    continue;
+                }
                 const int32_t j = q.cb[k][ix];
                 const __m128d w = _mm_loadu_pd(w01[k] + 2 * ix);
                 const __m128d pb = _mm_mul_pd(w, _mm_loadu_pd(q.r0[k] + j)), pt = _mm_mul_pd(w, _mm_loadu_pd(q.r1[k] + j));
@@ -385,7 +427,9 @@ __attribute__((target("avx512f"))) static void apply_layers_avx512(const wt_proj
             for (int k = 0; k < nl; k++) {
                 const int32_t J = q.cb[k][ix], span = q.cb[k][ix + 7] - J;
                 __m512d term;
-                if (span <= 6) {
+                if (q.al[k]) { /* aligned_term, 8 contiguous values */
+                    term = _mm512_mul_pd(_mm512_set1_pd(q.a0[k]), _mm512_loadu_pd(q.r0[k] + J));
+                } else if (span <= 6) {
                     const __mmask8 m = (__mmask8)((1u << (span + 2)) - 1u);
                     const __m512d b = _mm512_maskz_loadu_pd(m, q.r0[k] + J), t = _mm512_maskz_loadu_pd(m, q.r1[k] + J);
                     const __m256i d32 = _mm256_sub_epi32(_mm256_loadu_si256((const __m256i *)(q.cb[k] + ix)), _mm256_set1_epi32(J));
@@ -570,6 +614,15 @@ void wt_projection_apply_rows(const wt_projection *p, double alpha, const double
     apply_rows_body(p, alpha, layers, points, work, accumulate, 0);
 }
 
+/* apply_t's loop below for an aligned layer (p->aligned): the run's points map one to one onto consecutive layer
+ * points, each carried by s0 alone (s0 = 0 + 1·y, the zero-weight sums stay +0), so r0[j] += a0 (0 + y): the same
+ * bits, contiguous. The updates of the loop with zero weights (r1 and the column after the run, each += ±0) are
+ * left out: they change nothing unless the layer holds −0, which an array cleared to +0 and added to never does. */
+WT_CPU_CLONES static void aligned_t(double a0, const double *restrict y, int n, double *restrict r0)
+{
+    for (int i = 0; i < n; i++) r0[i] += a0 * (0.0 + y[i]);
+}
+
 WT_SCALAR_LOOPS
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *restrict points, double *restrict layers)
 {
@@ -584,6 +637,10 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
             double *r0 = layers + p->rbase[kr], *r1 = r0 + p->lnx[l];
             const double a0 = alpha * p->rw0[kr], a1 = alpha * p->rw1[kr];
             const int32_t *restrict cb = p->cbase + (size_t)l * tnx;
+            if (p->aligned[l]) {
+                aligned_t(a0, y + lo, hi - lo, r0 + cb[lo]);
+                continue;
+            }
             const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
             /* Neighbouring points share stencil columns; scattering each point straight into the layer
              * would chain every update through the previous store. Instead the row's 1-D transpose is
