@@ -259,6 +259,45 @@ static void means(int m, const double *x, double *mx, double *my)
 
 enum { MANY = 4 };
 
+/* A batch: up to MANY consecutive sensors from j with the tip-tilt removal and the first one's size. */
+static int batch_size(const wt_noise *const *ns, int k, int j)
+{
+    int b = 1;
+    if (ns[j]->remove_tt)
+        while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
+    return b;
+}
+
+/* The x and y means of B sensors' slopes (each sensor's two sums as its own chain, in slope order). */
+static inline __attribute__((always_inline)) void batch_means(const int B, int m, const double *const *x, double *mx,
+                                                              double *my)
+{
+    for (int q = 0; q < B; q++) mx[q] = my[q] = 0.0;
+    for (int i = 0; i < m; i++)
+        for (int q = 0; q < B; q++) {
+            mx[q] += x[q][i];
+            my[q] += x[q][m + i];
+        }
+    for (int q = 0; q < B; q++) {
+        mx[q] /= m;
+        my[q] /= m;
+    }
+}
+
+/* y −= α T v for B sensors, from the sums svx, svy of v's halves. */
+static inline __attribute__((always_inline)) void take_means(const int B, int m, double alpha, const double *svx,
+                                                             const double *svy, double *const *y)
+{
+    for (int q = 0; q < B; q++) {
+        const double dx = alpha * svx[q] / m, dy = alpha * svy[q] / m;
+        double *restrict yy = y[q];
+        for (int i = 0; i < m; i++) {
+            yy[i] -= dx;
+            yy[m + i] -= dy;
+        }
+    }
+}
+
 /* y += α (I − T) v with v = C̃⁻¹ (x − T x), in three O(n) passes and no scratch: T x and T v need only the
  * two means of each, so v is added to y while its means are summed, and α T v is then taken off y. For B
  * sensors of one size at once (wt_noise_apply_weight_many; 1 for wt_noise_apply_weight), each sensor's
@@ -269,16 +308,8 @@ static inline __attribute__((always_inline)) void weight_batch(const int B, cons
 {
     const int m = ns[0]->nsub;
     double mx[MANY], my[MANY], svx[MANY], svy[MANY];
-    for (int q = 0; q < B; q++) mx[q] = my[q] = svx[q] = svy[q] = 0.0;
-    for (int i = 0; i < m; i++)
-        for (int q = 0; q < B; q++) {
-            mx[q] += x[q][i];
-            my[q] += x[q][m + i];
-        }
-    for (int q = 0; q < B; q++) {
-        mx[q] /= m;
-        my[q] /= m;
-    }
+    for (int q = 0; q < B; q++) svx[q] = svy[q] = 0.0;
+    batch_means(B, m, x, mx, my);
     for (int i = 0; i < m; i++)
         for (int q = 0; q < B; q++) {
             const wt_noise *n = ns[q];
@@ -290,14 +321,7 @@ static inline __attribute__((always_inline)) void weight_batch(const int B, cons
             y[q][i] += alpha * vx;
             y[q][m + i] += alpha * vy;
         }
-    for (int q = 0; q < B; q++) {
-        double dx = alpha * svx[q] / m, dy = alpha * svy[q] / m;
-        double *restrict yy = y[q];
-        for (int i = 0; i < m; i++) {
-            yy[i] -= dx;
-            yy[m + i] -= dy;
-        }
-    }
+    take_means(B, m, alpha, svx, svy, y);
 }
 
 void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y)
@@ -314,10 +338,7 @@ void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, 
 {
     int j = 0;
     while (j < k) {
-        /* a batch: up to MANY consecutive sensors with the tip-tilt removal and the first one's size */
-        int b = 1;
-        if (ns[j]->remove_tt)
-            while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
+        const int b = batch_size(ns, k, j);
         switch (b) {
         case 4: weight_batch(4, ns + j, alpha, x + j, y + j); break;
         case 3: weight_batch(3, ns + j, alpha, x + j, y + j); break;
@@ -352,16 +373,8 @@ static inline __attribute__((always_inline)) void set_batch(const int B, const w
 {
     const int m = ns[0]->nsub;
     double mx[MANY], my[MANY], svx[MANY], svy[MANY];
-    for (int q = 0; q < B; q++) mx[q] = my[q] = svx[q] = svy[q] = 0.0;
-    for (int i = 0; i < m; i++)
-        for (int q = 0; q < B; q++) {
-            mx[q] += x[q][i];
-            my[q] += x[q][m + i];
-        }
-    for (int q = 0; q < B; q++) {
-        mx[q] /= m;
-        my[q] /= m;
-    }
+    for (int q = 0; q < B; q++) svx[q] = svy[q] = 0.0;
+    batch_means(B, m, x, mx, my);
     for (int q = 0; q < B; q++) {
         set_products(m, x[q], x[q] + m, ns[q]->ia, ns[q]->ib, ns[q]->ic, mx[q], my[q], y[q], y[q] + m);
     }
@@ -370,23 +383,14 @@ static inline __attribute__((always_inline)) void set_batch(const int B, const w
             svx[q] += y[q][i];
             svy[q] += y[q][m + i];
         }
-    for (int q = 0; q < B; q++) {
-        const double dx = 1.0 * svx[q] / m, dy = 1.0 * svy[q] / m;
-        double *restrict yy = y[q];
-        for (int i = 0; i < m; i++) {
-            yy[i] -= dx;
-            yy[m + i] -= dy;
-        }
-    }
+    take_means(B, m, 1.0, svx, svy, y);
 }
 
 WT_CPU_CLONES void wt_noise_set_weight_many(const wt_noise *const *ns, int k, const double *const *x, double *const *y)
 {
     int j = 0;
     while (j < k) {
-        int b = 1;
-        if (ns[j]->remove_tt)
-            while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
+        const int b = batch_size(ns, k, j);
         switch (b) {
         case 4: set_batch(4, ns + j, x + j, y + j); break;
         case 3: set_batch(3, ns + j, x + j, y + j); break;
