@@ -33,7 +33,7 @@ static void help(void)
            "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
            "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
-           "memory (--no-build skips it; ~7 minutes at E-ELT size with the default full prior, whose normal matrix is dense).\n"
+           "memory (--no-build skips it; ~6 minutes at E-ELT size with the default full prior, whose normal matrix is dense).\n"
            "\n"
            "Diffractive sensing (issue 19): the diffractive sensors of DCONFIG (--sensing; default CONFIG itself when\n"
            "it has any, e.g. data/presets/eelt-mcao-diffractive.cfg), LGS and NGS separately: per frame, images +\n"
