@@ -13,7 +13,7 @@
 #define NS_POINT 4.0e-9       /* s per bilinear read (fine point x layer x line of sight), one thread */
 #define FLOP_RATE 8.0e9       /* reconstructor flops per s, one thread (stencil-bound; §2: 30 Mflop in 3.2 ms) */
 #define STREAM_RATE 28e9      /* bytes per s of a float32 GEMV (§2: sgemv of R at 28.1 GB/s, 2 threads) */
-#define DENSE_RATE 80e9      /* flops per s of LAPACK's dense Cholesky and triangular solves, 2 threads (DGEMM ~97) */
+#define DENSE_RATE 55e9      /* flops per s of the dense path, 2 threads: 17 Tflop of dpotrf + dpotrs in 299 s (results §23) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
 /* Diffractive sensors (core/optics/spot.h; `make bench-spot` on the E-ELT LGS, 2 threads, 2026-11-25): */
