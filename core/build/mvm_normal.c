@@ -209,7 +209,7 @@ static int dense_factor(wt_mvm_normal *nm, const wt_sparse *Nu, int keep_matrix)
     wt_context *ctx = nm->ctx;
     const int64_t n = nm->n;
     const double *ad = wt_tomography_alpha_prior(nm->t);
-    double *e = NULL, *y = NULL;
+    double *e = NULL;
     WT_ALLOC(ctx, nm->L, (size_t)n * n, "dense normal matrix");
     for (int64_t j = 0; j < n; j++)
         for (int64_t k = Nu->colptr[j]; k < Nu->colptr[j + 1]; k++) nm->L[j + (size_t)n * Nu->rowind[k]] = Nu->val[k];
@@ -218,18 +218,22 @@ static int dense_factor(wt_mvm_normal *nm, const wt_sparse *Nu, int keep_matrix)
         int64_t nl = wt_tomography_layer_offset(nm->t, l + 1) - wt_tomography_layer_offset(nm->t, l);
         if (nl > nmax) nmax = nl;
     }
-    WT_ALLOC(ctx, e, nmax, "unit vector");
-    WT_ALLOC(ctx, y, nmax, "prior column");
+    /* per thread: a unit vector, the column, the prior apply's work (each column independent: same bits on
+     * any number of threads) */
+    const size_t pw = wt_tomography_prior_layer_work(nm->t), stride = 2 * (size_t)nmax + pw;
+    WT_ALLOC(ctx, e, (size_t)nm->nth * stride, "prior column workspace");
     for (int l = 0; l < wt_tomography_nlayers(nm->t); l++) {
         const int64_t a = wt_tomography_layer_offset(nm->t, l), nl = wt_tomography_layer_offset(nm->t, l + 1) - a;
+#pragma omp parallel for schedule(dynamic, 16) num_threads(nm->nth)
         for (int64_t j = 0; j < nl; j++) {
-            e[j] = 1.0;
-            memset(y, 0, (size_t)nl * sizeof *y);
-            wt_tomography_prior_apply_layer(nm->t, l, e, y);
-            e[j] = 0.0;
-            y[j] -= ad[a + j]; /* N's diagonal already holds the prior's diagonal */
+            double *u = e + (size_t)wt_mvm_priv_thread() * stride, *yc = u + nmax;
+            memset(u, 0, (size_t)nl * sizeof *u);
+            memset(yc, 0, (size_t)nl * sizeof *yc);
+            u[j] = 1.0;
+            wt_tomography_prior_apply_layer_ws(nm->t, l, u, yc, yc + nmax);
+            yc[j] -= ad[a + j]; /* N's diagonal already holds the prior's diagonal */
             double *col = nm->L + (size_t)n * (a + j) + a;
-            for (int64_t i = j; i < nl; i++) col[i] += y[i];
+            for (int64_t i = j; i < nl; i++) col[i] += yc[i];
         }
     }
     if (keep_matrix) {
@@ -246,7 +250,6 @@ static int dense_factor(wt_mvm_normal *nm, const wt_sparse *Nu, int keep_matrix)
     }
 fail:
     wt_free(ctx, e);
-    wt_free(ctx, y);
     return st;
 }
 

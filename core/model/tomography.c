@@ -130,6 +130,29 @@ void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, d
     wt_wavelet_forward(t->wav[l], q, phi, w->wwork);
     for (int64_t i = 0; i < nl; i++) y[i] += phi[i];
 }
+
+size_t wt_tomography_prior_layer_work(const wt_tomography *t)
+{
+    int64_t nmax = 0;
+    for (int l = 0; l < t->L; l++)
+        if (t->off[l + 1] - t->off[l] > nmax) nmax = t->off[l + 1] - t->off[l];
+    return 2 * (size_t)nmax + t->wsize + t->pwsize;
+}
+
+void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const double *c, double *y, double *ws)
+{
+    const int64_t a = t->off[l], nl = t->off[l + 1] - a;
+    if (!t->full_prior) {
+        for (int64_t i = 0; i < nl; i++) y[i] += t->alpha_d[a + i] * c[i];
+        return;
+    }
+    const size_t nmax = (wt_tomography_prior_layer_work(t) - t->wsize - t->pwsize) / 2;
+    double *phi = ws, *q = ws + nmax, *wwork = ws + 2 * nmax, *pwork = wwork + t->wsize;
+    wt_wavelet_inverse(t->wav[l], c, phi, wwork);
+    wt_prior_apply_full(t->prior[l], t->alpha, phi, q, pwork);
+    wt_wavelet_forward(t->wav[l], q, phi, wwork);
+    for (int64_t i = 0; i < nl; i++) y[i] += phi[i];
+}
 const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l) { return t->proj[m * t->L + l]; }
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }

@@ -88,6 +88,10 @@ const char *wt_tomography_variant(const wt_tomography *t); /* "pcg3" or "cg9" (a
  * same): α D c, or with the full prior α W C_φ⁻¹ Wᵀ c. Set-up use (the preconditioners' exact blocks): it
  * uses the object's own workspace. */
 void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y);
+/* The same on a caller's work array of wt_tomography_prior_layer_work(t) doubles: thread-safe, one array
+ * per concurrent call (the MVM builder forms the dense prior blocks column by column on its threads). */
+void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const double *c, double *y, double *ws);
+size_t wt_tomography_prior_layer_work(const wt_tomography *t);
 /* The OpenMP threads the applies run on (1 below ~16k unknowns, where a parallel region does not pay). */
 int wt_tomography_threads(const wt_tomography *t);
 
