@@ -116,43 +116,44 @@ const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alph
 int wt_tomography_full_prior(const wt_tomography *t) { return t->full_prior; }
 const char *wt_tomography_variant(const wt_tomography *t) { return t->variant; }
 
-void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y)
+/* y += α W C_φ⁻¹ Wᵀ c on layer l (or α D c for a diagonal prior), on the given work arrays. */
+static void prior_layer(const wt_tomography *t, int l, const double *c, double *y, double *phi, double *q,
+                        double *wwork, double *pwork)
 {
     const int64_t a = t->off[l], nl = t->off[l + 1] - a;
     if (!t->full_prior) {
         for (int64_t i = 0; i < nl; i++) y[i] += t->alpha_d[a + i] * c[i];
         return;
     }
-    wt_tomography_work *w = t->work;
-    double *phi = w->phi + a, *q = w->pphi + a;
-    wt_wavelet_inverse(t->wav[l], c, phi, w->wwork);
-    wt_prior_apply_full(t->prior[l], t->alpha, phi, q, w->pwork);
-    wt_wavelet_forward(t->wav[l], q, phi, w->wwork);
-    for (int64_t i = 0; i < nl; i++) y[i] += phi[i];
-}
-
-size_t wt_tomography_prior_layer_work(const wt_tomography *t)
-{
-    int64_t nmax = 0;
-    for (int l = 0; l < t->L; l++)
-        if (t->off[l + 1] - t->off[l] > nmax) nmax = t->off[l + 1] - t->off[l];
-    return 2 * (size_t)nmax + t->wsize + t->pwsize;
-}
-
-void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const double *c, double *y, double *ws)
-{
-    const int64_t a = t->off[l], nl = t->off[l + 1] - a;
-    if (!t->full_prior) {
-        for (int64_t i = 0; i < nl; i++) y[i] += t->alpha_d[a + i] * c[i];
-        return;
-    }
-    const size_t nmax = (wt_tomography_prior_layer_work(t) - t->wsize - t->pwsize) / 2;
-    double *phi = ws, *q = ws + nmax, *wwork = ws + 2 * nmax, *pwork = wwork + t->wsize;
     wt_wavelet_inverse(t->wav[l], c, phi, wwork);
     wt_prior_apply_full(t->prior[l], t->alpha, phi, q, pwork);
     wt_wavelet_forward(t->wav[l], q, phi, wwork);
     for (int64_t i = 0; i < nl; i++) y[i] += phi[i];
 }
+
+void wt_tomography_prior_apply_layer(wt_tomography *t, int l, const double *c, double *y)
+{
+    wt_tomography_work *w = t->work;
+    if (!t->full_prior) prior_layer(t, l, c, y, NULL, NULL, NULL, NULL); /* no workspace (pphi may be NULL) */
+    else prior_layer(t, l, c, y, w->phi + t->off[l], w->pphi + t->off[l], w->wwork, w->pwork);
+}
+
+static size_t max_layer(const wt_tomography *t)
+{
+    int64_t nmax = 0;
+    for (int l = 0; l < t->L; l++)
+        if (t->off[l + 1] - t->off[l] > nmax) nmax = t->off[l + 1] - t->off[l];
+    return (size_t)nmax;
+}
+
+size_t wt_tomography_prior_layer_work(const wt_tomography *t) { return 2 * max_layer(t) + t->wsize + t->pwsize; }
+
+void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const double *c, double *y, double *ws)
+{
+    const size_t nmax = max_layer(t);
+    prior_layer(t, l, c, y, ws, ws + nmax, ws + 2 * nmax, ws + 2 * nmax + t->wsize);
+}
+
 const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l) { return t->proj[m * t->L + l]; }
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
