@@ -26,6 +26,15 @@ static wt_grid corner_grid(uint8_t *mask)
     return wt_grid_centred(85, 0.5);
 }
 
+/* Six layers every 2.5 km, alternately 128² at 0.5 m and 64² at 1 m (both interpolation stencils). */
+static void mixed_layers(wt_grid g[6], double h[6])
+{
+    for (int l = 0; l < 6; l++) {
+        g[l] = wt_grid_layer(l % 2 ? 64 : 128, l % 2 ? 1.0 : 0.5);
+        h[l] = 2500.0 * l;
+    }
+}
+
 static wt_projection *make(wt_context *ctx, int nl, const wt_grid *g, const double *h, double H, double tx, double ty,
                            const wt_grid *t, const uint8_t *mask, int clamp)
 {
@@ -258,10 +267,7 @@ START_TEST(test_layers_per_point_bits)
     const wt_grid t = corner_grid(mask);
     wt_grid g[6];
     double h[6];
-    for (int l = 0; l < 6; l++) {
-        g[l] = wt_grid_layer(l % 2 ? 64 : 128, l % 2 ? 1.0 : 0.5);
-        h[l] = 2500.0 * l;
-    }
+    mixed_layers(g, h);
     for (int clamp = 0; clamp <= 1; clamp++)
         for (int nl = 1; nl <= 6; nl++) {
             const double H = clamp ? 0.0 : 90000.0, tx = 25 * ARCSEC, ty = -40 * ARCSEC;
@@ -458,10 +464,7 @@ START_TEST(test_rows_and_side_bits)
     const wt_grid t = corner_grid(mask);
     wt_grid g[6];
     double h[6];
-    for (int l = 0; l < 6; l++) {
-        g[l] = wt_grid_layer(l % 2 ? 64 : 128, l % 2 ? 1.0 : 0.5);
-        h[l] = 2500.0 * l;
-    }
+    mixed_layers(g, h);
     for (int clamp = 0; clamp <= 1; clamp++) {
         wt_projection *p = make(ctx, 6, g, h, clamp ? 0.0 : 90000.0, 25 * ARCSEC, -40 * ARCSEC, &t, clamp ? NULL : mask, clamp);
         check_rows_side(p, clamp ? NULL : mask, 300 + clamp);

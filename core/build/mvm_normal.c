@@ -553,19 +553,18 @@ int wt_mvm_normal_apply(const wt_mvm_normal *nm, const double *x, double *y)
     const int r = nm->r, n = (int)nm->n;
     if (nm->Nd) {
         cblas_dsymv(CblasColMajor, CblasLower, n, 1.0, nm->Nd, n, x, 1, 0.0, y, 1);
-        goto lowrank;
-    }
-    if (!nm->N)
+    } else if (nm->N) {
+        const wt_sparse *N = nm->N;
+        memset(y, 0, (size_t)nm->n * sizeof *y);
+        for (int64_t j = 0; j < nm->n; j++)
+            for (int64_t k = N->colptr[j]; k < N->colptr[j + 1]; k++) {
+                int64_t i = N->rowind[k];
+                y[i] += N->val[k] * x[j];
+                if (i != j) y[j] += N->val[k] * x[i];
+            }
+    } else {
         return WT_ERROR(nm->ctx, WT_ERR_INVALID, "wt_mvm_normal_apply: N was not kept (keep_matrix = 0 at alloc)");
-    const wt_sparse *N = nm->N;
-    memset(y, 0, (size_t)nm->n * sizeof *y);
-    for (int64_t j = 0; j < nm->n; j++)
-        for (int64_t k = N->colptr[j]; k < N->colptr[j + 1]; k++) {
-            int64_t i = N->rowind[k];
-            y[i] += N->val[k] * x[j];
-            if (i != j) y[j] += N->val[k] * x[i];
-        }
-lowrank:
+    }
     cblas_dgemv(CblasColMajor, CblasTrans, n, r, 1.0, nm->B, n, x, 1, 0.0, nm->s1, 1);
     cblas_dgemv(CblasColMajor, CblasNoTrans, r, r, 1.0, nm->Q, r, nm->s1, 1, 0.0, nm->s2, 1);
     cblas_dgemv(CblasColMajor, CblasNoTrans, n, r, 1.0, nm->B, n, nm->s2, 1, 1.0, y, 1);
