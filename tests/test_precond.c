@@ -463,8 +463,8 @@ START_TEST(test_multilevel_reaches_direct)
 }
 END_TEST
 
-/* The fourier kind, with its NGS term (demo cg9 on one grid, both noise levels): symmetric and positive
- * definite. Its B⁻¹ applies an orthonormal DWT pair and a real FFT pair per layer around the filter s(k) > 0;
+/* The fourier kind, with its NGS term (demo cg9 on one grid; paper noise with the filter alone, low noise
+ * with the coarse block of the scaling coefficients): symmetric and positive definite. Its B⁻¹ applies an orthonormal DWT pair and a real FFT pair per layer around the filter s(k) > 0;
  * each is backward stable with an error of a few u log2(n²) relative to the vector's norm, so a product
  * xᵀ P⁻¹ y carries an error of order u log2(n²) ‖x‖ ‖y‖ ‖B⁻¹‖, and the Woodbury term's two products
  * (Y K⁻¹ Yᵀ ≼ B⁻¹) as much. The test asks |xᵀP⁻¹y − yᵀP⁻¹x| ≤ 16 n u ‖x‖ ‖y‖ ‖P⁻¹‖₂ (the other kinds'
@@ -475,7 +475,7 @@ START_TEST(test_fourier_spd)
     fixture f;
     setup(&f, 1, _i, 1, ONE_GRID);
     const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
-    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = 2};
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = _i ? 0 : -1};
     wt_precond *p = NULL;
     ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
     ck_assert_str_eq(wt_precond_name(p), "fourier");
@@ -521,7 +521,7 @@ START_TEST(test_fourier_spd)
 }
 END_TEST
 
-/* Without NGS, B_F⁻¹ is the filter itself: a Fourier mode cos(2π k·x/n) on any layer comes back as the same
+/* Without NGS and without the coarse block (coarse_levels < 0), B_F⁻¹ is the filter itself: a Fourier mode cos(2π k·x/n) on any layer comes back as the same
  * mode times s(k) > 0, the same factor on every layer (a wrong frequency layout of the half spectrum, a lost
  * 1/n² or a layer's own scaling would break one of the three), to the transforms' rounding: the DWT and FFT
  * pairs leave errors of a few u log2(n²) ‖φ‖ at every frequency, which the filter scales by up to its
@@ -538,7 +538,7 @@ START_TEST(test_fourier_filter)
     const int64_t n = wt_tomography_nunknowns(f.t);
     const wt_grid *g = wt_tomography_layer_grid(f.t, 0);
     const int N = g->nx, L = wt_tomography_nlayers(f.t);
-    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = 2};
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = -1};
     wt_precond *p = NULL;
     ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
     ck_assert_int_eq(wt_precond_rank(p), 0);
@@ -620,7 +620,7 @@ START_TEST(test_fourier_condition_and_direct)
     const int kinds[] = {WT_PRECOND_NONE, WT_PRECOND_JACOBI_NGS, WT_PRECOND_FOURIER};
     wt_precond *p = NULL;
     for (int i = 0; i < 3; i++) {
-        const wt_precond_params pp = {.kind = kinds[i], .coarse_levels = 1};
+        const wt_precond_params pp = {.kind = kinds[i], .coarse_levels = 0};
         ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
         int its = 0;
         kappa[kinds[i]] = lanczos_kappa(&f, p, b, 8000, &its);
@@ -683,6 +683,11 @@ START_TEST(test_names_and_refusals)
     ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
     ck_assert_ptr_null(p);
     ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "preconditioner kind 7"));
+    /* a negative coarse_levels means "no coarse block" to fourier only */
+    pp = (wt_precond_params){.kind = WT_PRECOND_COARSE_NGS, .coarse_levels = -1};
+    ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
+    ck_assert_ptr_null(p);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "coarse_levels -1"));
     /* 5 layers of 32²: all 3 levels would be 5120 coefficients */
     for (int kind = WT_PRECOND_COARSE_NGS; kind <= WT_PRECOND_MULTILEVEL; kind++) {
         pp = (wt_precond_params){.kind = kind, .coarse_levels = 3};

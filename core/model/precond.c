@@ -2,7 +2,8 @@
  *
  *   J  = diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D                       exact, by coloured probing (paper's modified Jacobi)
  *   B  = J with the coarse coefficients' block of the LGS + prior part of M      (coarse_ngs)
- *   B_F⁻¹ = W F⁻¹ diag(1/λ_max A(k)) F Wᵀ, A(k) the L x L symbol of that part per frequency     (fourier)
+ *   B_F⁻¹ = W F⁻¹ diag(1/λ_max A(k)) F Wᵀ beside the coarse block, A(k) the L x L symbol of that part per
+ *         frequency                                                                          (fourier)
  *   P  = B + R C_n Rᵀ,  P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ,  Y = B⁻¹ R,  K = Ĉ⁻¹_NGS + Rᵀ B⁻¹ R   (Woodbury, the NGS term)
  *
  * Built only from the tomography's public operators (slopes Ã, the adjoint Ãᵀ Ĉ⁻¹, the projections, noise
@@ -61,6 +62,7 @@ struct wt_precond {
     double *fd_buf;           /* per thread: n² layer values then fd_nk complex values, 64-byte slices */
     size_t fd_slice;          /* doubles per thread in fd_buf */
     double *fd_wwork;         /* per thread: the wavelet workspace */
+    double *fd_r;             /* n: r without its coarse coefficients (with a coarse block) */
     size_t fd_wsize;
     fftw_plan fd_r2c, fd_c2r;
 };
@@ -680,9 +682,13 @@ static void coarse_apply(const wt_precond *p, const double *r, double *z)
  * exactly (FDPCG, Yang, Vogel & Ellerbroek 2006) was measured worse in the loop: at the low frequencies the
  * L − 6 layer-split directions hold the prior alone, ~10⁶ below the data, and the rim's leakage into them
  * is amplified as much; flooring A's eigenvalues at τ λ_max got better as τ rose, best at τ = 1, this
- * filter (§25). The NGS term is added by Woodbury as for the other kinds. Apply: per layer (the threads
- * take whole layers: the same bits on any thread count) an inverse DWT, a real FFT, the filter, the
- * inverse FFT and a forward DWT. */
+ * filter (§25). The filter misses the pupil and the LGS tip-tilt removal, which shape the largest scales,
+ * where the NGS fix the layers' tip-tilt: the scaling coefficients (coarse_levels = 0) take coarse_ngs's
+ * exact block of M̃ instead (B_F = blockdiag(M̃_cc, (E_dᵀ B_F⁻¹ E_d)⁻¹), SPD as a compression of an SPD
+ * operator beside an SPD block): 6 iterations went from 13 nm above the converged MAP to 1.5 below
+ * (§25). The NGS term is added by Woodbury as for the other kinds. Apply: per layer (the threads take
+ * whole layers: the same bits on any thread count) an inverse DWT, a real FFT, the filter, the inverse
+ * FFT and a forward DWT; then the coarse block's two triangular solves. */
 
 static int fourier_grid(wt_context *ctx, const wt_tomography *t)
 {
@@ -795,6 +801,12 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
     const wt_tomography *t = p->tomo;
     const int L = wt_tomography_nlayers(t);
     const int64_t nk = p->fd_nk;
+    const double *rd = r;
+    if (p->nc > 0) { /* the filter on the other coefficients only: E_dᵀ B_F⁻¹ E_d, a compression, stays SPD */
+        memcpy(p->fd_r, r, (size_t)p->n * sizeof *r);
+        for (int i = 0; i < p->nc; i++) p->fd_r[p->c_idx[i]] = 0.0;
+        rd = p->fd_r;
+    }
 #pragma omp parallel for schedule(dynamic, 1) num_threads(p->nthreads)
     for (int l = 0; l < L; l++) {
         const int id = thread_id();
@@ -802,7 +814,7 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
         double *hat = (double *)fourier_hat(p, id);
         const wt_wavelet *w = wt_tomography_wavelet(t, l);
         const int64_t o = wt_tomography_layer_offset(t, l);
-        wt_wavelet_inverse(w, r + o, phi, ww);
+        wt_wavelet_inverse(w, rd + o, phi, ww);
         fftw_execute_dft_r2c(p->fd_r2c, phi, (fftw_complex *)hat);
         for (int64_t k = 0; k < nk; k++) {
             hat[2 * k] *= p->fd_s[k];
@@ -811,6 +823,7 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
         fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, phi);
         wt_wavelet_forward(w, phi, z + o, ww);
     }
+    coarse_solve(p, r, z); /* the coarse coefficients: the exact block (nothing without one) */
 }
 
 /* B⁻¹ r of the kind: the Fourier filter, or J⁻¹ / the layer blocks below the coarse block's exact solve */
@@ -1041,8 +1054,14 @@ int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params 
     p->nthreads = wt_tomography_threads(t);
     if (p->kind != WT_PRECOND_NONE) WT_TRY(compute_jacobi(p, t));
     p->tomo = t;
+    if (par->coarse_levels < 0 && p->kind != WT_PRECOND_FOURIER && p->kind >= WT_PRECOND_COARSE_NGS) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "preconditioner %s: coarse_levels %d; expected >= 0", kind_names[p->kind],
+                      par->coarse_levels);
+        goto fail;
+    }
     if (p->kind == WT_PRECOND_FOURIER) WT_TRY(compute_fourier(p, t));
-    else if (p->kind >= WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind >= WT_PRECOND_COARSE_NGS && par->coarse_levels >= 0) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind == WT_PRECOND_FOURIER && p->nc > 0) WT_ALLOC(ctx, p->fd_r, p->n, "fourier preconditioner residual");
     if (p->kind == WT_PRECOND_MULTILEVEL) {
         int sc[WT_MAX_LAYERS];
         for (int l = 0; l < wt_tomography_nlayers(t); l++) sc[l] = coarse_side(t, l, par->coarse_levels);
@@ -1078,6 +1097,7 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->fd_s);
     wt_free(ctx, p->fd_buf);
     wt_free(ctx, p->fd_wwork);
+    wt_free(ctx, p->fd_r);
     if (p->fd_r2c) fftw_destroy_plan(p->fd_r2c);
     if (p->fd_c2r) fftw_destroy_plan(p->fd_c2r);
     wt_free(ctx, p);
