@@ -1154,5 +1154,8 @@ double wt_precond_bytes(const wt_precond *p)
     return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Yr ? 2.0 : 1.0) * p->nlr) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
-           (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0);
+           (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0) +
+           (p->fd_n > 0 ? 8.0 * ((double)p->fd_nk + (double)p->nthreads * (double)(p->fd_slice + p->fd_wsize) +
+                                 (p->fd_r ? (double)p->n : 0.0))
+                        : 0.0);
 }
