@@ -3,7 +3,9 @@
  * NGS modes, where the Woodbury term cancels most of B⁻¹), each is the inverse of the P it claims to be,
  * the multilevel kind's layer blocks are the exact blocks of M̃ on a partition of the unknowns, lower the
  * condition number (Lanczos from the CG coefficients) and its PCG reaches the dense Cholesky solution, the
- * kind names match the configuration's list, and bad input and allocation failures are refused. */
+ * kind names match the configuration's list, and bad input and allocation failures are refused. The fourier
+ * kind (layers on one grid) is SPD, is its filter (a Fourier mode in, the same mode times one factor on every
+ * layer out), lowers the condition number and its PCG reaches the dense solution. */
 #include <cblas.h>
 #include <lapacke.h>
 #include <string.h>
@@ -12,6 +14,7 @@
 #include "core/model/precond.h"
 #include "core/model/system.h"
 #include "core/op/noise.h"
+#include "core/op/wavelet.h"
 #include "core/model/tomography.h"
 #include "testmodel.h"
 #include "testutil.h"
@@ -20,6 +23,9 @@
 /* SPEC §11's low-noise case: the NGS weigh ~10^5 times the LGS along a dozen global modes, the hardest
  * case for the Woodbury term's cancellation */
 static const char *const LOW[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.05", "lgs.sodium_fwhm_m=0.0"};
+/* the demo's cg9 layers on one grid (32 x 1 m), as the fourier kind needs; and without NGS */
+static const char *const ONE_GRID[] = {"recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]", "ngs.azimuths_deg=[]",
+                                       "ngs.subapertures=[]"};
 
 typedef struct {
     wt_context *ctx;
@@ -79,6 +85,13 @@ START_TEST(test_symmetric_positive_definite)
     for (int kind = 0; kind < WT_PRECOND_NKINDS; kind++) {
         const wt_precond_params pp = {.kind = kind, .coarse_levels = 2};
         wt_precond *p = NULL;
+        if (kind == WT_PRECOND_FOURIER) { /* the demo's layers differ in size or spacing: refused (fourier's own
+                                            test below uses one grid) */
+            ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_CONFIG);
+            ck_assert_ptr_null(p);
+            ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "fourier preconditioner needs every layer on one"));
+            continue;
+        }
         ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
         ck_assert_int_eq(wt_precond_kind_of(p), kind);
         ck_assert_str_eq(wt_precond_name(p), wt_precond_kind_name(kind));
@@ -450,6 +463,197 @@ START_TEST(test_multilevel_reaches_direct)
 }
 END_TEST
 
+/* The fourier kind, with its NGS term (demo cg9 on one grid; paper noise with the filter alone, low noise
+ * with the coarse block of the scaling coefficients): symmetric and positive definite. Its B⁻¹ applies an orthonormal DWT pair and a real FFT pair per layer around the filter s(k) > 0;
+ * each is backward stable with an error of a few u log2(n²) relative to the vector's norm, so a product
+ * xᵀ P⁻¹ y carries an error of order u log2(n²) ‖x‖ ‖y‖ ‖B⁻¹‖, and the Woodbury term's two products
+ * (Y K⁻¹ Yᵀ ≼ B⁻¹) as much. The test asks |xᵀP⁻¹y − yᵀP⁻¹x| ≤ 16 n u ‖x‖ ‖y‖ ‖P⁻¹‖₂ (the other kinds'
+ * 16 n u, ‖P⁻¹‖₂ by 30 power iterations, a lower bound of ‖B⁻¹‖), and zᵀ P⁻¹ z > 0 on random vectors and on
+ * the NGS modes. */
+START_TEST(test_fourier_spd)
+{
+    fixture f;
+    setup(&f, 1, _i, 1, ONE_GRID);
+    const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = _i ? 0 : -1};
+    wt_precond *p = NULL;
+    ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
+    ck_assert_str_eq(wt_precond_name(p), "fourier");
+    ck_assert_int_gt(wt_precond_rank(p), 0);
+    double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y), *px = malloc(n * sizeof *px),
+           *py = malloc(n * sizeof *py), *e = calloc(ns, sizeof *e);
+    tu_randn(x, n, 7);
+    double norm = 0.0;
+    for (int it = 0; it < 30; it++) {
+        const double nx = sqrt(dot(x, x, n));
+        for (int64_t i = 0; i < n; i++) x[i] /= nx;
+        wt_precond_apply(p, x, px);
+        norm = sqrt(dot(px, px, n));
+        memcpy(x, px, n * sizeof *x);
+    }
+    ck_assert(norm > 0.0 && isfinite(norm));
+    for (int trial = 0; trial < 4; trial++) {
+        tu_randn(x, n, 200 + 2 * trial);
+        tu_randn(y, n, 201 + 2 * trial);
+        wt_precond_apply(p, x, px);
+        wt_precond_apply(p, y, py);
+        const double a = dot(x, py, n), b = dot(y, px, n);
+        const double bound = 16.0 * (double)n * 1.1e-16 * sqrt(dot(x, x, n) * dot(y, y, n)) * norm;
+        ck_assert_msg(fabs(a - b) <= bound, "fourier: xᵀP⁻¹y %.17g, yᵀP⁻¹x %.17g, |diff| %.3g > %.3g", a, b,
+                      fabs(a - b), bound);
+        ck_assert(dot(x, px, n) > 0.0 && dot(y, py, n) > 0.0);
+        if (trial == 0) fprintf(stderr, "precond fourier %s: asymmetry %.2g of the bound\n", _i ? "low" : "paper",
+                                fabs(a - b) / bound);
+    }
+    for (int m = f.sys->nlgs; m < f.sys->nsensors; m++)
+        for (int k = 0; k < f.sys->sensors[m].nslopes; k++) {
+            const int64_t o = f.sys->sensors[m].offset + k;
+            e[o] = 1.0;
+            tu_tomo_rhs(f.t, e, x);
+            e[o] = 0.0;
+            wt_precond_apply(p, x, px);
+            ck_assert_msg(dot(x, px, n) > 0.0, "fourier: zᵀP⁻¹z = %g on NGS mode %d of %s", dot(x, px, n), k,
+                          f.sys->sensors[m].name);
+        }
+    wt_precond_free(p);
+    free(x), free(y), free(px), free(py), free(e);
+    teardown(&f);
+}
+END_TEST
+
+/* Without NGS and without the coarse block (coarse_levels < 0), B_F⁻¹ is the filter itself: a Fourier mode cos(2π k·x/n) on any layer comes back as the same
+ * mode times s(k) > 0, the same factor on every layer (a wrong frequency layout of the half spectrum, a lost
+ * 1/n² or a layer's own scaling would break one of the three), to the transforms' rounding: the DWT and FFT
+ * pairs leave errors of a few u log2(n²) ‖φ‖ at every frequency, which the filter scales by up to its
+ * largest value ‖B⁻¹‖₂ (estimated by 30 power iterations), so the residual off the mode is asked to stay
+ * below 64 u log2(n²) ‖B⁻¹‖₂ ‖φ‖, and the factors of the layers to agree within 1e-12 (one frequency's
+ * s(k), the same number on every layer, up to the transforms' relative rounding). And the same bits on 1
+ * and 2 threads. */
+START_TEST(test_fourier_filter)
+{
+    static const char *const sets[] = {"recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]", "ngs.azimuths_deg=[]",
+                                       "ngs.subapertures=[]"};
+    fixture f;
+    setup(&f, 1, 1, 3, sets);
+    const int64_t n = wt_tomography_nunknowns(f.t);
+    const wt_grid *g = wt_tomography_layer_grid(f.t, 0);
+    const int N = g->nx, L = wt_tomography_nlayers(f.t);
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = -1};
+    wt_precond *p = NULL;
+    ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
+    ck_assert_int_eq(wt_precond_rank(p), 0);
+    double *phi = malloc(N * N * sizeof *phi), *c = calloc(n, sizeof *c), *z = malloc(n * sizeof *z),
+           *zphi = malloc(N * N * sizeof *zphi), *w = malloc(wt_wavelet_work_size(wt_tomography_wavelet(f.t, 0)) * sizeof *w);
+    double nrm = 0.0;
+    {
+        double *v = malloc(n * sizeof *v), *pv = malloc(n * sizeof *pv);
+        tu_randn(v, n, 9);
+        for (int it = 0; it < 30; it++) {
+            const double nv = sqrt(tu_dot(v, v, (long)n));
+            for (int64_t i = 0; i < n; i++) v[i] /= nv;
+            wt_precond_apply(p, v, pv);
+            nrm = sqrt(tu_dot(pv, pv, (long)n));
+            memcpy(v, pv, n * sizeof *v);
+        }
+        free(v), free(pv);
+    }
+    const double tol = 64.0 * 1.1e-16 * log2((double)N * N) * nrm;
+    static const int freq[][2] = {{1, 0}, {0, 3}, {5, -2}, {16, 16}, {-7, 11}};
+    for (int fi = 0; fi < 5; fi++) {
+        double factor0 = 0.0;
+        for (int l = 0; l < L; l++) {
+            for (int iy = 0; iy < N; iy++)
+                for (int ix = 0; ix < N; ix++)
+                    phi[ix + N * iy] = cos(2.0 * M_PI * (freq[fi][0] * ix + freq[fi][1] * iy) / N + 0.3);
+            memset(c, 0, n * sizeof *c);
+            const int64_t o = wt_tomography_layer_offset(f.t, l);
+            wt_wavelet_forward(wt_tomography_wavelet(f.t, l), phi, c + o, w);
+            wt_precond_apply(p, c, z);
+            for (int l2 = 0; l2 < L; l2++)
+                if (l2 != l)
+                    for (int64_t i = 0; i < (int64_t)N * N; i++)
+                        ck_assert_double_eq(z[wt_tomography_layer_offset(f.t, l2) + i], 0.0);
+            wt_wavelet_inverse(wt_tomography_wavelet(f.t, l), z + o, zphi, w);
+            const double factor = tu_dot(zphi, phi, (long)N * N) / tu_dot(phi, phi, (long)N * N);
+            double res = 0.0;
+            for (int64_t i = 0; i < (int64_t)N * N; i++) res += pow(zphi[i] - factor * phi[i], 2);
+            res = sqrt(res / tu_dot(phi, phi, (long)N * N));
+            ck_assert_msg(factor > 0.0 && res <= tol, "fourier: mode (%d, %d) on layer %d: factor %g, residual %g",
+                          freq[fi][0], freq[fi][1], l, factor, res);
+            if (l == 0) factor0 = factor;
+            ck_assert_msg(fabs(factor - factor0) <= 1e-12 * factor0, "fourier: mode (%d, %d): layer %d %.17g, layer 0 %.17g",
+                          freq[fi][0], freq[fi][1], l, factor, factor0);
+        }
+    }
+    /* the same bits on 1 and 2 threads (whole layers per thread) */
+    double *r = malloc(n * sizeof *r), *z1 = malloc(n * sizeof *z1);
+    tu_randn(r, n, 5);
+    wt_precond_apply(p, r, z);
+    wt_precond_free(p);
+    wt_tomography_free(f.t);
+    wt_context_set_threads(f.ctx, 2);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f.cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(f.ctx, f.sys, f.v, "cg9", &tp, &f.t), WT_OK);
+    ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_OK);
+    wt_precond_apply(p, r, z1);
+    ck_assert_int_eq(memcmp(z, z1, n * sizeof *z), 0);
+    wt_precond_free(p);
+    free(phi), free(c), free(z), free(zphi), free(w), free(r), free(z1);
+    teardown(&f);
+}
+END_TEST
+
+/* The fourier kind lowers the condition number of M (Lanczos from the CG coefficients, as above; demo cg9 on
+ * one grid, low noise, with the NGS term) below plain CG's and below jacobi_ngs's (measured 6.1e4 against
+ * 2.3e5 and 1.3e9), and its PCG reaches the dense Cholesky solution of the same normal equations: within the
+ * dense solve's own error, u κ(M) (κ(M) = plain CG's, 1.3e9 here: 2.9e-7 with a factor 2), or 1e-8 (the
+ * tolerance of test_multilevel_reaches_direct) when that is smaller. */
+START_TEST(test_fourier_condition_and_direct)
+{
+    fixture f;
+    setup(&f, 1, 1, 1, ONE_GRID);
+    const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
+    double *b = malloc(n * sizeof *b);
+    tu_randn(b, n, 31);
+    double kappa[WT_PRECOND_NKINDS] = {0};
+    const int kinds[] = {WT_PRECOND_NONE, WT_PRECOND_JACOBI_NGS, WT_PRECOND_FOURIER};
+    wt_precond *p = NULL;
+    for (int i = 0; i < 3; i++) {
+        const wt_precond_params pp = {.kind = kinds[i], .coarse_levels = 0};
+        ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
+        int its = 0;
+        kappa[kinds[i]] = lanczos_kappa(&f, p, b, 8000, &its);
+        fprintf(stderr, "condition cg9 one grid low noise %-10s: kappa %.4g (%d CG iterations)\n",
+                wt_precond_kind_name(kinds[i]), kappa[kinds[i]], its);
+        if (i < 2) wt_precond_free(p);
+    }
+    ck_assert_double_lt(kappa[WT_PRECOND_FOURIER], kappa[WT_PRECOND_NONE]);
+    ck_assert_double_lt(kappa[WT_PRECOND_FOURIER], kappa[WT_PRECOND_JACOBI_NGS]);
+    double *A = malloc((size_t)n * n * sizeof *A), *e = calloc(n, sizeof *e);
+    for (int64_t j = 0; j < n; j++) {
+        e[j] = 1.0;
+        tu_tomo_apply(f.t, e, A + n * j);
+        e[j] = 0.0;
+    }
+    double *s = malloc(ns * sizeof *s), *x = calloc(n, sizeof *x), *xd = malloc(n * sizeof *xd);
+    tu_randn(s, ns, 41);
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+    tu_tomo_rhs(f.t, s, xd);
+    ck_assert_int_eq(LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', (lapack_int)n, 1, A, (lapack_int)n, xd, (lapack_int)n), 0);
+    wt_pcg_result r;
+    const int st = wt_tomography_solve(f.t, wt_precond_pcg(p), s, x, 6000, 1e-13, NULL, &r);
+    ck_assert_msg(st == WT_OK, "fourier PCG did not reach 1e-13 in 6000 iterations: %s (%d its, %g)",
+                  wt_error_message(f.ctx), r.iterations, r.rel_resid);
+    const double rd = tu_rel_diff(x, xd, n);
+    fprintf(stderr, "fourier PCG: %d iterations to 1e-13, %.2g from the dense Cholesky solution\n", r.iterations, rd);
+    ck_assert_double_le(rd, fmax(1e-8, 2.0 * 1.1e-16 * kappa[WT_PRECOND_NONE]));
+    wt_precond_free(p);
+    free(A), free(e), free(s), free(x), free(xd), free(b);
+    teardown(&f);
+}
+END_TEST
+
 /* The names are the configuration's list, in its order: the value recon.<variant>.preconditioner holds is
  * the kind. Unknown kinds and a coarse block beyond 4096 coefficients are refused with a message. */
 START_TEST(test_names_and_refusals)
@@ -479,6 +683,11 @@ START_TEST(test_names_and_refusals)
     ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
     ck_assert_ptr_null(p);
     ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "preconditioner kind 7"));
+    /* a negative coarse_levels means "no coarse block" to fourier only */
+    pp = (wt_precond_params){.kind = WT_PRECOND_COARSE_NGS, .coarse_levels = -1};
+    ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
+    ck_assert_ptr_null(p);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "coarse_levels -1"));
     /* 5 layers of 32²: all 3 levels would be 5120 coefficients */
     for (int kind = WT_PRECOND_COARSE_NGS; kind <= WT_PRECOND_MULTILEVEL; kind++) {
         pp = (wt_precond_params){.kind = kind, .coarse_levels = 3};
@@ -498,6 +707,10 @@ START_TEST(test_allocation_failures)
     tu_alloc fa = TU_ALLOC_INIT;
     for (int kind = WT_PRECOND_JACOBI; kind < WT_PRECOND_NKINDS; kind++) {
         const wt_precond_params pp = {.kind = kind, .coarse_levels = 1};
+        if (kind == WT_PRECOND_FOURIER) { /* on one grid: cg9 at 0.5 m */
+            teardown(&f);
+            setup(&f, 1, 0, 1, ONE_GRID);
+        }
         for (int b = 0; b < 40; b++) {
             wt_precond *p = NULL;
             tu_alloc_install(f.ctx, &fa);
@@ -531,6 +744,9 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_multilevel_blocks_exact, 0, 2); /* pcg3, cg9 */
     tcase_add_loop_test(tc, test_multilevel_condition, 0, 2);
     tcase_add_test(tc, test_multilevel_reaches_direct);
+    tcase_add_loop_test(tc, test_fourier_spd, 0, 2); /* paper, low noise */
+    tcase_add_test(tc, test_fourier_filter);
+    tcase_add_test(tc, test_fourier_condition_and_direct);
     tcase_add_test(tc, test_names_and_refusals);
     suite_add_tcase(s, tc);
     /* every kind's set-up, once per allocation it makes (~30 for multilevel): a few seconds here, several

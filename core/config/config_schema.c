@@ -127,11 +127,13 @@
      "the automatic layer_spacing_m is divided by this (default 1); refused beside a given layer_spacing_m"},                                                                                        \
     KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
     KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
-    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs|multilevel", v.preconditioner,            \
+    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs|multilevel|fourier", v.preconditioner,    \
        "jacobi = modified Jacobi PCG, jacobi_ngs = the same plus the exact rank-r NGS term (Woodbury), "   \
        "coarse_ngs = jacobi_ngs with the coarse wavelet coefficients of all layers inverted as one exact "  \
        "block, multilevel = coarse_ngs with, below the coarse block, the layers' coefficients at each "     \
-       "detail level, orientation and position inverted as one exact block, none = plain CG"),             \
+       "detail level, orientation and position inverted as one exact block, fourier = each spatial "       \
+       "frequency of the layers scaled by the inverse of the largest eigenvalue of the layers' symbol "    \
+       "there, plus the NGS term (every layer on one n x n grid), none = plain CG"),                      \
     {pre ".coarse_levels", K_INT, F_DEFAULT, 0, 30, "", 1, CF(v.coarse_levels), NOCOUNT, 0, 0, NULL, 2,       \
      "coarse_ngs and multilevel: the coarse block holds the scaling coefficients and the coarse_levels "   \
      "coarsest detail levels of every layer (optional, default 2)"},                                      \

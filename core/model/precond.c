@@ -2,12 +2,17 @@
  *
  *   J  = diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D                       exact, by coloured probing (paper's modified Jacobi)
  *   B  = J with the coarse coefficients' block of the LGS + prior part of M      (coarse_ngs)
+ *   B_F⁻¹ = W F⁻¹ diag(1/λ_max A(k)) F Wᵀ beside the coarse block, A(k) the L x L symbol of that part per
+ *         frequency                                                                          (fourier)
  *   P  = B + R C_n Rᵀ,  P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ,  Y = B⁻¹ R,  K = Ĉ⁻¹_NGS + Rᵀ B⁻¹ R   (Woodbury, the NGS term)
  *
  * Built only from the tomography's public operators (slopes Ã, the adjoint Ãᵀ Ĉ⁻¹, the projections, noise
  * models and wavelets it exposes), so the operator's file knows none of this. */
 #include "precond.h"
 
+#include <complex.h> /* before fftw3.h: fftw_complex is then double complex */
+#include <fftw3.h>
+#include <lapacke.h>
 #include <math.h>
 #include <string.h>
 #ifdef _OPENMP
@@ -22,6 +27,7 @@
 
 struct wt_precond {
     wt_context *ctx;
+    const wt_tomography *tomo; /* the fourier kind's wavelets and layer offsets */
     int kind;
     int64_t n;                /* unknowns */
     int nthreads;             /* the tomography's (small systems run serially) */
@@ -49,9 +55,19 @@ struct wt_precond {
     int64_t *b_fac;           /* nb + 1: its factor starts at b_L[b_fac[b]] */
     int64_t *b_idx;           /* the unknowns of the blocks, block after block, layer order within one */
     double *b_L;              /* packed Cholesky factors, rows of L, each row's last entry 1 / L_aa */
+    /* fourier (see fourier_*): the filter 1/(n² λ_max A(k)) on the half spectrum of every layer */
+    int fd_n;                 /* layer side (0: not this kind) */
+    int64_t fd_nk;            /* frequencies of the half spectrum, n (n/2 + 1) */
+    double *fd_s;             /* fd_nk: the filter */
+    double *fd_buf;           /* per thread: n² layer values then fd_nk complex values, 64-byte slices */
+    size_t fd_slice;          /* doubles per thread in fd_buf */
+    double *fd_wwork;         /* per thread: the wavelet workspace */
+    double *fd_r;             /* n: r without its coarse coefficients (with a coarse block) */
+    size_t fd_wsize;
+    fftw_plan fd_r2c, fd_c2r;
 };
 
-static const char *const kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel"};
+static const char *const kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"};
 
 const char *wt_precond_kind_name(int kind) { return kind >= 0 && kind < WT_PRECOND_NKINDS ? kind_names[kind] : NULL; }
 
@@ -649,6 +665,174 @@ static void coarse_apply(const wt_precond *p, const double *r, double *z)
     coarse_solve(p, r, z);
 }
 
+/* ---- Fourier-domain filter (fourier) -------------------------------------------------------------
+ *
+ * In the closed loop the few iterations of a frame chase a moving MAP (docs/results.md §25): what lags is
+ * the layers' common mode at each spatial frequency, which every LGS sees and whose weight falls by orders
+ * of magnitude from the fine to the coarse scales, across the wavelet levels and within each (a wavelet's
+ * band spans an octave). On layers of one periodic n x n grid the LGS + prior part M̃ (as coarse_ngs's
+ * block) is, away from the pupil's rim, close to a block convolution: each LGS sees layer l shifted by
+ * θ_m h_l (and scaled by the cone about the centre), every layer's prior is circulant. Its symbol A(k), an
+ * L x L Hermitian matrix per frequency, is measured from the operator itself: an impulse at the grid's
+ * centre on each layer in turn, M̃ applied, the responses on every layer Fourier transformed (L applies
+ * at set-up), symmetrised, A ← (A + Aᴴ)/2. The preconditioner scales each frequency by the inverse of
+ * A(k)'s largest eigenvalue, the common mode's, the same on every layer:
+ *   B_F⁻¹ = W F⁻¹ diag(1/λ_max(A(k))) F Wᵀ        (W the orthonormal DWT, F the 2-D DFT of each layer)
+ * SPD: F⁻¹ diag(s) F with s(k) = s(−k) > 0 is a real symmetric circulant, W is orthogonal. Inverting A(k)
+ * exactly (FDPCG, Yang, Vogel & Ellerbroek 2006) was measured worse in the loop: at the low frequencies the
+ * L − 6 layer-split directions hold the prior alone, ~10⁶ below the data, and the rim's leakage into them
+ * is amplified as much; flooring A's eigenvalues at τ λ_max got better as τ rose, best at τ = 1, this
+ * filter (§25). The filter misses the pupil and the LGS tip-tilt removal, which shape the largest scales,
+ * where the NGS fix the layers' tip-tilt: the scaling coefficients (coarse_levels = 0) take coarse_ngs's
+ * exact block of M̃ instead (B_F = blockdiag(M̃_cc, (E_dᵀ B_F⁻¹ E_d)⁻¹), SPD as a compression of an SPD
+ * operator beside an SPD block): 6 iterations went from 13 nm above the converged MAP to 1.5 below
+ * (§25). The NGS term is added by Woodbury as for the other kinds. Apply: per layer (the threads take
+ * whole layers: the same bits on any thread count) an inverse DWT, a real FFT, the filter, the inverse
+ * FFT and a forward DWT; then the coarse block's two triangular solves. */
+
+static int fourier_grid(wt_context *ctx, const wt_tomography *t)
+{
+    const wt_grid *g0 = wt_tomography_layer_grid(t, 0);
+    for (int l = 0; l < wt_tomography_nlayers(t); l++) {
+        const wt_grid *g = wt_tomography_layer_grid(t, l);
+        if (g->nx != g0->nx || g->ny != g0->ny || g->dx != g0->dx || g->nx != g->ny)
+            return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: the fourier preconditioner needs every layer on one "
+                            "n x n grid of one spacing (recon.<variant>.layer_size, layer_spacing_m); layer %d is "
+                            "%d x %d at %g m, layer 0 %d x %d at %g m", l, g->nx, g->ny, g->dx, g0->nx, g0->ny, g0->dx);
+    }
+    return WT_OK;
+}
+
+static double *fourier_phi(const wt_precond *p, int id) { return p->fd_buf + (size_t)id * p->fd_slice; }
+static fftw_complex *fourier_hat(const wt_precond *p, int id)
+{
+    return (fftw_complex *)(p->fd_buf + (size_t)id * p->fd_slice + (size_t)p->fd_n * p->fd_n);
+}
+
+static int compute_fourier(wt_precond *p, wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_system *sys = wt_tomography_system(t);
+    const int L = wt_tomography_nlayers(t);
+    double *e = NULL, *sl = NULL, *col = NULL;
+    double complex *A = NULL;
+    WT_TRY(fourier_grid(ctx, t));
+    const int n = wt_tomography_layer_grid(t, 0)->nx, nh = n / 2 + 1;
+    const int64_t n2 = (int64_t)n * n, nk = (int64_t)n * nh;
+    p->fd_n = n;
+    p->fd_nk = nk;
+    p->fd_wsize = 0;
+    for (int l = 0; l < L; l++) {
+        const size_t w = wt_wavelet_work_size(wt_tomography_wavelet(t, l));
+        if (w > p->fd_wsize) p->fd_wsize = w;
+    }
+    /* n² and 2 nk are multiples of 8 doubles for n ≥ 8: every thread's slices keep the first one's alignment,
+     * which the plans were made for */
+    p->fd_slice = (size_t)(n2 + 2 * nk);
+    WT_ALLOC(ctx, p->fd_buf, (size_t)p->nthreads * p->fd_slice, "fourier preconditioner work");
+    WT_ALLOC(ctx, p->fd_wwork, (size_t)p->nthreads * p->fd_wsize, "fourier preconditioner wavelet work");
+    WT_ALLOC(ctx, p->fd_s, nk, "fourier preconditioner filter");
+    WT_ALLOC(ctx, A, (size_t)nk * L * L, "fourier preconditioner symbol");
+    WT_ALLOC(ctx, e, p->n, "fourier probe");
+    WT_ALLOC(ctx, sl, sys->nslopes, "fourier probe slopes");
+    WT_ALLOC(ctx, col, p->n, "fourier probe column");
+    double *phi = fourier_phi(p, 0);
+    fftw_complex *hat = fourier_hat(p, 0);
+    /* FFTW's planner is global and not thread-safe: planned here, at set-up, with FFTW_ESTIMATE (no array
+     * touched, the same algorithm every run: same bits) */
+    p->fd_r2c = fftw_plan_dft_r2c_2d(n, n, phi, hat, FFTW_ESTIMATE);
+    p->fd_c2r = fftw_plan_dft_c2r_2d(n, n, hat, phi, FFTW_ESTIMATE);
+    if (!p->fd_r2c || !p->fd_c2r) {
+        st = WT_ERROR(ctx, WT_ERR_LIBRARY, "fourier preconditioner: fftw_plan_dft_*_2d(%d, %d) returned NULL", n, n);
+        goto fail;
+    }
+    const int64_t centre = n / 2 + (int64_t)n * (n / 2);
+    for (int lp = 0; lp < L; lp++) {
+        const int64_t o = wt_tomography_layer_offset(t, lp);
+        memset(e, 0, (size_t)p->n * sizeof *e);
+        memset(phi, 0, (size_t)n2 * sizeof *phi);
+        phi[centre] = 1.0;
+        wt_wavelet_forward(wt_tomography_wavelet(t, lp), phi, e + o, p->fd_wwork);
+        /* M̃'s column: the NGS slopes dropped before the adjoint (as coarse_ngs's block), the layer's prior */
+        memset(sl, 0, (size_t)sys->nslopes * sizeof *sl);
+        wt_tomography_slopes(t, 1.0, e, sl);
+        for (int m = sys->nlgs; m < sys->nsensors; m++)
+            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
+        memset(col, 0, (size_t)p->n * sizeof *col);
+        wt_tomography_rhs(t, 1.0, sl, col);
+        wt_tomography_prior_apply_layer(t, lp, e + o, col + o);
+        for (int l = 0; l < L; l++) {
+            wt_wavelet_inverse(wt_tomography_wavelet(t, l), col + wt_tomography_layer_offset(t, l), phi, p->fd_wwork);
+            fftw_execute_dft_r2c(p->fd_r2c, phi, hat);
+            /* the response of the impulse at (n/2, n/2): symbol = spectrum · e^{2πi k·(n/2, n/2)/n} = (−1)^(kx+ky) */
+            for (int ky = 0; ky < n; ky++)
+                for (int kx = 0; kx < nh; kx++) {
+                    const int64_t k = kx + (int64_t)nh * ky;
+                    A[(size_t)k * L * L + l + (size_t)L * lp] = (((kx + ky) & 1) ? -1.0 : 1.0) * hat[k];
+                }
+        }
+    }
+    for (int64_t k = 0; k < nk; k++) {
+        double complex *a = A + (size_t)k * L * L; /* column-major, (l, l') at l + L l' */
+        for (int j = 0; j < L; j++)
+            for (int i = j; i < L; i++) a[i + L * j] = 0.5 * (a[i + L * j] + conj(a[j + L * i]));
+        double ev[WT_MAX_LAYERS];
+        const lapack_int info = LAPACKE_zheev(LAPACK_COL_MAJOR, 'N', 'L', L, (lapack_complex_double *)a, L, ev);
+        if (info != 0 || !(ev[L - 1] > 0.0) || !isfinite(ev[L - 1])) {
+            st = WT_ERROR(ctx, WT_ERR_NUMERIC, "fourier preconditioner: the largest eigenvalue of the %d x %d symbol "
+                          "at frequency (%lld, %lld) is %g (LAPACK zheev info %d); expected positive", L, L,
+                          (long long)(k % nh), (long long)(k / nh), info == 0 ? ev[L - 1] : NAN, (int)info);
+            goto fail;
+        }
+        p->fd_s[k] = 1.0 / ((double)n2 * ev[L - 1]); /* the 1/n² of the unnormalised inverse FFT folded in */
+    }
+fail:
+    wt_free(ctx, A);
+    wt_free(ctx, e);
+    wt_free(ctx, sl);
+    wt_free(ctx, col);
+    return st;
+}
+
+/* z = B_F⁻¹ r, whole layers per thread (allocates nothing; the same bits on any thread count) */
+static void fourier_apply(const wt_precond *p, const double *r, double *z)
+{
+    const wt_tomography *t = p->tomo;
+    const int L = wt_tomography_nlayers(t);
+    const int64_t nk = p->fd_nk;
+    const double *rd = r;
+    if (p->nc > 0) { /* the filter on the other coefficients only: E_dᵀ B_F⁻¹ E_d, a compression, stays SPD */
+        memcpy(p->fd_r, r, (size_t)p->n * sizeof *r);
+        for (int i = 0; i < p->nc; i++) p->fd_r[p->c_idx[i]] = 0.0;
+        rd = p->fd_r;
+    }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(p->nthreads)
+    for (int l = 0; l < L; l++) {
+        const int id = thread_id();
+        double *phi = fourier_phi(p, id), *ww = p->fd_wwork + (size_t)id * p->fd_wsize;
+        double *hat = (double *)fourier_hat(p, id);
+        const wt_wavelet *w = wt_tomography_wavelet(t, l);
+        const int64_t o = wt_tomography_layer_offset(t, l);
+        wt_wavelet_inverse(w, rd + o, phi, ww);
+        fftw_execute_dft_r2c(p->fd_r2c, phi, (fftw_complex *)hat);
+        for (int64_t k = 0; k < nk; k++) {
+            hat[2 * k] *= p->fd_s[k];
+            hat[2 * k + 1] *= p->fd_s[k];
+        }
+        fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, phi);
+        wt_wavelet_forward(w, phi, z + o, ww);
+    }
+    coarse_solve(p, r, z); /* the coarse coefficients: the exact block (nothing without one) */
+}
+
+/* B⁻¹ r of the kind: the Fourier filter, or J⁻¹ / the layer blocks below the coarse block's exact solve */
+static void base_apply(const wt_precond *p, const double *r, double *z)
+{
+    if (p->fd_n > 0) fourier_apply(p, r, z);
+    else coarse_apply(p, r, z);
+}
+
 /* ---- NGS low-rank correction --------------------------------------------------------------------
  *
  * The NGS term of M is Σ_NGS Ãᵀ C̃⁻¹ Ã = G Ĉ⁻¹_NGS Gᵀ with G = [Ãᵀ e_k] over the r NGS slopes (r = 12
@@ -729,9 +913,10 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
     const int64_t n = p->n;
     const int q = p->nlr;
     if (q == 0) {
-        coarse_apply(p, r, z);
+        base_apply(p, r, z);
         return;
     }
+    if (p->fd_n > 0) fourier_apply(p, r, z); /* its own parallel region; the dots and the update below */
 #pragma omp parallel num_threads(p->nthreads)
     {
 #ifdef _OPENMP
@@ -739,7 +924,17 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
 #else
         const int nt = 1, id = 0;
 #endif
-        if (p->nb > 0) {
+        if (p->fd_n > 0) {
+            /* fourier: B⁻¹ r done above; the dots' chunks split over the threads, summed in a fixed order */
+            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
+                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
+#pragma omp barrier
+#pragma omp single
+            {
+                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
+                lowrank_solve(p, p->lr_w);
+            }
+        } else if (p->nb > 0) {
             /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them, the
              * dots' chunks split (each block's solve and each chunk sum does not depend on the thread that
              * runs it: the same bits on any thread count) */
@@ -821,7 +1016,7 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
         for (int j = 0; j < q; j++) cinv[j + (size_t)q * k] = we[o0 + j];
         e[o0 + k] = 0.0;
     }
-    for (int k = 0; k < q; k++) coarse_apply(p, R + (size_t)n * k, p->lr_Y + (size_t)n * k);
+    for (int k = 0; k < q; k++) base_apply(p, R + (size_t)n * k, p->lr_Y + (size_t)n * k);
     p->lr_nruns = wt_vec_runs(p->lr_Y, n, q, n, p->lr_runs);
     for (int k = 0; k < q; k++)
         for (int j = 0; j <= k; j++) {
@@ -851,14 +1046,22 @@ int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params 
     *out = NULL;
     if (!wt_precond_kind_name(par->kind))
         return WT_ERROR(ctx, WT_ERR_INVALID, "preconditioner kind %d: expected 0..%d (none, jacobi, jacobi_ngs, "
-                        "coarse_ngs, multilevel)", par->kind, WT_PRECOND_NKINDS - 1);
+                        "coarse_ngs, multilevel, fourier)", par->kind, WT_PRECOND_NKINDS - 1);
     WT_ALLOC(ctx, p, 1, "preconditioner");
     p->ctx = ctx;
     p->kind = par->kind;
     p->n = wt_tomography_nunknowns(t);
     p->nthreads = wt_tomography_threads(t);
     if (p->kind != WT_PRECOND_NONE) WT_TRY(compute_jacobi(p, t));
-    if (p->kind >= WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    p->tomo = t;
+    if (par->coarse_levels < 0 && p->kind != WT_PRECOND_FOURIER && p->kind >= WT_PRECOND_COARSE_NGS) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID, "preconditioner %s: coarse_levels %d; expected >= 0", kind_names[p->kind],
+                      par->coarse_levels);
+        goto fail;
+    }
+    if (p->kind == WT_PRECOND_FOURIER) WT_TRY(compute_fourier(p, t));
+    if (p->kind >= WT_PRECOND_COARSE_NGS && par->coarse_levels >= 0) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind == WT_PRECOND_FOURIER && p->nc > 0) WT_ALLOC(ctx, p->fd_r, p->n, "fourier preconditioner residual");
     if (p->kind == WT_PRECOND_MULTILEVEL) {
         int sc[WT_MAX_LAYERS];
         for (int l = 0; l < wt_tomography_nlayers(t); l++) sc[l] = coarse_side(t, l, par->coarse_levels);
@@ -891,6 +1094,12 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->b_fac);
     wt_free(ctx, p->b_idx);
     wt_free(ctx, p->b_L);
+    wt_free(ctx, p->fd_s);
+    wt_free(ctx, p->fd_buf);
+    wt_free(ctx, p->fd_wwork);
+    wt_free(ctx, p->fd_r);
+    if (p->fd_r2c) fftw_destroy_plan(p->fd_r2c);
+    if (p->fd_c2r) fftw_destroy_plan(p->fd_c2r);
     wt_free(ctx, p);
 }
 
@@ -945,5 +1154,8 @@ double wt_precond_bytes(const wt_precond *p)
     return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Yr ? 2.0 : 1.0) * p->nlr) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
-           (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0);
+           (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0) +
+           (p->fd_n > 0 ? 8.0 * ((double)p->fd_nk + (double)p->nthreads * (double)(p->fd_slice + p->fd_wsize) +
+                                 (p->fd_r ? (double)p->n : 0.0))
+                        : 0.0);
 }

@@ -10,6 +10,13 @@
  *                                                       per detail level, orientation and position, the
  *                                                       L x L block of the L layers' coefficients there
  *                                                       (docs/design.md "Multilevel preconditioner")
+ *   fourier     P = B_F + G Ĉ⁻¹_NGS Gᵀ                    B_F = coarse_ngs's exact coarse block and, on the other
+ *                                                       coefficients, the filter W F⁻¹ diag(1/λ_max A(k)) F Wᵀ:
+ *                                                       each spatial frequency of every layer scaled by the
+ *                                                       inverse of the largest eigenvalue of the L x L symbol
+ *                                                       A(k) of the LGS + prior part of M (the layers' common
+ *                                                       mode); layers of one n x n grid only (docs/design.md
+ *                                                       "Fourier filter")
  *
  * where G = [Ãᵀ e_k] over the r NGS slopes. Every kind is symmetric positive definite; the PCG applies
  * z = P⁻¹ r. The preconditioner is built from a finished tomography through its public operators (the
@@ -27,19 +34,19 @@
 #include "tomography.h"
 
 /* The kinds, in the order of the configuration's recon.<variant>.preconditioner list
- * ("none|jacobi|jacobi_ngs|coarse_ngs|multilevel": the value wt_recon_variant_config.preconditioner holds). */
+ * ("none|jacobi|jacobi_ngs|coarse_ngs|multilevel|fourier": the value wt_recon_variant_config.preconditioner holds). */
 enum { WT_PRECOND_NONE = 0, WT_PRECOND_JACOBI = 1, WT_PRECOND_JACOBI_NGS = 2, WT_PRECOND_COARSE_NGS = 3,
-       WT_PRECOND_MULTILEVEL = 4, WT_PRECOND_NKINDS = 5 };
+       WT_PRECOND_MULTILEVEL = 4, WT_PRECOND_FOURIER = 5, WT_PRECOND_NKINDS = 6 };
 
 typedef struct wt_precond wt_precond;
 
 typedef struct wt_precond_params {
     int kind;          /* WT_PRECOND_* */
-    int coarse_levels; /* coarse_ngs, multilevel: detail levels in the coarse block besides the scaling
-                          coefficients [-] */
+    int coarse_levels; /* coarse_ngs, multilevel, fourier: detail levels in the coarse block besides the
+                          scaling coefficients [-]; fourier only: < 0 = no coarse block (the filter alone) */
 } wt_precond_params;
 
-/* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel"; NULL for an unknown kind. */
+/* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"; NULL for an unknown kind. */
 const char *wt_precond_kind_name(int kind);
 /* The kind of a name, -1 for anything else. */
 int wt_precond_kind(const char *name);
@@ -47,8 +54,9 @@ int wt_precond_kind(const char *name);
 /* Build the preconditioner of kind par->kind for the tomography t (not owned; must outlive the object).
  * Cost at E-ELT size: jacobi ~1 s (coloured probing), the NGS term r applies of the adjoint, coarse_ngs
  * nc applies of M (3-10 s for nc = 384), multilevel that and L forward applies per colour of every
- * detail level below the coarse block (~the cost of the Jacobi probing). WT_ERR_INVALID for an unknown kind, WT_ERR_CONFIG when the
- * coarse block would exceed 4096 coefficients, WT_ERR_NUMERIC when a block is not positive definite. */
+ * detail level below the coarse block (~the cost of the Jacobi probing), fourier L applies and L² FFTs.
+ * WT_ERR_INVALID for an unknown kind or a negative coarse_levels (but fourier's), WT_ERR_CONFIG when the coarse block would exceed 4096 coefficients or
+ * (fourier) the layers are not on one grid, WT_ERR_NUMERIC when a block is not positive definite. */
 int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out);
 void wt_precond_free(wt_precond *p);
 
