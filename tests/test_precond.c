@@ -61,6 +61,23 @@ static void teardown(fixture *f)
 
 static double dot(const double *x, const double *y, int64_t n) { return tu_dot(x, y, (long)n); }
 
+/* zᵀ P⁻¹ z > 0 on the NGS modes G e_k = Ãᵀ Ĉ⁻¹ e_k: where Y K⁻¹ Yᵀ nearly cancels B⁻¹, the place a loss of
+ * definiteness would show (e: zeroed slopes; ax, ay: n values of work) */
+static void ngs_modes_positive(fixture *f, const wt_precond *p, double *e, double *ax, double *ay)
+{
+    const int64_t n = wt_tomography_nunknowns(f->t);
+    for (int m = f->sys->nlgs; m < f->sys->nsensors; m++)
+        for (int k = 0; k < f->sys->sensors[m].nslopes; k++) {
+            const int64_t o = f->sys->sensors[m].offset + k;
+            e[o] = 1.0;
+            tu_tomo_rhs(f->t, e, ax);
+            e[o] = 0.0;
+            wt_precond_apply(p, ax, ay);
+            ck_assert_msg(dot(ax, ay, n) > 0.0, "%s: zᵀP⁻¹z = %g on NGS mode %d of %s", wt_precond_name(p),
+                          dot(ax, ay, n), k, f->sys->sensors[m].name);
+        }
+}
+
 /* Symmetry and positive definiteness of P⁻¹ for every kind, both variants, both noise levels.
  *
  * Tolerance of the symmetry: P⁻¹ is applied as B⁻¹ r − Y K⁻¹ Yᵀ r; each term is evaluated with a relative
@@ -132,18 +149,7 @@ START_TEST(test_symmetric_positive_definite)
             ck_assert_msg(dot(x, px, n) > 0.0 && dot(y, py, n) > 0.0, "%s: zᵀP⁻¹z <= 0 on a random vector",
                           wt_precond_kind_name(kind));
         }
-        /* the NGS modes G e_k = Ãᵀ Ĉ⁻¹ e_k: where Y K⁻¹ Yᵀ nearly cancels B⁻¹, the place a loss of definiteness
-         * would show */
-        for (int m = f.sys->nlgs; m < f.sys->nsensors; m++)
-            for (int k = 0; k < f.sys->sensors[m].nslopes; k++) {
-                const int64_t o = f.sys->sensors[m].offset + k;
-                e[o] = 1.0;
-                tu_tomo_rhs(f.t, e, ax);
-                e[o] = 0.0;
-                wt_precond_apply(p, ax, ay);
-                ck_assert_msg(dot(ax, ay, n) > 0.0, "%s: zᵀP⁻¹z = %g on NGS mode %d of %s", wt_precond_kind_name(kind),
-                              dot(ax, ay, n), k, f.sys->sensors[m].name);
-            }
+        ngs_modes_positive(&f, p, e, ax, ay);
         fprintf(stderr, "precond %s %s %-10s: worst asymmetry %.2g of the bound\n", variant ? "cg9" : "pcg3",
                 low ? "low  " : "paper", wt_precond_kind_name(kind), worst);
         wt_precond_free(p);
@@ -513,16 +519,7 @@ START_TEST(test_fourier_spd)
         if (trial == 0) fprintf(stderr, "precond fourier %s: asymmetry %.2g of the bound\n", _i ? "low" : "paper",
                                 fabs(a - b) / bound);
     }
-    for (int m = f.sys->nlgs; m < f.sys->nsensors; m++)
-        for (int k = 0; k < f.sys->sensors[m].nslopes; k++) {
-            const int64_t o = f.sys->sensors[m].offset + k;
-            e[o] = 1.0;
-            tu_tomo_rhs(f.t, e, x);
-            e[o] = 0.0;
-            wt_precond_apply(p, x, px);
-            ck_assert_msg(dot(x, px, n) > 0.0, "fourier: zᵀP⁻¹z = %g on NGS mode %d of %s", dot(x, px, n), k,
-                          f.sys->sensors[m].name);
-        }
+    ngs_modes_positive(&f, p, e, x, px);
     wt_precond_free(p);
     free(x), free(y), free(px), free(py), free(e);
     teardown(&f);
