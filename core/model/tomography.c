@@ -32,6 +32,7 @@ struct wt_tomography {
     double *alpha_d;
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
+    int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     size_t pwsize;            /* its work per thread (doubles) */
     int iterations;
     double tol;
@@ -283,6 +284,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         t->off[l + 1] = t->off[l] + wt_grid_size(&t->grid[l]);
     }
     t->n = t->off[t->L];
+    for (int l = 0; l < t->L; l++) { /* insertion by size, stable */
+        int k = l;
+        for (; k > 0 && wt_grid_size(&t->grid[t->by_size[k - 1]]) < wt_grid_size(&t->grid[l]); k--)
+            t->by_size[k] = t->by_size[k - 1];
+        t->by_size[k] = l;
+    }
     bin_profile(par, t->L, t->alt, t->frac);
 
     WT_ALLOC(ctx, t->alpha_d, t->n, "prior diagonal");
@@ -525,22 +532,33 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
     }
 }
 
+/* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
+ * adjoint adds back): independent tasks, each writing its own output, so any thread may run any of them (the
+ * same bits on any thread count). The layers' FFTs first, largest first (layer 0, 128², is ~60 µs, as long as
+ * several sensors): with one dynamic loop the other thread takes the small layers and then the sensors, where
+ * a loop over the layers alone (transform + FFT per layer) left it idle for half of the large layer's task. */
+static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
+{
+    const int ntask = t->L + t->S;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+    for (int k = 0; k < ntask; k++) {
+        if (k < t->L) {
+            const int l = t->by_size[k];
+            wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], w->pphi + t->off[l],
+                                w->pwork + (size_t)thread_id() * t->pwsize);
+        } else {
+            const int m = k - t->L;
+            wt_sensor_stack_set_sensor(&t->stack, m, 1.0, phi, slopes, w->phase + (size_t)m * t->ncg);
+        }
+    }
+}
+
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
 static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
-    if (t->full_prior) {
-        /* each layer's task transforms it and applies its prior while it is in cache */
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-        for (int l = 0; l < t->L; l++) {
-            const int id = thread_id();
-            wt_wavelet_inverse(t->wav[l], c + t->off[l], w->phi + t->off[l], w->wwork + (size_t)id * t->wsize);
-            wt_prior_apply_full(t->prior[l], t->alpha, w->phi + t->off[l], w->pphi + t->off[l],
-                                w->pwork + (size_t)id * t->pwsize);
-        }
-    } else {
-        inverse_dwt(t, w, c, w->phi);
-    }
-    forward_slopes(t, w, w->phi, w->slopes);
+    inverse_dwt(t, w, c, w->phi);
+    if (t->full_prior) forward_slopes_prior(t, w, w->phi, w->slopes);
+    else forward_slopes(t, w, w->phi, w->slopes);
     adjoint_prior(t, w, w->slopes, c, y);
 }
 
