@@ -740,23 +740,26 @@ static void lowrank_solve(const wt_precond *p, double *w)
  * row e of every block (e < 8) adds into lane e of column k's sum, in block order, and the chunk's value is the
  * 8 lanes added pairwise in a fixed tree; the chunks are added in order (wt_vec_dot_many_finish). Which thread
  * runs a chunk changes nothing: the same bits for any thread count. B a compile-time constant (always inlined:
- * the B x 8 sums stay in vector registers); a last block past n takes only its rows < n. */
+ * the B sums of 8 lanes stay in vector registers); a last block past n takes only its rows < n. The update
+ * reads the same copy (one pass over ~1 MB each instead of a column-major Y and a row-major copy). */
+typedef double yb_vec __attribute__((vector_size(64), aligned(8))); /* 8 rows (GCC/clang vectors: plain
+                                                                     per-lane IEEE operations, any ISA) */
+
 static inline __attribute__((always_inline)) void yb_dots_chunk(const int B, const wt_precond *p, const double *r,
                                                                 int64_t b0, int64_t b1, double *restrict part, int c)
 {
     const int64_t n = p->n;
-    double acc[WT_VEC_MAX_MANY][8];
-    for (int k = 0; k < B; k++)
-        for (int e = 0; e < 8; e++) acc[k][e] = 0.0;
+    yb_vec acc[WT_VEC_MAX_MANY];
+    for (int k = 0; k < B; k++) acc[k] = (yb_vec){0.0};
     for (int64_t b = b0; b < b1; b++) {
         const int64_t i0 = 8 * p->lr_blk[b];
-        const double *restrict Y = p->lr_Yb + (size_t)b * B * 8, *restrict rr = r + i0;
-        if (i0 + 8 <= n)
-            for (int k = 0; k < B; k++)
-                for (int e = 0; e < 8; e++) acc[k][e] += Y[k * 8 + e] * rr[e];
+        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
+        yb_vec rr = {0.0};
+        if (i0 + 8 <= n) rr = *(const yb_vec *)(r + i0);
         else
-            for (int k = 0; k < B; k++)
-                for (int e = 0; e < n - i0; e++) acc[k][e] += Y[k * 8 + e] * rr[e];
+            for (int e = 0; e < n - i0; e++) rr[e] = r[i0 + e]; /* lanes past n: Y 0 (never set) times 0, their
+                                                                   sums stay +0 */
+        for (int k = 0; k < B; k++) acc[k] += Y[k] * rr;
     }
     for (int k = 0; k < B; k++)
         part[(int64_t)k * WT_VEC_CHUNKS + c] =
@@ -782,19 +785,16 @@ static inline __attribute__((always_inline)) void yb_update_blocks(const int B, 
     const int64_t n = p->n;
     for (int64_t b = b0; b < b1; b++) {
         const int64_t i0 = 8 * p->lr_blk[b];
-        const double *restrict Y = p->lr_Yb + (size_t)b * B * 8;
-        double *restrict zz = z + i0;
+        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
         if (i0 + 8 <= n) {
-            double v[8];
-            for (int e = 0; e < 8; e++) v[e] = zz[e];
-            for (int k = 0; k < B; k++)
-                for (int e = 0; e < 8; e++) v[e] -= w[k] * Y[k * 8 + e];
-            for (int e = 0; e < 8; e++) zz[e] = v[e];
+            yb_vec v = *(yb_vec *)(z + i0);
+            for (int k = 0; k < B; k++) v -= w[k] * Y[k];
+            *(yb_vec *)(z + i0) = v;
         } else
             for (int e = 0; e < n - i0; e++) {
-                double v = zz[e];
-                for (int k = 0; k < B; k++) v -= w[k] * Y[k * 8 + e];
-                zz[e] = v;
+                double v = z[i0 + e];
+                for (int k = 0; k < B; k++) v -= w[k] * Y[k][e];
+                z[i0 + e] = v;
             }
     }
 }
