@@ -600,9 +600,9 @@ static void apply_cb(void *user, const double *x, double *y)
 static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int continuing, int max_iter,
                  double rtol, double *history, wt_pcg_result *res)
 {
-    for (int64_t i = 0; i < t->sys->nslopes; i++)
-        if (!isfinite(s[i]))
-            return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)i, s[i]);
+    const int64_t bad = wt_vec_first_nonfinite(s, t->sys->nslopes); /* (a per-slope test with an early exit: ~20 µs) */
+    if (bad >= 0)
+        return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)bad, s[bad]);
     adjoint_slopes(t, t->work, s, wt_pcg_rhs(t->pcg));
     return wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
                             max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
