@@ -33,6 +33,7 @@ struct wt_tomography {
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
+    int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
     size_t pwsize;            /* its work per thread (doubles) */
     int iterations;
     double tol;
@@ -383,6 +384,18 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         for (int m = 0; m < t->S; m++) cost[m] = (double)sys->sensors[m].nslopes + 1.0;
         wt_vec_groups(t->S, cost, t->group);
     }
+    { /* layer owners: largest first to the least loaded thread (lowest index on ties) */
+        int64_t load[WT_MAX_LAYERS] = {0};
+        const int nt = t->nthreads < WT_MAX_LAYERS ? t->nthreads : WT_MAX_LAYERS;
+        for (int k = 0; k < t->L; k++) {
+            const int l = t->by_size[k];
+            int best = 0;
+            for (int j = 1; j < nt; j++)
+                if (load[j] < load[best]) best = j;
+            t->owner[l] = best;
+            load[best] += wt_grid_size(&t->grid[l]);
+        }
+    }
     WT_TRY(wt_tomography_work_alloc(t, &t->work));
     WT_TRY(wt_pcg_alloc(ctx, t->n, &t->pcg));
     *out = t;
@@ -462,11 +475,28 @@ void wt_tomography_work_free(wt_tomography_work *w)
 }
 
 /* phi = W⁻¹ c layer by layer */
+/* The thread that handles layer l in this team: its fixed owner (the same thread every apply, so that a layer's
+ * coefficients, values and FFT stay in one core's cache; any thread gives the same bits), folded onto a smaller
+ * team (a nested or reduced one) */
+static int owner_of(const wt_tomography *t, int l)
+{
+#ifdef _OPENMP
+    return t->owner[l] % omp_get_num_threads();
+#else
+    (void)t, (void)l;
+    return 0;
+#endif
+}
+
 static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
 {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-    for (int l = 0; l < t->L; l++)
-        wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)thread_id() * t->wsize);
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        const int id = thread_id();
+        for (int l = 0; l < t->L; l++)
+            if (owner_of(t, l) == id)
+                wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)id * t->wsize);
+    }
 }
 
 /* slopes = Γ P φ for every sensor */
@@ -516,8 +546,9 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
                 wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
                                                w->phase + (size_t)m * t->ncg);
     }
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
+#pragma omp parallel num_threads(t->nthreads)
     for (int l = 0; l < t->L; l++) {
+        if (owner_of(t, l) != thread_id()) continue;
         const int64_t a = t->off[l], b = t->off[l + 1];
         for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
             double v = w->acc[i];
@@ -539,17 +570,18 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
  * a loop over the layers alone (transform + FFT per layer) left it idle for half of the large layer's task. */
 static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
 {
-    const int ntask = t->L + t->S;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(t->nthreads)
-    for (int k = 0; k < ntask; k++) {
-        if (k < t->L) {
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        const int id = thread_id();
+        for (int k = 0; k < t->L; k++) {
             const int l = t->by_size[k];
-            wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], w->pphi + t->off[l],
-                                w->pwork + (size_t)thread_id() * t->pwsize);
-        } else {
-            const int m = k - t->L;
-            wt_sensor_stack_set_sensor(&t->stack, m, 1.0, phi, slopes, w->phase + (size_t)m * t->ncg);
+            if (owner_of(t, l) == id)
+                wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], w->pphi + t->off[l],
+                                    w->pwork + (size_t)id * t->pwsize);
         }
+#pragma omp for schedule(dynamic, 1) nowait
+        for (int m = 0; m < t->S; m++)
+            wt_sensor_stack_set_sensor(&t->stack, m, 1.0, phi, slopes, w->phase + (size_t)m * t->ncg);
     }
 }
 
