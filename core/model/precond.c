@@ -29,7 +29,7 @@ struct wt_precond {
     double *jinv;             /* n: J⁻¹ (NULL for none) */
     /* NGS low-rank part (see lowrank_*): P = B + R C_n Rᵀ */
     int nlr;                  /* rank r: the NGS slopes (0: none) */
-    double *lr_Y;             /* n x r: B⁻¹ R */
+    double *lr_Y;             /* n x r: B⁻¹ R (coarse_ngs: freed once lr_Yb holds it) */
     double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ B⁻¹ R */
     double *lr_w;             /* r */
     double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
@@ -952,6 +952,8 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
             for (int k = 0; k < q; k++)
                 for (int a = 0; a < 8 && 8 * p->lr_blk[b] + a < n; a++)
                     p->lr_Yb[((size_t)b * q + k) * 8 + a] = p->lr_Y[(size_t)k * n + 8 * p->lr_blk[b] + a];
+        wt_free(ctx, p->lr_Y); /* the applies read the blocks only */
+        p->lr_Y = NULL;
     }
 fail:
     wt_free(ctx, R);
@@ -1064,7 +1066,7 @@ int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block
 double wt_precond_bytes(const wt_precond *p)
 {
     if (!p) return 0.0;
-    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + p->nlr) + 64.0 * (double)p->lr_nblk * (p->nlr + 0.125) +
+    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + 64.0 * (double)p->lr_nblk * (p->nlr + 0.125) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
            (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0);
