@@ -813,11 +813,8 @@ static void coarse_ngs_apply(const wt_precond *p, const double *r, double *z)
     const int64_t n = p->n;
 #pragma omp parallel num_threads(p->nthreads)
     {
-#ifdef _OPENMP
-        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
-#else
-        const int nt = 1, id = 0;
-#endif
+        int id, nt;
+        wt_thread_team(&id, &nt);
         const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
         for (int j = 0; j < p->c_nfree; j++) {
             const int64_t lo = p->c_free[2 * j] > i0 ? p->c_free[2 * j] : i0;

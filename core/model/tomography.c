@@ -479,36 +479,20 @@ void wt_tomography_work_free(wt_tomography_work *w)
     wt_free(ctx, w);
 }
 
+/* The thread that handles layer l in a team of nt: its fixed owner (the same thread every apply, so that a
+ * layer's coefficients, values and FFT stay in one core's cache; any thread gives the same bits), folded onto a
+ * smaller team (a nested or reduced one) */
+static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] % nt; }
+
 /* phi = W⁻¹ c layer by layer */
-/* The thread that handles layer l in this team: its fixed owner (the same thread every apply, so that a layer's
- * coefficients, values and FFT stay in one core's cache; any thread gives the same bits), folded onto a smaller
- * team (a nested or reduced one) */
-static int team_size(void)
-{
-#ifdef _OPENMP
-    return omp_get_num_threads();
-#else
-    return 1;
-#endif
-}
-
-static int owner_of(const wt_tomography *t, int l)
-{
-#ifdef _OPENMP
-    return t->owner[l] % omp_get_num_threads();
-#else
-    (void)t, (void)l;
-    return 0;
-#endif
-}
-
 static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
 {
 #pragma omp parallel num_threads(t->nthreads)
     {
-        const int id = thread_id();
+        int id, nt;
+        wt_thread_team(&id, &nt);
         for (int l = 0; l < t->L; l++)
-            if (owner_of(t, l) == id)
+            if (owner_of(t, l, nt) == id)
                 wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)id * t->wsize);
     }
 }
@@ -540,7 +524,8 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
     const unsigned gen = ++w->gen; /* this call's value of the flags (the region's start publishes it) */
 #pragma omp parallel num_threads(t->nthreads)
     {
-        const int id = thread_id(), nt = team_size();
+        int id, nt;
+        wt_thread_team(&id, &nt);
         for (int g = id; g < WT_GROUPS; g += nt) {
             double *acc = w->acc + (size_t)g * n;
             memset(acc, 0, (size_t)n * sizeof *acc);
@@ -577,7 +562,7 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
         }
         for (int j = 0; j < t->L; j++) {
             const int l = t->by_size[j];
-            if (owner_of(t, l) != id) continue;
+            if (owner_of(t, l, nt) != id) continue;
             for (int g = 0; g < WT_GROUPS; g++) /* every group's part of the layer (a thread's own: already set) */
                 for (long spin = 0; atomic_load_explicit(&w->done[g][l], memory_order_acquire) != gen; spin++)
                     if (spin > 20000) sched_yield(); /* ~0.1 ms: the other thread is descheduled (a loaded host) */
@@ -605,10 +590,11 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
 {
 #pragma omp parallel num_threads(t->nthreads)
     {
-        const int id = thread_id();
+        int id, nt;
+        wt_thread_team(&id, &nt);
         for (int k = 0; k < t->L; k++) {
             const int l = t->by_size[k];
-            if (owner_of(t, l) == id)
+            if (owner_of(t, l, nt) == id)
                 wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], w->pphi + t->off[l],
                                     w->pwork + (size_t)id * t->pwsize);
         }
