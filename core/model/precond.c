@@ -246,8 +246,9 @@ fail:
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
  * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
  * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
- * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now
- * around B: P = B + R C_n Rᵀ. */
+ * backward one took ~67 µs of an ~0.47 ms iteration that way). coarse_ngs then replaces the factor by the
+ * block's inverse (coarse_invert): the same ~2 nc² flops as one product whose rows split over the threads.
+ * The multilevel kind keeps the solves. The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
 /* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
 /* w ← (L Lᵀ)⁻¹ w in place, L (q x q) lower with Lᵀ above the diagonal */
 static inline __attribute__((always_inline)) void chol_solves(const double *L, int q, double *w)
