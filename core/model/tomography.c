@@ -6,8 +6,6 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
-#include <sched.h>
-#include <stdatomic.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -17,7 +15,6 @@
 #include "../op/noise.h"
 #include "../op/prior.h"
 #include "../op/projection.h"
-#include "../op/shack_hartmann.h"
 #include "../op/wavelet.h"
 #include "../base/rng.h"
 
@@ -70,8 +67,6 @@ struct wt_tomography_work {
                                    one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
                                    layers in place (wt_prior_apply_full) */
     double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
-    unsigned gen;     /* adjoint calls so far: the value the flags below take in the current one */
-    atomic_uint done[WT_GROUPS][WT_MAX_LAYERS]; /* group g's part of layer l is in its accumulator (= gen) */
 };
 
 static int thread_id(void)
@@ -521,51 +516,35 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 {
     const wt_system *sys = t->sys;
     const int64_t n = t->n;
-    const unsigned gen = ++w->gen; /* this call's value of the flags (the region's start publishes it) */
+#pragma omp parallel for schedule(static) num_threads(t->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        double *acc = w->acc + (size_t)g * n;
+        memset(acc, 0, (size_t)n * sizeof *acc);
+        /* the group's weights first, side by side (wt_noise_apply_weight_many), then its adjoints in order */
+        const wt_noise *nz[2 * WT_MAX_GS];
+        const double *x[2 * WT_MAX_GS];
+        double *ws[2 * WT_MAX_GS];
+        int k = 0;
+        for (int m = 0; m < t->S; m++) {
+            if (t->group[m] != g) continue;
+            const wt_sensor *s = &sys->sensors[m];
+            nz[k] = t->noise[m];
+            x[k] = slopes + s->offset;
+            ws[k] = w->weighted + s->offset;
+            k++;
+        }
+        wt_noise_set_weight_many(nz, k, x, ws);
+        for (int m = 0; m < t->S; m++)
+            if (t->group[m] == g)
+                wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
+                                               w->phase + (size_t)m * t->ncg);
+    }
 #pragma omp parallel num_threads(t->nthreads)
     {
         int id, nt;
         wt_thread_team(&id, &nt);
-        for (int g = id; g < WT_GROUPS; g += nt) {
-            double *acc = w->acc + (size_t)g * n;
-            memset(acc, 0, (size_t)n * sizeof *acc);
-            /* the group's weights first, side by side (wt_noise_set_weight_many), then each sensor's Γᵀ */
-            const wt_noise *nz[2 * WT_MAX_GS];
-            const double *x[2 * WT_MAX_GS];
-            double *ws[2 * WT_MAX_GS];
-            int k = 0;
-            for (int m = 0; m < t->S; m++) {
-                if (t->group[m] != g) continue;
-                const wt_sensor *s = &sys->sensors[m];
-                nz[k] = t->noise[m];
-                x[k] = slopes + s->offset;
-                ws[k] = w->weighted + s->offset;
-                k++;
-            }
-            wt_noise_set_weight_many(nz, k, x, ws);
-            for (int m = 0; m < t->S; m++)
-                if (t->group[m] == g) {
-                    double *ph = w->phase + (size_t)m * t->ncg;
-                    memset(ph, 0, (size_t)t->ncg * sizeof *ph);
-                    wt_shack_hartmann_apply_t(sys->sensors[m].sh, 1.0, w->weighted + sys->sensors[m].offset, ph);
-                }
-            /* then the Pᵀ layer by layer, the largest first, each layer's flag raised once the group's sensors
-             * are in: the layer's owner starts its sum and transform while the other layers' Pᵀ go on (each
-             * element still takes the group's sensors in order: the same bits as sensor by sensor) */
-            for (int j = 0; j < t->L; j++) {
-                const int l = t->by_size[j];
-                for (int m = 0; m < t->S; m++)
-                    if (t->group[m] == g)
-                        wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, acc + t->off[l]);
-                atomic_store_explicit(&w->done[g][l], gen, memory_order_release);
-            }
-        }
-        for (int j = 0; j < t->L; j++) {
-            const int l = t->by_size[j];
+        for (int l = 0; l < t->L; l++) {
             if (owner_of(t, l, nt) != id) continue;
-            for (int g = 0; g < WT_GROUPS; g++) /* every group's part of the layer (a thread's own: already set) */
-                for (long spin = 0; atomic_load_explicit(&w->done[g][l], memory_order_acquire) != gen; spin++)
-                    if (spin > 20000) sched_yield(); /* ~0.1 ms: the other thread is descheduled (a loaded host) */
             const int64_t a = t->off[l], b = t->off[l + 1];
             for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
                 double v = w->acc[i];
