@@ -645,6 +645,66 @@ END_TEST
 
 /* The names are the configuration's list, in its order: the value recon.<variant>.preconditioner holds is
  * the kind. Unknown kinds and a coarse block beyond 4096 coefficients are refused with a message. */
+/* From 16384 unknowns the operator, the preconditioner and the PCG run on the context's threads: the layers'
+ * owners, the FFT and sensor tasks, coarse_ngs's split of J⁻¹, the coarse inverse's rows, the Woodbury blocks'
+ * chunks and update. Every result must be one thread's bit for bit, on 2 and 3 threads (3: a thread with no
+ * layer; a coarse row split that is not the 2-thread one): M x, P⁻¹ x, and two warm-started solves. The demo
+ * with a 128² pcg3 layer (21504 unknowns; coarse_levels 1: 1344 coarse coefficients, all layers' NGS). */
+START_TEST(test_threads_same_bits)
+{
+    const char *set[] = {"recon.pcg3.layer_size=[128, 32, 64]", "recon.pcg3.coarse_levels=1"};
+    double *ref[4] = {NULL}, *out[4] = {NULL};
+    int64_t n = 0, ns = 0;
+    for (int th = 1; th <= 3; th++) {
+        wt_context *ctx = tu_context();
+        wt_context_set_threads(ctx, th);
+        wt_config *cfg = NULL;
+        wt_system *sys = NULL;
+        wt_tomography *t = NULL;
+        wt_precond *p = NULL;
+        ck_assert_msg(wt_config_read(ctx, DEMO, 2, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+        wt_tomography_params tp;
+        wt_tomography_params_from_config(cfg, &tp);
+        ck_assert_msg(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &tp, &t) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_int_eq(wt_tomography_threads(t), th);
+        ck_assert(wt_tomography_full_prior(t));
+        const wt_precond_params pp = {.kind = WT_PRECOND_COARSE_NGS, .coarse_levels = 1};
+        ck_assert_msg(wt_precond_alloc(ctx, t, &pp, &p) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_int_gt(wt_precond_rank(p), 0);
+        n = wt_tomography_nunknowns(t);
+        ns = sys->nslopes;
+        ck_assert_int_ge(n, 16384);
+        double *x = malloc(n * sizeof *x), *s = malloc(ns * sizeof *s);
+        for (int k = 0; k < 4; k++) out[k] = calloc(n, sizeof *out[k]);
+        tu_randn(x, n, 31);
+        wt_tomography_apply(t, 1.0, x, out[0]);
+        wt_precond_apply(p, x, out[1]);
+        const wt_pcg_precond P = wt_precond_pcg(p);
+        tu_randn(s, ns, 32);
+        ck_assert_int_ge(wt_tomography_solve(t, P, s, out[2], 4, 0.0, NULL, NULL), 0);
+        for (int64_t i = 0; i < ns; i++) s[i] *= 0.9;
+        memcpy(out[3], out[2], n * sizeof *out[3]);
+        ck_assert_int_ge(wt_tomography_solve_continue(t, P, s, out[3], 4, 0.0, NULL, NULL), 0);
+        for (int k = 0; k < 4; k++) {
+            if (th == 1) ref[k] = out[k];
+            else {
+                ck_assert_msg(memcmp(out[k], ref[k], n * sizeof *ref[k]) == 0, "%d threads: %s differs from 1 thread's",
+                              th, (const char *[]){"M x", "P⁻¹ x", "the solve", "the continued solve"}[k]);
+                free(out[k]);
+            }
+        }
+        free(x), free(s);
+        wt_precond_free(p);
+        wt_tomography_free(t);
+        wt_system_free(sys);
+        wt_config_free(ctx, cfg);
+        wt_context_free(ctx);
+    }
+    for (int k = 0; k < 4; k++) free(ref[k]);
+}
+END_TEST
+
 START_TEST(test_names_and_refusals)
 {
     ck_assert_int_eq(wt_precond_kind("coarse_ngs"), WT_PRECOND_COARSE_NGS);
@@ -736,6 +796,7 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_fourier_spd, 0, 2); /* paper, low noise */
     tcase_add_test(tc, test_fourier_filter);
     tcase_add_test(tc, test_fourier_condition_and_direct);
+    tcase_add_test(tc, test_threads_same_bits);
     tcase_add_test(tc, test_names_and_refusals);
     suite_add_tcase(s, tc);
     /* every kind's set-up, once per allocation it makes (~30 for multilevel): a few seconds here, several

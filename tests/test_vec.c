@@ -3,6 +3,9 @@
  * the batched dots and the fused column updates are the one-at-a-time kernels bit for bit. */
 #include "testutil.h"
 
+#include <float.h>
+#include <math.h>
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -136,6 +139,33 @@ START_TEST(test_context_threads_reach_kernels)
 }
 END_TEST
 
+/* wt_vec_first_nonfinite: -1 on finite data (zeros of both signs, the largest double), else the first NaN or
+ * ±Inf wherever it sits (the 8 lanes, the tail past the last whole 8), several of them: the first one */
+START_TEST(test_first_nonfinite)
+{
+    const int64_t n = 8 * 37 + 5;
+    double *x = malloc(n * sizeof *x);
+    tu_randn(x, n, 3);
+    x[3] = -0.0, x[4] = 0.0, x[5] = DBL_MAX, x[6] = -DBL_MAX;
+    ck_assert_int_eq(wt_vec_first_nonfinite(x, n), -1);
+    ck_assert_int_eq(wt_vec_first_nonfinite(x, 0), -1);
+    const double bad[3] = {NAN, INFINITY, -INFINITY};
+    const int64_t at[] = {0, 7, 8, 150, n - 6, n - 5, n - 1};
+    for (int b = 0; b < 3; b++)
+        for (size_t k = 0; k < sizeof at / sizeof *at; k++) {
+            const double keep = x[at[k]];
+            x[at[k]] = bad[b];
+            ck_assert_int_eq(wt_vec_first_nonfinite(x, n), at[k]);
+            ck_assert_int_eq(wt_vec_first_nonfinite(x, at[k]), -1); /* only the rows before it */
+            x[n - 1 - (at[k] == n - 1)] = INFINITY; /* a second one after it (or just before the last) */
+            ck_assert_int_eq(wt_vec_first_nonfinite(x, n), at[k] < n - 2 ? at[k] : n - 2);
+            x[n - 1 - (at[k] == n - 1)] = 1.0;
+            x[at[k]] = keep;
+        }
+    free(x);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("vec");
@@ -144,6 +174,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_many_equal_single);
     tcase_add_test(tc, test_many_skip_zero_rows);
     tcase_add_test(tc, test_context_threads_reach_kernels);
+    tcase_add_test(tc, test_first_nonfinite);
     suite_add_tcase(s, tc);
     return s;
 }

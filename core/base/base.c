@@ -91,6 +91,17 @@ int wt_context_threads(const wt_context *ctx)
 #endif
 }
 
+void wt_thread_team(int *id, int *nt)
+{
+#ifdef _OPENMP
+    *id = omp_get_thread_num();
+    *nt = omp_get_num_threads();
+#else
+    *id = 0;
+    *nt = 1;
+#endif
+}
+
 int wt_error_set(wt_context *ctx, int status, const char *file, int line, const char *fmt, ...)
 {
     if (!ctx) return status;

@@ -64,4 +64,8 @@ void wt_free(wt_context *ctx, void *ptr);
 /* Monotonic wall clock [s]. */
 double wt_time_now(void);
 
+/* The calling thread's index in its OpenMP team and the team's size (0 and 1 outside a parallel region or
+ * without OpenMP): the split of a parallel region's fixed pieces. */
+void wt_thread_team(int *id, int *nt);
+
 #endif

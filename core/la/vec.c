@@ -8,6 +8,8 @@
 
 #include <math.h>
 
+#include "../base/base.h"
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -222,6 +224,23 @@ void wt_vec_groups(int n, const double *cost, int *group)
         group[best] = g;
         load[g] += cost[best];
     }
+}
+
+/* Σ 0·x_i over 8 lanes: +0 or −0 while every x_i is finite, NaN once one is NaN or ±Inf (0·Inf = NaN), in any
+ * order; a loop without the early exit of a per-element test, so it vectorises. Then the first bad index. */
+WT_CPU_CLONES int64_t wt_vec_first_nonfinite(const double *x, int64_t n)
+{
+    double lane[8] = {0.0};
+    int64_t i = 0;
+    for (; i + 8 <= n; i += 8)
+        for (int e = 0; e < 8; e++) lane[e] += 0.0 * x[i + e];
+    for (; i < n; i++) lane[0] += 0.0 * x[i];
+    double s = 0.0;
+    for (int e = 0; e < 8; e++) s += lane[e];
+    if (s == 0.0) return -1;
+    for (i = 0; i < n; i++)
+        if (!isfinite(x[i])) return i;
+    return -1; /* not reached: a NaN sum has a non-finite term */
 }
 
 void wt_vec_sum_groups(const double *acc, int64_t n, double *out)

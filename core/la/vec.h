@@ -53,6 +53,9 @@ int wt_vec_runs(const double *X, int64_t ld, int q, int64_t n, int64_t *runs);
  * deterministic). group[i] ∈ [0, WT_GROUPS). */
 void wt_vec_groups(int n, const double *cost, int *group);
 
+/* The first i < n with x_i NaN or ±Inf, -1 when all are finite (one vectorised pass when they are). */
+int64_t wt_vec_first_nonfinite(const double *x, int64_t n);
+
 /* out[i] = Σ_g acc[g * n + i] in group order. */
 void wt_vec_sum_groups(const double *acc, int64_t n, double *out);
 

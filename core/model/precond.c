@@ -14,6 +14,7 @@
 #include <fftw3.h>
 #include <lapacke.h>
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -34,19 +35,23 @@ struct wt_precond {
     double *jinv;             /* n: J⁻¹ (NULL for none) */
     /* NGS low-rank part (see lowrank_*): P = B + R C_n Rᵀ */
     int nlr;                  /* rank r: the NGS slopes (0: none) */
-    double *lr_Y;             /* n x r: B⁻¹ R */
+    double *lr_Y;             /* n x r: B⁻¹ R (coarse_ngs: freed once lr_Yb holds it) */
     double *lr_K;             /* r x r: Cholesky factor of Ĉ⁻¹_NGS + Rᵀ B⁻¹ R */
     double *lr_w;             /* r */
     double *lr_part;          /* r x WT_VEC_CHUNKS: the chunk sums of Yᵀ r */
     int64_t *lr_runs;         /* the row runs where Y is not all zero (wt_vec_runs) */
     int lr_nruns;
-    double *lr_Yr;            /* n x r row-major (row i's r values side by side): Yᵀ r's r chains as vector lanes */
+    /* coarse_ngs: Y by blocks of 8 rows, only the blocks with a non-zero (see lowrank_blocks) */
+    int64_t lr_nblk;          /* kept blocks */
+    int64_t *lr_blk;          /* lr_nblk: block b's first row is 8 lr_blk[b] */
+    double *lr_Yb, *lr_Yb_raw; /* lr_nblk x r x 8 (block, column, row in the block), 64-byte aligned */
     /* coarse block (coarse_ngs, see coarse_*): J replaced by B = J with the coarse coefficients' rows and
      * columns of the LGS + prior part of M, inverted exactly */
     int nc;                   /* coarse coefficients (0: none) */
     int64_t *c_idx;           /* nc: their indices in c */
     double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block, Lᵀ above */
     double *c_w;              /* nc */
+    double *c_inv;            /* coarse_ngs: nc x nc, the block's inverse (L Lᵀ)⁻¹, symmetric, column-major */
     int64_t *c_free;          /* the runs [c_free[2j], c_free[2j+1]) of unknowns outside the coarse block */
     int c_nfree;
     /* layer blocks below the coarse square (multilevel, see compute_layer_blocks) */
@@ -258,16 +263,13 @@ fail:
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
  * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
  * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
- * backward one took ~67 µs of an ~0.47 ms iteration that way). The NGS stay in the Woodbury term, now
- * around B: P = B + R C_n Rᵀ. */
+ * backward one took ~67 µs of an ~0.47 ms iteration that way). coarse_ngs then replaces the factor by the
+ * block's inverse (coarse_invert): the same ~2 nc² flops as one product whose rows split over the threads.
+ * The multilevel kind keeps the solves. The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
 /* cloned for AVX2/AVX-512 like the transforms (WT_CPU_CLONES: both solves' column updates vectorise) */
-WT_CPU_CLONES static void coarse_solve(const wt_precond *p, const double *r, double *z)
+/* w ← (L Lᵀ)⁻¹ w in place, L (q x q) lower with Lᵀ above the diagonal */
+static inline __attribute__((always_inline)) void chol_solves(const double *L, int q, double *w)
 {
-    const int q = p->nc;
-    if (q == 0) return;
-    double *w = p->c_w;
-    const double *L = p->c_L;
-    for (int i = 0; i < q; i++) w[i] = r[p->c_idx[i]];
     for (int i = 0; i < q; i++) { /* forward: L y = w (column-oriented) */
         const double v = (w[i] /= L[i + (size_t)q * i]);
         const double *col = L + (size_t)q * i;
@@ -278,7 +280,41 @@ WT_CPU_CLONES static void coarse_solve(const wt_precond *p, const double *r, dou
         const double *col = L + (size_t)q * i;
         for (int k = 0; k < i; k++) w[k] -= col[k] * v;
     }
+}
+
+WT_CPU_CLONES static void coarse_solve(const wt_precond *p, const double *r, double *z)
+{
+    const int q = p->nc;
+    if (q == 0) return;
+    double *w = p->c_w;
+    for (int i = 0; i < q; i++) w[i] = r[p->c_idx[i]];
+    chol_solves(p->c_L, q, w);
     for (int i = 0; i < q; i++) z[p->c_idx[i]] = w[i];
+}
+
+/* coarse_ngs: the block's inverse, column j = (L Lᵀ)⁻¹ e_j, symmetrised (the preconditioner must be symmetric;
+ * the solves' rounding is not), in place of the factor. An apply is then one matrix-vector product whose rows
+ * split over the threads, where the two triangular solves were chains of 2q dependent columns on one thread
+ * (at E-ELT size: 384², 1.2 MB that the operator evicts between applies, ~50 µs of an iteration). */
+static int coarse_invert(wt_precond *p)
+{
+    int st = WT_OK;
+    const int q = p->nc;
+    WT_ALLOC(p->ctx, p->c_inv, (size_t)q * q, "coarse block inverse");
+    for (int j = 0; j < q; j++) {
+        double *col = p->c_inv + (size_t)q * j;
+        col[j] = 1.0;
+        chol_solves(p->c_L, q, col);
+    }
+    for (int j = 0; j < q; j++)
+        for (int i = j + 1; i < q; i++) {
+            const double v = 0.5 * (p->c_inv[i + (size_t)q * j] + p->c_inv[j + (size_t)q * i]);
+            p->c_inv[i + (size_t)q * j] = p->c_inv[j + (size_t)q * i] = v;
+        }
+    wt_free(p->ctx, p->c_L);
+    p->c_L = NULL;
+fail:
+    return st;
 }
 
 
@@ -656,14 +692,38 @@ WT_CPU_CLONES static void layer_blocks_apply(const wt_precond *p, const double *
     }
 }
 
+/* z[c_idx[i]] = Σ_j (B_c⁻¹)_ij r[c_idx[j]] for the coarse rows i in [i0, i1) (coarse_ngs: the block's inverse
+ * held explicitly). Each row's sum runs over j in order whatever rows a call takes: the same bits for any split
+ * of the rows over threads. By blocks of 64 rows, the block's sums in registers/L1 while the columns stream. */
+WT_CPU_CLONES static void coarse_inv_rows(const wt_precond *p, const double *r, double *z, int i0, int i1)
+{
+    const int q = p->nc;
+    for (int b0 = i0; b0 < i1; b0 += 64) {
+        const int nb = i1 - b0 < 64 ? i1 - b0 : 64;
+        double acc[64] = {0.0};
+        if (nb == 64)
+            for (int j = 0; j < q; j++) {
+                const double v = r[p->c_idx[j]], *restrict col = p->c_inv + (size_t)q * j + b0;
+                for (int i = 0; i < 64; i++) acc[i] += col[i] * v;
+            }
+        else
+            for (int j = 0; j < q; j++) {
+                const double v = r[p->c_idx[j]], *restrict col = p->c_inv + (size_t)q * j + b0;
+                for (int i = 0; i < nb; i++) acc[i] += col[i] * v;
+            }
+        for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
+    }
+}
+
 /* z = B⁻¹ r on one thread: J⁻¹ (coarse_ngs, jacobi_ngs) or the layer blocks (multilevel) below the coarse
- * block's exact solve */
+ * block's exact solve (coarse_ngs: its inverse) */
 static void coarse_apply(const wt_precond *p, const double *r, double *z)
 {
     if (p->nb > 0) layer_blocks_apply(p, r, z, 0, p->nb);
     else
         for (int64_t i = 0; i < p->n; i++) z[i] = p->jinv[i] * r[i];
-    coarse_solve(p, r, z);
+    if (p->c_inv) coarse_inv_rows(p, r, z, 0, p->nc);
+    else coarse_solve(p, r, z);
 }
 
 /* ---- Fourier-domain filter (fourier) -------------------------------------------------------------
@@ -867,47 +927,99 @@ static void lowrank_solve(const wt_precond *p, double *w)
     }
 }
 
-/* Yᵀ r's chunk sums from the row-major copy: s[k] += Y[i, k] r[i] for i in index order within a chunk, each k
- * its own chain, as wt_vec_dot_many_part sums them (the same bits), the B chains side by side as vector lanes
- * (B a compile-time constant: always inlined) */
-static inline __attribute__((always_inline)) void rdots_block(const int B, const double *restrict Yr,
-                                                              const double *restrict y, int64_t a, int64_t b,
-                                                              double *restrict s)
+/* coarse_ngs's Woodbury term by blocks of 8 rows (lr_Yb: only the blocks where Y has a non-zero, each block's
+ * r columns of 8 rows side by side). Yᵀ r: the kept blocks fall into WT_VEC_CHUNKS fixed chunks; in a chunk,
+ * row e of every block (e < 8) adds into lane e of column k's sum, in block order, and the chunk's value is the
+ * 8 lanes added pairwise in a fixed tree; the chunks are added in order (wt_vec_dot_many_finish). Which thread
+ * runs a chunk changes nothing: the same bits for any thread count. B a compile-time constant (always inlined:
+ * the B sums of 8 lanes stay in vector registers); a last block past n takes only its rows < n. The update
+ * reads the same copy (one pass over ~1 MB each instead of a column-major Y and a row-major copy). */
+typedef double yb_vec __attribute__((vector_size(64), aligned(8))); /* 8 rows (GCC/clang vectors: plain
+                                                                     per-lane IEEE operations, any ISA) */
+
+static inline __attribute__((always_inline)) void yb_dots_chunk(const int B, const wt_precond *p, const double *r,
+                                                                int64_t b0, int64_t b1, double *restrict part, int c)
 {
-    double acc[WT_VEC_MAX_MANY];
-    for (int k = 0; k < B; k++) acc[k] = s[k];
-    for (int64_t i = a; i < b; i++) {
-        const double v = y[i];
-        const double *restrict row = Yr + i * B;
-        for (int k = 0; k < B; k++) acc[k] += row[k] * v;
+    const int64_t n = p->n;
+    yb_vec acc[WT_VEC_MAX_MANY];
+    for (int k = 0; k < B; k++) acc[k] = (yb_vec){0.0};
+    for (int64_t b = b0; b < b1; b++) {
+        const int64_t i0 = 8 * p->lr_blk[b];
+        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
+        yb_vec rr = {0.0};
+        if (i0 + 8 <= n) rr = *(const yb_vec *)(r + i0);
+        else
+            for (int e = 0; e < n - i0; e++) rr[e] = r[i0 + e]; /* lanes past n: Y 0 (never set) times 0, their
+                                                                   sums stay +0 */
+        for (int k = 0; k < B; k++) acc[k] += Y[k] * rr;
     }
-    for (int k = 0; k < B; k++) s[k] = acc[k];
+    for (int k = 0; k < B; k++)
+        part[(int64_t)k * WT_VEC_CHUNKS + c] =
+            ((acc[k][0] + acc[k][1]) + (acc[k][2] + acc[k][3])) + ((acc[k][4] + acc[k][5]) + (acc[k][6] + acc[k][7]));
 }
 
-WT_CPU_CLONES static void rdots_part(const wt_precond *p, const double *y, int c0, int c1)
+WT_CPU_CLONES static void yb_dots(const wt_precond *p, const double *r, int c0, int c1)
 {
-    const int64_t n = p->n, len = wt_vec_chunk_len(n);
-    const int q = p->nlr;
+    const int64_t nb = p->lr_nblk;
     for (int c = c0; c < c1; c++) {
-        const int64_t a = (int64_t)c * len, b = a + len < n ? a + len : n;
-        double s[WT_VEC_MAX_MANY];
-        for (int k = 0; k < q; k++) s[k] = 0.0;
-        int j0 = 0, j1 = p->lr_nruns; /* the first run ending after a (the runs are sorted) */
-        while (j0 < j1) {
-            const int mid = (j0 + j1) / 2;
-            if (p->lr_runs[2 * mid + 1] <= a) j0 = mid + 1;
-            else j1 = mid;
+        const int64_t b0 = nb * c / WT_VEC_CHUNKS, b1 = nb * (c + 1) / WT_VEC_CHUNKS;
+        if (p->nlr == 12) yb_dots_chunk(12, p, r, b0, b1, p->lr_part, c); /* the E-ELT's 3 NGS */
+        else yb_dots_chunk(p->nlr, p, r, b0, b1, p->lr_part, c);
+    }
+}
+
+/* z ← z − Σ_k w_k Y_k on the kept blocks [b0, b1): each row takes the columns in order k = 0, 1, … (rows of
+ * blocks not kept: Y is 0 there, z stays) */
+static inline __attribute__((always_inline)) void yb_update_blocks(const int B, const wt_precond *p,
+                                                                   const double *restrict w, double *restrict z,
+                                                                   int64_t b0, int64_t b1)
+{
+    const int64_t n = p->n;
+    for (int64_t b = b0; b < b1; b++) {
+        const int64_t i0 = 8 * p->lr_blk[b];
+        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
+        if (i0 + 8 <= n) {
+            yb_vec v = *(yb_vec *)(z + i0);
+            for (int k = 0; k < B; k++) v -= w[k] * Y[k];
+            *(yb_vec *)(z + i0) = v;
+        } else
+            for (int e = 0; e < n - i0; e++) {
+                double v = z[i0 + e];
+                for (int k = 0; k < B; k++) v -= w[k] * Y[k][e];
+                z[i0 + e] = v;
+            }
+    }
+}
+
+WT_CPU_CLONES static void yb_update(const wt_precond *p, const double *w, double *z, int64_t b0, int64_t b1)
+{
+    if (p->nlr == 12) yb_update_blocks(12, p, w, z, b0, b1);
+    else yb_update_blocks(p->nlr, p, w, z, b0, b1);
+}
+
+/* coarse_ngs: z = J⁻¹ r off the coarse block, its inverse on it, minus Y K⁻¹ Yᵀ r. Every part splits over
+ * the threads by fixed pieces (rows, coarse rows, chunks of blocks), one barrier between the dots and the
+ * update; each thread solves the small K system itself (no serial section). */
+static void coarse_ngs_apply(const wt_precond *p, const double *r, double *z)
+{
+    const int64_t n = p->n;
+#pragma omp parallel num_threads(p->nthreads)
+    {
+        int id, nt;
+        wt_thread_team(&id, &nt);
+        const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
+        for (int j = 0; j < p->c_nfree; j++) {
+            const int64_t lo = p->c_free[2 * j] > i0 ? p->c_free[2 * j] : i0;
+            const int64_t hi = p->c_free[2 * j + 1] < i1 ? p->c_free[2 * j + 1] : i1;
+            for (int64_t i = lo; i < hi; i++) z[i] = p->jinv[i] * r[i];
         }
-        for (int j = j0; j < p->lr_nruns && p->lr_runs[2 * j] < b; j++) {
-            const int64_t lo = p->lr_runs[2 * j] > a ? p->lr_runs[2 * j] : a;
-            const int64_t hi = p->lr_runs[2 * j + 1] < b ? p->lr_runs[2 * j + 1] : b;
-            if (lo >= hi) continue;
-            if (q == 12) /* the E-ELT's 3 NGS */ rdots_block(12, p->lr_Yr, y, lo, hi, s);
-            else
-                for (int64_t i = lo; i < hi; i++)
-                    for (int k = 0; k < q; k++) s[k] += p->lr_Yr[i * q + k] * y[i];
-        }
-        for (int k = 0; k < q; k++) p->lr_part[(int64_t)k * WT_VEC_CHUNKS + c] = s[k];
+        coarse_inv_rows(p, r, z, (int)((int64_t)p->nc * id / nt), (int)((int64_t)p->nc * (id + 1) / nt));
+        yb_dots(p, r, WT_VEC_CHUNKS * id / nt, WT_VEC_CHUNKS * (id + 1) / nt);
+#pragma omp barrier
+        double w[WT_VEC_MAX_MANY];
+        wt_vec_dot_many_finish(p->nlr, p->lr_part, w);
+        lowrank_solve(p, w);
+        yb_update(p, w, z, p->lr_nblk * id / nt, p->lr_nblk * (id + 1) / nt);
     }
 }
 
@@ -923,6 +1035,10 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
         base_apply(p, r, z);
         return;
     }
+    if (p->lr_Yb) {
+        coarse_ngs_apply(p, r, z);
+        return;
+    }
     if (p->fd_n > 0) fourier_apply(p, r, z); /* its own parallel region; the dots and the update below */
 #pragma omp parallel num_threads(p->nthreads)
     {
@@ -932,56 +1048,28 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
         const int nt = 1, id = 0;
 #endif
         if (p->fd_n > 0) {
-            /* fourier: B⁻¹ r done above; the dots' chunks split over the threads, summed in a fixed order */
-            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
-                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
-#pragma omp barrier
-#pragma omp single
-            {
-                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
-                lowrank_solve(p, p->lr_w);
-            }
+            /* fourier: B⁻¹ r done above */
         } else if (p->nb > 0) {
-            /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them, the
-             * dots' chunks split (each block's solve and each chunk sum does not depend on the thread that
-             * runs it: the same bits on any thread count) */
+            /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them (each
+             * block's solve does not depend on the thread that runs it: the same bits on any thread count) */
 #pragma omp single nowait
             coarse_solve(p, r, z);
 #pragma omp for schedule(dynamic, 1) nowait
             for (int c = 0; c < 64; c++) layer_blocks_apply(p, r, z, p->nb * c / 64, p->nb * (c + 1) / 64);
-            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
-                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
-#pragma omp barrier
-#pragma omp single
-            {
-                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
-                lowrank_solve(p, p->lr_w);
-            }
-        } else if (p->nc > 0) {
-            /* thread 0 the coarse solve (z on the coarse unknowns), thread 1 J⁻¹ r on the others (the same
-             * values coarse_apply leaves there) and the dots from Y's row-major copy */
-            if (id == 0) coarse_solve(p, r, z);
-            if (id == (nt > 1 ? 1 : 0)) {
-                for (int j = 0; j < p->c_nfree; j++)
-                    for (int64_t i = p->c_free[2 * j]; i < p->c_free[2 * j + 1]; i++) z[i] = p->jinv[i] * r[i];
-                rdots_part(p, r, 0, WT_VEC_CHUNKS);
-                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
-                lowrank_solve(p, p->lr_w);
-            }
-#pragma omp barrier
         } else {
-            /* no coarse block: J⁻¹ r and the dots' chunks split over the threads (the chunk sums land in fixed
-             * slots and are added in a fixed order: the same bits as on one thread) */
+            /* no coarse block: J⁻¹ r split over the threads */
             for (int64_t i = n * id / nt; i < n * (id + 1) / nt; i++) z[i] = p->jinv[i] * r[i];
-            wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
-                                 WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
+        }
+        /* the dots' chunks split over the threads (the chunk sums land in fixed slots and are added in a fixed
+         * order: the same bits as on one thread) */
+        wt_vec_dot_many_part(p->lr_Y, n, q, r, n, p->lr_runs, p->lr_nruns, WT_VEC_CHUNKS * id / nt,
+                             WT_VEC_CHUNKS * (id + 1) / nt, p->lr_part);
 #pragma omp barrier
 #pragma omp single
-            {
-                wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
-                lowrank_solve(p, p->lr_w);
-            } /* (its implicit barrier: w is ready for every thread) */
-        }
+        {
+            wt_vec_dot_many_finish(q, p->lr_part, p->lr_w);
+            lowrank_solve(p, p->lr_w);
+        } /* (its implicit barrier: w is ready for every thread, and every B⁻¹ r written) */
         wt_vec_sub_many_range(z, p->lr_Y, n, q, p->lr_w, p->lr_runs, p->lr_nruns, n * id / nt, n * (id + 1) / nt);
     }
 }
@@ -1033,9 +1121,24 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
     /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
     WT_TRY(cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
     p->nlr = q;
-    WT_ALLOC(ctx, p->lr_Yr, (size_t)n * q, "NGS preconditioner Y (rows)");
-    for (int64_t i = 0; i < n; i++)
-        for (int k = 0; k < q; k++) p->lr_Yr[i * q + k] = p->lr_Y[(size_t)k * n + i];
+    if (p->kind == WT_PRECOND_COARSE_NGS) { /* Y by blocks of 8 rows, the blocks with a non-zero */
+        const int64_t nb8 = (n + 7) / 8;
+        WT_ALLOC(ctx, p->lr_blk, nb8, "NGS preconditioner blocks");
+        for (int64_t b = 0; b < nb8; b++) {
+            int nz = 0;
+            for (int64_t i = 8 * b; i < 8 * b + 8 && i < n && !nz; i++)
+                for (int k = 0; k < q && !nz; k++) nz = p->lr_Y[(size_t)k * n + i] != 0.0;
+            if (nz) p->lr_blk[p->lr_nblk++] = b;
+        }
+        WT_ALLOC(ctx, p->lr_Yb_raw, (size_t)p->lr_nblk * q * 8 + 8, "NGS preconditioner Y (blocks)");
+        p->lr_Yb = (double *)(((uintptr_t)p->lr_Yb_raw + 63) & ~(uintptr_t)63);
+        for (int64_t b = 0; b < p->lr_nblk; b++)
+            for (int k = 0; k < q; k++)
+                for (int a = 0; a < 8 && 8 * p->lr_blk[b] + a < n; a++)
+                    p->lr_Yb[((size_t)b * q + k) * 8 + a] = p->lr_Y[(size_t)k * n + 8 * p->lr_blk[b] + a];
+        wt_free(ctx, p->lr_Y); /* the applies read the blocks only */
+        p->lr_Y = NULL;
+    }
 fail:
     wt_free(ctx, R);
     wt_free(ctx, e);
@@ -1068,6 +1171,7 @@ int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params 
     }
     if (p->kind == WT_PRECOND_FOURIER) WT_TRY(compute_fourier(p, t));
     if (p->kind >= WT_PRECOND_COARSE_NGS && par->coarse_levels >= 0) WT_TRY(compute_coarse(p, t, par->coarse_levels));
+    if (p->kind == WT_PRECOND_COARSE_NGS) WT_TRY(coarse_invert(p));
     if (p->kind == WT_PRECOND_FOURIER && p->nc > 0) {
         WT_ALLOC(ctx, p->fd_r, p->n, "fourier preconditioner residual");
         WT_ALLOC(ctx, p->fd_zc, p->n, "fourier preconditioner coarse solution");
@@ -1097,9 +1201,11 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->lr_runs);
     wt_free(ctx, p->c_idx);
     wt_free(ctx, p->c_free);
-    wt_free(ctx, p->lr_Yr);
     wt_free(ctx, p->c_L);
     wt_free(ctx, p->c_w);
+    wt_free(ctx, p->c_inv);
+    wt_free(ctx, p->lr_blk);
+    wt_free(ctx, p->lr_Yb_raw);
     wt_free(ctx, p->b_start);
     wt_free(ctx, p->b_fac);
     wt_free(ctx, p->b_idx);
@@ -1162,7 +1268,7 @@ int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block
 double wt_precond_bytes(const wt_precond *p)
 {
     if (!p) return 0.0;
-    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Yr ? 2.0 : 1.0) * p->nlr) +
+    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + 64.0 * (double)p->lr_nblk * (p->nlr + 0.125) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
            (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0) +

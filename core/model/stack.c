@@ -3,6 +3,16 @@
 
 #include <string.h>
 
+void wt_sensor_stack_set_sensor(const wt_sensor_stack *st, int m, double alpha, const double *x, double *y,
+                                double *phase)
+{
+    const wt_sensor *s = &st->sys->sensors[m];
+    memset(phase, 0, (size_t)wt_grid_size(&st->sys->sense_grid) * sizeof *phase);
+    for (int l = 0; l < st->nin; l++) wt_projection_apply(st->proj[m * st->nin + l], 1.0, x + st->in_offset[l], phase);
+    memset(y + s->offset, 0, (size_t)s->nslopes * sizeof *y);
+    wt_shack_hartmann_apply(s->sh, alpha, phase, y + s->offset);
+}
+
 static void stack_apply(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
                         int nthreads, int zero)
 {
@@ -10,12 +20,14 @@ static void stack_apply(const wt_sensor_stack *st, double alpha, const double *x
     const int64_t ncg = wt_grid_size(&sys->sense_grid);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads > 0 ? nthreads : 1)
     for (int m = 0; m < sys->nsensors; m++) {
-        const wt_sensor *s = &sys->sensors[m];
         double *ph = phase + (size_t)m * ncg;
+        if (zero) {
+            wt_sensor_stack_set_sensor(st, m, alpha, x, y, ph);
+            continue;
+        }
         memset(ph, 0, (size_t)ncg * sizeof *ph);
         for (int l = 0; l < st->nin; l++) wt_projection_apply(st->proj[m * st->nin + l], 1.0, x + st->in_offset[l], ph);
-        if (zero) memset(y + s->offset, 0, (size_t)s->nslopes * sizeof *y);
-        wt_shack_hartmann_apply(s->sh, alpha, ph, y + s->offset);
+        wt_shack_hartmann_apply(sys->sensors[m].sh, alpha, ph, y + sys->sensors[m].offset);
     }
 }
 

@@ -28,6 +28,10 @@ void wt_sensor_stack_apply(const wt_sensor_stack *st, double alpha, const double
  * and wt_sensor_stack_apply, without the serial pass over all slopes). */
 void wt_sensor_stack_set(const wt_sensor_stack *st, double alpha, const double *x, double *y, double *phase,
                          int nthreads);
+/* wt_sensor_stack_set's work for sensor m alone (y_m ← α Γ_m P_m x), for a caller's own parallel loop; phase:
+ * one sample-grid workspace, overwritten. */
+void wt_sensor_stack_set_sensor(const wt_sensor_stack *st, int m, double alpha, const double *x, double *y,
+                                double *phase);
 /* x ← x + α Σ_l P_{m,l}ᵀ Γ_mᵀ y_m for sensor m alone (y_m: its slopes); phase: one sample-grid
  * workspace, overwritten. Sensors that write the same x must not run at once. */
 void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,

@@ -8,6 +8,7 @@
 #include "pcg.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "../la/vec.h"
 
@@ -98,9 +99,10 @@ static double dot(const wt_pcg *w, const double *a, const double *b)
 }
 
 /* mode 0: x += a p, r −= a q; mode 1: r = (b − b_prev) + r (the continued solve's initial residual; x, p, q
- * unused); then rᵀr. Each thread updates the rows of its own chunks, then sums them. */
+ * unused), and with bb also bᵀb (the same chunk sums as dot(b, b), in the same pass); then rᵀr. Each thread
+ * updates the rows of its own chunks, then sums them. */
 static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *p, const double *q, double *x,
-                             double *r, const double *b, const double *b_prev)
+                             double *r, const double *b, const double *b_prev, double *bb)
 {
     const int64_t n = w->n;
     if (!parallel_vectors(w)) {
@@ -112,9 +114,10 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
             }
         else
             for (int64_t i = 0; i < n; i++) r[i] = (b[i] - b_prev[i]) + r[i];
+        if (bb) *bb = wt_vec_dot(b, b, n);
         return wt_vec_dot(r, r, n);
     }
-    double part[WT_VEC_CHUNKS];
+    double part[WT_VEC_CHUNKS], bpart[WT_VEC_CHUNKS];
     const int64_t len = wt_vec_chunk_len(n);
 #pragma omp parallel num_threads(w->nthreads)
     {
@@ -128,9 +131,24 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
             }
         else
             for (int64_t i = i0; i < i1; i++) r[i] = (b[i] - b_prev[i]) + r[i];
+        if (bb) wt_vec_dot_part(b, b, n, c0, c1, bpart);
         wt_vec_dot_part(r, r, n, c0, c1, part);
     }
+    if (bb) *bb = wt_vec_dot_finish(bpart);
     return wt_vec_dot_finish(part);
+}
+
+/* p = z, on the threads' chunks like the other updates (a copy: the same values) */
+static void copy_vec(const wt_pcg *w, const double *z, double *p)
+{
+    const int64_t n = w->n;
+#pragma omp parallel num_threads(w->nthreads) if (parallel_vectors(w))
+    {
+        int c0, c1;
+        my_chunks(&c0, &c1);
+        const int64_t len = wt_vec_chunk_len(n), i0 = c0 * len < n ? c0 * len : n, i1 = c1 * len < n ? c1 * len : n;
+        memcpy(p + i0, z + i0, (size_t)(i1 - i0) * sizeof *p);
+    }
 }
 
 static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
@@ -201,7 +219,12 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
     if (max_iter < 0 || !(rtol >= 0.0))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "pcg: iteration cap %d and tolerance %g must be >= 0", max_iter, rtol);
 
-    double bnorm = sqrt(dot(w, b, b));
+    /* continued: A x = b_prev − r_prev, so r = b − b_prev + r_prev in place, in the pass that sums bᵀb (r is
+     * kept consistent with x below on every return, as the caller requires) */
+    double bb, rr = 0.0;
+    if (b_prev) rr = update_r_norm2(w, 1, 0.0, NULL, NULL, NULL, r, b, b_prev, &bb);
+    else bb = dot(w, b, b);
+    double bnorm = sqrt(bb);
     if (!isfinite(bnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: right-hand side holds NaN or Inf");
     if (bnorm == 0.0) {
         for (int64_t i = 0; i < n; i++) x[i] = r[i] = 0.0;
@@ -209,8 +232,8 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         return WT_OK;
     }
     double rnorm;
-    if (b_prev) { /* A x = b_prev − r_prev: r = b − b_prev + r_prev, in place */
-        rnorm = sqrt(update_r_norm2(w, 1, 0.0, NULL, NULL, NULL, r, b, b_prev));
+    if (b_prev) {
+        rnorm = sqrt(rr);
     } else {
         A(user, x, q);
         for (int64_t i = 0; i < n; i++) r[i] = b[i] - q[i];
@@ -225,7 +248,7 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
     else if (P) P(puser, r, z);
     const double *zz = (inv_diag || P) ? z : r;
-    for (int64_t i = 0; i < n; i++) p[i] = zz[i];
+    copy_vec(w, zz, p);
     double rz = dot(w, r, zz);
 
     int k;
@@ -239,7 +262,7 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         if (!(pq > 0.0))
             return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration 1 (operator not positive definite)", pq);
         double a = rz / pq;
-        rnorm = sqrt(update_r_norm2(w, 0, a, p, q, x, r, NULL, NULL));
+        rnorm = sqrt(update_r_norm2(w, 0, a, p, q, x, r, NULL, NULL, NULL));
         res->iterations = k + 1;
         res->rel_resid = rnorm / bnorm;
         if (history) history[k + 1] = rnorm / bnorm;
