@@ -344,6 +344,23 @@ static int coarse_side(const wt_tomography *t, int l, int coarse_levels)
     return wt_tomography_layer_grid(t, l)->nx >> (J - k);
 }
 
+/* col = M̃ e for an e that is non-zero on layer l only: Σ_LGS Ãᵀ C̃⁻¹ Ã e (the NGS slopes of Γ P W⁻¹ e set to
+ * zero before the adjoint: the weight is block-diagonal per sensor, so this drops exactly their term) plus the
+ * prior's column on layer l (α D, or the full prior's coupling of the layer's coefficients). sl: nslopes of
+ * work. coarse_ngs's block and the fourier kind's symbol are measured this way. */
+static void lgs_prior_column(wt_tomography *t, int l, const double *e, double *sl, double *col)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    memset(sl, 0, (size_t)sys->nslopes * sizeof *sl);
+    wt_tomography_slopes(t, 1.0, e, sl);
+    for (int m = sys->nlgs; m < sys->nsensors; m++)
+        memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
+    memset(col, 0, (size_t)wt_tomography_nunknowns(t) * sizeof *col);
+    wt_tomography_rhs(t, 1.0, sl, col);
+    const int64_t a = wt_tomography_layer_offset(t, l);
+    wt_tomography_prior_apply_layer(t, l, e + a, col + a);
+}
+
 static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
 {
     int st = WT_OK;
@@ -374,21 +391,12 @@ static int compute_coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
                 for (int i = 0; i < side[l]; i++)
                     p->c_idx[k++] = wt_tomography_layer_offset(t, l) + i + (int64_t)wt_tomography_layer_grid(t, l)->nx * j;
     }
-    /* column j of the LGS + prior part of M: the NGS slopes of Γ P W⁻¹ e_j set to zero before the adjoint
-     * (the weight is block-diagonal per sensor, so this drops exactly their term) */
+    /* column j of the LGS + prior part of M */
     for (int j = 0; j < q; j++) {
         e[p->c_idx[j]] = 1.0;
-        memset(sl, 0, (size_t)sys->nslopes * sizeof *sl);
-        wt_tomography_slopes(t, 1.0, e, sl);
-        for (int m = sys->nlgs; m < sys->nsensors; m++)
-            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
-        memset(col, 0, (size_t)n * sizeof *col);
-        wt_tomography_rhs(t, 1.0, sl, col);
-        /* the prior's column: α D_jj, or the full prior's coupling of the layer's coefficients */
-        for (int l = 0; l < L; l++) {
-            const int64_t a = wt_tomography_layer_offset(t, l), b = a + wt_grid_size(wt_tomography_layer_grid(t, l));
-            if (p->c_idx[j] >= a && p->c_idx[j] < b) wt_tomography_prior_apply_layer(t, l, e + a, col + a);
-        }
+        int lj = 0;
+        while (lj + 1 < L && p->c_idx[j] >= wt_tomography_layer_offset(t, lj + 1)) lj++;
+        lgs_prior_column(t, lj, e, sl, col);
         for (int i = 0; i < q; i++) p->c_L[i + (size_t)q * j] = col[p->c_idx[i]];
         e[p->c_idx[j]] = 0.0;
     }
@@ -815,14 +823,7 @@ static int compute_fourier(wt_precond *p, wt_tomography *t)
         memset(phi, 0, (size_t)n2 * sizeof *phi);
         phi[centre] = 1.0;
         wt_wavelet_forward(wt_tomography_wavelet(t, lp), phi, e + o, p->fd_wwork);
-        /* M̃'s column: the NGS slopes dropped before the adjoint (as coarse_ngs's block), the layer's prior */
-        memset(sl, 0, (size_t)sys->nslopes * sizeof *sl);
-        wt_tomography_slopes(t, 1.0, e, sl);
-        for (int m = sys->nlgs; m < sys->nsensors; m++)
-            memset(sl + sys->sensors[m].offset, 0, (size_t)sys->sensors[m].nslopes * sizeof *sl);
-        memset(col, 0, (size_t)p->n * sizeof *col);
-        wt_tomography_rhs(t, 1.0, sl, col);
-        wt_tomography_prior_apply_layer(t, lp, e + o, col + o);
+        lgs_prior_column(t, lp, e, sl, col); /* M̃'s column, as coarse_ngs's block */
         for (int l = 0; l < L; l++) {
             wt_wavelet_inverse(wt_tomography_wavelet(t, l), col + wt_tomography_layer_offset(t, l), phi, p->fd_wwork);
             fftw_execute_dft_r2c(p->fd_r2c, phi, hat);
@@ -862,12 +863,6 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
     const wt_tomography *t = p->tomo;
     const int L = wt_tomography_nlayers(t);
     const int64_t nk = p->fd_nk;
-    const double *rd = r;
-    if (p->nc > 0) { /* the filter on the other coefficients only: E_dᵀ B_F⁻¹ E_d, a compression, stays SPD */
-        memcpy(p->fd_r, r, (size_t)p->n * sizeof *r);
-        for (int i = 0; i < p->nc; i++) p->fd_r[p->c_idx[i]] = 0.0;
-        rd = p->fd_r;
-    }
 #pragma omp parallel num_threads(p->nthreads)
     {
         /* the coarse block's solve reads only r: one thread starts with it while the other takes layers */
@@ -879,7 +874,14 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
             double *phi = fourier_phi(p, id), *ww = p->fd_wwork + (size_t)id * p->fd_wsize;
             double *hat = (double *)fourier_hat(p, id);
             const wt_wavelet *w = wt_tomography_wavelet(t, l);
-            const int64_t o = wt_tomography_layer_offset(t, l);
+            const int64_t o = wt_tomography_layer_offset(t, l), m2 = (int64_t)p->fd_n * p->fd_n;
+            const double *rd = r;
+            if (p->nc > 0) { /* the filter on the other coefficients only: E_dᵀ B_F⁻¹ E_d, a compression, stays SPD */
+                memcpy(p->fd_r + o, r + o, (size_t)m2 * sizeof *r);
+                for (int i = 0; i < p->nc; i++)
+                    if (p->c_idx[i] >= o && p->c_idx[i] < o + m2) p->fd_r[p->c_idx[i]] = 0.0;
+                rd = p->fd_r;
+            }
             wt_wavelet_inverse(w, rd + o, phi, ww);
             fftw_execute_dft_r2c(p->fd_r2c, phi, (fftw_complex *)hat);
             for (int64_t k = 0; k < nk; k++) {
