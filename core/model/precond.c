@@ -69,6 +69,12 @@ struct wt_precond {
     double *fd_wwork;         /* per thread: the wavelet workspace */
     double *fd_r;             /* n: r without its coarse coefficients (with a coarse block) */
     double *fd_zc;            /* n: the coarse block's solution, at its coefficients (with a coarse block) */
+    /* fourier with the NGS term: Yᵀ r as Rᵀ u on the filtered layers (see fourier_ngs_dots) */
+    int64_t *fd_rs_ptr;       /* L r + 1: the entries of column k on layer l are [ptr[l r + k], ptr[l r + k + 1]) */
+    int32_t *fd_rs_idx;       /* their points in the layer */
+    double *fd_rs_val;        /* the values of W⁻¹ R there */
+    double *fd_rc;            /* nc x r: R's rows at the coarse coefficients */
+    double *fd_dots;          /* L x r: the layers' R_sᵀ φ_l */
     size_t fd_wsize;
     fftw_plan fd_r2c, fd_c2r;
 };
@@ -857,11 +863,36 @@ fail:
     return st;
 }
 
-/* z = B_F⁻¹ r, whole layers per thread (allocates nothing; the same bits on any thread count) */
-static void fourier_apply(const wt_precond *p, const double *r, double *z)
+/* With the NGS term, P⁻¹ r = u − Y K⁻¹ Yᵀ r with u = B_F⁻¹ r. Yᵀ r = Rᵀ u (B_F symmetric), and Rᵀ u needs no
+ * pass over Y (n x r, 14 MB at E-ELT size, read twice per apply before): R's columns are the NGS slopes'
+ * adjoints, in space W⁻¹ R a few hundred points per layer (the sensors' subaperture rims through the bilinear
+ * projection: ~70 000 values for the E-ELT's 12 slopes), and the apply holds each layer's filtered field φ_l
+ * = W⁻¹ E_d u_d + W⁻¹ E_c c_l before its forward DWT (c_l: the coarse coefficients the DWT gives, which the
+ * block's solution u_c replaces). With W orthogonal,
+ *   Rᵀ u = Σ_l (W⁻¹ R_l)ᵀ φ_l − R_cᵀ c + R_cᵀ u_c,
+ * the sparse dots inside each layer's task, the coarse terms (nc x r) after them. Only the update z −= Y w
+ * reads Y. */
+static void lowrank_solve(const wt_precond *p, double *w);
+WT_CPU_CLONES static void yb_update(const wt_precond *p, const double *w, double *z, int64_t b0, int64_t b1);
+
+static void fourier_ngs_dots(const wt_precond *p, int l, const double *phi)
+{
+    const int q = p->nlr;
+    for (int k = 0; k < q; k++) {
+        double d = 0.0;
+        for (int64_t e = p->fd_rs_ptr[l * q + k]; e < p->fd_rs_ptr[l * q + k + 1]; e++)
+            d += p->fd_rs_val[e] * phi[p->fd_rs_idx[e]];
+        p->fd_dots[l * q + k] = d;
+    }
+}
+
+/* z = B_F⁻¹ r (ngs = 0) or P⁻¹ r (ngs = 1), whole layers per thread, then (ngs) the update by rows (allocates
+ * nothing; every value is computed in one fixed order whatever thread runs it: the same bits on any thread
+ * count) */
+static void fourier_apply(const wt_precond *p, const double *r, double *z, int ngs)
 {
     const wt_tomography *t = p->tomo;
-    const int L = wt_tomography_nlayers(t);
+    const int L = wt_tomography_nlayers(t), q = ngs ? p->nlr : 0;
     const int64_t nk = p->fd_nk;
 #pragma omp parallel num_threads(p->nthreads)
     {
@@ -889,16 +920,39 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z)
                 hat[2 * k + 1] *= p->fd_s[k];
             }
             fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, phi);
+            if (q > 0) fourier_ngs_dots(p, l, phi);
             wt_wavelet_forward(w, phi, z + o, ww);
         }
+        if (q > 0) {
+#ifdef _OPENMP
+            const int nt = omp_get_num_threads(), id = omp_get_thread_num();
+#else
+            const int nt = 1, id = 0;
+#endif
+#pragma omp single
+            {
+                double *wv = p->lr_w;
+                for (int k = 0; k < q; k++) {
+                    double d = 0.0;
+                    for (int l = 0; l < L; l++) d += p->fd_dots[l * q + k];
+                    for (int i = 0; i < p->nc; i++) /* the coarse coefficients: the block's, not the filter's */
+                        d += p->fd_rc[i + (size_t)p->nc * k] * (p->fd_zc[p->c_idx[i]] - z[p->c_idx[i]]);
+                    wv[k] = d;
+                }
+                for (int i = 0; i < p->nc; i++) z[p->c_idx[i]] = p->fd_zc[p->c_idx[i]];
+                lowrank_solve(p, wv);
+            } /* (its barrier: w ready, z's coarse coefficients set) */
+            yb_update(p, p->lr_w, z, p->lr_nblk * id / nt, p->lr_nblk * (id + 1) / nt);
+        }
     }
-    for (int i = 0; i < p->nc; i++) z[p->c_idx[i]] = p->fd_zc[p->c_idx[i]]; /* the coarse coefficients: the block's */
+    if (q == 0)
+        for (int i = 0; i < p->nc; i++) z[p->c_idx[i]] = p->fd_zc[p->c_idx[i]]; /* the coarse coefficients: the block's */
 }
 
 /* B⁻¹ r of the kind: the Fourier filter, or J⁻¹ / the layer blocks below the coarse block's exact solve */
 static void base_apply(const wt_precond *p, const double *r, double *z)
 {
-    if (p->fd_n > 0) fourier_apply(p, r, z);
+    if (p->fd_n > 0) fourier_apply(p, r, z, 0);
     else coarse_apply(p, r, z);
 }
 
@@ -1037,11 +1091,14 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
         base_apply(p, r, z);
         return;
     }
+    if (p->fd_n > 0) {
+        fourier_apply(p, r, z, 1);
+        return;
+    }
     if (p->lr_Yb) {
         coarse_ngs_apply(p, r, z);
         return;
     }
-    if (p->fd_n > 0) fourier_apply(p, r, z); /* its own parallel region; the dots and the update below */
 #pragma omp parallel num_threads(p->nthreads)
     {
 #ifdef _OPENMP
@@ -1049,9 +1106,7 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
 #else
         const int nt = 1, id = 0;
 #endif
-        if (p->fd_n > 0) {
-            /* fourier: B⁻¹ r done above */
-        } else if (p->nb > 0) {
+        if (p->nb > 0) {
             /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them (each
              * block's solve does not depend on the thread that runs it: the same bits on any thread count) */
 #pragma omp single nowait
@@ -1074,6 +1129,58 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
         } /* (its implicit barrier: w is ready for every thread, and every B⁻¹ r written) */
         wt_vec_sub_many_range(z, p->lr_Y, n, q, p->lr_w, p->lr_runs, p->lr_nruns, n * id / nt, n * (id + 1) / nt);
     }
+}
+
+/* fourier_apply's form of R (n x r, wavelet coefficients): each column on each layer in space, W⁻¹ R_l, where it
+ * is not zero (values below 1e-13 of the column's largest are the inverse DWT's rounding of zeros: dropping
+ * them changes a dot by less than its own rounding), and R's rows at the coarse coefficients. */
+static int fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const double *R)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const int L = wt_tomography_nlayers(t), q = p->nlr;
+    const int64_t m2 = (int64_t)p->fd_n * p->fd_n;
+    double *sp = NULL, *colmax = NULL;
+    WT_ALLOC(ctx, sp, (size_t)m2 * L * q, "fourier NGS columns in space");
+    WT_ALLOC(ctx, colmax, q, "fourier NGS column scale");
+    WT_ALLOC(ctx, p->fd_rs_ptr, (size_t)L * q + 1, "fourier NGS column pointers");
+    WT_ALLOC(ctx, p->fd_dots, (size_t)L * q, "fourier NGS dots");
+    WT_ALLOC(ctx, p->fd_rc, (size_t)p->nc * q + 1, "fourier NGS coarse rows");
+    for (int k = 0; k < q; k++)
+        for (int l = 0; l < L; l++) {
+            double *f = sp + (size_t)m2 * (l + (size_t)L * k);
+            wt_wavelet_inverse(wt_tomography_wavelet(t, l), R + (size_t)p->n * k + wt_tomography_layer_offset(t, l), f,
+                               p->fd_wwork);
+            for (int64_t i = 0; i < m2; i++) colmax[k] = fmax(colmax[k], fabs(f[i]));
+        }
+    int64_t nnz = 0;
+    for (int pass = 0; pass < 2; pass++) { /* count, then fill */
+        nnz = 0;
+        for (int l = 0; l < L; l++)
+            for (int k = 0; k < q; k++) {
+                const double *f = sp + (size_t)m2 * (l + (size_t)L * k);
+                if (pass) p->fd_rs_ptr[l * q + k] = nnz;
+                for (int64_t i = 0; i < m2; i++)
+                    if (fabs(f[i]) > 1e-13 * colmax[k]) {
+                        if (pass) {
+                            p->fd_rs_idx[nnz] = (int32_t)i;
+                            p->fd_rs_val[nnz] = f[i];
+                        }
+                        nnz++;
+                    }
+            }
+        if (!pass) {
+            WT_ALLOC(ctx, p->fd_rs_idx, nnz + 1, "fourier NGS column points");
+            WT_ALLOC(ctx, p->fd_rs_val, nnz + 1, "fourier NGS column values");
+        }
+    }
+    p->fd_rs_ptr[(size_t)L * q] = nnz;
+    for (int k = 0; k < q; k++)
+        for (int i = 0; i < p->nc; i++) p->fd_rc[i + (size_t)p->nc * k] = R[(size_t)p->n * k + p->c_idx[i]];
+fail:
+    wt_free(ctx, sp);
+    wt_free(ctx, colmax);
+    return st;
 }
 
 static int compute_lowrank(wt_precond *p, wt_tomography *t)
@@ -1123,7 +1230,8 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
     /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
     WT_TRY(cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
     p->nlr = q;
-    if (p->kind == WT_PRECOND_COARSE_NGS) { /* Y by blocks of 8 rows, the blocks with a non-zero */
+    if (p->fd_n > 0) WT_TRY(fourier_ngs_columns(p, t, R));
+    if (p->kind == WT_PRECOND_COARSE_NGS || p->fd_n > 0) { /* Y by blocks of 8 rows, the blocks with a non-zero */
         const int64_t nb8 = (n + 7) / 8;
         WT_ALLOC(ctx, p->lr_blk, nb8, "NGS preconditioner blocks");
         for (int64_t b = 0; b < nb8; b++) {
@@ -1217,6 +1325,11 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->fd_wwork);
     wt_free(ctx, p->fd_r);
     wt_free(ctx, p->fd_zc);
+    wt_free(ctx, p->fd_rs_ptr);
+    wt_free(ctx, p->fd_rs_idx);
+    wt_free(ctx, p->fd_rs_val);
+    wt_free(ctx, p->fd_rc);
+    wt_free(ctx, p->fd_dots);
     if (p->fd_r2c) fftw_destroy_plan(p->fd_r2c);
     if (p->fd_c2r) fftw_destroy_plan(p->fd_c2r);
     wt_free(ctx, p);
@@ -1276,5 +1389,8 @@ double wt_precond_bytes(const wt_precond *p)
            (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0) +
            (p->fd_n > 0 ? 8.0 * ((double)p->fd_nk + (double)p->nthreads * (double)(p->fd_slice + p->fd_wsize) +
                                  (p->fd_r ? 2.0 * (double)p->n : 0.0))
-                        : 0.0);
+                        : 0.0) +
+           (p->fd_rs_ptr ? 12.0 * (double)p->fd_rs_ptr[wt_tomography_nlayers(p->tomo) * p->nlr] +
+                               8.0 * (double)p->nlr * (p->nc + wt_tomography_nlayers(p->tomo))
+                         : 0.0);
 }
