@@ -35,7 +35,7 @@ typedef struct {
     const wt_recon_variant_config *v;
 } fixture;
 
-static void setup(fixture *f, int cg9, int low, int nextra, const char *const *extra)
+static void setup_basis(fixture *f, int cg9, int low, int nextra, const char *const *extra, int space)
 {
     const char *set[8];
     int nset = 0;
@@ -46,9 +46,21 @@ static void setup(fixture *f, int cg9, int low, int nextra, const char *const *e
     ck_assert_msg(wt_system_alloc(f->ctx, f->cfg, &f->sys) == WT_OK, "%s", wt_error_message(f->ctx));
     wt_tomography_params tp;
     wt_tomography_params_from_config(f->cfg, &tp);
+    tp.space = space;
     f->v = cg9 ? &f->cfg->cg9 : &f->cfg->pcg3;
     ck_assert_msg(wt_tomography_alloc(f->ctx, f->sys, f->v, cg9 ? "cg9" : "pcg3", &tp, &f->t) == WT_OK, "%s",
                   wt_error_message(f->ctx));
+}
+
+static void setup(fixture *f, int cg9, int low, int nextra, const char *const *extra)
+{
+    setup_basis(f, cg9, low, nextra, extra, 0);
+}
+
+/* the fourier kind's: cg9's unknowns as the layers' values */
+static void setup_space(fixture *f, int low, int nextra, const char *const *extra)
+{
+    setup_basis(f, 1, low, nextra, extra, 1);
 }
 
 static void teardown(fixture *f)
@@ -102,11 +114,10 @@ START_TEST(test_symmetric_positive_definite)
     for (int kind = 0; kind < WT_PRECOND_NKINDS; kind++) {
         const wt_precond_params pp = {.kind = kind, .coarse_levels = 2};
         wt_precond *p = NULL;
-        if (kind == WT_PRECOND_FOURIER) { /* the demo's layers differ in size or spacing: refused (fourier's own
-                                            test below uses one grid) */
-            ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_CONFIG);
+        if (kind == WT_PRECOND_FOURIER) { /* on wavelet coefficients: refused (its own tests below) */
+            ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
             ck_assert_ptr_null(p);
-            ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "fourier preconditioner needs every layer on one"));
+            ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "unknowns must be the layers' values"));
             continue;
         }
         ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
@@ -478,8 +489,10 @@ START_TEST(test_multilevel_reaches_direct)
 END_TEST
 
 /* The fourier kind, with its NGS term (demo cg9 on one grid; paper noise with the filter alone, low noise
- * with the coarse block of the scaling coefficients): symmetric and positive definite. Its B⁻¹ applies an
- * orthonormal DWT pair and a real FFT pair per layer around the filter s(k) > 0; each is backward stable with an error of a few u log2(n²) relative to the vector's norm, so a product
+ * with the coarse block of the scaling coefficients; the unknowns the layers' values): symmetric and positive
+ * definite. Its B⁻¹ applies a real FFT pair per layer around the filter s(k) > 0 and the coarse space's
+ * orthonormal projections; each is backward stable with an error of a few u log2(n²) relative to the
+ * vector's norm, so a product
  * xᵀ P⁻¹ y carries an error of order u log2(n²) ‖x‖ ‖y‖ ‖B⁻¹‖, and the Woodbury term's two products
  * (Y K⁻¹ Yᵀ ≼ B⁻¹) as much. The test asks |xᵀP⁻¹y − yᵀP⁻¹x| ≤ 16 n u ‖x‖ ‖y‖ ‖P⁻¹‖₂ (the other kinds'
  * 16 n u, ‖P⁻¹‖₂ by 30 power iterations, a lower bound of ‖B⁻¹‖), and zᵀ P⁻¹ z > 0 on random vectors and on
@@ -487,7 +500,7 @@ END_TEST
 START_TEST(test_fourier_spd)
 {
     fixture f;
-    setup(&f, 1, _i, 1, ONE_GRID);
+    setup_space(&f, _i, 1, ONE_GRID);
     const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
     const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = _i ? 0 : -1};
     wt_precond *p = NULL;
@@ -539,7 +552,7 @@ START_TEST(test_fourier_filter)
     static const char *const sets[] = {"recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]", "ngs.azimuths_deg=[]",
                                        "ngs.subapertures=[]"};
     fixture f;
-    setup(&f, 1, 1, 3, sets);
+    setup_space(&f, 1, 3, sets);
     const int64_t n = wt_tomography_nunknowns(f.t);
     const wt_grid *g = wt_tomography_layer_grid(f.t, 0);
     const int N = g->nx, L = wt_tomography_nlayers(f.t);
@@ -548,7 +561,7 @@ START_TEST(test_fourier_filter)
     ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
     ck_assert_int_eq(wt_precond_rank(p), 0);
     double *phi = malloc(N * N * sizeof *phi), *c = calloc(n, sizeof *c), *z = malloc(n * sizeof *z),
-           *zphi = malloc(N * N * sizeof *zphi), *w = malloc(wt_wavelet_work_size(wt_tomography_wavelet(f.t, 0)) * sizeof *w);
+           *zphi = malloc(N * N * sizeof *zphi);
     double nrm = 0.0;
     {
         double *v = malloc(n * sizeof *v), *pv = malloc(n * sizeof *pv);
@@ -572,13 +585,13 @@ START_TEST(test_fourier_filter)
                     phi[ix + N * iy] = cos(2.0 * M_PI * (freq[fi][0] * ix + freq[fi][1] * iy) / N + 0.3);
             memset(c, 0, n * sizeof *c);
             const int64_t o = wt_tomography_layer_offset(f.t, l);
-            wt_wavelet_forward(wt_tomography_wavelet(f.t, l), phi, c + o, w);
+            memcpy(c + o, phi, (size_t)N * N * sizeof *c); /* the unknowns are the values */
             wt_precond_apply(p, c, z);
             for (int l2 = 0; l2 < L; l2++)
                 if (l2 != l)
                     for (int64_t i = 0; i < (int64_t)N * N; i++)
                         ck_assert_double_eq(z[wt_tomography_layer_offset(f.t, l2) + i], 0.0);
-            wt_wavelet_inverse(wt_tomography_wavelet(f.t, l), z + o, zphi, w);
+            memcpy(zphi, z + o, (size_t)N * N * sizeof *z);
             const double factor = tu_dot(zphi, phi, (long)N * N) / tu_dot(phi, phi, (long)N * N);
             double res = 0.0;
             for (int64_t i = 0; i < (int64_t)N * N; i++) res += pow(zphi[i] - factor * phi[i], 2);
@@ -599,12 +612,13 @@ START_TEST(test_fourier_filter)
     wt_context_set_threads(f.ctx, 2);
     wt_tomography_params tp;
     wt_tomography_params_from_config(f.cfg, &tp);
+    tp.space = 1;
     ck_assert_int_eq(wt_tomography_alloc(f.ctx, f.sys, f.v, "cg9", &tp, &f.t), WT_OK);
     ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_OK);
     wt_precond_apply(p, r, z1);
     ck_assert_int_eq(memcmp(z, z1, n * sizeof *z), 0);
     wt_precond_free(p);
-    free(phi), free(c), free(z), free(zphi), free(w), free(r), free(z1);
+    free(phi), free(c), free(z), free(zphi), free(r), free(z1);
     teardown(&f);
 }
 END_TEST
@@ -616,8 +630,9 @@ END_TEST
  * tolerance of test_multilevel_reaches_direct) when that is smaller. */
 START_TEST(test_fourier_condition_and_direct)
 {
-    fixture f;
+    fixture f, fs; /* wavelet coefficients (none, jacobi_ngs), the layers' values (fourier): κ(M) is the same */
     setup(&f, 1, 1, 1, ONE_GRID);
+    setup_space(&fs, 1, 1, ONE_GRID);
     const int64_t n = wt_tomography_nunknowns(f.t);
     double *b = malloc(n * sizeof *b);
     tu_randn(b, n, 31);
@@ -625,21 +640,23 @@ START_TEST(test_fourier_condition_and_direct)
     const int kinds[] = {WT_PRECOND_NONE, WT_PRECOND_JACOBI_NGS, WT_PRECOND_FOURIER};
     wt_precond *p = NULL;
     for (int i = 0; i < 3; i++) {
+        fixture *fi = i == 2 ? &fs : &f;
         const wt_precond_params pp = {.kind = kinds[i], .coarse_levels = 0};
-        ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
+        ck_assert_msg(wt_precond_alloc(fi->ctx, fi->t, &pp, &p) == WT_OK, "%s", wt_error_message(fi->ctx));
         int its = 0;
-        kappa[kinds[i]] = lanczos_kappa(&f, p, b, 8000, &its);
+        kappa[kinds[i]] = lanczos_kappa(fi, p, b, 8000, &its);
         fprintf(stderr, "condition cg9 one grid low noise %-10s: kappa %.4g (%d CG iterations)\n",
                 wt_precond_kind_name(kinds[i]), kappa[kinds[i]], its);
         if (i < 2) wt_precond_free(p);
     }
     ck_assert_double_lt(kappa[WT_PRECOND_FOURIER], kappa[WT_PRECOND_NONE]);
     ck_assert_double_lt(kappa[WT_PRECOND_FOURIER], kappa[WT_PRECOND_JACOBI_NGS]);
-    const double rd = direct_gap(&f, p, 6000);
+    const double rd = direct_gap(&fs, p, 6000);
     ck_assert_double_le(rd, fmax(1e-8, 2.0 * 1.1e-16 * kappa[WT_PRECOND_NONE]));
     wt_precond_free(p);
     free(b);
     teardown(&f);
+    teardown(&fs);
 }
 END_TEST
 
@@ -745,6 +762,19 @@ START_TEST(test_names_and_refusals)
         ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "coarse_levels 3"));
     }
     teardown(&f);
+    /* the unknowns as the layers' values: only none and fourier; the DWT's kinds are refused */
+    setup_space(&f, 0, 1, ONE_GRID);
+    for (int kind = WT_PRECOND_JACOBI; kind <= WT_PRECOND_MULTILEVEL; kind++) {
+        pp = (wt_precond_params){.kind = kind, .coarse_levels = 0};
+        ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_INVALID);
+        ck_assert_ptr_null(p);
+        ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "only none and fourier"));
+    }
+    pp = (wt_precond_params){.kind = WT_PRECOND_FOURIER, .coarse_levels = 6}; /* 32 >> 0: the whole layer */
+    ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &p), WT_ERR_CONFIG);
+    ck_assert_ptr_null(p);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(f.ctx), "at most 4096"));
+    teardown(&f);
 }
 END_TEST
 
@@ -756,9 +786,9 @@ START_TEST(test_allocation_failures)
     tu_alloc fa = TU_ALLOC_INIT;
     for (int kind = WT_PRECOND_JACOBI; kind < WT_PRECOND_NKINDS; kind++) {
         const wt_precond_params pp = {.kind = kind, .coarse_levels = 1};
-        if (kind == WT_PRECOND_FOURIER) { /* on one grid: cg9 at 0.5 m */
+        if (kind == WT_PRECOND_FOURIER) { /* on one grid, the unknowns the layers' values */
             teardown(&f);
-            setup(&f, 1, 0, 1, ONE_GRID);
+            setup_space(&f, 0, 1, ONE_GRID);
         }
         for (int b = 0; b < 40; b++) {
             wt_precond *p = NULL;

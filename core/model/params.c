@@ -54,5 +54,6 @@ void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int ite
     par->fit_iterations = v->fit_iterations;
     wt_tomography_params_from_config(cfg, &par->tomography);
     par->precond = wt_precond_params_from_variant(v);
+    par->tomography.space = v->preconditioner == WT_PRECOND_FOURIER; /* fourier filters the layers' values */
     par->fitting = wt_fitting_params_from_variant(v);
 }

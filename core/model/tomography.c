@@ -32,6 +32,7 @@ struct wt_tomography {
     double *alpha_d;
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
+    int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
     size_t pwsize;            /* its work per thread (doubles) */
@@ -116,6 +117,7 @@ int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->of
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
 int wt_tomography_full_prior(const wt_tomography *t) { return t->full_prior; }
+int wt_tomography_space(const wt_tomography *t) { return t->space; }
 const char *wt_tomography_variant(const wt_tomography *t) { return t->variant; }
 
 /* y += α W C_φ⁻¹ Wᵀ c on layer l (or α D c for a diagonal prior), on the given work arrays. */
@@ -125,6 +127,11 @@ static void prior_layer(const wt_tomography *t, int l, const double *c, double *
     const int64_t a = t->off[l], nl = t->off[l + 1] - a;
     if (!t->full_prior) {
         for (int64_t i = 0; i < nl; i++) y[i] += t->alpha_d[a + i] * c[i];
+        return;
+    }
+    if (t->space) { /* (space needs the full prior: checked at set-up) */
+        wt_prior_apply_full(t->prior[l], t->alpha, c, q, pwork);
+        for (int64_t i = 0; i < nl; i++) y[i] += q[i];
         return;
     }
     wt_wavelet_inverse(t->wav[l], c, phi, wwork);
@@ -299,6 +306,13 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                                                                                                 : WT_PRIOR_PAPER;
     const int prior_flags = kind | (par->prior_flags & WT_PRIOR_ALIASED);
     t->full_prior = kind == WT_PRIOR_FULL;
+    t->space = par->space != 0;
+    if (t->space && !t->full_prior) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: recon.%s: unknowns in space (the fourier preconditioner) need the full "
+                      "prior (recon.%s.prior = \"full\"), got \"%s\"", par->source ? par->source : "tomography",
+                      variant_name, variant_name, kind == WT_PRIOR_EXACT ? "exact" : "paper");
+        goto fail;
+    }
     for (int l = 0; l < t->L; l++) {
         int levels = par->wavelet_levels;
         WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, par->wavelet_order, levels, &t->wav[l]));
@@ -482,6 +496,10 @@ static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] 
 /* phi = W⁻¹ c layer by layer */
 static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
 {
+    if (t->space) { /* the unknowns are the values */
+        if (phi != c) memcpy(phi, c, (size_t)t->n * sizeof *phi);
+        return;
+    }
 #pragma omp parallel num_threads(t->nthreads)
     {
         int id, nt;
@@ -546,14 +564,15 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
         for (int l = 0; l < t->L; l++) {
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
+            double *sum = t->space ? c : w->phi; /* in space the sum is the result */
             for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
                 double v = w->acc[i];
                 for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
-                w->phi[i] = v;
+                sum[i] = v;
             }
             if (cx && t->full_prior)
-                for (int64_t i = a; i < b; i++) w->phi[i] += w->pphi[i];
-            wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
+                for (int64_t i = a; i < b; i++) sum[i] += w->pphi[i];
+            if (!t->space) wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
             if (cx && !t->full_prior)
                 for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
         }
@@ -586,9 +605,13 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
 static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
-    inverse_dwt(t, w, c, w->phi);
-    if (t->full_prior) forward_slopes_prior(t, w, w->phi, w->slopes);
-    else forward_slopes(t, w, w->phi, w->slopes);
+    const double *phi = c;
+    if (!t->space) {
+        inverse_dwt(t, w, c, w->phi);
+        phi = w->phi;
+    }
+    if (t->full_prior) forward_slopes_prior(t, w, phi, w->slopes);
+    else forward_slopes(t, w, phi, w->slopes);
     adjoint_prior(t, w, w->slopes, c, y);
 }
 
@@ -699,8 +722,10 @@ void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
         int N = wt_wavelet_order(t->wav[l]), J = wt_wavelet_levels(t->wav[l]);
         double m2 = (double)wt_grid_size(&t->grid[l]), lev = 0.0;
         for (int j = 0; j < J; j++) lev += m2 / (double)(1 << (2 * j));
-        f += 2.0 * 8.0 * N * lev;             /* forward + inverse */
-        b += 2.0 * 2.0 * 8.0 * lev * 2.0;     /* read + write each level, both passes, both transforms */
+        if (!t->space) {                      /* (in space: no transforms) */
+            f += 2.0 * 8.0 * N * lev;         /* forward + inverse */
+            b += 2.0 * 2.0 * 8.0 * lev * 2.0; /* read + write each level, both passes, both transforms */
+        }
         if (t->full_prior) {
             /* α C⁻¹ φ: a real FFT and its inverse (~2.5 m² log₂ m² flops each), the complex scaling; the
              * copies in and out and the transforms' passes over the layer and its half spectrum */

@@ -13,7 +13,11 @@
  * reconstruction altitudes, each true layer split between the two nearest reconstruction layers
  * linearly in altitude (all of it to the end layer outside their range); a floor of 1e-3 keeps a layer
  * that receives nothing regularised.
- * Unknowns: wavelet coefficients of the layers, concatenated layer by layer (Mallat layout each).
+ * Unknowns: wavelet coefficients of the layers, concatenated layer by layer (Mallat layout each); or, with
+ * wt_tomography_params.space (the fourier preconditioner's, which needs the full prior), the layers' values
+ * themselves, φ = W⁻¹ c: M_φ = W⁻¹ M W, b_φ = W⁻¹ b. W is orthogonal, so (P)CG on (M_φ, W⁻¹ P⁻¹ W) takes the
+ * same steps as on (M, P⁻¹) in exact arithmetic; the operator skips its DWT pair per layer (the full prior and
+ * the data term both act on φ), the preconditioner its own.
  *
  * Workspaces (GSL's habit): wt_tomography_apply_ws takes a const operator and a caller-owned
  * wt_tomography_work, so two threads with one workspace each can apply one operator at once. The other
@@ -49,6 +53,7 @@ typedef struct wt_tomography_params {
     double loop_noise_gain; /* κ = Σh², the integrator's noise gain (wt_noise_loop_gain): with the variant's
                                loop_noise_average the sensors' σ² is multiplied by it, the model error not */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
+    int space;             /* 1: the unknowns are the layers' values (needs the full prior), 0: wavelet coefficients */
 } wt_tomography_params;
 
 /* var: the reconstructor variant (cfg->pcg3 or cfg->cg9): layers, iterations, tolerance; par: α,
@@ -83,6 +88,8 @@ const double *wt_tomography_alpha_prior(const wt_tomography *t);
 /* 1 when the prior is the full (non-diagonal) form: alpha_prior is then only its diagonal, and no sparse
  * assembly of the operator (the MVM) can hold it. */
 int wt_tomography_full_prior(const wt_tomography *t);
+/* 1 when the unknowns are the layers' values (wt_tomography_params.space), 0 for wavelet coefficients */
+int wt_tomography_space(const wt_tomography *t);
 const char *wt_tomography_variant(const wt_tomography *t); /* "pcg3" or "cg9" (as allocated) */
 /* y += the prior part of M times c, for c nonzero in layer l only (y: that layer's n_l coefficients, c the
  * same): α D c, or with the full prior α W C_φ⁻¹ Wᵀ c. Set-up use (the preconditioners' exact blocks): it
