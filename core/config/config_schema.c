@@ -133,10 +133,13 @@
        "block, multilevel = coarse_ngs with, below the coarse block, the layers' coefficients at each "     \
        "detail level, orientation and position inverted as one exact block, fourier = each spatial "       \
        "frequency of the layers scaled by the inverse of the largest eigenvalue of the layers' symbol "    \
-       "there, plus the NGS term (every layer on one n x n grid), none = plain CG"),                      \
+       "there, the coarsest scales solved exactly, plus the NGS term (every layer on one n x n grid, the full "  \
+       "prior; the solve runs on the layers' values instead of their wavelet coefficients: the same "       \
+       "iterates without the DWTs), none = plain CG"),                      \
     {pre ".coarse_levels", K_INT, F_DEFAULT, 0, 30, "", 1, CF(v.coarse_levels), NOCOUNT, 0, 0, NULL, 2,       \
      "coarse_ngs and multilevel: the coarse block holds the scaling coefficients and the coarse_levels "   \
-     "coarsest detail levels of every layer (optional, default 2)"},                                      \
+     "coarsest detail levels of every layer; fourier: the same space, exactly (0 = the scaling "          \
+     "functions: the E-ELT preset's comment) (optional, default 2)"},                                      \
     {pre ".loop_noise_average", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(v.loop_noise_average), NOCOUNT, 0, 0, NULL, 0, \
      "noise model of the loop's command: the sensors' noise variance times the integrator's noise gain "   \
      "(the sum of its squared impulse response for loop.gain and loop.delay_frames, 0.389 for 0.4 and 2); " \

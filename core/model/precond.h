@@ -10,12 +10,15 @@
  *                                                       per detail level, orientation and position, the
  *                                                       L x L block of the L layers' coefficients there
  *                                                       (docs/design.md "Multilevel preconditioner")
- *   fourier     P = B_F + G Ĉ⁻¹_NGS Gᵀ                    B_F = coarse_ngs's exact coarse block and, on the other
- *                                                       coefficients, the filter W F⁻¹ diag(1/λ_max A(k)) F Wᵀ:
- *                                                       each spatial frequency of every layer scaled by the
- *                                                       inverse of the largest eigenvalue of the L x L symbol
- *                                                       A(k) of the LGS + prior part of M (the layers' common
- *                                                       mode); layers of one n x n grid only (docs/design.md
+ *   fourier     P = B_F + G Ĉ⁻¹_NGS Gᵀ                    B_F = the exact block of the LGS + prior part of M on
+ *                                                       the coarse space (each layer's coarsest scaling
+ *                                                       functions) and, on its complement, the filter
+ *                                                       F⁻¹ diag(1/λ_max A(k)) F: each spatial frequency of
+ *                                                       every layer scaled by the inverse of the largest
+ *                                                       eigenvalue of the L x L symbol A(k) of that part (the
+ *                                                       layers' common mode); layers of one n x n grid, the
+ *                                                       tomography's unknowns the layers' values
+ *                                                       (wt_tomography_space: the full prior) (docs/design.md
  *                                                       "Fourier filter")
  *
  * where G = [Ãᵀ e_k] over the r NGS slopes. Every kind is symmetric positive definite; the PCG applies
@@ -43,7 +46,8 @@ typedef struct wt_precond wt_precond;
 typedef struct wt_precond_params {
     int kind;          /* WT_PRECOND_* */
     int coarse_levels; /* coarse_ngs, multilevel, fourier: detail levels in the coarse block besides the
-                          scaling coefficients [-]; fourier only: < 0 = no coarse block (the filter alone) */
+                          scaling coefficients (fourier: the scaling functions of that many levels finer) [-];
+                          fourier only: < 0 = no coarse block (the filter alone) */
 } wt_precond_params;
 
 /* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"; NULL for an unknown kind. */
@@ -55,8 +59,10 @@ int wt_precond_kind(const char *name);
  * Cost at E-ELT size: jacobi ~1 s (coloured probing), the NGS term r applies of the adjoint, coarse_ngs
  * nc applies of M (3-10 s for nc = 384), multilevel that and L forward applies per colour of every
  * detail level below the coarse block (~the cost of the Jacobi probing), fourier L applies and L² FFTs.
- * WT_ERR_INVALID for an unknown kind or a negative coarse_levels (but fourier's), WT_ERR_CONFIG when the coarse block would exceed 4096 coefficients or
- * (fourier) the layers are not on one grid, WT_ERR_NUMERIC when a block is not positive definite. */
+ * WT_ERR_INVALID for an unknown kind, a negative coarse_levels (but fourier's), fourier on wavelet
+ * coefficients or another kind but none on the layers' values (wt_tomography_space); WT_ERR_CONFIG when the
+ * coarse block would exceed 4096 coefficients or (fourier) the layers are not on one grid; WT_ERR_NUMERIC
+ * when a block is not positive definite. */
 int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out);
 void wt_precond_free(wt_precond *p);
 

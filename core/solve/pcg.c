@@ -98,20 +98,17 @@ static double dot(const wt_pcg *w, const double *a, const double *b)
     return wt_vec_dot_finish(part);
 }
 
-/* mode 0: x += a p, r −= a q; mode 1: r = (b − b_prev) + r (the continued solve's initial residual; x, p, q
- * unused), and with bb also bᵀb (the same chunk sums as dot(b, b), in the same pass); then rᵀr. Each thread
- * updates the rows of its own chunks, then sums them. */
-static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *p, const double *q, double *x,
-                             double *r, const double *b, const double *b_prev, double *bb)
+/* mode 0: r −= a q (x's update waits for the pass over p: update_p); mode 1: r = (b − b_prev) + r (the continued
+ * solve's initial residual; x, p, q unused), and with bb also bᵀb (the same chunk sums as dot(b, b), in the same
+ * pass); then rᵀr. Each thread updates the rows of its own chunks, then sums them. */
+static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *q, double *r, const double *b,
+                             const double *b_prev, double *bb)
 {
     const int64_t n = w->n;
     if (!parallel_vectors(w)) {
         if (mode == 0)
 #pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)
-            for (int64_t i = 0; i < n; i++) {
-                x[i] += a * p[i];
-                r[i] -= a * q[i];
-            }
+            for (int64_t i = 0; i < n; i++) r[i] -= a * q[i];
         else
             for (int64_t i = 0; i < n; i++) r[i] = (b[i] - b_prev[i]) + r[i];
         if (bb) *bb = wt_vec_dot(b, b, n);
@@ -125,10 +122,7 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
         my_chunks(&c0, &c1);
         const int64_t i0 = c0 * len < n ? c0 * len : n, i1 = c1 * len < n ? c1 * len : n;
         if (mode == 0)
-            for (int64_t i = i0; i < i1; i++) {
-                x[i] += a * p[i];
-                r[i] -= a * q[i];
-            }
+            for (int64_t i = i0; i < i1; i++) r[i] -= a * q[i];
         else
             for (int64_t i = i0; i < i1; i++) r[i] = (b[i] - b_prev[i]) + r[i];
         if (bb) wt_vec_dot_part(b, b, n, c0, c1, bpart);
@@ -136,6 +130,18 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
     }
     if (bb) *bb = wt_vec_dot_finish(bpart);
     return wt_vec_dot_finish(part);
+}
+
+/* x += a p and then p = z + β p, in one pass over p (β = 0 and z = NULL: x += a p alone, at the solve's end).
+ * x's update is the iteration's own (x + a p with the p of its step), only later: the same values. */
+static void update_p(const wt_pcg *w, double a, double beta, const double *z, double *x, double *p)
+{
+    const int64_t n = w->n;
+#pragma omp parallel for schedule(static) if (parallel_vectors(w)) num_threads(w->nthreads)
+    for (int64_t i = 0; i < n; i++) {
+        x[i] += a * p[i];
+        if (z) p[i] = z[i] + beta * p[i];
+    }
 }
 
 /* p = z, on the threads' chunks like the other updates (a copy: the same values) */
@@ -222,7 +228,7 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
     /* continued: A x = b_prev − r_prev, so r = b − b_prev + r_prev in place, in the pass that sums bᵀb (r is
      * kept consistent with x below on every return, as the caller requires) */
     double bb, rr = 0.0;
-    if (b_prev) rr = update_r_norm2(w, 1, 0.0, NULL, NULL, NULL, r, b, b_prev, &bb);
+    if (b_prev) rr = update_r_norm2(w, 1, 0.0, NULL, r, b, b_prev, &bb);
     else bb = dot(w, b, b);
     double bnorm = sqrt(bb);
     if (!isfinite(bnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: right-hand side holds NaN or Inf");
@@ -262,19 +268,26 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         if (!(pq > 0.0))
             return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration 1 (operator not positive definite)", pq);
         double a = rz / pq;
-        rnorm = sqrt(update_r_norm2(w, 0, a, p, q, x, r, NULL, NULL, NULL));
+        rnorm = sqrt(update_r_norm2(w, 0, a, q, r, NULL, NULL, NULL));
         res->iterations = k + 1;
         res->rel_resid = rnorm / bnorm;
         if (history) history[k + 1] = rnorm / bnorm;
-        if (!isfinite(rnorm)) return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: residual became non-finite at iteration %d", k + 1);
-        if (rtol > 0.0 && rnorm <= rtol * bnorm) return WT_OK;
-        if (rnorm == 0.0) return WT_OK; /* exact solution: nothing left to do (rtol = 0 included) */
-        if (k + 1 == max_iter) break;
+        /* from here x still waits for + a p: every return below gives it first */
+        if (!isfinite(rnorm)) {
+            update_p(w, a, 0.0, NULL, x, p);
+            return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: residual became non-finite at iteration %d", k + 1);
+        }
+        if ((rtol > 0.0 && rnorm <= rtol * bnorm) || rnorm == 0.0 || k + 1 == max_iter) {
+            update_p(w, a, 0.0, NULL, x, p); /* (rnorm = 0: exact solution, nothing left to do, rtol = 0 included) */
+            if (k + 1 == max_iter && !(rtol > 0.0 && rnorm <= rtol * bnorm) && rnorm != 0.0) break;
+            return WT_OK;
+        }
         if (inv_diag)
             for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
         else if (P) P(puser, r, z);
         double rz_new = dot(w, r, zz);
         if (!(rz_new > 0.0)) { /* rounding level reached (or a preconditioner that is not SPD: first iteration) */
+            update_p(w, a, 0.0, NULL, x, p);
             if (!isfinite(rz_new))
                 return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: rᵀz = %g at iteration %d (the preconditioner returned NaN "
                                 "or Inf)", rz_new, k + 1);
@@ -282,8 +295,7 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         }
         double beta = rz_new / rz;
         rz = rz_new;
-#pragma omp parallel for schedule(static) if (parallel_vectors(w)) num_threads(w->nthreads)
-        for (int64_t i = 0; i < n; i++) p[i] = zz[i] + beta * p[i];
+        update_p(w, a, beta, zz, x, p);
     }
     return rtol > 0.0 ? WT_WARN_MAXITER : WT_OK;
 }
