@@ -373,6 +373,15 @@ START_TEST(test_full_prior_operator)
 }
 END_TEST
 
+/* out = W⁻¹ x, layer by layer (w: the largest layer's wavelet workspace) */
+static void to_space(const wt_tomography *t, const double *x, double *out, double *w)
+{
+    for (int l = 0; l < wt_tomography_nlayers(t); l++) {
+        const int64_t o = wt_tomography_layer_offset(t, l);
+        wt_wavelet_inverse(wt_tomography_wavelet(t, l), x + o, out + o, w);
+    }
+}
+
 /* The unknowns as the layers' values (wt_tomography_params.space, the fourier kind's): the operator is the
  * wavelet one conjugated by the orthonormal DWT, M_φ W⁻¹ c = W⁻¹ M c, b_φ = W⁻¹ b, Ã_φ W⁻¹ c = Ã c, and the
  * layers are the unknowns themselves (demo cg9, full prior). The two sides differ by the DWT pairs' rounding,
@@ -400,25 +409,16 @@ START_TEST(test_space_unknowns)
     w = malloc(wsize * sizeof *w);
     tu_randn(c, n, 61);
     tu_randn(s, ns, 62);
-    for (int l = 0; l < wt_tomography_nlayers(f.t); l++) { /* φ = W⁻¹ c */
-        const int64_t o = wt_tomography_layer_offset(f.t, l);
-        wt_wavelet_inverse(wt_tomography_wavelet(f.t, l), c + o, phi + o, w);
-    }
+    to_space(f.t, c, phi, w); /* φ = W⁻¹ c */
     /* M */
     tu_tomo_apply(f.t, c, y);
     tu_tomo_apply(ts, phi, ys);
-    for (int l = 0; l < wt_tomography_nlayers(f.t); l++) {
-        const int64_t o = wt_tomography_layer_offset(f.t, l);
-        wt_wavelet_inverse(wt_tomography_wavelet(f.t, l), y + o, yw + o, w);
-    }
+    to_space(f.t, y, yw, w);
     ck_assert_double_le(tu_rel_diff(ys, yw, n), 1e-12);
     /* b */
     tu_tomo_rhs(f.t, s, y);
     tu_tomo_rhs(ts, s, ys);
-    for (int l = 0; l < wt_tomography_nlayers(f.t); l++) {
-        const int64_t o = wt_tomography_layer_offset(f.t, l);
-        wt_wavelet_inverse(wt_tomography_wavelet(f.t, l), y + o, yw + o, w);
-    }
+    to_space(f.t, y, yw, w);
     ck_assert_double_le(tu_rel_diff(ys, yw, n), 1e-12);
     /* Ã and the layers */
     tu_tomo_slopes(f.t, c, sw);
