@@ -500,13 +500,19 @@ END_TEST
 START_TEST(test_fourier_spd)
 {
     fixture f;
-    setup_space(&f, _i, 1, ONE_GRID);
+    const int low = _i > 0, coarse = _i - 1; /* paper: the filter alone; low noise: coarse_levels 0, 1 */
+    setup_space(&f, low, 1, ONE_GRID);
     const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
-    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = _i ? 0 : -1};
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = coarse};
     wt_precond *p = NULL;
     ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p) == WT_OK, "%s", wt_error_message(f.ctx));
     ck_assert_str_eq(wt_precond_name(p), "fourier");
     ck_assert_int_gt(wt_precond_rank(p), 0);
+    { /* the coarse space: (n >> (J − coarse_levels))² per layer */
+        const int J = wt_wavelet_levels(wt_tomography_wavelet(f.t, 0)), N = wt_tomography_layer_grid(f.t, 0)->nx;
+        const int sc = coarse < 0 ? 0 : N >> (J - coarse);
+        ck_assert_int_eq(wt_precond_coarse_size(p), wt_tomography_nlayers(f.t) * sc * sc);
+    }
     double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y), *px = malloc(n * sizeof *px),
            *py = malloc(n * sizeof *py), *e = calloc(ns, sizeof *e);
     tu_randn(x, n, 7);
@@ -529,8 +535,8 @@ START_TEST(test_fourier_spd)
         ck_assert_msg(fabs(a - b) <= bound, "fourier: xᵀP⁻¹y %.17g, yᵀP⁻¹x %.17g, |diff| %.3g > %.3g", a, b,
                       fabs(a - b), bound);
         ck_assert(dot(x, px, n) > 0.0 && dot(y, py, n) > 0.0);
-        if (trial == 0) fprintf(stderr, "precond fourier %s: asymmetry %.2g of the bound\n", _i ? "low" : "paper",
-                                fabs(a - b) / bound);
+        if (trial == 0) fprintf(stderr, "precond fourier %s, coarse_levels %d: asymmetry %.2g of the bound\n",
+                                low ? "low" : "paper", coarse, fabs(a - b) / bound);
     }
     ngs_modes_positive(&f, p, e, x, px);
     wt_precond_free(p);
@@ -823,7 +829,7 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_multilevel_blocks_exact, 0, 2); /* pcg3, cg9 */
     tcase_add_loop_test(tc, test_multilevel_condition, 0, 2);
     tcase_add_test(tc, test_multilevel_reaches_direct);
-    tcase_add_loop_test(tc, test_fourier_spd, 0, 2); /* paper, low noise */
+    tcase_add_loop_test(tc, test_fourier_spd, 0, 3); /* paper (no coarse block), low noise (coarse_levels 0, 1) */
     tcase_add_test(tc, test_fourier_filter);
     tcase_add_test(tc, test_fourier_condition_and_direct);
     tcase_add_test(tc, test_threads_same_bits);
