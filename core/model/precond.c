@@ -1063,7 +1063,8 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z, int n
 #pragma omp for schedule(dynamic, 1)
         for (int l = 0; l < L; l++) {
             const int id = thread_id();
-            double *phi = fourier_phi(p, id), *hat = (double *)fourier_hat(p, id), *u = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n;
+            double *phi = fourier_phi(p, id), *hat = (double *)fourier_hat(p, id);
+            double *u = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n; /* the contractions' work */
             const int64_t o = wt_tomography_layer_offset(t, l);
             memcpy(phi, r + o, (size_t)m2 * sizeof *phi);
             if (p->nc > 0) { /* the filter on Π_d r: Q's coefficients out */
