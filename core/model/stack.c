@@ -43,11 +43,16 @@ void wt_sensor_stack_set(const wt_sensor_stack *st, double alpha, const double *
     stack_apply(st, alpha, x, y, phase, nthreads, 1);
 }
 
-void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,
-                                    double *phase)
+void wt_sensor_stack_phase_t(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *phase)
 {
     const wt_system *sys = st->sys;
     memset(phase, 0, (size_t)wt_grid_size(&sys->sense_grid) * sizeof *phase);
     wt_shack_hartmann_apply_t(sys->sensors[m].sh, alpha, y_m, phase);
+}
+
+void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,
+                                    double *phase)
+{
+    wt_sensor_stack_phase_t(st, m, alpha, y_m, phase);
     for (int l = 0; l < st->nin; l++) wt_projection_apply_t(st->proj[m * st->nin + l], 1.0, phase, x + st->in_offset[l]);
 }

@@ -32,6 +32,9 @@ void wt_sensor_stack_set(const wt_sensor_stack *st, double alpha, const double *
  * one sample-grid workspace, overwritten. */
 void wt_sensor_stack_set_sensor(const wt_sensor_stack *st, int m, double alpha, const double *x, double *y,
                                 double *phase);
+/* The first half of wt_sensor_stack_apply_t_sensor, for a caller that projects by layers itself: phase ←
+ * α Γ_mᵀ y_m (overwritten). */
+void wt_sensor_stack_phase_t(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *phase);
 /* x ← x + α Σ_l P_{m,l}ᵀ Γ_mᵀ y_m for sensor m alone (y_m: its slopes); phase: one sample-grid
  * workspace, overwritten. Sensors that write the same x must not run at once. */
 void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,
