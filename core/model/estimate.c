@@ -123,7 +123,9 @@ static void tomography(const wt_config *c, const sizes *s, int kind, wt_estimate
     double n = unknowns(v), L = v->nlayers;
     term(e, 88.0 * n + 16.0 * s->nslopes + 24.0 * s->ncorners * s->nsensors * L, "reconstructor vectors and stencils",
          "recon.%s.layer_size (%.3g unknowns), lgs.wfs.subapertures, lgs.count", name, n);
-    double per_iter = 2.0 * 16.0 * c->wavelet_order * n * 4.0 / 3.0 + 32.0 * s->ncorners * L * s->nsensors + 22.0 * s->nslopes;
+    /* (the fourier kind solves for the layers' values: no DWT pair, wt_tomography_space) */
+    const double dwt = v->preconditioner == WT_PRECOND_FOURIER ? 0.0 : 2.0 * 16.0 * c->wavelet_order * n * 4.0 / 3.0;
+    double per_iter = dwt + 32.0 * s->ncorners * L * s->nsensors + 22.0 * s->nslopes;
     *flops = per_iter * (v->iterations + 1);
     if (kind == WT_RECON_CG9) {
         double samples = sq(c->lgs_wfs.subapertures * (v->fit_sampling > 0 ? v->fit_sampling : 1) + 1);
