@@ -73,6 +73,18 @@ static void teardown(fixture *f)
 
 static double dot(const double *x, const double *y, int64_t n) { return tu_dot(x, y, (long)n); }
 
+/* Random x, y (seeds s, s + 1): P⁻¹ x and P⁻¹ y into px, py, and *a = xᵀ P⁻¹ y, *b = yᵀ P⁻¹ x */
+static void random_pair(const wt_precond *p, int64_t n, unsigned s, double *x, double *y, double *px, double *py,
+                        double *a, double *b)
+{
+    tu_randn(x, n, s);
+    tu_randn(y, n, s + 1);
+    wt_precond_apply(p, x, px);
+    wt_precond_apply(p, y, py);
+    *a = dot(x, py, n);
+    *b = dot(y, px, n);
+}
+
 /* zᵀ P⁻¹ z > 0 on the NGS modes G e_k = Ãᵀ Ĉ⁻¹ e_k: where Y K⁻¹ Yᵀ nearly cancels B⁻¹, the place a loss of
  * definiteness would show (e: zeroed slopes; ax, ay: n values of work) */
 static void ngs_modes_positive(fixture *f, const wt_precond *p, double *e, double *ax, double *ay)
@@ -127,11 +139,8 @@ START_TEST(test_symmetric_positive_definite)
         ck_assert(kind == WT_PRECOND_NONE ? jinv == NULL : jinv != NULL);
         double worst = 0.0;
         for (int trial = 0; trial < 4; trial++) {
-            tu_randn(x, n, 100 + 2 * trial);
-            tu_randn(y, n, 101 + 2 * trial);
-            wt_precond_apply(p, x, px);
-            wt_precond_apply(p, y, py);
-            const double a = dot(x, py, n), b = dot(y, px, n);
+            double a, b;
+            random_pair(p, n, 100 + 2 * trial, x, y, px, py, &a, &b);
             double scale = 0.0;
             const int64_t nb = wt_precond_nblocks(p);
             int64_t idx[WT_MAX_LAYERS];
@@ -526,11 +535,8 @@ START_TEST(test_fourier_spd)
     }
     ck_assert(norm > 0.0 && isfinite(norm));
     for (int trial = 0; trial < 4; trial++) {
-        tu_randn(x, n, 200 + 2 * trial);
-        tu_randn(y, n, 201 + 2 * trial);
-        wt_precond_apply(p, x, px);
-        wt_precond_apply(p, y, py);
-        const double a = dot(x, py, n), b = dot(y, px, n);
+        double a, b;
+        random_pair(p, n, 200 + 2 * trial, x, y, px, py, &a, &b);
         const double bound = 16.0 * (double)n * 1.1e-16 * sqrt(dot(x, x, n) * dot(y, y, n)) * norm;
         ck_assert_msg(fabs(a - b) <= bound, "fourier: xᵀP⁻¹y %.17g, yᵀP⁻¹x %.17g, |diff| %.3g > %.3g", a, b,
                       fabs(a - b), bound);

@@ -1371,7 +1371,9 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
     WT_ALLOC(ctx, p->lr_K, (size_t)q * q, "NGS preconditioner K");
     WT_ALLOC(ctx, p->lr_w, q, "NGS preconditioner work");
     WT_ALLOC(ctx, p->lr_part, (size_t)q * WT_VEC_CHUNKS, "NGS preconditioner work");
-    WT_ALLOC(ctx, p->lr_runs, n + 1, "NGS preconditioner runs");
+    /* coarse_ngs and fourier keep Y by blocks of 8 rows (below); the others column-major, with its zero runs */
+    const int blocked = p->kind == WT_PRECOND_COARSE_NGS || p->fd_n > 0;
+    if (!blocked) WT_ALLOC(ctx, p->lr_runs, n + 1, "NGS preconditioner runs");
     WT_ALLOC(ctx, e, ns, "unit slope vector");
     WT_ALLOC(ctx, we, ns, "weighted unit slope vector");
     WT_ALLOC(ctx, cinv, (size_t)q * q, "NGS noise weight");
@@ -1388,7 +1390,7 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
         e[o0 + k] = 0.0;
     }
     for (int k = 0; k < q; k++) base_apply(p, R + (size_t)n * k, p->lr_Y + (size_t)n * k);
-    p->lr_nruns = wt_vec_runs(p->lr_Y, n, q, n, p->lr_runs);
+    if (!blocked) p->lr_nruns = wt_vec_runs(p->lr_Y, n, q, n, p->lr_runs);
     for (int k = 0; k < q; k++)
         for (int j = 0; j <= k; j++) {
             double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, p->lr_Y + (size_t)k * n, n);
@@ -1398,7 +1400,7 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
     WT_TRY(cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
     p->nlr = q;
     if (p->fd_n > 0) WT_TRY(fourier_ngs_columns(p, t, R));
-    if (p->kind == WT_PRECOND_COARSE_NGS || p->fd_n > 0) { /* Y by blocks of 8 rows, the blocks with a non-zero */
+    if (blocked) { /* Y by blocks of 8 rows, the blocks with a non-zero */
         const int64_t nb8 = (n + 7) / 8;
         WT_ALLOC(ctx, p->lr_blk, nb8, "NGS preconditioner blocks");
         for (int64_t b = 0; b < nb8; b++) {
