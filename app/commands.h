@@ -1,4 +1,5 @@
-/* app/commands.h: the two subcommands that live with the dispatcher (app/wavetomo.c): the inspection tools.
+/* app/commands.h: the subcommands that live with the dispatcher (app/wavetomo.c): the inspection and
+ * machine-tuning tools.
  * Every other subcommand is declared by its driver's header (builder/build.h, runtime/runtime.h,
  * compare/compare.h). Each parses its own options with cli/cli.h, calls the library and returns the
  * process exit code (0 success, 1 failure with a message, 2 usage error). */
@@ -7,5 +8,6 @@
 
 int wt_cmd_info(int argc, char **argv);  /* app/info.c: the derived sizes of a system, its spots */
 int wt_cmd_bench(int argc, char **argv); /* app/bench.c: kernel timings */
+int wt_cmd_wisdom(int argc, char **argv); /* app/wisdom.c: measured FFT plans for recon.fft_wisdom */
 
 #endif

@@ -27,6 +27,7 @@ static void usage(FILE *f)
             "  compare          side-by-side closed-loop comparison (MVM, PCG-3, CG-9) with a report\n"
             "  budget           error budget: fitting, tomography, noise, servo lag, tip-tilt, rim (SPEC §11)\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
+            "  wisdom CONFIG    measure this machine's FFT plans once -> FFTW wisdom file for recon.fft_wisdom\n"
             "\n"
             "Every command takes --set key=value (any config key, repeatable), --threads N (OpenMP and OpenBLAS),\n"
             "--force (replace an existing file that is not a wavetomo output) and --help.\n"
@@ -51,6 +52,7 @@ int main(int argc, char **argv)
     }
     if (!strcmp(cmd, "info")) return wt_cmd_info(argc - 1, argv + 1);
     if (!strcmp(cmd, "bench")) return wt_cmd_bench(argc - 1, argv + 1);
+    if (!strcmp(cmd, "wisdom")) return wt_cmd_wisdom(argc - 1, argv + 1);
     if (!strcmp(cmd, "sim")) return wt_cmd_sim(argc - 1, argv + 1);
     if (!strcmp(cmd, "build")) return wt_cmd_build(argc - 1, argv + 1);
     if (!strcmp(cmd, "run")) return wt_cmd_run(argc - 1, argv + 1);

@@ -140,8 +140,8 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm,foo --out %s/z", dir), 2);
     ck_assert(stderr_has("foo"));
     /* every command answers --help */
-    const char *cmds[] = {"info", "sim", "build", "run", "compare", "bench"};
-    for (int i = 0; i < 6; i++) ck_assert_int_eq(run("%s --help", cmds[i]), 0);
+    const char *cmds[] = {"info", "sim", "build", "run", "compare", "bench", "budget", "wisdom"};
+    for (int i = 0; i < 8; i++) ck_assert_int_eq(run("%s --help", cmds[i]), 0);
 }
 END_TEST
 

@@ -388,6 +388,47 @@ START_TEST(test_noise_hash_tcog)
 }
 END_TEST
 
+/* recon.fft_wisdom chooses how FFTs are planned, not what the matrices are: its file's SHA-256 is recorded in
+ * the canonical text (every output says which plans ran), the matrix identity ignores both keys; a stored text
+ * keeps the recorded hash whatever the file holds now (the reconstructor's set-up checks it: test_fft); a
+ * missing file leaves the hash empty here (the set-up refuses it naming the file). */
+START_TEST(test_fft_wisdom_keys)
+{
+    wt_context *ctx = tu_context();
+    char path[64] = "/tmp/wt_wis_XXXXXX", set[128], want[65];
+    const int fd = mkstemp(path);
+    ck_assert(fd >= 0);
+    close(fd);
+    FILE *f = fopen(path, "w");
+    ck_assert_ptr_nonnull(f);
+    fputs("(fftw-3.3.10 fftw_wisdom #x0 #x0 #x0 #x0\n)\n", f);
+    ck_assert_int_eq(fclose(f), 0);
+    ck_assert_int_eq(wt_sha256_file(path, want), 0);
+    snprintf(set, sizeof set, "recon.fft_wisdom=\"%s\"", path);
+    const char *ov[] = {set};
+    wt_config *plain = NULL, *c = NULL, *r = NULL, *gone = NULL;
+    ck_assert_int_eq(read_preset(ctx, "demo.cfg", 0, NULL, &plain), WT_OK);
+    ck_assert_int_eq(read_preset(ctx, "demo.cfg", 1, ov, &c), WT_OK);
+    ck_assert_str_eq(plain->fft_wisdom, "");
+    ck_assert_str_eq(plain->fft_wisdom_sha256, "");
+    ck_assert_str_eq(c->fft_wisdom, path);
+    ck_assert_str_eq(c->fft_wisdom_sha256, want);
+    ck_assert_ptr_nonnull(strstr(c->canonical, want));
+    ck_assert_ptr_null(strstr(c->matrix_text, "fft_wisdom"));
+    ck_assert_str_eq(c->matrix_sha256, plain->matrix_sha256);
+    f = fopen(path, "a");
+    fputs(" ", f);
+    fclose(f);
+    r = parse_ok(ctx, c->canonical, 0, NULL);
+    ck_assert_str_eq(r->fft_wisdom_sha256, want);
+    remove(path);
+    ck_assert_int_eq(read_preset(ctx, "demo.cfg", 1, ov, &gone), WT_OK);
+    ck_assert_str_eq(gone->fft_wisdom_sha256, "");
+    wt_config_free(ctx, plain), wt_config_free(ctx, c), wt_config_free(ctx, r), wt_config_free(ctx, gone);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_sodium_profile_hash)
 {
     wt_context *ctx = tu_context();
@@ -814,13 +855,15 @@ START_TEST(test_reference)
         }
     }
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
-     * they chose does), nor do lgs.sodium_profile and its hash, loop.gain_levels and loop.gain_basis when left
-     * out (the demo) */
-    ck_assert_int_eq(nkeys + 6, nlines);
+     * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
+     * loop.gain_basis when left out (the demo) */
+    ck_assert_int_eq(nkeys + 8, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_levels "));
     ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_basis "));
     ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile "));
     ck_assert_ptr_nonnull(strstr(buf, "\nlgs.sodium_profile_sha256 "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nrecon.fft_wisdom "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nrecon.fft_wisdom_sha256 "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.pcg3.layer_oversampling "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.cg9.layer_oversampling "));
     wt_config_free(ctx, c);
@@ -1185,6 +1228,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_canonical);
     tcase_add_test(tc, test_matrix_hash);
     tcase_add_test(tc, test_sodium_profile_hash);
+    tcase_add_test(tc, test_fft_wisdom_keys);
     tcase_add_test(tc, test_noise_hash_tcog);
     tcase_add_test(tc, test_overrides);
     tcase_add_test(tc, test_gain_levels);

@@ -219,7 +219,7 @@ START_TEST(test_prior_matches_simulated_screens)
     wt_wavelet *w;
     wt_prior *p;
     ck_assert_int_eq(wt_wavelet_alloc(ctx, n, 3, J, &w), WT_OK);
-    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_PAPER, &p), WT_OK);
+    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_PAPER, NULL, &p), WT_OK);
     double vars[8][4];
     /* the simulator's own screens: FFT + subharmonics on a periodic grid, sampled here */
     screen_level_variances(ctx, w, n, delta, 1, r0, L0, nscreens, 100, vars);
@@ -257,8 +257,8 @@ START_TEST(test_prior_aliasing_finest_level)
     wt_wavelet *w;
     wt_prior *pb, *pa;
     ck_assert_int_eq(wt_wavelet_alloc(ctx, n, 3, J, &w), WT_OK);
-    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT, &pb), WT_OK);
-    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT | WT_PRIOR_ALIASED, &pa), WT_OK);
+    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT, NULL, &pb), WT_OK);
+    ck_assert_int_eq(wt_prior_alloc(ctx, w, delta, r0, 1.0, L0, WT_PRIOR_EXACT | WT_PRIOR_ALIASED, NULL, &pa), WT_OK);
     double vars[8][4];
     screen_level_variances(ctx, w, n, delta, up, r0, L0, nscreens, 300, vars);
     for (int lev = 1; lev <= J + 1; lev++)

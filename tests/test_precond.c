@@ -9,7 +9,9 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "core/base/sha256.h"
 #include "core/model/params.h"
 #include "core/model/precond.h"
 #include "core/model/system.h"
@@ -551,6 +553,90 @@ START_TEST(test_fourier_spd)
 }
 END_TEST
 
+/* recon.fft_wisdom: the fourier kind on a space tomography (whose full prior and filter both run the n x n
+ * pair) planned from a wisdom file gives M x and P⁻¹ x equal to the FFTW_ESTIMATE plans' up to the transforms'
+ * rounding — another algorithm rounds differently by O(u log2 n²) per transform, amplified in P⁻¹ by the
+ * filter's and the Woodbury term's conditioning (on this machine the demo's 32 x 32 measured plans happen to
+ * round as ESTIMATE's: 0) — and the same bits
+ * from a second set-up with the same file; the SHA-256 the configuration records is the file's; a wisdom
+ * without the layers' size is refused naming the key. */
+static void fft_wisdom_file(const wt_config *cfg, int size_only, char *path, size_t np)
+{
+    wt_context *ctx = tu_context();
+    wt_fft_wisdom *w = NULL;
+    ck_assert_int_eq(wt_fft_wisdom_learner(ctx, &w), WT_OK);
+    ck_assert_int_eq(wt_fft_wisdom_learn(ctx, w, size_only ? size_only : cfg->cg9.size[0]), WT_OK);
+    snprintf(path, np, "/tmp/wt_wisdom_XXXXXX");
+    const int fd = mkstemp(path);
+    ck_assert(fd >= 0);
+    close(fd);
+    ck_assert_int_eq(wt_fft_wisdom_write(ctx, w, path), WT_OK);
+    wt_fft_wisdom_free(w);
+    wt_context_free(ctx);
+}
+
+START_TEST(test_fft_wisdom)
+{
+    fixture a, b, c;
+    setup_space(&a, 1, 1, ONE_GRID);
+    char path[64], set[128];
+    fft_wisdom_file(a.cfg, 0, path, sizeof path);
+    snprintf(set, sizeof set, "recon.fft_wisdom=\"%s\"", path);
+    const char *extra[] = {ONE_GRID[0], set};
+    setup_space(&b, 1, 2, extra);
+    setup_space(&c, 1, 2, extra);
+    char hex[65];
+    ck_assert_int_eq(wt_sha256_file(path, hex), 0);
+    ck_assert_str_eq(b.cfg->fft_wisdom_sha256, hex);
+    ck_assert_ptr_null(wt_tomography_fft(a.t));
+    ck_assert_str_eq(wt_fft_wisdom_sha256(wt_tomography_fft(b.t)), hex);
+    const wt_precond_params pp = {.kind = WT_PRECOND_FOURIER, .coarse_levels = 0};
+    wt_precond *pa = NULL, *pb = NULL, *pc = NULL;
+    ck_assert_int_eq(wt_precond_alloc(a.ctx, a.t, &pp, &pa), WT_OK);
+    ck_assert_int_eq(wt_precond_alloc(b.ctx, b.t, &pp, &pb), WT_OK);
+    ck_assert_int_eq(wt_precond_alloc(c.ctx, c.t, &pp, &pc), WT_OK);
+    const int64_t n = wt_tomography_nunknowns(a.t);
+    double *x = malloc(n * sizeof *x), *ya = malloc(n * sizeof *ya), *yb = malloc(n * sizeof *yb),
+           *yc = malloc(n * sizeof *yc);
+    tu_randn(x, n, 77);
+    tu_tomo_apply(a.t, x, ya);
+    tu_tomo_apply(b.t, x, yb);
+    tu_tomo_apply(c.t, x, yc);
+    ck_assert_double_le(tu_rel_diff(yb, ya, n), 1e-13);
+    ck_assert_int_eq(memcmp(yb, yc, n * sizeof *yb), 0);
+    wt_precond_apply(pa, x, ya);
+    wt_precond_apply(pb, x, yb);
+    wt_precond_apply(pc, x, yc);
+    fprintf(stderr, "fft wisdom: P⁻¹ x against FFTW_ESTIMATE's: %.2g relative\n", tu_rel_diff(yb, ya, n));
+    ck_assert_double_le(tu_rel_diff(yb, ya, n), 1e-12);
+    ck_assert_int_eq(memcmp(yb, yc, n * sizeof *yb), 0);
+    wt_precond_free(pa), wt_precond_free(pb), wt_precond_free(pc);
+    teardown(&b), teardown(&c);
+    remove(path);
+
+    /* a wisdom of another size */
+    fft_wisdom_file(a.cfg, a.cfg->cg9.size[0] / 2, path, sizeof path);
+    snprintf(set, sizeof set, "recon.fft_wisdom=\"%s\"", path);
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    wt_tomography *t = NULL;
+    const char *sets[] = {ONE_GRID[0], set};
+    ck_assert_int_eq(wt_config_read(a.ctx, DEMO, 2, sets, &cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(a.ctx, cfg, &sys), WT_OK);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(a.ctx, sys, &cfg->cg9, "cg9", &tp, &t), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(a.ctx), "recon.fft_wisdom") && strstr(wt_error_message(a.ctx), path),
+                  "%s", wt_error_message(a.ctx));
+    ck_assert_ptr_null(t);
+    remove(path);
+    wt_system_free(sys);
+    wt_config_free(a.ctx, cfg);
+    free(x), free(ya), free(yb), free(yc);
+    teardown(&a);
+}
+END_TEST
+
 /* Without NGS and without the coarse block (coarse_levels < 0), B_F⁻¹ is the filter itself: a Fourier mode cos(2π k·x/n) on any layer comes back as the same
  * mode times s(k) > 0, the same factor on every layer (a wrong frequency layout of the half spectrum, a lost
  * 1/n² or a layer's own scaling would break one of the three), to the transforms' rounding: the DWT and FFT
@@ -840,6 +926,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_fourier_condition_and_direct);
     tcase_add_test(tc, test_threads_same_bits);
     tcase_add_test(tc, test_names_and_refusals);
+    tcase_add_test(tc, test_fft_wisdom);
     suite_add_tcase(s, tc);
     /* every kind's set-up, once per allocation it makes (~30 for multilevel): a few seconds here, several
      * minutes under AddressSanitizer on a loaded machine */

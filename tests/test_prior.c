@@ -28,7 +28,7 @@ static wt_wavelet *make_wavelet(wt_context *ctx, int n, int order, int J)
 static wt_prior *make_prior(wt_context *ctx, const wt_wavelet *w, double spacing, double fraction, int kind)
 {
     wt_prior *p = NULL;
-    int st = wt_prior_alloc(ctx, w, spacing, R0, fraction, L0, kind, &p);
+    int st = wt_prior_alloc(ctx, w, spacing, R0, fraction, L0, kind, NULL, &p);
     ck_assert_msg(st == WT_OK, "wt_prior_alloc: %s", wt_error_message(ctx));
     return p;
 }
@@ -251,7 +251,7 @@ static void expect_reject(wt_context *ctx, const wt_wavelet *w, double spacing, 
 {
     wt_prior *p = (wt_prior *)&p; /* must be overwritten with NULL */
     wt_error_clear(ctx);
-    ck_assert_int_eq(wt_prior_alloc(ctx, w, spacing, r0, fraction, l0, kind, &p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_prior_alloc(ctx, w, spacing, r0, fraction, l0, kind, NULL, &p), WT_ERR_INVALID);
     ck_assert_ptr_null(p);
     ck_assert_msg(strstr(wt_error_message(ctx), word) != NULL, "message '%s' does not name '%s'",
                   wt_error_message(ctx), word);
@@ -378,7 +378,7 @@ START_TEST(test_alloc_failure)
         tu_alloc_fail_nth(&f, k);
         tu_alloc_install(ctx, &f);
         wt_prior *p = NULL;
-        int st = wt_prior_alloc(ctx, w, 0.5, R0, 0.5, L0, WT_PRIOR_PAPER, &p);
+        int st = wt_prior_alloc(ctx, w, 0.5, R0, 0.5, L0, WT_PRIOR_PAPER, NULL, &p);
         wt_context_set_allocator(ctx, NULL, NULL, NULL);
         if (st != WT_OK) {
             ck_assert_int_eq(st, WT_ERR_NOMEM);

@@ -171,6 +171,10 @@ typedef struct wt_config {
     int model_error;                 /* 1: LGS noise variance + the layer-binning model error */
     int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */
     int mvm_precision;               /* storage of the MVM control matrix: WT_PREC_* of core/la/half.h (0 fp32) */
+    char fft_wisdom[1024];           /* FFTW wisdom file of the reconstructor's transforms as resolved (relative paths
+                                        against the configuration's directory); "" = FFTW_ESTIMATE (core/la/fft.h) */
+    char fft_wisdom_sha256[65];      /* SHA-256 (hex) of that file's bytes, taken at reading (or as recorded in a
+                                        stored text); "" when not used or unreadable */
     int sensor_points;               /* lit model: sample points per subaperture side */
     double alpha;                    /* prior weight α */
     double tau;                      /* elongation weight τ of the reconstructor's noise model */

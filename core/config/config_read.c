@@ -491,6 +491,8 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
             return WT_OK;
         }
         const int rel = str[0] != '/' && ps->incdir && *ps->incdir;
+        /* every path key has the same capacity */
+        _Static_assert(sizeof cfg->fft_wisdom == sizeof cfg->sodium_profile, "path keys' capacity");
         const size_t cap = sizeof cfg->sodium_profile;
         if ((rel ? strlen(ps->incdir) : 0) + strlen(str) + 1 > cap)
             return FAIL(ps, k, s, "key '%s': the path \"%s\" is longer than %zu characters", ks->path, str, cap - 1);
@@ -715,27 +717,27 @@ static int resolve_priors(pstate *ps, wt_config *cfg)
     return WT_OK;
 }
 
-/* lgs.sodium_profile_sha256 left out (or "auto") for a diffractive LGS with a profile file: the SHA-256 of
- * the file's bytes, written into the canonical text so that the matrix hash follows the profile's contents
- * (an MVM built with one profile is refused after the file changes). A file that cannot be hashed here
- * (missing, unreadable, not a regular file) leaves the key out: building the sensors reads the file and
- * refuses it with the reason (core/model/sensing.c), and nothing is built without them. A given value (the
- * canonical text of a telemetry or matrix file, read back where the relative path may not resolve) is
- * kept: it records the profile the system was made with; the sensors check the file against it. */
-static int resolve_sodium_sha256(pstate *ps, wt_config *cfg)
+/* A file's SHA-256 key (lgs.sodium_profile_sha256, recon.fft_wisdom_sha256) left out (or "auto") while its
+ * file is used: the SHA-256 of the file's bytes, written into the canonical text. For the sodium profile this
+ * makes the matrix hash follow the profile's contents (an MVM built with one profile is refused after the file
+ * changes); for the FFT wisdom, every output records which plans ran. A file that cannot be hashed here
+ * (missing, unreadable, not a regular file) leaves the key out: the code that reads the file refuses it with
+ * the reason (core/model/sensing.c, core/la/fft.c), and nothing runs without it. A given value (the canonical
+ * text of a telemetry or matrix file, read back where the relative path may not resolve) is kept: it records
+ * the file the system was made with; the reader checks the file against it. */
+static int resolve_file_sha256(pstate *ps, const char *key, int used, const char *file, char hex[65])
 {
-    const int k = find_key("lgs.sodium_profile_sha256");
-    if (ps->set[k] || cfg->nlgs == 0 || cfg->lgs_wfs.model != WT_WFS_DIFFRACTIVE || !cfg->sodium_profile[0])
-        return WT_OK;
-    if (wt_sha256_file(cfg->sodium_profile, cfg->sodium_profile_sha256) != 0) {
-        cfg->sodium_profile_sha256[0] = '\0';
+    const int k = find_key(key);
+    if (ps->set[k] || !used || !file[0]) return WT_OK;
+    if (wt_sha256_file(file, hex) != 0) {
+        hex[0] = '\0';
         return WT_OK;
     }
     const char *leaf;
     config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
     if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
     if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
-    if (!s || !config_setting_set_string(s, cfg->sodium_profile_sha256))
+    if (!s || !config_setting_set_string(s, hex))
         return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
                         wt_config_priv_keys[k].path);
     ps->set[k] = s;
@@ -806,7 +808,11 @@ static int check_consistency(pstate *ps, wt_config *cfg)
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
     if ((st = resolve_fit_points(ps, cfg)) < 0) return st;
     if ((st = resolve_priors(ps, cfg)) < 0) return st;
-    if ((st = resolve_sodium_sha256(ps, cfg)) < 0) return st;
+    if ((st = resolve_file_sha256(ps, "lgs.sodium_profile_sha256",
+                                  cfg->nlgs > 0 && cfg->lgs_wfs.model == WT_WFS_DIFFRACTIVE, cfg->sodium_profile,
+                                  cfg->sodium_profile_sha256)) < 0 ||
+        (st = resolve_file_sha256(ps, "recon.fft_wisdom_sha256", 1, cfg->fft_wisdom, cfg->fft_wisdom_sha256)) < 0)
+        return st;
     if ((st = check_gain_levels(ps, cfg)) < 0) return st;
 
     for (int t = 0; t < 2; t++) {
@@ -907,7 +913,7 @@ static int affects_matrix(const pstate *ps, const char *path)
                                        "recon.cg9.preconditioner", "recon.cg9.coarse_levels",
                                        "recon.cg9.fit_iterations", "recon.cg9.fit_solver", "recon.cg9.fit_factor_precision",
                                        "recon.cg9.fit_kernels",
-                                       "recon.mvm_precision"};
+                                       "recon.mvm_precision", "recon.fft_wisdom"};
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
     return 1;

@@ -271,6 +271,15 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "left out (or \"auto\") the smallest q with d/q no coarser than the finest reconstruction layer of either "
      "variant (a sensor model sampled coarser than the layer cannot see part of it, and the MAP degrades as the "
      "layers get finer: docs/results.md §0e)"},
+    {"recon.fft_wisdom", K_STR, F_OPT, 0, 0, "", 1, CF(fft_wisdom), NOCOUNT, 0, 0, NULL, 0,
+     "FFTW wisdom file made on this machine by `wavetomo wisdom` (relative to the configuration file's directory): "
+     "the full prior's and the fourier preconditioner's FFTs are planned from it (measured plans, ~1.6x faster at "
+     "128 x 128; other rounding than FFTW_ESTIMATE, the same bits for the same file); left out or \"\": "
+     "FFTW_ESTIMATE (the same plans on every machine). A file without this configuration's sizes is refused"},
+    {"recon.fft_wisdom_sha256", K_STR, F_AUTO | F_HEX, 0, 0, "", 1, CF(fft_wisdom_sha256), NOCOUNT, 0, 0, NULL, 0,
+     "with recon.fft_wisdom: SHA-256 of the wisdom file's bytes, so that every output records which plans ran; left "
+     "out (or \"auto\"): computed when the configuration is read; given (a stored configuration): the file must "
+     "still hash to it when the reconstructor is set up"},
     {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
      "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
      "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},

@@ -24,6 +24,8 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
     par->model_error = cfg->model_error;
     par->loop_noise_gain = wt_noise_loop_gain(cfg->gain, cfg->delay);
     par->source = cfg->path;
+    par->fft_wisdom = cfg->fft_wisdom;
+    par->fft_wisdom_sha256 = cfg->fft_wisdom_sha256;
 }
 
 wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *var)

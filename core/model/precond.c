@@ -979,14 +979,10 @@ static int compute_fourier(wt_precond *p, wt_tomography *t, int coarse_levels)
     WT_ALLOC(ctx, col, p->n, "fourier probe column");
     double *phi = fourier_phi(p, 0);
     fftw_complex *hat = fourier_hat(p, 0);
-    /* FFTW's planner is global and not thread-safe: planned here, at set-up, with FFTW_ESTIMATE (no array
-     * touched, the same algorithm every run: same bits) */
-    p->fd_r2c = fftw_plan_dft_r2c_2d(n, n, phi, hat, FFTW_ESTIMATE);
-    p->fd_c2r = fftw_plan_dft_c2r_2d(n, n, hat, phi, FFTW_ESTIMATE);
-    if (!p->fd_r2c || !p->fd_c2r) {
-        st = WT_ERROR(ctx, WT_ERR_LIBRARY, "fourier preconditioner: fftw_plan_dft_*_2d(%d, %d) returned NULL", n, n);
-        goto fail;
-    }
+    /* FFTW's planner is global and not thread-safe: planned here, at set-up, as the tomography's prior (core/la/
+     * fft.h: FFTW_ESTIMATE or its wisdom's measured plans; no array touched, the same algorithm every run) */
+    WT_TRY(wt_fft_plan_pair(ctx, wt_tomography_fft(t), n, phi, hat, "fourier preconditioner", &p->fd_r2c,
+                            &p->fd_c2r));
     const int64_t centre = n / 2 + (int64_t)n * (n / 2);
     for (int lp = 0; lp < L; lp++) {
         const int64_t o = wt_tomography_layer_offset(t, lp);

@@ -33,6 +33,7 @@ struct wt_tomography {
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
     int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
+    wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
     size_t pwsize;            /* its work per thread (doubles) */
@@ -118,6 +119,7 @@ const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return 
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
 int wt_tomography_full_prior(const wt_tomography *t) { return t->full_prior; }
 int wt_tomography_space(const wt_tomography *t) { return t->space; }
+wt_fft_wisdom *wt_tomography_fft(const wt_tomography *t) { return t->fft; }
 const char *wt_tomography_variant(const wt_tomography *t) { return t->variant; }
 
 /* y += α W C_φ⁻¹ Wᵀ c on layer l (or α D c for a diagonal prior), on the given work arrays. */
@@ -222,7 +224,7 @@ static int model_error(wt_tomography *t, const wt_recon_variant_config *var, con
         double w;
         wt_tomography_bin_altitude(t->L, t->alt, h, &l, &w);
         if (f <= 0.0 || (w == 0.0 && fabs(h - t->alt[l]) <= 1e-6 * fmax(1.0, h))) continue;
-        WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, &prior));
+        WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, NULL, &prior));
         const double *d = wt_prior_diag(prior);
         wt_rng rng;
         wt_rng_init(&rng, 0x6d6f64656c657272ULL, (uint64_t)k); /* fixed: "modelerr", one stream per layer */
@@ -313,10 +315,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
                       variant_name, variant_name, kind == WT_PRIOR_EXACT ? "exact" : "paper");
         goto fail;
     }
+    if (par->fft_wisdom && *par->fft_wisdom)
+        WT_TRY(wt_fft_wisdom_read(ctx, par->fft_wisdom, par->fft_wisdom_sha256, "recon.fft_wisdom", &t->fft));
     for (int l = 0; l < t->L; l++) {
         int levels = par->wavelet_levels;
         WT_TRY(wt_wavelet_alloc(ctx, t->grid[l].nx, par->wavelet_order, levels, &t->wav[l]));
-        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, par->r0, t->frac[l], par->L0, prior_flags,
+        WT_TRY(wt_prior_alloc(ctx, t->wav[l], t->grid[l].dx, par->r0, t->frac[l], par->L0, prior_flags, t->fft,
                               &t->prior[l]));
         const double *d = wt_prior_diag(t->prior[l]);
         for (int64_t i = 0; i < wt_grid_size(&t->grid[l]); i++) t->alpha_d[t->off[l] + i] = par->alpha * d[i];
@@ -427,6 +431,7 @@ void wt_tomography_free(wt_tomography *t)
         wt_wavelet_free(t->wav[l]);
         wt_prior_free(t->prior[l]);
     }
+    wt_fft_wisdom_free(t->fft);
     if (t->proj)
         for (int i = 0; i < t->S * t->L; i++) wt_projection_free(t->proj[i]);
     if (t->projs)

@@ -28,6 +28,7 @@
 #ifndef WT_TOMOGRAPHY_H
 #define WT_TOMOGRAPHY_H
 
+#include "../la/fft.h"
 #include "../op/grid.h"
 #include "../op/wavelet.h"
 #include "../solve/pcg.h"
@@ -54,6 +55,9 @@ typedef struct wt_tomography_params {
                                loop_noise_average the sensors' σ² is multiplied by it, the model error not */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
     int space;             /* 1: the unknowns are the layers' values (needs the full prior), 0: wavelet coefficients */
+    const char *fft_wisdom; /* NULL or "": FFTW_ESTIMATE; else the FFTW wisdom file the full prior's and the fourier
+                               preconditioner's transforms are planned from (recon.fft_wisdom; core/la/fft.h) */
+    const char *fft_wisdom_sha256; /* NULL, "" or the SHA-256 (hex) the file must still have */
 } wt_tomography_params;
 
 /* var: the reconstructor variant (cfg->pcg3 or cfg->cg9): layers, iterations, tolerance; par: α,
@@ -90,6 +94,8 @@ const double *wt_tomography_alpha_prior(const wt_tomography *t);
 int wt_tomography_full_prior(const wt_tomography *t);
 /* 1 when the unknowns are the layers' values (wt_tomography_params.space), 0 for wavelet coefficients */
 int wt_tomography_space(const wt_tomography *t);
+/* The wisdom the tomography's transforms were planned from (NULL: FFTW_ESTIMATE), for the preconditioner's. */
+wt_fft_wisdom *wt_tomography_fft(const wt_tomography *t);
 const char *wt_tomography_variant(const wt_tomography *t); /* "pcg3" or "cg9" (as allocated) */
 /* y += the prior part of M times c, for c nonzero in layer l only (y: that layer's n_l coefficients, c the
  * same): α D c, or with the full prior α W C_φ⁻¹ Wᵀ c. Set-up use (the preconditioners' exact blocks): it

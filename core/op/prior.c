@@ -151,9 +151,10 @@ fail:
 }
 
 /* The full form's multipliers L²/(n⁴ Φ(κ_k)) and its two plans. The planner is FFTW's global state: plans
- * are made here, at set-up, with FFTW_ESTIMATE (no arrays touched, the same algorithm every run: same bits);
- * every thread executes them on its own 64-byte aligned work arrays (wt_prior_apply_full). */
-static int full_operator(wt_context *ctx, wt_prior *p, double r0, double fraction, int aliased)
+ * are made here, at set-up (core/la/fft.h: FFTW_ESTIMATE, or the wisdom's measured plans; either way no array
+ * touched and the same algorithm every run: same bits); every thread executes them on its own 64-byte aligned
+ * work arrays (wt_prior_apply_full). */
+static int full_operator(wt_context *ctx, wt_prior *p, double r0, double fraction, int aliased, wt_fft_wisdom *fft)
 {
     int st = WT_OK;
     const int n = p->n, nh = n / 2 + 1;
@@ -172,9 +173,7 @@ static int full_operator(wt_context *ctx, wt_prior *p, double r0, double fractio
         st = WT_ERROR(ctx, WT_ERR_NOMEM, "prior: out of memory for the %d x %d FFT plans' arrays", n, n);
         goto fail;
     }
-    p->r2c = fftw_plan_dft_r2c_2d(n, n, a, c, FFTW_ESTIMATE);
-    p->c2r = fftw_plan_dft_c2r_2d(n, n, c, a, FFTW_ESTIMATE);
-    if (!p->r2c || !p->c2r) st = WT_ERROR(ctx, WT_ERR_LIBRARY, "prior: FFTW could not plan the %d x %d transforms", n, n);
+    st = wt_fft_plan_pair(ctx, fft, n, a, c, "prior (full)", &p->r2c, &p->c2r);
 fail:
     fftw_free(a);
     fftw_free(c);
@@ -182,7 +181,7 @@ fail:
 }
 
 int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction, double L0,
-                   int kind, wt_prior **out)
+                   int kind, wt_fft_wisdom *fft, wt_prior **out)
 {
     int st = WT_OK;
     wt_prior *p = NULL;
@@ -222,7 +221,7 @@ int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double 
     if (kind == WT_PRIOR_FULL) {
         WT_ALLOC(ctx, ivar, (size_t)(J + 2) * 4, "prior inverse-covariance diagonal");
         st = exact_variances(ctx, w, spacing, r0, fraction, L0, aliased, 1, ivar);
-        if (st == WT_OK) st = full_operator(ctx, p, r0, fraction, aliased);
+        if (st == WT_OK) st = full_operator(ctx, p, r0, fraction, aliased, fft);
         if (st < 0) {
             wt_free(ctx, ivar);
             goto fail;

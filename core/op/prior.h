@@ -23,6 +23,7 @@
 #define WT_PRIOR_H
 
 #include "../base/base.h"
+#include "../la/fft.h"
 #include "wavelet.h"
 
 enum { WT_PRIOR_PAPER = 0, WT_PRIOR_EXACT = 1, WT_PRIOR_FULL = 4 };
@@ -35,9 +36,10 @@ enum { WT_PRIOR_ALIASED = 2 };
 typedef struct wt_prior wt_prior;
 
 /* w: the layer's wavelet plan (n, order, J); spacing δ [m]; r0 [m] at 500 nm of the whole atmosphere and
- * the layer's Cn² fraction (> 0); L0 [m]. */
+ * the layer's Cn² fraction (> 0); L0 [m]. fft: how WT_PRIOR_FULL plans its transforms (core/la/fft.h: NULL
+ * = FFTW_ESTIMATE; a wisdom without this n x n pair is WT_ERR_CONFIG); the other kinds ignore it. */
 int wt_prior_alloc(wt_context *ctx, const wt_wavelet *w, double spacing, double r0, double fraction, double L0,
-                   int kind, wt_prior **out);
+                   int kind, wt_fft_wisdom *fft, wt_prior **out);
 void wt_prior_free(wt_prior *p);
 /* D_λλ for the n*n coefficients in the layout of core/op/wavelet.h [1/m²]; for WT_PRIOR_FULL the
  * diagonal of W C_φ⁻¹ Wᵀ. */
