@@ -156,13 +156,14 @@ int wt_fft_wisdom_write(wt_context *ctx, const wt_fft_wisdom *w, const char *pat
     return WT_OK;
 }
 
-/* Measure the pair on scratch arrays (FFTW_MEASURE overwrites them) of the same alignment class as any
- * fftw_malloc'd or malloc'd array (16 bytes), so that the stored problems are the ones planned afterwards. */
+/* Measure the pair on scratch arrays (FFTW_MEASURE overwrites them) at 64-byte boundaries, as the arrays the
+ * callers plan on (core/op/prior.c, core/model/precond.c): a stored algorithm may use SIMD loads that need the
+ * alignment it was measured with, and FFTW_WISDOM_ONLY finds no plan for arrays that lack it. */
 static int learn_pair(wt_context *ctx, wt_fft_wisdom *w, int n)
 {
     const size_t nh = (size_t)n / 2 + 1;
-    double *re = fftw_malloc((size_t)n * (size_t)n * sizeof *re);
-    fftw_complex *c = fftw_malloc((size_t)n * nh * sizeof *c);
+    double *re = aligned_alloc(64, ((size_t)n * (size_t)n * sizeof *re + 63) / 64 * 64);
+    fftw_complex *c = aligned_alloc(64, ((size_t)n * nh * sizeof *c + 63) / 64 * 64);
     fftw_plan a = NULL, b = NULL;
     int st = WT_OK;
     if (!re || !c) st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory measuring the %d x %d FFT pair", n, n);
@@ -173,8 +174,8 @@ static int learn_pair(wt_context *ctx, wt_fft_wisdom *w, int n)
     }
     if (a) fftw_destroy_plan(a);
     if (b) fftw_destroy_plan(b);
-    fftw_free(re);
-    fftw_free(c);
+    free(re);
+    free(c);
     if (st < 0) return st;
     char *text = fftw_export_wisdom_to_string();
     if (!text) return WT_ERROR(ctx, WT_ERR_NOMEM, "FFTW could not export the wisdom of the %d x %d pair", n, n);

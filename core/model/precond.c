@@ -66,6 +66,7 @@ struct wt_precond {
     int fd_n;                 /* layer side (0: not this kind) */
     int64_t fd_nk;            /* frequencies of the half spectrum, n (n/2 + 1) */
     double *fd_s;             /* fd_nk: the filter */
+    double *fd_raw;           /* the allocation fd_buf lies in (fd_buf at its first 64-byte boundary) */
     double *fd_buf;           /* per thread: n² layer values, fd_nk complex values, WT_FOURIER_MAX_SC n of
                                  contraction work; 64-byte slices */
     size_t fd_slice;          /* doubles per thread in fd_buf */
@@ -819,8 +820,9 @@ WT_CPU_CLONES static void coarse_coef(const wt_precond *p, const double *X, doub
         }
 }
 
-/* X += Q C on one layer (X[x + n y] += Σ_i φ_i(x) g_i(y), g_i(y) = Σ_j C[i + sc j] φ_j(y)) */
-WT_CPU_CLONES static void coarse_add(const wt_precond *p, const double *C, double *X)
+/* X = S + Q C on one layer (X[x + n y] = S[x + n y] + Σ_i φ_i(x) g_i(y), g_i(y) = Σ_j C[i + sc j] φ_j(y)); S may be X
+ * (X += Q C), the same operations in the same order either way */
+WT_CPU_CLONES static void coarse_add_to(const wt_precond *p, const double *C, const double *S, double *X)
 {
     const int n = p->fd_n, sc = p->fd_sc;
     const double *B = p->fd_B;
@@ -832,12 +834,15 @@ WT_CPU_CLONES static void coarse_add(const wt_precond *p, const double *C, doubl
             g[i] = s;
         }
         double *xy = X + (size_t)n * y;
+        const double *sy = S + (size_t)n * y;
         for (int i = 0; i < sc; i++) {
-            const double gi = g[i], *bi = B + (size_t)i * n;
-            for (int x = 0; x < n; x++) xy[x] += bi[x] * gi;
+            const double gi = g[i], *bi = B + (size_t)i * n, *src = i ? xy : sy;
+            for (int x = 0; x < n; x++) xy[x] = src[x] + bi[x] * gi;
         }
     }
 }
+
+static void coarse_add(const wt_precond *p, const double *C, double *X) { coarse_add_to(p, C, X, X); }
 
 /* The sc periodic 1-D scaling functions of level J' = J − coarse_levels on n points (fd_B, sc x n): the
  * wavelet's inverse transform of J' levels maps the unit coefficient (i, 0) of its approximation block to
@@ -971,7 +976,9 @@ static int compute_fourier(wt_precond *p, wt_tomography *t, int coarse_levels)
     /* n² and 2 nk are multiples of 8 doubles for n ≥ 8: every thread's slices keep the first one's alignment,
      * which the plans were made for; then sc n of contraction work */
     p->fd_slice = (size_t)(n2 + 2 * nk + (int64_t)WT_FOURIER_MAX_SC * n);
-    WT_ALLOC(ctx, p->fd_buf, (size_t)p->nthreads * p->fd_slice, "fourier preconditioner work");
+    /* at a 64-byte boundary: the plans are made on it, and the learnt wisdom on arrays as aligned (core/la/fft.c) */
+    WT_ALLOC(ctx, p->fd_raw, (size_t)p->nthreads * p->fd_slice + 8, "fourier preconditioner work");
+    p->fd_buf = (double *)(((uintptr_t)p->fd_raw + 63) & ~(uintptr_t)63);
     WT_ALLOC(ctx, p->fd_s, nk, "fourier preconditioner filter");
     WT_ALLOC(ctx, A, (size_t)nk * L * L, "fourier preconditioner symbol");
     WT_ALLOC(ctx, e, p->n, "fourier probe");
@@ -1062,22 +1069,24 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z, int n
             double *phi = fourier_phi(p, id), *hat = (double *)fourier_hat(p, id);
             double *u = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n; /* the contractions' work */
             const int64_t o = wt_tomography_layer_offset(t, l);
-            memcpy(phi, r + o, (size_t)m2 * sizeof *phi);
-            if (p->nc > 0) { /* the filter on Π_d r: Q's coefficients out */
+            if (p->nc > 0) { /* the filter on Π_d r: Q's coefficients out, φ = r − Q c in one pass */
                 double *c = p->fd_cr + (size_t)l * sc2, mc[WT_FOURIER_MAX_SC * WT_FOURIER_MAX_SC];
-                coarse_coef(p, phi, c, u);
+                coarse_coef(p, r + o, c, u);
                 for (int i = 0; i < sc2; i++) mc[i] = -c[i];
-                coarse_add(p, mc, phi);
-            }
+                coarse_add_to(p, mc, r + o, phi);
+            } else memcpy(phi, r + o, (size_t)m2 * sizeof *phi);
             fftw_execute_dft_r2c(p->fd_r2c, phi, (fftw_complex *)hat);
             for (int64_t k = 0; k < nk; k++) {
                 hat[2 * k] *= p->fd_s[k];
                 hat[2 * k + 1] *= p->fd_s[k];
             }
-            fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, phi);
-            if (p->nc > 0) coarse_coef(p, phi, p->fd_cphi + (size_t)l * sc2, u);
-            if (q > 0) fourier_ngs_dots(p, l, phi);
-            memcpy(z + o, phi, (size_t)m2 * sizeof *z);
+            /* FFTW runs the plan on z's layer when it has the planning arrays' alignment (64 bytes: the PCG's
+             * vectors do); the same codelets either way, so the same bits */
+            double *zl = ((uintptr_t)(z + o) & 63) == 0 ? z + o : phi;
+            fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, zl);
+            if (p->nc > 0) coarse_coef(p, zl, p->fd_cphi + (size_t)l * sc2, u);
+            if (q > 0) fourier_ngs_dots(p, l, zl);
+            if (zl != z + o) memcpy(z + o, phi, (size_t)m2 * sizeof *z);
         }
         if (p->nc > 0 || q > 0) {
 #pragma omp single
@@ -1487,7 +1496,7 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->b_idx);
     wt_free(ctx, p->b_L);
     wt_free(ctx, p->fd_s);
-    wt_free(ctx, p->fd_buf);
+    wt_free(ctx, p->fd_raw);
     wt_free(ctx, p->fd_B);
     wt_free(ctx, p->fd_cr);
     wt_free(ctx, p->fd_cphi);

@@ -539,6 +539,11 @@ static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const 
  * layer the prior's term (or 0) and the sensors' projections in index order (one task per layer). No group
  * accumulators to zero and add (2 x 1.2 MB each at E-ELT size); any thread gives the same bits. With fewer
  * layers than twice the threads the split would idle a thread: pcg3 keeps the groups. */
+/* In space with at least two layers per thread the adjoint runs by layers (adjoint_space), else by sensor groups */
+static int by_layers(const wt_tomography *t) { return t->space && t->L >= 2 * t->nthreads; }
+
+/* c = the adjoint of the weighted slopes, by layers; with cx and the full prior c holds the prior's term on entry
+ * (normal: forward_slopes_prior wrote it there) and the sensors' terms are added to it */
 static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c)
 {
@@ -558,8 +563,8 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
         for (int k = 0; k < t->L; k++) {
             const int l = t->by_size[k];
             const int64_t a = t->off[l], nl = t->off[l + 1] - a;
-            if (cx && t->full_prior) memcpy(c + a, w->pphi + a, (size_t)nl * sizeof *c);
-            else memset(c + a, 0, (size_t)nl * sizeof *c);
+            if (!(cx && t->full_prior)) memset(c + a, 0, (size_t)nl * sizeof *c);
+            /* (else c already holds the prior's term: forward_slopes_prior wrote it there) */
             for (int m = 0; m < t->S; m++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, c + a);
         }
     }
@@ -570,7 +575,7 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 {
     const wt_system *sys = t->sys;
     const int64_t n = t->n;
-    if (t->space && t->L >= 2 * t->nthreads) {
+    if (by_layers(t)) {
         adjoint_space(t, w, slopes, cx, c);
         return;
     }
@@ -624,7 +629,8 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
  * same bits on any thread count). The layers' FFTs first, largest first (layer 0, 128², is ~60 µs, as long as
  * several sensors): with one dynamic loop the other thread takes the small layers and then the sensors, where
  * a loop over the layers alone (transform + FFT per layer) left it idle for half of the large layer's task. */
-static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
+static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes,
+                                 double *pphi)
 {
 #pragma omp parallel num_threads(t->nthreads)
     {
@@ -633,7 +639,7 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
         for (int k = 0; k < t->L; k++) {
             const int l = t->by_size[k];
             if (owner_of(t, l, nt) == id)
-                wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], w->pphi + t->off[l],
+                wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], pphi + t->off[l],
                                     w->pwork + (size_t)id * t->pwsize);
         }
 #pragma omp for schedule(dynamic, 1) nowait
@@ -650,7 +656,9 @@ static void normal(const wt_tomography *t, wt_tomography_work *w, const double *
         inverse_dwt(t, w, c, w->phi);
         phi = w->phi;
     }
-    if (t->full_prior) forward_slopes_prior(t, w, phi, w->slopes);
+    /* adjoint_space adds the sensors' terms onto the prior's, so the prior's term goes straight to y (a copy of
+     * y's size less per apply; the same values in the same order) */
+    if (t->full_prior) forward_slopes_prior(t, w, phi, w->slopes, by_layers(t) ? y : w->pphi);
     else forward_slopes(t, w, phi, w->slopes);
     adjoint_prior(t, w, w->slopes, c, y);
 }

@@ -26,6 +26,7 @@
 #include <fftw3.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define LAMBDA0 500e-9 /* reference wavelength of r0 [m] */
@@ -167,16 +168,17 @@ static int full_operator(wt_context *ctx, wt_prior *p, double r0, double fractio
         for (int kx = 0; kx < nh; kx++)
             p->inv[(size_t)iy * nh + kx] = L * L / ((double)n * n * n * n * mode_psd(kx, ky, n, L, r0, fraction, p->L0, aliased));
     }
-    a = fftw_malloc((size_t)n * n * sizeof *a);
-    c = fftw_malloc((size_t)n * nh * sizeof *c);
+    /* planned on arrays at 64-byte boundaries, as the work arrays it runs on and as core/la/fft.c learns */
+    a = aligned_alloc(64, ((size_t)n * n * sizeof *a + 63) / 64 * 64);
+    c = aligned_alloc(64, ((size_t)n * nh * sizeof *c + 63) / 64 * 64);
     if (!a || !c) {
         st = WT_ERROR(ctx, WT_ERR_NOMEM, "prior: out of memory for the %d x %d FFT plans' arrays", n, n);
         goto fail;
     }
     st = wt_fft_plan_pair(ctx, fft, n, a, c, "prior (full)", &p->r2c, &p->c2r);
 fail:
-    fftw_free(a);
-    fftw_free(c);
+    free(a);
+    free(c);
     return st;
 }
 
@@ -267,7 +269,7 @@ const double *wt_prior_diag(const wt_prior *p) { return p->diag; }
 int wt_prior_kind(const wt_prior *p) { return p->kind; }
 
 /* The caller's work holds, from its first 64-byte boundary, the transforms' input, spectrum and output:
- * FFTW runs its SIMD codelets only on arrays aligned as those it planned with (fftw_malloc's), and
+ * FFTW runs its SIMD codelets only on arrays aligned as those it planned with (64 bytes: full_operator), and
  * wt_malloc promises 16 bytes. */
 #define PRIOR_ALIGN_SLACK 8 /* doubles */
 size_t wt_prior_work_size(const wt_prior *p)

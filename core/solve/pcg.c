@@ -23,6 +23,8 @@ struct wt_pcg {
     int r_valid;  /* r is b − A x of the last solve's b and x (up to its rounding drift) */
     double *r, *z, *p, *q;
     double *rhs;             /* 2 x n: the wt_pcg_solve_rhs right-hand sides, alternating */
+    double *block;           /* the allocation r, z, p, q and rhs lie in, each at a 64-byte boundary */
+    int64_t stride;          /* n rounded up to 8: from one vector of the block to the next */
     int cur;                 /* the half that holds the last wt_pcg_solve_rhs's */
     const double *cont_x;    /* that solve's unknowns while r belongs to them (else NULL) */
 };
@@ -37,11 +39,16 @@ int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out)
     p->ctx = ctx;
     p->n = n;
     p->nthreads = wt_context_threads(ctx);
-    WT_ALLOC(ctx, p->r, n, "pcg residual");
-    WT_ALLOC(ctx, p->z, n, "pcg preconditioned residual");
-    WT_ALLOC(ctx, p->p, n, "pcg direction");
-    WT_ALLOC(ctx, p->q, n, "pcg operator image");
-    WT_ALLOC(ctx, p->rhs, 2 * n, "pcg right-hand sides");
+    /* One block, every vector at a 64-byte boundary (8 doubles) whatever the allocator gives: the operators'
+     * FFTs then run on the vectors' layers in place of copies (core/op/prior.c, core/model/precond.c: FFTW
+     * executes a plan only on arrays of its planning alignment), and the vector passes start on cache lines. */
+    const int64_t stride = p->stride = (n + 7) / 8 * 8;
+    WT_ALLOC(ctx, p->block, 6 * stride + 8, "pcg vectors (r, z, p, q, 2 right-hand sides)");
+    p->r = (double *)(((uintptr_t)p->block + 63) & ~(uintptr_t)63);
+    p->z = p->r + stride;
+    p->p = p->z + stride;
+    p->q = p->p + stride;
+    p->rhs = p->q + stride; /* 2 x n, the second at rhs + stride (wt_pcg_solve_rhs) */
     *out = p;
     return WT_OK;
 fail:
@@ -52,11 +59,7 @@ fail:
 void wt_pcg_free(wt_pcg *p)
 {
     if (!p) return;
-    wt_free(p->ctx, p->r);
-    wt_free(p->ctx, p->z);
-    wt_free(p->ctx, p->p);
-    wt_free(p->ctx, p->q);
-    wt_free(p->ctx, p->rhs);
+    wt_free(p->ctx, p->block);
     wt_free(p->ctx, p);
 }
 
@@ -173,13 +176,13 @@ int wt_pcg_solve_precond(wt_pcg *w, wt_linop_fn A, void *user, wt_precond_fn P, 
     return solve(w, A, user, NULL, P, puser, b, NULL, x, max_iter, rtol, history, res);
 }
 
-double *wt_pcg_rhs(wt_pcg *w) { return w->rhs + w->n * (int64_t)(w->cur ^ 1); }
+double *wt_pcg_rhs(wt_pcg *w) { return w->rhs + w->stride * (w->cur ^ 1); }
 
 int wt_pcg_solve_rhs(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
                      double *x, int continuing, int max_iter, double rtol, double *history, wt_pcg_result *res)
 {
     if (inv_diag && P) return WT_ERROR(w->ctx, WT_ERR_INVALID, "pcg: give a Jacobi diagonal or a preconditioner, not both");
-    const double *b = wt_pcg_rhs(w), *b_prev = continuing && x == w->cont_x ? w->rhs + w->n * (int64_t)w->cur : NULL;
+    const double *b = wt_pcg_rhs(w), *b_prev = continuing && x == w->cont_x ? w->rhs + w->stride * w->cur : NULL;
     w->cur ^= 1;
     int st = solve(w, A, user, inv_diag, P, puser, b, b_prev, x, max_iter, rtol, history, res);
     w->cont_x = st >= 0 ? x : NULL;
