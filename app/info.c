@@ -198,6 +198,10 @@ int wt_cmd_info(int argc, char **argv)
         printf("reconstructor's sensor model: lit-area average read at %d x %d points per subaperture (%g m)\n",
                cfg->sensor_points, cfg->sensor_points, sys->d / cfg->sensor_points);
     else printf("reconstructor's sensor model: Fried (corner differences)\n");
+    if (cfg->fft_wisdom[0])
+        printf("reconstructors' FFT plans: measured, from the wisdom %s (SHA-256 %.12s...; recon.fft_wisdom)\n",
+               cfg->fft_wisdom, cfg->fft_wisdom_sha256[0] ? cfg->fft_wisdom_sha256 : "(unreadable)");
+    else printf("reconstructors' FFT plans: FFTW_ESTIMATE (the same on every machine; recon.fft_wisdom for measured ones)\n");
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
         const wt_sensing *ws = s->diffr;

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "core/config/config.h"
+#include "core/base/sha256.h"
 #include "core/io/h5.h"
 #include "testutil.h"
 
@@ -219,6 +220,48 @@ static void png_size(const char *d, const char *name, unsigned *w, unsigned *h)
 
 /* issue 19 item 7: `info --spots DIR` draws the first diffractive LGS; a geometric system is refused with
  * nothing left behind; the compare report of a diffractive system links the same pictures. */
+/* `wavetomo wisdom` writes FFTW wisdom that a run then plans from (recorded in its output's configuration with the
+ * file's SHA-256); a wisdom without a size the run needs is refused naming the key and the size; no --out is a
+ * usage error, a configuration without a full-prior variant a refusal, and an existing file that is not
+ * wisdom is not replaced. */
+START_TEST(test_wisdom_command)
+{
+    char w[128], w16[128], h5[128];
+    snprintf(w, sizeof w, "%s/fft.wis", dir);
+    snprintf(w16, sizeof w16, "%s/pcg3only.wis", dir);
+    snprintf(h5, sizeof h5, "%s/sim.h5", dir);
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s", w), 0);
+    FILE *f = fopen(w, "r");
+    ck_assert_ptr_nonnull(f);
+    char head[8] = {0};
+    ck_assert_uint_eq(fread(head, 1, 6, f), 6);
+    fclose(f);
+    ck_assert_str_eq(head, "(fftw-");
+    char want[65];
+    ck_assert_int_eq(wt_sha256_file(w, want), 0);
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon cg9 --frames 3 --quiet --out %s "
+                         "--set 'recon.fft_wisdom=\"%s\"'", h5, w), 0);
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r = NULL;
+    char *text = NULL;
+    ck_assert_int_eq(wt_h5_open(ctx, h5, &r), WT_OK);
+    ck_assert_int_eq(wt_h5_read_string(r, "config", &text), WT_OK);
+    ck_assert_ptr_nonnull(strstr(text, want));
+    wt_free(ctx, text);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+    /* cg9's full prior only: its layers are all 32 x 32, pcg3's 16 x 16 layer is missing */
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s --set 'recon.pcg3.prior=\"paper\"'", w16), 0);
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 3 --quiet --out %s "
+                         "--set 'recon.fft_wisdom=\"%s\"'", h5, w16), 1);
+    ck_assert(stderr_has("recon.fft_wisdom") && stderr_has("16 x 16"));
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg"), 2);
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s --set 'recon.prior=\"paper\"'", w), 1);
+    ck_assert(stderr_has("full prior"));
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s", h5), 1);
+}
+END_TEST
+
 START_TEST(test_info_spots)
 {
     char out[128], p[256];
@@ -284,6 +327,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_build_run_chain_and_refusals);
     tcase_add_test(tc, test_run_rejects_bad_frames);
     tcase_add_test(tc, test_info_spots);
+    tcase_add_test(tc, test_wisdom_command);
     suite_add_tcase(s, tc);
     return s;
 }
