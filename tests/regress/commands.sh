@@ -27,6 +27,13 @@ COMMON=(--config "$PRESET" --frames $FRAMES --seed $SEED --threads 1 --quiet)
   for r in none pcg3 cg9; do
     "$BIN" sim "${COMMON[@]}" --recon $r --out "$TMP/$r.h5" --telemetry "$TMP/tel-$r.h5" >/dev/null
   done
+  # the preconditioners the presets and the README use beyond the demo's jacobi_ngs: pcg3 with coarse_ngs (the
+  # E-ELT preset's), cg9 with fourier on the layers' values (every layer on one grid, as it needs)
+  "$BIN" sim "${COMMON[@]}" --recon pcg3 --set 'recon.pcg3.preconditioner="coarse_ngs"' --out "$TMP/pcg3-coarse.h5" \
+    --telemetry "$TMP/tel-pcg3-coarse_ngs.h5" >/dev/null
+  "$BIN" sim "${COMMON[@]}" --recon cg9 --set 'recon.cg9.preconditioner="fourier"' --set recon.cg9.coarse_levels=0 \
+    --set 'recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]' --out "$TMP/cg9-fourier.h5" \
+    --telemetry "$TMP/tel-cg9-fourier.h5" >/dev/null
   # cg9's MVM with its default full prior is dense (174 GB at E-ELT size): the regression keeps the sparse
   # path that fits, with the paper's prior for its matrix and loop
   for v in pcg3 cg9; do
@@ -39,7 +46,7 @@ COMMON=(--config "$PRESET" --frames $FRAMES --seed $SEED --threads 1 --quiet)
       --threads 1 --quiet >/dev/null
   done
   "$TOOL" tel "$TMP"/tel-none.h5 "$TMP"/tel-pcg3.h5 "$TMP"/tel-cg9.h5 "$TMP"/tel-mvm-pcg3.h5 "$TMP"/tel-mvm-cg9.h5 \
-    "$TMP"/run-mvm-pcg3.h5 "$TMP"/run-mvm-cg9.h5
+    "$TMP"/run-mvm-pcg3.h5 "$TMP"/run-mvm-cg9.h5 "$TMP"/tel-pcg3-coarse_ngs.h5 "$TMP"/tel-cg9-fourier.h5
   "$TOOL" lib "$PRESET" $FRAMES $SEED
 } >"$TMP/now.txt"
 if [ "${1:-}" = --update ]; then
