@@ -11,7 +11,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo wisdom CONFIG --out FILE [--set key=value]...\n"
+    printf("usage: wavetomo wisdom CONFIG --out FILE [--set key=value]... [--dry-run] [--quiet] [--force]\n"
            "\n"
            "Measures (FFTW_MEASURE) the FFTs that the reconstructors of CONFIG run every iteration — the n x n\n"
            "real transform pair of each layer size of a variant with the full prior (recon.<variant>.prior =\n"
@@ -26,7 +26,9 @@ static void help(void)
            "machine that runs. A configuration whose sizes FILE lacks is refused when it sets up.\n"
            "\n"
            "  --out FILE    the wisdom file (an existing file is replaced only when it is FFTW wisdom, or --force)\n"
-           "  --set k=v     override a configuration key (repeatable)\n");
+           "  --set k=v     override a configuration key (repeatable)\n"
+           "  --dry-run     print the sizes it would measure; measure and write nothing\n"
+           "  --quiet       no progress lines\n");
 }
 
 typedef struct {
@@ -83,11 +85,17 @@ int wt_cmd_wisdom(int argc, char **argv)
                       "recon.cg9.prior): they plan no FFT, there is no wisdom to measure", cfg->path);
         goto out;
     }
+    if (cli.dry_run) {
+        printf("would measure for %s, FFTW %s:", cfg->path, wt_fft_version());
+        for (int j = 0; j < nsizes; j++) printf(" %dx%d", sizes[j], sizes[j]);
+        printf(" (the r2c + c2r pair of each size; under a second each)\n");
+        goto out;
+    }
     for (int j = 0; j < nsizes; j++) {
         const double t0 = wt_time_now();
-        fprintf(stderr, "wavetomo wisdom: %d x %d real FFT pair: ", sizes[j], sizes[j]);
+        if (!cli.quiet) fprintf(stderr, "wavetomo wisdom: %d x %d real FFT pair: ", sizes[j], sizes[j]);
         if ((st = wt_fft_wisdom_learn(cli.ctx, w, sizes[j])) < 0) goto out;
-        fprintf(stderr, "measured in %.1f s\n", wt_time_now() - t0);
+        if (!cli.quiet) fprintf(stderr, "measured in %.1f s\n", wt_time_now() - t0);
     }
     if ((st = wt_fft_wisdom_write(cli.ctx, w, args.out)) < 0) goto out;
     printf("wrote %s: FFTW %s wisdom for", args.out, wt_fft_version());

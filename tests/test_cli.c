@@ -230,6 +230,8 @@ START_TEST(test_wisdom_command)
     snprintf(w, sizeof w, "%s/fft.wis", dir);
     snprintf(w16, sizeof w16, "%s/pcg3only.wis", dir);
     snprintf(h5, sizeof h5, "%s/sim.h5", dir);
+    ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s --dry-run", w), 0);
+    ck_assert_int_ne(access(w, F_OK), 0);
     ck_assert_int_eq(run("wisdom data/presets/demo.cfg --out %s", w), 0);
     FILE *f = fopen(w, "r");
     ck_assert_ptr_nonnull(f);
