@@ -531,19 +531,16 @@ static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const 
     adjoint_prior(t, w, slopes, NULL, c);
 }
 
-/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given; with the full prior + W w->pphi, the α C_φ⁻¹ φ of
- * cx's layers, which normal() leaves there). The group sum, the transform and the prior term of a layer run
- * in one task (the same per-element operations as three passes). */
+/* In space with at least two layers per thread the adjoint runs by layers (adjoint_space), else by sensor groups */
+static int by_layers(const wt_tomography *t) { return t->space && t->L >= 2 * t->nthreads; }
+
 /* The unknowns in space (fourier): the result is the sum itself, so the adjoint splits by layers instead of by
  * sensor groups: every sensor's weighted slopes and Γᵀ first (one task per sensor, into its own phase), then per
  * layer the prior's term (or 0) and the sensors' projections in index order (one task per layer). No group
  * accumulators to zero and add (2 x 1.2 MB each at E-ELT size); any thread gives the same bits. With fewer
- * layers than twice the threads the split would idle a thread: pcg3 keeps the groups. */
-/* In space with at least two layers per thread the adjoint runs by layers (adjoint_space), else by sensor groups */
-static int by_layers(const wt_tomography *t) { return t->space && t->L >= 2 * t->nthreads; }
-
-/* c = the adjoint of the weighted slopes, by layers; with cx and the full prior c holds the prior's term on entry
- * (normal: forward_slopes_prior wrote it there) and the sensors' terms are added to it */
+ * layers than twice the threads the split would idle a thread: pcg3 keeps the groups. With cx and the full
+ * prior, c holds the prior's term on entry (normal: forward_slopes_prior wrote it there) and the sensors' terms
+ * are added to it. */
 static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c)
 {
@@ -570,6 +567,9 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
     }
 }
 
+/* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given; with the full prior + W w->pphi, the α C_φ⁻¹ φ of
+ * cx's layers, which normal() leaves there). The group sum, the transform and the prior term of a layer run
+ * in one task (the same per-element operations as three passes). */
 static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c)
 {
