@@ -25,8 +25,8 @@ static void help(void)
            "               through OpenBLAS (threaded); refused unless built for the telemetry's system\n"
            "  --recon R    the matrix-free wavelet reconstructor (pcg3 or cg9) on the pseudo-open-loop slopes,\n"
            "               warm-started frame to frame; --iters overrides its iteration count\n"
-           "  --config F   the system (default: the configuration stored in the telemetry); with --matrix it\n"
-           "               must match both the matrix and the telemetry\n"
+           "  --config F   the system (default: the configuration stored in the telemetry, with the --set\n"
+           "               overrides); with --matrix it must match both the matrix and the telemetry\n"
            "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
            "  --max-memory S   refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n"
            "Reports the time per frame (median and 99th percentile) of the reconstruction alone (not the file\n"
@@ -104,7 +104,10 @@ int wt_cmd_run(int argc, char **argv)
     {
         char name[1100];
         snprintf(name, sizeof name, "%s:config", args.tel);
-        if ((st = wt_config_parse(cli.ctx, ttext, name, 0, NULL, &tcfg)) < 0) goto fail;
+        /* without --config the stored configuration is the one in use: the --set overrides apply to it (a key
+         * that changes the matrices then refuses a --matrix built without it, as for --config) */
+        const int nov = cli.config_path ? 0 : cli.nset;
+        if ((st = wt_config_parse(cli.ctx, ttext, name, nov, nov ? cli.set : NULL, &tcfg)) < 0) goto fail;
     }
     if (cli.config_path) {
         if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;

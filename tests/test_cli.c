@@ -241,8 +241,19 @@ START_TEST(test_wisdom_command)
     ck_assert_str_eq(head, "(fftw-");
     char want[65];
     ck_assert_int_eq(wt_sha256_file(w, want), 0);
-    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon cg9 --frames 3 --quiet --out %s "
-                         "--set 'recon.fft_wisdom=\"%s\"'", h5, w), 0);
+    char tel[128], cmds[128], moved[128];
+    snprintf(tel, sizeof tel, "%s/tel.h5", dir);
+    snprintf(cmds, sizeof cmds, "%s/cmds.h5", dir);
+    snprintf(moved, sizeof moved, "%s/moved.wis", dir);
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon cg9 --frames 3 --quiet --out %s --telemetry %s "
+                         "--set 'recon.fft_wisdom=\"%s\"'", h5, tel, w), 0);
+    /* the replay plans from the stored file; without it, refused naming the key; --set turns it off */
+    ck_assert_int_eq(run("run --telemetry %s --recon cg9 --out %s --quiet", tel, cmds), 0);
+    ck_assert_int_eq(rename(w, moved), 0);
+    ck_assert_int_eq(run("run --telemetry %s --recon cg9 --out %s --quiet", tel, cmds), 1);
+    ck_assert(stderr_has("recon.fft_wisdom") && stderr_has("fft.wis"));
+    ck_assert_int_eq(run("run --telemetry %s --recon cg9 --out %s --quiet --set 'recon.fft_wisdom=\"\"'", tel, cmds), 0);
+    ck_assert_int_eq(rename(moved, w), 0);
     wt_context *ctx = tu_context();
     wt_h5_reader *r = NULL;
     char *text = NULL;

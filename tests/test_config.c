@@ -424,6 +424,13 @@ START_TEST(test_fft_wisdom_keys)
     remove(path);
     ck_assert_int_eq(read_preset(ctx, "demo.cfg", 1, ov, &gone), WT_OK);
     ck_assert_str_eq(gone->fft_wisdom_sha256, "");
+    /* "" turns a stored file off (the same as left out); a path key without that flag still refuses "" */
+    const char *off[] = {"recon.fft_wisdom=\"\""}, *na[] = {"lgs.sodium_profile=\"\""};
+    wt_config *e = parse_ok(ctx, c->canonical, 1, off), *x = NULL;
+    ck_assert_str_eq(e->fft_wisdom, "");
+    ck_assert_int_eq(wt_config_parse(ctx, c->canonical, NAME, 1, na, &x), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "lgs.sodium_profile"));
+    wt_config_free(ctx, e);
     wt_config_free(ctx, plain), wt_config_free(ctx, c), wt_config_free(ctx, r), wt_config_free(ctx, gone);
     wt_context_free(ctx);
 }

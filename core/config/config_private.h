@@ -19,8 +19,10 @@ enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS, K_STR /* a pat
  * and it is written into the canonical text and the matrix hash as if the file had given it. */
 /* F_HEX: a K_STR that is not a path but 64 hexadecimal digits (a SHA-256), stored in a char[65]. */
 /* F_EVEN: an even integer (sim.psf_pixels: an image centred on pixel n/2). */
+/* F_EMPTY: a K_STR path that may be "", which means the same as left out (recon.fft_wisdom: a stored
+ * configuration's file turned off with --set). */
 enum { F_OPT = 1, F_LO_OPEN = 2, F_HI_OPEN = 4, F_POW2 = 8, F_ODD = 16, F_INCR = 32, F_DEFAULT = 64, F_AUTO = 128,
-       F_HEX = 256, F_EVEN = 512 };
+       F_HEX = 256, F_EVEN = 512, F_EMPTY = 1024 };
 
 typedef struct wt_config_priv_key_spec {
     const char *path;    /* dotted libconfig path */

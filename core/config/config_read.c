@@ -476,6 +476,10 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     case K_STR: {
         /* a path: relative to the configuration file's directory, like @include */
         const char *str = config_setting_type(s) == CONFIG_TYPE_STRING ? config_setting_get_string(s) : NULL;
+        if (str && !*str && (ks->flags & F_EMPTY)) {
+            *(char *)dst = '\0';
+            return WT_OK;
+        }
         if (!str || !*str) {
             describe(s, got, sizeof got);
             return FAIL(ps, k, s, "key '%s': expected %s, got %s", ks->path, want, got);

@@ -271,7 +271,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "left out (or \"auto\") the smallest q with d/q no coarser than the finest reconstruction layer of either "
      "variant (a sensor model sampled coarser than the layer cannot see part of it, and the MAP degrades as the "
      "layers get finer: docs/results.md §0e)"},
-    {"recon.fft_wisdom", K_STR, F_OPT, 0, 0, "", 1, CF(fft_wisdom), NOCOUNT, 0, 0, NULL, 0,
+    {"recon.fft_wisdom", K_STR, F_OPT | F_EMPTY, 0, 0, "", 1, CF(fft_wisdom), NOCOUNT, 0, 0, NULL, 0,
      "FFTW wisdom file made on this machine by `wavetomo wisdom` (relative to the configuration file's directory): "
      "the full prior's and the fourier preconditioner's FFTs are planned from it (measured plans, ~1.6x faster at "
      "128 x 128; other rounding than FFTW_ESTIMATE, the same bits for the same file); left out or \"\": "

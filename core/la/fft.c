@@ -59,8 +59,9 @@ int wt_fft_wisdom_read(wt_context *ctx, const char *path, const char *sha256, co
     if (!path || !*path) return WT_ERROR(ctx, WT_ERR_INVALID, "FFT wisdom: no file name (%s)", key ? key : "path");
     FILE *f = fopen(path, "rb");
     if (!f)
-        return WT_ERROR(ctx, WT_ERR_IO, "%s: cannot open the FFT wisdom file '%s': %s (make one with `wavetomo wisdom "
-                        "CONFIG --out FILE`)", key ? key : "FFT wisdom", path, strerror(errno));
+        return WT_ERROR(ctx, WT_ERR_IO, "%s: cannot open the FFT wisdom file '%s': %s (make one on this machine with "
+                        "`wavetomo wisdom CONFIG --out FILE`, or set the key to \"\" for FFTW_ESTIMATE plans)",
+                        key ? key : "FFT wisdom", path, strerror(errno));
     wt_fft_wisdom *w = NULL;
     WT_TRY(wisdom_new(ctx, &w));
     snprintf(w->source, sizeof w->source, "'%s' (%s)", path, key ? key : "FFT wisdom");
