@@ -315,6 +315,9 @@ static int bench_pair(wt_cli *cli, const char *path, const bench_args *args)
     load_average(after, sizeof after);
     if (st < 0) goto out;
     printf("  machine load average (1, 5, 15 min): %s before, %s after\n", before, after);
+    for (int k = 0; k < 2; k++)
+        printf("  %c's FFT plans: %s%s%s\n", sides[k], cfg[k]->fft_wisdom[0] ? "from the wisdom " : "FFTW_ESTIMATE",
+               cfg[k]->fft_wisdom, cfg[k]->fft_wisdom[0] ? " (recon.fft_wisdom)" : "");
     printf("  set-up: A %.2f s, B %.2f s; memory of the reconstructor: A %.1f MB, B %.1f MB\n", b.setup[0], b.setup[1],
            b.memory[0] / 1e6, b.memory[1] / 1e6);
     for (int k = 0; k < 2 && b.has_fitting; k++) {
@@ -385,6 +388,8 @@ int wt_cmd_bench(int argc, char **argv)
            openblas_get_num_threads(), reps);
     double bw = wt_bench_triad_bandwidth(cli.ctx, 5), gf = wt_bench_dgemm_rate();
     printf("machine: triad bandwidth %.1f GB/s, DGEMM %.1f GFlop/s (n = 2048, OpenBLAS)\n", bw / 1e9, gf / 1e9);
+    printf("FFT plans: %s%s\n", cfg->fft_wisdom[0] ? "from the wisdom " : "FFTW_ESTIMATE (recon.fft_wisdom: measured ones)",
+           cfg->fft_wisdom);
     if (args.sensing_only) goto sensing;
     printf("%-34s %9s     %s\n", "kernel", "median", "[p10, p90, p99] ms, work per call, implied rates");
     st = bench_variant(&cli, sys, WT_RECON_PCG3, reps);
