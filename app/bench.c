@@ -363,6 +363,8 @@ int wt_cmd_bench(int argc, char **argv)
     if (wt_cli_init(&cli, "wavetomo bench", help)) return 1;
     bench_args args = {.reps = 50, .loop_frames = 20, .sensing_frames = 7, .pair_warm = 3};
     int rc = wt_cli_parse(&cli, argc, argv, bench_option, &args);
+    if (rc < 0 && cli.dry_run) /* a common option that bench has no estimate for: refused, not ignored */
+        rc = wt_cli_usage_error(&cli, "--dry-run: bench has no resource estimate; run it, or give --reps 1");
     if (rc >= 0) {
         wt_cli_done(&cli);
         return rc;

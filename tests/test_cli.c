@@ -143,6 +143,9 @@ START_TEST(test_build_run_chain_and_refusals)
     /* every command answers --help */
     const char *cmds[] = {"info", "sim", "build", "run", "compare", "bench", "budget", "wisdom"};
     for (int i = 0; i < 8; i++) ck_assert_int_eq(run("%s --help", cmds[i]), 0);
+    /* bench has no resource estimate: --dry-run is refused, not ignored */
+    ck_assert_int_eq(run("bench data/presets/demo.cfg --dry-run"), 2);
+    ck_assert(stderr_has("--dry-run"));
 }
 END_TEST
 
