@@ -72,6 +72,7 @@ START_TEST(test_wisdom_round_trip)
 
     ck_assert_int_eq(wt_fft_wisdom_learner(ctx, &learner), WT_OK);
     ck_assert_str_eq(wt_fft_wisdom_text(learner), "");
+    ck_assert_int_eq(wt_fft_wisdom_learn(ctx, learner, N), WT_OK);
     ck_assert_int_eq(wt_fft_plan_pair(ctx, learner, N, a.re, a.c, "test", &f, &b), WT_OK);
     ck_assert_int_eq(strncmp(wt_fft_wisdom_text(learner), "(fftw-", 6), 0);
     char hex[65];

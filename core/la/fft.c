@@ -210,13 +210,9 @@ int wt_fft_plan_pair(wt_context *ctx, wt_fft_wisdom *w, int n, double *re, void 
     } else {
         char *saved;
         if (!store_swap_in(w->text, &saved)) return WT_ERROR(ctx, WT_ERR_FORMAT, "%s: FFTW refused %s", what, w->source);
-        if (w->learn) st = learn_pair(ctx, w, n);
-        if (st == WT_OK) {
-            *r2c = fftw_plan_dft_r2c_2d(n, n, re, c, FFTW_MEASURE | FFTW_WISDOM_ONLY);
-            *c2r = fftw_plan_dft_c2r_2d(n, n, c, re, FFTW_MEASURE | FFTW_WISDOM_ONLY);
-        }
+        *r2c = fftw_plan_dft_r2c_2d(n, n, re, c, FFTW_MEASURE | FFTW_WISDOM_ONLY);
+        *c2r = fftw_plan_dft_c2r_2d(n, n, c, re, FFTW_MEASURE | FFTW_WISDOM_ONLY);
         store_restore(saved);
-        if (st < 0) return st;
         if (!*r2c || !*c2r) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: the FFT wisdom %s holds no plan for the %d x %d real transforms "
                           "(made for another configuration, machine or FFTW than %s); make it again with `wavetomo "

@@ -32,16 +32,15 @@ typedef struct wt_fft_wisdom wt_fft_wisdom;
  * WT_ERR_FORMAT (not FFTW wisdom, or another SHA-256 than `sha256`). Allocates; wt_fft_wisdom_free. */
 #define WT_FFT_WISDOM_MAX ((size_t)1 << 20)
 int wt_fft_wisdom_read(wt_context *ctx, const char *path, const char *sha256, const char *key, wt_fft_wisdom **out);
-/* An empty wisdom that learns: every pair planned with it is first measured (FFTW_MEASURE on scratch arrays,
- * which the measurement overwrites), the result added to its text. For `wavetomo wisdom`. */
+/* An empty wisdom that learns (wt_fft_wisdom_learn), for `wavetomo wisdom`. */
 int wt_fft_wisdom_learner(wt_context *ctx, wt_fft_wisdom **out);
 void wt_fft_wisdom_free(wt_fft_wisdom *w);
-/* Measure the n x n pair into learner w (what wt_fft_plan_pair does first with a learner); the store of the
- * process is left as it was. WT_ERR_INVALID for a wisdom read from a file. */
+/* Measure the n x n pair (FFTW_MEASURE on scratch arrays, which the measurement overwrites) and add the result to
+ * learner w's text; the store of the process is left as it was. WT_ERR_INVALID for a wisdom read from a file. */
 int wt_fft_wisdom_learn(wt_context *ctx, wt_fft_wisdom *w, int n);
 /* Write the wisdom's text to `path` through a temporary file and rename (nothing half-written). */
 int wt_fft_wisdom_write(wt_context *ctx, const wt_fft_wisdom *w, const char *path);
-/* The wisdom's FFTW text (NUL-terminated; empty for a learner that has planned nothing) and its SHA-256 (hex),
+/* The wisdom's FFTW text (NUL-terminated; empty for a learner that has measured nothing) and its SHA-256 (hex),
  * the file's when read, the text's when learnt. */
 const char *wt_fft_wisdom_text(const wt_fft_wisdom *w);
 const char *wt_fft_wisdom_sha256(const wt_fft_wisdom *w);
