@@ -28,8 +28,10 @@ static void help(void)
            "iterations), plus the cg9 fitting operator. Reports medians and the 10th, 90th and 99th percentiles of\n"
            "--reps runs (default 50), the flops and bytes per call, and the rates they imply, next to the\n"
            "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
-           "operand traffic; the working sets (~1 MB for pcg3) live in cache, so the implied GB/s can exceed\n"
-           "the DRAM triad figure. Then the closed-loop simulation speed with pcg3 (--loop-frames, default\n"
+           "operand traffic; the working sets (~10 MB for the E-ELT pcg3) live in cache, so the implied GB/s can\n"
+           "exceed the DRAM triad figure. Each variant's frame is then run again with its stages timed (where a\n"
+           "frame goes: inverse DWT, forward, adjoint by sensor and by layer, preconditioner, the rest), with the\n"
+           "least and most busy thread's time inside each stage. Then the closed-loop simulation speed with pcg3 (--loop-frames, default\n"
            "20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
            "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
@@ -64,6 +66,31 @@ static void report(const char *what, wt_bench_stats s, double flops, double byte
            bytes / s.med / 1e9);
 }
 
+/* Where a frame goes: per stage, its calls and wall time per frame, its share of the frame, and the least and
+ * most busy thread's time inside it (their gap, and the wall's over the busiest, is waiting) */
+static void report_profile(const char *name, const wt_bench_tomography *b)
+{
+    const double nf = b->prof_frames, frame = b->prof_frame / nf;
+    printf("  where a %s frame goes (mean of %d frames, %.3f ms, run again with each stage timed; busy: the least /\n"
+           "  most busy thread's time inside the stage):\n", name, b->prof_frames, frame * 1e3);
+    double rest = frame;
+    for (int k = 0; k < WT_TOMO_NSTAGES; k++) {
+        const wt_tomography_stage *g = &b->stage[k];
+        if (g->calls == 0) continue;
+        printf("    %-32s %4.1f calls %8.3f ms %5.1f %%", wt_tomography_stage_name(k), g->calls / nf, g->wall / nf * 1e3,
+               100.0 * g->wall / nf / frame);
+        if (g->busy_min >= 0.0) printf("   busy %.3f / %.3f ms", g->busy_min / nf * 1e3, g->busy_max / nf * 1e3);
+        printf("\n");
+        rest -= g->wall / nf;
+    }
+    if (b->precond_calls > 0) {
+        printf("    %-32s %4.1f calls %8.3f ms %5.1f %%\n", "preconditioner", b->precond_calls / nf,
+               b->precond_wall / nf * 1e3, 100.0 * b->precond_wall / nf / frame);
+        rest -= b->precond_wall / nf;
+    }
+    printf("    %-32s            %8.3f ms %5.1f %%\n", "the rest (PCG vectors, checks)", rest * 1e3, 100.0 * rest / frame);
+}
+
 static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
 {
     const char *name = wt_reconstructor_name(kind);
@@ -91,6 +118,7 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
         printf("  real-time goal: a %d-iteration pcg3 frame in 2 ms (500 Hz): measured %.2f ms = %.1fx the budget "
                "(p99 %.2f ms over %d frames)\n",
                par.iterations, b.frame.med * 1e3, b.frame.med / 2e-3, b.frame.p99 * 1e3, reps);
+    report_profile(name, &b);
     if (b.has_fitting) {
         if (par.fitting.solver == WT_FIT_CHOLESKY)
             snprintf(label, sizeof label, "%s: fitting (Cholesky, %s)", name, par.fitting.factor_float32 ? "fp32" : "fp64");

@@ -1,7 +1,7 @@
 /* tests/test_bench.c: the paired mode of core/sim/bench.h (issue 20 §5): both sides see the same slopes
  * (two identical configurations give the same commands, bit for bit), the per-pair ratios are summarised
  * like the timings, two systems of different sizes are paired without comparing commands, and bad
- * arguments are refused. Timings are not checked against values: the host decides them. */
+ * arguments are refused; the single-configuration run's frame profile counts the stages a frame runs. Timings are not checked against values: the host decides them. */
 #include "core/model/params.h"
 #include "core/sim/bench.h"
 #include "testutil.h"
@@ -89,6 +89,31 @@ START_TEST(test_different_configurations)
 }
 END_TEST
 
+/* The frame profile of wt_bench_tomography_run: its frames continue the previous solve (no apply of M for the
+ * initial residual), so a k-iteration frame applies M k times, the adjoint k + 1 times (the right-hand side) and
+ * the preconditioner k times (z₀ and one per iteration but the last); the stages and the preconditioner's share
+ * never exceed the frames that hold them. */
+START_TEST(test_frame_profile)
+{
+    fixture f;
+    setup(&f, WT_RECON_PCG3, NULL, NULL);
+    wt_bench_tomography b;
+    const int reps = 3, k = f.par[0].iterations;
+    ck_assert_int_eq(wt_bench_tomography_run(f.ctx, f.sys[0], &f.par[0], "pcg3", reps, &b), WT_OK);
+    ck_assert_int_eq(b.prof_frames, reps);
+    ck_assert_int_eq(b.stage[WT_TOMO_STAGE_INVERSE_DWT].calls, reps * k);
+    ck_assert_int_eq(b.stage[WT_TOMO_STAGE_FORWARD].calls, reps * k);
+    ck_assert_int_eq(b.stage[WT_TOMO_STAGE_ADJOINT_SENSORS].calls, reps * (k + 1));
+    ck_assert_int_eq(b.stage[WT_TOMO_STAGE_ADJOINT_LAYERS].calls, reps * (k + 1));
+    ck_assert_int_eq(b.precond_calls, reps * k);
+    double sum = b.precond_wall;
+    for (int g = 0; g < WT_TOMO_NSTAGES; g++) sum += b.stage[g].wall;
+    ck_assert_msg(sum <= b.prof_frame, "stages %g s > their frames %g s", sum, b.prof_frame);
+    ck_assert_double_gt(b.prof_frame, 0.0);
+    teardown(&f);
+}
+END_TEST
+
 START_TEST(test_refusals)
 {
     fixture f;
@@ -111,6 +136,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_same_configuration_same_commands);
     tcase_add_test(tc, test_different_configurations);
     tcase_add_test(tc, test_refusals);
+    tcase_add_test(tc, test_frame_profile);
     suite_add_tcase(s, tc);
     return s;
 }

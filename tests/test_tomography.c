@@ -826,6 +826,68 @@ END_TEST
  * condition number in c: 1e-9 relative after 8 frames allows κ up to ~10^5 (measured: 2e-14 to 2e-13). A
  * continue on other
  * unknowns than the last solve's is a fresh solve, bit for bit. */
+/* The frame profile (bench's "where a frame goes"): a solve of k iterations from a given start applies M k + 1
+ * times (the initial residual) and the adjoint once more (the right-hand side), so the stages count k + 1 and
+ * k + 2 calls; a stage's busiest thread is inside its region no longer than the region lasts; the timing changes
+ * no value; stopped, nothing is counted. Both adjoint forms: by sensor groups (pcg3) and by layers (the unknowns
+ * in space, cg9), where no inverse DWT runs. */
+static void check_profile(wt_tomography *t, wt_pcg_precond P, const double *s, int space)
+{
+    const int64_t n = wt_tomography_nunknowns(t);
+    double *c0 = calloc(n, sizeof *c0), *c1 = calloc(n, sizeof *c1);
+    ck_assert_int_eq(wt_tomography_solve(t, P, s, c0, 3, 0.0, NULL, NULL), WT_OK);
+    ck_assert_int_eq(wt_tomography_profile_start(t), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(t, P, s, c1, 3, 0.0, NULL, NULL), WT_OK);
+    wt_tomography_stage g[WT_TOMO_NSTAGES];
+    wt_tomography_profile_stop(t, g);
+    for (int64_t i = 0; i < n; i++) ck_assert(c0[i] == c1[i]);
+    const long want[WT_TOMO_NSTAGES] = {space ? 0 : 4, 4, 5, 5};
+    for (int k = 0; k < WT_TOMO_NSTAGES; k++) {
+        ck_assert_msg(g[k].calls == want[k], "%s: %ld calls, expected %ld", wt_tomography_stage_name(k), g[k].calls,
+                      want[k]);
+        ck_assert(g[k].wall >= 0.0);
+        if (want[k] == 0) {
+            ck_assert(g[k].busy_min < 0.0 && g[k].busy_max < 0.0);
+            continue;
+        }
+        ck_assert_msg(g[k].busy_min >= 0.0 && g[k].busy_min <= g[k].busy_max, "%s: busy %g / %g",
+                      wt_tomography_stage_name(k), g[k].busy_min, g[k].busy_max);
+        /* (a thread's time inside a region ends before the region's own end: 1 µs of clock slack a call) */
+        ck_assert_msg(g[k].busy_max <= g[k].wall + 1e-6 * g[k].calls, "%s: busiest thread %g s > wall %g s",
+                      wt_tomography_stage_name(k), g[k].busy_max, g[k].wall);
+    }
+    ck_assert_int_eq(wt_tomography_profile_start(t), WT_OK);
+    wt_tomography_profile_stop(t, g);
+    ck_assert_int_eq(wt_tomography_solve(t, P, s, c1, 3, 0.0, NULL, NULL), WT_OK);
+    wt_tomography_profile_stop(t, g);
+    for (int k = 0; k < WT_TOMO_NSTAGES; k++) ck_assert_int_eq(g[k].calls, 0);
+    ck_assert_ptr_null(wt_tomography_stage_name(WT_TOMO_NSTAGES));
+    ck_assert_str_eq(wt_tomography_stage_name(WT_TOMO_STAGE_FORWARD), "forward");
+    free(c0);
+    free(c1);
+}
+
+START_TEST(test_profile_counts_stages)
+{
+    fixture f;
+    setup(&f, DEMO, 0, 0, NULL);
+    const int64_t ns = f.sys->nslopes;
+    double *s = malloc(ns * sizeof *s);
+    tu_randn(s, ns, 5);
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+    check_profile(f.t, wt_precond_pcg(f.p), s, 0);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f.cfg, &tp);
+    tp.space = 1;
+    wt_tomography *ts = NULL;
+    ck_assert_msg(wt_tomography_alloc(f.ctx, f.sys, &f.cfg->cg9, "cg9", &tp, &ts) == WT_OK, "%s", wt_error_message(f.ctx));
+    check_profile(ts, (wt_pcg_precond){NULL, NULL}, s, 1);
+    wt_tomography_free(ts);
+    free(s);
+    teardown(&f);
+}
+END_TEST
+
 START_TEST(test_solve_continue_matches_warm_start)
 {
     const char *pre[][1] = {{"recon.pcg3.preconditioner=jacobi_ngs"}, {"recon.pcg3.preconditioner=coarse_ngs"},
@@ -956,6 +1018,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_loop_noise_average);
     tcase_add_test(tc, test_solve_continue_matches_warm_start);
     tcase_add_test(tc, test_fitting_continue_matches_warm_start);
+    tcase_add_test(tc, test_profile_counts_stages);
     suite_add_tcase(s, tc);
     return s;
 }

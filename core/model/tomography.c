@@ -69,7 +69,28 @@ struct wt_tomography_work {
                                    one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
                                    layers in place (wt_prior_apply_full) */
     double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
+    double *prof;     /* wt_tomography_profile_start: per stage, PROF_STRIDE (calls, wall, then each thread's busy
+                         time on a cache line of its own); NULL or prof_on 0: not timing */
+    int prof_on;
 };
+
+/* A stage's slots in w->prof: calls and wall, then nthreads busy times 8 doubles apart (no two threads write
+ * one cache line) */
+static int64_t prof_stride(const wt_tomography *t) { return 8 * (1 + (int64_t)t->nthreads); }
+static double prof_t0(const wt_tomography_work *w) { return w->prof_on ? wt_time_now() : 0.0; }
+/* one call of stage k that ran from t0 to t1 (t1 < 0: now) */
+static void prof_wall_to(const wt_tomography *t, wt_tomography_work *w, int k, double t0, double t1)
+{
+    if (!w->prof_on) return;
+    double *s = w->prof + k * prof_stride(t);
+    s[0] += 1.0;
+    s[1] += (t1 < 0.0 ? wt_time_now() : t1) - t0;
+}
+static void prof_wall(const wt_tomography *t, wt_tomography_work *w, int k, double t0) { prof_wall_to(t, w, k, t0, -1.0); }
+static void prof_busy(const wt_tomography *t, wt_tomography_work *w, int k, int id, double t0)
+{
+    if (w->prof_on && id < t->nthreads) w->prof[k * prof_stride(t) + 8 * (1 + id)] += wt_time_now() - t0;
+}
 
 static int thread_id(void)
 {
@@ -490,7 +511,45 @@ void wt_tomography_work_free(wt_tomography_work *w)
     wt_free(ctx, w->b);
     wt_free(ctx, w->pphi_raw);
     wt_free(ctx, w->pwork);
+    wt_free(ctx, w->prof);
     wt_free(ctx, w);
+}
+
+static const char *stage_names[WT_TOMO_NSTAGES] = {"inverse DWT", "forward", "adjoint by sensor", "adjoint by layer"};
+
+const char *wt_tomography_stage_name(int k) { return k >= 0 && k < WT_TOMO_NSTAGES ? stage_names[k] : NULL; }
+
+int wt_tomography_profile_start(wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_tomography_work *w = t->work;
+    const int64_t len = WT_TOMO_NSTAGES * prof_stride(t);
+    if (!w->prof) WT_ALLOC(t->ctx, w->prof, len, "profile");
+    memset(w->prof, 0, (size_t)len * sizeof *w->prof);
+    w->prof_on = 1;
+fail:
+    return st;
+}
+
+void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out)
+{
+    wt_tomography_work *w = t->work;
+    for (int k = 0; k < WT_TOMO_NSTAGES; k++) {
+        const double *s = w->prof ? w->prof + k * prof_stride(t) : NULL;
+        out[k] = (wt_tomography_stage){0, 0.0, -1.0, -1.0};
+        if (!s) continue;
+        out[k].calls = (long)s[0];
+        out[k].wall = s[1];
+        /* the paper prior's forward runs in core/model/stack.c's region: its busy times are not measured */
+        if (k == WT_TOMO_STAGE_FORWARD && !t->full_prior) continue;
+        if (k == WT_TOMO_STAGE_INVERSE_DWT && t->space) continue;
+        for (int id = 0; id < t->nthreads; id++) {
+            const double b = s[8 * (1 + id)];
+            if (id == 0 || b < out[k].busy_min) out[k].busy_min = b;
+            if (id == 0 || b > out[k].busy_max) out[k].busy_max = b;
+        }
+    }
+    w->prof_on = 0;
 }
 
 /* The thread that handles layer l in a team of nt: its fixed owner (the same thread every apply, so that a
@@ -505,20 +564,26 @@ static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const dou
         if (phi != c) memcpy(phi, c, (size_t)t->n * sizeof *phi);
         return;
     }
+    const double t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
     {
+        const double b0 = prof_t0(w);
         int id, nt;
         wt_thread_team(&id, &nt);
         for (int l = 0; l < t->L; l++)
             if (owner_of(t, l, nt) == id)
                 wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)id * t->wsize);
+        prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
     }
+    prof_wall(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0);
 }
 
 /* slopes = Γ P φ for every sensor */
 static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
 {
+    const double t0 = prof_t0(w);
     wt_sensor_stack_set(&t->stack, 1.0, phi, slopes, w->phase, t->nthreads);
+    prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m. Each accumulator group takes its sensors in index order and the
@@ -545,9 +610,13 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
                           double *c)
 {
     const wt_system *sys = t->sys;
+    const double t0 = prof_t0(w);
+    double t1 = t0;
 #pragma omp parallel num_threads(t->nthreads)
     {
-#pragma omp for schedule(dynamic, 1)
+        const int id = thread_id();
+        double b0 = prof_t0(w);
+#pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m < t->S; m++) {
             const wt_sensor *s = &sys->sensors[m];
             const wt_noise *nz = t->noise[m];
@@ -556,7 +625,12 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
             wt_noise_set_weight_many(&nz, 1, &x, &ws);
             wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
         }
-#pragma omp for schedule(dynamic, 1)
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
+#pragma omp barrier
+#pragma omp master
+        t1 = prof_t0(w);
+        b0 = prof_t0(w);
+#pragma omp for schedule(dynamic, 1) nowait
         for (int k = 0; k < t->L; k++) {
             const int l = t->by_size[k];
             const int64_t a = t->off[l], nl = t->off[l + 1] - a;
@@ -564,7 +638,10 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
             /* (else c already holds the prior's term: forward_slopes_prior wrote it there) */
             for (int m = 0; m < t->S; m++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, c + a);
         }
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
+    prof_wall_to(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0, t1); /* (the master's clock after the sensors' barrier) */
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t1);
 }
 
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given; with the full prior + W w->pphi, the α C_φ⁻¹ φ of
@@ -579,8 +656,10 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
         adjoint_space(t, w, slopes, cx, c);
         return;
     }
+    double t0 = prof_t0(w);
 #pragma omp parallel for schedule(static) num_threads(t->nthreads)
     for (int g = 0; g < WT_GROUPS; g++) {
+        const double b0 = prof_t0(w);
         double *acc = w->acc + (size_t)g * n;
         memset(acc, 0, (size_t)n * sizeof *acc);
         /* the group's weights first, side by side (wt_noise_apply_weight_many), then its adjoints in order */
@@ -601,9 +680,13 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
             if (t->group[m] == g)
                 wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
                                                w->phase + (size_t)m * t->ncg);
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
     }
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
+    t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
     {
+        const double b0 = prof_t0(w);
         int id, nt;
         wt_thread_team(&id, &nt);
         for (int l = 0; l < t->L; l++) {
@@ -621,7 +704,9 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
             if (cx && !t->full_prior)
                 for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
         }
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t0);
 }
 
 /* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
@@ -632,8 +717,10 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes,
                                  double *pphi)
 {
+    const double t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
     {
+        const double b0 = prof_t0(w);
         int id, nt;
         wt_thread_team(&id, &nt);
         for (int k = 0; k < t->L; k++) {
@@ -645,7 +732,9 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
 #pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m < t->S; m++)
             wt_sensor_stack_set_sensor(&t->stack, m, 1.0, phi, slopes, w->phase + (size_t)m * t->ncg);
+        prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
     }
+    prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */

@@ -108,6 +108,29 @@ size_t wt_tomography_prior_layer_work(const wt_tomography *t);
 /* The OpenMP threads the applies run on (1 below ~16k unknowns, where a parallel region does not pay). */
 int wt_tomography_threads(const wt_tomography *t);
 
+/* Where an apply's time goes (bench: a frame's profile). The stages of M (and of the right-hand side, which
+ * runs the adjoint's two), each one parallel region: */
+enum {
+    WT_TOMO_STAGE_INVERSE_DWT = 0,     /* φ = W⁻¹ c per layer (none in space) */
+    WT_TOMO_STAGE_FORWARD = 1,         /* Γ P φ per sensor, and the full prior's FFTs per layer */
+    WT_TOMO_STAGE_ADJOINT_SENSORS = 2, /* per sensor: the noise weight, Γᵀ, Pᵀ into its group's accumulator */
+    WT_TOMO_STAGE_ADJOINT_LAYERS = 3,  /* per layer: the groups' sum, the prior's term, W */
+    WT_TOMO_NSTAGES = 4
+};
+typedef struct wt_tomography_stage {
+    long calls;
+    double wall;               /* summed wall time of the stage's region, on the calling thread [s] */
+    double busy_min, busy_max; /* the least and most busy thread's summed time inside it [s]; < 0: not
+                                  measured (a region outside this module: the paper prior's forward) */
+} wt_tomography_stage;
+/* Zero the stages and time every later apply on the object's own workspace (wt_tomography_apply, _rhs,
+ * _solve, _solve_continue; two clock reads per region and thread, the same results) until
+ * wt_tomography_profile_stop, which copies them to out (WT_TOMO_NSTAGES entries) and stops timing. */
+int wt_tomography_profile_start(wt_tomography *t);
+void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out);
+/* "inverse DWT", "forward", ... (NULL past the last) */
+const char *wt_tomography_stage_name(int k);
+
 /* What one application of M writes: one per concurrent caller. Allocates n (2 + WT_GROUPS) + S·ncg +
  * 2 nslopes + nthreads·wsize doubles; _free(NULL) is a no-op. */
 typedef struct wt_tomography_work wt_tomography_work;

@@ -40,6 +40,14 @@ typedef struct wt_bench_tomography {
     wt_bench_stats apply;     /* one apply of M */
     wt_bench_stats iteration; /* one iteration: (9 iterations − 1) / 8 from the same start */
     wt_bench_stats frame;     /* rhs + par->iterations iterations, warm started */
+    /* Where a frame goes: the same frames once more with the operator's stages timed (wt_tomography_profile_*)
+     * and the preconditioner's applies, summed over prof_frames frames; the rest of prof_frame (the PCG's vector
+     * work, the slopes' check) is what none of them holds. */
+    int prof_frames;
+    double prof_frame;                          /* summed wall time of those frames [s] */
+    wt_tomography_stage stage[WT_TOMO_NSTAGES];
+    long precond_calls;
+    double precond_wall;                        /* [s] */
     int has_fitting;          /* cg9: the fitting was timed */
     wt_bench_stats fitting;   /* par->fit_iterations CG iterations of the fitting */
 } wt_bench_tomography;
