@@ -69,8 +69,8 @@ struct wt_tomography_work {
                                    one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
                                    layers in place (wt_prior_apply_full) */
     double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
-    double *prof;     /* wt_tomography_profile_start: per stage, PROF_STRIDE (calls, wall, then each thread's busy
-                         time on a cache line of its own); NULL or prof_on 0: not timing */
+    double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
+                         busy time on a cache line of its own); NULL or prof_on 0: not timing */
     int prof_on;
 };
 
