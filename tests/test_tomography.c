@@ -885,6 +885,28 @@ START_TEST(test_profile_counts_stages)
     wt_tomography_free(ts);
     free(s);
     teardown(&f);
+    /* on threads (a 128² pcg3 layer: 21504 unknowns, where the applies run on the context's threads; 3: a thread
+     * with no layer and no group): each thread's busy slot, none beyond the stage's wall */
+    const char *set[] = {"recon.pcg3.layer_size=[128, 32, 64]"};
+    for (int th = 2; th <= 3; th++) {
+        fixture g;
+        g.ctx = tu_context();
+        wt_context_set_threads(g.ctx, th);
+        ck_assert_msg(wt_config_read(g.ctx, DEMO, 1, set, &g.cfg) == WT_OK, "%s", wt_error_message(g.ctx));
+        ck_assert_msg(wt_system_alloc(g.ctx, g.cfg, &g.sys) == WT_OK, "%s", wt_error_message(g.ctx));
+        wt_tomography_params tp3;
+        wt_tomography_params_from_config(g.cfg, &tp3);
+        ck_assert_msg(wt_tomography_alloc(g.ctx, g.sys, &g.cfg->pcg3, "pcg3", &tp3, &g.t) == WT_OK, "%s",
+                      wt_error_message(g.ctx));
+        ck_assert_int_eq(wt_tomography_threads(g.t), th);
+        g.p = NULL;
+        double *s3 = malloc(g.sys->nslopes * sizeof *s3);
+        tu_randn(s3, g.sys->nslopes, 6);
+        for (int64_t i = 0; i < g.sys->nslopes; i++) s3[i] *= 1e-6;
+        check_profile(g.t, (wt_pcg_precond){NULL, NULL}, s3, 0);
+        free(s3);
+        teardown(&g);
+    }
 }
 END_TEST
 
