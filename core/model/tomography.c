@@ -515,7 +515,8 @@ void wt_tomography_work_free(wt_tomography_work *w)
     wt_free(ctx, w);
 }
 
-static const char *stage_names[WT_TOMO_NSTAGES] = {"inverse DWT", "forward", "adjoint by sensor", "adjoint by layer"};
+static const char *stage_names[WT_TOMO_NSTAGES] = {"inverse DWT",      "forward",        "adjoint by sensor",
+                                                    "adjoint by layer", "preconditioner", "solve"};
 
 const char *wt_tomography_stage_name(int k) { return k >= 0 && k < WT_TOMO_NSTAGES ? stage_names[k] : NULL; }
 
@@ -543,6 +544,7 @@ void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out)
         /* the paper prior's forward runs in core/model/stack.c's region: its busy times are not measured */
         if (k == WT_TOMO_STAGE_FORWARD && !t->full_prior) continue;
         if (k == WT_TOMO_STAGE_INVERSE_DWT && t->space) continue;
+        if (k == WT_TOMO_STAGE_PRECOND || k == WT_TOMO_STAGE_SOLVE) continue;
         for (int id = 0; id < t->nthreads; id++) {
             const double b = s[8 * (1 + id)];
             if (id == 0 || b < out[k].busy_min) out[k].busy_min = b;
@@ -772,14 +774,24 @@ void wt_tomography_rhs(wt_tomography *t, double alpha, const double *s, double *
     for (int64_t i = 0; i < t->n; i++) b[i] += alpha * w->b[i];
 }
 
+/* (neither is a stage of M or of the solve: the profile leaves them out) */
 void wt_tomography_slopes(wt_tomography *t, double alpha, const double *c, double *s)
 {
     wt_tomography_work *w = t->work;
+    const int on = w->prof_on;
+    w->prof_on = 0;
     inverse_dwt(t, w, c, w->phi);
     wt_sensor_stack_apply(&t->stack, alpha, w->phi, s, w->phase, t->nthreads);
+    w->prof_on = on;
 }
 
-void wt_tomography_layers(wt_tomography *t, const double *c, double *phi) { inverse_dwt(t, t->work, c, phi); }
+void wt_tomography_layers(wt_tomography *t, const double *c, double *phi)
+{
+    const int on = t->work->prof_on;
+    t->work->prof_on = 0;
+    inverse_dwt(t, t->work, c, phi);
+    t->work->prof_on = on;
+}
 
 static void apply_cb(void *user, const double *x, double *y)
 {
@@ -787,15 +799,34 @@ static void apply_cb(void *user, const double *x, double *y)
     normal(t, t->work, x, y);
 }
 
+/* The preconditioner's callback with the profile's clock around it (wt_tomography_profile_start) */
+typedef struct timed_precond {
+    const wt_tomography *t;
+    wt_pcg_precond inner;
+} timed_precond;
+
+static void timed_precond_apply(void *user, const double *r, double *z)
+{
+    const timed_precond *tp = user;
+    const double t0 = prof_t0(tp->t->work);
+    tp->inner.apply(tp->inner.user, r, z);
+    prof_wall(tp->t, tp->t->work, WT_TOMO_STAGE_PRECOND, t0);
+}
+
 static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int continuing, int max_iter,
                  double rtol, double *history, wt_pcg_result *res)
 {
+    const double t0 = prof_t0(t->work);
     const int64_t bad = wt_vec_first_nonfinite(s, t->sys->nslopes); /* (a per-slope test with an early exit: ~20 µs) */
     if (bad >= 0)
         return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)bad, s[bad]);
     adjoint_slopes(t, t->work, s, wt_pcg_rhs(t->pcg));
-    return wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
-                            max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
+    timed_precond tp = {t, P};
+    if (t->work->prof_on && P.apply) P = (wt_pcg_precond){timed_precond_apply, &tp};
+    const int st = wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
+                                    max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
+    prof_wall(t, t->work, WT_TOMO_STAGE_SOLVE, t0);
+    return st;
 }
 
 int wt_tomography_solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c, int max_iter, double rtol,

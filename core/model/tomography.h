@@ -115,20 +115,24 @@ enum {
     WT_TOMO_STAGE_FORWARD = 1,         /* Γ P φ per sensor, and the full prior's FFTs per layer */
     WT_TOMO_STAGE_ADJOINT_SENSORS = 2, /* per sensor: the noise weight, Γᵀ, Pᵀ into its group's accumulator */
     WT_TOMO_STAGE_ADJOINT_LAYERS = 3,  /* per layer: the groups' sum, the prior's term, W */
-    WT_TOMO_NSTAGES = 4
+    WT_TOMO_STAGE_PRECOND = 4,         /* the solves' preconditioner applies (their own regions; wall only) */
+    WT_TOMO_STAGE_SOLVE = 5,           /* whole wt_tomography_solve* calls, the stages above included (wall only):
+                                          what they leave is the PCG's vector work and the slopes' check */
+    WT_TOMO_NSTAGES = 6
 };
 typedef struct wt_tomography_stage {
     long calls;
     double wall;               /* summed wall time of the stage's region, on the calling thread [s] */
     double busy_min, busy_max; /* the least and most busy thread's summed time inside it [s]; < 0: not
-                                  measured (a region outside this module: the paper prior's forward) */
+                                  measured (a region outside this module: the paper prior's forward, the
+                                  preconditioner, the solve) */
 } wt_tomography_stage;
 /* Zero the stages and time every later apply on the object's own workspace (wt_tomography_apply, _rhs,
- * _solve, _solve_continue; two clock reads per region and thread, the same results) until
- * wt_tomography_profile_stop, which copies them to out (WT_TOMO_NSTAGES entries) and stops timing. */
+ * _solve, _solve_continue; not _layers or _slopes; two clock reads per region and thread, the same results)
+ * until wt_tomography_profile_stop, which copies them to out (WT_TOMO_NSTAGES entries) and stops timing. */
 int wt_tomography_profile_start(wt_tomography *t);
 void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out);
-/* "inverse DWT", "forward", ... (NULL past the last) */
+/* "inverse DWT", "forward", ..., "solve" (NULL past the last) */
 const char *wt_tomography_stage_name(int k);
 
 /* What one application of M writes: one per concurrent caller. Allocates n (2 + WT_GROUPS) + S·ncg +

@@ -103,22 +103,6 @@ static int time_fitting(wt_context *ctx, const wt_system *sys, wt_tomography *t,
     return st;
 }
 
-/* The preconditioner's callback with a clock around it (the frame's profile) */
-typedef struct timed_precond {
-    wt_pcg_precond inner;
-    long calls;
-    double wall;
-} timed_precond;
-
-static void timed_precond_apply(void *user, const double *r, double *z)
-{
-    timed_precond *tp = user;
-    const double a = wt_time_now();
-    tp->inner.apply(tp->inner.user, r, z);
-    tp->wall += wt_time_now() - a;
-    tp->calls++;
-}
-
 int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
                             const char *name, int reps, wt_bench_tomography *out)
 {
@@ -182,16 +166,10 @@ int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reco
     out->frame = wt_bench_summarise(times, reps);
 
     /* the frame's profile, on frames of their own (the timed ones above run without the extra clock reads) */
-    timed_precond tp = {P, 0, 0.0};
-    const wt_pcg_precond Pt = P.apply ? (wt_pcg_precond){timed_precond_apply, &tp} : P;
     if ((st = wt_tomography_profile_start(t)) < 0) goto out;
-    double a = wt_time_now();
-    for (int r = 0; r < reps; r++) wt_tomography_solve_continue(t, Pt, s, c, par->iterations, 0.0, NULL, NULL);
-    out->prof_frame = wt_time_now() - a;
+    for (int r = 0; r < reps; r++) wt_tomography_solve_continue(t, P, s, c, par->iterations, 0.0, NULL, NULL);
     wt_tomography_profile_stop(t, out->stage);
     out->prof_frames = reps;
-    out->precond_calls = tp.calls;
-    out->precond_wall = tp.wall;
 
     if (par->fit_iterations > 0) {
         if ((st = time_fitting(ctx, sys, t, par, c, reps, times, &out->fitting)) < 0) goto out;
@@ -254,6 +232,9 @@ int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_r
         for (int64_t i = 0; i < sys[k]->nslopes; i++) s[k][i] = 1e-6 * wt_rng_normal(&rng[k]);
     }
     for (int f = -warm; f < pairs; f++) {
+        if (f == 0) /* each side's stages over the timed pairs (two clock reads per region: ~1 µs a frame) */
+            for (int k = 0; k < 2; k++)
+                if ((st = wt_tomography_profile_start(wt_reconstructor_tomography(r[k]))) < 0) goto out;
         for (int j = 0; j < 2; j++) {
             const int k = (f & 1) ? 1 - j : j; /* A B, then B A */
             next_slopes(&rng[k], s[k], sys[k]->nslopes);
@@ -268,6 +249,7 @@ int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_r
             t[(size_t)(3 * k + 2) * pairs + f] = tf;
         }
     }
+    for (int k = 0; k < 2; k++) wt_tomography_profile_stop(wt_reconstructor_tomography(r[k]), out->stage[k]);
     for (int q = 0; q < 3; q++) /* the ratios before the sorts below reorder the samples */
         for (int f = 0; f < pairs; f++) {
             const double ta = t[(size_t)q * pairs + f], tb = t[(size_t)(3 + q) * pairs + f];

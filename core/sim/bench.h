@@ -40,14 +40,10 @@ typedef struct wt_bench_tomography {
     wt_bench_stats apply;     /* one apply of M */
     wt_bench_stats iteration; /* one iteration: (9 iterations − 1) / 8 from the same start */
     wt_bench_stats frame;     /* rhs + par->iterations iterations, warm started */
-    /* Where a frame goes: the same frames once more with the operator's stages timed (wt_tomography_profile_*)
-     * and the preconditioner's applies, summed over prof_frames frames; the rest of prof_frame (the PCG's vector
-     * work, the slopes' check) is what none of them holds. */
+    /* Where a frame goes: the same frames once more with the tomography's stages timed (wt_tomography_profile_*),
+     * summed over prof_frames frames */
     int prof_frames;
-    double prof_frame;                          /* summed wall time of those frames [s] */
     wt_tomography_stage stage[WT_TOMO_NSTAGES];
-    long precond_calls;
-    double precond_wall;                        /* [s] */
     int has_fitting;          /* cg9: the fitting was timed */
     wt_bench_stats fitting;   /* par->fit_iterations CG iterations of the fitting */
 } wt_bench_tomography;
@@ -78,6 +74,7 @@ typedef struct wt_bench_pair {
     int has_fitting;                    /* cg9: fit below holds each side's fitting set-up */
     int fit_solver[2];                  /* WT_FIT_CG or WT_FIT_CHOLESKY */
     wt_fitting_stats fit[2];            /* the direct solver's set-up (zeros for CG) */
+    wt_tomography_stage stage[2][WT_TOMO_NSTAGES]; /* each side's tomography stages, summed over the pairs */
 } wt_bench_pair;
 
 int wt_bench_pair_run(wt_context *ctx, const wt_system *const sys[2], const wt_reconstructor_params par[2], int kind,
