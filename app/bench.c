@@ -55,7 +55,7 @@ static void help(void)
            "per-pair ratio B/A of each, median [p10, p90] and p99: the figure to quote, since the host's speed\n"
            "drifts between and within runs and a ratio of frames measured side by side does not; the machine's\n"
            "load average before and after; and |a_B - a_A| / |a_A| of the last frame's commands when both sides\n"
-           "have one system.\n"
+           "have one system; then where each side's tomography goes (its stages, as above, over the timed pairs).\n"
            "Example: --pair-a 'recon.cg9.fit_solver=\"cg\"' --pair-b 'recon.cg9.fit_solver=\"cholesky\"'.\n");
 }
 
