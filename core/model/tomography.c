@@ -649,43 +649,37 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
 /* c = W Σ_m Pᵀ Γᵀ Ĉ⁻¹ slopes_m (+ α D cx when cx is given; with the full prior + W w->pphi, the α C_φ⁻¹ φ of
  * cx's layers, which normal() leaves there). The group sum, the transform and the prior term of a layer run
  * in one task (the same per-element operations as three passes). */
-static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
-                          double *c)
+/* One accumulator group's share of the adjoint: its accumulator cleared, the group's weights side by side
+ * (wt_noise_set_weight_many), then its sensors' Γᵀ and Pᵀ in index order */
+static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, const double *slopes)
 {
     const wt_system *sys = t->sys;
+    double *acc = w->acc + (size_t)g * t->n;
+    memset(acc, 0, (size_t)t->n * sizeof *acc);
+    const wt_noise *nz[2 * WT_MAX_GS];
+    const double *x[2 * WT_MAX_GS];
+    double *ws[2 * WT_MAX_GS];
+    int k = 0;
+    for (int m = 0; m < t->S; m++) {
+        if (t->group[m] != g) continue;
+        const wt_sensor *s = &sys->sensors[m];
+        nz[k] = t->noise[m];
+        x[k] = slopes + s->offset;
+        ws[k] = w->weighted + s->offset;
+        k++;
+    }
+    wt_noise_set_weight_many(nz, k, x, ws);
+    for (int m = 0; m < t->S; m++)
+        if (t->group[m] == g)
+            wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
+                                           w->phase + (size_t)m * t->ncg);
+}
+
+/* The adjoint's last stage, each layer on its owner: the groups' sum (in group order), the prior's term, W */
+static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c)
+{
     const int64_t n = t->n;
-    if (by_layers(t)) {
-        adjoint_space(t, w, slopes, cx, c);
-        return;
-    }
-    double t0 = prof_t0(w);
-#pragma omp parallel for schedule(static) num_threads(t->nthreads)
-    for (int g = 0; g < WT_GROUPS; g++) {
-        const double b0 = prof_t0(w);
-        double *acc = w->acc + (size_t)g * n;
-        memset(acc, 0, (size_t)n * sizeof *acc);
-        /* the group's weights first, side by side (wt_noise_apply_weight_many), then its adjoints in order */
-        const wt_noise *nz[2 * WT_MAX_GS];
-        const double *x[2 * WT_MAX_GS];
-        double *ws[2 * WT_MAX_GS];
-        int k = 0;
-        for (int m = 0; m < t->S; m++) {
-            if (t->group[m] != g) continue;
-            const wt_sensor *s = &sys->sensors[m];
-            nz[k] = t->noise[m];
-            x[k] = slopes + s->offset;
-            ws[k] = w->weighted + s->offset;
-            k++;
-        }
-        wt_noise_set_weight_many(nz, k, x, ws);
-        for (int m = 0; m < t->S; m++)
-            if (t->group[m] == g)
-                wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
-                                               w->phase + (size_t)m * t->ncg);
-        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
-    }
-    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    t0 = prof_t0(w);
+    const double t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
     {
         const double b0 = prof_t0(w);
@@ -709,6 +703,24 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t0);
+}
+
+static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                          double *c)
+{
+    if (by_layers(t)) {
+        adjoint_space(t, w, slopes, cx, c);
+        return;
+    }
+    const double t0 = prof_t0(w);
+#pragma omp parallel for schedule(static) num_threads(t->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        const double b0 = prof_t0(w);
+        adjoint_group(t, w, g, slopes);
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
+    }
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
+    adjoint_layers(t, w, cx, c);
 }
 
 /* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
