@@ -266,8 +266,8 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     else if (!strcmp(o, "--reps") || !strcmp(o, "--loop-frames")) {
         if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
         if (wt_cli_int(cli, o, v, 3, 100000, o[2] == 'r' ? &a->reps : &a->loop_frames) < 0) return -1;
-    } else if (o[0] == '-' || a->path) return 0;
-    else a->path = o;
+    } else if (o[0] == '-') return 0;
+    else return wt_cli_config_arg(cli, o, &a->path);
     return 1;
 }
 

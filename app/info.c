@@ -138,11 +138,7 @@ static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         else a->sensor = v;
     }
     else if (argv[*i][0] == '-') return 0;
-    else if (!a->path) a->path = argv[*i];
-    else {
-        wt_cli_usage_error(cli, "more than one CONFIG given ('%s' and '%s')", a->path, argv[*i]);
-        return -1;
-    }
+    else return wt_cli_config_arg(cli, argv[*i], &a->path);
     return 1;
 }
 

@@ -157,6 +157,16 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
     return -1;
 }
 
+int wt_cli_config_arg(wt_cli *cli, const char *arg, const char **path)
+{
+    if (*path) {
+        wt_cli_usage_error(cli, "more than one CONFIG given ('%s' and '%s')", *path, arg);
+        return -1;
+    }
+    *path = arg;
+    return 1;
+}
+
 const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i)
 {
     if (*i + 1 >= argc) {

@@ -44,6 +44,9 @@ typedef int (*wt_cli_option_fn)(wt_cli *cli, int argc, char **argv, int *i, void
  * Returns -1 to go on with the command, or the exit code to stop with (0 after --help, 2 on a usage
  * error). */
 int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user);
+/* A command's positional CONFIG: arg becomes *path the first time (1); a second one is a usage error naming
+ * both (-1). For the option callbacks of the commands that take `[CONFIG]` (info, bench, wisdom). */
+int wt_cli_config_arg(wt_cli *cli, const char *arg, const char **path);
 /* The value of option argv[*i]: argv[*i + 1] (advancing *i), or NULL after reporting a usage error. */
 const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i);
 /* Parse an integer in [lo, hi] for option `name`; reports a usage error and returns -1 when it is not. */

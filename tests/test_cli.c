@@ -146,6 +146,13 @@ START_TEST(test_build_run_chain_and_refusals)
     /* bench has no resource estimate: --dry-run is refused, not ignored */
     ck_assert_int_eq(run("bench data/presets/demo.cfg --dry-run"), 2);
     ck_assert(stderr_has("--dry-run"));
+    /* the commands that take [CONFIG] refuse a second one, naming both (wt_cli_config_arg) */
+    const char *one[] = {"info", "bench", "wisdom"};
+    for (int i = 0; i < 3; i++) {
+        ck_assert_int_eq(run("%s data/presets/demo.cfg data/presets/eelt-mcao.cfg --out %s/w", one[i], dir), 2);
+        ck_assert(stderr_has("more than one CONFIG"));
+        ck_assert(stderr_has("eelt-mcao.cfg"));
+    }
 }
 END_TEST
 
