@@ -63,6 +63,9 @@ void wt_free(wt_context *ctx, void *ptr);
 
 /* Monotonic wall clock [s]. */
 double wt_time_now(void);
+/* p rounded up to the next 64-byte boundary (a cache line; FFTW's and AVX-512's alignment): for arrays
+ * allocated 8 doubles longer than they are used */
+static inline double *wt_align64(double *p) { return (double *)(((uintptr_t)p + 63) & ~(uintptr_t)63); }
 
 /* The calling thread's index in its OpenMP team and the team's size (0 and 1 outside a parallel region or
  * without OpenMP): the split of a parallel region's fixed pieces. */

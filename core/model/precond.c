@@ -978,7 +978,7 @@ static int compute_fourier(wt_precond *p, wt_tomography *t, int coarse_levels)
     p->fd_slice = (size_t)(n2 + 2 * nk + (int64_t)WT_FOURIER_MAX_SC * n);
     /* at a 64-byte boundary: the plans are made on it, and the learnt wisdom on arrays as aligned (core/la/fft.c) */
     WT_ALLOC(ctx, p->fd_raw, (size_t)p->nthreads * p->fd_slice + 8, "fourier preconditioner work");
-    p->fd_buf = (double *)(((uintptr_t)p->fd_raw + 63) & ~(uintptr_t)63);
+    p->fd_buf = wt_align64(p->fd_raw);
     WT_ALLOC(ctx, p->fd_s, nk, "fourier preconditioner filter");
     WT_ALLOC(ctx, A, (size_t)nk * L * L, "fourier preconditioner symbol");
     WT_ALLOC(ctx, e, p->n, "fourier probe");
@@ -1415,7 +1415,7 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
             if (nz) p->lr_blk[p->lr_nblk++] = b;
         }
         WT_ALLOC(ctx, p->lr_Yb_raw, (size_t)p->lr_nblk * q * 8 + 8, "NGS preconditioner Y (blocks)");
-        p->lr_Yb = (double *)(((uintptr_t)p->lr_Yb_raw + 63) & ~(uintptr_t)63);
+        p->lr_Yb = wt_align64(p->lr_Yb_raw);
         for (int64_t b = 0; b < p->lr_nblk; b++)
             for (int k = 0; k < q; k++)
                 for (int a = 0; a < 8 && 8 * p->lr_blk[b] + a < n; a++)

@@ -468,8 +468,6 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t);
 }
 
-static double *align64(double *p) { return (double *)(((uintptr_t)p + 63) & ~(uintptr_t)63); }
-
 int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
 {
     int st = WT_OK;
@@ -479,7 +477,7 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
     WT_ALLOC(ctx, w, 1, "tomography workspace");
     w->ctx = ctx;
     WT_ALLOC(ctx, w->phi_raw, t->n + 8, "layer workspace");
-    w->phi = align64(w->phi_raw);
+    w->phi = wt_align64(w->phi_raw);
     WT_ALLOC(ctx, w->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
     WT_ALLOC(ctx, w->phase, (size_t)t->S * t->ncg, "phase workspace");
     WT_ALLOC(ctx, w->slopes, t->sys->nslopes, "slope workspace");
@@ -488,7 +486,7 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
     WT_ALLOC(ctx, w->b, t->n, "right-hand side");
     if (t->full_prior) {
         WT_ALLOC(ctx, w->pphi_raw, t->n + 8, "full prior term");
-        w->pphi = align64(w->pphi_raw);
+        w->pphi = wt_align64(w->pphi_raw);
         WT_ALLOC(ctx, w->pwork, (size_t)t->nthreads * t->pwsize, "full prior workspace");
     }
     *out = w;

@@ -280,7 +280,7 @@ size_t wt_prior_work_size(const wt_prior *p)
 void wt_prior_apply_full(const wt_prior *p, double alpha, const double *phi, double *out, double *work)
 {
     const size_t n2 = (size_t)p->n * p->n, nc = (size_t)p->n * (p->n / 2 + 1);
-    double *in = (double *)(((uintptr_t)work + 63) & ~(uintptr_t)63);
+    double *in = wt_align64(work);
     fftw_complex *hat = (fftw_complex *)(in + n2);
     double *res = in + n2 + 2 * nc;
     /* FFTW runs a plan on other arrays only with the planning arrays' alignment (its SIMD codelets): the work

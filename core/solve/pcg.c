@@ -44,7 +44,7 @@ int wt_pcg_alloc(wt_context *ctx, int64_t n, wt_pcg **out)
      * executes a plan only on arrays of its planning alignment), and the vector passes start on cache lines. */
     const int64_t stride = p->stride = (n + 7) / 8 * 8;
     WT_ALLOC(ctx, p->block, 6 * stride + 8, "pcg vectors (r, z, p, q, 2 right-hand sides)");
-    p->r = (double *)(((uintptr_t)p->block + 63) & ~(uintptr_t)63);
+    p->r = wt_align64(p->block);
     p->z = p->r + stride;
     p->p = p->z + stride;
     p->q = p->p + stride;
