@@ -275,6 +275,196 @@ START_TEST(test_set_weight_many)
 }
 END_TEST
 
+/* The float weight (wt_noise_set_weight_many_f32) against the double one. Its rounding, per slope, with
+ * ε = 2⁻²⁴ the float unit roundoff and the input x the same floats on both paths (exact in double). For block i
+ * let u = x_i − mx, v = x_{m+i} − my (mx, my the exact means; 0 without the tip-tilt removal) and
+ *     Px_i = |ia|(|u| + |mx|) + |ib|(|v| + |my|),   Py_i = |ib|(|u| + |mx|) + |ic|(|v| + |my|),
+ * P̄x, P̄y their means over the sensor. With the removal the float path rounds, to first order in ε:
+ *   the means of x, summed in double (≪ ε) and rounded to float: |mxf − mx| ≤ ε|mx|;
+ *   u32 = fl(x_i − mxf): off by ε|u| + ε|mx|;  the blocks rounded at alloc: ε|ia| …;  two products, one sum: 2ε;
+ *   so each v_x = ia u + ib v is off by at most 4ε Px_i (block, subtraction of the mean, product, sum);
+ *   the mean of v_x, summed in double from those: 4ε P̄x, and its rounding to float: ε|mean v_x| ≤ ε P̄x;
+ *   the final fl(v_x − mean): ε(|v_x| + |mean|) ≤ ε(Px_i + P̄x);
+ * in all |y32 − y| ≤ ε (5 Px_i + 6 P̄x), and the same with Py for the y half. Without the removal u, v are x
+ * exact and only the block, the two products and the sum round: 3ε Px_i. FMA contraction (off in ISO C mode)
+ * would only remove roundings. The second-order terms, and the double path's own error (below (m + 6) κ 2⁻⁵³
+ * of the same sizes, κ ≤ 100 the blocks' spread: < 2⁻¹³ ε for m ≤ 640), stay under the slack factor 1 + 2⁻¹⁰.
+ * A wrong sign, a lost mean or a lost ib errs by the size of a product, ~2²⁴ times more. */
+static const double F32_EPS = 0x1p-24, F32_SLACK = 1.0 + 0x1p-10;
+
+/* Px_i, Py_i of the bound above for sensor n (remove_tt = tt) and input x (2 nsub floats) into p[2 nsub],
+ * and their means into pbar[2]. */
+static void f32_sizes(const wt_noise *n, int tt, const float *x, double *p, double *pbar)
+{
+    const int m = wt_noise_nslopes(n) / 2;
+    double mx = 0.0, my = 0.0;
+    if (tt) {
+        for (int i = 0; i < m; i++) mx += x[i], my += x[m + i];
+        mx /= m, my /= m;
+    }
+    pbar[0] = pbar[1] = 0.0;
+    for (int i = 0; i < m; i++) {
+        double a, b, c;
+        wt_noise_inv_block(n, i, &a, &b, &c);
+        const double su = fabs(x[i] - mx) + fabs(mx), sv = fabs(x[m + i] - my) + fabs(my);
+        p[i] = fabs(a) * su + fabs(b) * sv;
+        p[m + i] = fabs(b) * su + fabs(c) * sv;
+        pbar[0] += p[i], pbar[1] += p[m + i];
+    }
+    pbar[0] /= m, pbar[1] /= m;
+}
+
+/* The per-slope bound on |y32 − y| into tol[2 nsub]. */
+static void f32_weight_bound(const wt_noise *n, int tt, const float *x, double *tol)
+{
+    const int m = wt_noise_nslopes(n) / 2;
+    double pbar[2];
+    f32_sizes(n, tt, x, tol, pbar);
+    for (int i = 0; i < 2 * m; i++)
+        tol[i] = F32_SLACK * F32_EPS * (tt ? 5.0 * tol[i] + 6.0 * pbar[i / m] : 3.0 * tol[i]);
+}
+
+/* 2 nsub float slopes: normal draws plus a tip-tilt (ox, oy), so that the means matter. */
+static float *f32_slopes(int nsub, unsigned long seed, double ox, double oy)
+{
+    double *d = malloc(2 * (size_t)nsub * sizeof *d);
+    float *x = malloc(2 * (size_t)nsub * sizeof *x);
+    tu_randn(d, 2 * nsub, seed);
+    for (int i = 0; i < nsub; i++) x[i] = (float)(d[i] + ox), x[nsub + i] = (float)(d[nsub + i] + oy);
+    free(d);
+    return x;
+}
+
+/* y32 = W32 x for one sensor (the batch of one). */
+static void f32_weight1(const wt_noise *n, const float *x, float *y)
+{
+    wt_noise_set_weight_many_f32(&n, 1, &x, &y);
+}
+
+/* k = 1…5 sensors in one call, of two sizes (640: whole blocks of the kernel's lanes; 301: a tail), with and
+ * without the tip-tilt removal, elongated (τ > 0, so ib matters), x with a tip-tilt: every slope within the
+ * bound of the double weight (y filled with NaN before, so an unwritten slope fails too). */
+START_TEST(test_set_weight_many_f32)
+{
+    wt_context *ctx = tu_context();
+    enum { KMAX = 5 };
+    for (int k = 1; k <= KMAX; k++) {
+        wt_noise *ns[KMAX];
+        int nsub[KMAX], tt[KMAX];
+        float *x[KMAX], *y[KMAX];
+        double *xd[KMAX], *yd[KMAX];
+        for (int j = 0; j < k; j++) {
+            nsub[j] = j % 2 ? 301 : 640;
+            tt[j] = (j + k) % 3 != 0;
+            const size_t n2 = 2 * (size_t)nsub[j];
+            ns[j] = make_noise(ctx, nsub[j], 0.8 - 0.1 * j, tt[j]);
+            x[j] = f32_slopes(nsub[j], 100 + 10 * k + j, 1.5 + j, -2.0 + 0.5 * j);
+            y[j] = malloc(n2 * sizeof *y[j]);
+            xd[j] = malloc(n2 * sizeof *xd[j]);
+            yd[j] = malloc(n2 * sizeof *yd[j]);
+            for (size_t i = 0; i < n2; i++) xd[j][i] = x[j][i], y[j][i] = NAN;
+        }
+        wt_noise_set_weight_many_f32((const wt_noise *const *)ns, k, (const float *const *)x, y);
+        wt_noise_set_weight_many((const wt_noise *const *)ns, k, (const double *const *)xd, yd);
+        for (int j = 0; j < k; j++) {
+            const int n2 = 2 * nsub[j];
+            double *tol = malloc(n2 * sizeof *tol);
+            f32_weight_bound(ns[j], tt[j], x[j], tol);
+            for (int i = 0; i < n2; i++)
+                ck_assert_msg(fabs(y[j][i] - yd[j][i]) <= tol[i],
+                              "k %d sensor %d slope %d: %.9g vs %.17g, |diff| %.3g > %.3g", k, j, i, (double)y[j][i],
+                              yd[j][i], fabs(y[j][i] - yd[j][i]), tol[i]);
+            free(tol);
+            wt_noise_free(ns[j]);
+            free(x[j]), free(y[j]), free(xd[j]), free(yd[j]);
+        }
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The float weight's range has no tip-tilt, and a global tip-tilt in x changes nothing, to float rounding.
+ * Sums: y32_i = fl(v_i − d) with d the float mean of the v_i, so Σ y32 = (Σ v − m d) + Σ δ_i y32_i: the first
+ * is the rounding of d, ≤ ε |Σ v| ≤ ε Σ Px (first order), the second ≤ ε Σ |y32|; the double summations add
+ * m 2⁻⁵³ ≪ ε of the same. Invariance: x holds multiples of 2⁻¹² below 8 in size and the tip-tilt (a, b) is
+ * 195/8, −141/8, so x + (a, b) is exact in float and both inputs have the same exact weight; each result is
+ * within its own bound of it (the one of x + (a, b) larger through its means). Sensors of 640, 301 and 9
+ * subapertures (the last all tail). */
+START_TEST(test_set_weight_f32_tip_tilt)
+{
+    wt_context *ctx = tu_context();
+    const int sizes[3] = {640, 301, 9};
+    const double a = 195.0 / 8.0, b = -141.0 / 8.0;
+    for (int s = 0; s < 3; s++) {
+        const int m = sizes[s], n2 = 2 * m;
+        wt_noise *n = make_noise(ctx, m, 0.8, 1);
+        float *x = f32_slopes(m, 200 + s, 0.7, -0.4), *x2 = malloc(n2 * sizeof *x2), *y = malloc(n2 * sizeof *y),
+              *y2 = malloc(n2 * sizeof *y2);
+        double *p = malloc(n2 * sizeof *p), *tol = malloc(n2 * sizeof *tol), *tol2 = malloc(n2 * sizeof *tol2), pbar[2];
+        for (int i = 0; i < n2; i++) x[i] = (float)(ldexp(nearbyint(ldexp(x[i], 12)), -12));
+        for (int i = 0; i < n2; i++) ck_assert_double_lt(fabs(x[i]), 8.0);
+        f32_weight1(n, x, y);
+
+        f32_sizes(n, 1, x, p, pbar);
+        double sum[2] = {0.0, 0.0}, abs_y[2] = {0.0, 0.0};
+        for (int i = 0; i < n2; i++) sum[i / m] += y[i], abs_y[i / m] += fabs(y[i]);
+        for (int h = 0; h < 2; h++) {
+            const double bound = F32_SLACK * F32_EPS * (abs_y[h] + m * pbar[h]);
+            ck_assert_msg(fabs(sum[h]) <= bound, "nsub %d half %d: sum %.3g > %.3g", m, h, sum[h], bound);
+        }
+
+        for (int i = 0; i < m; i++) {
+            x2[i] = (float)(x[i] + a), x2[m + i] = (float)(x[m + i] + b);
+            ck_assert_double_eq((double)x2[i] - a, x[i]); /* exact: the same exact weight */
+            ck_assert_double_eq((double)x2[m + i] - b, x[m + i]);
+        }
+        f32_weight1(n, x2, y2);
+        f32_weight_bound(n, 1, x, tol);
+        f32_weight_bound(n, 1, x2, tol2);
+        for (int i = 0; i < n2; i++)
+            ck_assert_msg(fabs((double)y2[i] - y[i]) <= tol[i] + tol2[i], "nsub %d slope %d: %.9g vs %.9g, > %.3g", m,
+                          i, (double)y2[i], (double)y[i], tol[i] + tol2[i]);
+        wt_noise_free(n);
+        free(x), free(x2), free(y), free(y2), free(p), free(tol), free(tol2);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* <W32 x, z> = <x, W32 z> (in double) to the rounding of W32: each side is within Σ tol_i(x) |z_i| (resp.
+ * Σ tol_i(z) |x_i|) of the exact <W x, z>, plus its double sum's 2m 2⁻⁵³ of Σ |terms| (the products of two floats
+ * are exact in double). With and
+ * without the tip-tilt removal; x and z with different tip-tilts, so a missing or one-sided projection (the
+ * weight C̃⁻¹ (I − T) or (I − T) C̃⁻¹) or a sign error in one off-diagonal term is seen. */
+START_TEST(test_set_weight_f32_symmetric)
+{
+    wt_context *ctx = tu_context();
+    for (int tt = 0; tt <= 1; tt++) {
+        const int m = 301, n2 = 2 * m;
+        wt_noise *n = make_noise(ctx, m, 0.8, tt);
+        float *x = f32_slopes(m, 300 + tt, 1.2, 0.3), *z = f32_slopes(m, 310 + tt, -0.6, 2.1),
+              *wx = malloc(n2 * sizeof *wx), *wz = malloc(n2 * sizeof *wz);
+        double *tx = malloc(n2 * sizeof *tx), *tz = malloc(n2 * sizeof *tz);
+        f32_weight1(n, x, wx);
+        f32_weight1(n, z, wz);
+        f32_weight_bound(n, tt, x, tx);
+        f32_weight_bound(n, tt, z, tz);
+        double d1 = 0.0, d2 = 0.0, a1 = 0.0, a2 = 0.0, bound = 0.0;
+        for (int i = 0; i < n2; i++) {
+            d1 += (double)wx[i] * z[i], a1 += fabs((double)wx[i] * z[i]);
+            d2 += (double)x[i] * wz[i], a2 += fabs((double)x[i] * wz[i]);
+            bound += tx[i] * fabs(z[i]) + tz[i] * fabs(x[i]);
+        }
+        bound += F32_SLACK * n2 * 0x1p-53 * (a1 + a2);
+        ck_assert_msg(fabs(d1 - d2) <= bound, "remove_tt %d: <Wx, z> = %.17g, <x, Wz> = %.17g, rel diff %.3g > %.3g",
+                      tt, d1, d2, fabs(d1 - d2) / fabs(d1), bound / fabs(d1));
+        wt_noise_free(n);
+        free(x), free(z), free(wx), free(wz), free(tx), free(tz);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_assemble)
 {
     wt_context *ctx = tu_context();
@@ -607,6 +797,9 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_weight);
     tcase_add_test(tc, test_weight_many);
     tcase_add_test(tc, test_set_weight_many);
+    tcase_add_test(tc, test_set_weight_many_f32);
+    tcase_add_test(tc, test_set_weight_f32_tip_tilt);
+    tcase_add_test(tc, test_set_weight_f32_symmetric);
     tcase_add_test(tc, test_assemble);
     tcase_add_test(tc, test_variance_formula);
     tcase_add_test(tc, test_elongation_hand);

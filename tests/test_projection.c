@@ -482,6 +482,112 @@ START_TEST(test_rows_and_side_bits)
 }
 END_TEST
 
+/* The single-precision forms (wt_projection_apply_f32, _apply_t_f32) against the double ones, element by element,
+ * with bounds from float's unit roundoff u = 2^-24 (the double results are exact by comparison):
+ *   apply: a point's value is y0 + Σ over L layers of a term of 4 products of a rounded layer value (u), rounded
+ *     weights (2u) and α's product with the row weight (u), summed in 3 adds, the L terms added in turn: each
+ *     product's error ≤ 6u of its size and the sums add ≤ (L + 3) u of the absolute sum, so
+ *       |y32 − y64| ≤ (L + 9) u (|y0| + |α| (|P| |x|))            (|P| |x| from the assembled matrix);
+ *   apply_t: a layer value takes, per run, its column's share of a 16-point block's two prefix sums (4 levels
+ *     of adds: ≤ 4u of the block's Σ|w y| for each of the two ends subtracted), the window's adds, the row weight
+ *     and α: with Σ|w y| over a block ≤ 16 max|y| per run row and at most 4 run rows per layer row pair (the
+ *     target rows that read the layer row: ≤ 2 for these 0.5 m points of 1 m layers, 1 for 0.5 m ones), a
+ *     layer value's error ≤ u |v0| + |α| u (4 · 2 · (2·4 + 4) · 16 max|y|) + (its scalar terms), so
+ *       |v32 − v64| ≤ u (2 |v0| + 1600 |α| max|y|),
+ *     loose against a typical rounding but not against a missing term, a wrong weight or a column off by one
+ *     (errors of O(|α| |y|)).
+ * Geometries: the LGS cone on the 0.5 m corners with its 0.5 m ground layer aligned and two 1 m layers (the
+ * AVX-512 blocks where the machine has them), an NGS, the unmasked grid, the six mixed layers (0.5 m layers
+ * under 0.5 m points at a cone factor: not narrow, the scalar forms), a clamped pair over a small layer's edge,
+ * and runs shorter than a block (a 9-point-wide mask). */
+static void check_f32(const wt_projection *p, unsigned long seed)
+{
+    const long nin = wt_projection_nin(p), nout = wt_projection_nout(p);
+    const double u = ldexp(1.0, -24), alpha = -0.83;
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_projection_assemble(p, &A), WT_OK);
+    double *x = malloc(nin * sizeof *x), *y = malloc(nout * sizeof *y), *ax = calloc(nout, sizeof *ax);
+    float *x32 = malloc(nin * sizeof *x32), *y32 = malloc(nout * sizeof *y32);
+    tu_randn(x, nin, seed);
+    tu_randn(y, nout, seed + 1);
+    for (long i = 0; i < nin; i++) x[i] = x32[i] = (float)x[i]; /* the same inputs on both sides */
+    for (long i = 0; i < nout; i++) y[i] = y32[i] = (float)y[i];
+    for (int64_t c = 0; c < A->ncol; c++) /* |P| |x| */
+        for (int64_t k = A->colptr[c]; k < A->colptr[c + 1]; k++) ax[A->rowind[k]] += fabs(A->val[k] * x[c]);
+    long maxnnz = 0; /* the layers a point reads: 4 stencil entries each */
+    {
+        long *cnt = calloc(nout, sizeof *cnt);
+        for (int64_t k = 0; k < A->colptr[A->ncol]; k++) cnt[A->rowind[k]]++;
+        for (long i = 0; i < nout; i++) maxnnz = cnt[i] > maxnnz ? cnt[i] : maxnnz;
+        free(cnt);
+    }
+    const int L = (int)((maxnnz + 3) / 4);
+    double *y0 = malloc(nout * sizeof *y0);
+    memcpy(y0, y, nout * sizeof *y);
+    wt_projection_apply(p, alpha, x, y);
+    wt_projection_apply_f32(p, (float)alpha, x32, y32);
+    ck_assert(tu_norm(ax, nout) > 0.0);
+    for (long i = 0; i < nout; i++)
+        ck_assert_msg(fabs(y32[i] - y[i]) <= (L + 9) * u * (fabs(y0[i]) + fabs(alpha) * ax[i]),
+                      "apply_f32 point %ld: %.9g vs %.9g (bound %.3g)", i, y32[i], y[i],
+                      (L + 9) * u * (fabs(y0[i]) + fabs(alpha) * ax[i]));
+    /* the transpose */
+    double *v = malloc(nin * sizeof *v), *v0 = malloc(nin * sizeof *v0);
+    float *v32 = malloc(nin * sizeof *v32);
+    tu_randn(y, nout, seed + 2);
+    tu_randn(v, nin, seed + 3);
+    double ymax = 0.0;
+    for (long i = 0; i < nout; i++) y[i] = y32[i] = (float)y[i], ymax = fmax(ymax, fabs(y[i]));
+    for (long i = 0; i < nin; i++) v[i] = v0[i] = v32[i] = (float)v[i];
+    wt_projection_apply_t(p, alpha, y, v);
+    wt_projection_apply_t_f32(p, (float)alpha, y32, v32);
+    double moved = 0.0;
+    for (long i = 0; i < nin; i++) {
+        moved = fmax(moved, fabs(v[i] - v0[i]));
+        ck_assert_msg(fabs(v32[i] - v[i]) <= u * (2.0 * fabs(v0[i]) + 1600.0 * fabs(alpha) * ymax),
+                      "apply_t_f32 layer point %ld: %.9g vs %.9g", i, v32[i], v[i]);
+    }
+    ck_assert(moved > 0.1); /* the transpose did something */
+    wt_sparse_free(A);
+    free(x), free(y), free(ax), free(x32), free(y32), free(y0), free(v), free(v0), free(v32);
+}
+
+START_TEST(test_single_precision)
+{
+    wt_context *ctx = tu_context();
+    wt_grid g[3];
+    layers3(g);
+    uint8_t mask[85 * 85];
+    wt_grid t = corner_grid(mask);
+    wt_projection *ps[6];
+    ps[0] = make(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, -20 * ARCSEC, &t, mask, 0);
+    ps[1] = make(ctx, 3, g, alts3, 0.0, -45 * ARCSEC, 60 * ARCSEC, &t, mask, 0);
+    ps[2] = make(ctx, 3, g, alts3, 0.0, 10 * ARCSEC, 0.0, &t, NULL, 0);
+    wt_grid g6[6];
+    double h6[6];
+    mixed_layers(g6, h6);
+    ps[3] = make(ctx, 6, g6, h6, 90000.0, 25 * ARCSEC, -40 * ARCSEC, &t, mask, 0);
+    wt_grid small[2] = {wt_grid_centred(41, 0.5), wt_grid_layer(32, 1.0)};
+    double hs[2] = {0.0, 9000.0};
+    ps[4] = make(ctx, 2, small, hs, 90000.0, 25 * ARCSEC, 5 * ARCSEC, &t, mask, 1);
+    /* runs of 9 points: every block is a masked short one */
+    uint8_t band[85 * 85];
+    for (int i = 0; i < 85 * 85; i++) band[i] = (uint8_t)(i % 85 >= 30 && i % 85 < 39);
+    ps[5] = make(ctx, 3, g, alts3, 90000.0, 30 * ARCSEC, -20 * ARCSEC, &t, band, 0);
+    for (int k = 0; k < 6; k++) {
+        check_f32(ps[k], 500 + 10 * (unsigned long)k);
+        wt_projection_free(ps[k]);
+    }
+    /* one layer per projection, as the tomography holds them: each of the LGS stack's */
+    for (int l = 0; l < 3; l++) {
+        wt_projection *p = make(ctx, 1, &g[l], &alts3[l], 90000.0, 30 * ARCSEC, -20 * ARCSEC, &t, mask, 0);
+        check_f32(p, 600 + (unsigned long)l);
+        wt_projection_free(p);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_outside_rejected)
 {
     wt_context *ctx = tu_context();
@@ -612,6 +718,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_layers_per_point_bits);
     tcase_add_test(tc, test_aligned_layer_bits);
     tcase_add_test(tc, test_rows_and_side_bits);
+    tcase_add_test(tc, test_single_precision);
     tcase_add_test(tc, test_outside_rejected);
     tcase_add_test(tc, test_clamp);
     tcase_add_test(tc, test_allocation);

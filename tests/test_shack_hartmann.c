@@ -1,5 +1,6 @@
 /* tests/test_shack_hartmann.c: the Fried model Γ and the averaged NGS sensors (SPEC §4): adjoint,
- * assembly, exactness on linear and quadratic phases, averaging, masks, centres, errors. */
+ * assembly, exactness on linear and quadratic phases, averaging, masks, centres, errors; the fp32 forms
+ * against the double ones. */
 #include "testutil.h"
 
 #include "core/la/sparse.h"
@@ -418,6 +419,156 @@ START_TEST(test_lit_runs_equal_csr)
 }
 END_TEST
 
+/* The fp32 forms (wt_shack_hartmann_apply_f32, _apply_t_f32) against the double ones: the same operator to
+ * float accuracy. The inputs are floats (x, the starting output y0 and α exactly representable in both), so
+ * the difference is the float kernels' rounding alone, bounded per output o by c_o ε S_o, ε = 2^-24,
+ * S_o = |y0_o| + |α| Σ_q |A_oq| |x_q| with A_oq the double operator's entries in o's row (Γ) or column (Γᵀ).
+ * Counting the roundings each term goes through (each a relative ε) and ε |partial| ≤ ε S_o per
+ * accumulation into the output:
+ *  - run kernels (Fried; lit q = 1, scaled by its u_k rounded to float): apply at most 5 per term (u or
+ *    α/(2d) to float, α u, a corner difference, the diagonals' sum or difference, the product) and one
+ *    accumulation; apply_t 5 (u to float, s_x ± s_y, times u, the two cells' combination, times α) and
+ *    two accumulations (a corner row is the top of one cell row's runs and the bottom of the next's):
+ *    ≤ 7 ε S_o, asserted with c = 8;
+ *  - CSR rows of L entries: coefficient to float, product, L − 1 additions, α, accumulation: (L + 3) ε S_o;
+ *    a column of K entries: α s, coefficient, product, K accumulations: (K + 3) ε S_o; c = entries + 4.
+ * The spare ε S_o covers the O(ε²) terms and the double results' own rounding (2^-53 per operation). */
+static void f32_bounds(const wt_sparse *A, int transpose, int runs, double alpha, const double *x, const double *y0,
+                       double *B, long nout)
+{
+    int *cnt = calloc(nout, sizeof *cnt);
+    for (long o = 0; o < nout; o++) B[o] = 0.0;
+    for (int64_t c = 0; c < A->ncol; c++)
+        for (int64_t e = A->colptr[c]; e < A->colptr[c + 1]; e++) {
+            const int64_t o = transpose ? c : A->rowind[e], i = transpose ? A->rowind[e] : c;
+            B[o] += fabs(alpha * A->val[e] * x[i]);
+            cnt[o]++;
+        }
+    for (long o = 0; o < nout; o++) B[o] = (runs ? 8 : cnt[o] + 4) * 0x1p-24 * (fabs(y0[o]) + B[o]);
+    free(cnt);
+}
+
+static void randn_f32(float *x32, double *x64, long n, unsigned long seed)
+{
+    tu_randn(x64, n, seed);
+    for (long k = 0; k < n; k++) x64[k] = x32[k] = (float)x64[k];
+}
+
+/* runs: the sensor applies through its run kernels (Fried, lit q = 1), else through its CSR rows */
+static void check_f32(const wt_shack_hartmann *s, int runs, unsigned long seed)
+{
+    const long nc = wt_shack_hartmann_ncorners(s), ns = wt_shack_hartmann_nslopes(s);
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_shack_hartmann_assemble(s, &A), WT_OK);
+    float *x32 = malloc(nc * sizeof *x32), *s32 = malloc(ns * sizeof *s32), *y32 = malloc(ns * sizeof *y32),
+          *p32 = malloc(nc * sizeof *p32);
+    double *x = malloc(nc * sizeof *x), *sl = malloc(ns * sizeof *sl), *y = malloc(ns * sizeof *y),
+           *p = malloc(nc * sizeof *p), *y0 = malloc(ns * sizeof *y0), *p0 = malloc(nc * sizeof *p0),
+           *By = malloc(ns * sizeof *By), *Bp = malloc(nc * sizeof *Bp);
+    randn_f32(x32, x, nc, seed);
+    randn_f32(s32, sl, ns, seed + 1);
+    const float alphas[2] = {-0.7f, 3.25e2f};
+    for (int a = 0; a < 2; a++) {
+        const float alpha = alphas[a];
+        /* 1. slopes: y0 + α Γ x from a non-zero y0 */
+        randn_f32(y32, y0, ns, seed + 2 + a);
+        memcpy(y, y0, ns * sizeof *y);
+        wt_shack_hartmann_apply_f32(s, alpha, x32, y32);
+        wt_shack_hartmann_apply(s, alpha, x, y);
+        f32_bounds(A, 0, runs, alpha, x, y0, By, ns);
+        for (long r = 0; r < ns; r++)
+            ck_assert_msg(fabs(y32[r] - y[r]) <= By[r], "apply_f32 (alpha %g): slope %ld is %.9g, double %.17g (bound %.3g)",
+                          alpha, r, y32[r], y[r], By[r]);
+        /* 2. corners: p0 + α Γᵀ s from a non-zero p0 */
+        randn_f32(p32, p0, nc, seed + 4 + a);
+        memcpy(p, p0, nc * sizeof *p);
+        wt_shack_hartmann_apply_t_f32(s, alpha, s32, p32);
+        wt_shack_hartmann_apply_t(s, alpha, sl, p);
+        f32_bounds(A, 1, runs, alpha, sl, p0, Bp, nc);
+        for (long c = 0; c < nc; c++)
+            ck_assert_msg(fabs(p32[c] - p[c]) <= Bp[c], "apply_t_f32 (alpha %g): corner %ld is %.9g, double %.17g (bound %.3g)",
+                          alpha, c, p32[c], p[c], Bp[c]);
+    }
+    /* 3. ⟨Γ32 x, s⟩ = ⟨x, Γ32ᵀ s⟩: each side is within Σ_o |other vector_o| B_o (the bounds above with y0 = 0,
+     * α = 1) of the exact ⟨Γx, s⟩; the double dot products add ≤ n 2^-53 Σ|terms| each, Σ|terms| =
+     * Σ_rq |s_r| |Γ_rq| |x_q| */
+    memset(y32, 0, ns * sizeof *y32);
+    memset(p32, 0, nc * sizeof *p32);
+    memset(y0, 0, ns * sizeof *y0);
+    memset(p0, 0, nc * sizeof *p0);
+    wt_shack_hartmann_apply_f32(s, 1.0f, x32, y32);
+    wt_shack_hartmann_apply_t_f32(s, 1.0f, s32, p32);
+    f32_bounds(A, 0, runs, 1.0, x, y0, By, ns);
+    f32_bounds(A, 1, runs, 1.0, sl, p0, Bp, nc);
+    double lhs = 0, rhs = 0, tol = 0, terms = 0;
+    for (long r = 0; r < ns; r++) lhs += (double)y32[r] * sl[r], tol += fabs(sl[r]) * By[r];
+    for (long c = 0; c < nc; c++) rhs += x[c] * (double)p32[c], tol += fabs(x[c]) * Bp[c];
+    for (int64_t c = 0; c < A->ncol; c++)
+        for (int64_t e = A->colptr[c]; e < A->colptr[c + 1]; e++) terms += fabs(sl[A->rowind[e]] * A->val[e] * x[c]);
+    tol += 2.0 * (ns + nc) * 0x1p-53 * terms;
+    ck_assert(terms > 0);
+    ck_assert_msg(fabs(lhs - rhs) <= tol, "fp32 adjoint: <G x, s> = %.17g, <x, G^T s> = %.17g (|diff| / sum|terms| = %.3g, bound %.3g)",
+                  lhs, rhs, fabs(lhs - rhs) / terms, tol / terms);
+    /* and the bound is float-sized (16 ε for the run kernels, the CSR's row and column lengths' worth for
+     * the averaged sensor), small enough to catch a wrong or missing term */
+    ck_assert_double_le(tol, 1024 * 0x1p-24 * terms);
+    wt_sparse_free(A);
+    free(x32), free(s32), free(y32), free(p32);
+    free(x), free(sl), free(y), free(p), free(y0), free(p0), free(By), free(Bp);
+}
+
+/* the E-ELT mask with ~16 % of its subapertures removed: short runs, single cells among them */
+static void holed_valid(uint8_t *v)
+{
+    double r[N * N];
+    eelt_valid(v);
+    tu_randn(r, N * N, 91);
+    for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0;
+}
+
+START_TEST(test_f32_fried)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    for (int mask = 0; mask < 2; mask++) {
+        mask ? holed_valid(v) : eelt_valid(v);
+        wt_shack_hartmann *s = make(ctx, N, D_SUB, v, 0);
+        check_f32(s, 1, 600 + 10 * mask);
+        wt_shack_hartmann_free(s);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(test_f32_averaged)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    eelt_valid(v);
+    wt_shack_hartmann *s = make(ctx, N, D_SUB, v, 2);
+    check_f32(s, 0, 700);
+    wt_shack_hartmann_free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* q = 1, m = 0 (m = n): the reconstructor's lit model, through its quad_u run kernels (their u_k are 1/(2d)
+ * to the rounding of w / (2 d w), partly lit rim cells included) */
+START_TEST(test_f32_lit)
+{
+    wt_context *ctx = tu_context();
+    uint8_t v[N * N];
+    for (int mask = 0; mask < 2; mask++) {
+        mask ? holed_valid(v) : eelt_valid(v);
+        wt_shack_hartmann *s = NULL;
+        ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, WT_SH_TILT_G, &s), WT_OK);
+        check_f32(s, 1, 800 + 10 * mask);
+        wt_shack_hartmann_free(s);
+    }
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_errors)
 {
     wt_context *ctx = tu_context();
@@ -458,6 +609,10 @@ START_TEST(test_allocation)
                 long before = fa.nalloc;
                 wt_shack_hartmann_apply(s, 1.0, phi, sl);
                 wt_shack_hartmann_apply_t(s, 1.0, sl, phi);
+                float *phi32 = calloc((N + 1) * (N + 1), sizeof *phi32), *sl32 = calloc(2 * 5112, sizeof *sl32);
+                wt_shack_hartmann_apply_f32(s, 1.0f, phi32, sl32);
+                wt_shack_hartmann_apply_t_f32(s, 1.0f, sl32, phi32);
+                free(phi32), free(sl32);
                 ck_assert_int_eq(fa.nalloc, before);
                 TU_ASSEMBLE_UNDER_BUDGETS(&fa, A, wt_shack_hartmann_assemble(s, &A));
                 wt_shack_hartmann_free(s);
@@ -485,6 +640,9 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_lit_model);
     tcase_add_test(tc, test_ztilt_rows);
     tcase_add_test(tc, test_lit_runs_equal_csr);
+    tcase_add_test(tc, test_f32_fried);
+    tcase_add_test(tc, test_f32_averaged);
+    tcase_add_test(tc, test_f32_lit);
     tcase_add_test(tc, test_errors);
     tcase_add_test(tc, test_allocation);
     suite_add_tcase(s, tc);

@@ -876,6 +876,106 @@ static void check_profile(wt_tomography *t, wt_pcg_precond P, const double *s, i
     free(c1);
 }
 
+/* recon.<variant>.operator_precision = "fp32": the sensors' part of M, S c = Σ Pᵀ Γᵀ Ĉ⁻¹ Γ P W⁻¹ c, in single
+ * precision (the layers rounded to float, the chain in float, the groups' sums and everything else in double).
+ * Each of the chain's ~10 float stages rounds with u = 2^-24 ≈ 6e-8 relative to its absolute sums (the kernels'
+ * own suites bound them: projection ≤ (L + 9) u, Γ and Γᵀ ≤ 8 u, Ĉ⁻¹ ≤ 11 u of the |terms|), ~60 u in all;
+ * relative to |S c| the absolute sums are larger by the cancellations of Γ (neighbours' differences) and the
+ * tip-tilt removal, at most ~30 for these random layers: ‖M32 c − M64 c‖ ≤ 1e-4 ‖S64 c‖ (S64 c: the double
+ * chain, rhs(slopes(c))). The float operator is symmetric to the same order, |⟨c2, M32 c⟩ − ⟨c, M32 c2⟩| ≤
+ * 1e-4 (‖S c‖ ‖c2‖ + ‖S c2‖ ‖c‖) (Cauchy–Schwarz on each side's perturbation), and it is not the double one
+ * (the fp32 path ran). A 4-iteration PCG on it (PCG-3's frame) moves by k ≈ 4 perturbations of that size,
+ * each amplified by the short recurrence's conditioning (≲ 2 here): ≤ 1e-3 of the iterate. Cases: pcg3's diagonal
+ * prior by sensor groups, cg9's full prior, the unknowns in space (the by-layers adjoint), and a 128² layer on
+ * 2 threads (the groups on two threads). The right-hand side stays double: the same bits either way. */
+static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P64, wt_pcg_precond P32, int64_t ns)
+{
+    const int64_t n = wt_tomography_nunknowns(t64);
+    ck_assert_int_eq(wt_tomography_nunknowns(t32), n);
+    double *c = malloc(n * sizeof *c), *c2 = malloc(n * sizeof *c2), *y64 = malloc(n * sizeof *y64),
+           *y32 = malloc(n * sizeof *y32), *sc = malloc(n * sizeof *sc), *sc2 = malloc(n * sizeof *sc2),
+           *as = malloc(ns * sizeof *as), *y2 = malloc(n * sizeof *y2), *s = malloc(ns * sizeof *s),
+           *x64 = calloc(n, sizeof *x64), *x32 = calloc(n, sizeof *x32), *b64 = malloc(n * sizeof *b64),
+           *b32 = malloc(n * sizeof *b32);
+    tu_randn(c, n, 71);
+    tu_randn(c2, n, 72);
+    for (int64_t i = 0; i < n; i++) c[i] *= 1e-7, c2[i] *= 1e-7; /* layer scale [m] */
+    tu_tomo_slopes(t64, c, as);
+    tu_tomo_rhs(t64, as, sc);
+    tu_tomo_slopes(t64, c2, as);
+    tu_tomo_rhs(t64, as, sc2);
+    tu_tomo_apply(t64, c, y64);
+    tu_tomo_apply(t32, c, y32);
+    double d = 0.0;
+    for (int64_t i = 0; i < n; i++) d += (y32[i] - y64[i]) * (y32[i] - y64[i]);
+    d = sqrt(d);
+    ck_assert_double_gt(d, 0.0);
+    ck_assert_msg(d <= 1e-4 * tu_norm(sc, n), "fp32 operator: |M32 c - M64 c| = %g, |S c| = %g", d, tu_norm(sc, n));
+    tu_tomo_apply(t32, c2, y2);
+    ck_assert_double_le(fabs(tu_dot(c2, y32, n) - tu_dot(c, y2, n)),
+                        1e-4 * (tu_norm(sc, n) * tu_norm(c2, n) + tu_norm(sc2, n) * tu_norm(c, n)));
+    /* the right-hand side is the double one */
+    tu_randn(s, ns, 73);
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+    tu_tomo_rhs(t64, s, b64);
+    tu_tomo_rhs(t32, s, b32);
+    ck_assert_mem_eq(b64, b32, n * sizeof *b64);
+    /* PCG-3's frame: 4 iterations from zero */
+    wt_pcg_result r;
+    ck_assert_int_eq(wt_tomography_solve(t64, P64, s, x64, 4, 0.0, NULL, &r), WT_OK);
+    ck_assert_int_eq(wt_tomography_solve(t32, P32, s, x32, 4, 0.0, NULL, &r), WT_OK);
+    ck_assert_int_eq(r.iterations, 4);
+    ck_assert_double_gt(tu_norm(x64, n), 0.0);
+    ck_assert_double_le(tu_rel_diff(x32, x64, n), 1e-3);
+    fprintf(stderr, "fp32 operator: |M32 c - M64 c| / |S c| = %.2e, 4-iteration PCG %.2e\n", d / tu_norm(sc, n),
+            tu_rel_diff(x32, x64, n));
+    free(c), free(c2), free(y64), free(y32), free(sc), free(sc2), free(as), free(y2), free(s), free(x64), free(x32);
+    free(b64), free(b32);
+}
+
+START_TEST(test_single_precision_operator)
+{
+    const char *fp32[] = {"recon.pcg3.operator_precision=\"fp32\"", "recon.cg9.operator_precision=\"fp32\"",
+                          "recon.pcg3.layer_size=[128, 32, 64]"};
+    for (int v = 0; v < 2; v++) { /* pcg3 (diagonal prior), cg9 (full prior) */
+        fixture a, b;
+        setup(&a, DEMO, v, 0, NULL);
+        setup(&b, DEMO, v, 2, fp32);
+        check_fp32(a.t, b.t, wt_precond_pcg(a.p), wt_precond_pcg(b.p), a.sys->nslopes);
+        if (v == 1) { /* the unknowns in space: the by-layers adjoint */
+            wt_tomography_params tp;
+            wt_tomography_params_from_config(a.cfg, &tp);
+            tp.space = 1;
+            wt_tomography *s64 = NULL, *s32 = NULL;
+            ck_assert_int_eq(wt_tomography_alloc(a.ctx, a.sys, &a.cfg->cg9, "cg9", &tp, &s64), WT_OK);
+            ck_assert_int_eq(wt_tomography_alloc(b.ctx, b.sys, &b.cfg->cg9, "cg9", &tp, &s32), WT_OK);
+            check_fp32(s64, s32, (wt_pcg_precond){NULL, NULL}, (wt_pcg_precond){NULL, NULL}, a.sys->nslopes);
+            wt_tomography_free(s64);
+            wt_tomography_free(s32);
+        }
+        teardown(&a);
+        teardown(&b);
+    }
+    /* a 128² layer on 2 threads */
+    fixture a, b;
+    for (int k = 0; k < 2; k++) {
+        fixture *f = k ? &b : &a;
+        f->ctx = tu_context();
+        wt_context_set_threads(f->ctx, 2);
+        ck_assert_int_eq(wt_config_read(f->ctx, DEMO, k ? 3 : 1, k ? fp32 : fp32 + 2, &f->cfg), WT_OK);
+        ck_assert_int_eq(wt_system_alloc(f->ctx, f->cfg, &f->sys), WT_OK);
+        wt_tomography_params tp;
+        wt_tomography_params_from_config(f->cfg, &tp);
+        ck_assert_int_eq(wt_tomography_alloc(f->ctx, f->sys, &f->cfg->pcg3, "pcg3", &tp, &f->t), WT_OK);
+        ck_assert_int_eq(wt_tomography_threads(f->t), 2);
+        f->p = NULL;
+    }
+    check_fp32(a.t, b.t, (wt_pcg_precond){NULL, NULL}, (wt_pcg_precond){NULL, NULL}, a.sys->nslopes);
+    teardown(&a);
+    teardown(&b);
+}
+END_TEST
+
 START_TEST(test_profile_counts_stages)
 {
     fixture f;
@@ -1050,6 +1150,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_solve_continue_matches_warm_start);
     tcase_add_test(tc, test_fitting_continue_matches_warm_start);
     tcase_add_test(tc, test_profile_counts_stages);
+    tcase_add_test(tc, test_single_precision_operator);
     suite_add_tcase(s, tc);
     return s;
 }

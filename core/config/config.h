@@ -93,6 +93,7 @@ typedef struct wt_recon_variant_config {
     int fit_solver;                  /* index in "cg|cholesky" (WT_FIT_CG, WT_FIT_CHOLESKY of core/model/fitting.h) */
     int fit_factor_precision;        /* index in "fp64|fp32": the Cholesky factor's values in the solves (1: fp32) */
     int fit_kernels;                 /* index in "fast|reference": the fitting frame's kernels (1: reference, same bits) */
+    int operator_precision;          /* index in "fp64|fp32": the sensors' part of the (P)CG operator (1: fp32) */
 } wt_recon_variant_config;
 
 typedef struct wt_config {

@@ -916,7 +916,8 @@ static int affects_matrix(const pstate *ps, const char *path)
                                        "recon.pcg3.coarse_levels", "recon.cg9.iterations", "recon.cg9.tolerance",
                                        "recon.cg9.preconditioner", "recon.cg9.coarse_levels",
                                        "recon.cg9.fit_iterations", "recon.cg9.fit_solver", "recon.cg9.fit_factor_precision",
-                                       "recon.cg9.fit_kernels",
+                                       "recon.cg9.fit_kernels", "recon.pcg3.operator_precision",
+                                       "recon.cg9.operator_precision",
                                        "recon.mvm_precision", "recon.fft_wisdom"};
     for (size_t i = 0; i < sizeof skip / sizeof *skip; i++)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;

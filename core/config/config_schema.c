@@ -146,7 +146,12 @@
      "the model error is not averaged (optional, default false)"},                                        \
     {pre ".prior", K_ENUM, F_AUTO, 0, 0, "", 1, CF(v.prior), NOCOUNT, 0, 0, PRIOR_CHOICES, 0,                    \
      "the variant's prior: " PRIOR_DESC "; left out (or \"auto\"): recon.prior when given, else "            \
-     prior_default " (docs/design.md) (optional)"}
+     prior_default " (docs/design.md) (optional)"},                                                          \
+    {pre ".operator_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(v.operator_precision), NOCOUNT, 0, 0, "fp64|fp32", 0, \
+     "the sensors' part of the solver's operator (projections, Shack-Hartmann, noise weights: Σ Pᵀ Γᵀ Ĉ⁻¹ Γ P): "  \
+     "fp64, or fp32 = single-precision layers, phases and slopes there (16 points per AVX-512 vector; the "    \
+     "wavelet transforms, the prior, the layer sums and the (P)CG stay double; the right-hand side too) "      \
+     "(optional, default fp64)"}
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("telescope.diameter_m", GT0(100.0), "m", 1, diameter, "pupil diameter D"),

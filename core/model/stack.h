@@ -40,4 +40,13 @@ void wt_sensor_stack_phase_t(const wt_sensor_stack *st, int m, double alpha, con
 void wt_sensor_stack_apply_t_sensor(const wt_sensor_stack *st, int m, double alpha, const double *y_m, double *x,
                                     double *phase);
 
+/* Single precision (the tomography's recon.<variant>.operator_precision = "fp32"): wt_sensor_stack_set_sensor,
+ * wt_sensor_stack_phase_t and wt_sensor_stack_apply_t_sensor on float layers, phases and slopes (the _f32 kernels
+ * of projection.h and shack_hartmann.h; ~1e-6 relative to the double forms, not their bits). */
+void wt_sensor_stack_set_sensor_f32(const wt_sensor_stack *st, int m, float alpha, const float *x, float *y,
+                                    float *phase);
+void wt_sensor_stack_phase_t_f32(const wt_sensor_stack *st, int m, float alpha, const float *y_m, float *phase);
+void wt_sensor_stack_apply_t_sensor_f32(const wt_sensor_stack *st, int m, float alpha, const float *y_m, float *x,
+                                        float *phase);
+
 #endif

@@ -33,6 +33,7 @@ struct wt_tomography {
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
     int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
+    int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the sensors in float */
     wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
@@ -69,6 +70,9 @@ struct wt_tomography_work {
                                    one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
                                    layers in place (wt_prior_apply_full) */
     double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
+    /* fp32 (t->fp32): the float layers, group accumulators, phases, slopes and weighted slopes, and per thread one
+       layer's float sum (the by-layers adjoint); one allocation, every array at a 64-byte boundary */
+    float *f32_raw, *phi32, *acc32, *phase32, *slopes32, *weighted32, *lay32;
     double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
                          busy time on a cache line of its own); NULL or prof_on 0: not timing */
     int prof_on;
@@ -330,6 +334,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     const int prior_flags = kind | (par->prior_flags & WT_PRIOR_ALIASED);
     t->full_prior = kind == WT_PRIOR_FULL;
     t->space = par->space != 0;
+    t->fp32 = var->operator_precision == 1;
     if (t->space && !t->full_prior) {
         st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: recon.%s: unknowns in space (the fourier preconditioner) need the full "
                       "prior (recon.%s.prior = \"full\"), got \"%s\"", par->source ? par->source : "tomography",
@@ -484,6 +489,19 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
     WT_ALLOC(ctx, w->weighted, t->sys->nslopes, "weighted slope workspace");
     WT_ALLOC(ctx, w->wwork, (size_t)t->nthreads * t->wsize, "wavelet workspace");
     WT_ALLOC(ctx, w->b, t->n, "right-hand side");
+    if (t->fp32) {
+        const size_t r16 = 16; /* floats per 64 bytes */
+        const size_t nn = ((size_t)t->n + r16 - 1) / r16 * r16, nc = ((size_t)t->ncg + r16 - 1) / r16 * r16;
+        const size_t ns = ((size_t)t->sys->nslopes + r16 - 1) / r16 * r16, nl = (max_layer(t) + r16 - 1) / r16 * r16;
+        const size_t total = nn * (1 + WT_GROUPS) + nc * (size_t)t->S + 2 * ns + nl * (size_t)t->nthreads;
+        WT_ALLOC(ctx, w->f32_raw, total + r16, "single-precision operator workspace");
+        w->phi32 = (float *)wt_align64((double *)w->f32_raw); /* (malloc's pointer is 8-aligned) */
+        w->acc32 = w->phi32 + nn;
+        w->phase32 = w->acc32 + nn * WT_GROUPS;
+        w->slopes32 = w->phase32 + nc * (size_t)t->S;
+        w->weighted32 = w->slopes32 + ns;
+        w->lay32 = w->weighted32 + ns;
+    }
     if (t->full_prior) {
         WT_ALLOC(ctx, w->pphi_raw, t->n + 8, "full prior term");
         w->pphi = wt_align64(w->pphi_raw);
@@ -509,6 +527,7 @@ void wt_tomography_work_free(wt_tomography_work *w)
     wt_free(ctx, w->b);
     wt_free(ctx, w->pphi_raw);
     wt_free(ctx, w->pwork);
+    wt_free(ctx, w->f32_raw);
     wt_free(ctx, w->prof);
     wt_free(ctx, w);
 }
@@ -557,12 +576,13 @@ void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out)
  * smaller team (a nested or reduced one) */
 static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] % nt; }
 
-/* phi = W⁻¹ c layer by layer */
-static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
+/* phi = W⁻¹ c layer by layer; with phi32 (the fp32 operator) also phi32 = (float) phi, each layer right after its
+ * transform (still in its owner's cache). In space phi is c itself: only the conversion runs. */
+static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
 {
     if (t->space) { /* the unknowns are the values */
         if (phi != c) memcpy(phi, c, (size_t)t->n * sizeof *phi);
-        return;
+        if (!phi32) return;
     }
     const double t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
@@ -570,12 +590,21 @@ static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const dou
         const double b0 = prof_t0(w);
         int id, nt;
         wt_thread_team(&id, &nt);
-        for (int l = 0; l < t->L; l++)
-            if (owner_of(t, l, nt) == id)
-                wt_wavelet_inverse(t->wav[l], c + t->off[l], phi + t->off[l], w->wwork + (size_t)id * t->wsize);
+        for (int l = 0; l < t->L; l++) {
+            if (owner_of(t, l, nt) != id) continue;
+            const int64_t a = t->off[l], b = t->off[l + 1];
+            if (!t->space) wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
+            if (phi32)
+                for (int64_t i = a; i < b; i++) phi32[i] = (float)phi[i];
+        }
         prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0);
+}
+
+static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi)
+{
+    layers_dwt(t, w, c, phi, NULL);
 }
 
 /* slopes = Γ P φ for every sensor */
@@ -673,8 +702,9 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
                                            w->phase + (size_t)m * t->ncg);
 }
 
-/* The adjoint's last stage, each layer on its owner: the groups' sum (in group order), the prior's term, W */
-static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c)
+/* The adjoint's last stage, each layer on its owner: the groups' sum (in group order; from the float accumulators
+ * w->acc32 with f32, the fp32 operator's), the prior's term, W */
+static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c, int f32)
 {
     const int64_t n = t->n;
     const double t0 = prof_t0(w);
@@ -687,11 +717,18 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
             double *sum = t->space ? c : w->phi; /* in space the sum is the result */
-            for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
-                double v = w->acc[i];
-                for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
-                sum[i] = v;
-            }
+            if (f32) /* the groups' float sums, added in double */
+                for (int64_t i = a; i < b; i++) {
+                    double v = w->acc32[i];
+                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
+                    sum[i] = v;
+                }
+            else
+                for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
+                    double v = w->acc[i];
+                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
+                    sum[i] = v;
+                }
             if (cx && t->full_prior)
                 for (int64_t i = a; i < b; i++) sum[i] += w->pphi[i];
             if (!t->space) wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
@@ -718,7 +755,7 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    adjoint_layers(t, w, cx, c);
+    adjoint_layers(t, w, cx, c, 0);
 }
 
 /* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
@@ -749,9 +786,130 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
     prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
+/* The fp32 operator (t->fp32): the same stages as the double one below, the sensors' part in float: w->phi32 → Γ P
+ * → w->slopes32 → Ĉ⁻¹ → Γᵀ → Pᵀ into float group accumulators (or per-layer float sums, by layers), which the
+ * layers' stage adds up in double. */
+
+/* slopes32 = Γ P phi32 for every sensor; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
+ * forward_slopes_prior) */
+static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi)
+{
+    const double t0 = prof_t0(w);
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        const double b0 = prof_t0(w);
+        int id, nt;
+        wt_thread_team(&id, &nt);
+        for (int k = 0; pphi && k < t->L; k++) {
+            const int l = t->by_size[k];
+            if (owner_of(t, l, nt) == id)
+                wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], pphi + t->off[l],
+                                    w->pwork + (size_t)id * t->pwsize);
+        }
+#pragma omp for schedule(dynamic, 1) nowait
+        for (int m = 0; m < t->S; m++)
+            wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
+        prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
+    }
+    prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
+}
+
+/* The weights of sensors [m0, m0 + k) of one kind in one call (wt_noise_set_weight_many_f32) */
+static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, const int *ms)
+{
+    const wt_noise *nz[2 * WT_MAX_GS];
+    const float *x[2 * WT_MAX_GS];
+    float *ws[2 * WT_MAX_GS];
+    for (int q = 0; q < k; q++) {
+        const int64_t off = t->sys->sensors[ms[q]].offset;
+        nz[q] = t->noise[ms[q]];
+        x[q] = w->slopes32 + off;
+        ws[q] = w->weighted32 + off;
+    }
+    wt_noise_set_weight_many_f32(nz, k, x, ws);
+}
+
+static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g)
+{
+    float *acc = w->acc32 + (size_t)g * t->n;
+    memset(acc, 0, (size_t)t->n * sizeof *acc);
+    int ms[2 * WT_MAX_GS], k = 0;
+    for (int m = 0; m < t->S; m++)
+        if (t->group[m] == g) ms[k++] = m;
+    weigh_f32(t, w, k, ms);
+    for (int q = 0; q < k; q++)
+        wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + t->sys->sensors[ms[q]].offset, acc,
+                                           w->phase32 + (size_t)ms[q] * t->ncg);
+}
+
+/* adjoint_space in float: every sensor's weights and Γᵀ, then per layer the sensors' Pᵀ into a float sum that
+ * is added (or, without the full prior's term there, copied) into c */
+static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c)
+{
+    const double t0 = prof_t0(w);
+    double t1 = t0;
+    const size_t nl32 = (max_layer(t) + 15) / 16 * 16;
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        const int id = thread_id();
+        double b0 = prof_t0(w);
+#pragma omp for schedule(dynamic, 1) nowait
+        for (int m = 0; m < t->S; m++) {
+            weigh_f32(t, w, 1, &m);
+            wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + t->sys->sensors[m].offset,
+                                        w->phase32 + (size_t)m * t->ncg);
+        }
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
+#pragma omp barrier
+#pragma omp master
+        t1 = prof_t0(w);
+        b0 = prof_t0(w);
+        float *sum = w->lay32 + (size_t)id * nl32;
+#pragma omp for schedule(dynamic, 1) nowait
+        for (int k = 0; k < t->L; k++) {
+            const int l = t->by_size[k];
+            const int64_t a = t->off[l], nl = t->off[l + 1] - a;
+            memset(sum, 0, (size_t)nl * sizeof *sum);
+            for (int m = 0; m < t->S; m++)
+                wt_projection_apply_t_f32(t->proj[m * t->L + l], 1.0f, w->phase32 + (size_t)m * t->ncg, sum);
+            if (cx && t->full_prior)
+                for (int64_t i = 0; i < nl; i++) c[a + i] += sum[i];
+            else
+                for (int64_t i = 0; i < nl; i++) c[a + i] = sum[i];
+        }
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
+    }
+    prof_wall_to(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0, t1);
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t1);
+}
+
+static void normal_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
+{
+    const double *phi = t->space ? c : w->phi;
+    layers_dwt(t, w, c, t->space ? (double *)c : w->phi, w->phi32);
+    forward_f32(t, w, phi, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
+    if (by_layers(t)) {
+        adjoint_space_f32(t, w, c, y);
+        return;
+    }
+    const double t0 = prof_t0(w);
+#pragma omp parallel for schedule(static) num_threads(t->nthreads)
+    for (int g = 0; g < WT_GROUPS; g++) {
+        const double b0 = prof_t0(w);
+        adjoint_group_f32(t, w, g);
+        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
+    }
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
+    adjoint_layers(t, w, c, y, 1);
+}
+
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
 static void normal(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
+    if (t->fp32) {
+        normal_f32(t, w, c, y);
+        return;
+    }
     const double *phi = c;
     if (!t->space) {
         inverse_dwt(t, w, c, w->phi);

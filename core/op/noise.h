@@ -75,6 +75,12 @@ void wt_noise_apply_weight_many(const wt_noise *const *ns, int k, double alpha, 
  * 1.0, x, y) give, with the products and the final update as contiguous (vectorised) passes and only the sums
  * as chains. x[j] and y[j] must not alias. */
 void wt_noise_set_weight_many(const wt_noise *const *ns, int k, const double *const *x, double *const *y);
+/* Single-precision form of wt_noise_set_weight_many (the tomography's fp32 operator): y_j = Ĉ_j⁻¹ x_j overwritten,
+ * the blocks rounded to float at alloc, float products, the tip-tilt means summed in double. Float accuracy, not
+ * the double path's bits: per slope within ~6·2⁻²⁴ of the sizes of the block products and the means (the bound
+ * tests/test_noise.c derives). Sensors of any sizes, with or without the tip-tilt removal; x[j] and y[j] must not
+ * alias. */
+void wt_noise_set_weight_many_f32(const wt_noise *const *ns, int k, const float *const *x, float *const *y);
 /* x <- (I − T) x: remove the global tip and tilt in place. */
 void wt_noise_remove_tt(const wt_noise *n, double *x);
 /* The inverse 2x2 block of subaperture i: {a, b, c} with C̃_i⁻¹ = [[a, b], [b, c]]. */

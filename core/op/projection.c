@@ -24,6 +24,7 @@
  * region, and a nested team would oversubscribe the cores; one call is ~10 µs of work.
  */
 #include "projection.h"
+#include "projection_private.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -31,29 +32,6 @@
 #include <emmintrin.h>
 #define WT_PROJ_SSE2 1
 #endif
-
-struct wt_projection {
-    wt_context *ctx;
-    int nlayers;
-    int tnx, tny;     /* target grid points along x, y */
-    int64_t nin;      /* Σ layer points */
-    int32_t *lnx;     /* [nlayers] points along x of each layer (row stride) */
-    int32_t *cbase;   /* [nlayers * tnx] x index of the stencil's left column in the layer */
-    double *cw0, *cw1; /* [nlayers * tnx] weights of the left and right columns */
-    double *cw01;     /* [nlayers * tnx][2]: (cw0, cw1) side by side, for the two-lane kernels */
-    int32_t *rbase;   /* [nlayers * tny] layer offset + (bottom row) * nx_ℓ: the stencil's row start */
-    double *rw0, *rw1; /* [nlayers * tny] weights of the bottom and top rows */
-    int narrow;       /* 1: the runs are 16 points long on average and along every run, every layer's columns
-                         (the aligned layers' aside) are non-decreasing and span at most 6 cells over 8 points
-                         (apply_layers_avx512's condition) */
-    uint8_t *aligned; /* [nlayers] 1: the layer's stencil is the identity on every run (weights exactly (1, 0) in
-                         x and y, columns advancing by one point per point: the ground layer under a sample grid
-                         of its spacing and origin), so apply reads and apply_t writes it contiguously */
-    int any_aligned;
-    int32_t nrun;     /* runs of consecutive masked target points within a row */
-    int cx0, cx1;     /* the columns [cx0, cx1) the runs cover, all rows together (apply_rows' x range) */
-    int32_t *run_row, *run_lo, *run_hi; /* [nrun] row iy and columns [lo, hi) */
-};
 
 /* A coordinate within this many cells of the first/last grid line is treated as on it: such a point
  * is on the edge up to rounding of (1 − h/H) r + θh, and the weight it would put outside is < 1e-9. */
@@ -104,6 +82,7 @@ void wt_projection_free(wt_projection *p)
     wt_free(ctx, p->rbase);
     wt_free(ctx, p->rw0);
     wt_free(ctx, p->rw1);
+    wt_free(ctx, p->f32);
     wt_free(ctx, p->run_row);
     wt_free(ctx, p->run_lo);
     wt_free(ctx, p->run_hi);
@@ -232,6 +211,22 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
         offset += wt_grid_size(g);
     }
     p->nin = offset;
+    {
+        const size_t nc = (size_t)nlayers * tnx, nr = (size_t)nlayers * tny;
+        WT_ALLOC(ctx, p->f32, 2 * (nc + nr), "projection single-precision weights");
+        p->cw0f = p->f32;
+        p->cw1f = p->cw0f + nc;
+        p->rw0f = p->cw1f + nc;
+        p->rw1f = p->rw0f + nr;
+        for (size_t k = 0; k < nc; k++) {
+            p->cw0f[k] = (float)p->cw0[k];
+            p->cw1f[k] = (float)p->cw1[k];
+        }
+        for (size_t k = 0; k < nr; k++) {
+            p->rw0f[k] = (float)p->rw0[k];
+            p->rw1f[k] = (float)p->rw1[k];
+        }
+    }
 
     for (int l = 0; l < nlayers; l++) {
         int al = 1;

@@ -57,6 +57,11 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *p
  * another, as apply_t): faster where the per-point sums along a run, one dependency chain per layer, bound
  * the loop (the fitting's 3 DMs). */
 void wt_projection_apply_t_side(const wt_projection *p, double alpha, const double *points, double *layers);
+/* Single precision (projection_f32.c; the tomography's fp32 operator): points += α P layers and layers += α Pᵀ points
+ * with the weights rounded to float and float arithmetic, 16 points per AVX-512 block where the stencils are narrow
+ * (not the double forms' bits: ~1e-6 relative). Thread use as the double forms. */
+void wt_projection_apply_f32(const wt_projection *p, float alpha, const float *layers, float *points);
+void wt_projection_apply_t_f32(const wt_projection *p, float alpha, const float *points, float *layers);
 /* The explicit matrix P: nout x nin. */
 int wt_projection_assemble(const wt_projection *p, wt_sparse **out);
 

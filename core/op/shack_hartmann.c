@@ -16,6 +16,12 @@
  * The Fried sensor stores its valid cells as runs along rows, so apply reads two contiguous corner
  * rows per run and apply_t writes each corner once (gather form): for n = 84 they take 2.4 and 3.1 µs
  * against 5.9 and 33 µs for a per-cell gather/scatter, whose scatter chains through store forwarding.
+ *
+ * The fp32 forms (the tomography's single-precision operator) run the same three paths on float copies
+ * of the coefficients, rounded once at alloc so that the applies convert nothing and stay const; their
+ * run kernels take the Fried form (two diagonals per cell, the transpose as a gather) for the lit cells
+ * too, since they need not reproduce the CSR's operation order. They have twice the lanes of the double
+ * ones, but on the E-ELT pupil's runs (~47 cells) the per-run vector tails keep the gain nearer 1.5.
  */
 #include "shack_hartmann.h"
 
@@ -41,6 +47,8 @@ struct wt_shack_hartmann {
     double *val;     /* averaged: coefficients [1/m] */
     double *quad_u;  /* lit with q = 1 and m = n: [nsub] u_k, every row k being ±u_k at the cell's 4 corners
                         (see quad_setup); its valid cells are the runs run_* above. NULL otherwise. */
+    float *val32;    /* the fp32 forms': val rounded to float (averaged and lit sensors without quad_u); else NULL */
+    float *quad_u32; /* the fp32 forms': quad_u rounded to float; NULL without quad_u */
     uint8_t *corner_mask; /* [(n+1)^2] corners with a nonzero coefficient */
 };
 
@@ -56,6 +64,8 @@ void wt_shack_hartmann_free(wt_shack_hartmann *s)
     wt_free(ctx, s->colind);
     wt_free(ctx, s->val);
     wt_free(ctx, s->quad_u);
+    wt_free(ctx, s->val32);
+    wt_free(ctx, s->quad_u32);
     wt_free(ctx, s->corner_mask);
     wt_free(ctx, s);
 }
@@ -73,6 +83,24 @@ static int check_common(wt_context *ctx, int n, double d, const uint8_t *valid)
     if (nvalid == 0)
         return WT_ERROR(ctx, WT_ERR_INVALID, "shack_hartmann: none of the %d x %d subapertures is valid", n, n);
     return WT_OK;
+}
+
+/* The fp32 forms' coefficients of an averaged or lit sensor (the Fried sensor has only 1/(2d)): quad_u's
+ * when its run kernels apply, else the CSR values. Called last by the allocs, once val and quad_u are final. */
+static int f32_setup(wt_shack_hartmann *s)
+{
+    int st = WT_OK;
+    if (s->quad_u) {
+        WT_ALLOC(s->ctx, s->quad_u32, s->nsub, "shack_hartmann fp32 coefficients");
+        for (int k = 0; k < s->nsub; k++) s->quad_u32[k] = (float)s->quad_u[k];
+    } else {
+        const int32_t nnz = s->rowptr[2 * s->nsub];
+        WT_ALLOC(s->ctx, s->val32, nnz, "shack_hartmann fp32 coefficients");
+        for (int32_t q = 0; q < nnz; q++) s->val32[q] = (float)s->val[q];
+    }
+    return WT_OK;
+fail:
+    return st;
 }
 
 int wt_shack_hartmann_alloc(wt_context *ctx, int n, double d, const uint8_t *valid, wt_shack_hartmann **out)
@@ -209,6 +237,7 @@ int wt_shack_hartmann_alloc_averaged(wt_context *ctx, int n, double d, const uin
     }
     for (int q = 0; q < nsub; q++) s->rowptr[nsub + q] += (int32_t)nx_nz;
     s->rowptr[2 * nsub] = (int32_t)(nx_nz + ny_nz);
+    WT_TRY(f32_setup(s));
     wt_free(ctx, cx);
     wt_free(ctx, cy);
     *out = s;
@@ -473,6 +502,7 @@ int wt_shack_hartmann_alloc_lit(wt_context *ctx, double diameter, double obstruc
             }
     }
     WT_TRY(quad_setup(w));
+    WT_TRY(f32_setup(w));
     wt_free(ctx, wcell);
     wt_free(ctx, ax);
     wt_free(ctx, ay);
@@ -625,6 +655,101 @@ void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const d
     for (int r = 0; r < 2 * nsub; r++) {
         const double t = alpha * slopes[r];
         for (int32_t q = s->rowptr[r]; q < s->rowptr[r + 1]; q++) phase[s->colind[q]] += s->val[q] * t;
+    }
+}
+
+/* The fp32 forms. A lit cell's rows are its Fried rows times u_k (u = 1/(2d) for the Fried sensor), so
+ * its kernels are the Fried ones with u_k per cell; the scale is rounded to float once per call (Fried)
+ * or at alloc (quad_u32, val32). */
+
+WT_CPU_CLONES
+void wt_shack_hartmann_apply_f32(const wt_shack_hartmann *s, float alpha, const float *restrict phase,
+                                 float *restrict slopes)
+{
+    const int nsub = s->nsub, nc = s->n + 1;
+    if (s->m == 0) {
+        const float a = (float)(alpha / (2.0 * s->d));
+        for (int32_t r = 0; r < s->nrun; r++) {
+            const float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            for (int i = 0; i < len; i++) {
+                const float d1 = t[i + 1] - b[i], d2 = b[i + 1] - t[i];
+                sx[i] += a * (d1 + d2);
+                sy[i] += a * (d1 - d2);
+            }
+        }
+        return;
+    }
+    if (s->quad_u32) {
+        for (int32_t r = 0; r < s->nrun; r++) {
+            const float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            const float *restrict u = s->quad_u32 + s->run_k[r];
+            float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            for (int i = 0; i < len; i++) {
+                const float d1 = t[i + 1] - b[i], d2 = b[i + 1] - t[i], au = alpha * u[i];
+                sx[i] += au * (d1 + d2);
+                sy[i] += au * (d1 - d2);
+            }
+        }
+        return;
+    }
+    const int32_t *restrict rowptr = s->rowptr, *restrict colind = s->colind;
+    const float *restrict val = s->val32;
+    for (int r = 0; r < 2 * nsub; r++) {
+        float acc = 0.0f;
+        for (int32_t q = rowptr[r]; q < rowptr[r + 1]; q++) acc += val[q] * phase[colind[q]];
+        slopes[r] += alpha * acc;
+    }
+}
+
+WT_CPU_CLONES
+void wt_shack_hartmann_apply_t_f32(const wt_shack_hartmann *s, float alpha, const float *restrict slopes,
+                                   float *restrict phase)
+{
+    const int nsub = s->nsub, nc = s->n + 1;
+    if (s->m == 0) {
+        /* the gather form of the double apply_t */
+        const float a = (float)(alpha / (2.0 * s->d));
+        for (int32_t r = 0; r < s->nrun; r++) {
+            float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            const float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            b[0] -= a * (sx[0] + sy[0]);
+            t[0] += a * (sy[0] - sx[0]);
+            for (int i = 1; i < len; i++) {
+                b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));
+                t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));
+            }
+            b[len] += a * (sx[len - 1] - sy[len - 1]);
+            t[len] += a * (sx[len - 1] + sy[len - 1]);
+        }
+        return;
+    }
+    if (s->quad_u32) {
+        /* the same gather with each cell's slopes scaled by its u */
+        for (int32_t r = 0; r < s->nrun; r++) {
+            float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
+            const float *restrict u = s->quad_u32 + s->run_k[r];
+            const float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
+            const int len = s->run_len[r];
+            b[0] -= alpha * (u[0] * (sx[0] + sy[0]));
+            t[0] += alpha * (u[0] * (sy[0] - sx[0]));
+            for (int i = 1; i < len; i++) {
+                b[i] += alpha * (u[i - 1] * (sx[i - 1] - sy[i - 1]) - u[i] * (sx[i] + sy[i]));
+                t[i] += alpha * (u[i - 1] * (sx[i - 1] + sy[i - 1]) + u[i] * (sy[i] - sx[i]));
+            }
+            b[len] += alpha * (u[len - 1] * (sx[len - 1] - sy[len - 1]));
+            t[len] += alpha * (u[len - 1] * (sx[len - 1] + sy[len - 1]));
+        }
+        return;
+    }
+    const int32_t *restrict rowptr = s->rowptr, *restrict colind = s->colind;
+    const float *restrict val = s->val32;
+    for (int r = 0; r < 2 * nsub; r++) {
+        const float t = alpha * slopes[r];
+        for (int32_t q = rowptr[r]; q < rowptr[r + 1]; q++) phase[colind[q]] += val[q] * t;
     }
 }
 

@@ -59,6 +59,10 @@ void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, doub
 void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const double *phase, double *slopes);
 /* phase <- phase + alpha * Γᵀ slopes */
 void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const double *slopes, double *phase);
+/* Single-precision forms of apply and apply_t (the tomography's fp32 operator, recon.<variant>.operator_precision):
+ * the same operator with its coefficients rounded to float at alloc and float arithmetic; not the double forms' bits. */
+void wt_shack_hartmann_apply_f32(const wt_shack_hartmann *s, float alpha, const float *phase, float *slopes);   /* slopes += alpha Γ phase */
+void wt_shack_hartmann_apply_t_f32(const wt_shack_hartmann *s, float alpha, const float *slopes, float *phase); /* phase += alpha Γᵀ slopes */
 /* Γ: nslopes x ncorners. */
 int wt_shack_hartmann_assemble(const wt_shack_hartmann *s, wt_sparse **out);
 
