@@ -488,11 +488,11 @@ END_TEST
  *     weights (2u) and α's product with the row weight (u), summed in 3 adds, the L terms added in turn: each
  *     product's error ≤ 6u of its size and the sums add ≤ (L + 3) u of the absolute sum, so
  *       |y32 − y64| ≤ (L + 9) u (|y0| + |α| (|P| |x|))            (|P| |x| from the assembled matrix);
- *   apply_t: a layer value takes, per run, its column's share of a 16-point block's two prefix sums (4 levels
- *     of adds: ≤ 4u of the block's Σ|w y| for each of the two ends subtracted), the window's adds, the row weight
- *     and α: with Σ|w y| over a block ≤ 16 max|y| per run row and at most 4 run rows per layer row pair (the
- *     target rows that read the layer row: ≤ 2 for these 0.5 m points of 1 m layers, 1 for 0.5 m ones), a
- *     layer value's error ≤ u |v0| + |α| u (4 · 2 · (2·4 + 4) · 16 max|y|) + (its scalar terms), so
+ *   apply_t: a layer value is either the scalar column-pair sums (as the double form) or, on narrow layers, the
+ *     two-pass form: U = Σ over the ≤ 4 target rows of its layer row of a·y (a = α × row weight, each add ≤ u of
+ *     the running |sum|), then Σ over ≤ 8 entries of w U (≤ 9 u of Σ|w||U|), added to v0 (u); with |a|, |w| ≤ |α|, 1
+ *     and ≤ 8 · 4 = 32 terms of |α| max|y| per layer value, its error ≤ u (|v0| + |α| max|y| (32 · (4 + 9) + …)),
+ *     and the scalar form's sums of ≤ 6 points per column pair bound the same way, so
  *       |v32 − v64| ≤ u (2 |v0| + 1600 |α| max|y|),
  *     loose against a typical rounding but not against a missing term, a wrong weight or a column off by one
  *     (errors of O(|α| |y|)).

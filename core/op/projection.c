@@ -83,6 +83,7 @@ void wt_projection_free(wt_projection *p)
     wt_free(ctx, p->rw0);
     wt_free(ctx, p->rw1);
     wt_free(ctx, p->f32);
+    wt_projection_f32_free(p);
     wt_free(ctx, p->run_row);
     wt_free(ctx, p->run_lo);
     wt_free(ctx, p->run_hi);
@@ -278,6 +279,7 @@ int wt_projection_alloc(wt_context *ctx, int nlayers, const wt_grid *layers, con
             }
         }
     }
+    if (!clamp_outside) WT_TRY(wt_projection_f32_setup(p, layers));
     wt_free(ctx, cok);
     wt_free(ctx, rok);
     *out = p;

@@ -4,14 +4,12 @@
  *
  * Why a second set of kernels and not the double ones on converted data: the double kernels' speed is set by how
  * many target points an AVX-512 register holds (8) and, for Pᵀ, by the add latency of its per-column running
- * sums; in float a register holds 16 points, and Pᵀ becomes a vector kernel too:
- *   Pᵀ's row pass in 16-point blocks: S0, S1 = inclusive prefix sums of w0 y and w1 y over the block; along a run
- *   the stencil columns d_e = j_e − j_0 are non-decreasing, so layer column k takes
- *       c_k = (S0 at the last point of column k) − (S0 at the last point of column k − 1)
- *           + (S1 at the last point of column k − 1) − (S1 at the last point of column k − 2),
- *   the ends of the columns picked by one compress instruction; the block's columns are kept in a register window
- *   and written out once they are left behind (a store that the next block would load again stalls the
- *   store-to-load forwarding).
+ * sums. In float P takes 16 points a block (×1.5 on the E-ELT LGS); Pᵀ is rebuilt as two passes (the tables'
+ * comment below, wt_projection_f32_free): the target rows into their layer rows by contiguous vector adds, then one
+ * fixed 1-D transposed interpolation along x per layer row, a few lane permutes per 16 columns (×2.1–2.5 on the LGS's
+ * 1 m layers, against the double scatter; a 16-point in-block prefix-sum form measured only ×1.2: its lane moves
+ * bound it). The NGS models' short runs keep scalar loops (slower than the double two-lane ones there: they are
+ * 3 of 9 sensors and a fifth of the work).
  * Accuracy: float's unit roundoff 2^-24 ≈ 6e-8 per operation; a point adds ≤ 4 layers × 4 terms, a layer value the
  * terms of the few target points of its cells: relative errors ~1e-6, far below the noise the tomography weighs.
  */
@@ -148,6 +146,119 @@ WT_F32_SCALAR static void apply_t_scalar(const wt_projection *p, float alpha, co
     }
 }
 
+/* The transpose's tables (wt_proj_t32, projection_private.h). Pᵀ is separable like P: a target row's values go to
+ * its two stencil rows with the row weights (contiguous vector adds into U, one row per layer row), then each U row
+ * goes to its layer row through the 1-D transposed interpolation along x, which is the same for every row and so a
+ * fixed table: layer column j takes the points whose column stencil is (j, j + 1) with weight w0, and those whose
+ * stencil is (j − 1, j) with w1, at most K of them (2–3 each where the layer is twice the target's spacing).
+ * Half as many U rows as target rows pass the 1-D step, and the step is K permutes of three registers of U per 16
+ * columns instead of the prefix sums' dozens of lane moves per 16 points. */
+enum { T32_UMAX = 16384, T32_KMAX = 8 }; /* U on the stack (64 KB), entries per column */
+
+void wt_projection_f32_free(wt_projection *p)
+{
+    if (!p->t32) return;
+    for (int l = 0; l < p->nlayers; l++) {
+        wt_free(p->ctx, p->t32[l].urow);
+        wt_free(p->ctx, p->t32[l].base);
+        wt_free(p->ctx, p->t32[l].idx);
+        wt_free(p->ctx, p->t32[l].hi);
+        wt_free(p->ctx, p->t32[l].wt);
+    }
+    wt_free(p->ctx, p->t32);
+    p->t32 = NULL;
+}
+
+static int t32_layer(wt_projection *p, int l, int64_t loff, wt_proj_t32 *T)
+{
+    int st = WT_OK;
+    const int tnx = p->tnx, tny = p->tny, cx0 = p->cx0, cx1 = p->cx1, lnx = p->lnx[l];
+    const int32_t *cb = p->cbase + (size_t)l * tnx;
+    const float *w0 = p->cw0f + (size_t)l * tnx, *w1 = p->cw1f + (size_t)l * tnx;
+    if (p->aligned[l] || cx1 <= cx0) return WT_OK; /* (the identity's transpose is a contiguous add) */
+    for (int ix = cx0 + 1; ix < cx1; ix++)
+        if (cb[ix] < cb[ix - 1]) return WT_OK; /* not monotone: no table */
+    /* U rows: the stencil rows of every run's target row */
+    int32_t rmin = INT32_MAX, rmax = -1;
+    for (int32_t r = 0; r < p->nrun; r++) {
+        const int32_t row = (int32_t)((p->rbase[(size_t)l * tny + p->run_row[r]] - loff) / lnx);
+        rmin = row < rmin ? row : rmin;
+        rmax = row + 1 > rmax ? row + 1 : rmax;
+    }
+    T->loff = loff;
+    T->r_lo = rmin;
+    T->nrow = rmax - rmin + 1;
+    T->ustride = ((cx1 - cx0) + 48 + 15) / 16 * 16; /* a block reads 48 values from its base */
+    if ((int64_t)T->nrow * T->ustride > T32_UMAX) return WT_OK;
+    T->c0 = cb[cx0];
+    T->ncol = cb[cx1 - 1] + 2 - T->c0;
+    T->nblk = (T->ncol + 15) / 16;
+    /* K: the most entries of a column */
+    int K = 0;
+    for (int j = 0; j < T->ncol; j++) {
+        int k = 0;
+        for (int ix = cx0; ix < cx1; ix++) k += cb[ix] - T->c0 == j || cb[ix] - T->c0 == j - 1;
+        K = k > K ? k : K;
+    }
+    if (K > T32_KMAX) return WT_OK;
+    T->K = K;
+    WT_ALLOC(p->ctx, T->urow, tny, "projection fp32 transpose rows");
+    WT_ALLOC(p->ctx, T->base, T->nblk, "projection fp32 transpose table");
+    WT_ALLOC(p->ctx, T->idx, (size_t)T->nblk * K * 16, "projection fp32 transpose table");
+    WT_ALLOC(p->ctx, T->hi, (size_t)T->nblk * K, "projection fp32 transpose table");
+    WT_ALLOC(p->ctx, T->wt, (size_t)T->nblk * K * 16, "projection fp32 transpose table");
+    for (int iy = 0; iy < tny; iy++)
+        T->urow[iy] = (int32_t)((p->rbase[(size_t)l * tny + iy] - loff) / lnx) - T->r_lo;
+    for (int b = 0; b < T->nblk; b++) {
+        /* the block's first entry: the first point of column c0 + 16 b − 1 (or of c0 + 16 b) */
+        int first = cx1;
+        for (int ix = cx0; ix < cx1; ix++)
+            if (cb[ix] - T->c0 >= 16 * b - 1) {
+                first = ix;
+                break;
+            }
+        T->base[b] = first - cx0;
+        for (int e = 0; e < 16; e++) {
+            const int j = 16 * b + e;
+            int k = 0;
+            for (int ix = cx0; ix < cx1 && j < T->ncol; ix++) {
+                const int d = cb[ix] - T->c0;
+                if (d != j && d != j - 1) continue;
+                const int rel = ix - first;
+                if (rel < 0 || rel >= 48) { /* beyond three registers: no table */
+                    T->ok = 0;
+                    return WT_OK;
+                }
+                const size_t q = ((size_t)b * K + k) * 16 + e;
+                T->idx[q] = rel;
+                T->wt[q] = d == j ? w0[ix] : w1[ix];
+                if (rel >= 32) T->hi[(size_t)b * K + k] |= (uint16_t)(1u << e);
+                k++;
+            }
+            /* padding: weight 0 on the block's first value (idx 0, wt 0 from the allocation's zeros) */
+        }
+    }
+    T->ok = 1;
+    return WT_OK;
+fail:
+    return st;
+}
+
+int wt_projection_f32_setup(wt_projection *p, const wt_grid *layers)
+{
+    int st = WT_OK;
+    WT_ALLOC(p->ctx, p->t32, p->nlayers, "projection fp32 transpose tables");
+    int64_t loff = 0;
+    for (int l = 0; l < p->nlayers; l++) {
+        WT_TRY(t32_layer(p, l, loff, &p->t32[l]));
+        loff += wt_grid_size(&layers[l]);
+    }
+    return WT_OK;
+fail:
+    wt_projection_f32_free(p);
+    return st;
+}
+
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #include <immintrin.h>
 #define WT_F32_AVX512 1
@@ -195,99 +306,67 @@ __attribute__((target("avx512f"))) static void apply_avx512(const wt_projection 
     }
 }
 
-/* v shifted up by s lanes (lane e takes v[e − s], zeros below): valignd with a zero vector */
-#define SHIFT_UP(v, s) _mm512_castsi512_ps(_mm512_alignr_epi32(_mm512_castps_si512(v), _mm512_setzero_si512(), 16 - (s)))
-
-/* inclusive prefix sum over the 16 lanes */
-__attribute__((target("avx512f"))) static inline __m512 prefix16(__m512 v)
+/* One layer's Pᵀ through its tables (wt_proj_t32; the comment above wt_projection_f32_free) */
+__attribute__((target("avx512f"))) static void layer_t_u(const wt_projection *p, int l, float alpha,
+                                                        const float *restrict points, float *restrict layers)
 {
-    v = _mm512_add_ps(v, SHIFT_UP(v, 1));
-    v = _mm512_add_ps(v, SHIFT_UP(v, 2));
-    v = _mm512_add_ps(v, SHIFT_UP(v, 4));
-    return _mm512_add_ps(v, SHIFT_UP(v, 8));
-}
-
-/* layer row r += a · win lanes [0, n) (columns c0 …) */
-__attribute__((target("avx512f"))) static inline void flush(float *r, int32_t c0, __m512 a, __m512 win, int n)
-{
-    if (n <= 0) return;
-    const __mmask16 m = n >= 16 ? (__mmask16)0xFFFFu : (__mmask16)((1u << n) - 1u);
-    _mm512_mask_storeu_ps(r + c0, m, _mm512_fmadd_ps(a, win, _mm512_maskz_loadu_ps(m, r + c0)));
-}
-
-/* One layer's Pᵀ on one run [lo, hi) of target row y, by 16-point blocks (the file's comment). The columns' sums
- * are kept in a window of two registers, columns [Jb, Jb + 16) and [Jb + 16, Jb + 32), and the first is written out
- * when the blocks have left it: each 16 columns of a layer row are read and written once per run, at addresses
- * that no other store of the run overlaps (an overlapping earlier store stalls the load behind it). From the first
- * block whose columns span more than 14 cells (none where p->narrow holds) to the run's end: the scalar scatter. */
-__attribute__((target("avx512f"))) static void run_t_avx512(const row_f32 *q, float *r0, float *r1, const float *y,
-                                                           int lo, int hi)
-{
-    if (q->al) { /* the identity stencil: contiguous */
-        scatter_run(q, r0, r1, y, lo, hi);
-        return;
-    }
-    const __m512i iota = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
-    const __m512 A0 = _mm512_set1_ps(q->a0), A1 = _mm512_set1_ps(q->a1);
-    __m512 wlo = _mm512_setzero_ps(), whi = _mm512_setzero_ps();
-    int32_t Jb = lo < hi ? q->cb[lo] : 0, top = Jb; /* window start; columns [Jb, top) touched */
-    int ix = lo;
-    for (; ix < hi; ix += 16) {
-        const int n = hi - ix < 16 ? hi - ix : 16; /* the run's last block may be short: masked lanes */
-        const __mmask16 in = n == 16 ? (__mmask16)0xFFFFu : (__mmask16)((1u << n) - 1u);
-        const int32_t J = q->cb[ix], span = q->cb[ix + n - 1] - J;
-        if (span > 14) break;
-        const __m512 v = _mm512_maskz_loadu_ps(in, y + ix);
-        /* lanes past the run: the last point's column (no new column), value 0 */
-        const __m512i d = _mm512_mask_blend_epi32(in, _mm512_set1_epi32(span),
-                                                  _mm512_sub_epi32(_mm512_maskz_loadu_epi32(in, q->cb + ix), _mm512_set1_epi32(J)));
-        /* the last point of each column: d_e ≠ d_{e+1}, and point 15 */
-        const __m512i dn = _mm512_permutexvar_epi32(_mm512_min_epi32(_mm512_add_epi32(iota, _mm512_set1_epi32(1)),
-                                                                     _mm512_set1_epi32(15)), d);
-        const __mmask16 ends = (__mmask16)(_mm512_cmpneq_epi32_mask(d, dn) | 0x8000u);
-        /* every column in [J, J + span] has a point where the layer is no finer than the target (p->narrow's ≤ 6
-         * cells over 8 points: a step of under one cell per point); else the scalar scatter from here */
-        if (__builtin_popcount(ends) != span + 1) break;
-        const __m512 S0 = prefix16(_mm512_mul_ps(_mm512_maskz_loadu_ps(in, q->w0 + ix), v));
-        const __m512 S1 = prefix16(_mm512_mul_ps(_mm512_maskz_loadu_ps(in, q->w1 + ix), v));
-        const __mmask16 have = (__mmask16)((1u << (span + 1)) - 1u);
-        const __m512 G0 = _mm512_maskz_compress_ps(ends, S0), G1 = _mm512_maskz_compress_ps(ends, S1);
-        const __m512 D0 = _mm512_maskz_sub_ps(have, G0, SHIFT_UP(G0, 1));
-        const __m512 D1 = _mm512_maskz_sub_ps(have, G1, SHIFT_UP(G1, 1));
-        const __m512 c = _mm512_add_ps(D0, SHIFT_UP(D1, 1)); /* columns J … J + span + 1 */
-        const int ncol = span + 2;
-        while (J - Jb >= 16) { /* the low register's columns are complete */
-            flush(r0, Jb, A0, wlo, top - Jb);
-            flush(r1, Jb, A1, wlo, top - Jb);
-            wlo = whi;
-            whi = _mm512_setzero_ps();
-            Jb += 16;
+    const wt_proj_t32 *T = &p->t32[l];
+    const int tnx = p->tnx, cx0 = p->cx0, lnx = p->lnx[l];
+    float U[T32_UMAX] __attribute__((aligned(64)));
+    memset(U, 0, (size_t)T->nrow * T->ustride * sizeof *U);
+    /* the target rows into U: u0 += α rw0 y, u1 += α rw1 y along each run */
+    for (int32_t r = 0; r < p->nrun; r++) {
+        const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
+        const size_t kr = (size_t)l * p->tny + iy;
+        const __m512 A0 = _mm512_set1_ps(alpha * p->rw0f[kr]), A1 = _mm512_set1_ps(alpha * p->rw1f[kr]);
+        float *u0 = U + (size_t)T->urow[iy] * T->ustride - cx0, *u1 = u0 + T->ustride;
+        const float *y = points + (int64_t)iy * tnx;
+        for (int ix = lo; ix < hi; ix += 16) {
+            const __mmask16 in = hi - ix >= 16 ? (__mmask16)0xFFFFu : (__mmask16)((1u << (hi - ix)) - 1u);
+            const __m512 v = _mm512_maskz_loadu_ps(in, y + ix);
+            _mm512_mask_storeu_ps(u0 + ix, in, _mm512_fmadd_ps(A0, v, _mm512_maskz_loadu_ps(in, u0 + ix)));
+            _mm512_mask_storeu_ps(u1 + ix, in, _mm512_fmadd_ps(A1, v, _mm512_maskz_loadu_ps(in, u1 + ix)));
         }
-        const int o = J - Jb; /* 0 ≤ o < 16: c's lane e is window column o + e */
-        wlo = _mm512_add_ps(wlo, _mm512_maskz_permutexvar_ps((__mmask16)(0xFFFFu << o),
-                                                             _mm512_sub_epi32(iota, _mm512_set1_epi32(o)), c));
-        if (o > 0)
-            whi = _mm512_add_ps(whi, _mm512_maskz_permutexvar_ps((__mmask16)(0xFFFFu >> (16 - o)),
-                                                                 _mm512_add_epi32(iota, _mm512_set1_epi32(16 - o)), c));
-        if (J + ncol > top) top = J + ncol;
     }
-    flush(r0, Jb, A0, wlo, top - Jb);
-    flush(r1, Jb, A1, wlo, top - Jb);
-    flush(r0, Jb + 16, A0, whi, top - Jb - 16);
-    flush(r1, Jb + 16, A1, whi, top - Jb - 16);
-    scatter_run(q, r0, r1, y, ix, hi);
+    /* each U row into its layer row along x */
+    const int K = T->K;
+    for (int R = 0; R < T->nrow; R++) {
+        const float *u = U + (size_t)R * T->ustride;
+        float *row = layers + T->loff + (int64_t)(T->r_lo + R) * lnx + T->c0;
+        for (int b = 0; b < T->nblk; b++) {
+            const float *src = u + T->base[b];
+            const __m512 Y0 = _mm512_loadu_ps(src), Y1 = _mm512_loadu_ps(src + 16), Y2 = _mm512_loadu_ps(src + 32);
+            __m512 acc = _mm512_setzero_ps();
+            const int32_t *ib = T->idx + (size_t)b * K * 16;
+            const float *wb = T->wt + (size_t)b * K * 16;
+            for (int k = 0; k < K; k++) {
+                const __m512i id = _mm512_loadu_si512((const void *)(ib + 16 * k));
+                __m512 v = _mm512_permutex2var_ps(Y0, id, Y1);
+                v = _mm512_mask_permutexvar_ps(v, T->hi[(size_t)b * K + k], id, Y2);
+                acc = _mm512_fmadd_ps(_mm512_loadu_ps(wb + 16 * k), v, acc);
+            }
+            const int nc = T->ncol - 16 * b;
+            const __mmask16 m = nc >= 16 ? (__mmask16)0xFFFFu : (__mmask16)((1u << nc) - 1u);
+            _mm512_mask_storeu_ps(row + 16 * b, m, _mm512_add_ps(_mm512_maskz_loadu_ps(m, row + 16 * b), acc));
+        }
+    }
 }
 
+/* Layer by layer: the tables where they exist and the runs are long (p->narrow), else the scalar scatter */
 __attribute__((target("avx512f"))) static void apply_t_avx512(const wt_projection *p, float alpha,
                                                              const float *restrict points, float *restrict layers)
 {
-    for (int32_t r = 0; r < p->nrun; r++) {
-        const int iy = p->run_row[r];
-        const float *y = points + (int64_t)iy * p->tnx;
-        for (int l = 0; l < p->nlayers; l++) {
+    for (int l = 0; l < p->nlayers; l++) {
+        if (p->narrow && p->t32 && p->t32[l].ok) { /* (on the NGS models' short runs the blocks of U hold few points:
+                                                       the scalar scatter is faster there) */
+            layer_t_u(p, l, alpha, points, layers);
+            continue;
+        }
+        for (int32_t r = 0; r < p->nrun; r++) {
+            const int iy = p->run_row[r];
             row_f32 q;
             row_setup(p, l, iy, alpha, layers, &q);
-            run_t_avx512(&q, (float *)q.r0, (float *)q.r1, y, p->run_lo[r], p->run_hi[r]);
+            scatter_run(&q, (float *)q.r0, (float *)q.r1, points + (int64_t)iy * p->tnx, p->run_lo[r], p->run_hi[r]);
         }
     }
 }
@@ -308,7 +387,7 @@ void wt_projection_apply_f32(const wt_projection *p, float alpha, const float *r
 void wt_projection_apply_t_f32(const wt_projection *p, float alpha, const float *restrict points, float *restrict layers)
 {
 #ifdef WT_F32_AVX512
-    if (p->narrow && __builtin_cpu_supports("avx512f")) {
+    if (__builtin_cpu_supports("avx512f")) {
         apply_t_avx512(p, alpha, points, layers);
         return;
     }

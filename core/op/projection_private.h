@@ -31,6 +31,26 @@ struct wt_projection {
     /* The single-precision forms (projection_f32.c): the weights rounded to float, in one allocation */
     float *f32;       /* cw0, cw1 ([nlayers * tnx] each), then rw0, rw1 ([nlayers * tny] each) */
     float *cw0f, *cw1f, *rw0f, *rw1f;
+    struct wt_proj_t32 *t32; /* [nlayers] the single-precision transpose's tables (projection_f32.c); NULL: none */
 };
+
+/* The single-precision transpose's tables of one layer (projection_f32.c): U, the target points' values summed
+ * into layer rows (rows r_lo … r_lo + nrow − 1, columns cx0 … at stride ustride), then each layer column j =
+ * c0 + 16 b + e (block b, lane e) as Σ_k wt[b][k][e] U[base[b] + idx[b][k][e]] over its K entries (the points
+ * whose column stencil holds j, zero-weighted padding) */
+typedef struct wt_proj_t32 {
+    int ok;               /* 0: no tables for this layer (aligned, or beyond their limits): the other kernels */
+    int64_t loff;         /* the layer's first value in the layers array */
+    int32_t r_lo, nrow, ustride, c0, ncol, nblk, K;
+    int32_t *urow;        /* [tny] U row of target row iy's bottom stencil row (−r_lo relative) */
+    int32_t *base;        /* [nblk] first U column of block b's entries (relative to cx0) */
+    int32_t *idx;         /* [nblk][K][16] entry's U column − base, 0 … 47 */
+    uint16_t *hi;         /* [nblk][K] lanes whose idx ≥ 32 */
+    float *wt;            /* [nblk][K][16] */
+} wt_proj_t32;
+
+/* Builds p->t32 (called by wt_projection_alloc for a covered projection; layers: its layer grids) */
+int wt_projection_f32_setup(wt_projection *p, const wt_grid *layers);
+void wt_projection_f32_free(wt_projection *p);
 
 #endif
