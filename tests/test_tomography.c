@@ -877,17 +877,19 @@ static void check_profile(wt_tomography *t, wt_pcg_precond P, const double *s, i
 }
 
 /* recon.<variant>.operator_precision = "fp32": the sensors' part of M, S c = Σ Pᵀ Γᵀ Ĉ⁻¹ Γ P W⁻¹ c, in single
- * precision (the layers rounded to float, the chain in float, the groups' sums and everything else in double).
+ * precision (the layers rounded to float, the chain in float, the groups' sums and everything else in double: the
+ * prior's term p(c) = M64 c − S64 c too, whose size the bound below also takes, as a term in the sum that the
+ * float chain's result is added to: ≤ 1e-5 ‖p(c)‖ is far more than that one addition's u).
  * Each of the chain's ~10 float stages rounds with u = 2^-24 ≈ 6e-8 relative to its absolute sums (the kernels'
  * own suites bound them: projection ≤ (L + 9) u, Γ and Γᵀ ≤ 8 u, Ĉ⁻¹ ≤ 11 u of the |terms|), ~60 u in all;
  * relative to |S c| the absolute sums are larger by the cancellations of Γ (neighbours' differences) and the
- * tip-tilt removal, at most ~30 for these random layers: ‖M32 c − M64 c‖ ≤ 1e-4 ‖S64 c‖ (S64 c: the double
- * chain, rhs(slopes(c))). The float operator is symmetric to the same order, |⟨c2, M32 c⟩ − ⟨c, M32 c2⟩| ≤
+ * tip-tilt removal, at most ~30 for these random layers: ‖M32 c − M64 c‖ ≤ 1e-4 ‖S64 c‖ + 1e-5 ‖p(c)‖ (S64 c: the
+ * double chain, rhs(slopes(c))). The float operator is symmetric to the same order, |⟨c2, M32 c⟩ − ⟨c, M32 c2⟩| ≤
  * 1e-4 (‖S c‖ ‖c2‖ + ‖S c2‖ ‖c‖) (Cauchy–Schwarz on each side's perturbation), and it is not the double one
  * (the fp32 path ran). A 4-iteration PCG on it (PCG-3's frame) moves by k ≈ 4 perturbations of that size,
- * each amplified by the short recurrence's conditioning (≲ 2 here): ≤ 1e-3 of the iterate. Cases: pcg3's diagonal
- * prior by sensor groups, cg9's full prior, the unknowns in space (the by-layers adjoint), and a 128² layer on
- * 2 threads (the groups on two threads). The right-hand side stays double: the same bits either way. */
+ * each amplified by the short recurrence's conditioning (≲ 2 here): ≤ 1e-3 of the iterate. Cases: pcg3 and cg9 with
+ * the full prior by sensor groups, pcg3 with the diagonal prior, the unknowns in space (the by-layers adjoint), and
+ * a 128² layer on 2 threads (the groups on two threads). The right-hand side stays double: the same bits either way. */
 static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P64, wt_pcg_precond P32, int64_t ns)
 {
     const int64_t n = wt_tomography_nunknowns(t64);
@@ -910,7 +912,11 @@ static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P6
     for (int64_t i = 0; i < n; i++) d += (y32[i] - y64[i]) * (y32[i] - y64[i]);
     d = sqrt(d);
     ck_assert_double_gt(d, 0.0);
-    ck_assert_msg(d <= 1e-4 * tu_norm(sc, n), "fp32 operator: |M32 c - M64 c| = %g, |S c| = %g", d, tu_norm(sc, n));
+    double pn = 0.0; /* ‖p(c)‖ */
+    for (int64_t i = 0; i < n; i++) pn += (y64[i] - sc[i]) * (y64[i] - sc[i]);
+    pn = sqrt(pn);
+    ck_assert_msg(d <= 1e-4 * tu_norm(sc, n) + 1e-5 * pn, "fp32 operator: |M32 c - M64 c| = %g, |S c| = %g, |p(c)| = %g",
+                  d, tu_norm(sc, n), pn);
     tu_tomo_apply(t32, c2, y2);
     ck_assert_double_le(fabs(tu_dot(c2, y32, n) - tu_dot(c, y2, n)),
                         1e-4 * (tu_norm(sc, n) * tu_norm(c2, n) + tu_norm(sc2, n) * tu_norm(c, n)));
@@ -927,8 +933,8 @@ static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P6
     ck_assert_int_eq(r.iterations, 4);
     ck_assert_double_gt(tu_norm(x64, n), 0.0);
     ck_assert_double_le(tu_rel_diff(x32, x64, n), 1e-3);
-    fprintf(stderr, "fp32 operator: |M32 c - M64 c| / |S c| = %.2e, 4-iteration PCG %.2e\n", d / tu_norm(sc, n),
-            tu_rel_diff(x32, x64, n));
+    fprintf(stderr, "fp32 operator: |M32 c - M64 c| = %.2e of |S c|, %.2e of |p(c)|; 4-iteration PCG %.2e\n",
+            d / tu_norm(sc, n), d / fmax(pn, 1e-300), tu_rel_diff(x32, x64, n));
     free(c), free(c2), free(y64), free(y32), free(sc), free(sc2), free(as), free(y2), free(s), free(x64), free(x32);
     free(b64), free(b32);
 }
@@ -937,10 +943,17 @@ START_TEST(test_single_precision_operator)
 {
     const char *fp32[] = {"recon.pcg3.operator_precision=\"fp32\"", "recon.cg9.operator_precision=\"fp32\"",
                           "recon.pcg3.layer_size=[128, 32, 64]"};
-    for (int v = 0; v < 2; v++) { /* pcg3 (diagonal prior), cg9 (full prior) */
+    const char *paper[] = {"recon.prior=\"paper\"", "recon.pcg3.operator_precision=\"fp32\""};
+    for (int v = 0; v < 3; v++) { /* pcg3 and cg9 (the full prior), pcg3 with the diagonal prior */
         fixture a, b;
-        setup(&a, DEMO, v, 0, NULL);
-        setup(&b, DEMO, v, 2, fp32);
+        if (v < 2) {
+            setup(&a, DEMO, v, 0, NULL);
+            setup(&b, DEMO, v, 2, fp32);
+        } else {
+            setup(&a, DEMO, 0, 1, paper);
+            setup(&b, DEMO, 0, 2, paper);
+            ck_assert_int_eq(wt_tomography_full_prior(b.t), 0);
+        }
         check_fp32(a.t, b.t, wt_precond_pcg(a.p), wt_precond_pcg(b.p), a.sys->nslopes);
         if (v == 1) { /* the unknowns in space: the by-layers adjoint */
             wt_tomography_params tp;
