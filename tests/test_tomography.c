@@ -889,7 +889,8 @@ static void check_profile(wt_tomography *t, wt_pcg_precond P, const double *s, i
  * (the fp32 path ran). A 4-iteration PCG on it (PCG-3's frame) moves by k ≈ 4 perturbations of that size,
  * each amplified by the short recurrence's conditioning (≲ 2 here): ≤ 1e-3 of the iterate. Cases: pcg3 and cg9 with
  * the full prior by sensor groups, pcg3 with the diagonal prior, the unknowns in space (the by-layers adjoint), and
- * a 128² layer on 2 threads (the groups on two threads). The right-hand side stays double: the same bits either way. */
+ * a 128² layer on 2 threads (the groups on two threads). The right-hand side Ãᵀ Ĉ⁻¹ s runs the chain's adjoint
+ * half in float too: within 1e-4 of the double one by the same count. */
 static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P64, wt_pcg_precond P32, int64_t ns)
 {
     const int64_t n = wt_tomography_nunknowns(t64);
@@ -920,12 +921,13 @@ static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P6
     tu_tomo_apply(t32, c2, y2);
     ck_assert_double_le(fabs(tu_dot(c2, y32, n) - tu_dot(c, y2, n)),
                         1e-4 * (tu_norm(sc, n) * tu_norm(c2, n) + tu_norm(sc2, n) * tu_norm(c, n)));
-    /* the right-hand side is the double one */
+    /* the right-hand side: the same float chain's adjoint half on the rounded slopes (the same bound) */
     tu_randn(s, ns, 73);
     for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
     tu_tomo_rhs(t64, s, b64);
     tu_tomo_rhs(t32, s, b32);
-    ck_assert_mem_eq(b64, b32, n * sizeof *b64);
+    ck_assert_double_gt(tu_rel_diff(b32, b64, n), 0.0);
+    ck_assert_double_le(tu_rel_diff(b32, b64, n), 1e-4);
     /* PCG-3's frame: 4 iterations from zero */
     wt_pcg_result r;
     ck_assert_int_eq(wt_tomography_solve(t64, P64, s, x64, 4, 0.0, NULL, &r), WT_OK);
@@ -933,8 +935,8 @@ static void check_fp32(wt_tomography *t64, wt_tomography *t32, wt_pcg_precond P6
     ck_assert_int_eq(r.iterations, 4);
     ck_assert_double_gt(tu_norm(x64, n), 0.0);
     ck_assert_double_le(tu_rel_diff(x32, x64, n), 1e-3);
-    fprintf(stderr, "fp32 operator: |M32 c - M64 c| = %.2e of |S c|, %.2e of |p(c)|; 4-iteration PCG %.2e\n",
-            d / tu_norm(sc, n), d / fmax(pn, 1e-300), tu_rel_diff(x32, x64, n));
+    fprintf(stderr, "fp32 operator: |M32 c - M64 c| = %.2e of |S c|, %.2e of |p(c)|; rhs %.2e; 4-iteration PCG %.2e\n",
+            d / tu_norm(sc, n), d / fmax(pn, 1e-300), tu_rel_diff(b32, b64, n), tu_rel_diff(x32, x64, n));
     free(c), free(c2), free(y64), free(y32), free(sc), free(sc2), free(as), free(y2), free(s), free(x64), free(x32);
     free(b64), free(b32);
 }

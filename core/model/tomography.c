@@ -73,6 +73,7 @@ struct wt_tomography_work {
     /* fp32 (t->fp32): the float layers, group accumulators, phases, slopes and weighted slopes, and per thread one
        layer's float sum (the by-layers adjoint); one allocation, every array at a 64-byte boundary */
     float *f32_raw, *phi32, *acc32, *phase32, *slopes32, *weighted32, *lay32;
+    float *wwork32;   /* fp32: nthreads x wsize float wavelet workspace */
     double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
                          busy time on a cache line of its own); NULL or prof_on 0: not timing */
     int prof_on;
@@ -493,7 +494,8 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
         const size_t r16 = 16; /* floats per 64 bytes */
         const size_t nn = ((size_t)t->n + r16 - 1) / r16 * r16, nc = ((size_t)t->ncg + r16 - 1) / r16 * r16;
         const size_t ns = ((size_t)t->sys->nslopes + r16 - 1) / r16 * r16, nl = (max_layer(t) + r16 - 1) / r16 * r16;
-        const size_t total = nn * (1 + WT_GROUPS) + nc * (size_t)t->S + 2 * ns + nl * (size_t)t->nthreads;
+        const size_t nw = (t->wsize + r16 - 1) / r16 * r16;
+        const size_t total = nn * (1 + WT_GROUPS) + nc * (size_t)t->S + 2 * ns + (nl + nw) * (size_t)t->nthreads;
         WT_ALLOC(ctx, w->f32_raw, total + r16, "single-precision operator workspace");
         w->phi32 = (float *)wt_align64((double *)w->f32_raw); /* (malloc's pointer is 8-aligned) */
         w->acc32 = w->phi32 + nn;
@@ -501,6 +503,7 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
         w->slopes32 = w->phase32 + nc * (size_t)t->S;
         w->weighted32 = w->slopes32 + ns;
         w->lay32 = w->weighted32 + ns;
+        w->wwork32 = w->lay32 + nl * (size_t)t->nthreads;
     }
     if (t->full_prior) {
         WT_ALLOC(ctx, w->pphi_raw, t->n + 8, "full prior term");
@@ -576,8 +579,12 @@ void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out)
  * smaller team (a nested or reduced one) */
 static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] % nt; }
 
-/* phi = W⁻¹ c layer by layer; with phi32 (the fp32 operator) also phi32 = (float) phi, each layer right after its
- * transform (still in its owner's cache). In space phi is c itself: only the conversion runs. */
+/* phi = W⁻¹ c layer by layer; with phi32 (the fp32 operator) the transform in float instead: c rounded to float,
+ * phi32 = W⁻¹ c in float, and phi = phi32 in double where the full prior's FFTs read it. In space phi is c itself:
+ * only the rounding to phi32 runs. */
+/* floats per thread in w->lay32: the largest layer, rounded to 64 bytes */
+static size_t lay32_size(const wt_tomography *t) { return (max_layer(t) + 15) / 16 * 16; }
+
 static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
 {
     if (t->space) { /* the unknowns are the values */
@@ -593,9 +600,17 @@ static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const doub
         for (int l = 0; l < t->L; l++) {
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
-            if (!t->space) wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
-            if (phi32)
-                for (int64_t i = a; i < b; i++) phi32[i] = (float)phi[i];
+            if (!phi32) {
+                wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
+            } else if (t->space) {
+                for (int64_t i = a; i < b; i++) phi32[i] = (float)c[i];
+            } else {
+                float *c32 = w->lay32 + (size_t)id * lay32_size(t);
+                for (int64_t i = a; i < b; i++) c32[i - a] = (float)c[i];
+                wt_wavelet_inverse_f32(t->wav[l], c32, phi32 + a, w->wwork32 + (size_t)id * t->wsize);
+                if (t->full_prior)
+                    for (int64_t i = a; i < b; i++) phi[i] = phi32[i];
+            }
         }
         prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
     }
@@ -620,9 +635,14 @@ static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const 
 static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c);
 
+static void adjoint_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx, double *c);
+
+/* The right-hand side's adjoint: in float too with the fp32 operator (the measurements rounded to float: ~1e-7 of
+ * b, where the noise is ~1e-1) */
 static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const double *slopes, double *c)
 {
-    adjoint_prior(t, w, slopes, NULL, c);
+    if (t->fp32) adjoint_f32(t, w, slopes, NULL, c);
+    else adjoint_prior(t, w, slopes, NULL, c);
 }
 
 /* In space with at least two layers per thread the adjoint runs by layers (adjoint_space), else by sensor groups */
@@ -717,6 +737,22 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
             double *sum = t->space ? c : w->phi; /* in space the sum is the result */
+            if (f32 && !t->space) { /* in float: the groups' sums, the prior's term, W, then c in double */
+                float *s32 = w->lay32 + (size_t)id * lay32_size(t);
+                for (int64_t i = a; i < b; i++) {
+                    float v = w->acc32[i];
+                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
+                    s32[i - a] = v;
+                }
+                if (cx && t->full_prior)
+                    for (int64_t i = a; i < b; i++) s32[i - a] += (float)w->pphi[i];
+                /* (phi32 is free here: the forward has read it) */
+                wt_wavelet_forward_f32(t->wav[l], s32, w->phi32 + a, w->wwork32 + (size_t)id * t->wsize);
+                for (int64_t i = a; i < b; i++) c[i] = w->phi32[i];
+                if (cx && !t->full_prior)
+                    for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
+                continue;
+            }
             if (f32) /* the groups' float sums, added in double */
                 for (int64_t i = a; i < b; i++) {
                     double v = w->acc32[i];
@@ -829,13 +865,23 @@ static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, cons
     wt_noise_set_weight_many_f32(nz, k, x, ws);
 }
 
-static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g)
+/* Sensor m's slopes s (double: the right-hand side's measurements) rounded into w->slopes32 */
+static void round_slopes(const wt_tomography *t, wt_tomography_work *w, int m, const double *s)
+{
+    const int64_t a = t->sys->sensors[m].offset, b = a + t->sys->sensors[m].nslopes;
+    for (int64_t i = a; i < b; i++) w->slopes32[i] = (float)s[i];
+}
+
+/* One group's share of the fp32 adjoint; s: the slopes to round first (the right-hand side), or NULL (the operator:
+ * its forward left them in w->slopes32) */
+static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g, const double *s)
 {
     float *acc = w->acc32 + (size_t)g * t->n;
     memset(acc, 0, (size_t)t->n * sizeof *acc);
     int ms[2 * WT_MAX_GS], k = 0;
     for (int m = 0; m < t->S; m++)
         if (t->group[m] == g) ms[k++] = m;
+    for (int q = 0; s && q < k; q++) round_slopes(t, w, ms[q], s);
     weigh_f32(t, w, k, ms);
     for (int q = 0; q < k; q++)
         wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + t->sys->sensors[ms[q]].offset, acc,
@@ -844,17 +890,19 @@ static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int
 
 /* adjoint_space in float: every sensor's weights and Γᵀ, then per layer the sensors' Pᵀ into a float sum that
  * is added (or, without the full prior's term there, copied) into c */
-static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c)
+static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx,
+                              double *c)
 {
     const double t0 = prof_t0(w);
     double t1 = t0;
-    const size_t nl32 = (max_layer(t) + 15) / 16 * 16;
+    const size_t nl32 = lay32_size(t);
 #pragma omp parallel num_threads(t->nthreads)
     {
         const int id = thread_id();
         double b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m < t->S; m++) {
+            if (s) round_slopes(t, w, m, s);
             weigh_f32(t, w, 1, &m);
             wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + t->sys->sensors[m].offset,
                                         w->phase32 + (size_t)m * t->ncg);
@@ -883,24 +931,31 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t1);
 }
 
-static void normal_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
+/* adjoint_prior in float: c = W Σ Pᵀ Γᵀ Ĉ⁻¹ slopes (+ the prior's term of cx); s: double slopes to round first (the
+ * right-hand side), or NULL (the operator: the forward's float slopes) */
+static void adjoint_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx, double *c)
 {
-    const double *phi = t->space ? c : w->phi;
-    layers_dwt(t, w, c, t->space ? (double *)c : w->phi, w->phi32);
-    forward_f32(t, w, phi, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
     if (by_layers(t)) {
-        adjoint_space_f32(t, w, c, y);
+        adjoint_space_f32(t, w, s, cx, c);
         return;
     }
     const double t0 = prof_t0(w);
 #pragma omp parallel for schedule(static) num_threads(t->nthreads)
     for (int g = 0; g < WT_GROUPS; g++) {
         const double b0 = prof_t0(w);
-        adjoint_group_f32(t, w, g);
+        adjoint_group_f32(t, w, g, s);
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    adjoint_layers(t, w, c, y, 1);
+    adjoint_layers(t, w, cx, c, 1);
+}
+
+static void normal_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
+{
+    const double *phi = t->space ? c : w->phi;
+    layers_dwt(t, w, c, t->space ? (double *)c : w->phi, w->phi32);
+    forward_f32(t, w, phi, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
+    adjoint_f32(t, w, NULL, c, y);
 }
 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */

@@ -26,6 +26,7 @@ struct wt_wavelet {
     int levels; /* J */
     double h[MAXTAPS]; /* low-pass, 2N taps */
     double g[MAXTAPS]; /* high-pass g_i = (−1)^i h_{2N−1−i} */
+    float h32[MAXTAPS], g32[MAXTAPS]; /* the filters rounded to float (the single-precision forms) */
 };
 
 /* ---------------------------------------------------------------------------------------------- */
@@ -152,6 +153,10 @@ int wt_wavelet_alloc(wt_context *ctx, int n, int order, int levels, wt_wavelet *
     w->levels = levels;
     WT_TRY(wt_wavelet_filter(ctx, order, w->h));
     for (int i = 0; i < 2 * order; i++) w->g[i] = ((i & 1) ? -1.0 : 1.0) * w->h[2 * order - 1 - i];
+    for (int i = 0; i < 2 * order; i++) {
+        w->h32[i] = (float)w->h[i];
+        w->g32[i] = (float)w->g[i];
+    }
     *out = w;
     return WT_OK;
 fail:
@@ -183,164 +188,25 @@ size_t wt_wavelet_work_size(const wt_wavelet *w)
 
 #define WT_INLINE static inline __attribute__((always_inline))
 
-/* Forward along x: one row of length m → a (m/2 values) and d (m/2 values). Polyphase split
- * xe_j = x_{2j}, xo_j = x_{2j+1}, extended periodically by N − 1, turns the stride-2 filtering into
- * unit-stride sums: a_k = Σ_t h_{2t} xe_{k+t} + h_{2t+1} xo_{k+t}. */
-WT_INLINE void fwd_row(const int N, int m, const double *restrict hf, const double *restrict gf,
-                       const double *restrict src, double *restrict a, double *restrict d,
-                       double *restrict tmp)
-{
-    const int half = m / 2, ext = half + N - 1;
-    double *restrict xe = tmp, *restrict xo = tmp + ext;
-    for (int j = 0; j < half; j++) {
-        xe[j] = src[2 * j];
-        xo[j] = src[2 * j + 1];
-    }
-    for (int j = half; j < ext; j++) {
-        xe[j] = xe[j % half];
-        xo[j] = xo[j % half];
-    }
-    for (int k = 0; k < half; k++) {
-        double sa = 0.0, sd = 0.0;
-        for (int t = 0; t < N; t++) {
-            sa += hf[2 * t] * xe[k + t] + hf[2 * t + 1] * xo[k + t];
-            sd += gf[2 * t] * xe[k + t] + gf[2 * t + 1] * xo[k + t];
-        }
-        a[k] = sa;
-        d[k] = sd;
-    }
-}
-
-/* Inverse along x, the transpose of fwd_row: x_{2p+r} = Σ_t h_{2t+r} a_{p−t} + g_{2t+r} d_{p−t}
- * (indices mod m/2), with a and d extended periodically by N − 1 at the front. */
-WT_INLINE void inv_row(const int N, int m, const double *restrict hf, const double *restrict gf,
-                       const double *restrict a, const double *restrict d, double *restrict dst,
-                       double *restrict tmp)
-{
-    const int half = m / 2, ext = half + N - 1, off = N - 1;
-    double *restrict ae = tmp, *restrict de = tmp + ext;
-    for (int j = 0; j < half; j++) {
-        ae[off + j] = a[j];
-        de[off + j] = d[j];
-    }
-    /* ae[q] = a[(q − off) mod half] for q < off. */
-    for (int q = 0; q < off; q++) {
-        int s = ((q - off) % half + half) % half;
-        ae[q] = a[s];
-        de[q] = d[s];
-    }
-    for (int p = 0; p < half; p++) {
-        double se = 0.0, so = 0.0;
-        for (int t = 0; t < N; t++) {
-            double av = ae[off + p - t], dv = de[off + p - t];
-            se += hf[2 * t] * av + gf[2 * t] * dv;
-            so += hf[2 * t + 1] * av + gf[2 * t + 1] * dv;
-        }
-        dst[2 * p] = se;
-        dst[2 * p + 1] = so;
-    }
-}
-
-/* Forward along y on whole rows: output rows k and k + m/2 of the block are Σ_i h_i (resp. g_i) times
- * row (2k + i) mod m of the row-transformed block held in work (stride m). */
-WT_INLINE void fwd_cols(const int N, int m, int n, const double *restrict hf, const double *restrict gf,
-                        const double *restrict work, double *restrict c)
-{
-    const int L = 2 * N, half = m / 2;
-    const double *r[MAXTAPS];
-    for (int k = 0; k < half; k++) {
-        for (int i = 0; i < L; i++) r[i] = work + (size_t)((2 * k + i) % m) * m;
-        double *restrict oa = c + (size_t)k * n, *restrict od = c + (size_t)(k + half) * n;
-#pragma GCC ivdep
-        for (int ix = 0; ix < m; ix++) {
-            double sa = 0.0, sd = 0.0;
-            for (int i = 0; i < L; i++) {
-                sa += hf[i] * r[i][ix];
-                sd += gf[i] * r[i][ix];
-            }
-            oa[ix] = sa;
-            od[ix] = sd;
-        }
-    }
-}
-
-/* Inverse along y for the columns [0, nc) of a block: output row 2p + s (into work, stride m) is
- * Σ_t h_{2t+s} A_{(p−t) mod m/2} + g_{2t+s} D_{(p−t) mod m/2}, where A and D are rows of the low- and
- * high-pass halves (stride n). */
-WT_INLINE void inv_cols(const int N, int m, int n, int nc, const double *restrict hf,
-                        const double *restrict gf, const double *restrict A, const double *restrict D,
-                        double *restrict work)
-{
-    const int half = m / 2;
-    const double *ra[WT_WAVELET_MAX_ORDER], *rd[WT_WAVELET_MAX_ORDER];
-    for (int p = 0; p < half; p++) {
-        for (int t = 0; t < N; t++) {
-            size_t k = (size_t)(((p - t) % half + half) % half);
-            ra[t] = A + k * n;
-            rd[t] = D + k * n;
-        }
-        double *restrict oe = work + (size_t)(2 * p) * m, *restrict oo = oe + m;
-#pragma GCC ivdep
-        for (int ix = 0; ix < nc; ix++) {
-            double se = 0.0, so = 0.0;
-            for (int t = 0; t < N; t++) {
-                double av = ra[t][ix], dv = rd[t][ix];
-                se += hf[2 * t] * av + gf[2 * t] * dv;
-                so += hf[2 * t + 1] * av + gf[2 * t + 1] * dv;
-            }
-            oe[ix] = se;
-            oo[ix] = so;
-        }
-    }
-}
-
-/* One forward level on the top-left m x m block: rows of src → work, columns of work → c. */
-WT_INLINE void fwd_level(const int N, const wt_wavelet *w, int m, const double *src, double *c,
-                         double *work)
-{
-    const int n = w->n, half = m / 2;
-    double *tmp = work + (size_t)m * m;
-    for (int iy = 0; iy < m; iy++) {
-        double *row = work + (size_t)iy * m;
-        fwd_row(N, m, w->h, w->g, src + (size_t)iy * n, row, row + half, tmp);
-    }
-    fwd_cols(N, m, n, w->h, w->g, work, c);
-}
-
-/* One inverse level on the top-left m x m block: columns → work, rows of work → x. The approximation
- * quarter comes from `approx` (c at the coarsest level, x afterwards), the details always from c, so
- * that c is left untouched when it is not x. */
-WT_INLINE void inv_level(const int N, const wt_wavelet *w, int m, const double *approx, const double *c,
-                         double *x, double *work)
-{
-    const int n = w->n, half = m / 2;
-    double *tmp = work + (size_t)m * m;
-    const size_t dy = (size_t)half * n;
-    inv_cols(N, m, n, half, w->h, w->g, approx, c + dy, work);
-    inv_cols(N, m, n, half, w->h, w->g, c + half, c + dy + half, work + half);
-    for (int iy = 0; iy < m; iy++) {
-        const double *row = work + (size_t)iy * m;
-        inv_row(N, m, w->h, w->g, row, row + half, x + (size_t)iy * n, tmp);
-    }
-}
-
-WT_INLINE void forward_n(const int N, const wt_wavelet *w, const double *x, double *c, double *work)
-{
-    const double *src = x;
-    for (int l = 0, m = w->n; l < w->levels; l++, m /= 2) {
-        fwd_level(N, w, m, src, c, work);
-        src = c;
-    }
-}
-
-WT_INLINE void inverse_n(const int N, const wt_wavelet *w, const double *c, double *x, double *work)
-{
-    const double *approx = c;
-    for (int l = w->levels; l >= 1; l--) {
-        inv_level(N, w, w->n >> (l - 1), approx, c, x, work);
-        approx = x;
-    }
-}
+/* The kernels in double (wavelet.h's transforms) and in float (the tomography's fp32 operator) */
+#define REAL double
+#define K(name) name##_f64
+#define HF(w) (w)->h
+#define GF(w) (w)->g
+#include "wavelet_kernels.inc"
+#undef REAL
+#undef K
+#undef HF
+#undef GF
+#define REAL float
+#define K(name) name##_f32
+#define HF(w) (w)->h32
+#define GF(w) (w)->g32
+#include "wavelet_kernels.inc"
+#undef REAL
+#undef K
+#undef HF
+#undef GF
 
 #define WT_DISPATCH(fn, N, ...)          \
     switch (N) {                         \
@@ -362,13 +228,25 @@ WT_INLINE void inverse_n(const int N, const wt_wavelet *w, const double *c, doub
 WT_CPU_CLONES
 void wt_wavelet_forward(const wt_wavelet *w, const double *x, double *c, double *work)
 {
-    WT_DISPATCH(forward_n, w->order, w, x, c, work);
+    WT_DISPATCH(forward_n_f64, w->order, w, x, c, work);
 }
 
 WT_CPU_CLONES
 void wt_wavelet_inverse(const wt_wavelet *w, const double *c, double *x, double *work)
 {
-    WT_DISPATCH(inverse_n, w->order, w, c, x, work);
+    WT_DISPATCH(inverse_n_f64, w->order, w, c, x, work);
+}
+
+WT_CPU_CLONES
+void wt_wavelet_forward_f32(const wt_wavelet *w, const float *x, float *c, float *work)
+{
+    WT_DISPATCH(forward_n_f32, w->order, w, x, c, work);
+}
+
+WT_CPU_CLONES
+void wt_wavelet_inverse_f32(const wt_wavelet *w, const float *c, float *x, float *work)
+{
+    WT_DISPATCH(inverse_n_f32, w->order, w, c, x, work);
 }
 
 void wt_wavelet_classify(const wt_wavelet *w, int ix, int iy, int *level, int *orient)

@@ -39,6 +39,11 @@ void wt_wavelet_forward(const wt_wavelet *w, const double *x, double *c, double 
 /* x = W⁻¹ c = Wᵀ c (x and c may be the same array). */
 void wt_wavelet_inverse(const wt_wavelet *w, const double *c, double *x, double *work);
 
+/* Single precision (the tomography's fp32 operator): the same transforms on floats with the filters rounded to float
+ * (~1e-7 relative per level; not the double forms' bits); work: wt_wavelet_work_size floats. */
+void wt_wavelet_forward_f32(const wt_wavelet *w, const float *x, float *c, float *work);
+void wt_wavelet_inverse_f32(const wt_wavelet *w, const float *c, float *x, float *work);
+
 /* Level and orientation of the coefficient at (ix, iy): *level = 1 … J for details (1 finest),
  * J + 1 for the approximation block; *orient = 0 approximation, 1 x-detail, 2 y-detail, 3 diagonal. */
 void wt_wavelet_classify(const wt_wavelet *w, int ix, int iy, int *level, int *orient);
