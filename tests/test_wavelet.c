@@ -271,6 +271,48 @@ START_TEST(test_roundtrip_and_parseval)
 }
 END_TEST
 
+/* The single-precision forms (wt_wavelet_forward_f32, wt_wavelet_inverse_f32) against the double ones on the same
+ * (float) input. A pass computes each output as 2N products and adds in float, error ≤ (2N + 1) u Σ_i |h_i| |x_i|
+ * (u = 2^-24), whose norm over the outputs is ≤ (2N + 1) u ‖h‖₁ ‖x‖ ≤ (2N + 1) √(2N) u ‖x‖ (‖h‖₂ = 1); the later
+ * passes are orthonormal, so 2J passes and the filters' own rounding to float (≤ u ‖h‖₁ per pass more) give
+ *   ‖W32 x − W x‖ ≤ 2J (2N + 2) √(2N) u ‖x‖,
+ * the same for W⁻¹; in place as well as into another array. */
+START_TEST(test_single_precision)
+{
+    const double u = ldexp(1.0, -24);
+    const int ns[] = {8, 64, 128};
+    for (int N = 1; N <= WT_WAVELET_MAX_ORDER; N += 2) {
+        for (int a = 0; a < 3; a++) {
+            const int n = ns[a], nn = n * n, J = ilog2(n) < 5 ? ilog2(n) : 5;
+            plan p = plan_make(n, N, J);
+            double *x = malloc(sizeof(double) * nn), *c = malloc(sizeof(double) * nn), *y = malloc(sizeof(double) * nn);
+            float *x32 = malloc(sizeof(float) * nn), *c32 = malloc(sizeof(float) * nn), *y32 = malloc(sizeof(float) * nn);
+            float *work32 = malloc(sizeof(float) * wt_wavelet_work_size(p.w));
+            tu_randn(x, nn, 7000 + 10 * N + a);
+            for (int i = 0; i < nn; i++) x[i] = x32[i] = (float)x[i];
+            const double bound = 2.0 * J * (2 * N + 2) * sqrt(2.0 * N) * u;
+            wt_wavelet_forward(p.w, x, c, p.work);
+            wt_wavelet_forward_f32(p.w, x32, c32, work32);
+            for (int i = 0; i < nn; i++) y[i] = c32[i];
+            double e = tu_rel_diff(y, c, nn);
+            ck_assert_msg(e > 0.0 && e <= bound, "N=%d n=%d J=%d: forward f32 error %.3g (bound %.3g)", N, n, J, e, bound);
+            /* the inverse, on the double coefficients rounded to float */
+            for (int i = 0; i < nn; i++) c[i] = c32[i] = (float)c[i];
+            wt_wavelet_inverse(p.w, c, x, p.work);
+            wt_wavelet_inverse_f32(p.w, c32, y32, work32);
+            for (int i = 0; i < nn; i++) y[i] = y32[i];
+            e = tu_rel_diff(y, x, nn);
+            ck_assert_msg(e > 0.0 && e <= bound, "N=%d n=%d J=%d: inverse f32 error %.3g (bound %.3g)", N, n, J, e, bound);
+            /* in place: the same values */
+            wt_wavelet_inverse_f32(p.w, c32, c32, work32);
+            ck_assert_mem_eq(c32, y32, sizeof(float) * nn);
+            free(x), free(c), free(y), free(x32), free(c32), free(y32), free(work32);
+            plan_done(&p);
+        }
+    }
+}
+END_TEST
+
 START_TEST(test_adjoint)
 {
     const int cases[][3] = {{64, 3, 5}, {32, 1, 5}, {16, 10, 4}, {128, 6, 3}};
@@ -480,6 +522,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_filter_minimum_phase);
     tcase_add_test(tc, test_forward_matches_reference);
     tcase_add_test(tc, test_roundtrip_and_parseval);
+    tcase_add_test(tc, test_single_precision);
     tcase_add_test(tc, test_adjoint);
     tcase_add_test(tc, test_haar_step);
     tcase_add_test(tc, test_shift_property);

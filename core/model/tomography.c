@@ -33,7 +33,9 @@ struct wt_tomography {
     double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
     int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
-    int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the sensors in float */
+    int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the LGS in float */
+    uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's adjoint in float (the LGS; the NGS's stays double: layers_dwt) */
+    uint8_t g64[WT_GROUPS];   /* fp32: the group holds a double (NGS) sensor: its w->acc is summed too */
     wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
@@ -429,6 +431,10 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         for (int m = 0; m < t->S; m++) cost[m] = (double)sys->sensors[m].nslopes + 1.0;
         wt_vec_groups(t->S, cost, t->group);
     }
+    for (int m = 0; m < t->S; m++) {
+        t->s32[m] = (uint8_t)(t->fp32 && sys->sensors[m].kind == WT_SENSOR_LGS);
+        if (t->fp32 && !t->s32[m]) t->g64[t->group[m]] = 1;
+    }
     { /* layer owners: largest first to the least loaded thread (lowest index on ties) */
         int64_t load[WT_MAX_LAYERS] = {0};
         const int nt = t->nthreads < WT_MAX_LAYERS ? t->nthreads : WT_MAX_LAYERS;
@@ -580,8 +586,13 @@ void wt_tomography_profile_stop(wt_tomography *t, wt_tomography_stage *out)
 static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] % nt; }
 
 /* phi = W⁻¹ c layer by layer; with phi32 (the fp32 operator) the transform in float instead: c rounded to float,
- * phi32 = W⁻¹ c in float, and phi = phi32 in double where the full prior's FFTs read it. In space phi is c itself:
- * only the rounding to phi32 runs. */
+ * phi32 = W⁻¹ c in float, and phi = phi32 in double for the full prior's FFTs. In space phi is c itself: only the
+ * rounding to phi32 runs.
+ * The fp32 operator runs every sensor's forward (P, Γ) in float, and the LGS's adjoint; the NGS's adjoint (Ĉ⁻¹, Γᵀ,
+ * Pᵀ) and everything after the sum stay double. At low noise the NGS weigh ~10⁵ times the LGS: a float rounding
+ * before their weights reaches the NGS term only through the NGS's dozen global modes (the rows of Ĉ⁻¹ Γ P), which
+ * the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ, accumulator or DWT) spreads
+ * 1e-7 of that large term over every mode, and moved the low-noise field WFE by +0.07 nm (docs/results.md §30). */
 /* floats per thread in w->lay32: the largest layer, rounded to 64 bytes */
 static size_t lay32_size(const wt_tomography *t) { return (max_layer(t) + 15) / 16 * 16; }
 
@@ -609,7 +620,7 @@ static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const doub
                 for (int64_t i = a; i < b; i++) c32[i - a] = (float)c[i];
                 wt_wavelet_inverse_f32(t->wav[l], c32, phi32 + a, w->wwork32 + (size_t)id * t->wsize);
                 if (t->full_prior)
-                    for (int64_t i = a; i < b; i++) phi[i] = phi32[i];
+                    for (int64_t i = a; i < b; i++) phi[i] = phi32[i]; /* (the full prior's FFTs read it) */
             }
         }
         prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
@@ -737,26 +748,12 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
             double *sum = t->space ? c : w->phi; /* in space the sum is the result */
-            if (f32 && !t->space) { /* in float: the groups' sums, the prior's term, W, then c in double */
-                float *s32 = w->lay32 + (size_t)id * lay32_size(t);
-                for (int64_t i = a; i < b; i++) {
-                    float v = w->acc32[i];
-                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
-                    s32[i - a] = v;
-                }
-                if (cx && t->full_prior)
-                    for (int64_t i = a; i < b; i++) s32[i - a] += (float)w->pphi[i];
-                /* (phi32 is free here: the forward has read it) */
-                wt_wavelet_forward_f32(t->wav[l], s32, w->phi32 + a, w->wwork32 + (size_t)id * t->wsize);
-                for (int64_t i = a; i < b; i++) c[i] = w->phi32[i];
-                if (cx && !t->full_prior)
-                    for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
-                continue;
-            }
-            if (f32) /* the groups' float sums, added in double */
+            if (f32) /* the groups' float sums (LGS) and double ones (NGS), added in double */
                 for (int64_t i = a; i < b; i++) {
                     double v = w->acc32[i];
                     for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
+                    for (int g = 0; g < WT_GROUPS; g++)
+                        if (t->g64[g]) v += w->acc[(int64_t)g * n + i];
                     sum[i] = v;
                 }
             else
@@ -876,16 +873,39 @@ static void round_slopes(const wt_tomography *t, wt_tomography_work *w, int m, c
  * its forward left them in w->slopes32) */
 static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g, const double *s)
 {
+    const wt_system *sys = t->sys;
     float *acc = w->acc32 + (size_t)g * t->n;
     memset(acc, 0, (size_t)t->n * sizeof *acc);
     int ms[2 * WT_MAX_GS], k = 0;
     for (int m = 0; m < t->S; m++)
-        if (t->group[m] == g) ms[k++] = m;
+        if (t->group[m] == g && t->s32[m]) ms[k++] = m;
     for (int q = 0; s && q < k; q++) round_slopes(t, w, ms[q], s);
     weigh_f32(t, w, k, ms);
     for (int q = 0; q < k; q++)
-        wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + t->sys->sensors[ms[q]].offset, acc,
+        wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + sys->sensors[ms[q]].offset, acc,
                                            w->phase32 + (size_t)ms[q] * t->ncg);
+    if (!t->g64[g]) return;
+    /* the group's NGS in double (adjoint_group's steps) into its double accumulator */
+    double *acc64 = w->acc + (size_t)g * t->n;
+    memset(acc64, 0, (size_t)t->n * sizeof *acc64);
+    const wt_noise *nz[2 * WT_MAX_GS];
+    const double *x[2 * WT_MAX_GS];
+    double *ws[2 * WT_MAX_GS];
+    k = 0;
+    for (int m = 0; m < t->S; m++) {
+        if (t->group[m] != g || t->s32[m]) continue;
+        ms[k] = m;
+        nz[k] = t->noise[m];
+        if (!s) /* the forward's float slopes, in double */
+            for (int64_t i = sys->sensors[m].offset; i < sys->sensors[m].offset + sys->sensors[m].nslopes; i++)
+                w->slopes[i] = w->slopes32[i];
+        x[k] = (s ? s : w->slopes) + sys->sensors[m].offset;
+        ws[k] = w->weighted + sys->sensors[m].offset;
+        k++;
+    }
+    wt_noise_set_weight_many(nz, k, x, ws);
+    for (int q = 0; q < k; q++)
+        wt_sensor_stack_apply_t_sensor(&t->stack, ms[q], 1.0, ws[q], acc64, w->phase + (size_t)ms[q] * t->ncg);
 }
 
 /* adjoint_space in float: every sensor's weights and Γᵀ, then per layer the sensors' Pᵀ into a float sum that
@@ -902,10 +922,20 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
         double b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m < t->S; m++) {
-            if (s) round_slopes(t, w, m, s);
-            weigh_f32(t, w, 1, &m);
-            wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + t->sys->sensors[m].offset,
-                                        w->phase32 + (size_t)m * t->ncg);
+            const int64_t off = t->sys->sensors[m].offset;
+            if (t->s32[m]) {
+                if (s) round_slopes(t, w, m, s);
+                weigh_f32(t, w, 1, &m);
+                wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + off, w->phase32 + (size_t)m * t->ncg);
+            } else { /* an NGS: double */
+                if (!s)
+                    for (int64_t i = off; i < off + t->sys->sensors[m].nslopes; i++) w->slopes[i] = w->slopes32[i];
+                const wt_noise *nz = t->noise[m];
+                const double *x = (s ? s : w->slopes) + off;
+                double *ws = w->weighted + off;
+                wt_noise_set_weight_many(&nz, 1, &x, &ws);
+                wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
+            }
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
 #pragma omp barrier
@@ -919,11 +949,13 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
             const int64_t a = t->off[l], nl = t->off[l + 1] - a;
             memset(sum, 0, (size_t)nl * sizeof *sum);
             for (int m = 0; m < t->S; m++)
-                wt_projection_apply_t_f32(t->proj[m * t->L + l], 1.0f, w->phase32 + (size_t)m * t->ncg, sum);
+                if (t->s32[m]) wt_projection_apply_t_f32(t->proj[m * t->L + l], 1.0f, w->phase32 + (size_t)m * t->ncg, sum);
             if (cx && t->full_prior)
                 for (int64_t i = 0; i < nl; i++) c[a + i] += sum[i];
             else
                 for (int64_t i = 0; i < nl; i++) c[a + i] = sum[i];
+            for (int m = 0; m < t->S; m++) /* the NGS's double terms */
+                if (!t->s32[m]) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, c + a);
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
