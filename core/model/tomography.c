@@ -35,7 +35,7 @@ struct wt_tomography {
     int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
     int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the LGS in float */
     uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's adjoint in float (the LGS; the NGS's stays double: layers_dwt) */
-    uint8_t g64[WT_GROUPS];   /* fp32: the group holds a double (NGS) sensor: its w->acc is summed too */
+    int any64;                /* fp32: some sensor's adjoint is double (an NGS): its Pᵀ runs in the layers' stage */
     wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
@@ -433,7 +433,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     }
     for (int m = 0; m < t->S; m++) {
         t->s32[m] = (uint8_t)(t->fp32 && sys->sensors[m].kind == WT_SENSOR_LGS);
-        if (t->fp32 && !t->s32[m]) t->g64[t->group[m]] = 1;
+        if (t->fp32 && !t->s32[m]) t->any64 = 1;
     }
     { /* layer owners: largest first to the least loaded thread (lowest index on ties) */
         int64_t load[WT_MAX_LAYERS] = {0};
@@ -490,7 +490,7 @@ int wt_tomography_work_alloc(const wt_tomography *t, wt_tomography_work **out)
     w->ctx = ctx;
     WT_ALLOC(ctx, w->phi_raw, t->n + 8, "layer workspace");
     w->phi = wt_align64(w->phi_raw);
-    WT_ALLOC(ctx, w->acc, (size_t)WT_GROUPS * t->n, "adjoint accumulators");
+    WT_ALLOC(ctx, w->acc, t->fp32 ? 0 : (size_t)WT_GROUPS * t->n, "adjoint accumulators"); /* (fp32: acc32) */
     WT_ALLOC(ctx, w->phase, (size_t)t->S * t->ncg, "phase workspace");
     WT_ALLOC(ctx, w->slopes, t->sys->nslopes, "slope workspace");
     WT_ALLOC(ctx, w->weighted, t->sys->nslopes, "weighted slope workspace");
@@ -738,35 +738,42 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
 static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c, int f32)
 {
     const int64_t n = t->n;
+    double *sum = t->space ? c : w->phi; /* in space the sum is the result */
     const double t0 = prof_t0(w);
 #pragma omp parallel num_threads(t->nthreads)
     {
         const double b0 = prof_t0(w);
         int id, nt;
         wt_thread_team(&id, &nt);
-        for (int l = 0; l < t->L; l++) {
-            if (owner_of(t, l, nt) != id) continue;
-            const int64_t a = t->off[l], b = t->off[l + 1];
-            double *sum = t->space ? c : w->phi; /* in space the sum is the result */
-            if (f32) /* the groups' float sums (LGS) and double ones (NGS), added in double */
-                for (int64_t i = a; i < b; i++) {
-                    double v = w->acc32[i];
-                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
-                    for (int g = 0; g < WT_GROUPS; g++)
-                        if (t->g64[g]) v += w->acc[(int64_t)g * n + i];
-                    sum[i] = v;
-                }
-            else
-                for (int64_t i = a; i < b; i++) { /* wt_vec_sum_groups, groups in order */
-                    double v = w->acc[i];
-                    for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
-                    sum[i] = v;
-                }
-            if (cx && t->full_prior)
-                for (int64_t i = a; i < b; i++) sum[i] += w->pphi[i];
-            if (!t->space) wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
-            if (cx && !t->full_prior)
-                for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
+        /* the sums element by element, in equal shares of all layers (by layers, the 128² layer's owner had twice the
+         * other thread's part: half the stage's time went to one thread waiting), then each layer's W on its owner */
+        const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
+        if (f32) /* the groups' float sums (LGS), added in double */
+            for (int64_t i = i0; i < i1; i++) {
+                double v = w->acc32[i];
+                for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
+                sum[i] = v;
+            }
+        else
+            for (int64_t i = i0; i < i1; i++) { /* wt_vec_sum_groups, groups in order */
+                double v = w->acc[i];
+                for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
+                sum[i] = v;
+            }
+        if (cx && t->full_prior)
+            for (int64_t i = i0; i < i1; i++) sum[i] += w->pphi[i];
+        if (!t->space || (f32 && t->any64)) {
+#pragma omp barrier
+            for (int l = 0; l < t->L; l++) {
+                if (owner_of(t, l, nt) != id) continue;
+                const int64_t a = t->off[l], b = t->off[l + 1];
+                for (int m = 0; f32 && m < t->S; m++) /* the fp32 operator's NGS: their Pᵀ in double, onto the sum */
+                    if (!t->s32[m]) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, sum + a);
+                if (t->space) continue;
+                wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
+                if (cx && !t->full_prior)
+                    for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
+            }
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
@@ -884,10 +891,8 @@ static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int
     for (int q = 0; q < k; q++)
         wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + sys->sensors[ms[q]].offset, acc,
                                            w->phase32 + (size_t)ms[q] * t->ncg);
-    if (!t->g64[g]) return;
-    /* the group's NGS in double (adjoint_group's steps) into its double accumulator */
-    double *acc64 = w->acc + (size_t)g * t->n;
-    memset(acc64, 0, (size_t)t->n * sizeof *acc64);
+    if (!t->any64) return;
+    /* the group's NGS in double: the weights and Γᵀ into the sensor's phase (adjoint_layers projects it) */
     const wt_noise *nz[2 * WT_MAX_GS];
     const double *x[2 * WT_MAX_GS];
     double *ws[2 * WT_MAX_GS];
@@ -904,8 +909,7 @@ static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int
         k++;
     }
     wt_noise_set_weight_many(nz, k, x, ws);
-    for (int q = 0; q < k; q++)
-        wt_sensor_stack_apply_t_sensor(&t->stack, ms[q], 1.0, ws[q], acc64, w->phase + (size_t)ms[q] * t->ncg);
+    for (int q = 0; q < k; q++) wt_sensor_stack_phase_t(&t->stack, ms[q], 1.0, ws[q], w->phase + (size_t)ms[q] * t->ncg);
 }
 
 /* adjoint_space in float: every sensor's weights and Γᵀ, then per layer the sensors' Pᵀ into a float sum that
