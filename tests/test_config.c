@@ -214,6 +214,8 @@ START_TEST(test_eelt_preset)
     ck_assert_int_eq(c->pcg3.size[2], 64);
     ck_assert_rel(c->pcg3.spacing[1], 1.0, ULP2, 0);
     ck_assert_int_eq(c->pcg3.iterations, 4);
+    ck_assert_int_eq(c->pcg3.operator_precision, 1); /* fp32 (docs/results.md §30) */
+    ck_assert_int_eq(c->cg9.operator_precision, 0);
     ck_assert_int_eq(c->pcg3.preconditioner, 3); /* coarse_ngs (docs/results.md §0d.2) */
     ck_assert_int_eq(c->pcg3.coarse_levels, 2);
     ck_assert_int_eq(c->pcg3.fit_iterations, 0);
@@ -707,6 +709,8 @@ static const struct bad_case {
      {"recon.cg9.fit_solver", "", ""}},
     {"unknown fitting kernels", "    fit_iterations = 4;\n", "    fit_iterations = 4; fit_kernels = \"simd\";\n", 1, NULL,
      {"key 'recon.cg9.fit_kernels': value \"simd\"", "\"fast\", \"reference\"", ""}},
+    {"unknown operator precision", "preconditioner = \"jacobi\";", "preconditioner = \"jacobi\"; operator_precision = \"fp16\";", 1, NULL,
+     {"key 'recon.pcg3.operator_precision': value \"fp16\"", "\"fp64\", \"fp32\"", ""}},
     {"settle past the end", "settle_frames = 20;", "settle_frames = 200;", 1, NULL, {"key 'evaluation.settle_frames': value 200 is not below 'loop.frames' = 200", "", ""}},
     {"negative seed", "seed = 1;", "seed = -3;", 1, NULL, {"key 'sim.seed': value -3 is out of range", ">= 0", ""}},
     {"negative PSF interval", "seed = 1;", "seed = 1; psf_interval_frames = -1;", 1, NULL,

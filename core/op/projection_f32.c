@@ -94,16 +94,18 @@ WT_CPU_CLONES static void aligned_run(float a0, const float *restrict y, int n, 
     for (int i = 0; i < n; i++) r[i] += a0 * y[i];
 }
 
-WT_F32_SCALAR static void scatter_run(const row_f32 *q, float *restrict r0, float *restrict r1, const float *restrict y,
-                                      int ix, int hi)
+static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, float *restrict r0, float *restrict r1,
+                                                              const float *restrict y, int ix, int hi)
 {
     if (ix >= hi) return;
     /* the row's fields in locals: the stores into the layer would otherwise make the compiler reload them */
     const float a0 = q->a0, a1 = q->a1;
     const int32_t *restrict cb = q->cb;
     const float *restrict w0 = q->w0, *restrict w1 = q->w1;
-    if (q->al) {
-        aligned_run(a0, y + ix, hi - ix, r0 + cb[ix]);
+    if (q->al) { /* (a short run's own loop: the clone's dispatch costs more than its few points) */
+        if (hi - ix >= 16) aligned_run(a0, y + ix, hi - ix, r0 + cb[ix]);
+        else
+            for (float *restrict r = r0 + cb[ix] - ix; ix < hi; ix++) r[ix] += a0 * y[ix];
         return;
     }
     int32_t jc = cb[ix];
@@ -356,9 +358,12 @@ __attribute__((target("avx512f"))) static void layer_t_u(const wt_projection *p,
 __attribute__((target("avx512f"))) static void apply_t_avx512(const wt_projection *p, float alpha,
                                                              const float *restrict points, float *restrict layers)
 {
+    if (!p->narrow) { /* short runs (the NGS models' rims, the lit sensors' subaperture edges): per run, the layers */
+        apply_t_scalar(p, alpha, points, layers);
+        return;
+    }
     for (int l = 0; l < p->nlayers; l++) {
-        if (p->narrow && p->t32 && p->t32[l].ok) { /* (on the NGS models' short runs the blocks of U hold few points:
-                                                       the scalar scatter is faster there) */
+        if (p->t32 && p->t32[l].ok) {
             layer_t_u(p, l, alpha, points, layers);
             continue;
         }
