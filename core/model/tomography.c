@@ -1133,8 +1133,11 @@ double wt_tomography_bytes(const wt_tomography *t)
 {
     /* vectors of n: α D, φ, b, the group accumulators, the 4 PCG vectors and its 2 right-hand sides (the
      * preconditioner's are wt_precond_bytes) */
-    double b = 8.0 * (double)t->n * (4.0 + 2.0 + 6.0);
+    double b = 8.0 * (double)t->n * (4.0 + (t->fp32 ? 0.0 : 2.0) + 6.0);
     b += 8.0 * (double)t->S * (double)t->ncg + 16.0 * (double)t->sys->nslopes + 8.0 * t->nthreads * (double)t->wsize;
+    if (t->fp32) /* the float layers, group accumulators, phases, slopes, layer sums and wavelet work */
+        b += 4.0 * ((1.0 + WT_GROUPS) * (double)t->n + (double)t->S * (double)t->ncg + 2.0 * (double)t->sys->nslopes +
+                    (double)t->nthreads * ((double)max_layer(t) + (double)t->wsize));
     /* projection stencils: ~24 bytes per masked point and layer, plus the separable tables */
     b += 24.0 * (double)t->sys->ncorners * t->S * t->L;
     return b;
@@ -1151,7 +1154,8 @@ void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
         for (int j = 0; j < J; j++) lev += m2 / (double)(1 << (2 * j));
         if (!t->space) {                      /* (in space: no transforms) */
             f += 2.0 * 8.0 * N * lev;         /* forward + inverse */
-            b += 2.0 * 2.0 * 8.0 * lev * 2.0; /* read + write each level, both passes, both transforms */
+            /* read + write each level, both passes, both transforms (fp32: the inverse in float) */
+            b += 2.0 * 2.0 * (t->fp32 ? 6.0 : 8.0) * lev * 2.0;
         }
         if (t->full_prior) {
             /* α C⁻¹ φ: a real FFT and its inverse (~2.5 m² log₂ m² flops each), the complex scaling; the
@@ -1168,9 +1172,10 @@ void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
     for (int m = 0; m < sys->nsensors; m++) {
         double pts = (double)sys->ncorners, sl = sys->sensors[m].nslopes;
         f += 2.0 * 8.0 * pts * t->L + 2.0 * 5.0 * sl + 12.0 * sl;
-        /* stencil (index 4 B + 2 weights 16 B) and 4 layer values per point and layer, both passes;
-         * the corner phase and slopes a few times each */
-        b += 2.0 * pts * t->L * (20.0 + 4.0 * 8.0) + 4.0 * 8.0 * pts + 6.0 * 8.0 * sl;
+        /* stencil (index 4 B + 2 weights) and 4 layer values per point and layer, both passes; the corner phase and
+         * slopes a few times each; e bytes a value: 8, or 4 in fp32 (6: an NGS there, whose adjoint is double) */
+        const double e = !t->fp32 ? 8.0 : t->s32[m] ? 4.0 : 6.0;
+        b += 2.0 * pts * t->L * (4.0 + 2.0 * e + 4.0 * e) + 4.0 * e * pts + 6.0 * e * sl;
     }
     *flops = f;
     *bytes = b;
