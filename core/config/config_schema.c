@@ -148,10 +148,10 @@
      "the variant's prior: " PRIOR_DESC "; left out (or \"auto\"): recon.prior when given, else "            \
      prior_default " (docs/design.md) (optional)"},                                                          \
     {pre ".operator_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(v.operator_precision), NOCOUNT, 0, 0, "fp64|fp32", 0, \
-     "the sensors' part of the solver's operator (projections, Shack-Hartmann, noise weights: Σ Pᵀ Γᵀ Ĉ⁻¹ Γ P): "  \
-     "fp64, or fp32 = single-precision layers, phases and slopes there (16 points per AVX-512 vector; the "    \
-     "wavelet transforms, the prior, the layer sums and the (P)CG stay double; the right-hand side too) "      \
-     "(optional, default fp64)"}
+     "the solver's normal operator and right-hand side: fp64, or fp32 = the layers' inverse DWT, every sensor's "  \
+     "forward (P, Γ) and the LGS's adjoint (Ĉ⁻¹, Γᵀ, Pᵀ) in single precision, 16 points per AVX-512 vector; the "  \
+     "NGS's adjoint (10^5 times the LGS's weight at low noise), the prior, the forward DWT and the (P)CG stay "     \
+     "double (docs/design.md \"Single-precision operator\") (optional, default fp64)"}
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KF("telescope.diameter_m", GT0(100.0), "m", 1, diameter, "pupil diameter D"),
