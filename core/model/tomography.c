@@ -645,15 +645,14 @@ static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const 
  * groups are summed in order, so the result does not depend on the threads (core/la/vec.h). */
 static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                           double *c);
-
-static void adjoint_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx, double *c);
+static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                        double *c, int f32);
 
 /* The right-hand side's adjoint: in float too with the fp32 operator (the measurements rounded to float: ~1e-7 of
  * b, where the noise is ~1e-1) */
 static void adjoint_slopes(const wt_tomography *t, wt_tomography_work *w, const double *slopes, double *c)
 {
-    if (t->fp32) adjoint_f32(t, w, slopes, NULL, c);
-    else adjoint_prior(t, w, slopes, NULL, c);
+    adjoint_run(t, w, slopes, NULL, c, t->fp32);
 }
 
 /* In space with at least two layers per thread the adjoint runs by layers (adjoint_space), else by sensor groups */
@@ -780,22 +779,36 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t0);
 }
 
-static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
-                          double *c)
+static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx,
+                              double *c);
+static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g, const double *s);
+
+/* The adjoint by sensor groups then by layers (or by layers alone, by_layers), in double or, with f32, the fp32
+ * operator's (slopes: then NULL for the forward's float slopes, or the double ones to round: the right-hand side) */
+static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                        double *c, int f32)
 {
     if (by_layers(t)) {
-        adjoint_space(t, w, slopes, cx, c);
+        if (f32) adjoint_space_f32(t, w, slopes, cx, c);
+        else adjoint_space(t, w, slopes, cx, c);
         return;
     }
     const double t0 = prof_t0(w);
 #pragma omp parallel for schedule(static) num_threads(t->nthreads)
     for (int g = 0; g < WT_GROUPS; g++) {
         const double b0 = prof_t0(w);
-        adjoint_group(t, w, g, slopes);
+        if (f32) adjoint_group_f32(t, w, g, slopes);
+        else adjoint_group(t, w, g, slopes);
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    adjoint_layers(t, w, cx, c, 0);
+    adjoint_layers(t, w, cx, c, f32);
+}
+
+static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
+                          double *c)
+{
+    adjoint_run(t, w, slopes, cx, c, 0);
 }
 
 /* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
@@ -967,31 +980,13 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
     prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t1);
 }
 
-/* adjoint_prior in float: c = W Σ Pᵀ Γᵀ Ĉ⁻¹ slopes (+ the prior's term of cx); s: double slopes to round first (the
- * right-hand side), or NULL (the operator: the forward's float slopes) */
-static void adjoint_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx, double *c)
-{
-    if (by_layers(t)) {
-        adjoint_space_f32(t, w, s, cx, c);
-        return;
-    }
-    const double t0 = prof_t0(w);
-#pragma omp parallel for schedule(static) num_threads(t->nthreads)
-    for (int g = 0; g < WT_GROUPS; g++) {
-        const double b0 = prof_t0(w);
-        adjoint_group_f32(t, w, g, s);
-        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
-    }
-    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    adjoint_layers(t, w, cx, c, 1);
-}
 
 static void normal_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
     const double *phi = t->space ? c : w->phi;
     layers_dwt(t, w, c, t->space ? (double *)c : w->phi, w->phi32);
     forward_f32(t, w, phi, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
-    adjoint_f32(t, w, NULL, c, y);
+    adjoint_run(t, w, NULL, c, y, 1);
 }
 
 /* y = M c, overwritten: the operator of the PCG (wt_linop_fn), with no extra pass */
