@@ -8,8 +8,8 @@
  * comment below, wt_projection_f32_free): the target rows into their layer rows by contiguous vector adds, then one
  * fixed 1-D transposed interpolation along x per layer row, a few lane permutes per 16 columns (×2.1–2.5 on the LGS's
  * 1 m layers, against the double scatter; a 16-point in-block prefix-sum form measured only ×1.2: its lane moves
- * bound it). The NGS models' short runs keep scalar loops (slower than the double two-lane ones there: they are
- * 3 of 9 sensors and a fifth of the work).
+ * bound it). Short runs (the NGS models' rims, a lit-area model's subaperture edges) keep scalar loops: Pᵀ as fast
+ * as the double one there, P slower than its two-lane form (the NGS are 3 of 9 sensors and a fifth of the work).
  * Accuracy: float's unit roundoff 2^-24 ≈ 6e-8 per operation; a point adds ≤ 4 layers × 4 terms, a layer value the
  * terms of the few target points of its cells: relative errors ~1e-6, far below the noise the tomography weighs.
  */
