@@ -593,9 +593,7 @@ static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] 
  * before their weights reaches the NGS term only through the NGS's dozen global modes (the rows of Ĉ⁻¹ Γ P), which
  * the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ, accumulator or DWT) spreads
  * 1e-7 of that large term over every mode, and moved the low-noise field WFE by +0.07 nm (docs/results.md §30). */
-/* floats per thread in w->lay32: the largest layer, rounded to 64 bytes */
-static size_t lay32_size(const wt_tomography *t) { return (max_layer(t) + 15) / 16 * 16; }
-
+static size_t lay32_size(const wt_tomography *t);
 static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
 {
     if (t->space) { /* the unknowns are the values */
@@ -632,6 +630,10 @@ static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const dou
 {
     layers_dwt(t, w, c, phi, NULL);
 }
+
+/* floats per thread in w->lay32 (a layer's rounded coefficients, or its float sum by layers): the largest layer,
+ * rounded to 64 bytes */
+static size_t lay32_size(const wt_tomography *t) { return (max_layer(t) + 15) / 16 * 16; }
 
 /* slopes = Γ P φ for every sensor */
 static void forward_slopes(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes)
@@ -841,7 +843,8 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
 
 /* The fp32 operator (t->fp32): the same stages as the double one below, the sensors' part in float: w->phi32 → Γ P
  * → w->slopes32 → Ĉ⁻¹ → Γᵀ → Pᵀ into float group accumulators (or per-layer float sums, by layers), which the
- * layers' stage adds up in double. */
+ * layers' stage adds up in double; the NGS's Ĉ⁻¹ and Γᵀ in double in the groups' stage, their Pᵀ onto the double
+ * sum in the layers' stage (layers_dwt says why). */
 
 /* slopes32 = Γ P phi32 for every sensor; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
  * forward_slopes_prior) */
@@ -867,7 +870,7 @@ static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const dou
     prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
-/* The weights of sensors [m0, m0 + k) of one kind in one call (wt_noise_set_weight_many_f32) */
+/* The float weights of the k sensors ms (LGS) in one call (wt_noise_set_weight_many_f32) */
 static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, const int *ms)
 {
     const wt_noise *nz[2 * WT_MAX_GS];
