@@ -54,8 +54,10 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
     char solver[48];
     if (v->preconditioner == WT_PRECOND_NONE) snprintf(solver, sizeof solver, "CG");
     else snprintf(solver, sizeof solver, "PCG (%s)", wt_precond_kind_name(v->preconditioner));
-    printf("\nreconstructor %s: %d layers, %s, %d iterations%s\n", name, v->nlayers, solver, v->iterations,
-           v->fit_iterations > 0 ? " + fitting" : "");
+    printf("\nreconstructor %s: %d layers, %s, %d iterations%s%s%s%s\n", name, v->nlayers, solver, v->iterations,
+           v->fit_iterations > 0 ? " + fitting" : "",
+           v->operator_precision == 1 ? "; its operator in single precision (recon." : "",
+           v->operator_precision == 1 ? name : "", v->operator_precision == 1 ? ".operator_precision = \"fp32\")" : "");
     printf("  %-5s %10s %12s %9s %10s\n", "layer", "altitude_m", "grid", "spacing_m", "unknowns");
     for (int l = 0; l < v->nlayers; l++) {
         const wt_grid *g = wt_tomography_layer_grid(t, l);

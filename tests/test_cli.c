@@ -138,6 +138,9 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --frames abc --out %s/x.h5", dir), 2);
     ck_assert_int_eq(run("info data/presets/demo.cfg --set loop.gain=1.5"), 1);
     ck_assert(stderr_has("loop.gain"));
+    /* info says which reconstructor runs its operator in single precision (the E-ELT preset's pcg3), and only it */
+    ck_assert_int_eq(run("info data/presets/eelt-mcao.cfg --no-nnz | grep -q 'pcg3: .*operator in single precision'"), 0);
+    ck_assert_int_eq(run("info data/presets/eelt-mcao.cfg --no-nnz | grep -q 'cg9: .*operator in single precision'"), 1);
     ck_assert_int_eq(run("compare --config data/presets/demo.cfg --recon mvm,foo --out %s/z", dir), 2);
     ck_assert(stderr_has("foo"));
     /* every command answers --help */
