@@ -378,17 +378,22 @@ START_TEST(test_ztilt_rows)
 }
 END_TEST
 
+/* The E-ELT mask with ~16 % of its cells removed: short and single-cell runs */
+static void holed_valid(uint8_t *v)
+{
+    double r[N * N];
+    eelt_valid(v);
+    tu_randn(r, N * N, 91);
+    for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0;
+}
+
 START_TEST(test_lit_runs_equal_csr)
 {
     wt_context *ctx = tu_context();
     uint8_t v[N * N];
     for (int mask = 0; mask < 2; mask++) {
-        eelt_valid(v);
-        if (mask) {
-            double r[N * N];
-            tu_randn(r, N * N, 91);
-            for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0; /* ~16 % holes: short runs */
-        }
+        if (mask) holed_valid(v);
+        else eelt_valid(v);
         wt_shack_hartmann *s = NULL;
         ck_assert_int_eq(wt_shack_hartmann_alloc_lit(ctx, 42.0, 0.28, N, D_SUB, 1, v, 0, WT_SH_TILT_G, &s), WT_OK);
         const int nc = wt_shack_hartmann_ncorners(s), ns = wt_shack_hartmann_nslopes(s);
@@ -515,15 +520,6 @@ static void check_f32(const wt_shack_hartmann *s, int runs, unsigned long seed)
     wt_sparse_free(A);
     free(x32), free(s32), free(y32), free(p32);
     free(x), free(sl), free(y), free(p), free(y0), free(p0), free(By), free(Bp);
-}
-
-/* the E-ELT mask with ~16 % of its subapertures removed: short runs, single cells among them */
-static void holed_valid(uint8_t *v)
-{
-    double r[N * N];
-    eelt_valid(v);
-    tu_randn(r, N * N, 91);
-    for (int k = 0; k < N * N; k++) v[k] = v[k] && r[k] > -1.0;
 }
 
 START_TEST(test_f32_fried)
