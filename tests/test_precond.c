@@ -765,6 +765,57 @@ END_TEST
  * chunks and update. Every result must be one thread's bit for bit, on 2 and 3 threads (3: a thread with no
  * layer; a coarse row split that is not the 2-thread one): M x, P⁻¹ x, and two warm-started solves. The demo
  * with a 128² pcg3 layer (21504 unknowns; coarse_levels 1: 1344 coarse coefficients, all layers' NGS). */
+/* coarse_ngs with its stored matrices in float (single: the coarse block's inverse and the NGS term's Y rounded once
+ * each, the apply in double; the fp32 operator's preconditioner). The rounded inverse stays exactly symmetric
+ * (each entry rounded once, both triangles alike) and Y K⁻¹ Yᵀ is symmetric for any Y: the same symmetry bound as
+ * the double one's (test_symmetric_positive_definite). Definiteness: where Y K⁻¹ Yᵀ nearly cancels B⁻¹ (the NGS
+ * modes, low noise) a rounding of Y by u moves P⁻¹ by ~u ‖B⁻¹‖, ~10⁻² of P⁻¹'s smallest eigenvalue there (NGS
+ * weights ~10⁵): zᵀP⁻¹z > 0 on random vectors and on every NGS mode. Closeness: each stored entry moves by ≤ u, so
+ * P⁻¹ x moves by ~u times |B_c⁻¹| |x| and |Y| K⁻¹ |Yᵀ x|, whose entries exceed the diagonal's J⁻¹ by the coarse
+ * block's coupling (its inverse's off-diagonal mass): measured 1e-5 of ‖J⁻¹ x‖, i.e. ~170 u. Bound 1e-4 of
+ * ‖J⁻¹ x‖: a block or column mixed up in the copies moves P⁻¹ x by O(1). */
+START_TEST(test_single_storage)
+{
+    fixture f;
+    setup(&f, 0, 1, 0, NULL); /* pcg3, low noise */
+    const int64_t n = wt_tomography_nunknowns(f.t), ns = f.sys->nslopes;
+    double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y), *px = malloc(n * sizeof *px),
+           *py = malloc(n * sizeof *py), *z64 = malloc(n * sizeof *z64), *jx = malloc(n * sizeof *jx),
+           *ax = malloc(n * sizeof *ax), *ay = malloc(n * sizeof *ay), *e = calloc(ns, sizeof *e);
+    wt_precond *p64 = NULL, *p32 = NULL;
+    const wt_precond_params pp = {.kind = WT_PRECOND_COARSE_NGS, .coarse_levels = 2},
+                            ps = {.kind = WT_PRECOND_COARSE_NGS, .coarse_levels = 2, .single = 1};
+    ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &pp, &p64) == WT_OK, "%s", wt_error_message(f.ctx));
+    ck_assert_msg(wt_precond_alloc(f.ctx, f.t, &ps, &p32) == WT_OK, "%s", wt_error_message(f.ctx));
+    ck_assert_int_gt(wt_precond_rank(p32), 0);
+    ck_assert_int_gt(wt_precond_coarse_size(p32), 0);
+    ck_assert_double_lt(wt_precond_bytes(p32), wt_precond_bytes(p64));
+    const double *jinv = wt_precond_jacobi_inverse(p32);
+    double worst = 0.0;
+    for (int trial = 0; trial < 4; trial++) {
+        double a, b;
+        random_pair(p32, n, 300 + 2 * trial, x, y, px, py, &a, &b);
+        double scale = 0.0;
+        for (int64_t i = 0; i < n; i++) scale += fabs(x[i]) * jinv[i] * fabs(y[i]);
+        ck_assert_double_le(fabs(a - b), 16.0 * (double)n * 1.1e-16 * scale);
+        ck_assert(dot(x, px, n) > 0.0 && dot(y, py, n) > 0.0);
+        wt_precond_apply(p64, x, z64);
+        for (int64_t i = 0; i < n; i++) jx[i] = jinv[i] * x[i];
+        const double d = tu_rel_diff(px, z64, n) * tu_norm(z64, n) / tu_norm(jx, n);
+        ck_assert_double_gt(d, 0.0); /* (it is the float copy) */
+        ck_assert_msg(d <= 1e-4, "single storage: |P32 x - P64 x| = %g of |J⁻¹ x|", d);
+        worst = fmax(worst, d);
+    }
+    ngs_modes_positive(&f, p32, e, ax, ay);
+    fprintf(stderr, "precond coarse_ngs single storage: |P32 x - P64 x| <= %.2g of |J^-1 x|; %.0f of %.0f bytes\n", worst,
+            wt_precond_bytes(p32), wt_precond_bytes(p64));
+    wt_precond_free(p64);
+    wt_precond_free(p32);
+    free(x), free(y), free(px), free(py), free(z64), free(jx), free(ax), free(ay), free(e);
+    teardown(&f);
+}
+END_TEST
+
 START_TEST(test_threads_same_bits)
 {
     const char *set[] = {"recon.pcg3.layer_size=[128, 32, 64]", "recon.pcg3.coarse_levels=1"};
@@ -925,6 +976,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_fourier_filter);
     tcase_add_test(tc, test_fourier_condition_and_direct);
     tcase_add_test(tc, test_threads_same_bits);
+    tcase_add_test(tc, test_single_storage);
     tcase_add_test(tc, test_names_and_refusals);
     tcase_add_test(tc, test_fft_wisdom);
     suite_add_tcase(s, tc);

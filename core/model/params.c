@@ -40,7 +40,8 @@ wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *
 
 wt_precond_params wt_precond_params_from_variant(const wt_recon_variant_config *var)
 {
-    wt_precond_params pp = {.kind = var->preconditioner, .coarse_levels = var->coarse_levels};
+    wt_precond_params pp = {.kind = var->preconditioner, .coarse_levels = var->coarse_levels,
+                            .single = var->operator_precision == 1};
     return pp;
 }
 

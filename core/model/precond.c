@@ -47,6 +47,7 @@ struct wt_precond {
     int64_t lr_nblk;          /* kept blocks */
     int64_t *lr_blk;          /* lr_nblk: block b's first row is 8 lr_blk[b] */
     double *lr_Yb, *lr_Yb_raw; /* lr_nblk x r x 8 (block, column, row in the block), 64-byte aligned */
+    float *lr_Yb32, *lr_Yb32_raw; /* single (wt_precond_params): the same in float, lr_Yb NULL */
     /* coarse block (coarse_ngs, see coarse_*): J replaced by B = J with the coarse coefficients' rows and
      * columns of the LGS + prior part of M, inverted exactly */
     int nc;                   /* coarse coefficients (0: none) */
@@ -54,6 +55,7 @@ struct wt_precond {
     double *c_L;              /* nc x nc: Cholesky factor (lower, column-major) of that block, Lᵀ above */
     double *c_w;              /* nc */
     double *c_inv;            /* coarse_ngs: nc x nc, the block's inverse (L Lᵀ)⁻¹, symmetric, column-major */
+    float *c_inv32;           /* single: the same in float, c_inv NULL */
     int64_t *c_free;          /* the runs [c_free[2j], c_free[2j+1]) of unknowns outside the coarse block */
     int c_nfree;
     /* layer blocks below the coarse square (multilevel, see compute_layer_blocks) */
@@ -305,7 +307,7 @@ WT_CPU_CLONES static void coarse_solve(const wt_precond *p, const double *r, dou
  * the solves' rounding is not), in place of the factor. An apply is then one matrix-vector product whose rows
  * split over the threads, where the two triangular solves were chains of 2q dependent columns on one thread
  * (at E-ELT size: 384², 1.2 MB that the operator evicts between applies, ~50 µs of an iteration). */
-static int coarse_invert(wt_precond *p)
+static int coarse_invert(wt_precond *p, int single)
 {
     int st = WT_OK;
     const int q = p->nc;
@@ -322,6 +324,12 @@ static int coarse_invert(wt_precond *p)
         }
     wt_free(p->ctx, p->c_L);
     p->c_L = NULL;
+    if (single) { /* (each entry rounded once: the copy stays symmetric) */
+        WT_ALLOC(p->ctx, p->c_inv32, (size_t)q * q, "coarse block inverse (float)");
+        for (size_t i = 0; i < (size_t)q * q; i++) p->c_inv32[i] = (float)p->c_inv[i];
+        wt_free(p->ctx, p->c_inv);
+        p->c_inv = NULL;
+    }
 fail:
     return st;
 }
@@ -712,23 +720,31 @@ WT_CPU_CLONES static void layer_blocks_apply(const wt_precond *p, const double *
 /* z[c_idx[i]] = Σ_j (B_c⁻¹)_ij r[c_idx[j]] for the coarse rows i in [i0, i1) (coarse_ngs: the block's inverse
  * held explicitly). Each row's sum runs over j in order whatever rows a call takes: the same bits for any split
  * of the rows over threads. By blocks of 64 rows, the block's sums in registers/L1 while the columns stream. */
-WT_CPU_CLONES static void coarse_inv_rows(const wt_precond *p, const double *r, double *z, int i0, int i1)
+static inline __attribute__((always_inline)) void coarse_inv_block(const wt_precond *p, const double *r, double *z,
+                                                                   int b0, int nb, const int f32)
 {
     const int q = p->nc;
+    double acc[64] = {0.0};
+#define WT_COARSE_COLUMNS(T, M, NB)                                                                                   \
+    for (int j = 0; j < q; j++) {                                                                                     \
+        const double v = r[p->c_idx[j]];                                                                              \
+        const T *restrict col = (M) + (size_t)q * j + b0;                                                             \
+        for (int i = 0; i < (NB); i++) acc[i] += (double)col[i] * v;                                                  \
+    }
+    if (f32 && nb == 64) WT_COARSE_COLUMNS(float, p->c_inv32, 64)
+    else if (f32) WT_COARSE_COLUMNS(float, p->c_inv32, nb)
+    else if (nb == 64) WT_COARSE_COLUMNS(double, p->c_inv, 64)
+    else WT_COARSE_COLUMNS(double, p->c_inv, nb)
+#undef WT_COARSE_COLUMNS
+    for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
+}
+
+WT_CPU_CLONES static void coarse_inv_rows(const wt_precond *p, const double *r, double *z, int i0, int i1)
+{
     for (int b0 = i0; b0 < i1; b0 += 64) {
         const int nb = i1 - b0 < 64 ? i1 - b0 : 64;
-        double acc[64] = {0.0};
-        if (nb == 64)
-            for (int j = 0; j < q; j++) {
-                const double v = r[p->c_idx[j]], *restrict col = p->c_inv + (size_t)q * j + b0;
-                for (int i = 0; i < 64; i++) acc[i] += col[i] * v;
-            }
-        else
-            for (int j = 0; j < q; j++) {
-                const double v = r[p->c_idx[j]], *restrict col = p->c_inv + (size_t)q * j + b0;
-                for (int i = 0; i < nb; i++) acc[i] += col[i] * v;
-            }
-        for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
+        if (p->c_inv32) coarse_inv_block(p, r, z, b0, nb, 1);
+        else coarse_inv_block(p, r, z, b0, nb, 0);
     }
 }
 
@@ -739,7 +755,7 @@ static void coarse_apply(const wt_precond *p, const double *r, double *z)
     if (p->nb > 0) layer_blocks_apply(p, r, z, 0, p->nb);
     else
         for (int64_t i = 0; i < p->n; i++) z[i] = p->jinv[i] * r[i];
-    if (p->c_inv) coarse_inv_rows(p, r, z, 0, p->nc);
+    if (p->c_inv || p->c_inv32) coarse_inv_rows(p, r, z, 0, p->nc);
     else coarse_solve(p, r, z);
 }
 
@@ -1167,22 +1183,29 @@ static void lowrank_solve(const wt_precond *p, double *w)
  * reads the same copy (one pass over ~1 MB each instead of a column-major Y and a row-major copy). */
 typedef double yb_vec __attribute__((vector_size(64), aligned(8))); /* 8 rows (GCC/clang vectors: plain
                                                                      per-lane IEEE operations, any ISA) */
+typedef float yb_vec32 __attribute__((vector_size(32), aligned(4))); /* 8 rows of the float copy (single) */
 
-static inline __attribute__((always_inline)) void yb_dots_chunk(const int B, const wt_precond *p, const double *r,
-                                                                int64_t b0, int64_t b1, double *restrict part, int c)
+/* Column k of block b: 8 rows of Y, from the float copy (f32, converted: exact) or the double one (a macro: a
+ * function returning the 64-byte vector by value would change the ABI off AVX-512) */
+#define YB_COL(p, B, b, k, f32)                                                                                    \
+    ((f32) ? __builtin_convertvector(((const yb_vec32 *)((p)->lr_Yb32 + (size_t)(b) * (B) * 8))[k], yb_vec)      \
+           : ((const yb_vec *)((p)->lr_Yb + (size_t)(b) * (B) * 8))[k])
+
+static inline __attribute__((always_inline)) void yb_dots_chunk(const int B, const int f32, const wt_precond *p,
+                                                                const double *r, int64_t b0, int64_t b1,
+                                                                double *restrict part, int c)
 {
     const int64_t n = p->n;
     yb_vec acc[WT_VEC_MAX_MANY];
     for (int k = 0; k < B; k++) acc[k] = (yb_vec){0.0};
     for (int64_t b = b0; b < b1; b++) {
         const int64_t i0 = 8 * p->lr_blk[b];
-        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
         yb_vec rr = {0.0};
         if (i0 + 8 <= n) rr = *(const yb_vec *)(r + i0);
         else
             for (int e = 0; e < n - i0; e++) rr[e] = r[i0 + e]; /* lanes past n: Y 0 (never set) times 0, their
                                                                    sums stay +0 */
-        for (int k = 0; k < B; k++) acc[k] += Y[k] * rr;
+        for (int k = 0; k < B; k++) acc[k] += YB_COL(p, B, b, k, f32) * rr;
     }
     for (int k = 0; k < B; k++)
         part[(int64_t)k * WT_VEC_CHUNKS + c] =
@@ -1194,29 +1217,30 @@ WT_CPU_CLONES static void yb_dots(const wt_precond *p, const double *r, int c0, 
     const int64_t nb = p->lr_nblk;
     for (int c = c0; c < c1; c++) {
         const int64_t b0 = nb * c / WT_VEC_CHUNKS, b1 = nb * (c + 1) / WT_VEC_CHUNKS;
-        if (p->nlr == 12) yb_dots_chunk(12, p, r, b0, b1, p->lr_part, c); /* the E-ELT's 3 NGS */
-        else yb_dots_chunk(p->nlr, p, r, b0, b1, p->lr_part, c);
+        if (p->nlr == 12 && p->lr_Yb32) yb_dots_chunk(12, 1, p, r, b0, b1, p->lr_part, c); /* the E-ELT's 3 NGS */
+        else if (p->nlr == 12) yb_dots_chunk(12, 0, p, r, b0, b1, p->lr_part, c);
+        else if (p->lr_Yb32) yb_dots_chunk(p->nlr, 1, p, r, b0, b1, p->lr_part, c);
+        else yb_dots_chunk(p->nlr, 0, p, r, b0, b1, p->lr_part, c);
     }
 }
 
 /* z ← z − Σ_k w_k Y_k on the kept blocks [b0, b1): each row takes the columns in order k = 0, 1, … (rows of
  * blocks not kept: Y is 0 there, z stays) */
-static inline __attribute__((always_inline)) void yb_update_blocks(const int B, const wt_precond *p,
+static inline __attribute__((always_inline)) void yb_update_blocks(const int B, const int f32, const wt_precond *p,
                                                                    const double *restrict w, double *restrict z,
                                                                    int64_t b0, int64_t b1)
 {
     const int64_t n = p->n;
     for (int64_t b = b0; b < b1; b++) {
         const int64_t i0 = 8 * p->lr_blk[b];
-        const yb_vec *Y = (const yb_vec *)(p->lr_Yb + (size_t)b * B * 8);
         if (i0 + 8 <= n) {
             yb_vec v = *(yb_vec *)(z + i0);
-            for (int k = 0; k < B; k++) v -= w[k] * Y[k];
+            for (int k = 0; k < B; k++) v -= w[k] * YB_COL(p, B, b, k, f32);
             *(yb_vec *)(z + i0) = v;
         } else
             for (int e = 0; e < n - i0; e++) {
                 double v = z[i0 + e];
-                for (int k = 0; k < B; k++) v -= w[k] * Y[k][e];
+                for (int k = 0; k < B; k++) v -= w[k] * YB_COL(p, B, b, k, f32)[e];
                 z[i0 + e] = v;
             }
     }
@@ -1224,8 +1248,10 @@ static inline __attribute__((always_inline)) void yb_update_blocks(const int B, 
 
 WT_CPU_CLONES static void yb_update(const wt_precond *p, const double *w, double *z, int64_t b0, int64_t b1)
 {
-    if (p->nlr == 12) yb_update_blocks(12, p, w, z, b0, b1);
-    else yb_update_blocks(p->nlr, p, w, z, b0, b1);
+    if (p->nlr == 12 && p->lr_Yb32) yb_update_blocks(12, 1, p, w, z, b0, b1);
+    else if (p->nlr == 12) yb_update_blocks(12, 0, p, w, z, b0, b1);
+    else if (p->lr_Yb32) yb_update_blocks(p->nlr, 1, p, w, z, b0, b1);
+    else yb_update_blocks(p->nlr, 0, p, w, z, b0, b1);
 }
 
 /* coarse_ngs: z = J⁻¹ r off the coarse block, its inverse on it, minus Y K⁻¹ Yᵀ r. Every part splits over
@@ -1270,7 +1296,7 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
         fourier_apply(p, r, z, 1);
         return;
     }
-    if (p->lr_Yb) {
+    if (p->lr_Yb || p->lr_Yb32) {
         coarse_ngs_apply(p, r, z);
         return;
     }
@@ -1355,7 +1381,7 @@ fail:
     return st;
 }
 
-static int compute_lowrank(wt_precond *p, wt_tomography *t)
+static int compute_lowrank(wt_precond *p, wt_tomography *t, int single)
 {
     int st = WT_OK;
     wt_context *ctx = p->ctx;
@@ -1414,12 +1440,22 @@ static int compute_lowrank(wt_precond *p, wt_tomography *t)
                 for (int k = 0; k < q && !nz; k++) nz = p->lr_Y[(size_t)k * n + i] != 0.0;
             if (nz) p->lr_blk[p->lr_nblk++] = b;
         }
-        WT_ALLOC(ctx, p->lr_Yb_raw, (size_t)p->lr_nblk * q * 8 + 8, "NGS preconditioner Y (blocks)");
-        p->lr_Yb = wt_align64(p->lr_Yb_raw);
+        if (single) { /* the blocks in float, each value rounded once (64-byte aligned: 16 floats) */
+            WT_ALLOC(ctx, p->lr_Yb32_raw, (size_t)p->lr_nblk * q * 8 + 16, "NGS preconditioner Y (blocks, float)");
+            p->lr_Yb32 = p->lr_Yb32_raw + ((64 - (uintptr_t)p->lr_Yb32_raw % 64) % 64) / sizeof(float);
+        } else {
+            WT_ALLOC(ctx, p->lr_Yb_raw, (size_t)p->lr_nblk * q * 8 + 8, "NGS preconditioner Y (blocks)");
+            p->lr_Yb = wt_align64(p->lr_Yb_raw);
+        }
         for (int64_t b = 0; b < p->lr_nblk; b++)
             for (int k = 0; k < q; k++)
-                for (int a = 0; a < 8 && 8 * p->lr_blk[b] + a < n; a++)
-                    p->lr_Yb[((size_t)b * q + k) * 8 + a] = p->lr_Y[(size_t)k * n + 8 * p->lr_blk[b] + a];
+                for (int a = 0; a < 8; a++) {
+                    const size_t at = ((size_t)b * q + k) * 8 + a;
+                    const int64_t i = 8 * p->lr_blk[b] + a;
+                    const double v = i < n ? p->lr_Y[(size_t)k * n + i] : 0.0; /* (rows past n: 0) */
+                    if (single) p->lr_Yb32[at] = (float)v;
+                    else p->lr_Yb[at] = v;
+                }
         wt_free(ctx, p->lr_Y); /* the applies read the blocks only */
         p->lr_Y = NULL;
     }
@@ -1460,13 +1496,13 @@ int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params 
     }
     if (p->kind == WT_PRECOND_FOURIER) WT_TRY(compute_fourier(p, t, par->coarse_levels));
     else if (p->kind >= WT_PRECOND_COARSE_NGS) WT_TRY(compute_coarse(p, t, par->coarse_levels));
-    if (p->kind == WT_PRECOND_COARSE_NGS) WT_TRY(coarse_invert(p));
+    if (p->kind == WT_PRECOND_COARSE_NGS) WT_TRY(coarse_invert(p, par->single));
     if (p->kind == WT_PRECOND_MULTILEVEL) {
         int sc[WT_MAX_LAYERS];
         for (int l = 0; l < wt_tomography_nlayers(t); l++) sc[l] = coarse_side(t, l, par->coarse_levels);
         WT_TRY(compute_layer_blocks(p, t, sc));
     }
-    if (p->kind >= WT_PRECOND_JACOBI_NGS) WT_TRY(compute_lowrank(p, t));
+    if (p->kind >= WT_PRECOND_JACOBI_NGS) WT_TRY(compute_lowrank(p, t, par->single));
     *out = p;
     return WT_OK;
 fail:
@@ -1489,8 +1525,10 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->c_L);
     wt_free(ctx, p->c_w);
     wt_free(ctx, p->c_inv);
+    wt_free(ctx, p->c_inv32);
     wt_free(ctx, p->lr_blk);
     wt_free(ctx, p->lr_Yb_raw);
+    wt_free(ctx, p->lr_Yb32_raw);
     wt_free(ctx, p->b_start);
     wt_free(ctx, p->b_fac);
     wt_free(ctx, p->b_idx);
@@ -1558,9 +1596,9 @@ int wt_precond_block(const wt_precond *p, int64_t b, int64_t *idx, double *block
 double wt_precond_bytes(const wt_precond *p)
 {
     if (!p) return 0.0;
-    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + 64.0 * (double)p->lr_nblk * (p->nlr + 0.125) +
+    return 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + (double)p->lr_nblk * ((p->lr_Yb32 ? 32.0 : 64.0) * p->nlr + 8.0) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
-           16.0 * (double)p->lr_nruns + 8.0 * (double)p->nc * (p->nc + 2) +
+           16.0 * (double)p->lr_nruns + (double)p->nc * ((p->c_inv32 ? 4.0 : 8.0) * p->nc + 16.0) +
            (p->nb > 0 ? 8.0 * (double)(2 * (p->nb + 1) + p->b_start[p->nb] + p->b_fac[p->nb]) : 0.0) +
            (p->fd_n > 0 ? 8.0 * ((double)p->fd_nk + (double)p->nthreads * (double)p->fd_slice +
                                  (double)p->fd_sc * p->fd_n + 2.0 * p->nc)

@@ -48,6 +48,8 @@ typedef struct wt_precond_params {
     int coarse_levels; /* coarse_ngs, multilevel, fourier: detail levels in the coarse block besides the
                           scaling coefficients (fourier: the scaling functions of that many levels finer) [-];
                           fourier only: < 0 = no coarse block (the filter alone) */
+    int single;        /* coarse_ngs: its two stored matrices (the coarse block's inverse, the NGS term's Y) in
+                          float, applied in double (recon.<variant>.operator_precision = "fp32") */
 } wt_precond_params;
 
 /* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"; NULL for an unknown kind. */
