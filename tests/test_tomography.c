@@ -991,6 +991,71 @@ START_TEST(test_single_precision_operator)
 }
 END_TEST
 
+/* The fp32 operator's NGS term (G = [Pᵀ Γᵀ e_k], explicit, in double): with heavy NGS (NEA 0.02 mas against the
+ * LGS's 20) the NGS part of M c is ~600 times the LGS part. A float rounding before the NGS weights (the forward's
+ * φ) reaches M c only inside span(W G), the NGS's dozen modes, which the preconditioner holds exactly; one after
+ * them (a float G, G w or W) spreads u ≈ 6e-8 of the large term over every mode: ~600 u off span(W G). So the fp32
+ * operator's error off span(W G) must be of the float LGS chain's size alone: at most 16 u of ‖S_LGS c‖ (1e-6;
+ * measured ~1e-7, and 1e-5 with G's values rounded to float). */
+START_TEST(test_single_precision_ngs_term)
+{
+    const char *set[] = {"lgs.wfs.nea_mas=20.0", "ngs.wfs.nea_mas=0.02", "recon.pcg3.operator_precision=\"fp32\""};
+    fixture a, b;
+    setup(&a, DEMO, 0, 2, set);
+    setup(&b, DEMO, 0, 3, set);
+    const wt_system *sys = a.sys;
+    const int64_t n = wt_tomography_nunknowns(a.t), ns = sys->nslopes;
+    double *c = malloc(n * sizeof *c), *y64 = malloc(n * sizeof *y64), *y32 = malloc(n * sizeof *y32),
+           *s = malloc(ns * sizeof *s), *slgs = malloc(ns * sizeof *slgs), *blgs = malloc(n * sizeof *blgs),
+           *e = calloc(ns, sizeof *e);
+    double *Q = malloc((size_t)ns * n * sizeof *Q); /* (at most ns columns; the NGS's used) */
+    tu_randn(c, n, 81);
+    for (int64_t i = 0; i < n; i++) c[i] *= 1e-7;
+    tu_tomo_apply(a.t, c, y64);
+    tu_tomo_apply(b.t, c, y32);
+    tu_tomo_slopes(a.t, c, s);
+    memcpy(slgs, s, ns * sizeof *s);
+    int q = 0;
+    for (int m = 0; m < sys->nsensors; m++) {
+        if (sys->sensors[m].kind == WT_SENSOR_LGS) continue;
+        for (int j = 0; j < sys->sensors[m].nslopes; j++) {
+            const int64_t k = sys->sensors[m].offset + j;
+            slgs[k] = 0.0;
+            e[k] = 1.0; /* span(W G) = span of the NGS's unit slopes' right-hand sides (Ĉ⁻¹ invertible) */
+            double *v = Q + (size_t)q * n;
+            tu_tomo_rhs(a.t, e, v);
+            e[k] = 0.0;
+            for (int pass = 0; pass < 2; pass++) /* Gram–Schmidt, twice */
+                for (int i = 0; i < q; i++) {
+                    const double d = tu_dot(Q + (size_t)i * n, v, n);
+                    for (int64_t x = 0; x < n; x++) v[x] -= d * Q[(size_t)i * n + x];
+                }
+            const double nv = tu_norm(v, n);
+            ck_assert_double_gt(nv, 0.0);
+            for (int64_t x = 0; x < n; x++) v[x] /= nv;
+            q++;
+        }
+    }
+    ck_assert_int_ge(q, 4);
+    tu_tomo_rhs(a.t, slgs, blgs);
+    double *d = y32; /* M32 c − M64 c, then off span(W G) */
+    for (int64_t i = 0; i < n; i++) d[i] -= y64[i];
+    const double dn = tu_norm(d, n);
+    for (int i = 0; i < q; i++) {
+        const double p = tu_dot(Q + (size_t)i * n, d, n);
+        for (int64_t x = 0; x < n; x++) d[x] -= p * Q[(size_t)i * n + x];
+    }
+    const double lgs = tu_norm(blgs, n), all = tu_norm(y64, n), off = tu_norm(d, n);
+    fprintf(stderr, "fp32 NGS term: |M c| / |S_LGS c| = %.3g; |M32 c - M64 c| = %.2e, off span(W G) %.2e of |S_LGS c|\n",
+            all / lgs, dn / lgs, off / lgs);
+    ck_assert_double_gt(all, 300.0 * lgs); /* the NGS do dominate: a float NGS term would fail the bound below */
+    ck_assert_double_le(off, 1e-6 * lgs);
+    free(c), free(y64), free(y32), free(s), free(slgs), free(blgs), free(e), free(Q);
+    teardown(&a);
+    teardown(&b);
+}
+END_TEST
+
 START_TEST(test_profile_counts_stages)
 {
     fixture f;
@@ -1166,6 +1231,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_fitting_continue_matches_warm_start);
     tcase_add_test(tc, test_profile_counts_stages);
     tcase_add_test(tc, test_single_precision_operator);
+    tcase_add_test(tc, test_single_precision_ngs_term);
     suite_add_tcase(s, tc);
     return s;
 }

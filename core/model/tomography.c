@@ -34,8 +34,16 @@ struct wt_tomography {
     int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
     int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
     int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the LGS in float */
-    uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's adjoint in float (the LGS; the NGS's stays double: layers_dwt) */
-    int any64;                /* fp32: some sensor's adjoint is double (an NGS): its Pᵀ runs in the layers' stage */
+    uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's part in float (the LGS; the NGS's stays double: layers_dwt) */
+    int any64;                /* fp32: some sensor's part is double (an NGS): the explicit term below */
+    /* fp32 with NGS: their part of the operator through the explicit matrix G = [Pᵀ Γᵀ e_k] over the NGS slopes k
+     * (layers' values x NGS slopes; CSR by layer point, made at set-up): forward Gᵀ φ, adjoint G (Ĉ⁻¹ s), in double
+     * (ngs_explicit) */
+    int64_t ngs_nrow;         /* layer points where G has a non-zero */
+    int64_t *ngs_row;         /* [ngs_nrow] those points, ascending */
+    int64_t *ngs_ptr;         /* [ngs_nrow + 1] row i's entries [ngs_ptr[i], ngs_ptr[i + 1]) */
+    int32_t *ngs_col;         /* the entry's slope (its index in the slopes vector), ascending within a row */
+    double *ngs_val;          /* the entry's value */
     wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
     int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
     int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
@@ -303,6 +311,121 @@ fail:
     return st;
 }
 
+/* The fp32 operator's NGS term. At low noise the NGS weigh ~10⁵ times the LGS, so their part stays double (layers_dwt
+ * says why); as the chain Γ P, Ĉ⁻¹, Γᵀ, Pᵀ it was the double work of every apply, its projections scalar (short
+ * runs) and their transposes in the layers' stage after a barrier: ~0.16 ms of a 1.5 ms E-ELT frame. An NGS has
+ * few slopes (12 for the E-ELT's three), so its part is the explicit rank-r matrix G = [Pᵀ Γᵀ e_k] (the same
+ * linear map; its columns live on the footprints' rims: ~1/8 of the layers' points), applied as Gᵀ φ (slopes) and
+ * G w (the weighted slopes onto the layers' sum). Built here column by column with the double adjoint: twice, to
+ * count the entries per point and then to fill them in. */
+static int ngs_explicit(wt_tomography *t)
+{
+    int st = WT_OK;
+    wt_context *ctx = t->ctx;
+    const wt_system *sys = t->sys;
+    const int64_t n = t->n;
+    double *col = NULL, *e = NULL, *phase = NULL;
+    int64_t *count = NULL, *fill = NULL, *at = NULL;
+    WT_ALLOC(ctx, col, n, "NGS term column");
+    WT_ALLOC(ctx, e, sys->nslopes, "NGS term unit slopes");
+    WT_ALLOC(ctx, phase, t->ncg, "NGS term phase");
+    WT_ALLOC(ctx, count, n, "NGS term counts");
+    for (int pass = 0; pass < 2; pass++) {
+        for (int m = 0; m < t->S; m++) {
+            if (t->s32[m]) continue;
+            const wt_sensor *s = &sys->sensors[m];
+            for (int j = 0; j < s->nslopes; j++) {
+                const int64_t k = s->offset + j;
+                e[k] = 1.0;
+                memset(col, 0, (size_t)n * sizeof *col);
+                memset(phase, 0, (size_t)t->ncg * sizeof *phase);
+                wt_sensor_stack_phase_t(&t->stack, m, 1.0, e + s->offset, phase);
+                for (int l = 0; l < t->L; l++) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, phase, col + t->off[l]);
+                e[k] = 0.0;
+                for (int64_t i = 0; i < n; i++) {
+                    if (col[i] == 0.0) continue;
+                    if (pass == 0) count[i]++;
+                    else {
+                        const int64_t q = fill[at[i]]++;
+                        t->ngs_col[q] = (int32_t)k;
+                        t->ngs_val[q] = col[i];
+                    }
+                }
+            }
+        }
+        if (pass == 1) break;
+        int64_t nnz = 0;
+        for (int64_t i = 0; i < n; i++) {
+            if (count[i]) t->ngs_nrow++;
+            nnz += count[i];
+        }
+        WT_ALLOC(ctx, t->ngs_row, t->ngs_nrow, "NGS term rows");
+        WT_ALLOC(ctx, t->ngs_ptr, t->ngs_nrow + 1, "NGS term row starts");
+        WT_ALLOC(ctx, t->ngs_col, nnz, "NGS term slopes");
+        WT_ALLOC(ctx, t->ngs_val, nnz, "NGS term values");
+        WT_ALLOC(ctx, fill, t->ngs_nrow, "NGS term fill");
+        WT_ALLOC(ctx, at, n, "NGS term row of a point");
+        for (int64_t i = 0, r = 0; i < n; i++)
+            if (count[i]) {
+                t->ngs_row[r] = i;
+                at[i] = r;
+                t->ngs_ptr[r + 1] = t->ngs_ptr[r] + count[i];
+                fill[r] = t->ngs_ptr[r];
+                r++;
+            }
+    }
+fail:
+    wt_free(ctx, col);
+    wt_free(ctx, e);
+    wt_free(ctx, phase);
+    wt_free(ctx, count);
+    wt_free(ctx, fill);
+    wt_free(ctx, at);
+    return st;
+}
+
+/* The NGS term's rows for the layer points [i0, i1): [*r0, *r1) */
+static void ngs_rows(const wt_tomography *t, int64_t i0, int64_t i1, int64_t *r0, int64_t *r1)
+{
+    int64_t lo = 0, hi = t->ngs_nrow; /* first row >= i0 */
+    while (lo < hi) {
+        const int64_t mid = lo + (hi - lo) / 2;
+        if (t->ngs_row[mid] < i0) lo = mid + 1;
+        else hi = mid;
+    }
+    *r0 = lo;
+    hi = t->ngs_nrow; /* first row >= i1 */
+    while (lo < hi) {
+        const int64_t mid = lo + (hi - lo) / 2;
+        if (t->ngs_row[mid] < i1) lo = mid + 1;
+        else hi = mid;
+    }
+    *r1 = lo;
+}
+
+/* sum[i − i0] += Σ_k G_ik wv_k for the layer points [i0, i1) (wv: the weighted slopes, indexed as the slopes) */
+static void ngs_adjoint(const wt_tomography *t, const double *wv, int64_t i0, int64_t i1, double *sum)
+{
+    int64_t r0, r1;
+    ngs_rows(t, i0, i1, &r0, &r1);
+    for (int64_t r = r0; r < r1; r++) {
+        double v = 0.0;
+        for (int64_t q = t->ngs_ptr[r]; q < t->ngs_ptr[r + 1]; q++) v += t->ngs_val[q] * wv[t->ngs_col[q]];
+        sum[t->ngs_row[r] - i0] += v;
+    }
+}
+
+/* The NGS's slopes Gᵀ φ (φ: the float layers) into slopes (at their indices; the others untouched) */
+static void ngs_forward(const wt_tomography *t, const float *phi32, double *slopes)
+{
+    for (int m = 0; m < t->S; m++)
+        if (!t->s32[m]) memset(slopes + t->sys->sensors[m].offset, 0, (size_t)t->sys->sensors[m].nslopes * sizeof *slopes);
+    for (int64_t r = 0; r < t->ngs_nrow; r++) {
+        const double x = phi32[t->ngs_row[r]];
+        for (int64_t q = t->ngs_ptr[r]; q < t->ngs_ptr[r + 1]; q++) slopes[t->ngs_col[q]] += t->ngs_val[q] * x;
+    }
+}
+
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
                         const char *variant_name, const wt_tomography_params *par, wt_tomography **out)
 {
@@ -435,6 +558,7 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         t->s32[m] = (uint8_t)(t->fp32 && sys->sensors[m].kind == WT_SENSOR_LGS);
         if (t->fp32 && !t->s32[m]) t->any64 = 1;
     }
+    if (t->any64) WT_TRY(ngs_explicit(t));
     { /* layer owners: largest first to the least loaded thread (lowest index on ties) */
         int64_t load[WT_MAX_LAYERS] = {0};
         const int nt = t->nthreads < WT_MAX_LAYERS ? t->nthreads : WT_MAX_LAYERS;
@@ -475,6 +599,10 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->projs);
     wt_free(ctx, t->noise);
     wt_free(ctx, t->alpha_d);
+    wt_free(ctx, t->ngs_row);
+    wt_free(ctx, t->ngs_ptr);
+    wt_free(ctx, t->ngs_col);
+    wt_free(ctx, t->ngs_val);
     wt_tomography_work_free(t->work);
     wt_pcg_free(t->pcg);
     wt_free(ctx, t);
@@ -588,11 +716,12 @@ static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] 
 /* phi = W⁻¹ c layer by layer; with phi32 (the fp32 operator) the transform in float instead: c rounded to float,
  * phi32 = W⁻¹ c in float, and phi = phi32 in double for the full prior's FFTs. In space phi is c itself: only the
  * rounding to phi32 runs.
- * The fp32 operator runs every sensor's forward (P, Γ) in float, and the LGS's adjoint; the NGS's adjoint (Ĉ⁻¹, Γᵀ,
- * Pᵀ) and everything after the sum stay double. At low noise the NGS weigh ~10⁵ times the LGS: a float rounding
- * before their weights reaches the NGS term only through the NGS's dozen global modes (the rows of Ĉ⁻¹ Γ P), which
- * the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ, accumulator or DWT) spreads
- * 1e-7 of that large term over every mode, and moved the low-noise field WFE by +0.07 nm (docs/results.md §30). */
+ * The fp32 operator runs the LGS's forward (P, Γ) and adjoint in float; the NGS's part (their explicit term, Gᵀ φ
+ * from the float layers, Ĉ⁻¹, G w) and everything after the sum stay double. At low noise the NGS weigh ~10⁵ times
+ * the LGS: a float rounding before their weights reaches the NGS term only through the NGS's dozen global modes
+ * (the rows of Ĉ⁻¹ Γ P), which the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ,
+ * accumulator or DWT) spreads 1e-7 of that large term over every mode, and moved the low-noise field WFE by
+ * +0.07 nm (docs/results.md §30; test_tomography test_single_precision_ngs_term). */
 static size_t lay32_size(const wt_tomography *t);
 static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
 {
@@ -734,8 +863,9 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
                                            w->phase + (size_t)m * t->ncg);
 }
 
-/* The adjoint's last stage, each layer on its owner: the groups' sum (in group order; from the float accumulators
- * w->acc32 with f32, the fp32 operator's), the prior's term, W */
+/* The adjoint's last stage: the groups' sum (in group order; from the float accumulators w->acc32 with f32, the
+ * fp32 operator's), the prior's term and (f32) the NGS term in equal element shares, then each layer's W on its
+ * owner */
 static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c, int f32)
 {
     const int64_t n = t->n;
@@ -763,14 +893,12 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
             }
         if (cx && t->full_prior)
             for (int64_t i = i0; i < i1; i++) sum[i] += w->pphi[i];
-        if (!t->space || (f32 && t->any64)) {
+        if (f32 && t->any64) ngs_adjoint(t, w->weighted, i0, i1, sum + i0); /* the fp32 operator's NGS, in double */
+        if (!t->space) {
 #pragma omp barrier
             for (int l = 0; l < t->L; l++) {
                 if (owner_of(t, l, nt) != id) continue;
                 const int64_t a = t->off[l], b = t->off[l + 1];
-                for (int m = 0; f32 && m < t->S; m++) /* the fp32 operator's NGS: their Pᵀ in double, onto the sum */
-                    if (!t->s32[m]) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, sum + a);
-                if (t->space) continue;
                 wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
                 if (cx && !t->full_prior)
                     for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
@@ -841,12 +969,12 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
     prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
-/* The fp32 operator (t->fp32): the same stages as the double one below, the sensors' part in float: w->phi32 → Γ P
+/* The fp32 operator (t->fp32): the same stages as the double one below, the LGS's part in float: w->phi32 → Γ P
  * → w->slopes32 → Ĉ⁻¹ → Γᵀ → Pᵀ into float group accumulators (or per-layer float sums, by layers), which the
- * layers' stage adds up in double; the NGS's Ĉ⁻¹ and Γᵀ in double in the groups' stage, their Pᵀ onto the double
- * sum in the layers' stage (layers_dwt says why). */
+ * layers' stage adds up in double; the NGS's in double through their explicit term (ngs_explicit): Gᵀ φ as one
+ * more task of the forward, Ĉ⁻¹ in the groups' stage, G w in the layers' stage's sum (layers_dwt says why). */
 
-/* slopes32 = Γ P phi32 for every sensor; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
+/* slopes32 = Γ P phi32 for every LGS, the NGS's slopes Gᵀ phi32 into w->slopes; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
  * forward_slopes_prior) */
 static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi)
 {
@@ -863,8 +991,11 @@ static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const dou
                                     w->pwork + (size_t)id * t->pwsize);
         }
 #pragma omp for schedule(dynamic, 1) nowait
-        for (int m = 0; m < t->S; m++)
-            wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
+        for (int m = 0; m <= t->S; m++) /* the LGS, then (m = S) the NGS term's Gᵀ φ into the double slopes */
+            if (m == t->S) {
+                if (t->any64) ngs_forward(t, w->phi32, w->slopes);
+            } else if (t->s32[m])
+                wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
         prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
     }
     prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
@@ -892,6 +1023,24 @@ static void round_slopes(const wt_tomography *t, wt_tomography_work *w, int m, c
     for (int64_t i = a; i < b; i++) w->slopes32[i] = (float)s[i];
 }
 
+/* The double weights of the NGS of group g (g < 0: every NGS), of s or (NULL) of the forward's slopes (ngs_forward),
+ * into w->weighted (the NGS term's G applies them in the layers' stage) */
+static void weigh_ngs(const wt_tomography *t, wt_tomography_work *w, int g, const double *s)
+{
+    const wt_noise *nz[2 * WT_MAX_GS];
+    const double *x[2 * WT_MAX_GS];
+    double *ws[2 * WT_MAX_GS];
+    int k = 0;
+    for (int m = 0; m < t->S; m++) {
+        if ((g >= 0 && t->group[m] != g) || t->s32[m]) continue;
+        nz[k] = t->noise[m];
+        x[k] = (s ? s : w->slopes) + t->sys->sensors[m].offset;
+        ws[k] = w->weighted + t->sys->sensors[m].offset;
+        k++;
+    }
+    wt_noise_set_weight_many(nz, k, x, ws);
+}
+
 /* One group's share of the fp32 adjoint; s: the slopes to round first (the right-hand side), or NULL (the operator:
  * its forward left them in w->slopes32) */
 static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g, const double *s)
@@ -907,25 +1056,7 @@ static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int
     for (int q = 0; q < k; q++)
         wt_sensor_stack_apply_t_sensor_f32(&t->stack, ms[q], 1.0f, w->weighted32 + sys->sensors[ms[q]].offset, acc,
                                            w->phase32 + (size_t)ms[q] * t->ncg);
-    if (!t->any64) return;
-    /* the group's NGS in double: the weights and Γᵀ into the sensor's phase (adjoint_layers projects it) */
-    const wt_noise *nz[2 * WT_MAX_GS];
-    const double *x[2 * WT_MAX_GS];
-    double *ws[2 * WT_MAX_GS];
-    k = 0;
-    for (int m = 0; m < t->S; m++) {
-        if (t->group[m] != g || t->s32[m]) continue;
-        ms[k] = m;
-        nz[k] = t->noise[m];
-        if (!s) /* the forward's float slopes, in double */
-            for (int64_t i = sys->sensors[m].offset; i < sys->sensors[m].offset + sys->sensors[m].nslopes; i++)
-                w->slopes[i] = w->slopes32[i];
-        x[k] = (s ? s : w->slopes) + sys->sensors[m].offset;
-        ws[k] = w->weighted + sys->sensors[m].offset;
-        k++;
-    }
-    wt_noise_set_weight_many(nz, k, x, ws);
-    for (int q = 0; q < k; q++) wt_sensor_stack_phase_t(&t->stack, ms[q], 1.0, ws[q], w->phase + (size_t)ms[q] * t->ncg);
+    if (t->any64) weigh_ngs(t, w, g, s);
 }
 
 /* adjoint_space in float: every sensor's weights and Γᵀ, then per layer the sensors' Pᵀ into a float sum that
@@ -941,20 +1072,14 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
         const int id = thread_id();
         double b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
-        for (int m = 0; m < t->S; m++) {
-            const int64_t off = t->sys->sensors[m].offset;
-            if (t->s32[m]) {
+        for (int m = 0; m <= t->S; m++) { /* the LGS, then (m = S) every NGS's double weights */
+            if (m == t->S) {
+                if (t->any64) weigh_ngs(t, w, -1, s);
+            } else if (t->s32[m]) {
                 if (s) round_slopes(t, w, m, s);
                 weigh_f32(t, w, 1, &m);
-                wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + off, w->phase32 + (size_t)m * t->ncg);
-            } else { /* an NGS: double */
-                if (!s)
-                    for (int64_t i = off; i < off + t->sys->sensors[m].nslopes; i++) w->slopes[i] = w->slopes32[i];
-                const wt_noise *nz = t->noise[m];
-                const double *x = (s ? s : w->slopes) + off;
-                double *ws = w->weighted + off;
-                wt_noise_set_weight_many(&nz, 1, &x, &ws);
-                wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
+                wt_sensor_stack_phase_t_f32(&t->stack, m, 1.0f, w->weighted32 + t->sys->sensors[m].offset,
+                                            w->phase32 + (size_t)m * t->ncg);
             }
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
@@ -974,8 +1099,7 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
                 for (int64_t i = 0; i < nl; i++) c[a + i] += sum[i];
             else
                 for (int64_t i = 0; i < nl; i++) c[a + i] = sum[i];
-            for (int m = 0; m < t->S; m++) /* the NGS's double terms */
-                if (!t->s32[m]) wt_projection_apply_t(t->proj[m * t->L + l], 1.0, w->phase + (size_t)m * t->ncg, c + a);
+            if (t->any64) ngs_adjoint(t, w->weighted, a, a + nl, c + a); /* the NGS's term, in double */
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
@@ -1138,6 +1262,8 @@ double wt_tomography_bytes(const wt_tomography *t)
                     (double)t->nthreads * ((double)max_layer(t) + (double)t->wsize));
     /* projection stencils: ~24 bytes per masked point and layer, plus the separable tables */
     b += 24.0 * (double)t->sys->ncorners * t->S * t->L;
+    if (t->ngs_nrow) /* the fp32 operator's NGS term: 12 bytes an entry, 16 a row */
+        b += 12.0 * (double)t->ngs_ptr[t->ngs_nrow] + 16.0 * (double)t->ngs_nrow;
     return b;
 }
 
@@ -1169,11 +1295,22 @@ void wt_tomography_cost(const wt_tomography *t, double *flops, double *bytes)
      * adds + 1 scale per slope) and transpose; the 2x2 weight (~8 flops per subaperture + T) */
     for (int m = 0; m < sys->nsensors; m++) {
         double pts = (double)sys->ncorners, sl = sys->sensors[m].nslopes;
+        if (t->fp32 && !t->s32[m]) { /* an NGS of the fp32 operator: in the explicit term below, and its weights */
+            f += 12.0 * sl;
+            b += 3.0 * 8.0 * sl;
+            continue;
+        }
         f += 2.0 * 8.0 * pts * t->L + 2.0 * 5.0 * sl + 12.0 * sl;
         /* stencil (index 4 B + 2 weights) and 4 layer values per point and layer, both passes; the corner phase and
-         * slopes a few times each; e bytes a value: 8, or 4 in fp32 (6: an NGS there, whose adjoint is double) */
-        const double e = !t->fp32 ? 8.0 : t->s32[m] ? 4.0 : 6.0;
+         * slopes a few times each; e bytes a value: 8, or 4 in fp32 */
+        const double e = t->fp32 ? 4.0 : 8.0;
         b += 2.0 * pts * t->L * (4.0 + 2.0 * e + 4.0 * e) + 4.0 * e * pts + 6.0 * e * sl;
+    }
+    if (t->ngs_nrow) { /* Gᵀ φ and G w: a mult-add per entry each; the entries (12 B) and rows (16 B) twice, and the
+                          layer values they touch (4 B read, 8 B read + write) */
+        const double nnz = (double)t->ngs_ptr[t->ngs_nrow], nr = (double)t->ngs_nrow;
+        f += 4.0 * nnz;
+        b += 2.0 * (12.0 * nnz + 16.0 * nr) + 20.0 * nr;
     }
     *flops = f;
     *bytes = b;
