@@ -1198,10 +1198,18 @@ static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c,
                  double rtol, double *history, wt_pcg_result *res)
 {
     const double t0 = prof_t0(t->work);
-    const int64_t bad = wt_vec_first_nonfinite(s, t->sys->nslopes); /* (a per-slope test with an early exit: ~20 µs) */
-    if (bad >= 0)
-        return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)bad, s[bad]);
-    adjoint_slopes(t, t->work, s, wt_pcg_rhs(t->pcg));
+    /* A NaN or Inf slope reaches the right-hand side (every slope has a weight and a non-empty Γᵀ, Pᵀ; NaN · 0 is
+     * NaN): its n values are tested instead of the 2.5 times as many slopes (~20 µs of a frame), and the slopes
+     * searched only then; the solver's state is not touched (its next right-hand side is a buffer of its own) */
+    double *b = wt_pcg_rhs(t->pcg);
+    adjoint_slopes(t, t->work, s, b);
+    if (wt_vec_first_nonfinite(b, t->n) >= 0) {
+        const int64_t bad = wt_vec_first_nonfinite(s, t->sys->nslopes);
+        if (bad >= 0)
+            return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: slope %lld is %g (NaN or Inf)", (long long)bad, s[bad]);
+        return WT_ERROR(t->ctx, WT_ERR_NUMERIC, "tomography: the right-hand side of finite slopes is not finite (a "
+                        "slope beyond the operator's range%s)", t->fp32 ? ", e.g. above float's 3.4e38" : "");
+    }
     timed_precond tp = {t, P};
     if (t->work->prof_on && P.apply) P = (wt_pcg_precond){timed_precond_apply, &tp};
     const int st = wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
