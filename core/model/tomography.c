@@ -723,18 +723,12 @@ static int owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] 
  * accumulator or DWT) spreads 1e-7 of that large term over every mode, and moved the low-noise field WFE by
  * +0.07 nm (docs/results.md §30; test_tomography test_single_precision_ngs_term). */
 static size_t lay32_size(const wt_tomography *t);
-static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
+/* Thread id's part (of nt; inside a parallel region): its layers */
+static void layers_dwt_team(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32,
+                            int id, int nt)
 {
-    if (t->space) { /* the unknowns are the values */
-        if (phi != c) memcpy(phi, c, (size_t)t->n * sizeof *phi);
-        if (!phi32) return;
-    }
-    const double t0 = prof_t0(w);
-#pragma omp parallel num_threads(t->nthreads)
+    const double b0 = prof_t0(w);
     {
-        const double b0 = prof_t0(w);
-        int id, nt;
-        wt_thread_team(&id, &nt);
         for (int l = 0; l < t->L; l++) {
             if (owner_of(t, l, nt) != id) continue;
             const int64_t a = t->off[l], b = t->off[l + 1];
@@ -751,6 +745,21 @@ static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const doub
             }
         }
         prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
+    }
+}
+
+static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
+{
+    if (t->space) { /* the unknowns are the values */
+        if (phi != c) memcpy(phi, c, (size_t)t->n * sizeof *phi);
+        if (!phi32) return;
+    }
+    const double t0 = prof_t0(w);
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        int id, nt;
+        wt_thread_team(&id, &nt);
+        layers_dwt_team(t, w, c, phi, phi32, id, nt);
     }
     prof_wall(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0);
 }
@@ -866,16 +875,13 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
 /* The adjoint's last stage: the groups' sum (in group order; from the float accumulators w->acc32 with f32, the
  * fp32 operator's), the prior's term and (f32) the NGS term in equal element shares, then each layer's W on its
  * owner */
-static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c, int f32)
+static void adjoint_layers_team(const wt_tomography *t, wt_tomography_work *w, const double *cx, double *c, int f32,
+                                int id, int nt)
 {
     const int64_t n = t->n;
     double *sum = t->space ? c : w->phi; /* in space the sum is the result */
-    const double t0 = prof_t0(w);
-#pragma omp parallel num_threads(t->nthreads)
     {
         const double b0 = prof_t0(w);
-        int id, nt;
-        wt_thread_team(&id, &nt);
         /* the sums element by element, in equal shares of all layers (by layers, the 128² layer's owner had twice the
          * other thread's part: half the stage's time went to one thread waiting), then each layer's W on its owner */
         const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
@@ -906,7 +912,6 @@ static void adjoint_layers(const wt_tomography *t, wt_tomography_work *w, const 
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
     }
-    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t0);
 }
 
 static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx,
@@ -923,16 +928,27 @@ static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const dou
         else adjoint_space(t, w, slopes, cx, c);
         return;
     }
+    /* the groups and then the layers' stage in one parallel region (as dwt_forward_f32) */
     const double t0 = prof_t0(w);
-#pragma omp parallel for schedule(static) num_threads(t->nthreads)
-    for (int g = 0; g < WT_GROUPS; g++) {
-        const double b0 = prof_t0(w);
-        if (f32) adjoint_group_f32(t, w, g, slopes);
-        else adjoint_group(t, w, g, slopes);
-        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, thread_id(), b0);
+    double t1 = t0;
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        int id, nt;
+        wt_thread_team(&id, &nt);
+#pragma omp for schedule(static) nowait
+        for (int g = 0; g < WT_GROUPS; g++) {
+            const double b0 = prof_t0(w);
+            if (f32) adjoint_group_f32(t, w, g, slopes);
+            else adjoint_group(t, w, g, slopes);
+            prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
+        }
+#pragma omp barrier
+#pragma omp master
+        t1 = prof_t0(w);
+        adjoint_layers_team(t, w, cx, c, f32, id, nt);
     }
-    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0);
-    adjoint_layers(t, w, cx, c, f32);
+    prof_wall_to(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0, t1);
+    prof_wall(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, t1);
 }
 
 static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
@@ -976,14 +992,11 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
 
 /* slopes32 = Γ P phi32 for every LGS, the NGS's slopes Gᵀ phi32 into w->slopes; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
  * forward_slopes_prior) */
-static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi)
+static void forward_f32_team(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi, int id,
+                             int nt)
 {
-    const double t0 = prof_t0(w);
-#pragma omp parallel num_threads(t->nthreads)
     {
         const double b0 = prof_t0(w);
-        int id, nt;
-        wt_thread_team(&id, &nt);
         for (int k = 0; pphi && k < t->L; k++) {
             const int l = t->by_size[k];
             if (owner_of(t, l, nt) == id)
@@ -998,7 +1011,28 @@ static void forward_f32(const wt_tomography *t, wt_tomography_work *w, const dou
                 wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
         prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
     }
-    prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
+}
+
+/* The fp32 operator's first two stages in one parallel region (a region's start and end cost ~3 µs on this host,
+ * a barrier ~1.5): the layers' transforms (phi32; phi in double for the full prior's FFTs), then the forward.
+ * In space phi is c and only its rounding runs. */
+static void dwt_forward_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *pphi)
+{
+    double *phi = t->space ? (double *)c : w->phi;
+    const double t0 = prof_t0(w);
+    double t1 = t0;
+#pragma omp parallel num_threads(t->nthreads)
+    {
+        int id, nt;
+        wt_thread_team(&id, &nt);
+        layers_dwt_team(t, w, c, phi, w->phi32, id, nt);
+#pragma omp barrier
+#pragma omp master
+        t1 = prof_t0(w);
+        forward_f32_team(t, w, phi, pphi, id, nt);
+    }
+    prof_wall_to(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0, t1);
+    prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t1);
 }
 
 /* The float weights of the k sensors ms (LGS) in one call (wt_noise_set_weight_many_f32) */
@@ -1110,9 +1144,7 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
 
 static void normal_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *y)
 {
-    const double *phi = t->space ? c : w->phi;
-    layers_dwt(t, w, c, t->space ? (double *)c : w->phi, w->phi32);
-    forward_f32(t, w, phi, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
+    dwt_forward_f32(t, w, c, t->full_prior ? (by_layers(t) ? y : w->pphi) : NULL);
     adjoint_run(t, w, NULL, c, y, 1);
 }
 
