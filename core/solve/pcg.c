@@ -160,6 +160,80 @@ static void copy_vec(const wt_pcg *w, const double *z, double *p)
     }
 }
 
+/* This thread's rows [*i0, *i1) of its chunks (my_chunks) */
+static void my_rows(int64_t n, int64_t *i0, int64_t *i1)
+{
+    int c0, c1;
+    my_chunks(&c0, &c1);
+    const int64_t len = wt_vec_chunk_len(n);
+    *i0 = c0 * len < n ? c0 * len : n;
+    *i1 = c1 * len < n ? c1 * len : n;
+}
+
+/* An iteration's step after q = A p, on the threads (parallel_vectors): pᵀq, then, where it is finite and > 0,
+ * a = rz / pᵀq, r −= a q and rᵀr, in one parallel region (the dot's chunk sums, a barrier, and every thread adds
+ * them up in the same order: the bits of dot() and update_r_norm2()). *pq always; *a and *rr only then (else r is
+ * untouched). */
+static void step_r(const wt_pcg *w, const double *p, const double *q, double rz, double *r, double *pq, double *a,
+                   double *rr)
+{
+    const int64_t n = w->n;
+    double part[WT_VEC_CHUNKS], rpart[WT_VEC_CHUNKS];
+    double pq_ = 0.0;
+#pragma omp parallel num_threads(w->nthreads)
+    {
+        int c0, c1;
+        int64_t i0, i1;
+        my_chunks(&c0, &c1);
+        my_rows(n, &i0, &i1);
+        wt_vec_dot_part(p, q, n, c0, c1, part);
+#pragma omp barrier
+        const double v = wt_vec_dot_finish(part);
+        if (isfinite(v) && v > 0.0) {
+            const double av = rz / v;
+            for (int64_t i = i0; i < i1; i++) r[i] -= av * q[i];
+            wt_vec_dot_part(r, r, n, c0, c1, rpart);
+        }
+#pragma omp master
+        pq_ = v;
+    }
+    *pq = pq_;
+    if (isfinite(pq_) && pq_ > 0.0) {
+        *a = rz / pq_;
+        *rr = wt_vec_dot_finish(rpart);
+    }
+}
+
+/* The step after z = P⁻¹ r, on the threads: rᵀz, then x += a p and, where rᵀz is > 0, p = z + (rᵀz / rz) p (else
+ * x's update alone), in one parallel region as step_r (the bits of dot() and update_p()) */
+static double step_p(const wt_pcg *w, const double *r, const double *z, double rz, double a, double *x, double *p)
+{
+    const int64_t n = w->n;
+    double part[WT_VEC_CHUNKS];
+    double rz_ = 0.0;
+#pragma omp parallel num_threads(w->nthreads)
+    {
+        int c0, c1;
+        int64_t i0, i1;
+        my_chunks(&c0, &c1);
+        my_rows(n, &i0, &i1);
+        wt_vec_dot_part(r, z, n, c0, c1, part);
+#pragma omp barrier
+        const double v = wt_vec_dot_finish(part);
+        if (v > 0.0) {
+            const double beta = v / rz;
+            for (int64_t i = i0; i < i1; i++) {
+                x[i] += a * p[i];
+                p[i] = z[i] + beta * p[i];
+            }
+        } else
+            for (int64_t i = i0; i < i1; i++) x[i] += a * p[i];
+#pragma omp master
+        rz_ = v;
+    }
+    return rz_;
+}
+
 static int solve(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_diag, wt_precond_fn P, void *puser,
                  const double *b, const double *b_prev, double *x, int max_iter, double rtol, double *history,
                  wt_pcg_result *res);
@@ -261,17 +335,23 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
     double rz = dot(w, r, zz);
 
     int k;
+    const int fused = parallel_vectors(w);
     for (k = 0; k < max_iter; k++) {
         A(user, p, q);
-        double pq = dot(w, p, q);
+        double pq, a = 0.0, rr2 = 0.0;
+        if (fused) step_r(w, p, q, rz, r, &pq, &a, &rr2);
+        else pq = dot(w, p, q);
         if (!isfinite(pq))
             return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration %d (the operator returned NaN or Inf)",
                             pq, k + 1);
         if (!(pq > 0.0) && k > 0) return breakdown(w, "pᵀAp", pq, k, res);
         if (!(pq > 0.0))
             return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: pᵀAp = %g at iteration 1 (operator not positive definite)", pq);
-        double a = rz / pq;
-        rnorm = sqrt(update_r_norm2(w, 0, a, q, r, NULL, NULL, NULL));
+        if (!fused) {
+            a = rz / pq;
+            rr2 = update_r_norm2(w, 0, a, q, r, NULL, NULL, NULL);
+        }
+        rnorm = sqrt(rr2);
         res->iterations = k + 1;
         res->rel_resid = rnorm / bnorm;
         if (history) history[k + 1] = rnorm / bnorm;
@@ -288,9 +368,10 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         if (inv_diag)
             for (int64_t i = 0; i < n; i++) z[i] = inv_diag[i] * r[i];
         else if (P) P(puser, r, z);
-        double rz_new = dot(w, r, zz);
+        /* fused: rᵀz and the updates of x and p in one pass (x's alone where rᵀz is not > 0, as below) */
+        double rz_new = fused ? step_p(w, r, zz, rz, a, x, p) : dot(w, r, zz);
         if (!(rz_new > 0.0)) { /* rounding level reached (or a preconditioner that is not SPD: first iteration) */
-            update_p(w, a, 0.0, NULL, x, p);
+            if (!fused) update_p(w, a, 0.0, NULL, x, p);
             if (!isfinite(rz_new))
                 return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: rᵀz = %g at iteration %d (the preconditioner returned NaN "
                                 "or Inf)", rz_new, k + 1);
@@ -298,7 +379,7 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         }
         double beta = rz_new / rz;
         rz = rz_new;
-        update_p(w, a, beta, zz, x, p);
+        if (!fused) update_p(w, a, beta, zz, x, p);
     }
     return rtol > 0.0 ? WT_WARN_MAXITER : WT_OK;
 }
