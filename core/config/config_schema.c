@@ -148,9 +148,10 @@
      "the variant's prior: " PRIOR_DESC "; left out (or \"auto\"): recon.prior when given, else "            \
      prior_default " (docs/design.md) (optional)"},                                                          \
     {pre ".operator_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(v.operator_precision), NOCOUNT, 0, 0, "fp64|fp32", 0, \
-     "the solver's normal operator and right-hand side: fp64, or fp32 = the layers' inverse DWT, every sensor's "  \
-     "forward (P, Γ) and the LGS's adjoint (Ĉ⁻¹, Γᵀ, Pᵀ) in single precision, 16 points per AVX-512 vector; the "  \
-     "NGS's adjoint (10^5 times the LGS's weight at low noise), the prior, the forward DWT and the (P)CG stay "     \
+     "the solver's normal operator and right-hand side: fp64, or fp32 = the layers' inverse DWT and the LGS's "    \
+     "forward (P, Γ) and adjoint (Ĉ⁻¹, Γᵀ, Pᵀ) in single precision, 16 points per AVX-512 vector, and "            \
+     "coarse_ngs's two stored matrices in float (applied in double); the NGS's part (10^5 times the LGS's weight "  \
+     "at low noise: an explicit matrix over their few slopes), the prior, the forward DWT and the (P)CG stay "      \
      "double (docs/design.md \"Single-precision operator\") (optional, default fp64)"}
 
 const wt_config_priv_key_spec wt_config_priv_keys[] = {
