@@ -303,10 +303,21 @@ START_TEST(test_single_precision)
             for (int i = 0; i < nn; i++) y[i] = y32[i];
             e = tu_rel_diff(y, x, nn);
             ck_assert_msg(e > 0.0 && e <= bound, "N=%d n=%d J=%d: inverse f32 error %.3g (bound %.3g)", N, n, J, e, bound);
+            /* of double coefficients (rounded as read): the bits of rounding them first, and x in double alike */
+            double *c64 = malloc(sizeof(double) * nn), *x64 = malloc(sizeof(double) * nn);
+            float *z32 = malloc(sizeof(float) * nn);
+            tu_randn(c64, nn, 7500 + 10 * N + a);
+            for (int i = 0; i < nn; i++) c32[i] = (float)c64[i];
+            wt_wavelet_inverse_f32(p.w, c32, y32, work32);
+            wt_wavelet_inverse_f32_of64(p.w, c64, z32, x64, work32);
+            ck_assert_mem_eq(z32, y32, sizeof(float) * nn);
+            for (int i = 0; i < nn; i++) ck_assert(x64[i] == (double)y32[i]);
+            wt_wavelet_inverse_f32_of64(p.w, c64, z32, NULL, work32);
+            ck_assert_mem_eq(z32, y32, sizeof(float) * nn);
             /* in place: the same values */
             wt_wavelet_inverse_f32(p.w, c32, c32, work32);
             ck_assert_mem_eq(c32, y32, sizeof(float) * nn);
-            free(x), free(c), free(y), free(x32), free(c32), free(y32), free(work32);
+            free(x), free(c), free(y), free(x32), free(c32), free(y32), free(work32), free(c64), free(x64), free(z32);
             plan_done(&p);
         }
     }

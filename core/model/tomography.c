@@ -736,13 +736,9 @@ static void layers_dwt_team(const wt_tomography *t, wt_tomography_work *w, const
                 wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
             } else if (t->space) {
                 for (int64_t i = a; i < b; i++) phi32[i] = (float)c[i];
-            } else {
-                float *c32 = w->lay32 + (size_t)id * lay32_size(t);
-                for (int64_t i = a; i < b; i++) c32[i - a] = (float)c[i];
-                wt_wavelet_inverse_f32(t->wav[l], c32, phi32 + a, w->wwork32 + (size_t)id * t->wsize);
-                if (t->full_prior)
-                    for (int64_t i = a; i < b; i++) phi[i] = phi32[i]; /* (the full prior's FFTs read it) */
-            }
+            } else /* (c rounded as it is read; phi, the double copy the full prior's FFTs read, row by row) */
+                wt_wavelet_inverse_f32_of64(t->wav[l], c + a, phi32 + a, t->full_prior ? phi + a : NULL,
+                                            w->wwork32 + (size_t)id * t->wsize);
         }
         prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
     }
@@ -769,7 +765,7 @@ static void inverse_dwt(const wt_tomography *t, wt_tomography_work *w, const dou
     layers_dwt(t, w, c, phi, NULL);
 }
 
-/* floats per thread in w->lay32 (a layer's rounded coefficients, or its float sum by layers): the largest layer,
+/* floats per thread in w->lay32 (a layer's float sum, by layers): the largest layer,
  * rounded to 64 bytes */
 static size_t lay32_size(const wt_tomography *t) { return (max_layer(t) + 15) / 16 * 16; }
 

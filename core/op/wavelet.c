@@ -190,20 +190,32 @@ size_t wt_wavelet_work_size(const wt_wavelet *w)
 
 /* The kernels in double (wavelet.h's transforms) and in float (the tomography's fp32 operator) */
 #define REAL double
+#define CREAL double
 #define K(name) name##_f64
 #define HF(w) (w)->h
 #define GF(w) (w)->g
 #include "wavelet_kernels.inc"
 #undef REAL
+#undef CREAL
 #undef K
 #undef HF
 #undef GF
 #define REAL float
+#define CREAL float
 #define K(name) name##_f32
 #define HF(w) (w)->h32
 #define GF(w) (w)->g32
 #include "wavelet_kernels.inc"
+#undef CREAL
+#undef K
+/* the float inverse of double coefficients (wt_wavelet_inverse_f32_of64) */
+#define CREAL double
+#define K(name) name##_f32c
+#define WT_INVERSE_ONLY
+#include "wavelet_kernels.inc"
+#undef WT_INVERSE_ONLY
 #undef REAL
+#undef CREAL
 #undef K
 #undef HF
 #undef GF
@@ -234,7 +246,7 @@ void wt_wavelet_forward(const wt_wavelet *w, const double *x, double *c, double 
 WT_CPU_CLONES
 void wt_wavelet_inverse(const wt_wavelet *w, const double *c, double *x, double *work)
 {
-    WT_DISPATCH(inverse_n_f64, w->order, w, c, x, work);
+    WT_DISPATCH(inverse_n_f64, w->order, w, c, x, NULL, work);
 }
 
 WT_CPU_CLONES
@@ -246,7 +258,13 @@ void wt_wavelet_forward_f32(const wt_wavelet *w, const float *x, float *c, float
 WT_CPU_CLONES
 void wt_wavelet_inverse_f32(const wt_wavelet *w, const float *c, float *x, float *work)
 {
-    WT_DISPATCH(inverse_n_f32, w->order, w, c, x, work);
+    WT_DISPATCH(inverse_n_f32, w->order, w, c, x, NULL, work);
+}
+
+WT_CPU_CLONES
+void wt_wavelet_inverse_f32_of64(const wt_wavelet *w, const double *c, float *x, double *x64, float *work)
+{
+    WT_DISPATCH(inverse_n_f32c, w->order, w, c, x, x64, work);
 }
 
 void wt_wavelet_classify(const wt_wavelet *w, int ix, int iy, int *level, int *orient)

@@ -43,6 +43,10 @@ void wt_wavelet_inverse(const wt_wavelet *w, const double *c, double *x, double 
  * (~1e-7 relative per level; not the double forms' bits); work: wt_wavelet_work_size floats. */
 void wt_wavelet_forward_f32(const wt_wavelet *w, const float *x, float *c, float *work);
 void wt_wavelet_inverse_f32(const wt_wavelet *w, const float *c, float *x, float *work);
+/* wt_wavelet_inverse_f32 of the double coefficients c, each rounded to float as it is read (the same bits as rounding
+ * c first), without a float copy of c; x64 (or NULL): x in double as well, written row by row as the last level
+ * makes it (the fp32 operator's layers for the full prior's FFTs). */
+void wt_wavelet_inverse_f32_of64(const wt_wavelet *w, const double *c, float *x, double *x64, float *work);
 
 /* Level and orientation of the coefficient at (ix, iy): *level = 1 … J for details (1 finest),
  * J + 1 for the approximation block; *orient = 0 approximation, 1 x-detail, 2 y-detail, 3 diagonal. */
