@@ -88,6 +88,16 @@ static void my_chunks(int *c0, int *c1)
     *c1 = 8 * (groups * (id + 1) / nt);
 }
 
+/* This thread's rows [*i0, *i1) of its chunks (my_chunks) */
+static void my_rows(int64_t n, int64_t *i0, int64_t *i1)
+{
+    int c0, c1;
+    my_chunks(&c0, &c1);
+    const int64_t len = wt_vec_chunk_len(n);
+    *i0 = c0 * len < n ? c0 * len : n;
+    *i1 = c1 * len < n ? c1 * len : n;
+}
+
 static double dot(const wt_pcg *w, const double *a, const double *b)
 {
     if (!parallel_vectors(w)) return wt_vec_dot(a, b, w->n);
@@ -118,12 +128,12 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
         return wt_vec_dot(r, r, n);
     }
     double part[WT_VEC_CHUNKS], bpart[WT_VEC_CHUNKS];
-    const int64_t len = wt_vec_chunk_len(n);
 #pragma omp parallel num_threads(w->nthreads)
     {
         int c0, c1;
+        int64_t i0, i1;
         my_chunks(&c0, &c1);
-        const int64_t i0 = c0 * len < n ? c0 * len : n, i1 = c1 * len < n ? c1 * len : n;
+        my_rows(n, &i0, &i1);
         if (mode == 0)
             for (int64_t i = i0; i < i1; i++) r[i] -= a * q[i];
         else
@@ -153,21 +163,22 @@ static void copy_vec(const wt_pcg *w, const double *z, double *p)
     const int64_t n = w->n;
 #pragma omp parallel num_threads(w->nthreads) if (parallel_vectors(w))
     {
-        int c0, c1;
-        my_chunks(&c0, &c1);
-        const int64_t len = wt_vec_chunk_len(n), i0 = c0 * len < n ? c0 * len : n, i1 = c1 * len < n ? c1 * len : n;
+        int64_t i0, i1;
+        my_rows(n, &i0, &i1);
         memcpy(p + i0, z + i0, (size_t)(i1 - i0) * sizeof *p);
     }
 }
 
-/* This thread's rows [*i0, *i1) of its chunks (my_chunks) */
-static void my_rows(int64_t n, int64_t *i0, int64_t *i1)
+/* Inside a parallel region: xᵀy on the team (every thread its chunks' sums into part, a barrier, then every thread
+ * adds them up in the same order: dot()'s bits), and this thread's chunks and rows for the update that follows */
+static double team_dot(const wt_pcg *w, const double *x, const double *y, double *part, int *c0, int *c1, int64_t *i0,
+                       int64_t *i1)
 {
-    int c0, c1;
-    my_chunks(&c0, &c1);
-    const int64_t len = wt_vec_chunk_len(n);
-    *i0 = c0 * len < n ? c0 * len : n;
-    *i1 = c1 * len < n ? c1 * len : n;
+    my_chunks(c0, c1);
+    my_rows(w->n, i0, i1);
+    wt_vec_dot_part(x, y, w->n, *c0, *c1, part);
+#pragma omp barrier
+    return wt_vec_dot_finish(part);
 }
 
 /* An iteration's step after q = A p, on the threads (parallel_vectors): pᵀq, then, where it is finite and > 0,
@@ -184,11 +195,7 @@ static void step_r(const wt_pcg *w, const double *p, const double *q, double rz,
     {
         int c0, c1;
         int64_t i0, i1;
-        my_chunks(&c0, &c1);
-        my_rows(n, &i0, &i1);
-        wt_vec_dot_part(p, q, n, c0, c1, part);
-#pragma omp barrier
-        const double v = wt_vec_dot_finish(part);
+        const double v = team_dot(w, p, q, part, &c0, &c1, &i0, &i1);
         if (isfinite(v) && v > 0.0) {
             const double av = rz / v;
             for (int64_t i = i0; i < i1; i++) r[i] -= av * q[i];
@@ -208,18 +215,13 @@ static void step_r(const wt_pcg *w, const double *p, const double *q, double rz,
  * x's update alone), in one parallel region as step_r (the bits of dot() and update_p()) */
 static double step_p(const wt_pcg *w, const double *r, const double *z, double rz, double a, double *x, double *p)
 {
-    const int64_t n = w->n;
     double part[WT_VEC_CHUNKS];
     double rz_ = 0.0;
 #pragma omp parallel num_threads(w->nthreads)
     {
         int c0, c1;
         int64_t i0, i1;
-        my_chunks(&c0, &c1);
-        my_rows(n, &i0, &i1);
-        wt_vec_dot_part(r, z, n, c0, c1, part);
-#pragma omp barrier
-        const double v = wt_vec_dot_finish(part);
+        const double v = team_dot(w, r, z, part, &c0, &c1, &i0, &i1);
         if (v > 0.0) {
             const double beta = v / rz;
             for (int64_t i = i0; i < i1; i++) {
