@@ -728,20 +728,18 @@ static void layers_dwt_team(const wt_tomography *t, wt_tomography_work *w, const
                             int id, int nt)
 {
     const double b0 = prof_t0(w);
-    {
-        for (int l = 0; l < t->L; l++) {
-            if (owner_of(t, l, nt) != id) continue;
-            const int64_t a = t->off[l], b = t->off[l + 1];
-            if (!phi32) {
-                wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
-            } else if (t->space) {
-                for (int64_t i = a; i < b; i++) phi32[i] = (float)c[i];
-            } else /* (c rounded as it is read; phi, the double copy the full prior's FFTs read, row by row) */
-                wt_wavelet_inverse_f32_of64(t->wav[l], c + a, phi32 + a, t->full_prior ? phi + a : NULL,
-                                            w->wwork32 + (size_t)id * t->wsize);
-        }
-        prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
+    for (int l = 0; l < t->L; l++) {
+        if (owner_of(t, l, nt) != id) continue;
+        const int64_t a = t->off[l], b = t->off[l + 1];
+        if (!phi32) {
+            wt_wavelet_inverse(t->wav[l], c + a, phi + a, w->wwork + (size_t)id * t->wsize);
+        } else if (t->space) {
+            for (int64_t i = a; i < b; i++) phi32[i] = (float)c[i];
+        } else /* (c rounded as it is read; phi, the double copy the full prior's FFTs read, row by row) */
+            wt_wavelet_inverse_f32_of64(t->wav[l], c + a, phi32 + a, t->full_prior ? phi + a : NULL,
+                                        w->wwork32 + (size_t)id * t->wsize);
     }
+    prof_busy(t, w, WT_TOMO_STAGE_INVERSE_DWT, id, b0);
 }
 
 static void layers_dwt(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32)
@@ -876,38 +874,36 @@ static void adjoint_layers_team(const wt_tomography *t, wt_tomography_work *w, c
 {
     const int64_t n = t->n;
     double *sum = t->space ? c : w->phi; /* in space the sum is the result */
-    {
-        const double b0 = prof_t0(w);
-        /* the sums element by element, in equal shares of all layers (by layers, the 128² layer's owner had twice the
-         * other thread's part: half the stage's time went to one thread waiting), then each layer's W on its owner */
-        const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
-        if (f32) /* the groups' float sums (LGS), added in double */
-            for (int64_t i = i0; i < i1; i++) {
-                double v = w->acc32[i];
-                for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
-                sum[i] = v;
-            }
-        else
-            for (int64_t i = i0; i < i1; i++) { /* wt_vec_sum_groups, groups in order */
-                double v = w->acc[i];
-                for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
-                sum[i] = v;
-            }
-        if (cx && t->full_prior)
-            for (int64_t i = i0; i < i1; i++) sum[i] += w->pphi[i];
-        if (f32 && t->any64) ngs_adjoint(t, w->weighted, i0, i1, sum + i0); /* the fp32 operator's NGS, in double */
-        if (!t->space) {
-#pragma omp barrier
-            for (int l = 0; l < t->L; l++) {
-                if (owner_of(t, l, nt) != id) continue;
-                const int64_t a = t->off[l], b = t->off[l + 1];
-                wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
-                if (cx && !t->full_prior)
-                    for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
-            }
+    const double b0 = prof_t0(w);
+    /* the sums element by element, in equal shares of all layers (by layers, the 128² layer's owner had twice the
+     * other thread's part: half the stage's time went to one thread waiting), then each layer's W on its owner */
+    const int64_t i0 = n * id / nt, i1 = n * (id + 1) / nt;
+    if (f32) /* the groups' float sums (LGS), added in double */
+        for (int64_t i = i0; i < i1; i++) {
+            double v = w->acc32[i];
+            for (int g = 1; g < WT_GROUPS; g++) v += w->acc32[(int64_t)g * n + i];
+            sum[i] = v;
         }
-        prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
+    else
+        for (int64_t i = i0; i < i1; i++) { /* wt_vec_sum_groups, groups in order */
+            double v = w->acc[i];
+            for (int g = 1; g < WT_GROUPS; g++) v += w->acc[(int64_t)g * n + i];
+            sum[i] = v;
+        }
+    if (cx && t->full_prior)
+        for (int64_t i = i0; i < i1; i++) sum[i] += w->pphi[i];
+    if (f32 && t->any64) ngs_adjoint(t, w->weighted, i0, i1, sum + i0); /* the fp32 operator's NGS, in double */
+    if (!t->space) {
+#pragma omp barrier
+        for (int l = 0; l < t->L; l++) {
+            if (owner_of(t, l, nt) != id) continue;
+            const int64_t a = t->off[l], b = t->off[l + 1];
+            wt_wavelet_forward(t->wav[l], w->phi + a, c + a, w->wwork + (size_t)id * t->wsize);
+            if (cx && !t->full_prior)
+                for (int64_t i = a; i < b; i++) c[i] += t->alpha_d[i] * cx[i];
+        }
     }
+    prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_LAYERS, id, b0);
 }
 
 static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *s, const double *cx,
@@ -986,27 +982,25 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
  * layers' stage adds up in double; the NGS's in double through their explicit term (ngs_explicit): Gᵀ φ as one
  * more task of the forward, Ĉ⁻¹ in the groups' stage, G w in the layers' stage's sum (layers_dwt says why). */
 
-/* slopes32 = Γ P phi32 for every LGS, the NGS's slopes Gᵀ phi32 into w->slopes; with pphi (the full prior) also pphi = α C_φ⁻¹ φ per layer, first (as
- * forward_slopes_prior) */
+/* slopes32 = Γ P phi32 for every LGS, the NGS's slopes Gᵀ phi32 into w->slopes; with pphi (the full prior) also
+ * pphi = α C_φ⁻¹ φ per layer, first (as forward_slopes_prior) */
 static void forward_f32_team(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi, int id,
                              int nt)
 {
-    {
-        const double b0 = prof_t0(w);
-        for (int k = 0; pphi && k < t->L; k++) {
-            const int l = t->by_size[k];
-            if (owner_of(t, l, nt) == id)
-                wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], pphi + t->off[l],
-                                    w->pwork + (size_t)id * t->pwsize);
-        }
-#pragma omp for schedule(dynamic, 1) nowait
-        for (int m = 0; m <= t->S; m++) /* the LGS, then (m = S) the NGS term's Gᵀ φ into the double slopes */
-            if (m == t->S) {
-                if (t->any64) ngs_forward(t, w->phi32, w->slopes);
-            } else if (t->s32[m])
-                wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
-        prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
+    const double b0 = prof_t0(w);
+    for (int k = 0; pphi && k < t->L; k++) {
+        const int l = t->by_size[k];
+        if (owner_of(t, l, nt) == id)
+            wt_prior_apply_full(t->prior[l], t->alpha, phi + t->off[l], pphi + t->off[l],
+                                w->pwork + (size_t)id * t->pwsize);
     }
+#pragma omp for schedule(dynamic, 1) nowait
+    for (int m = 0; m <= t->S; m++) /* the LGS, then (m = S) the NGS term's Gᵀ φ into the double slopes */
+        if (m == t->S) {
+            if (t->any64) ngs_forward(t, w->phi32, w->slopes);
+        } else if (t->s32[m])
+            wt_sensor_stack_set_sensor_f32(&t->stack, m, 1.0f, w->phi32, w->slopes32, w->phase32 + (size_t)m * t->ncg);
+    prof_busy(t, w, WT_TOMO_STAGE_FORWARD, id, b0);
 }
 
 /* The fp32 operator's first two stages in one parallel region (a region's start and end cost ~3 µs on this host,
