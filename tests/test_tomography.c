@@ -1082,6 +1082,62 @@ START_TEST(test_single_precision_ngs_term)
 }
 END_TEST
 
+/* Threads from 16384 unknowns or 8192 slopes: the 42 × 42 E-ELT geometry (6144 unknowns, 15516 slopes) runs on the
+ * context's two threads, the demo (2304 unknowns, 1548 slopes) on one; M c and a 4-iteration solve have the same
+ * bits on one and two threads. */
+START_TEST(test_threads_for_slopes)
+{
+    double *ref[2] = {NULL, NULL};
+    int64_t n = 0;
+    for (int th = 1; th <= 2; th++) {
+        fixture f;
+        f.ctx = tu_context();
+        wt_context_set_threads(f.ctx, th);
+        ck_assert_msg(wt_config_read(f.ctx, "data/presets/eelt-mcao-nea20-42.cfg", 0, NULL, &f.cfg) == WT_OK, "%s",
+                      wt_error_message(f.ctx));
+        ck_assert_msg(wt_system_alloc(f.ctx, f.cfg, &f.sys) == WT_OK, "%s", wt_error_message(f.ctx));
+        wt_tomography_params tp;
+        wt_tomography_params_from_config(f.cfg, &tp);
+        ck_assert_int_eq(wt_tomography_alloc(f.ctx, f.sys, &f.cfg->pcg3, "pcg3", &tp, &f.t), WT_OK);
+        const wt_precond_params pp = wt_precond_params_from_variant(&f.cfg->pcg3);
+        ck_assert_int_eq(wt_precond_alloc(f.ctx, f.t, &pp, &f.p), WT_OK);
+        n = wt_tomography_nunknowns(f.t);
+        ck_assert_int_lt(n, 16384);
+        ck_assert_int_ge(f.sys->nslopes, 8192);
+        ck_assert_int_eq(wt_tomography_threads(f.t), th);
+        double *c = malloc(n * sizeof *c), *s = malloc(f.sys->nslopes * sizeof *s);
+        for (int k = 0; k < 2; k++) ref[k] = th == 1 ? calloc(n, sizeof *ref[k]) : ref[k];
+        double *y = th == 1 ? ref[0] : calloc(n, sizeof *y), *x = th == 1 ? ref[1] : calloc(n, sizeof *x);
+        tu_randn(c, n, 61);
+        for (int64_t i = 0; i < n; i++) c[i] *= 1e-7;
+        tu_tomo_apply(f.t, c, y);
+        tu_randn(s, f.sys->nslopes, 62);
+        for (int64_t i = 0; i < f.sys->nslopes; i++) s[i] *= 1e-6;
+        ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, x, 4, 0.0, NULL, NULL), WT_OK);
+        if (th == 2) {
+            ck_assert_int_eq(memcmp(y, ref[0], n * sizeof *y), 0);
+            ck_assert_int_eq(memcmp(x, ref[1], n * sizeof *x), 0);
+            free(y), free(x);
+        }
+        free(c), free(s);
+        teardown(&f);
+    }
+    free(ref[0]), free(ref[1]);
+    fixture d; /* the demo: one thread on a two-thread context */
+    d.ctx = tu_context();
+    wt_context_set_threads(d.ctx, 2);
+    ck_assert_int_eq(wt_config_read(d.ctx, DEMO, 0, NULL, &d.cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(d.ctx, d.cfg, &d.sys), WT_OK);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(d.cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(d.ctx, d.sys, &d.cfg->pcg3, "pcg3", &tp, &d.t), WT_OK);
+    d.p = NULL;
+    ck_assert_int_lt(d.sys->nslopes, 8192);
+    ck_assert_int_eq(wt_tomography_threads(d.t), 1);
+    teardown(&d);
+}
+END_TEST
+
 START_TEST(test_profile_counts_stages)
 {
     fixture f;
@@ -1258,6 +1314,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_profile_counts_stages);
     tcase_add_test(tc, test_single_precision_operator);
     tcase_add_test(tc, test_single_precision_ngs_term);
+    tcase_add_test(tc, test_threads_for_slopes);
     suite_add_tcase(s, tc);
     return s;
 }
