@@ -639,34 +639,7 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
                 continue;
             }
             const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
-            /* Neighbouring points share stencil columns; scattering each point straight into the layer
-             * would chain every update through the previous store. Instead the row's 1-D transpose is
-             * accumulated in registers for the current column pair (jc, jc + 1), and a column is written
-             * out once it has been left behind. */
-            int32_t jc = cb[lo];
-            double s0 = 0.0, s1 = 0.0;
-            for (int ix = lo; ix < hi; ix++) {
-                const int32_t j = cb[ix];
-                if (j != jc) {
-                    r0[jc] += a0 * s0;
-                    r1[jc] += a1 * s0;
-                    if (j == jc + 1) {
-                        s0 = s1;
-                    } else {
-                        r0[jc + 1] += a0 * s1;
-                        r1[jc + 1] += a1 * s1;
-                        s0 = 0.0;
-                    }
-                    s1 = 0.0;
-                    jc = j;
-                }
-                s0 += w0[ix] * y[ix];
-                s1 += w1[ix] * y[ix];
-            }
-            r0[jc] += a0 * s0;
-            r1[jc] += a1 * s0;
-            r0[jc + 1] += a0 * s1;
-            r1[jc + 1] += a1 * s1;
+            WT_PROJ_T_PAIRS(double, lo, hi); /* (runs are never empty) */
         }
     }
 }

@@ -84,9 +84,6 @@ WT_F32_SCALAR static void apply_scalar(const wt_projection *p, float alpha, cons
         }
 }
 
-/* One layer's Pᵀ on points [ix, hi) of one run: as projection.c's apply_t, the sums of the current column pair
- * (jc, jc + 1) in registers and a column written once the run has left it (scattering every point would chain each
- * update through the previous store) */
 /* The identity stencil's Pᵀ: contiguous, vectorised (scalar, a store and a load 4 KiB apart, as the workspace's
  * page-aligned arrays are, falsely wait on each other: ×8 slower) */
 WT_CPU_CLONES static void aligned_run(float a0, const float *restrict y, int n, float *restrict r)
@@ -94,6 +91,8 @@ WT_CPU_CLONES static void aligned_run(float a0, const float *restrict y, int n, 
     for (int i = 0; i < n; i++) r[i] += a0 * y[i];
 }
 
+/* One layer's Pᵀ on points [ix, hi) of one run: the identity stencil's contiguous form, or projection.c's column
+ * pairs (WT_PROJ_T_PAIRS) */
 static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, float *restrict r0, float *restrict r1,
                                                               const float *restrict y, int ix, int hi)
 {
@@ -108,30 +107,7 @@ static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, 
             for (float *restrict r = r0 + cb[ix] - ix; ix < hi; ix++) r[ix] += a0 * y[ix];
         return;
     }
-    int32_t jc = cb[ix];
-    float s0 = 0.0f, s1 = 0.0f;
-    for (; ix < hi; ix++) {
-        const int32_t j = cb[ix];
-        if (j != jc) {
-            r0[jc] += a0 * s0;
-            r1[jc] += a1 * s0;
-            if (j == jc + 1) {
-                s0 = s1;
-            } else {
-                r0[jc + 1] += a0 * s1;
-                r1[jc + 1] += a1 * s1;
-                s0 = 0.0f;
-            }
-            s1 = 0.0f;
-            jc = j;
-        }
-        s0 += w0[ix] * y[ix];
-        s1 += w1[ix] * y[ix];
-    }
-    r0[jc] += a0 * s0;
-    r1[jc] += a1 * s0;
-    r0[jc + 1] += a0 * s1;
-    r1[jc + 1] += a1 * s1;
+    WT_PROJ_T_PAIRS(float, ix, hi);
 }
 
 WT_F32_SCALAR static void apply_t_scalar(const wt_projection *p, float alpha, const float *restrict points,

@@ -598,6 +598,24 @@ void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const dou
     }
 }
 
+/* Fried's transpose in gather form, in REAL (wt_shack_hartmann_apply_t and its _f32 form): corner i of a run's
+ * bottom row takes −(s_x + s_y) from the cell to its right and (s_x − s_y) from the cell to its left; the top row
+ * (s_y − s_x) and (s_x + s_y). Reads s, a (α / 2d), nc, nsub, slopes of the caller's scope; adds into phase. */
+#define WT_FRIED_GATHER_T(REAL)                                                                                   \
+    for (int32_t r = 0; r < s->nrun; r++) {                                                                        \
+        REAL *restrict b = phase + s->run_corner[r], *restrict t = b + nc;                                         \
+        const REAL *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;                                  \
+        const int len = s->run_len[r];                                                                             \
+        b[0] -= a * (sx[0] + sy[0]);                                                                               \
+        t[0] += a * (sy[0] - sx[0]);                                                                               \
+        for (int i = 1; i < len; i++) {                                                                            \
+            b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));                                               \
+            t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));                                               \
+        }                                                                                                          \
+        b[len] += a * (sx[len - 1] - sy[len - 1]);                                                                 \
+        t[len] += a * (sx[len - 1] + sy[len - 1]);                                                                 \
+    }
+
 WT_CPU_CLONES
 void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const double *restrict slopes,
                                double *restrict phase)
@@ -610,19 +628,7 @@ void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const d
          * update through the previous cell's store and lets the loop vectorise. */
         const int nc = s->n + 1;
         const double a = alpha / (2.0 * s->d);
-        for (int32_t r = 0; r < s->nrun; r++) {
-            double *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
-            const double *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
-            const int len = s->run_len[r];
-            b[0] -= a * (sx[0] + sy[0]);
-            t[0] += a * (sy[0] - sx[0]);
-            for (int i = 1; i < len; i++) {
-                b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));
-                t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));
-            }
-            b[len] += a * (sx[len - 1] - sy[len - 1]);
-            t[len] += a * (sx[len - 1] + sy[len - 1]);
-        }
+        WT_FRIED_GATHER_T(double);
         return;
     }
     if (s->quad_u) {
@@ -712,19 +718,7 @@ void wt_shack_hartmann_apply_t_f32(const wt_shack_hartmann *s, float alpha, cons
     if (s->m == 0) {
         /* the gather form of the double apply_t */
         const float a = (float)(alpha / (2.0 * s->d));
-        for (int32_t r = 0; r < s->nrun; r++) {
-            float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
-            const float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
-            const int len = s->run_len[r];
-            b[0] -= a * (sx[0] + sy[0]);
-            t[0] += a * (sy[0] - sx[0]);
-            for (int i = 1; i < len; i++) {
-                b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));
-                t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));
-            }
-            b[len] += a * (sx[len - 1] - sy[len - 1]);
-            t[len] += a * (sx[len - 1] + sy[len - 1]);
-        }
+        WT_FRIED_GATHER_T(float);
         return;
     }
     if (s->quad_u32) {
