@@ -14,6 +14,7 @@
 #include "core/sim/record.h"
 #include "core/sim/compare.h"
 #include "core/sim/psf.h"
+#include "core/model/sensing.h"
 
 static void help(void)
 {
@@ -52,6 +53,36 @@ typedef struct {
     long frames, iters;
     int dump, nonoise;
 } sim_args;
+
+/* The diffractive LGS centroiders' in-loop gain (core/model/sensing.h) over the averaged frames: mean over
+ * the LGS, printed, and per sensor in the result file. */
+static int inloop_gain(wt_h5_writer *w, const wt_system *sys, int print)
+{
+    double g[2][WT_MAX_GS], mean[2] = {0, 0};
+    int n = 0, st = WT_OK;
+    long frames = 0;
+    for (int i = 0; i < sys->nsensors; i++) {
+        const wt_sensor *s = &sys->sensors[i];
+        if (!s->diffr || s->kind != WT_SENSOR_LGS || n >= WT_MAX_GS) continue;
+        wt_sensing_gain_in_loop(s->diffr, &g[0][n], &g[1][n], &frames);
+        mean[0] += g[0][n], mean[1] += g[1][n], n++;
+    }
+    if (!n || frames < 1) return WT_OK;
+    if (w) {
+        const int64_t dim = n;
+        if ((st = wt_h5_write(w, "sensing/lgs_inloop_gain_along", WT_H5_F64, WT_H5_F64, 1, &dim, g[0], "",
+                              "per LGS: least-squares slope of the measured slopes on the true ones (the average "
+                              "gradient of the sampled OPD) along the elongation, over the averaged frames; 1 for a "
+                              "centroider whose reference is the spot it sees")) < 0 ||
+            (st = wt_h5_write(w, "sensing/lgs_inloop_gain_across", WT_H5_F64, WT_H5_F64, 1, &dim, g[1], "",
+                              "per LGS: the same across the elongation")) < 0)
+            return st;
+    }
+    if (print)
+        printf("  LGS centroider in-loop gain (measured / true slope, %ld frames, mean of %d LGS): along the "
+               "elongation %.3f, across %.3f\n", frames, n, mean[0] / n, mean[1] / n);
+    return st;
+}
 
 static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
@@ -174,6 +205,7 @@ int wt_cmd_sim(int argc, char **argv)
     if ((st = wt_h5_attr_write_string(w, "/", "recon", recon)) < 0) goto fail;
     if ((st = wt_sim_record_write(rec, w, lp, cfg->settle_frames)) < 0) goto fail;
     if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
+    if ((st = inloop_gain(w, sys, 0)) < 0) goto fail;
     if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
     if (psf && ((st = wt_psf_write(psf, w, "psf")) < 0 ||
                 (st = wt_h5_write_double(w, "timing/psf", tpsf / frames * 1e3, "ms",
@@ -216,6 +248,7 @@ int wt_cmd_sim(int argc, char **argv)
            run / frames * 1e3, frames / run, tm.atmosphere / frames * 1e3, tm.sensors / frames * 1e3,
            tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
            tm.evaluation / frames * 1e3, setup);
+    inloop_gain(NULL, sys, 1);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
     printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");
     goto cleanup;

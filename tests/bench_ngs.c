@@ -77,7 +77,7 @@ static int sensor_alloc(wt_context *ctx, int m, int np, int N, int Ns, int k, se
     p.pixel = 0.05 * AS, p.cells_per_pixel = k, p.photons = 500, p.read_noise = 5;
     if (wt_spot_alloc(ctx, &p, o->nsub, o->xc, o->yc, o->amp, lit, &o->s)) return 1;
     float *i0 = malloc(sizeof(float) * o->nsub * Ns * Ns * 3);
-    wt_spot_reference(o->s, 0, i0, i0 + o->nsub * Ns * Ns, i0 + 2 * o->nsub * Ns * Ns);
+    wt_spot_reference(o->s, 0, NULL, i0, i0 + o->nsub * Ns * Ns, i0 + 2 * o->nsub * Ns * Ns);
     wt_centroid_params cp = {.method = WT_CENTROID_TCOG, .threshold_noise = 3.0, .apply_gain = 1, .pixel = p.pixel,
                              .read_noise = 5};
     int st = wt_centroid_alloc(ctx, &cp, o->nsub, Ns, i0, i0 + o->nsub * Ns * Ns, i0 + 2 * o->nsub * Ns * Ns, &o->c);

@@ -857,7 +857,7 @@ START_TEST(test_reference)
             /* the diffractive sensor's keys without a unit (counts, switches, seeds, ratios) */
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
             !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&
-            !strstr(path, "_sha256")) {
+            !strstr(path, "_sha256") && !strstr(path, "reference_seeing")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];

@@ -123,6 +123,8 @@ typedef struct wt_config {
     double sodium_fwhm;              /* sodium layer thickness Δh_Na [m]; 0 = no elongation */
     double launch_radius;            /* side-launch radius [m], at the azimuth of its LGS */
     double lgs_tt_jitter;            /* random LGS tip-tilt per axis per frame [rad rms] */
+    int lgs_reference_seeing;        /* diffractive LGS reference: 0 none (flat wavefront), 1 tilt-removed sky seeing,
+                                        2 the same rendered on the simulation grid (core/optics/seeing.h) */
     double uplink_fwhm;              /* diffractive LGS: FWHM of the uplink (laser) spot on the sodium layer [rad] */
     char sodium_profile[1024];       /* diffractive LGS: the profile file as resolved (relative paths against the
                                         configuration file's directory); "" = Gaussian of sodium_fwhm */

@@ -881,6 +881,13 @@ static int affects_matrix(const pstate *ps, const char *path)
                 on |= config_setting_get_bool(ps->set[k]);
         return on;
     }
+    /* a diffractive LGS reference "rendered" on the simulation grid takes the grid's spacing */
+    if (!strcmp(path, "sim.points_per_subaperture")) {
+        const int km = find_key("lgs.wfs.model"), kr = find_key("lgs.wfs.reference_seeing");
+        const char *m = km >= 0 && ps->set[km] ? config_setting_get_string(ps->set[km]) : NULL;
+        const char *r = kr >= 0 && ps->set[kr] ? config_setting_get_string(ps->set[kr]) : NULL;
+        return m && r && !strcmp(m, "diffractive") && !strcmp(r, "rendered");
+    }
     /* a diffractive tCoG is calibrated at the operating noise when the simulation has noise (its reference
      * and gain, so its covariance: core/optics/centroid.h), so sim.noise shapes the noise model then */
     if (!strcmp(path, "sim.noise")) {
@@ -904,7 +911,7 @@ static int affects_matrix(const pstate *ps, const char *path)
         const int kh = find_key("lgs.sodium_profile_sha256");
         if (kh >= 0 && ps->set[kh]) return 0;
     }
-    const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.sodium_profile") ||
+    const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.wfs.reference_seeing") || !strcmp(path, "lgs.sodium_profile") ||
                          !strcmp(path, "lgs.sodium_profile_sha256");
     for (size_t i = 0; i < sizeof diffr / sizeof *diffr && !lgs_only; i++)
         if ((!strncmp(path, "lgs.wfs.", 8) || !strncmp(path, "ngs.wfs.", 8)) && strstr(path, diffr[i]))

@@ -183,6 +183,16 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"lgs.uplink_fwhm_arcsec", K_FLOAT, F_DEFAULT, 0.0, 100.0, "arcsec", ARCSEC, CF(uplink_fwhm), NOCOUNT, 0, 0, NULL, 1.0,
      "diffractive LGS: FWHM of the Gaussian uplink (laser) spot on the sodium layer, convolved with the sodium "
      "line (optional, default 1)"},
+    {"lgs.wfs.reference_seeing", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lgs_reference_seeing), NOCOUNT, 0, 0,
+     "none|tilt_removed|rendered", 1,
+     "diffractive LGS: the seeing in the centroider's reference I0 and its derivatives (so in the matched "
+     "filter and the reconstructor's noise covariance): tilt_removed = the mean short-exposure spot under the "
+     "atmosphere's r0 and L0 at the sensing wavelength with each subaperture's tilt removed (the spot a "
+     "sensor sees in the loop on the sky); rendered = the same seeing as the simulation renders it, on screens "
+     "of the simulation grid's spacing (sim.points_per_subaperture) read by bilinear interpolation, which hold "
+     "less of the finest turbulence: the spot the simulated sensor sees (core/optics/seeing.h); none = the "
+     "diffraction-limited spot of a flat wavefront (a matched filter whose in-loop gain is below 1 and whose "
+     "covariance is optimistic) (optional, default tilt_removed)"},
     {"lgs.sodium_profile", K_STR, F_OPT, 0, 0, "", 1, CF(sodium_profile), NOCOUNT, 0, 0, NULL, 0,
      "diffractive LGS: sodium density profile file, two columns \"altitude_m density\" (altitude above the "
      "telescope), relative to the configuration file's directory like @include (shipped: "

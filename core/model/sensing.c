@@ -13,6 +13,12 @@
 #include "../optics/sodium.h"
 #include "../optics/spot.h"
 
+#ifdef _OPENMP
+#include <omp.h>
+#else
+#define omp_in_parallel() 1
+#endif
+
 static int cmp_double(const void *a, const void *b)
 {
     const double x = *(const double *)a, y = *(const double *)b;
@@ -49,6 +55,14 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     ws->ns = w->pixels;
     ws->side = g->side;
     ws->pixel = w->pixel;
+    ws->launch_x = g->launch_x;
+    ws->launch_y = g->launch_y;
+    ws->seeing = g->lgs && cfg->lgs_reference_seeing > 0;
+    /* "rendered": the phase as the simulation renders it, on screens of the simulation grid's spacing
+     * read by bilinear interpolation (seeing.h); "tilt_removed": the sky's */
+    ws->seeing_grid = cfg->lgs_reference_seeing == 2 ? g->side / cfg->points_per_subaperture : 0.0;
+    ws->r0 = cfg->r0;
+    ws->L0 = cfg->L0;
     const int nsub = g->nsub, np = ws->np, ns = ws->ns;
     const size_t nsamp = (size_t)nsub * np * np, npix = (size_t)nsub * ns * ns;
 
@@ -131,7 +145,10 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     WT_ALLOC(ctx, dix, npix, "reference derivatives");
     WT_ALLOC(ctx, diy, npix, "reference derivatives");
     WT_ALLOC(ctx, ws->trunc, nsub, "truncations");
-    WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->i0, dix, diy));
+    {
+        const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
+        WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, ws->i0, dix, diy));
+    }
     wt_spot_truncation(ws->spot, ws->i0, ws->trunc);
     for (int k = 0; k < nsub; k++)
         if (ws->trunc[k] > ws->worst_trunc) ws->worst_trunc = ws->trunc[k], ws->worst_sub = k;
@@ -279,12 +296,65 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
     }
 }
 
+/* The elongation's unit vector of subaperture k: from the launch position (LGS), else x */
+static void direction(const wt_sensing *ws, int k, double *ex, double *ey)
+{
+    const double dx = ws->xc[k] - ws->launch_x, dy = ws->yc[k] - ws->launch_y, r = hypot(dx, dy);
+    if (ws->lgs && r > 1e-9) *ex = dx / r, *ey = dy / r;
+    else *ex = 1.0, *ey = 0.0;
+}
+
+/* the sums of wt_sensing_gain_in_loop for this frame's slopes */
+static void gain_accumulate(wt_sensing *ws, const double *slopes)
+{
+    const int np = ws->np, nsub = ws->nsub;
+    const double dx = ws->side / np;
+    double sum[4] = {0};
+#pragma omp parallel for schedule(static) reduction(+ : sum[:4]) if (nsub > 256 && !omp_in_parallel())
+    for (int k = 0; k < nsub; k++) {
+        const float *a = ws->amp + (size_t)k * np * np, *o = ws->opd + (size_t)k * np * np;
+        double gx = 0, wx = 0, gy = 0, wy = 0;
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++) {
+                const int p = i + np * j;
+                if (i + 1 < np) {
+                    const double w = (double)a[p] * a[p + 1];
+                    gx += w * ((double)o[p + 1] - o[p]), wx += w;
+                }
+                if (j + 1 < np) {
+                    const double w = (double)a[p] * a[p + np];
+                    gy += w * ((double)o[p + np] - o[p]), wy += w;
+                }
+            }
+        if (!(wx > 0 && wy > 0)) continue;
+        gx /= wx * dx, gy /= wy * dx;
+        double ex, ey;
+        direction(ws, k, &ex, &ey);
+        const double sx = slopes[k], sy = slopes[nsub + k];
+        const double gp = ex * gx + ey * gy, sp = ex * sx + ey * sy, gq = -ey * gx + ex * gy, sq = -ey * sx + ex * sy;
+        sum[0] += sp * gp, sum[1] += gp * gp, sum[2] += sq * gq, sum[3] += gq * gq;
+    }
+    for (int i = 0; i < 4; i++) ws->gain_sum[i] += sum[i];
+    ws->gain_sum[4] += 1.0;
+}
+
+void wt_sensing_gain_reset(wt_sensing *ws) { memset(ws->gain_sum, 0, sizeof ws->gain_sum); }
+
+void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across, long *frames)
+{
+    const double *g = ws->gain_sum;
+    *along = g[1] > 0 ? g[0] / g[1] : NAN;
+    *across = g[3] > 0 ? g[2] / g[3] : NAN;
+    *frames = (long)g[4];
+}
+
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes)
 {
     int st = wt_spot_image(ws->spot, ws->opd, ws->img);
     if (st < 0) return st;
     if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
+    gain_accumulate(ws, slopes);
     return WT_OK;
 }
 
@@ -320,7 +390,8 @@ int wt_sensing_gain_along(const wt_sensing *ws, int cog, double lx, double ly, d
         const size_t npix = (size_t)nsub * ns * ns;
         WT_ALLOC(ctx, dix, npix, "reference derivatives");
         WT_ALLOC(ctx, diy, npix, "reference derivatives");
-        WT_TRY(wt_spot_reference(ws->spot, 0.0, NULL, dix, diy));
+        const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
+        WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, NULL, dix, diy));
         wt_centroid_params cp = {.method = WT_CENTROID_COG, .pixel = ws->pixel};
         WT_TRY(wt_centroid_alloc(ctx, &cp, nsub, ns, ws->i0, dix, diy, &tmp));
         c = tmp;

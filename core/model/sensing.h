@@ -57,6 +57,9 @@ typedef struct wt_sensing {
     int lgs, nsub, np, ns;
     double side;
     double pixel;              /* detector pixel p [rad] */
+    int seeing;                /* 1: the reference carries the tilt-removed seeing of r0, L0 (LGS only) */
+    double r0, L0;             /* that seeing's Fried parameter at 500 nm and outer scale [m] */
+    double seeing_grid;        /* the simulation grid that renders it [m]; 0: the sky's (unlimited) spectrum */
     wt_spot *spot;             /* owned */
     wt_centroid *cen;          /* owned */
     double *xc, *yc;           /* [nsub] centres [m] */
@@ -70,6 +73,8 @@ typedef struct wt_sensing {
     double worst_trunc;        /* max of trunc */
     int worst_sub;             /* its subaperture */
     double setup_seconds;      /* wall time of the set-up */
+    double launch_x, launch_y; /* LGS launch position [m] (the elongation's direction) */
+    double gain_sum[5];        /* in-loop gain sums since the last reset: Σ s∥g∥, Σ g∥², Σ s⊥g⊥, Σ g⊥², frames */
     float *opd;                /* [nsub n_p²] per-frame OPD on the samples [m] */
     float *img;                /* [nsub Ns²] per-frame images */
 } wt_sensing;
@@ -91,6 +96,17 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
 /* Images of the sampled OPD, with noise when `noise` (subaperture s from WT_SPOT_STREAM(base_stream, s) of
  * seed), through the centroider: slopes[2 nsub] [rad] ([s_x…, s_y…]). Outside parallel regions only. */
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
+/* The centroider's in-loop gain: every wt_sensing_detect compares each lit subaperture's slope s with the
+ * true slope g of the OPD it sampled (the average gradient over the lit samples, amplitude-weighted finite
+ * differences: the shift of the spot's centroid), both resolved along e_k (the unit vector from the launch
+ * position to the subaperture, the elongation; x for an NGS) and across it; the gain is the least-squares
+ * slope of s on g over subapertures and frames, Σ s g / Σ g² (noise in s, independent of g, leaves it
+ * unbiased). A matched filter whose reference is the spot it sees has gain 1; a reference narrower than
+ * the in-loop spot gives less. Reset (the loop: at its settle frame) and read: */
+void wt_sensing_gain_reset(wt_sensing *ws);
+/* *along, *across: the gains (NaN when no true slope was seen); *frames: the frames accumulated. */
+void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across, long *frames);
+
 /* Bytes the sensor holds: spot tables and workspaces, centroider, reference images, per-frame buffers. */
 size_t wt_sensing_memory(const wt_sensing *ws);
 

@@ -2,9 +2,9 @@
  *
  * A profile is a table of altitudes h_i [m] (strictly increasing) and relative densities n_i ≥ 0 (not all
  * zero), read as the piecewise-linear function through those points, zero outside [h_0, h_{n-1}].
- * Every moment below is exact for that function. The spot model (core/optics/spot.h) spreads each
- * altitude h at the angle (r − l)(h − H)/H² (SPEC §4b), so the spot's centroid sits at
- * (r − l)(h̄ − H)/H² (h̄ = wt_sodium_centroid) and its length along (r − l) is |r − l|·FWHM/H².
+ * Every moment below is exact for that function. The spot model (core/optics/spot.h) puts each
+ * altitude h at β(h) = (r − l)(1/h − 1/H) on the detector (SPEC §4b; to first order the spot's centroid
+ * sits at (r − l)(H − h̄)/H², h̄ = wt_sodium_centroid, and its length along (r − l) is |r − l|·FWHM/H²).
  *
  * Text format (wt_sodium_read): one "altitude_m density" pair per line, whitespace separated; blank
  * lines and everything after '#' are ignored. Refused, with the file and line: a missing or unreadable

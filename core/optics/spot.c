@@ -4,6 +4,8 @@
  * are in spot.h. */
 #include "spot.h"
 
+#include "seeing.h"
+
 #include <fftw3.h>
 #include <math.h>
 #include <string.h>
@@ -12,6 +14,13 @@
 #endif
 
 #define ALIGN 64
+/* What the loop removes from a subaperture's phase in the reference's seeing: piston and tilt, the tilt
+ * being the G-tilt (the spot's centroid shift, the slope the reconstructor models and the loop drives to
+ * zero), so the reference is the mean spot re-centred on its centroid. With the Z-tilt (least-squares
+ * plane) removed instead, the mean spot also holds the G − Z jitter and is wider than the loop's: the
+ * matched filter's in-loop gain was 1.04–1.05 on the demo and the E-ELT presets, 0.97–0.99 with the G-tilt;
+ * removing the x·y term of a DM at the subaperture's pitch as well moved it by < 1 % (docs/results.md §32). */
+#define LOOP_GTILT 1
 #define RAD2AS (180.0 * 3600.0 / M_PI)
 /* output pixels per block of the direct sum in image_one: one row block is held in registers */
 #define SUM_W 16
@@ -49,6 +58,7 @@ struct wt_spot {
     float *gw;           /* [N·R] its weight */
     float *K;            /* [nsub · k² · Lp²] phase tables of the source ⊛ pixel kernel */
     fftwf_plan rows, cols;
+    fftwf_plan otf_fwd, otf_bwd; /* N × N complex, for the reference's seeing */
     workspace *ws;       /* [nthreads] */
 };
 
@@ -95,6 +105,8 @@ void wt_spot_free(wt_spot *s)
     wt_context *ctx = s->ctx;
     if (s->rows) fftwf_destroy_plan(s->rows);
     if (s->cols) fftwf_destroy_plan(s->cols);
+    if (s->otf_fwd) fftwf_destroy_plan(s->otf_fwd);
+    if (s->otf_bwd) fftwf_destroy_plan(s->otf_bwd);
     if (s->ws)
         for (int t = 0; t < s->nthreads; t++) wt_free(ctx, s->ws[t].block);
     wt_free(ctx, s->ws);
@@ -219,7 +231,7 @@ static void source_cells(const wt_spot *s, const wt_sodium *na, const gauss_tab 
         if (na) {
             h0 = na->alt[seg], h1 = na->alt[seg + 1], f0 = na->dens[seg], f1 = na->dens[seg + 1];
             if (f0 == 0 && f1 == 0) continue;
-            double span = ulen * (h1 - h0) / (H * H) / c; /* angular length of the segment [cells] */
+            double span = ulen * (1.0 / h0 - 1.0 / h1) / c; /* angular length of the segment [cells] */
             m = (int)fmin(ceil(span / step), 1e6);
             if (m < 1) m = 1;
         }
@@ -228,7 +240,7 @@ static void source_cells(const wt_spot *s, const wt_sodium *na, const gauss_tab 
             if (na) {
                 double t = (j + 0.5) / m, h = h0 + t * (h1 - h0);
                 w = (f0 + t * (f1 - f0)) * (h1 - h0) / m / mass; /* midpoint rule: exact mass of a linear piece */
-                bx = ux * (h - H) / (H * H) / c, by = uy * (h - H) / (H * H) / c;
+                bx = ux * (1.0 / h - 1.0 / H) / c, by = uy * (1.0 / h - 1.0 / H) / c;
             }
             if (w == 0) continue;
             /* local indices of the point in S */
@@ -412,7 +424,9 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
         int n[1] = {N};
         s->rows = fftwf_plan_many_dft(1, n, np, f, NULL, 1, N, f, NULL, 1, N, FFTW_FORWARD, FFTW_ESTIMATE);
         s->cols = fftwf_plan_many_dft(1, n, N, f, NULL, N, 1, f, NULL, N, 1, FFTW_FORWARD, FFTW_ESTIMATE);
-        if (!s->rows || !s->cols) {
+        s->otf_fwd = fftwf_plan_dft_2d(N, N, f, f, FFTW_FORWARD, FFTW_ESTIMATE);
+        s->otf_bwd = fftwf_plan_dft_2d(N, N, f, f, FFTW_BACKWARD, FFTW_ESTIMATE);
+        if (!s->rows || !s->cols || !s->otf_fwd || !s->otf_bwd) {
             st = WT_ERROR(ctx, WT_ERR_LIBRARY, "spot: fftwf_plan_many_dft(%d) returned NULL", N);
             goto fail;
         }
@@ -428,7 +442,8 @@ fail:
 
 /* One subaperture: OPD (float or double, one of them non-NULL; or the workspace's double array) → image. */
 WT_CPU_CLONES
-static void image_one(const wt_spot *s, int is, const float *opdf, const double *opdd, workspace *w, float *img)
+static void image_one(const wt_spot *s, int is, const float *opdf, const double *opdd, const float *otf, workspace *w,
+                      float *img)
 {
     const int np = s->np, N = s->N, Ns = s->Ns, M = s->M, k = s->k, Lp = s->Lp, R = s->R;
     memset(img, 0, (size_t)Ns * Ns * sizeof *img);
@@ -453,6 +468,17 @@ static void image_one(const wt_spot *s, int is, const float *opdf, const double 
         }
     fftwf_execute_dft(s->rows, F, F);
     fftwf_execute_dft(s->cols, F, F);
+    if (otf) {
+        /* the mean seeing (seeing.h): |F|² is the DFT of the field's autocorrelation; its lag-u term is
+         * multiplied by W(u) (real, even: the result stays real), then transformed back */
+        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = F[q][0] * F[q][0] + F[q][1] * F[q][1], F[q][1] = 0.0f;
+        fftwf_execute_dft(s->otf_bwd, F, F);
+        const float inv = 1.0f / ((float)N * N);
+        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] *= otf[q] * inv, F[q][1] *= otf[q] * inv;
+        fftwf_execute_dft(s->otf_fwd, F, F);
+        /* the real part is the PSF; a magnitude with zero phase keeps the |·|² below */
+        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = sqrtf(fmaxf(F[q][0], 0.0f)), F[q][1] = 0.0f;
+    }
     /* PSF sample (i, j) at angle ((i − N/2)θ_f, (j − N/2)θ_f): frequency (i + N/2) mod N */
     float *P = w->psf;
     for (int j = 0; j < N; j++) {
@@ -545,7 +571,7 @@ static int images(const wt_spot *s, const float *opdf, const double *opdd, float
     const size_t n2 = (size_t)s->np * s->np, ns2 = (size_t)s->Ns * s->Ns;
 #pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
     for (int is = 0; is < s->nsub; is++)
-        image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, &s->ws[thread_id()],
+        image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, NULL, &s->ws[thread_id()],
                   img + is * ns2);
     return WT_OK;
 }
@@ -553,17 +579,44 @@ static int images(const wt_spot *s, const float *opdf, const double *opdd, float
 int wt_spot_image(const wt_spot *s, const float *opd, float *img) { return images(s, opd, NULL, img); }
 int wt_spot_image_d(const wt_spot *s, const double *opd, float *img) { return images(s, NULL, opd, img); }
 
-int wt_spot_reference(const wt_spot *s, double dtheta, float *i0, float *didx, float *didy)
+int wt_spot_reference(const wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx, float *didy)
 {
     if (!(dtheta > 0)) dtheta = s->par.wavelength / (20.0 * s->par.subap_side);
-    const int nth = s->nthreads, np = s->np, Ns = s->Ns;
-    const size_t ns2 = (size_t)Ns * Ns;
+    const int nth = s->nthreads, np = s->np, Ns = s->Ns, N = s->N;
+    const size_t ns2 = (size_t)Ns * Ns, n2 = (size_t)np * np, N2 = (size_t)N * N;
+    int st = WT_OK;
+    double *Dl = NULL, *work = NULL;
+    float *W = NULL, *W1 = NULL, *ones = NULL;
+    const size_t wk = wt_seeing_work_size(np);
+    if (see) {
+        /* one lag table for the sensor, W of a fully lit subaperture shared, W of the others per thread */
+        WT_ALLOC(s->ctx, Dl, n2, "seeing lag table");
+        WT_ALLOC(s->ctx, work, wk * nth, "seeing workspace");
+        WT_ALLOC(s->ctx, W, N2 * (nth + 1), "seeing OTFs");
+        WT_TRY(wt_seeing_lag_table(s->ctx, np, s->par.subap_side / np, s->par.wavelength, see->r0, see->L0, see->grid, Dl));
+        W1 = W + N2 * nth;
+        WT_ALLOC(s->ctx, ones, n2, "seeing amplitudes");
+        for (size_t q = 0; q < n2; q++) ones[q] = 1.0f;
+        wt_seeing_otf(np, LOOP_GTILT, Dl, ones, N, W1, work);
+    }
 #pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
     for (int is = 0; is < s->nsub; is++) {
-        workspace *w = &s->ws[thread_id()];
+        const int t = thread_id();
+        workspace *w = &s->ws[t];
+        const float *otf = NULL;
+        if (see) {
+            const float *A = s->amp + (size_t)is * n2;
+            int full = 1;
+            for (size_t q = 0; q < n2 && full; q++) full = A[q] == 1.0f;
+            if (full) otf = W1;
+            else {
+                wt_seeing_otf(np, LOOP_GTILT, Dl, A, N, W + N2 * t, work + wk * t);
+                otf = W + N2 * t;
+            }
+        }
         if (i0) {
-            memset(w->opd, 0, (size_t)np * np * sizeof *w->opd);
-            image_one(s, is, NULL, w->opd, w, i0 + is * ns2);
+            memset(w->opd, 0, n2 * sizeof *w->opd);
+            image_one(s, is, NULL, w->opd, otf, w, i0 + is * ns2);
         }
         for (int ax = 0; ax < 2; ax++) {
             float *D = ax ? didy : didx;
@@ -572,14 +625,19 @@ int wt_spot_reference(const wt_spot *s, double dtheta, float *i0, float *didx, f
             for (int sgn = -1; sgn <= 1; sgn += 2) {
                 for (int j = 0; j < np; j++)
                     for (int i = 0; i < np; i++) w->opd[i + np * j] = sgn * dtheta * (ax ? s->xs[j] : s->xs[i]);
-                image_one(s, is, NULL, w->opd, w, sgn < 0 ? w->img2 : D + is * ns2);
+                image_one(s, is, NULL, w->opd, otf, w, sgn < 0 ? w->img2 : D + is * ns2);
             }
             float *out = D + is * ns2;
             const float inv = (float)(0.5 / dtheta);
             for (size_t p = 0; p < ns2; p++) out[p] = (out[p] - w->img2[p]) * inv;
         }
     }
-    return WT_OK;
+fail:
+    wt_free(s->ctx, Dl);
+    wt_free(s->ctx, work);
+    wt_free(s->ctx, W);
+    wt_free(s->ctx, ones);
+    return st;
 }
 
 void wt_spot_truncation(const wt_spot *s, const float *img, double *trunc)

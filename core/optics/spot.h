@@ -5,7 +5,12 @@
  *   PSF(θ) = |FFT_forward(U)|² at θ = (k − N/2)·θ_f, θ_f = λ/(N dx) (Nyquist: θ_f ≤ λ/(2d) ⟺ N ≥ 2 n_p);
  *   image(P) = ∫_{pixel P} (PSF ⊛ S)(θ) dθ at the Ns × Ns pixel centres ((P − (Ns−1)/2)·p per axis),
  *   S the source kernel: δ for a point source; for an LGS the sodium line — each altitude h of the
- *   profile at β(h) = (r − l)(h − H)/H² — convolved with the uplink Gaussian (FWHM given);
+ *   profile at β(h) = (r − l)(1/h − 1/H) — convolved with the uplink Gaussian (FWHM given). β is the
+ *   gradient at r of the path length from the point (l, h) of the beam, |x − l|²/(2h), less that from
+ *   its focus (l, H): the spot of a point at h is where an OPD of that path-length difference moves it
+ *   (the sign below; tested against that OPD). On the sky the point is seen at the mirrored angle
+ *   (r − l)(1/H − 1/h) (SPEC §4b): the detector frame of wavetomo, in which an OPD tilt θ·x moves the
+ *   spot to +θ, is the image plane's, inverted; exact parallax, not its linearisation (r − l)(h − H)/H²;
  *   normalised so that the whole subaperture receives photons × lit fraction (before the detector's
  *   field truncates it); noisy frame = Poisson(I + B) + N(0, σe²) − B.
  * Sign: a tilt OPD = θ·x moves the spot to +x (forward FFT, exp(−2πi k·x/N)); tested.
@@ -104,10 +109,21 @@ int wt_spot_image_d(const wt_spot *s, const double *opd, float *img);
  * WT_SPOT_STREAM(base_stream, s) of seed. img must be noise-free (≥ 0). Allocates nothing. */
 int wt_spot_noise(const wt_spot *s, uint64_t seed, uint64_t base_stream, float *img);
 
-/* The noise-free reference I0 (flat wavefront) and its derivatives dI0/dθx, dI0/dθy [e-/rad] by central
- * differences of a tilt ±dtheta [rad] (≤ 0: λ/(20 d)) applied to the OPD; each [nsub·Ns²]; any may be NULL.
- * Allocates nothing. */
-int wt_spot_reference(const wt_spot *s, double dtheta, float *i0, float *didx, float *didy);
+/* The seeing the reference carries: the mean short-exposure, tilt-removed OTF of each subaperture
+ * (core/optics/seeing.h) for the atmosphere r0 (at 500 nm) [m], L0 [m]. */
+typedef struct wt_spot_seeing {
+    double r0; /* Fried parameter at 500 nm [m] */
+    double L0; /* outer scale [m] */
+    double grid; /* the spacing of a simulation grid that renders the phase [m] (seeing.h); 0: none (the sky) */
+} wt_spot_seeing;
+
+/* The noise-free reference I0 and its derivatives dI0/dθx, dI0/dθy [e-/rad] by central differences of a
+ * tilt ±dtheta [rad] (≤ 0: λ/(20 d)) applied to the OPD; each [nsub·Ns²]; any may be NULL. see = NULL: a
+ * flat wavefront (the diffraction-limited spot); otherwise the mean spot under that seeing (each image's
+ * autocorrelation multiplied by the subaperture's W(u): exact for the mean of |FFT|², seeing.h). Allocates
+ * its seeing tables (~n_p² + threads·(N² + 10 n_p²) numbers) and frees them. */
+int wt_spot_reference(const wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx,
+                      float *didy);
 
 /* trunc[s] = 1 − Σ_pixels img_s / (photons × lit_s): the fraction of the subaperture's flux outside the
  * detector field, for a noise-free image (0 for a dark subaperture). */

@@ -530,6 +530,10 @@ static int step_polc_instant(wt_loop *lp)
 
 int wt_loop_step(wt_loop *lp)
 {
+    /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
+    if (lp->t == lp->par.settle_frames)
+        for (int i = 0; i < lp->sys->nsensors; i++)
+            if (lp->sys->sensors[i].diffr) wt_sensing_gain_reset(lp->sys->sensors[i].diffr);
     if (lp->opt.open_loop == WT_LOOP_OPEN_POLC) return step_polc_instant(lp);
     if (lp->opt.open_loop) return step_open_loop(lp);
     const wt_system *sys = lp->sys;
