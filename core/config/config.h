@@ -14,7 +14,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#define WT_MAX_LAYERS 32
+#define WT_MAX_LAYERS 64 /* atmosphere and reconstruction layers: the ESO 35-layer profile with room */
 #define WT_MAX_GS 16
 #define WT_MAX_DMS 8
 #define WT_MAX_EVAL 225 /* 15 x 15 evaluation directions */
