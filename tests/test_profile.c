@@ -192,29 +192,48 @@ START_TEST(test_oracle_bit_identical)
 }
 END_TEST
 
+/* The demo under the oracle and under a given model (the overrides ov), on the oracle's system, with the
+ * reconstructors' parameters of each. */
+typedef struct pair {
+    wt_context *ctx;
+    wt_config *oracle, *given;
+    wt_system *sys;
+    wt_tomography_params a, b;
+} pair;
+
+static void pair_alloc(pair *p, int nov, const char *const *ov)
+{
+    p->ctx = tu_context();
+    p->oracle = demo_ok(p->ctx, 0, NULL);
+    p->given = demo_ok(p->ctx, nov, ov);
+    ck_assert_int_eq(p->given->model.source, WT_MODEL_GIVEN);
+    ck_assert_int_eq(wt_system_alloc(p->ctx, p->oracle, &p->sys), WT_OK);
+    wt_tomography_params_from_config(p->oracle, &p->a);
+    wt_tomography_params_from_config(p->given, &p->b);
+}
+
+static void pair_free(pair *p)
+{
+    wt_system_free(p->sys);
+    wt_config_free(p->ctx, p->oracle);
+    wt_config_free(p->ctx, p->given);
+    wt_context_free(p->ctx);
+}
+
 /* A given model with the truth's numbers is the oracle's model: the same reconstructor to the bit. */
 START_TEST(test_given_as_oracle)
 {
-    wt_context *ctx = tu_context();
     const char *ov[] = {"recon.atmosphere.source=\"given\"", "recon.atmosphere.r0_m=0.129", "recon.atmosphere.L0_m=25.0",
                         "recon.atmosphere.altitudes_m=[0.0, 600.0, 2000.0, 6000.0, 12000.0]",
                         "recon.atmosphere.cn2_fractions=[0.55, 0.1, 0.1, 0.15, 0.1]",
                         "recon.atmosphere.wind_speed_mps=[8.0, 10.0, 12.0, 18.0, 25.0]",
                         "recon.atmosphere.wind_direction_deg=[0.0, 72.0, 144.0, 216.0, 288.0]"};
-    wt_config *oracle = demo_ok(ctx, 0, NULL), *given = demo_ok(ctx, 7, ov);
-    ck_assert_int_eq(given->model.source, WT_MODEL_GIVEN);
-    wt_system *sys = NULL;
-    ck_assert_int_eq(wt_system_alloc(ctx, oracle, &sys), WT_OK);
-    wt_tomography_params a, b;
-    wt_tomography_params_from_config(oracle, &a);
-    wt_tomography_params_from_config(given, &b);
-    assert_same_tomography(ctx, sys, oracle, &a, &b, 0);
+    pair p;
+    pair_alloc(&p, 7, ov);
+    assert_same_tomography(p.ctx, p.sys, p.oracle, &p.a, &p.b, 0);
     /* the model's numbers, not its source, are its identity; but the keys differ, so the hashes do */
-    ck_assert_str_ne(oracle->matrix_sha256, given->matrix_sha256);
-    wt_system_free(sys);
-    wt_config_free(ctx, oracle);
-    wt_config_free(ctx, given);
-    wt_context_free(ctx);
+    ck_assert_str_ne(p.oracle->matrix_sha256, p.given->matrix_sha256);
+    pair_free(&p);
 }
 END_TEST
 
@@ -222,17 +241,16 @@ END_TEST
 
 START_TEST(test_given_reaches_prior)
 {
-    wt_context *ctx = tu_context();
     /* a wrong profile: 90 % at the ground, the rest at 9 km; r0 half the truth's */
     const char *ov[] = {"recon.atmosphere.source=\"given\"", "recon.atmosphere.r0_m=0.0645", "recon.atmosphere.L0_m=25.0",
                         "recon.atmosphere.altitudes_m=[0.0, 9000.0]", "recon.atmosphere.cn2_fractions=[0.9, 0.1]",
                         "recon.atmosphere.wind_speed_mps=[5.0, 30.0]", "recon.atmosphere.wind_direction_deg=[0.0, 90.0]"};
-    wt_config *oracle = demo_ok(ctx, 0, NULL), *given = demo_ok(ctx, 7, ov);
-    wt_system *sys = NULL;
-    ck_assert_int_eq(wt_system_alloc(ctx, oracle, &sys), WT_OK);
-    wt_tomography_params a, b;
-    wt_tomography_params_from_config(oracle, &a);
-    wt_tomography_params_from_config(given, &b);
+    pair p;
+    pair_alloc(&p, 7, ov);
+    wt_context *ctx = p.ctx;
+    const wt_config *given = p.given;
+    const wt_system *sys = p.sys;
+    const wt_tomography_params a = p.a, b = p.b;
     ck_assert(b.r0 == 0.0645 && b.natm == 2);
     for (int v = 0; v < 2; v++) {
         const wt_recon_variant_config *var = v ? &given->cg9 : &given->pcg3;
@@ -257,10 +275,7 @@ START_TEST(test_given_reaches_prior)
         wt_tomography_free(ta);
         wt_tomography_free(tb);
     }
-    wt_system_free(sys);
-    wt_config_free(ctx, oracle);
-    wt_config_free(ctx, given);
-    wt_context_free(ctx);
+    pair_free(&p);
 }
 END_TEST
 

@@ -54,10 +54,10 @@ const char *wt_config_priv_fmt_num(double v, char *buf, size_t n);
 /* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
 void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n);
 
-/* ---------------------------------------------------------------- config_read.c: the parse state */
+/* ---------------------------------------------------------------- config_state.c: the parse state */
 
 /* What reading one configuration knows besides wt_config: the libconfig tree, the overrides, where each key was
- * set (config_read.c; config_atmosphere.c reads and extends the same tree). */
+ * set (config_read.c fills it; config_atmosphere.c reads and extends the same tree). */
 typedef struct wt_config_priv_state {
     wt_context *ctx;
     const char *name;
@@ -75,6 +75,8 @@ int wt_config_priv_find_key(const char *path);
 /* WT_ERR_CONFIG with the message "LOC: text". */
 int wt_config_priv_fail(wt_config_priv_state *ps, const char *loc, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+/* "FILE:LINE" of line `line` of the text libconfig read (an included file names itself); returns buf. */
+const char *wt_config_priv_src_line(const wt_config_priv_state *ps, int line, char *buf, size_t n);
 /* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent; returns buf. */
 const char *wt_config_priv_where(const wt_config_priv_state *ps, int k, const config_setting_t *s, char *buf, size_t n);
 /* The same for element i of key k's list (i < 0: the key). */

@@ -100,13 +100,6 @@ static const char *syntax_hint(const char *e)
 
 /* ---------------------------------------------------------------- names and suggestions */
 
-int wt_config_priv_find_key(const char *path)
-{
-    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
-        if (!strcmp(wt_config_priv_keys[k].path, path)) return k;
-    return -1;
-}
-
 /* A group path is a proper prefix of some key up to a dot. */
 static int is_group_path(const char *path)
 {
@@ -175,36 +168,6 @@ static void suggest(const char *path, char *buf, size_t n)
 
 typedef wt_config_priv_state pstate;
 
-int wt_config_priv_fail(pstate *ps, const char *loc, const char *fmt, ...)
-{
-    char msg[1536];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    return WT_ERROR(ps->ctx, WT_ERR_CONFIG, "%s: %s", loc, msg);
-}
-
-/* "FILE:LINE" of line `line` of the text libconfig read (an included file names itself). */
-static const char *src_line(const pstate *ps, int line, char *buf, size_t n)
-{
-    int l = line;
-    const char *f = ps->src ? wt_config_priv_src(ps->src, line, &l) : NULL;
-    snprintf(buf, n, "%s:%d", f ? f : ps->name, l);
-    return buf;
-}
-
-/* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent. */
-const char *wt_config_priv_where(const pstate *ps, int k, const config_setting_t *s, char *buf, size_t n)
-{
-    if (k >= 0 && ps->ovidx[k] >= 0 && ps->ovidx[k] < ps->nfile_ov)
-        snprintf(buf, n, "%s: overrides \"%s\"", ps->name, ps->ov[ps->ovidx[k]]);
-    else if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
-    else if (s && config_setting_source_line(s) > 0) src_line(ps, (int)config_setting_source_line(s), buf, n);
-    else snprintf(buf, n, "%s", ps->name);
-    return buf;
-}
-
 #define FAIL(ps, k, s, ...) wt_config_priv_fail((ps), wt_config_priv_where((ps), (k), (s), loc, sizeof loc), __VA_ARGS__)
 
 /* ---------------------------------------------------------------- unknown keys */
@@ -251,26 +214,6 @@ static config_setting_t *copy_setting(config_setting_t *parent, const char *name
         }
     }
     return d;
-}
-
-/* Creates the groups along path in cf (all but the last component); returns the parent group. */
-config_setting_t *wt_config_priv_ensure_parent(config_t *cf, const char *path, const char **leaf)
-{
-    char part[128];
-    config_setting_t *g = config_root_setting(cf);
-    const char *p = path, *dot;
-    while ((dot = strchr(p, '.'))) {
-        size_t w = (size_t)(dot - p) < sizeof part ? (size_t)(dot - p) : sizeof part - 1;
-        memcpy(part, p, w);
-        part[w] = '\0';
-        config_setting_t *m = config_setting_get_member(g, part);
-        if (!m) m = config_setting_add(g, part, CONFIG_TYPE_GROUP);
-        if (!m || !config_setting_is_group(m)) return NULL;
-        g = m;
-        p = dot + 1;
-    }
-    *leaf = p;
-    return g;
 }
 
 static int apply_override(pstate *ps, int i)
@@ -551,14 +494,6 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
 
 /* ---------------------------------------------------------------- cross-key checks */
 
-/* Key k's list element i (or the scalar, i < 0): location text for the second key in a message. */
-const char *wt_config_priv_where_elem(const pstate *ps, int k, int i, char *buf, size_t n)
-{
-    const config_setting_t *s = ps->set[k];
-    if (s && i >= 0 && config_setting_length(s) > i) s = config_setting_get_elem(s, (unsigned)i);
-    return wt_config_priv_where(ps, k, s, buf, n);
-}
-
 static int check_below_lgs(pstate *ps, const wt_config *cfg, const char *path, const double *alt, int n)
 {
     char loc[512], oth[512], a[40], b[40];
@@ -583,23 +518,6 @@ static int check_sizes(pstate *ps, const wt_config *cfg, const char *path, const
                         "key '%s', element [%d]: value %d is smaller than 2^recon.wavelet_levels = 2^%d = %lld (%s); "
                         "a layer grid needs at least 2^J points per side", path, i, v->size[i], cfg->wavelet_levels,
                         need, wt_config_priv_where(ps, kj, ps->set[kj], oth, sizeof oth));
-    return WT_OK;
-}
-
-/* A chosen list written into the file's tree, as if given: it is then in the canonical text and the matrix
- * hash like any key (an MVM built on a chosen grid is refused when the choice would change). */
-int wt_config_priv_write_list(pstate *ps, int k, const double *f, const int *iv, int n)
-{
-    const char *leaf;
-    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *d = NULL;
-    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-    if (g) d = config_setting_add(g, leaf, CONFIG_TYPE_ARRAY);
-    for (int i = 0; d && i < n; i++)
-        if (!(f ? config_setting_set_float_elem(d, -1, f[i]) : config_setting_set_int_elem(d, -1, iv[i]))) d = NULL;
-    if (!d)
-        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                        wt_config_priv_keys[k].path);
-    ps->set[k] = d;
     return WT_OK;
 }
 
@@ -1019,7 +937,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     if (!config_read_string(&cf, src.text)) {
         const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
         char at[1100];
-        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", src_line(&ps, config_error_line(&cf), at, sizeof at),
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at),
                       e, syntax_hint(e));
         goto fail;
     }
@@ -1030,7 +948,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
         if (!config_setting_is_aggregate(fo) || config_setting_is_group(fo)) {
             char at[1100];
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: 'overrides' must be a list of \"key=value\" strings",
-                          src_line(&ps, (int)config_setting_source_line(fo), at, sizeof at));
+                          wt_config_priv_src_line(&ps, (int)config_setting_source_line(fo), at, sizeof at));
             goto fail;
         }
         nfile = config_setting_length(fo);
@@ -1043,7 +961,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
             if (!allov[i]) {
                 char at[1100];
                 st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: overrides[%d] must be a \"key=value\" string",
-                              src_line(&ps, (int)config_setting_source_line(e), at, sizeof at), i);
+                              wt_config_priv_src_line(&ps, (int)config_setting_source_line(e), at, sizeof at), i);
                 goto fail;
             }
             WT_ALLOC(ctx, allov[i], strlen(config_setting_get_string(e)) + 1, "an override");

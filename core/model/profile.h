@@ -12,8 +12,8 @@
  * below a_0 or above a_{L−1} goes wholly to that end layer: the total is still kept but not the first moment,
  * which moves by f_k (a_end − h_k) — no split among the layers can put Cn² outside their range. The wind of a
  * reconstruction layer is the Cn²-weighted mean of the wind vectors it absorbs, v_l = Σ_k c_{k,l} v_k / Σ_k c_{k,l}
- * (vectors, not speeds: two opposite winds cancel as their effect on the frozen flow does); a layer that absorbs
- * nothing has v_l = 0.
+ * (vectors, not speeds, as SPEC §12 says: the mean displacement per unit time of the turbulence the layer stands
+ * for); a layer that absorbs nothing has v_l = 0.
  */
 #ifndef WT_PROFILE_H
 #define WT_PROFILE_H
