@@ -60,6 +60,8 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
         snprintf(k, sizeof k, "%s.%s", group, col_key[c]);
         ks[c] = &wt_config_priv_keys[wt_config_priv_find_key(k)];
     }
+    char tail[1280]; /* what every message of a line ends with */
+    snprintf(tail, sizeof tail, "(the profile of key '%s' at %s)", key, loc);
     memset(p, 0, sizeof *p);
     FILE *f = fopen(path, "r");
     if (!f)
@@ -82,8 +84,8 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
             errno = 0;
             const double x = strtod(s, &end);
             if (nf < NCOL && (*end || end == s || !isfinite(x) || errno == ERANGE)) {
-                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): '%s' is not a finite number (%s '%s' at %s)",
-                              path, lineno, nf + 1, col_name[nf], s, "profile of key", key, loc);
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): '%s' is not a finite number %s",
+                              path, lineno, nf + 1, col_name[nf], s, tail);
                 goto out;
             }
             if (nf <= NCOL) v[nf] = x;
@@ -95,38 +97,38 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
         if (nf < NCOL - 1 || nf > NCOL) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG,
                           "%s:%d: %d column%s; expected 3 or 4: altitude [m], Cn2 fraction, wind speed [m/s] and an "
-                          "optional wind direction [deg] (%s '%s' at %s)", path, lineno, nf, nf == 1 ? "" : "s",
-                          "profile of key", key, loc);
+                          "optional wind direction [deg] %s", path, lineno, nf, nf == 1 ? "" : "s",
+                          tail);
             goto out;
         }
         if (p->n == 0) p->ncol = nf, first_line = lineno;
         else if (nf != p->ncol) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: %d columns, but the first layer (line %d) has %d: every line "
-                          "must have the same columns (%s '%s' at %s)", path, lineno, nf, first_line, p->ncol,
-                          "profile of key", key, loc);
+                          "must have the same columns %s", path, lineno, nf, first_line, p->ncol,
+                          tail);
             goto out;
         }
         if (p->n == WT_MAX_LAYERS) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: more than %d layers (%s '%s' at %s)", path, lineno,
-                          WT_MAX_LAYERS, "profile of key", key, loc);
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: more than %d layers %s", path, lineno,
+                          WT_MAX_LAYERS, tail);
             goto out;
         }
         if (v[COL_FRAC] < 0.0) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: the Cn2 fraction %g is negative (%s '%s' at %s)", path, lineno,
-                          v[COL_FRAC], "profile of key", key, loc);
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: the Cn2 fraction %g is negative %s", path, lineno,
+                          v[COL_FRAC], tail);
             goto out;
         }
         if (p->n > 0 && !(v[COL_ALT] > p->v[COL_ALT][p->n - 1])) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: altitude %g m is not above the previous layer's %g m (line %d): "
-                          "the altitudes must be strictly increasing (%s '%s' at %s)", path, lineno, v[COL_ALT],
-                          p->v[COL_ALT][p->n - 1], prev_line, "profile of key", key, loc);
+                          "the altitudes must be strictly increasing %s", path, lineno, v[COL_ALT],
+                          p->v[COL_ALT][p->n - 1], prev_line, tail);
             goto out;
         }
         for (int c = 0; c < nf; c++) {
             if (v[c] < ks[c]->lo || v[c] > ks[c]->hi) {
                 st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): %g is out of range; expected [%g, %g] as "
-                              "'%s' (%s '%s' at %s)", path, lineno, c + 1, col_name[c], v[c], ks[c]->lo, ks[c]->hi,
-                              ks[c]->path, "profile of key", key, loc);
+                              "'%s' %s", path, lineno, c + 1, col_name[c], v[c], ks[c]->lo, ks[c]->hi,
+                              ks[c]->path, tail);
                 goto out;
             }
             p->v[c][p->n] = round15(v[c]);
