@@ -1,4 +1,5 @@
 /* app/info.c: `wavetomo info`: the derived sizes of a configured system. */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -10,6 +11,7 @@
 #include "core/model/fitting.h"
 #include "core/model/system.h"
 #include "core/model/params.h"
+#include "core/model/profile.h"
 #include "core/model/tomography.h"
 #include "core/model/estimate.h"
 #include "core/model/reconstructor.h"
@@ -40,6 +42,43 @@ static void help(void)
            "  --max-memory S refuse when that estimate exceeds S bytes (4G, 512M; default MemAvailable)\n");
 }
 
+#define WT_DEG (M_PI / 180.0) /* radians per degree */
+
+/* The model m compressed onto variant v's layers: fractions and wind components [m/s] (core/model/profile.h). */
+static void model_wind(const wt_model_atmosphere_config *m, const wt_recon_variant_config *v, double *frac,
+                       double *wx, double *wy)
+{
+    double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+    for (int k = 0; k < m->nlayers; k++) {
+        vx[k] = m->wind_speed[k] * cos(m->wind_direction[k]);
+        vy[k] = m->wind_speed[k] * sin(m->wind_direction[k]);
+    }
+    wt_profile_compress(m->nlayers, m->altitude, m->fraction, vx, vy, v->nlayers, v->altitudes, frac, wx, wy);
+}
+
+/* The simulated atmosphere and where the reconstructors' comes from (SPEC §12: two separate objects). */
+static void print_atmospheres(const wt_config *cfg)
+{
+    printf("\natmosphere (the simulation's truth): %d layers, r0 %g m at 500 nm, L0 %g m%s%s%s\n", cfg->nlayers, cfg->r0,
+           cfg->L0, cfg->atm_profile[0] ? "; profile " : "", cfg->atm_profile, cfg->atm_profile[0] ? " (atmosphere.profile)" : "");
+    printf("  %-5s %10s %12s %10s %10s\n", "layer", "altitude_m", "Cn2_fraction", "wind_mps", "towards_deg");
+    for (int l = 0; l < cfg->nlayers; l++)
+        printf("  %-5d %10.0f %12.6f %10.1f %10.1f\n", l + 1, cfg->layer_altitude[l], cfg->layer_fraction[l],
+               cfg->wind_speed[l], cfg->wind_direction[l] / WT_DEG);
+    const wt_model_atmosphere_config *m = &cfg->model;
+    if (m->source == WT_MODEL_ORACLE)
+        printf("reconstructors' atmosphere: oracle (recon.atmosphere.source): the truth above, compressed onto each "
+               "variant's layers below\n");
+    else {
+        printf("reconstructors' atmosphere: given (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
+               "each variant's layers below\n", m->profile[0] ? ", profile " : "", m->profile, m->nlayers, m->r0, m->L0);
+        printf("  %-5s %10s %12s %10s %10s\n", "layer", "altitude_m", "Cn2_fraction", "wind_mps", "towards_deg");
+        for (int l = 0; l < m->nlayers; l++)
+            printf("  %-5d %10.0f %12.6f %10.1f %10.1f\n", l + 1, m->altitude[l], m->fraction[l], m->wind_speed[l],
+                   m->wind_direction[l] / WT_DEG);
+    }
+}
+
 static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name,
                           int count_nnz, int *st_out)
 {
@@ -58,7 +97,11 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
            v->fit_iterations > 0 ? " + fitting" : "",
            v->operator_precision == 1 ? "; its operator in single precision (recon." : "",
            v->operator_precision == 1 ? name : "", v->operator_precision == 1 ? ".operator_precision = \"fp32\")" : "");
-    printf("  %-5s %10s %12s %9s %10s\n", "layer", "altitude_m", "grid", "spacing_m", "unknowns");
+    /* the model compressed onto this variant's layers (SPEC §12): the prior's fractions (floored) and the wind */
+    double frac[WT_MAX_LAYERS], wx[WT_MAX_LAYERS], wy[WT_MAX_LAYERS];
+    model_wind(&sys->cfg->model, v, frac, wx, wy);
+    printf("  %-5s %10s %12s %9s %10s   %s\n", "layer", "altitude_m", "grid", "spacing_m", "unknowns",
+           "model: Cn2 fraction, wind [m/s] towards [deg]");
     for (int l = 0; l < v->nlayers; l++) {
         const wt_grid *g = wt_tomography_layer_grid(t, l);
         char gs[32];
@@ -71,8 +114,12 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
             snprintf(how, sizeof how, "   (automatic: %s, oversampling %g)", base, v->oversampling);
         } else if (v->grid_auto == WT_GRID_AUTO_SIZE)
             snprintf(how, sizeof how, "   (automatic size for the given spacing)");
-        printf("  %-5d %10.0f %12s %9.3g %10lld   (Cn2 fraction %.4f)%s\n", l + 1, wt_tomography_layer_altitude(t, l),
-               gs, g->dx, (long long)wt_grid_size(g), wt_tomography_layer_fraction(t, l), how);
+        char floor[48] = "";
+        if (wt_tomography_layer_fraction(t, l) != frac[l])
+            snprintf(floor, sizeof floor, " (prior %.4f: floor)", wt_tomography_layer_fraction(t, l));
+        printf("  %-5d %10.0f %12s %9.3g %10lld   %.4f%s %5.1f %6.1f%s\n", l + 1, wt_tomography_layer_altitude(t, l),
+               gs, g->dx, (long long)wt_grid_size(g), frac[l], floor, hypot(wx[l], wy[l]),
+               fmod(atan2(wy[l], wx[l]) / WT_DEG + 360.0, 360.0), how);
     }
     long long n = (long long)wt_tomography_nunknowns(t);
     if (v->prior == WT_CFG_PRIOR_FULL)
@@ -261,6 +308,7 @@ int wt_cmd_info(int argc, char **argv)
            r_bytes / 1e9,
            (long long)sys->nact, (long long)sys->nact, ra_bytes / 1e9);
 
+    print_atmospheres(cfg);
     print_variant(&cli, sys, &cfg->pcg3, "pcg3", count_nnz, &st);
     if (st < 0) goto out;
     print_variant(&cli, sys, &cfg->cg9, "cg9", count_nnz, &st);

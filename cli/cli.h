@@ -106,7 +106,8 @@ struct wt_system;
 /* Root attributes (wavetomo and HDF5 versions, creation time, command line, seed) and the dataset
  * "config" (the canonical configuration text the run used). */
 int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv);
-/* The slope and actuator orderings: group "layout". */
+/* The slope and actuator orderings: group "layout"; and the truth's and the reconstructors' atmospheres:
+ * groups "atmosphere" and "model_atmosphere" (docs/formats.md). */
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 
 /* mkdir -p: the directory and its missing parents (cli/output.c). */

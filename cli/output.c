@@ -1,6 +1,7 @@
 /* cli/output.c: provenance and layout groups written into every output file, so that a file read
  * years later says what made it and how its vectors are ordered. */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/stat.h>
@@ -11,6 +12,7 @@
 #include "core/io/h5.h"
 #include "core/build/mvm_build.h"
 #include "core/la/half.h"
+#include "core/model/profile.h"
 #include "core/model/system.h"
 
 int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config *cfg, int argc, char **argv)
@@ -36,6 +38,71 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
     if ((st = wt_h5_attr_write_int64(w, "/", "seed", (int64_t)cfg->seed)) < 0) return st;
     return wt_h5_write_string(w, "config", cfg->canonical,
                               "the effective configuration (libconfig text, after --set overrides) of this run");
+}
+
+/* One profile as four (n,) datasets under group g: altitude, Cn² fraction, wind speed and direction. */
+static int write_profile(wt_h5_writer *w, const char *g, int n, const double *alt, const double *frac,
+                         const double *vx, const double *vy, const char *what)
+{
+    double speed[WT_MAX_LAYERS], dir[WT_MAX_LAYERS];
+    for (int l = 0; l < n; l++) {
+        speed[l] = hypot(vx[l], vy[l]);
+        dir[l] = fmod(atan2(vy[l], vx[l]) * 180.0 / M_PI + 360.0, 360.0);
+    }
+    const int64_t d[1] = {n};
+    const char *name[4] = {"altitude_m", "cn2_fraction", "wind_speed_mps", "wind_direction_deg"};
+    const double *v[4] = {alt, frac, speed, dir};
+    const char *unit[4] = {"m", "", "m/s", "deg"};
+    const char *desc[4] = {"altitude of each layer", "Cn2 fraction of each layer (sum 1)", "wind speed of each layer",
+                           "direction each layer moves towards, from +x towards +y, in [0, 360)"};
+    for (int q = 0; q < 4; q++) {
+        char path[96], text[320];
+        snprintf(path, sizeof path, "%s/%s", g, name[q]);
+        snprintf(text, sizeof text, "%s: %s", what, desc[q]);
+        const int st = wt_h5_write(w, path, WT_H5_F64, WT_H5_F64, 1, d, v[q], unit[q], text);
+        if (st < 0) return st;
+    }
+    return WT_OK;
+}
+
+/* SPEC §12: the simulated atmosphere ("atmosphere/") and the reconstructors' ("model_atmosphere/": its source, r0
+ * and L0, and per variant the profile compressed onto the variant's layers, the prior's fractions before their
+ * floor), so that a file says what each side knew. */
+static int write_atmospheres(wt_h5_writer *w, const wt_config *cfg)
+{
+    double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS], f[WT_MAX_LAYERS], cx[WT_MAX_LAYERS], cy[WT_MAX_LAYERS];
+    static const char *const src[] = {"oracle", "given", "learned"};
+    int st;
+    for (int l = 0; l < cfg->nlayers; l++) {
+        vx[l] = cfg->wind_speed[l] * cos(cfg->wind_direction[l]);
+        vy[l] = cfg->wind_speed[l] * sin(cfg->wind_direction[l]);
+    }
+    if ((st = write_profile(w, "atmosphere", cfg->nlayers, cfg->layer_altitude, cfg->layer_fraction, vx, vy,
+                            "the simulation's truth")) < 0 ||
+        (st = wt_h5_attr_write_double(w, "atmosphere", "r0_m", cfg->r0)) < 0 ||
+        (st = wt_h5_attr_write_double(w, "atmosphere", "L0_m", cfg->L0)) < 0 ||
+        (st = wt_h5_attr_write_string(w, "atmosphere", "profile", cfg->atm_profile)) < 0)
+        return st;
+    const wt_model_atmosphere_config *m = &cfg->model;
+    for (int l = 0; l < m->nlayers; l++) {
+        vx[l] = m->wind_speed[l] * cos(m->wind_direction[l]);
+        vy[l] = m->wind_speed[l] * sin(m->wind_direction[l]);
+    }
+    for (int k = 0; k < 2; k++) {
+        const wt_recon_variant_config *v = k ? &cfg->cg9 : &cfg->pcg3;
+        char g[64];
+        snprintf(g, sizeof g, "model_atmosphere/%s", k ? "cg9" : "pcg3");
+        wt_profile_compress(m->nlayers, m->altitude, m->fraction, vx, vy, v->nlayers, v->altitudes, f, cx, cy);
+        if ((st = write_profile(w, g, v->nlayers, v->altitudes, f, cx, cy,
+                                "the reconstructor's atmosphere compressed onto the variant's layers (SPEC §12)")) < 0)
+            return st;
+    }
+    if ((st = wt_h5_attr_write_string(w, "model_atmosphere", "source", src[m->source])) < 0 ||
+        (st = wt_h5_attr_write_double(w, "model_atmosphere", "r0_m", m->r0)) < 0 ||
+        (st = wt_h5_attr_write_double(w, "model_atmosphere", "L0_m", m->L0)) < 0 ||
+        (st = wt_h5_attr_write_string(w, "model_atmosphere", "profile", m->profile)) < 0)
+        return st;
+    return WT_OK;
 }
 
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys)
@@ -118,7 +185,7 @@ int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys)
         if ((st = wt_h5_attr_write_double(w, name, "noise_rms_mas", sqrt(s->sigma2 * v / s->nsub) / WT_ARCSEC * 1e3)) < 0)
             goto out;
     }
-    st = WT_OK;
+    st = write_atmospheres(w, sys->cfg);
 out:
     free(off);
     free(cnt);

@@ -92,7 +92,8 @@ START_TEST(test_tree)
                            "include/wavetomo/wavetomo.h", "include/wavetomo/version.h", "include/wavetomo/context.h",
                            "include/wavetomo/rtc.h", "share/man/man1/wavetomo.1", "share/wavetomo/presets/demo.cfg",
                            "share/wavetomo/presets/eelt-mcao.cfg", "share/wavetomo/presets/demo-diffractive.cfg",
-                           "share/wavetomo/sodium/default.txt", "share/doc/wavetomo/c-api.md",
+                           "share/wavetomo/sodium/default.txt", "share/wavetomo/atmosphere/eso35-median.txt",
+                           "share/wavetomo/presets/eelt-mcao-eso35.cfg", "share/doc/wavetomo/c-api.md",
                            "share/doc/wavetomo/examples/rtc_loop.c"};
     char p[1024];
     for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
@@ -113,7 +114,8 @@ START_TEST(test_tree)
     /* exactly the public headers */
     SH_OK("ls $SHARE/../../include/wavetomo | tr '\\n' ' '");
     ck_assert_str_eq(out(), "context.h rtc.h version.h wavetomo.h ");
-    /* the installed presets read, and the diffractive one finds its sodium profile next to them */
+    /* the installed presets read, the diffractive one finds its sodium profile next to them and the ESO one its
+     * atmosphere profile */
     SH_OK("for f in $SHARE/presets/*.cfg; do $WT sim --config $f --out x.h5 --dry-run > /dev/null || exit 1; done && "
           "$WT info $SHARE/presets/demo-diffractive.cfg --no-nnz > /dev/null");
     /* the man page: every command's section, the version, and groff finds nothing to warn about */

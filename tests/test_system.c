@@ -4,6 +4,7 @@
  * automatic layer grids (core/config/config_grid.c) against the operators that read the layers. */
 #include "core/model/fitting.h"
 #include "core/model/params.h"
+#include "core/model/profile.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
@@ -134,7 +135,7 @@ static int layer_holds(wt_context *ctx, const wt_system *sys, int pcg3, double h
                 order[b - 1] = o;
             }
         for (int k = 0; k < dm->ndms; k++) alt[k] = dm->altitude[order[k]];
-        wt_tomography_bin_altitude(dm->ndms, alt, h, &j, &w);
+        wt_profile_bin_altitude(dm->ndms, alt, h, &j, &w);
         for (int side = 0; side < 2; side++) {
             if ((side ? w : 1.0 - w) <= 0.0) continue;
             const int k = order[j + side];

@@ -14,7 +14,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#define WT_MAX_LAYERS 32
+#define WT_MAX_LAYERS 64 /* atmosphere and reconstruction layers: the ESO 35-layer profile with room */
 #define WT_MAX_GS 16
 #define WT_MAX_DMS 8
 #define WT_MAX_EVAL 225 /* 15 x 15 evaluation directions */
@@ -96,6 +96,25 @@ typedef struct wt_recon_variant_config {
     int operator_precision;          /* index in "fp64|fp32": the sensors' part of the (P)CG operator (1: fp32) */
 } wt_recon_variant_config;
 
+/* The reconstructor's atmosphere (SPEC §12 "Truth and model are separate objects"; recon.atmosphere): where it
+ * comes from. The extension point of identification from telemetry is WT_MODEL_LEARNED, refused when read
+ * until the estimator exists. */
+enum { WT_MODEL_ORACLE = 0, WT_MODEL_GIVEN = 1, WT_MODEL_LEARNED = 2 };
+
+/* The reconstructor's atmosphere as a profile before it is compressed onto each variant's layers
+ * (core/model/profile.h): the truth's for the oracle, the user's for a given model. */
+typedef struct wt_model_atmosphere_config {
+    int source;                           /* WT_MODEL_ORACLE, WT_MODEL_GIVEN (WT_MODEL_LEARNED is refused) */
+    double r0;                            /* Fried parameter at 500 nm [m] */
+    double L0;                            /* outer scale [m] */
+    int nlayers;
+    double altitude[WT_MAX_LAYERS];       /* [m], increasing */
+    double fraction[WT_MAX_LAYERS];       /* Cn2 fractions, normalised to sum 1 */
+    double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
+    double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
+    char profile[1024];                   /* given: the profile file as resolved, "" when the lists were given */
+} wt_model_atmosphere_config;
+
 typedef struct wt_config {
     char path[1024];                 /* file it was read from */
     char *canonical;                 /* the effective configuration as libconfig text (owned) */
@@ -114,6 +133,8 @@ typedef struct wt_config {
     double layer_fraction[WT_MAX_LAYERS]; /* Cn2 fractions, normalised to sum 1 */
     double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
     double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
+    char atm_profile[1024];          /* atmosphere.profile as resolved: the file the four lists above came from,
+                                        "" when the configuration gave them */
 
     /* laser guide stars */
     int nlgs;
@@ -186,6 +207,7 @@ typedef struct wt_config {
     int exact_prior;                 /* recon.prior as given (WT_CFG_PRIOR_*), or -1 when left out; the variants'
                                         resolved values are in pcg3.prior and cg9.prior */
     int warm_start;
+    wt_model_atmosphere_config model; /* the reconstructors' atmosphere (recon.atmosphere), not the truth's above */
     wt_recon_variant_config pcg3;    /* layers at the DM altitudes, no fitting */
     wt_recon_variant_config cg9;     /* layers at the atmosphere altitudes, fitting over the evaluation directions */
 } wt_config;

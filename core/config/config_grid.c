@@ -86,7 +86,7 @@ static int add_actuators(box *b, const wt_config *cfg, int k)
     return count;
 }
 
-/* The DMs layer altitude h is read at (pcg3) or chiefly corrected by: wt_tomography_bin_altitude's rule on
+/* The DMs layer altitude h is read at (pcg3) or chiefly corrected by: wt_profile_bin_altitude's rule on
  * the DM altitudes sorted: the DM at h, the two around it (both with a weight > 0), or the end DM. */
 static int fed_dms(const wt_config *cfg, double h, int *dms)
 {

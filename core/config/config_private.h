@@ -9,6 +9,7 @@
 
 #include "config.h"
 
+#include <libconfig.h>
 #include <stddef.h>
 
 enum { K_INT, K_INT64, K_FLOAT, K_BOOL, K_ENUM, K_FLOATS, K_INTS, K_STR /* a path: char[1024] */ };
@@ -41,7 +42,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 128 };
+enum { WT_CONFIG_PRIV_NKEYS = 137 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
@@ -52,6 +53,57 @@ const char *wt_config_priv_fmt_num(double v, char *buf, size_t n);
 
 /* The bounds alone: "> 0", "in [0, 1)", ">= 4", "any"; booleans and enums list their words. */
 void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n);
+
+/* ---------------------------------------------------------------- config_state.c: the parse state */
+
+/* What reading one configuration knows besides wt_config: the libconfig tree, the overrides, where each key was
+ * set (config_read.c fills it; config_atmosphere.c reads and extends the same tree). */
+typedef struct wt_config_priv_state {
+    wt_context *ctx;
+    const char *name;
+    config_t *cf;
+    const char *const *ov;
+    int nfile_ov;                                    /* the first nfile_ov of ov come from the file */
+    const struct wt_config_priv_text *src;           /* the expanded text: its lines map to FILE:LINE */
+    int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
+    const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
+    const char *incdir;                              /* the configuration file's directory (NULL: working dir.) */
+} wt_config_priv_state;
+
+/* The index of key `path` in wt_config_priv_keys, or -1. */
+int wt_config_priv_find_key(const char *path);
+/* WT_ERR_CONFIG with the message "LOC: text". */
+int wt_config_priv_fail(wt_config_priv_state *ps, const char *loc, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+/* "FILE:LINE" of line `line` of the text libconfig read (an included file names itself); returns buf. */
+const char *wt_config_priv_src_line(const wt_config_priv_state *ps, int line, char *buf, size_t n);
+/* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent; returns buf. */
+const char *wt_config_priv_where(const wt_config_priv_state *ps, int k, const config_setting_t *s, char *buf, size_t n);
+/* The same for element i of key k's list (i < 0: the key). */
+const char *wt_config_priv_where_elem(const wt_config_priv_state *ps, int k, int i, char *buf, size_t n);
+/* The groups along path created in cf (all but the last component); returns the parent group, *leaf the rest. */
+config_setting_t *wt_config_priv_ensure_parent(config_t *cf, const char *path, const char **leaf);
+/* A list written into the tree as if the file had given it (f: floats, else iv: integers), replacing what was
+ * there; ps->set[k] points at it, so it is in the canonical text and the matrix hash like any key. */
+int wt_config_priv_write_list(wt_config_priv_state *ps, int k, const double *f, const int *iv, int n);
+
+/* ---------------------------------------------------------------- config_atmosphere.c */
+
+/* atmosphere.profile, recon.atmosphere.profile (a profile file: config_atmosphere.c says its format): read and
+ * checked with FILE:LINE messages, then written into the tree as the group's altitudes_m, cn2_fractions,
+ * wind_speed_mps (and wind_direction_deg when the file has them), which the file then must not give itself. Runs
+ * before the keys are loaded, so the lists are loaded, checked and written into the canonical text like given
+ * ones (the text reads back without the file). */
+int wt_config_priv_expand_profiles(wt_config_priv_state *ps);
+/* recon.atmosphere (SPEC §12): the source's keys checked against each other; "oracle" copies the truth's
+ * profile into cfg->model, "given" normalises the user's fractions, "learned" is refused (not available yet).
+ * The profile files' keys are left out of the canonical text (their lists are in it). Runs after every key
+ * is loaded and the truth's fractions are normalised. */
+int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg);
+/* Whether key `path` of the reconstructor's atmosphere enters the matrix identity: 1 / 0, or -1 when the key
+ * is not one of the atmosphere's (the caller decides). The matrix is made from the model: the truth's profile
+ * counts only through the oracle. */
+int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const char *path);
 
 /* ---------------------------------------------------------------- config_derived.c */
 

@@ -100,13 +100,6 @@ static const char *syntax_hint(const char *e)
 
 /* ---------------------------------------------------------------- names and suggestions */
 
-static int find_key(const char *path)
-{
-    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
-        if (!strcmp(wt_config_priv_keys[k].path, path)) return k;
-    return -1;
-}
-
 /* A group path is a proper prefix of some key up to a dot. */
 static int is_group_path(const char *path)
 {
@@ -173,50 +166,9 @@ static void suggest(const char *path, char *buf, size_t n)
 
 /* ---------------------------------------------------------------- parse state and messages */
 
-typedef struct pstate {
-    wt_context *ctx;
-    const char *name;
-    config_t *cf;
-    const char *const *ov;
-    int nfile_ov;                                    /* the first nfile_ov of ov come from the file */
-    const wt_config_priv_text *src;                  /* the expanded text: its lines map to FILE:LINE */
-    int ovidx[WT_CONFIG_PRIV_NKEYS];                 /* override that set key k last, or -1 */
-    const config_setting_t *set[WT_CONFIG_PRIV_NKEYS];
-    const char *incdir;                              /* the configuration file's directory (NULL: working dir.) */
-} pstate;
+typedef wt_config_priv_state pstate;
 
-static int fail_at(pstate *ps, const char *loc, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-static int fail_at(pstate *ps, const char *loc, const char *fmt, ...)
-{
-    char msg[1536];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    return WT_ERROR(ps->ctx, WT_ERR_CONFIG, "%s: %s", loc, msg);
-}
-
-/* "FILE:LINE" of line `line` of the text libconfig read (an included file names itself). */
-static const char *src_line(const pstate *ps, int line, char *buf, size_t n)
-{
-    int l = line;
-    const char *f = ps->src ? wt_config_priv_src(ps->src, line, &l) : NULL;
-    snprintf(buf, n, "%s:%d", f ? f : ps->name, l);
-    return buf;
-}
-
-/* "FILE:LINE" of setting s of key k, "--set k=v" when an override set it, "FILE" when absent. */
-static const char *where(const pstate *ps, int k, const config_setting_t *s, char *buf, size_t n)
-{
-    if (k >= 0 && ps->ovidx[k] >= 0 && ps->ovidx[k] < ps->nfile_ov)
-        snprintf(buf, n, "%s: overrides \"%s\"", ps->name, ps->ov[ps->ovidx[k]]);
-    else if (k >= 0 && ps->ovidx[k] >= 0) snprintf(buf, n, "--set %s", ps->ov[ps->ovidx[k]]);
-    else if (s && config_setting_source_line(s) > 0) src_line(ps, (int)config_setting_source_line(s), buf, n);
-    else snprintf(buf, n, "%s", ps->name);
-    return buf;
-}
-
-#define FAIL(ps, k, s, ...) fail_at((ps), where((ps), (k), (s), loc, sizeof loc), __VA_ARGS__)
+#define FAIL(ps, k, s, ...) wt_config_priv_fail((ps), wt_config_priv_where((ps), (k), (s), loc, sizeof loc), __VA_ARGS__)
 
 /* ---------------------------------------------------------------- unknown keys */
 
@@ -226,7 +178,7 @@ static int check_unknown(pstate *ps, const config_setting_t *g, const char *pref
     for (int i = 0; i < config_setting_length(g); i++) {
         const config_setting_t *m = config_setting_get_elem(g, (unsigned)i);
         snprintf(path, sizeof path, "%s%s%s", prefix, *prefix ? "." : "", config_setting_name(m));
-        if (find_key(path) >= 0) continue;
+        if (wt_config_priv_find_key(path) >= 0) continue;
         if (is_group_path(path)) {
             if (!config_setting_is_group(m)) {
                 describe(m, got, sizeof got);
@@ -264,45 +216,25 @@ static config_setting_t *copy_setting(config_setting_t *parent, const char *name
     return d;
 }
 
-/* Creates the groups along path in cf (all but the last component); returns the parent group. */
-static config_setting_t *ensure_parent(config_t *cf, const char *path, const char **leaf)
-{
-    char part[128];
-    config_setting_t *g = config_root_setting(cf);
-    const char *p = path, *dot;
-    while ((dot = strchr(p, '.'))) {
-        size_t w = (size_t)(dot - p) < sizeof part ? (size_t)(dot - p) : sizeof part - 1;
-        memcpy(part, p, w);
-        part[w] = '\0';
-        config_setting_t *m = config_setting_get_member(g, part);
-        if (!m) m = config_setting_add(g, part, CONFIG_TYPE_GROUP);
-        if (!m || !config_setting_is_group(m)) return NULL;
-        g = m;
-        p = dot + 1;
-    }
-    *leaf = p;
-    return g;
-}
-
 static int apply_override(pstate *ps, int i)
 {
     char loc[512], key[128], sg[160];
     const char *o = ps->ov[i], *eq = o ? strchr(o, '=') : NULL;
     if (i < ps->nfile_ov) snprintf(loc, sizeof loc, "%s: overrides \"%s\"", ps->name, o ? o : "(null)");
     else snprintf(loc, sizeof loc, "--set %s", o ? o : "(null)");
-    if (!eq) return fail_at(ps, loc, "expected key=value, e.g. --set atmosphere.r0_m=0.15");
+    if (!eq) return wt_config_priv_fail(ps, loc, "expected key=value, e.g. --set atmosphere.r0_m=0.15");
     while (*o == ' ' || *o == '\t') o++;
     size_t kl = (size_t)(eq - o);
     while (kl > 0 && (o[kl - 1] == ' ' || o[kl - 1] == '\t')) kl--;
     if (kl >= sizeof key) kl = sizeof key - 1;
     memcpy(key, o, kl);
     key[kl] = '\0';
-    int k = find_key(key);
+    int k = wt_config_priv_find_key(key);
     if (k < 0 && is_group_path(key))
-        return fail_at(ps, loc, "'%s' is a group; set its keys one at a time (e.g. %s.<key>=<value>)", key, key);
+        return wt_config_priv_fail(ps, loc, "'%s' is a group; set its keys one at a time (e.g. %s.<key>=<value>)", key, key);
     if (k < 0) {
         suggest(key, sg, sizeof sg);
-        return fail_at(ps, loc, "unknown key '%s'%s", key, sg);
+        return wt_config_priv_fail(ps, loc, "unknown key '%s'%s", key, sg);
     }
 
     const char *v = eq + 1;
@@ -334,12 +266,12 @@ static int apply_override(pstate *ps, int i)
     const char *leaf, *e = config_error_text(&tmp);
     config_setting_t *parent = NULL;
     if (!ok)
-        st = fail_at(ps, loc, "cannot read the value: %s%s (numbers 0.5, lists [1.0, 2.0], strings \"text\", "
+        st = wt_config_priv_fail(ps, loc, "cannot read the value: %s%s (numbers 0.5, lists [1.0, 2.0], strings \"text\", "
                      "booleans true/false)", e ? e : "?", syntax_hint(e));
     else if (config_setting_length(config_root_setting(&tmp)) != 1)
-        st = fail_at(ps, loc, "expected one value after '='");
-    else if (!(parent = ensure_parent(ps->cf, key, &leaf)))
-        st = fail_at(ps, loc, "'%s' is not inside a group in the file", key);
+        st = wt_config_priv_fail(ps, loc, "expected one value after '='");
+    else if (!(parent = wt_config_priv_ensure_parent(ps->cf, key, &leaf)))
+        st = wt_config_priv_fail(ps, loc, "'%s' is not inside a group in the file", key);
     else {
         if (config_setting_get_member(parent, leaf)) config_setting_remove(parent, leaf);
         if (!copy_setting(parent, leaf, config_lookup(&tmp, "v")))
@@ -406,7 +338,7 @@ static int fill_defaults(pstate *ps)
         const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
         if (!(ks->flags & F_DEFAULT) || config_lookup(ps->cf, ks->path)) continue;
         const char *leaf;
-        config_setting_t *g = ensure_parent(ps->cf, ks->path, &leaf), *d = NULL;
+        config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
                                     CONFIG_TYPE_STRING};
         if (g && !wt_config_priv_is_list(ks->type)) d = config_setting_add(g, leaf, ctype[ks->type]);
@@ -426,7 +358,7 @@ static int fill_defaults(pstate *ps)
             }
         if (!ok) {
             snprintf(loc, sizeof loc, "%s", ps->name);
-            return fail_at(ps, loc, "cannot add the default of '%s'", ks->path);
+            return wt_config_priv_fail(ps, loc, "cannot add the default of '%s'", ks->path);
         }
     }
     return WT_OK;
@@ -562,55 +494,30 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
 
 /* ---------------------------------------------------------------- cross-key checks */
 
-/* Key k's list element i (or the scalar, i < 0): location text for the second key in a message. */
-static const char *where_elem(const pstate *ps, int k, int i, char *buf, size_t n)
-{
-    const config_setting_t *s = ps->set[k];
-    if (s && i >= 0 && config_setting_length(s) > i) s = config_setting_get_elem(s, (unsigned)i);
-    return where(ps, k, s, buf, n);
-}
-
 static int check_below_lgs(pstate *ps, const wt_config *cfg, const char *path, const double *alt, int n)
 {
     char loc[512], oth[512], a[40], b[40];
-    int kl = find_key("lgs.altitude_m"), kk = find_key(path);
+    int kl = wt_config_priv_find_key("lgs.altitude_m"), kk = wt_config_priv_find_key(path);
     for (int i = 0; i < n; i++)
         if (!(alt[i] < cfg->lgs_altitude))
             return FAIL(ps, kl, ps->set[kl], "key 'lgs.altitude_m': value %s is not above '%s' element [%d] = %s "
                         "(%s): an LGS below a layer; the sodium layer must be above every atmosphere, DM and "
                         "reconstruction layer", wt_config_priv_fmt_num(cfg->lgs_altitude, a, sizeof a), path, i,
-                        wt_config_priv_fmt_num(alt[i], b, sizeof b), where_elem(ps, kk, i, oth, sizeof oth));
+                        wt_config_priv_fmt_num(alt[i], b, sizeof b), wt_config_priv_where_elem(ps, kk, i, oth, sizeof oth));
     return WT_OK;
 }
 
 static int check_sizes(pstate *ps, const wt_config *cfg, const char *path, const wt_recon_variant_config *v)
 {
     char loc[512], oth[512];
-    int k = find_key(path), kj = find_key("recon.wavelet_levels");
+    int k = wt_config_priv_find_key(path), kj = wt_config_priv_find_key("recon.wavelet_levels");
     long long need = 1LL << cfg->wavelet_levels;
     for (int i = 0; i < v->nlayers; i++)
         if (v->size[i] < need)
             return FAIL(ps, k, config_setting_get_elem(ps->set[k], (unsigned)i),
                         "key '%s', element [%d]: value %d is smaller than 2^recon.wavelet_levels = 2^%d = %lld (%s); "
                         "a layer grid needs at least 2^J points per side", path, i, v->size[i], cfg->wavelet_levels,
-                        need, where(ps, kj, ps->set[kj], oth, sizeof oth));
-    return WT_OK;
-}
-
-/* A chosen list written into the file's tree, as if given: it is then in the canonical text and the matrix
- * hash like any key (an MVM built on a chosen grid is refused when the choice would change). */
-static int write_list(pstate *ps, int k, const double *f, const int *iv, int n)
-{
-    const char *leaf;
-    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *d = NULL;
-    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-    if (g) d = config_setting_add(g, leaf, CONFIG_TYPE_ARRAY);
-    for (int i = 0; d && i < n; i++)
-        if (!(f ? config_setting_set_float_elem(d, -1, f[i]) : config_setting_set_int_elem(d, -1, iv[i]))) d = NULL;
-    if (!d)
-        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                        wt_config_priv_keys[k].path);
-    ps->set[k] = d;
+                        need, wt_config_priv_where(ps, kj, ps->set[kj], oth, sizeof oth));
     return WT_OK;
 }
 
@@ -625,12 +532,12 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
     snprintf(sp, sizeof sp, "recon.%s.layer_spacing_m", name);
     snprintf(sz, sizeof sz, "recon.%s.layer_size", name);
     snprintf(os, sizeof os, "recon.%s.layer_oversampling", name);
-    const int ks = find_key(sp), kz = find_key(sz), ko = find_key(os);
+    const int ks = wt_config_priv_find_key(sp), kz = wt_config_priv_find_key(sz), ko = wt_config_priv_find_key(os);
     const int gs = ps->set[ks] != NULL, gz = ps->set[kz] != NULL, go = ps->set[ko] != NULL;
     v->grid_auto = WT_GRID_EXPLICIT;
     if (gs && go)
         return FAIL(ps, ko, ps->set[ko], "key '%s' is given with '%s' (%s): the oversampling divides only the "
-                    "automatic spacing; leave out one of them", os, sp, where(ps, ks, ps->set[ks], oth, sizeof oth));
+                    "automatic spacing; leave out one of them", os, sp, wt_config_priv_where(ps, ks, ps->set[ks], oth, sizeof oth));
     if (!gs && gz)
         return FAIL(ps, kz, ps->set[kz], "key '%s' is given but '%s' is left out (or \"auto\"): a size alone fixes "
                     "neither the resolution nor the extent of a layer; give both, only '%s' (the size then follows "
@@ -638,8 +545,8 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
     if (gs && gz) return WT_OK;
     v->grid_auto = gs ? WT_GRID_AUTO_SIZE : WT_GRID_AUTO;
     int st = wt_config_priv_layer_grid(ps->ctx, cfg, name, !gs, v);
-    if (st == WT_OK && !gs) st = write_list(ps, ks, v->spacing, NULL, v->nlayers);
-    if (st == WT_OK) st = write_list(ps, kz, NULL, v->size, v->nlayers);
+    if (st == WT_OK && !gs) st = wt_config_priv_write_list(ps, ks, v->spacing, NULL, v->nlayers);
+    if (st == WT_OK) st = wt_config_priv_write_list(ps, kz, NULL, v->size, v->nlayers);
     /* the canonical text gives the chosen grid and not the oversampling: it must read back (wavetomo run
      * parses a stored one), and an oversampling beside a given spacing is refused above */
     ps->set[ko] = NULL;
@@ -651,7 +558,7 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
  * into the canonical text like the automatic grids. */
 static int resolve_sensor_points(pstate *ps, wt_config *cfg)
 {
-    const int k = find_key("recon.sensor_points_per_subaperture");
+    const int k = wt_config_priv_find_key("recon.sensor_points_per_subaperture");
     if (ps->set[k]) return WT_OK;
     double dmin = INFINITY;
     for (int i = 0; i < cfg->pcg3.nlayers; i++) dmin = fmin(dmin, cfg->pcg3.spacing[i]);
@@ -660,7 +567,7 @@ static int resolve_sensor_points(pstate *ps, wt_config *cfg)
     int q = (int)ceil(d / dmin * (1.0 - 1e-12));
     cfg->sensor_points = q < 1 ? 1 : q > 16 ? 16 : q;
     const char *leaf;
-    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
     if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
     if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
     if (!s || !config_setting_set_int(s, cfg->sensor_points))
@@ -677,7 +584,7 @@ static int resolve_sensor_points(pstate *ps, wt_config *cfg)
  * canonical text like the automatic grids. The E-ELT and demo presets: q = 2, the 42x42 preset: q = 4. */
 static int resolve_fit_points(pstate *ps, wt_config *cfg)
 {
-    const int k = find_key("recon.cg9.fit_points_per_subaperture");
+    const int k = wt_config_priv_find_key("recon.cg9.fit_points_per_subaperture");
     if (ps->set[k]) return WT_OK;
     double fine = INFINITY;
     for (int i = 0; i < cfg->cg9.nlayers; i++) fine = fmin(fine, cfg->cg9.spacing[i]);
@@ -686,7 +593,7 @@ static int resolve_fit_points(pstate *ps, wt_config *cfg)
     int q = isfinite(fine) ? (int)ceil(d / (0.5 * fine) * (1.0 - 1e-12)) : 2;
     cfg->cg9.fit_sampling = q < 1 ? 1 : q > 16 ? 16 : q;
     const char *leaf;
-    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
     if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
     if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
     if (!s || !config_setting_set_int(s, cfg->cg9.fit_sampling))
@@ -702,15 +609,15 @@ static int resolve_fit_points(pstate *ps, wt_config *cfg)
 static int resolve_priors(pstate *ps, wt_config *cfg)
 {
     static const char *const words[] = {"paper", "exact", "full"};
-    const int kg = find_key("recon.prior");
+    const int kg = wt_config_priv_find_key("recon.prior");
     if (!ps->set[kg]) cfg->exact_prior = -1;
     for (int v = 0; v < 2; v++) {
-        const int k = find_key(v ? "recon.cg9.prior" : "recon.pcg3.prior");
+        const int k = wt_config_priv_find_key(v ? "recon.cg9.prior" : "recon.pcg3.prior");
         wt_recon_variant_config *var = v ? &cfg->cg9 : &cfg->pcg3;
         if (ps->set[k]) continue;
         var->prior = ps->set[kg] ? cfg->exact_prior : v ? WT_PRIOR_DEFAULT_CG9 : WT_PRIOR_DEFAULT_PCG3;
         const char *leaf;
-        config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+        config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
         if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
         if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
         if (!s || !config_setting_set_string(s, words[var->prior]))
@@ -731,14 +638,14 @@ static int resolve_priors(pstate *ps, wt_config *cfg)
  * the file the system was made with; the reader checks the file against it. */
 static int resolve_file_sha256(pstate *ps, const char *key, int used, const char *file, char hex[65])
 {
-    const int k = find_key(key);
+    const int k = wt_config_priv_find_key(key);
     if (ps->set[k] || !used || !file[0]) return WT_OK;
     if (wt_sha256_file(file, hex) != 0) {
         hex[0] = '\0';
         return WT_OK;
     }
     const char *leaf;
-    config_setting_t *g = ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
     if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
     if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
     if (!s || !config_setting_set_string(s, hex))
@@ -754,7 +661,7 @@ static int resolve_file_sha256(pstate *ps, const char *key, int used, const char
 static int check_gain_levels(pstate *ps, const wt_config *cfg)
 {
     char loc[512], oth[512];
-    const int k = find_key("loop.gain_levels"), kb = find_key("loop.gain_basis");
+    const int k = wt_config_priv_find_key("loop.gain_levels"), kb = wt_config_priv_find_key("loop.gain_basis");
     if (cfg->ngain_levels == 0) {
         if (ps->set[kb])
             return FAIL(ps, kb, ps->set[kb], "key 'loop.gain_basis' is given without 'loop.gain_levels': it chooses "
@@ -770,7 +677,7 @@ static int check_gain_levels(pstate *ps, const wt_config *cfg)
                         "per side ('dm.actuators' [%d] = %d at %s, plus 2 x 'dm.guard_rings' = %d) embeds in %d "
                         "points, whose coarsest band of %d values would need squares of %d; expected 2 ... %d values",
                         cfg->ngain_levels, d + 1, side, d, cfg->dm_actuators[d],
-                        where_elem(ps, find_key("dm.actuators"), d, oth, sizeof oth), cfg->dm_guard_rings, n,
+                        wt_config_priv_where_elem(ps, wt_config_priv_find_key("dm.actuators"), d, oth, sizeof oth), cfg->dm_guard_rings, n,
                         cfg->ngain_levels, 1 << cfg->ngain_levels, lmax);
     }
     return WT_OK;
@@ -782,26 +689,29 @@ static int check_consistency(pstate *ps, wt_config *cfg)
     int st, k;
     double sum = 0.0;
     for (int i = 0; i < cfg->nlayers; i++) sum += cfg->layer_fraction[i];
-    k = find_key("atmosphere.cn2_fractions");
+    k = wt_config_priv_find_key("atmosphere.cn2_fractions");
     if (!(fabs(sum - 1.0) <= 0.01))
         return FAIL(ps, k, ps->set[k], "key 'atmosphere.cn2_fractions': the fractions sum to %.6g; expected 1 within 1 %% "
                     "(they are then normalised to sum exactly 1)", sum);
     for (int i = 0; i < cfg->nlayers; i++) cfg->layer_fraction[i] /= sum;
+    if ((st = wt_config_priv_resolve_model(ps, cfg)) < 0) return st;
 
-    k = find_key("evaluation.settle_frames");
+    k = wt_config_priv_find_key("evaluation.settle_frames");
     if (cfg->settle_frames >= cfg->frames)
         return FAIL(ps, k, ps->set[k], "key 'evaluation.settle_frames': value %d is not below 'loop.frames' = %d (%s); "
                     "no frame would be left to average", cfg->settle_frames, cfg->frames,
-                    where_elem(ps, find_key("loop.frames"), -1, oth, sizeof oth));
+                    wt_config_priv_where_elem(ps, wt_config_priv_find_key("loop.frames"), -1, oth, sizeof oth));
 
     if (cfg->nlgs + cfg->nngs == 0)
-        return fail_at(ps, ps->name, "'lgs.count' is 0 and 'ngs.azimuths_deg' is empty: the system has no guide star");
+        return wt_config_priv_fail(ps, ps->name, "'lgs.count' is 0 and 'ngs.azimuths_deg' is empty: the system has no guide star");
 
     if (cfg->nlgs > 0) {
         if ((st = check_below_lgs(ps, cfg, "atmosphere.altitudes_m", cfg->layer_altitude, cfg->nlayers)) < 0 ||
             (st = check_below_lgs(ps, cfg, "dm.altitudes_m", cfg->dm_altitude, cfg->ndms)) < 0 ||
             (st = check_below_lgs(ps, cfg, "recon.pcg3.layer_altitudes_m", cfg->pcg3.altitudes, cfg->pcg3.nlayers)) < 0 ||
-            (st = check_below_lgs(ps, cfg, "recon.cg9.layer_altitudes_m", cfg->cg9.altitudes, cfg->cg9.nlayers)) < 0)
+            (st = check_below_lgs(ps, cfg, "recon.cg9.layer_altitudes_m", cfg->cg9.altitudes, cfg->cg9.nlayers)) < 0 ||
+            (st = check_below_lgs(ps, cfg, "recon.atmosphere.altitudes_m", cfg->model.altitude,
+                                  cfg->model.source == WT_MODEL_GIVEN ? cfg->model.nlayers : 0)) < 0)
             return st;
     }
     if ((st = resolve_grid(ps, cfg, "pcg3", &cfg->pcg3)) < 0 || (st = resolve_grid(ps, cfg, "cg9", &cfg->cg9)) < 0)
@@ -826,31 +736,31 @@ static int check_consistency(pstate *ps, wt_config *cfg)
         if ((t ? cfg->nngs : cfg->nlgs) == 0 || w->model != WT_WFS_DIFFRACTIVE) continue;
         snprintf(a, sizeof a, "%s.fft_size", pre);
         snprintf(b, sizeof b, "%s.pupil_samples", pre);
-        k = find_key(a);
+        k = wt_config_priv_find_key(a);
         if (w->fft_size % 2 || w->fft_size < 2 * w->pupil_samples)
             return FAIL(ps, k, ps->set[k], "key '%s' = %d: the FFT sampling is too coarse or odd for '%s' = %d; "
                         "expected an even number >= %d (2 x %s: Nyquist sampling of the wavelength over the "
                         "subaperture side)", a, w->fft_size, b, w->pupil_samples, 2 * w->pupil_samples, b);
         snprintf(a, sizeof a, "%s.window_pixels", pre);
         snprintf(b, sizeof b, "%s.pixels", pre);
-        k = find_key(a);
+        k = wt_config_priv_find_key(a);
         if (w->window_pixels > w->pixels || (w->window_pixels > 0 && (w->pixels - w->window_pixels) % 2))
             return FAIL(ps, k, ps->set[k], "key '%s' = %d: the window must fit the detector '%s' = %d with an even "
                         "difference (it is centred), or be 0 (the whole detector)", a, w->window_pixels, b, w->pixels);
         if (w->centroider == 2 && w->window_pixels != 0 && w->window_pixels != w->pixels)
             return FAIL(ps, k, ps->set[k], "key '%s' = %d: the matched filter ('%s.centroider' = \"mf\") uses every "
                         "pixel; expected 0 or '%s' = %d", a, w->window_pixels, pre, b, w->pixels);
-        k = find_key(b);
+        k = wt_config_priv_find_key(b);
         if (w->pixels > 256) /* WT_CENTROID_MAX_PIXELS of core/optics/centroid.h */
             return FAIL(ps, k, ps->set[k], "key '%s' = %d: a diffractive detector has at most 256 pixels per side",
                         b, w->pixels);
         snprintf(a, sizeof a, "%s.nea_mas", pre);
-        k = find_key(a);
+        k = wt_config_priv_find_key(a);
         if (ps->set[k])
             return FAIL(ps, k, ps->set[k], "key '%s' is a geometric-model key (it replaces the photon/read-noise "
                         "model); with '%s.model' = \"diffractive\" the noise comes from the pixels: leave it out", a, pre);
         if (t && w->tilt == WT_SH_TILT_Z_CFG) {
-            k = find_key("ngs.wfs.tilt");
+            k = wt_config_priv_find_key("ngs.wfs.tilt");
             return FAIL(ps, k, ps->set[k], "key 'ngs.wfs.tilt' = \"z\" concerns the geometric model; with "
                         "'ngs.wfs.model' = \"diffractive\" an NGS measures what its centroider measures (a G-tilt): "
                         "use \"g\" or the geometric model");
@@ -869,11 +779,13 @@ static int check_consistency(pstate *ps, wt_config *cfg)
  * so comments, layout, key order, 42 vs 42.0 and [..] vs (..) do not change the text. Floats are
  * written by libconfig with 15 significant digits. */
 /* Keys that cannot change the reconstructor's matrices (R, RÂ): the simulation truth only (wind, LGS
- * jitter, seed, noise switch), the loop, the long-exposure bookkeeping, and how an iterative solver
+ * jitter, seed, noise switch; the truth's profile too unless it is the oracle's model: config_atmosphere.c), the loop, the long-exposure bookkeeping, and how an iterative solver
  * stops. Everything else is hashed into the matrix's identity (SPEC §9). The loop's gain and delay
  * enter the noise model when a variant's loop_noise_average is on, and then only. */
 static int affects_matrix(const pstate *ps, const char *path)
 {
+    const int model = wt_config_priv_model_affects_matrix(ps, path);
+    if (model >= 0) return model;
     if (!strcmp(path, "loop.gain") || !strcmp(path, "loop.delay_frames")) {
         int on = 0;
         for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)
@@ -883,7 +795,7 @@ static int affects_matrix(const pstate *ps, const char *path)
     }
     /* a diffractive LGS reference "rendered" on the simulation grid takes the grid's spacing */
     if (!strcmp(path, "sim.points_per_subaperture")) {
-        const int km = find_key("lgs.wfs.model"), kr = find_key("lgs.wfs.reference_seeing");
+        const int km = wt_config_priv_find_key("lgs.wfs.model"), kr = wt_config_priv_find_key("lgs.wfs.reference_seeing");
         const char *m = km >= 0 && ps->set[km] ? config_setting_get_string(ps->set[km]) : NULL;
         const char *r = kr >= 0 && ps->set[kr] ? config_setting_get_string(ps->set[kr]) : NULL;
         return m && r && !strcmp(m, "diffractive") && !strcmp(r, "rendered");
@@ -893,8 +805,8 @@ static int affects_matrix(const pstate *ps, const char *path)
     if (!strcmp(path, "sim.noise")) {
         int on = 0;
         for (const char *t = "ln"; *t; t++) {
-            const int km = find_key(*t == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
-            const int kc = find_key(*t == 'l' ? "lgs.wfs.centroider" : "ngs.wfs.centroider");
+            const int km = wt_config_priv_find_key(*t == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
+            const int kc = wt_config_priv_find_key(*t == 'l' ? "lgs.wfs.centroider" : "ngs.wfs.centroider");
             const char *m = km >= 0 && ps->set[km] ? config_setting_get_string(ps->set[km]) : NULL;
             const char *c = kc >= 0 && ps->set[kc] ? config_setting_get_string(ps->set[kc]) : NULL;
             on |= m && c && !strcmp(m, "diffractive") && !strcmp(c, "tcog");
@@ -908,7 +820,7 @@ static int affects_matrix(const pstate *ps, const char *path)
     /* the profile enters by its contents (lgs.sodium_profile_sha256) and by its name only when they could
      * not be hashed: the same bytes under another name give the same matrix, an edited file another */
     if (!strcmp(path, "lgs.sodium_profile")) {
-        const int kh = find_key("lgs.sodium_profile_sha256");
+        const int kh = wt_config_priv_find_key("lgs.sodium_profile_sha256");
         if (kh >= 0 && ps->set[kh]) return 0;
     }
     const int lgs_only = !strcmp(path, "lgs.uplink_fwhm_arcsec") || !strcmp(path, "lgs.wfs.reference_seeing") || !strcmp(path, "lgs.sodium_profile") ||
@@ -918,7 +830,7 @@ static int affects_matrix(const pstate *ps, const char *path)
             goto diffractive;
     if (lgs_only) goto diffractive;
     static const char *const skip[] = {"sim.", "loop.", "evaluation.settle_frames", "evaluation.wavelength_nm",
-                                       "lgs.tt_jitter_arcsec", "atmosphere.wind_", "recon.warm_start",
+                                       "lgs.tt_jitter_arcsec", "recon.warm_start",
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
                                        "recon.pcg3.coarse_levels", "recon.cg9.iterations", "recon.cg9.tolerance",
                                        "recon.cg9.preconditioner", "recon.cg9.coarse_levels",
@@ -930,7 +842,7 @@ static int affects_matrix(const pstate *ps, const char *path)
         if (!strncmp(path, skip[i], strlen(skip[i]))) return 0;
     return 1;
 diffractive: {
-    const int k = find_key(path[0] == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
+    const int k = wt_config_priv_find_key(path[0] == 'l' ? "lgs.wfs.model" : "ngs.wfs.model");
     const char *m = k >= 0 && ps->set[k] ? config_setting_get_string(ps->set[k]) : NULL;
     return m && !strcmp(m, "diffractive");
 }
@@ -950,7 +862,7 @@ static int build_text(pstate *ps, int matrix_only, char **text)
         const config_setting_t *s = ps->set[k];
         if (!s || (matrix_only && !affects_matrix(ps, ks->path))) continue;
         const char *leaf;
-        config_setting_t *g = ensure_parent(&out, ks->path, &leaf), *d = NULL;
+        config_setting_t *g = wt_config_priv_ensure_parent(&out, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
                                     CONFIG_TYPE_STRING, CONFIG_TYPE_ARRAY, CONFIG_TYPE_ARRAY, CONFIG_TYPE_STRING};
         if (g) d = config_setting_add(g, leaf, ctype[ks->type]);
@@ -1032,7 +944,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     if (!config_read_string(&cf, src.text)) {
         const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
         char at[1100];
-        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", src_line(&ps, config_error_line(&cf), at, sizeof at),
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at),
                       e, syntax_hint(e));
         goto fail;
     }
@@ -1043,7 +955,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
         if (!config_setting_is_aggregate(fo) || config_setting_is_group(fo)) {
             char at[1100];
             st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: 'overrides' must be a list of \"key=value\" strings",
-                          src_line(&ps, (int)config_setting_source_line(fo), at, sizeof at));
+                          wt_config_priv_src_line(&ps, (int)config_setting_source_line(fo), at, sizeof at));
             goto fail;
         }
         nfile = config_setting_length(fo);
@@ -1056,7 +968,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
             if (!allov[i]) {
                 char at[1100];
                 st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: overrides[%d] must be a \"key=value\" string",
-                              src_line(&ps, (int)config_setting_source_line(e), at, sizeof at), i);
+                              wt_config_priv_src_line(&ps, (int)config_setting_source_line(e), at, sizeof at), i);
                 goto fail;
             }
             WT_ALLOC(ctx, allov[i], strlen(config_setting_get_string(e)) + 1, "an override");
@@ -1070,6 +982,7 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     WT_TRY(check_unknown(&ps, config_root_setting(&cf), ""));
     for (int i = 0; i < nfile + noverrides; i++) WT_TRY(apply_override(&ps, i));
     WT_TRY(fill_defaults(&ps));
+    WT_TRY(wt_config_priv_expand_profiles(&ps));
     WT_ALLOC(ctx, cfg, 1, "the configuration");
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));

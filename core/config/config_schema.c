@@ -160,6 +160,13 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
 
     KF("atmosphere.r0_m", 0, 1e-3, 1e4, "m", 1, r0, "Fried parameter r0 at 500 nm"),
     KF("atmosphere.L0_m", 0, 1.0, 1e4, "m", 1, L0, "von Karman outer scale L0"),
+    {"atmosphere.profile", K_STR, F_OPT, 0, 0, "", 1, CF(atm_profile), NOCOUNT, 0, 0, NULL, 0,
+     "the truth's profile from a file (relative to the configuration file's directory like @include; shipped: "
+     "data/atmosphere/eso35-median.txt): one layer a line, columns altitude [m], Cn2 fraction, wind speed [m/s] and "
+     "an optional wind direction [deg]; '#' starts a comment. Altitudes strictly increasing, fractions >= 0 summing "
+     "to 1 within 1e-3 (then normalised to 1), every line the same columns. The file fills altitudes_m, "
+     "cn2_fractions, wind_speed_mps (and wind_direction_deg when it has the column), which are then left out; "
+     "without the column, wind_direction_deg gives the directions. The canonical text holds the lists"},
     KFL("atmosphere.altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, layer_altitude, nlayers, 1, WT_MAX_LAYERS,
         "altitude of each layer, strictly increasing"),
     KFL("atmosphere.cn2_fractions", 0, 0.0, 1.0, "", 1, layer_fraction, nlayers, 1, WT_MAX_LAYERS,
@@ -299,6 +306,33 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.mvm_precision", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(mvm_precision), NOCOUNT, 0, 0, "fp32|fp16|bf16", 0,
      "storage and apply of the MVM control matrix: fp32, or 16-bit floats (IEEE half / bfloat16, one power-of-two "
      "scale per row) with float32 accumulation, half the bytes per frame (optional, default fp32)"},
+    {"recon.atmosphere.source", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(model.source), NOCOUNT, 0, 0, "oracle|given|learned",
+     WT_MODEL_ORACLE,
+     "the reconstructors' atmosphere (SPEC §12; the simulation's is atmosphere.*): oracle = the truth's profile, r0 "
+     "and L0, compressed onto each variant's layer altitudes; given = the profile of the recon.atmosphere keys below "
+     "(or its profile file), compressed the same way; learned = estimated from the loop's own telemetry, not "
+     "available yet (refused). Compression: each profile layer's Cn2 split linearly in altitude between the two "
+     "nearest reconstruction altitudes (all of it to the end layer outside their range), the wind of a layer the "
+     "Cn2-weighted mean of the wind vectors it absorbs (optional, default oracle)"},
+    {"recon.atmosphere.r0_m", K_FLOAT, F_OPT, 1e-3, 1e4, "m", 1, CF(model.r0), NOCOUNT, 0, 0, NULL, 0,
+     "given: the model's Fried parameter r0 at 500 nm (required with source = \"given\", refused otherwise)"},
+    {"recon.atmosphere.L0_m", K_FLOAT, F_OPT, 1.0, 1e4, "m", 1, CF(model.L0), NOCOUNT, 0, 0, NULL, 0,
+     "given: the model's von Karman outer scale L0 (required with source = \"given\", refused otherwise)"},
+    {"recon.atmosphere.profile", K_STR, F_OPT, 0, 0, "", 1, CF(model.profile), NOCOUNT, 0, 0, NULL, 0,
+     "given: the model's profile from a file in atmosphere.profile's format, instead of the four lists below "
+     "(wind_direction_deg still given when the file has no direction column); the canonical text holds the lists"},
+    {"recon.atmosphere.altitudes_m", K_FLOATS, F_OPT | F_INCR, 0.0, MAXALT, "m", 1, CF(model.altitude),
+     CF(model.nlayers), 1, WT_MAX_LAYERS, NULL, 0,
+     "given: the model's layer altitudes, strictly increasing; compressed onto each variant's layer_altitudes_m "
+     "(the variant's own altitudes: its fractions exactly as given)"},
+    {"recon.atmosphere.cn2_fractions", K_FLOATS, F_OPT, 0.0, 1.0, "", 1, CF(model.fraction), CF(model.nlayers), 1,
+     WT_MAX_LAYERS, NULL, 0, "given: the model's Cn2 fraction of each layer; the sum must be 1 within 1 % (then "
+     "normalised to 1)"},
+    {"recon.atmosphere.wind_speed_mps", K_FLOATS, F_OPT, 0.0, 1000.0, "m/s", 1, CF(model.wind_speed),
+     CF(model.nlayers), 1, WT_MAX_LAYERS, NULL, 0, "given: the model's wind speed of each layer"},
+    {"recon.atmosphere.wind_direction_deg", K_FLOATS, F_OPT, -360.0, 360.0, "deg", DEG, CF(model.wind_direction),
+     CF(model.nlayers), 1, WT_MAX_LAYERS, NULL, 0,
+     "given: the direction each of the model's layers moves towards, from +x towards +y"},
     VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT),
     VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT),
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),

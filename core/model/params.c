@@ -14,12 +14,14 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
     par->wavelet_order = cfg->wavelet_order;
     par->wavelet_levels = cfg->wavelet_levels;
     par->prior_flags = cfg->prior_aliasing ? WT_PRIOR_ALIASED : 0; /* the kind is the variant's (wt_tomography_alloc) */
-    par->r0 = cfg->r0;
-    par->L0 = cfg->L0;
-    par->natm = cfg->nlayers;
-    for (int k = 0; k < cfg->nlayers; k++) {
-        par->atm_altitude[k] = cfg->layer_altitude[k];
-        par->atm_fraction[k] = cfg->layer_fraction[k];
+    /* the reconstructor's own atmosphere (recon.atmosphere), never the simulated one: the oracle's is a copy of it */
+    const wt_model_atmosphere_config *m = &cfg->model;
+    par->r0 = m->r0;
+    par->L0 = m->L0;
+    par->natm = m->nlayers;
+    for (int k = 0; k < m->nlayers; k++) {
+        par->atm_altitude[k] = m->altitude[k];
+        par->atm_fraction[k] = m->fraction[k];
     }
     par->model_error = cfg->model_error;
     par->loop_noise_gain = wt_noise_loop_gain(cfg->gain, cfg->delay);

@@ -11,7 +11,8 @@
 #include "reconstructor.h"
 #include "tomography.h"
 
-/* α, τ, the wavelet, the prior and the atmosphere profile of cfg; source = cfg->path (not copied). */
+/* α, τ, the wavelet, the prior and the reconstructors' atmosphere (cfg->model: recon.atmosphere, never the simulated
+ * one but as the oracle's copy); source = cfg->path (not copied). */
 void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params *par);
 /* ε, the sampling and the solver of a variant's fitting step (cg9; pcg3 has none, sampling ≤ 0 becomes 1). */
 wt_fitting_params wt_fitting_params_from_variant(const wt_recon_variant_config *var);

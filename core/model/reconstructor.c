@@ -1,5 +1,6 @@
 /* core/model/reconstructor.c: the pcg3 / cg9 / none reconstructors as one slopes → commands map. */
 #include "reconstructor.h"
+#include "profile.h"
 
 #include "../la/sparse.h"
 #include "../solve/mvm.h"
@@ -86,7 +87,7 @@ int wt_reconstructor_command_map(wt_context *ctx, const wt_tomography *t, wt_spa
     for (int l = 0; l < L; l++) {
         int j;
         double w;
-        wt_tomography_bin_altitude(K, alt, wt_tomography_layer_altitude(t, l), &j, &w);
+        wt_profile_bin_altitude(K, alt, wt_tomography_layer_altitude(t, l), &j, &w);
         for (int side = 0; side < 2; side++) {
             double weight = side ? w : 1.0 - w;
             if (weight <= 0.0) continue;

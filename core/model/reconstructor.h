@@ -49,7 +49,7 @@ int wt_reconstructor_alloc_mvm(wt_context *ctx, const wt_system *sys, const stru
 void wt_reconstructor_free(wt_reconstructor *r);
 /* The pcg3 command map (also the MVM builder's), a = S φ: returns Sᵀ (layer points x active actuators,
  * CSC: column i holds actuator i's weights). A layer at a DM's altitude goes to that DM; a layer between
- * two DM altitudes is split linearly between them (wt_tomography_bin_altitude, the prior's Cn² rule),
+ * two DM altitudes is split linearly between them (wt_profile_bin_altitude, the prior's Cn² rule),
  * one outside their range goes to the end DM; each share is the layer's bilinear interpolation at the
  * actuator positions (one point with weight 1 when the actuator is a layer point). WT_ERR_CONFIG naming
  * the DM when a DM receives no layer or an actuator falls off a layer grid. */

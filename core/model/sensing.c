@@ -61,8 +61,9 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     /* "rendered": the phase as the simulation renders it, on screens of the simulation grid's spacing
      * read by bilinear interpolation (seeing.h); "tilt_removed": the sky's */
     ws->seeing_grid = cfg->lgs_reference_seeing == 2 ? g->side / cfg->points_per_subaperture : 0.0;
-    ws->r0 = cfg->r0;
-    ws->L0 = cfg->L0;
+    /* the centroider is the real-time computer's: its reference knows the reconstructor's atmosphere */
+    ws->r0 = cfg->model.r0;
+    ws->L0 = cfg->model.L0;
     const int nsub = g->nsub, np = ws->np, ns = ws->ns;
     const size_t nsamp = (size_t)nsub * np * np, npix = (size_t)nsub * ns * ns;
 

@@ -58,7 +58,8 @@ typedef struct wt_sensing {
     double side;
     double pixel;              /* detector pixel p [rad] */
     int seeing;                /* 1: the reference carries the tilt-removed seeing of r0, L0 (LGS only) */
-    double r0, L0;             /* that seeing's Fried parameter at 500 nm and outer scale [m] */
+    double r0, L0;             /* that seeing's Fried parameter at 500 nm and outer scale [m]: the reconstructor's
+                                  atmosphere's (recon.atmosphere), not the truth's */
     double seeing_grid;        /* the simulation grid that renders it [m]; 0: the sky's (unlimited) spectrum */
     wt_spot *spot;             /* owned */
     wt_centroid *cen;          /* owned */

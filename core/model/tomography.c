@@ -1,6 +1,7 @@
 /* core/model/tomography.c: normal operator, right-hand side and (P)CG solve
  * of the wavelet MAP tomography (paper eq. eqn_lse; SPEC §6). */
 #include "tomography.h"
+#include "profile.h"
 #include "sensing.h"
 
 #include <math.h>
@@ -116,32 +117,14 @@ static int thread_id(void)
 #endif
 }
 
-void wt_tomography_bin_altitude(int L, const double *alt, double h, int *l, double *w)
-{
-    *l = 0;
-    *w = 0.0;
-    if (h <= alt[0]) return;
-    if (h >= alt[L - 1]) {
-        *l = L - 1;
-        return;
-    }
-    while (!(h >= alt[*l] && h < alt[*l + 1])) (*l)++;
-    *w = (h - alt[*l]) / (alt[*l + 1] - alt[*l]);
-}
-
-/* Bin the atmosphere's Cn² profile onto the reconstruction altitudes (wt_tomography_bin_altitude); floor 1e-3. */
+/* The model's Cn² profile compressed onto the reconstruction altitudes (SPEC §12, wt_profile_compress), then
+ * floored: a layer that receives less than WT_PRIOR_FRACTION_FLOOR keeps that much, so that its prior still
+ * regularises it (a zero fraction is an infinite prior weight, a layer the data could not move). */
 static void bin_profile(const wt_tomography_params *par, int L, const double *alt, double *frac)
 {
-    for (int l = 0; l < L; l++) frac[l] = 0.0;
-    for (int k = 0; k < par->natm; k++) {
-        int l;
-        double w;
-        wt_tomography_bin_altitude(L, alt, par->atm_altitude[k], &l, &w);
-        frac[l] += (1.0 - w) * par->atm_fraction[k];
-        if (w > 0.0) frac[l + 1] += w * par->atm_fraction[k];
-    }
+    wt_profile_compress(par->natm, par->atm_altitude, par->atm_fraction, NULL, NULL, L, alt, frac, NULL, NULL);
     for (int l = 0; l < L; l++)
-        if (frac[l] < 1e-3) frac[l] = 1e-3;
+        if (frac[l] < WT_PRIOR_FRACTION_FLOOR) frac[l] = WT_PRIOR_FRACTION_FLOOR;
 }
 
 int64_t wt_tomography_nunknowns(const wt_tomography *t) { return t->n; }
@@ -209,7 +192,7 @@ int wt_tomography_threads(const wt_tomography *t) { return t->nthreads; }
 /* ---- Layer-binning model error of the LGS slopes (recon.model_error) ---------------------------------
  *
  * The prior puts the Cn² of a true layer at altitude h on the two nearest reconstruction layers
- * (wt_tomography_bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
+ * (wt_profile_bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
  * then predicts Γ_m[(1 − w) P_m(h_l) + w P_m(h_{l+1})] φ where it measures Γ_m P_m(h) φ; the difference
  * (sub-metre structure seen through the shifts (h − h_l)θ_m and the LGS cone (h − h_l) r / H) cannot be
  * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
@@ -258,7 +241,7 @@ static int model_error(wt_tomography *t, const wt_recon_variant_config *var, con
         const double h = par->atm_altitude[k], f = par->atm_fraction[k];
         int l;
         double w;
-        wt_tomography_bin_altitude(t->L, t->alt, h, &l, &w);
+        wt_profile_bin_altitude(t->L, t->alt, h, &l, &w);
         if (f <= 0.0 || (w == 0.0 && fabs(h - t->alt[l]) <= 1e-6 * fmax(1.0, h))) continue;
         WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, NULL, &prior));
         const double *d = wt_prior_diag(prior);

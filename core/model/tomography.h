@@ -9,10 +9,9 @@
  *
  * Reconstruction layers: one per altitude of the chosen variant (recon.pcg3 or recon.cg9), each a
  * periodic n x n grid of spacing δ (wt_grid_layer) with its own DWT plan and prior D_ℓ. The prior needs
- * the Cn² fraction of each reconstruction layer: the atmosphere profile is binned onto the
- * reconstruction altitudes, each true layer split between the two nearest reconstruction layers
- * linearly in altitude (all of it to the end layer outside their range); a floor of 1e-3 keeps a layer
- * that receives nothing regularised.
+ * the Cn² fraction of each reconstruction layer: the model's profile (wt_tomography_params: the truth's for the
+ * oracle, the user's for a given model) compressed onto the reconstruction altitudes (core/model/profile.h,
+ * SPEC §12); a floor of WT_PRIOR_FRACTION_FLOOR keeps a layer that receives nothing regularised.
  * Unknowns: wavelet coefficients of the layers, concatenated layer by layer (Mallat layout each); or, with
  * wt_tomography_params.space (the fourier preconditioner's, which needs the full prior), the layers' values
  * themselves, φ = W⁻¹ c: M_φ = W⁻¹ M W, b_φ = W⁻¹ b. W is orthogonal, so (P)CG on (M_φ, W⁻¹ P⁻¹ W) takes the
@@ -37,6 +36,10 @@
 
 typedef struct wt_tomography wt_tomography;
 
+/* The least Cn² fraction a reconstruction layer's prior is given: a layer that the profile leaves (nearly) empty
+ * would have an infinite prior weight, a layer the data could not move. */
+#define WT_PRIOR_FRACTION_FLOOR 1e-3
+
 /* What the MAP problem takes besides the system and the variant's layers: passed in, never looked up
  * (wt_tomography_params_from_config in core/model/params.h fills it from a configuration). */
 typedef struct wt_tomography_params {
@@ -47,7 +50,8 @@ typedef struct wt_tomography_params {
     int prior_flags;       /* WT_PRIOR_ALIASED or 0 (core/op/prior.h); the kind is the variant's prior */
     double r0;             /* Fried parameter at 500 nm [m] */
     double L0;             /* outer scale [m] */
-    int natm;              /* the atmosphere's Cn² profile, binned onto the reconstruction layers: */
+    int natm;              /* the model's Cn² profile (SPEC §12: the reconstructor's atmosphere, the truth's only
+                              for the oracle), compressed onto the reconstruction layers: */
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
     int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
@@ -66,11 +70,6 @@ typedef struct wt_tomography_params {
 int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_variant_config *var,
                         const char *variant_name, const wt_tomography_params *par, wt_tomography **out);
 void wt_tomography_free(wt_tomography *t);
-
-/* Where a true layer at altitude h goes among the increasing altitudes alt[0..L-1]: fraction 1 − w to
- * *l and w to *l + 1 (linear split between the two nearest; all of it to the end one outside their
- * range, w = 0). The prior's Cn² binning and pcg3's layers → DMs map both use it. */
-void wt_tomography_bin_altitude(int L, const double *alt, double h, int *l, double *w);
 
 int64_t wt_tomography_nunknowns(const wt_tomography *t);
 int wt_tomography_nlayers(const wt_tomography *t);

@@ -1,0 +1,292 @@
+/* core/config/config_atmosphere.c: the truth's atmosphere from a profile file, and the reconstructors' own
+ * atmosphere (recon.atmosphere; SPEC §12 "Truth and model are separate objects").
+ *
+ * A profile file (atmosphere.profile for the truth, recon.atmosphere.profile for a given model) is plain text,
+ * one layer a line: altitude [m], Cn² fraction, wind speed [m/s], and optionally the wind direction [deg] (the
+ * direction the layer moves towards, from +x towards +y); '#' starts a comment, blank lines are skipped, fields
+ * are separated by blanks. Refused with FILE:LINE: a field that is not a finite number, a line with fewer than 3
+ * or more than 4 columns or with other columns than the first layer's, a negative fraction, an altitude not above
+ * the previous one, a value outside its key's range, more than WT_MAX_LAYERS layers; and, naming the file, no
+ * layer, or fractions that do not sum to 1 within WT_PROFILE_SUM_TOL (a truncated or mistyped table is likelier
+ * than a deliberate one; within it they are normalised to 1 as the configuration's lists are). The values are
+ * rounded to the 15 significant digits of the canonical text, where they are written as the group's lists: a
+ * stored configuration reads back to the same bits without the file.
+ */
+#include "config_private.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* A profile's fractions must sum to 1 within this: the ESO 35-layer table sums to 1 within 4e-7 (values of 6
+ * digits); a missing line of the smallest layer of a real profile (~4e-4) is still seen. */
+#define WT_PROFILE_SUM_TOL 1e-3
+
+/* the columns of a profile file and the keys whose range (and list) each one fills */
+enum { COL_ALT, COL_FRAC, COL_SPEED, COL_DIR, NCOL };
+static const char *const col_key[NCOL] = {"altitudes_m", "cn2_fractions", "wind_speed_mps", "wind_direction_deg"};
+static const char *const col_name[NCOL] = {"altitude [m]", "Cn2 fraction", "wind speed [m/s]",
+                                           "wind direction [deg]"};
+
+typedef struct profile {
+    int n;                           /* layers */
+    int ncol;                        /* 3, or 4 with directions */
+    double v[NCOL][WT_MAX_LAYERS];   /* the columns in the file's units */
+} profile;
+
+/* The value rounded to the 15 significant digits the canonical text keeps (config_read.c's build_text). */
+static double round15(double x)
+{
+    char b[40];
+    snprintf(b, sizeof b, "%.15g", x);
+    return strtod(b, NULL);
+}
+
+/* Reads and checks profile file `path` (key: the configuration key that named it, at loc) for group `group`. */
+static int read_profile(wt_config_priv_state *ps, const char *path, const char *key, const char *loc, const char *group,
+                        profile *p)
+{
+    wt_context *ctx = ps->ctx;
+    int st = WT_OK, lineno = 0, first_line = 0, prev_line = 0;
+    char *line = NULL;
+    size_t cap = 0;
+    double sum = 0.0;
+    const wt_config_priv_key_spec *ks[NCOL];
+    for (int c = 0; c < NCOL; c++) {
+        char k[96];
+        snprintf(k, sizeof k, "%s.%s", group, col_key[c]);
+        ks[c] = &wt_config_priv_keys[wt_config_priv_find_key(k)];
+    }
+    char tail[1280]; /* what every message of a line ends with */
+    snprintf(tail, sizeof tail, "(the profile of key '%s' at %s)", key, loc);
+    memset(p, 0, sizeof *p);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key '%s': cannot open the profile file '%s': %s", loc, key, path,
+                        strerror(errno));
+    while (getline(&line, &cap, f) >= 0) {
+        lineno++;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = '\0';
+        double v[NCOL + 1];
+        int nf = 0;
+        for (char *s = line;;) {
+            while (isspace((unsigned char)*s)) s++;
+            if (!*s) break;
+            char *e = s;
+            while (*e && !isspace((unsigned char)*e)) e++;
+            const char save = *e;
+            *e = '\0';
+            char *end;
+            errno = 0;
+            const double x = strtod(s, &end);
+            if (nf < NCOL && (*end || end == s || !isfinite(x) || errno == ERANGE)) {
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): '%s' is not a finite number %s",
+                              path, lineno, nf + 1, col_name[nf], s, tail);
+                goto out;
+            }
+            if (nf <= NCOL) v[nf] = x;
+            nf++;
+            *e = save;
+            s = e;
+        }
+        if (nf == 0) continue;
+        if (nf < NCOL - 1 || nf > NCOL) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                          "%s:%d: %d column%s; expected 3 or 4: altitude [m], Cn2 fraction, wind speed [m/s] and an "
+                          "optional wind direction [deg] %s", path, lineno, nf, nf == 1 ? "" : "s",
+                          tail);
+            goto out;
+        }
+        if (p->n == 0) p->ncol = nf, first_line = lineno;
+        else if (nf != p->ncol) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: %d columns, but the first layer (line %d) has %d: every line "
+                          "must have the same columns %s", path, lineno, nf, first_line, p->ncol,
+                          tail);
+            goto out;
+        }
+        if (p->n == WT_MAX_LAYERS) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: more than %d layers %s", path, lineno,
+                          WT_MAX_LAYERS, tail);
+            goto out;
+        }
+        if (v[COL_FRAC] < 0.0) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: the Cn2 fraction %g is negative %s", path, lineno,
+                          v[COL_FRAC], tail);
+            goto out;
+        }
+        if (p->n > 0 && !(v[COL_ALT] > p->v[COL_ALT][p->n - 1])) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: altitude %g m is not above the previous layer's %g m (line %d): "
+                          "the altitudes must be strictly increasing %s", path, lineno, v[COL_ALT],
+                          p->v[COL_ALT][p->n - 1], prev_line, tail);
+            goto out;
+        }
+        for (int c = 0; c < nf; c++) {
+            if (v[c] < ks[c]->lo || v[c] > ks[c]->hi) {
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): %g is out of range; expected [%g, %g] as "
+                              "'%s' %s", path, lineno, c + 1, col_name[c], v[c], ks[c]->lo, ks[c]->hi,
+                              ks[c]->path, tail);
+                goto out;
+            }
+            p->v[c][p->n] = round15(v[c]);
+        }
+        sum += p->v[COL_FRAC][p->n];
+        prev_line = lineno;
+        p->n++;
+    }
+    if (ferror(f)) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: reading the profile file failed: %s (key '%s' at %s)", path,
+                      strerror(errno), key, loc);
+        goto out;
+    }
+    if (p->n == 0) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: no layer in the profile file (key '%s' at %s)", path, key, loc);
+        goto out;
+    }
+    if (!(fabs(sum - 1.0) <= WT_PROFILE_SUM_TOL))
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: the Cn2 fractions of its %d layers (lines %d-%d) sum to %.9g; expected 1 "
+                      "within %g (key '%s' at %s)", path, p->n, first_line, prev_line, sum, WT_PROFILE_SUM_TOL, key, loc);
+out:
+    free(line); /* getline's buffer comes from malloc */
+    fclose(f);
+    return st;
+}
+
+/* How key k was set: -1 not at all, 0 in the file's body, 1 by an override (the file's or --set). */
+static int how_set(const wt_config_priv_state *ps, int k, const char *path)
+{
+    if (!config_lookup(ps->cf, path)) return -1;
+    return ps->ovidx[k] >= 0;
+}
+
+/* group.profile → the group's lists (wt_config_priv_expand_profiles). A profile given by an override replaces the
+ * lists the file's body (or an @included file) gives: a preset derived from another changes its atmosphere so.
+ * Refused: a profile beside lists given at the same level (the file's body, or overrides), and, without a
+ * direction column, a profile override whose directions are not an override too (the base file's would be
+ * another atmosphere's). */
+static int expand_one(wt_config_priv_state *ps, const char *group)
+{
+    char key[96], loc[1100], oth[1100], lk[NCOL][96];
+    snprintf(key, sizeof key, "%s.profile", group);
+    const int kp = wt_config_priv_find_key(key);
+    const config_setting_t *s = config_lookup(ps->cf, key);
+    if (!s) return WT_OK;
+    wt_config_priv_where(ps, kp, s, loc, sizeof loc);
+    const char *str = config_setting_type(s) == CONFIG_TYPE_STRING ? config_setting_get_string(s) : NULL;
+    if (!str || !*str)
+        return wt_config_priv_fail(ps, loc, "key '%s': expected a string (a file path)", key);
+    char path[1024];
+    const int rel = str[0] != '/' && ps->incdir && *ps->incdir;
+    if ((size_t)snprintf(path, sizeof path, "%s%s", rel ? ps->incdir : "", str) >= sizeof path)
+        return wt_config_priv_fail(ps, loc, "key '%s': the path \"%s\" is too long", key, str);
+    const int over = ps->ovidx[kp] >= 0;
+    profile p;
+    int st = read_profile(ps, path, key, loc, group, &p);
+    if (st < 0) return st;
+    int kc[NCOL];
+    for (int c = 0; c < NCOL; c++) {
+        snprintf(lk[c], sizeof lk[c], "%s.%s", group, col_key[c]);
+        kc[c] = wt_config_priv_find_key(lk[c]);
+        const int how = how_set(ps, kc[c], lk[c]);
+        const config_setting_t *x = config_lookup(ps->cf, lk[c]);
+        if (c == COL_DIR && p.ncol < NCOL) { /* the directions are the configuration's */
+            if (how < 0 || (over && how == 0))
+                return wt_config_priv_fail(ps, loc, "key '%s': the profile file %s has no wind direction column: give "
+                                           "'%s' (%d values [deg], one per layer%s), or a fourth column in the file",
+                                           key, path, lk[c], p.n, over ? ", by an override as the profile is" : "");
+            continue;
+        }
+        if (how < 0) continue;
+        if (!over || how == 1)
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, kc[c], x, oth, sizeof oth),
+                                       "key '%s' is given beside '%s' (%s), whose file gives the %s: leave out one "
+                                       "of them", lk[c], key, loc, c == COL_DIR ? "directions" : "layers");
+        /* the profile override replaces the base's list */
+        const char *leaf;
+        config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, lk[c], &leaf);
+        if (g) config_setting_remove(g, leaf);
+    }
+    for (int c = 0; c < p.ncol; c++)
+        if ((st = wt_config_priv_write_list(ps, kc[c], p.v[c], NULL, p.n)) < 0) return st;
+    return WT_OK;
+}
+
+int wt_config_priv_expand_profiles(wt_config_priv_state *ps)
+{
+    int st = expand_one(ps, "atmosphere");
+    return st < 0 ? st : expand_one(ps, "recon.atmosphere");
+}
+
+static const char *const model_keys[] = {"recon.atmosphere.r0_m",           "recon.atmosphere.L0_m",
+                                         "recon.atmosphere.profile",        "recon.atmosphere.altitudes_m",
+                                         "recon.atmosphere.cn2_fractions",  "recon.atmosphere.wind_speed_mps",
+                                         "recon.atmosphere.wind_direction_deg"};
+enum { NMODEL_KEYS = sizeof model_keys / sizeof *model_keys };
+
+int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
+{
+    char loc[1100], oth[1100];
+    wt_model_atmosphere_config *m = &cfg->model;
+    const int ks = wt_config_priv_find_key("recon.atmosphere.source");
+    wt_config_priv_where(ps, ks, ps->set[ks], oth, sizeof oth);
+    if (m->source == WT_MODEL_LEARNED)
+        return wt_config_priv_fail(ps, oth, "key 'recon.atmosphere.source' = \"learned\": the reconstructor's "
+                                   "atmosphere estimated from the loop's own telemetry (SPEC §12) is not available "
+                                   "yet; use \"oracle\" (the truth compressed onto the reconstructors' layers) or "
+                                   "\"given\" (a profile of your own, recon.atmosphere.*)");
+    for (int i = 0; i < NMODEL_KEYS; i++) {
+        const int k = wt_config_priv_find_key(model_keys[i]);
+        if (m->source == WT_MODEL_ORACLE && ps->set[k])
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
+                                       "key '%s' is given but 'recon.atmosphere.source' is \"oracle\" (%s): the oracle "
+                                       "takes the truth's profile, r0 and L0; set source = \"given\" to use your own",
+                                       model_keys[i], ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0
+                                                         ? oth : "its default");
+        if (m->source == WT_MODEL_GIVEN && !ps->set[k] && i != 2)
+            return wt_config_priv_fail(ps, oth, "'recon.atmosphere.source' is \"given\" but key '%s' is missing: a given "
+                                       "model needs r0_m, L0_m and its layers (altitudes_m, cn2_fractions, "
+                                       "wind_speed_mps, wind_direction_deg, or a profile file)", model_keys[i]);
+    }
+    /* the profile files are in the canonical text as their lists */
+    ps->set[wt_config_priv_find_key("atmosphere.profile")] = NULL;
+    ps->set[wt_config_priv_find_key("recon.atmosphere.profile")] = NULL;
+    if (m->source == WT_MODEL_ORACLE) { /* the truth, as loaded and normalised: the same doubles */
+        m->r0 = cfg->r0;
+        m->L0 = cfg->L0;
+        m->nlayers = cfg->nlayers;
+        for (int l = 0; l < cfg->nlayers; l++) {
+            m->altitude[l] = cfg->layer_altitude[l];
+            m->fraction[l] = cfg->layer_fraction[l];
+            m->wind_speed[l] = cfg->wind_speed[l];
+            m->wind_direction[l] = cfg->wind_direction[l];
+        }
+        return WT_OK;
+    }
+    double sum = 0.0; /* the same rule as the truth's lists (config_read.c) */
+    for (int l = 0; l < m->nlayers; l++) sum += m->fraction[l];
+    const int kf = wt_config_priv_find_key("recon.atmosphere.cn2_fractions");
+    if (!(fabs(sum - 1.0) <= 0.01))
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kf, ps->set[kf], loc, sizeof loc),
+                                   "key 'recon.atmosphere.cn2_fractions': the fractions sum to %.6g; expected 1 within "
+                                   "1 %% (they are then normalised to sum exactly 1)", sum);
+    for (int l = 0; l < m->nlayers; l++) m->fraction[l] /= sum;
+    return WT_OK;
+}
+
+int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const char *path)
+{
+    /* the model's numbers make the matrix, not how they were specified; no reconstructor reads a wind yet */
+    if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
+        !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
+        !strncmp(path, "atmosphere.wind_", 16))
+        return 0;
+    if (!strncmp(path, "recon.atmosphere.", 17)) return 1;
+    if (strncmp(path, "atmosphere.", 11)) return -1;
+    /* the truth's r0, L0 and profile make the matrix only as the oracle's model */
+    const int ks = wt_config_priv_find_key("recon.atmosphere.source");
+    const char *src = ps->set[ks] ? config_setting_get_string(ps->set[ks]) : NULL;
+    return !src || !strcmp(src, "oracle");
+}
