@@ -70,6 +70,10 @@ static const field fields[] = {
      "sweep value]", OFF(psf_frames), 0},
     {"time_psf", "ms", "wall time of the PSF images per simulated frame (part of time_per_frame) [method, "
      "sweep value]", OFF(psf_ms), 0},
+    {"lgs_inloop_gain_along", "", "diffractive LGS: the centroiders' in-loop gain along the elongation (least-squares "
+     "slope of measured on true slopes over the averaged frames, mean over the LGS; 0 without diffractive LGS) "
+     "[method, sweep value]", OFF(lgs_gain_along), 0},
+    {"lgs_inloop_gain_across", "", "the same across the elongation [method, sweep value]", OFF(lgs_gain_across), 0},
 };
 #define NFIELDS ((int)(sizeof fields / sizeof *fields))
 
@@ -488,6 +492,18 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                             a->ns > 1 && q->nseeds ? " (some seeds)" : "");
             }
         if (doc && a->ns > 1 && a->nm > 1) write_differences(f, a, R);
+        if (doc && S[0].mean.done && S[0].mean.lgs_gain_along != 0.0) {
+            fprintf(f, "\nThe diffractive LGS centroiders' **in-loop gain** (measured slope per true slope, the average "
+                       "gradient of the OPD each subaperture sampled; 1 when the reference I0 is the spot the loop "
+                       "sees, lgs.wfs.reference_seeing), along / across the elongation:");
+            for (int m = 0; m < a->nm; m++)
+                for (int v = 0; v < nv; v++) {
+                    const wt_compare_result *r = &S[m * nv + v].mean;
+                    if (r->done) fprintf(f, " %s%s%s %.3f / %.3f;", a->methods[m], a->nv ? " " : "", val(a, v),
+                                         r->lgs_gain_along, r->lgs_gain_across);
+                }
+            fprintf(f, "\n");
+        }
         if (doc) {
             fprintf(f, "\n");
             if (a->nv > 1 && !missing) fprintf(f, "![LE Strehl against %s](strehl_vs_sweep.png)\n\n", a->key);

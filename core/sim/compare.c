@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "../base/sha256.h"
+#include "../model/sensing.h"
 #include "../model/tomography.h"
 #include "psf.h"
 
@@ -76,6 +77,16 @@ int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm
     res->on_axis = res->strehl[sys->eval_centre];
     res->wfe_field = sqrt(fw);
     res->frames = cfg->frames;
+    int nlgs = 0;
+    for (int i = 0; i < sys->nsensors; i++) {
+        if (!sys->sensors[i].diffr || sys->sensors[i].kind != WT_SENSOR_LGS) continue;
+        double al, ac;
+        long fr;
+        wt_sensing_gain_in_loop(sys->sensors[i].diffr, &al, &ac, &fr);
+        if (fr < 1) continue;
+        res->lgs_gain_along += al, res->lgs_gain_across += ac, nlgs++;
+    }
+    if (nlgs) res->lgs_gain_along /= nlgs, res->lgs_gain_across /= nlgs;
     if (psf) {
         for (int j = 0; j < sys->neval; j++) {
             res->psf_strehl[j] = wt_psf_strehl(psf, j);
@@ -136,7 +147,7 @@ void wt_compare_mean_se(const double *x, int n, double *mean, double *se)
 
 /* wt_compare_summarise averages a result as an array of doubles up to `done`: it must stay all doubles there */
 _Static_assert(offsetof(wt_compare_result, done) ==
-                   sizeof(double) * (3 * WT_MAX_EVAL + 3 + WT_COMPARE_NPART + 3 + 9),
+                   sizeof(double) * (3 * WT_MAX_EVAL + 3 + WT_COMPARE_NPART + 3 + 11),
                "wt_compare_result: the fields before 'done' must be the doubles wt_compare_summarise averages");
 
 void wt_compare_summarise(const wt_compare_result *r, int ns, wt_compare_summary *out)

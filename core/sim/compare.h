@@ -30,6 +30,8 @@ typedef struct wt_compare_result {
     double psf_fft;                               /* the padded FFT's size N */
     double psf_ms;                                /* wall time of the images per simulated frame [ms] */
     double frames;                                /* frames run (loop.frames of the case) */
+    double lgs_gain_along, lgs_gain_across;       /* the diffractive LGS centroiders' in-loop gain (mean over the
+                                                     LGS; core/model/sensing.h); 0 without diffractive LGS */
     int done;                                     /* 1: the case ran to its last frame */
 } wt_compare_result;
 
