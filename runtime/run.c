@@ -9,6 +9,7 @@
 #include "runtime/runtime.h"
 #include "cli/cli.h"
 #include "core/io/h5.h"
+#include "core/io/mvm_file.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 #include "core/model/estimate.h"
@@ -112,8 +113,10 @@ int wt_cmd_run(int argc, char **argv)
     if (cli.config_path) {
         if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;
         if (strcmp(cfg->matrix_sha256, tcfg->matrix_sha256) != 0) {
-            st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s was recorded on another system than %s (configuration hashes differ)",
-                          args.tel, cfg->path);
+            char diff[1024];
+            wt_mvm_file_text_diff(tcfg->matrix_text, cfg->matrix_text, args.tel, cfg->path, diff, sizeof diff);
+            st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s was recorded on another system than %s (%s)", args.tel,
+                          cfg->path, diff[0] ? diff : "configuration hashes differ");
             goto fail;
         }
     }

@@ -129,8 +129,14 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_eq(run("build --config data/presets/demo.cfg --set recon.alpha=3.0 --out %s/M3.h5", dir), 0);
     ck_assert_int_ne(run("run --matrix %s/M3.h5 --telemetry %s --out %s/c3.h5", dir, tel, dir), 0);
     ck_assert(stderr_has("built for another system"));
+    ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in ")); /* the key that differs, both values */
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s/M3.h5 --out %s/r3.h5", dir, dir), 0);
     ck_assert(stderr_has("built for another system"));
+    ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in data/presets/demo.cfg"));
+    /* telemetry and --config of two systems: the key named too */
+    ck_assert_int_ne(run("run --recon pcg3 --config data/presets/demo.cfg --set lgs.wfs.photons=50 --telemetry %s "
+                         "--out %s/c4.h5", tel, dir), 0);
+    ck_assert(stderr_has("lgs.wfs.photons = 100.0 in"));
     /* an output that cannot be written is found before the run */
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --out /nonexistent-dir/r.h5"), 1);
     ck_assert(stderr_has("/nonexistent-dir"));
