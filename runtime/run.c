@@ -17,8 +17,8 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo run --matrix MATRIX.h5 --telemetry TEL.h5 --out CMDS.h5 [--config FILE]\n"
-           "       wavetomo run --recon pcg3|cg9 --telemetry TEL.h5 --out CMDS.h5 [--config FILE] [--iters N]\n"
+    printf("usage: wavetomo run --matrix MATRIX.h5 --telemetry TEL.h5 --out CMDS.h5 [[--config] FILE]\n"
+           "       wavetomo run --recon pcg3|cg9 --telemetry TEL.h5 --out CMDS.h5 [[--config] FILE] [--iters N]\n"
            "\n"
            "Replays the frames of a telemetry file written by `wavetomo sim --telemetry` through a\n"
            "reconstructor and writes, per frame, its output R s_ol (the commands before the POLC integrator):\n"
@@ -26,8 +26,8 @@ static void help(void)
            "               through OpenBLAS (threaded); refused unless built for the telemetry's system\n"
            "  --recon R    the matrix-free wavelet reconstructor (pcg3 or cg9) on the pseudo-open-loop slopes,\n"
            "               warm-started frame to frame; --iters overrides its iteration count\n"
-           "  --config F   the system (default: the configuration stored in the telemetry, with the --set\n"
-           "               overrides); with --matrix it must match both the matrix and the telemetry\n"
+           "  --config F   the system, or F alone (default: the configuration stored in the telemetry, with\n"
+           "               the --set overrides); with --matrix it must match both the matrix and the telemetry\n"
            "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
            "  --max-memory S   refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n"
            "Reports the time per frame (median and 99th percentile) of the reconstruction alone (not the file\n"
