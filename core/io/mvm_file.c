@@ -150,7 +150,8 @@ void wt_mvm_file_text_diff(const char *a, const char *b, const char *name_a, con
     int shown = 0, more = 0;
     if (n == 0) return;
     buf[0] = '\0';
-    if (!a || !b) return;
+    /* a canonical text is ~3 kB; the lookups are quadratic in its lines, and a corrupt file's text is no system */
+    if (!a || !b || strlen(a) > WT_MVM_FILE_DIFF_MAX_TEXT || strlen(b) > WT_MVM_FILE_DIFF_MAX_TEXT) return;
     for (int pass = 0; pass < 2; pass++) { /* a's keys looked up in b, then the keys b alone has */
         setting_cursor x = {.p = pass ? b : a}, y;
         while (next_setting(&x)) {
