@@ -45,7 +45,7 @@ PCFILE    := $(BUILD)/wavetomo.pc
 # The public headers: the whole promise of the shared library (docs/c-api.md)
 PUBLIC_H  := $(sort $(wildcard include/wavetomo/*.h))
 
-.PHONY: all deps test demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
+.PHONY: all deps test test-run demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
         install uninstall docs
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB)
@@ -221,15 +221,24 @@ check-deps: deps
 	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
 # The suites, among them the Python package's pytest suite (tests/test_python.sh reports it as a Check
-# suite, so its tests count in the closing tally) and tests/test_install's checks of `make install` into a temporary DESTDIR made here
+# suite, so its tests count in the closing tally), the README's tour run as written (tests/test_tour.sh,
+# reported the same way) and tests/test_install's checks of `make install` into a temporary DESTDIR made here
 # (by this make, with its variables: a make run from inside a suite would not know them); the programs it
 # builds against a sanitized library (make debug-test) need the sanitizers too (WT_INSTALL_CFLAGS).
-test: deps check-deps
+# `make test` builds on every core unless given its own -j, and says how long it took (test-run is the same
+# without the clock).
+NPROC := $(shell nproc 2>/dev/null || echo 1)
+JOBS   = $(if $(filter -j%,$(MAKEFLAGS)),,-j$(NPROC))
+test:
+	@start=$$(date +%s); $(MAKE) --no-print-directory $(JOBS) test-run; rc=$$?; \
+	s=$$(( $$(date +%s) - start )); echo "make test took $$((s / 60)) min $$((s % 60)) s (build and suites)"; exit $$rc
+
+test-run: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB) $(TEST_BIN)
 	@d=$$(mktemp -d /tmp/wt-install.XXXXXX) && \
 	$(MAKE) --no-print-directory -s install DESTDIR=$$d PREFIX=/usr/local > $$d.log 2>&1 || { cat $$d.log; rm -rf $$d $$d.log; exit 1; }; \
 	rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
-	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN) tests/test_python.sh; rc=$$?; \
+	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN) tests/test_python.sh tests/test_tour.sh; rc=$$?; \
 	    rm -rf $$d; exit $$rc
 
 # The main job: MVM, PCG-3 and CG-9 side by side in closed loop on the demo system, with the report.

@@ -18,7 +18,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo bench [CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--no-build] [--threads N]\n"
+    printf("usage: wavetomo bench [[--config] CONFIG] [--reps N] [--loop-frames N] [--no-loop] [--no-build] [--threads N]\n"
            "                      [--sensing DCONFIG] [--sensing-only] [--sensing-frames N] [--set key=value]...\n"
            "       wavetomo bench [CONFIG] --pair-a key=value... --pair-b key=value... [--pair-recon pcg3|cg9]\n"
            "                      [--reps N] [--pair-warm N] [--threads N] [--set key=value]...\n"
@@ -219,7 +219,7 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
 }
 
 typedef struct {
-    const char *path, *sensing;
+    const char *sensing;
     long reps, loop_frames, sensing_frames;
     int skip_loop, skip_build, sensing_only;
     int npair[2];                          /* --pair-a, --pair-b overrides */
@@ -266,8 +266,7 @@ static int bench_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     else if (!strcmp(o, "--reps") || !strcmp(o, "--loop-frames")) {
         if (!(v = wt_cli_value(cli, argc, argv, i))) return -1;
         if (wt_cli_int(cli, o, v, 3, 100000, o[2] == 'r' ? &a->reps : &a->loop_frames) < 0) return -1;
-    } else if (o[0] == '-') return 0;
-    else return wt_cli_config_arg(cli, o, &a->path);
+    } else return 0; /* CONFIG (positional or --config) is the common options' */
     return 1;
 }
 
@@ -400,15 +399,14 @@ int wt_cmd_bench(int argc, char **argv)
         return rc;
     }
     rc = 0;
-    const char *path = args.path;
+    const char *path = cli.config_path ? cli.config_path : "data/presets/eelt-mcao.cfg";
     int reps = (int)args.reps, loop_frames = (int)args.loop_frames, skip_loop = args.skip_loop;
-    if (!path && !cli.config_path) path = "data/presets/eelt-mcao.cfg";
     wt_config *cfg = NULL, *dcfg = NULL;
     wt_system *sys = NULL, *dsys = NULL;
     double geometric = -1.0;
     int st;
     if (args.npair[0] || args.npair[1]) {
-        st = bench_pair(&cli, path ? path : cli.config_path, &args);
+        st = bench_pair(&cli, path, &args);
         goto out;
     }
     st = wt_cli_read_config(&cli, path, &cfg);

@@ -19,7 +19,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo info CONFIG [--set key=value]... [--no-nnz] [--threads N] [--spots DIR [--sensor NAME]]\n"
+    printf("usage: wavetomo info [--config] CONFIG [--set key=value]... [--no-nnz] [--threads N] [--spots DIR [--sensor NAME]]\n"
            "       wavetomo info --keys\n"
            "\n"
            "Prints the derived sizes of the system described by CONFIG: valid subapertures and slopes\n"
@@ -169,7 +169,6 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
 }
 
 typedef struct {
-    const char *path;
     int count_nnz, keys;
     const char *spots, *sensor; /* --spots DIR, --sensor NAME */
 } info_args;
@@ -186,8 +185,7 @@ static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         if (!strcmp(argv[*i - 1], "--spots")) a->spots = v;
         else a->sensor = v;
     }
-    else if (argv[*i][0] == '-') return 0;
-    else return wt_cli_config_arg(cli, argv[*i], &a->path);
+    else return 0; /* CONFIG (positional or --config) is the common options' */
     return 1;
 }
 
@@ -195,7 +193,7 @@ int wt_cmd_info(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo info", help)) return 1;
-    info_args args = {NULL, 1, 0, NULL, NULL};
+    info_args args = {1, 0, NULL, NULL};
     int rc = wt_cli_parse(&cli, argc, argv, info_option, &args);
     if (rc >= 0 || args.keys) {
         if (args.keys && rc < 0) {
@@ -206,7 +204,6 @@ int wt_cmd_info(int argc, char **argv)
         return rc;
     }
     rc = 0;
-    const char *path = args.path;
     int count_nnz = args.count_nnz, spots_sensor = -1;
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
@@ -215,7 +212,7 @@ int wt_cmd_info(int argc, char **argv)
         wt_cli_done(&cli);
         return rc;
     }
-    int st = wt_cli_read_config(&cli, path, &cfg);
+    int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto out;
     if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE)) >= 0) goto out;
     rc = 0;

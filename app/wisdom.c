@@ -11,7 +11,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo wisdom CONFIG --out FILE [--set key=value]... [--dry-run] [--quiet] [--force]\n"
+    printf("usage: wavetomo wisdom [--config] CONFIG --out FILE [--set key=value]... [--dry-run] [--quiet] [--force]\n"
            "\n"
            "Measures (FFTW_MEASURE) the FFTs that the reconstructors of CONFIG run every iteration — the n x n\n"
            "real transform pair of each layer size of a variant with the full prior (recon.<variant>.prior =\n"
@@ -32,7 +32,7 @@ static void help(void)
 }
 
 typedef struct {
-    const char *path, *out;
+    const char *out;
 } wisdom_args;
 
 static int wisdom_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -40,8 +40,7 @@ static int wisdom_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     wisdom_args *a = user;
     if (!strcmp(argv[*i], "--out")) {
         if (!(a->out = wt_cli_value(cli, argc, argv, i))) return -1;
-    } else if (argv[*i][0] == '-') return 0;
-    else return wt_cli_config_arg(cli, argv[*i], &a->path);
+    } else return 0; /* CONFIG (positional or --config) is the common options' */
     return 1;
 }
 
@@ -49,7 +48,7 @@ int wt_cmd_wisdom(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo wisdom", help)) return 1;
-    wisdom_args args = {NULL, NULL};
+    wisdom_args args = {NULL};
     int rc = wt_cli_parse(&cli, argc, argv, wisdom_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -62,7 +61,7 @@ int wt_cmd_wisdom(int argc, char **argv)
     }
     wt_config *cfg = NULL;
     wt_fft_wisdom *w = NULL;
-    int st = wt_cli_read_config(&cli, args.path, &cfg);
+    int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto out;
     if ((st = wt_cli_check_text_output(&cli, args.out, "(fftw-", NULL)) < 0) goto out;
     if ((st = wt_fft_wisdom_learner(cli.ctx, &w)) < 0) goto out;

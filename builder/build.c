@@ -21,7 +21,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo build --config FILE [--set key=value]... [--recon pcg3|cg9] --out MATRIX.h5\n"
+    printf("usage: wavetomo build [--config] FILE [--set key=value]... [--recon pcg3|cg9] --out MATRIX.h5\n"
            "                      [--memory GB] [--threads N] [--quiet]\n"
            "\n"
            "Builds the MVM control matrix of the same MAP problem the wavelet reconstructor solves: assembles\n"
@@ -142,7 +142,7 @@ static int build_main(wt_mpi *mp, int argc, char **argv)
         return rc;
     }
     if (!args.out || !cli.config_path) {
-        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "--config FILE" : "--out MATRIX.h5");
+        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "a configuration (FILE or --config FILE)" : "--out MATRIX.h5");
         wt_cli_done(&cli);
         return rc;
     }

@@ -111,7 +111,7 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
         }
         val = argv[++*i];
     }
-    if (!strcmp(name, "--config")) cli->config_path = val;
+    if (!strcmp(name, "--config")) return wt_cli_config_arg(cli, val, &cli->config_path);
     else if (!strcmp(name, "--max-memory")) return parse_size(cli, val, &cli->max_memory) < 0 ? -1 : 1;
     else if (!strcmp(name, "--set")) {
         if (!strchr(val, '=')) {
@@ -150,9 +150,10 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
         }
         h = fn ? fn(cli, argc, argv, &i, user) : 0;
         if (h < 0) return 2;
-        if (h == 0)
-            return wt_cli_usage_error(cli, argv[i][0] == '-' ? "unknown option '%s'" : "unexpected argument '%s'",
-                                      argv[i]);
+        /* a word that is no option is CONFIG, as --config gives it: every command takes either */
+        if (h == 0 && argv[i][0] != '-' && argv[i][0] != '\0') h = wt_cli_config_arg(cli, argv[i], &cli->config_path);
+        if (h < 0) return 2;
+        if (h == 0) return wt_cli_usage_error(cli, "unknown option '%s'", argv[i]);
     }
     return -1;
 }

@@ -40,12 +40,12 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i);
  * 0 when it is not one of the command's (an "unknown option" / "unexpected argument" error follows),
  * or -1 after reporting a usage error with wt_cli_usage_error. */
 typedef int (*wt_cli_option_fn)(wt_cli *cli, int argc, char **argv, int *i, void *user);
-/* Parse argv[1..]: the common options, --help/-h (prints cli->help), then `fn` for the rest.
- * Returns -1 to go on with the command, or the exit code to stop with (0 after --help, 2 on a usage
- * error). */
+/* Parse argv[1..]: the common options, --help/-h (prints cli->help), then `fn` for the rest, and a word that
+ * neither took (not starting with '-') as CONFIG, the same as --config. Returns -1 to go on with the command,
+ * or the exit code to stop with (0 after --help, 2 on a usage error). */
 int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user);
-/* A command's positional CONFIG: arg becomes *path the first time (1); a second one is a usage error naming
- * both (-1). For the option callbacks of the commands that take `[CONFIG]` (info, bench, wisdom). */
+/* CONFIG, positional or --config: arg becomes *path the first time (1); a second one is a usage error naming
+ * both (-1). */
 int wt_cli_config_arg(wt_cli *cli, const char *arg, const char **path);
 /* The value of option argv[*i]: argv[*i + 1] (advancing *i), or NULL after reporting a usage error. */
 const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i);

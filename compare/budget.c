@@ -17,7 +17,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo budget --config FILE [--set key=value]... [--recon cg9,pcg3,mvm] [--frames N]\n"
+    printf("usage: wavetomo budget [--config] FILE [--set key=value]... [--recon cg9,pcg3,mvm] [--frames N]\n"
            "                       [--seed S] [--threads N] --out DIR\n"
            "\n"
            "Error budget of the residual over the field (mean over the evaluation directions, frames after\n"
@@ -144,7 +144,7 @@ int wt_cmd_budget(int argc, char **argv)
     int kinds[MAXM], st;
     int rc = wt_cli_parse(&cli, argc, argv, option, &a);
     if (rc < 0 && (!a.out || !cli.config_path))
-        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "--config FILE" : "--out DIR");
+        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "a configuration (FILE or --config FILE)" : "--out DIR");
     if (rc < 0 && (rc = wt_cli_run_overrides(&cli, a.frames, a.seed)) == 0) rc = -1;
     if (rc >= 0) goto done;
     a.quiet = cli.quiet;

@@ -25,7 +25,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo compare --config FILE [--set key=value]... [--recon mvm,pcg3,cg9]\n"
+    printf("usage: wavetomo compare [--config] FILE [--set key=value]... [--recon mvm,pcg3,cg9]\n"
            "                        [--sweep key=v1,v2,...] [--seeds N] [--frames N] [--seed S] [--resume] --out DIR\n"
            "\n"
            "Runs the closed loop for each reconstructor and each value of the swept key on identical\n"
@@ -365,7 +365,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     a.nm = wt_cli_split(&cli, "--recon", a.list, a.methods, WT_COMPARE_MAXM);
     int rc = wt_cli_parse(&cli, argc, argv, cmp_option, &a);
     if (rc < 0 && (!a.out || !cli.config_path))
-        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "--config FILE" : "--out DIR");
+        rc = wt_cli_usage_error(&cli, "%s is required", !cli.config_path ? "a configuration (FILE or --config FILE)" : "--out DIR");
     if (rc < 0 && seed_sweep(&cli, &a, first_seed, sizeof first_seed) != 0) rc = 2;
     if (rc < 0 && wt_cli_run_overrides(&cli, a.frames, a.seed) != 0) rc = 2;
     if (rc >= 0) goto done;

@@ -9,6 +9,7 @@
 #include "runtime/runtime.h"
 #include "cli/cli.h"
 #include "core/io/h5.h"
+#include "core/io/mvm_file.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 #include "core/model/estimate.h"
@@ -16,8 +17,8 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo run --matrix MATRIX.h5 --telemetry TEL.h5 --out CMDS.h5 [--config FILE]\n"
-           "       wavetomo run --recon pcg3|cg9 --telemetry TEL.h5 --out CMDS.h5 [--config FILE] [--iters N]\n"
+    printf("usage: wavetomo run --matrix MATRIX.h5 --telemetry TEL.h5 --out CMDS.h5 [[--config] FILE]\n"
+           "       wavetomo run --recon pcg3|cg9 --telemetry TEL.h5 --out CMDS.h5 [[--config] FILE] [--iters N]\n"
            "\n"
            "Replays the frames of a telemetry file written by `wavetomo sim --telemetry` through a\n"
            "reconstructor and writes, per frame, its output R s_ol (the commands before the POLC integrator):\n"
@@ -25,8 +26,8 @@ static void help(void)
            "               through OpenBLAS (threaded); refused unless built for the telemetry's system\n"
            "  --recon R    the matrix-free wavelet reconstructor (pcg3 or cg9) on the pseudo-open-loop slopes,\n"
            "               warm-started frame to frame; --iters overrides its iteration count\n"
-           "  --config F   the system (default: the configuration stored in the telemetry, with the --set\n"
-           "               overrides); with --matrix it must match both the matrix and the telemetry\n"
+           "  --config F   the system, or F alone (default: the configuration stored in the telemetry, with\n"
+           "               the --set overrides); with --matrix it must match both the matrix and the telemetry\n"
            "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
            "  --max-memory S   refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n"
            "Reports the time per frame (median and 99th percentile) of the reconstruction alone (not the file\n"
@@ -112,8 +113,10 @@ int wt_cmd_run(int argc, char **argv)
     if (cli.config_path) {
         if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;
         if (strcmp(cfg->matrix_sha256, tcfg->matrix_sha256) != 0) {
-            st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s was recorded on another system than %s (configuration hashes differ)",
-                          args.tel, cfg->path);
+            char diff[1024];
+            wt_mvm_file_text_diff(tcfg->matrix_text, cfg->matrix_text, args.tel, cfg->path, diff, sizeof diff);
+            st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s was recorded on another system than %s (%s)", args.tel,
+                          cfg->path, diff[0] ? diff : "configuration hashes differ");
             goto fail;
         }
     }

@@ -18,7 +18,7 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo sim --config FILE [--set key=value]... [--recon pcg3|cg9|none|mvm]\n"
+    printf("usage: wavetomo sim [--config] FILE [--set key=value]... [--recon pcg3|cg9|none|mvm]\n"
            "                    [--matrix MATRIX.h5]\n"
            "                    [--frames N] [--seed S] [--iters N] [--no-noise] --out RUN.h5\n"
            "                    [--telemetry TEL.h5] [--dump-screens] [--threads N] [--quiet]\n"
@@ -136,7 +136,7 @@ int wt_cmd_sim(int argc, char **argv)
         goto done;
     }
     if (!cli.config_path) {
-        rc = wt_cli_usage_error(&cli, "--config FILE is required");
+        rc = wt_cli_usage_error(&cli, "a configuration is required: FILE or --config FILE");
         goto done;
     }
     if ((rc = wt_cli_run_overrides(&cli, frames_opt, seed_opt)) != 0) goto done;

@@ -129,8 +129,14 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_eq(run("build --config data/presets/demo.cfg --set recon.alpha=3.0 --out %s/M3.h5", dir), 0);
     ck_assert_int_ne(run("run --matrix %s/M3.h5 --telemetry %s --out %s/c3.h5", dir, tel, dir), 0);
     ck_assert(stderr_has("built for another system"));
+    ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in ")); /* the key that differs, both values */
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s/M3.h5 --out %s/r3.h5", dir, dir), 0);
     ck_assert(stderr_has("built for another system"));
+    ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in data/presets/demo.cfg"));
+    /* telemetry and --config of two systems: the key named too */
+    ck_assert_int_ne(run("run --recon pcg3 --config data/presets/demo.cfg --set lgs.wfs.photons=50 --telemetry %s "
+                         "--out %s/c4.h5", tel, dir), 0);
+    ck_assert(stderr_has("lgs.wfs.photons = 100.0 in"));
     /* an output that cannot be written is found before the run */
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --out /nonexistent-dir/r.h5"), 1);
     ck_assert(stderr_has("/nonexistent-dir"));
@@ -149,13 +155,29 @@ START_TEST(test_build_run_chain_and_refusals)
     /* bench has no resource estimate: --dry-run is refused, not ignored */
     ck_assert_int_eq(run("bench data/presets/demo.cfg --dry-run"), 2);
     ck_assert(stderr_has("--dry-run"));
-    /* the commands that take [CONFIG] refuse a second one, naming both (wt_cli_config_arg) */
-    const char *one[] = {"info", "bench", "wisdom"};
-    for (int i = 0; i < 3; i++) {
+    /* every command takes CONFIG as a plain word or as --config, and refuses a second one (positional or
+     * --config), naming both (wt_cli_config_arg) */
+    const char *one[] = {"info", "bench", "wisdom", "sim", "build", "compare", "budget", "run"};
+    for (int i = 0; i < 8; i++) {
         ck_assert_int_eq(run("%s data/presets/demo.cfg data/presets/eelt-mcao.cfg --out %s/w", one[i], dir), 2);
         ck_assert(stderr_has("more than one CONFIG"));
         ck_assert(stderr_has("eelt-mcao.cfg"));
+        ck_assert_int_eq(run("%s --config data/presets/demo.cfg --config data/presets/eelt-mcao.cfg --out %s/w", one[i],
+                             dir), 2);
+        ck_assert(stderr_has("more than one CONFIG"));
     }
+    /* the estimate from either form (bench has none: its cheapest run instead) */
+    const char *est[] = {"info", "wisdom", "sim", "build", "compare", "budget"};
+    for (int i = 0; i < 6; i++)
+        for (int form = 0; form < 2; form++) {
+            char out[128] = "--no-nnz"; /* info writes nothing */
+            if (i) snprintf(out, sizeof out, "--out %s/e%d", dir, i);
+            ck_assert_msg(run("%s %sdata/presets/demo.cfg --dry-run %s", est[i], form ? "--config " : "", out) == 0,
+                          "%s with CONFIG %s", est[i], form ? "by --config" : "positional");
+            ck_assert(!stderr_has("error"));
+        }
+    ck_assert_int_eq(run("run --recon pcg3 --telemetry %s data/presets/demo.cfg --out %s/c5.h5", tel, dir), 0);
+    ck_assert_int_eq(run("bench --config data/presets/demo.cfg --no-loop --no-build --reps 3"), 0);
 }
 END_TEST
 

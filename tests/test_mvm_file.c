@@ -189,6 +189,40 @@ START_TEST(test_half_round_trip)
 }
 END_TEST
 
+/* The keys two canonical texts disagree on, named with both values (nested groups as dotted paths, a key
+ * one text lacks as "not set", at most three, then a count); nothing for equal texts, a NULL one, or a text
+ * longer than the limit (a corrupt file's). */
+START_TEST(test_text_diff)
+{
+    const char *a = "telescope = {\n  diameter_m = 8.0;\n};\nrecon = {\n  alpha = 1.0;\n  pcg3 = {\n"
+                    "    layer_size = [ 32, 16, 32 ];\n  };\n  tau = 0.8;\n};\n";
+    const char *b = "telescope = {\n  diameter_m = 8.0;\n};\nrecon = {\n  alpha = 0.5;\n  pcg3 = {\n"
+                    "    layer_size = [ 32, 32, 32 ];\n  };\n  tau = 0.8;\n  model_error = true;\n};\n";
+    char buf[512];
+    wt_mvm_file_text_diff(a, a, "A", "B", buf, sizeof buf);
+    ck_assert_str_eq(buf, "");
+    wt_mvm_file_text_diff(a, NULL, "A", "B", buf, sizeof buf);
+    ck_assert_str_eq(buf, "");
+    wt_mvm_file_text_diff(a, b, "A", "B", buf, sizeof buf);
+    ck_assert_str_eq(buf, "recon.alpha = 1.0 in A, 0.5 in B; recon.pcg3.layer_size = [ 32, 16, 32 ] in A, [ 32, 32, 32 ] "
+                          "in B; recon.model_error = not set in A, true in B");
+    const char *c = "recon = {\n  alpha = 2.0;\n  tau = 0.5;\n};\nloop = {\n  gain = 0.3;\n};\n";
+    wt_mvm_file_text_diff(b, c, "A", "B", buf, sizeof buf);
+    ck_assert_msg(strstr(buf, "telescope.diameter_m = 8.0 in A, not set in B; recon.alpha = 0.5 in A, 2.0 in B; ") == buf,
+                  "%s", buf);
+    ck_assert_msg(strstr(buf, "; and 3 more keys"), "%s", buf); /* recon.tau, recon.model_error, loop.gain */
+    char small[16];
+    wt_mvm_file_text_diff(a, b, "A", "B", small, sizeof small); /* truncated, terminated */
+    ck_assert_int_eq(strlen(small), sizeof small - 1);
+    char *big = malloc(WT_MVM_FILE_DIFF_MAX_TEXT + 2);
+    memset(big, 'x', WT_MVM_FILE_DIFF_MAX_TEXT + 1);
+    big[WT_MVM_FILE_DIFF_MAX_TEXT + 1] = '\0';
+    wt_mvm_file_text_diff(a, big, "A", "B", buf, sizeof buf);
+    ck_assert_str_eq(buf, "");
+    free(big);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("mvm_file");
@@ -196,6 +230,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 120);
     tcase_add_test(tc, test_round_trip_and_refusals);
     tcase_add_test(tc, test_half_round_trip);
+    tcase_add_test(tc, test_text_diff);
     suite_add_tcase(s, tc);
     return s;
 }

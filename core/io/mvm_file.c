@@ -94,6 +94,83 @@ int wt_mvm_file_precision(wt_context *ctx, const char *path, int *precision)
     return st;
 }
 
+/* A cursor over a canonical configuration text (libconfig's output: one setting per line, "name = {" opens a
+ * group, "};" closes it, an array on one line). */
+typedef struct setting_cursor {
+    const char *p;
+    char group[256]; /* dotted path of the group the cursor is in */
+    char key[1300];  /* the last leaf's dotted path (room for the group and a whole line) */
+    char val[1024];  /* and its value, without the ';' */
+} setting_cursor;
+
+/* The next leaf "name = value;" into c->key and c->val; 0 at the end of the text. */
+static int next_setting(setting_cursor *c)
+{
+    char line[1024];
+    while (*c->p) {
+        const char *b = c->p, *e = strchr(b, '\n');
+        size_t len = e ? (size_t)(e - b) : strlen(b);
+        c->p += len + (e != NULL);
+        while (len && (*b == ' ' || *b == '\t')) b++, len--;
+        if (len >= sizeof line) len = sizeof line - 1;
+        memcpy(line, b, len);
+        line[len] = '\0';
+        char *eq = strstr(line, " = ");
+        size_t gl = strlen(c->group);
+        if (!strcmp(line, "};")) {
+            char *dot = strrchr(c->group, '.');
+            *(dot ? dot : c->group) = '\0';
+        } else if (eq && !strcmp(eq, " = {")) {
+            *eq = '\0';
+            snprintf(c->group + gl, sizeof c->group - gl, "%s%s", gl ? "." : "", line);
+        } else if (eq) {
+            *eq = '\0';
+            snprintf(c->key, sizeof c->key, "%s%s%s", c->group, gl ? "." : "", line);
+            snprintf(c->val, sizeof c->val, "%s", eq + 3);
+            size_t vl = strlen(c->val);
+            if (vl && c->val[vl - 1] == ';') c->val[vl - 1] = '\0';
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The value of a dotted key in a canonical text, or NULL (into c). */
+static const char *setting_value(const char *text, const char *key, setting_cursor *c)
+{
+    *c = (setting_cursor){.p = text};
+    while (next_setting(c))
+        if (!strcmp(c->key, key)) return c->val;
+    return NULL;
+}
+
+void wt_mvm_file_text_diff(const char *a, const char *b, const char *name_a, const char *name_b, char *buf, size_t n)
+{
+    size_t used = 0;
+    int shown = 0, more = 0;
+    if (n == 0) return;
+    buf[0] = '\0';
+    /* a canonical text is ~3 kB; the lookups are quadratic in its lines, and a corrupt file's text is no system */
+    if (!a || !b || strlen(a) > WT_MVM_FILE_DIFF_MAX_TEXT || strlen(b) > WT_MVM_FILE_DIFF_MAX_TEXT) return;
+    for (int pass = 0; pass < 2; pass++) { /* a's keys looked up in b, then the keys b alone has */
+        setting_cursor x = {.p = pass ? b : a}, y;
+        while (next_setting(&x)) {
+            const char *o = setting_value(pass ? a : b, x.key, &y);
+            if (pass ? o != NULL : o != NULL && !strcmp(o, x.val)) continue;
+            if (shown == 3) {
+                more++;
+                continue;
+            }
+            const char *va = pass ? "not set" : x.val, *vb = pass ? x.val : o ? o : "not set";
+            int r = snprintf(buf + used, n - used, "%s%s = %s in %s, %s in %s", shown ? "; " : "", x.key, va, name_a,
+                             vb, name_b);
+            if (r > 0) used += (size_t)r < n - used ? (size_t)r : n - used - 1;
+            shown++;
+        }
+    }
+    if (more && used + 1 < n) snprintf(buf + used, n - used, "; and %d more key%s", more, more > 1 ? "s" : "");
+}
+
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact, int64_t nslopes,
                      wt_mvm_file_data *md, char *variant_out)
 {
@@ -113,10 +190,14 @@ int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_sy
     char *hash = NULL, *variant = NULL, *text = NULL, own[65];
     if ((st = wt_h5_attr_read_string(r, "/", "config_sha256", &hash)) < 0) goto fail;
     if (strcmp(hash, sys->sha256) != 0) {
+        /* name the keys that differ: the fix is then a --set, or a build with the same --set */
+        char diff[1024] = "";
+        if (wt_h5_exists(r, "matrix_config") && wt_h5_read_string(r, "matrix_config", &text) >= 0)
+            wt_mvm_file_text_diff(text, sys->text, "the matrix", sys->path, diff, sizeof diff);
         st = WT_ERROR(ctx, WT_ERR_FORMAT,
-                      "%s: the matrix was built for another system (config_sha256 %.12s…, this configuration %.12s…); "
-                      "rebuild it with `wavetomo build` for %s",
-                      path, hash, sys->sha256, sys->path);
+                      "%s: the matrix was built for another system (%s%sconfig_sha256 %.12s…, this configuration "
+                      "%.12s…); rebuild it with `wavetomo build` for %s (and its --set overrides)",
+                      path, diff, diff[0] ? "; " : "", hash, sys->sha256, sys->path);
         goto fail;
     }
     /* provenance (issue 10, J): the stored configuration text must still give the stored hash (an edited

@@ -69,6 +69,13 @@ int wt_mvm_file_precision(wt_context *ctx, const char *path, int *precision);
  * variant. Allocates only transiently. */
 int wt_mvm_file_read(wt_context *ctx, const char *path, const wt_mvm_file_system *sys, int64_t nact,
                      int64_t nslopes, wt_mvm_file_data *d, char *variant_out);
+/* The keys whose values differ between two canonical configuration texts a and b (wt_mvm_file_system.text,
+ * the file's "matrix_config"), for a message: "recon.alpha = 1.0 in NAME_A, 0.5 in NAME_B", up to three
+ * joined by "; ", then "; and K more keys"; a key one text lacks is "not set" there. buf gets "" when
+ * they agree, or a text is NULL or longer than WT_MVM_FILE_DIFF_MAX_TEXT; truncated to n. Allocates nothing. */
+#define WT_MVM_FILE_DIFF_MAX_TEXT 65536
+void wt_mvm_file_text_diff(const char *a, const char *b, const char *name_a, const char *name_b, char *buf, size_t n);
+
 /* The same from a file already open (its name is wt_h5_path(r); r stays open): tests/fuzz reads memory
  * images through it. */
 int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_system *sys, int64_t nact,
