@@ -359,6 +359,15 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
     return WT_OK;
 }
 
+int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes)
+{
+    memcpy(ws->img, ws->i0, (size_t)ws->nsub * ws->ns * ws->ns * sizeof *ws->img);
+    int st = noise ? wt_spot_noise(ws->spot, seed, base_stream, ws->img) : WT_OK;
+    if (st < 0) return st;
+    wt_centroid_apply(ws->cen, ws->img, slopes);
+    return WT_OK;
+}
+
 size_t wt_sensing_memory(const wt_sensing *ws)
 {
     const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;

@@ -108,6 +108,12 @@ void wt_sensing_gain_reset(wt_sensing *ws);
 /* *along, *across: the gains (NaN when no true slope was seen); *frames: the frames accumulated. */
 void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across, long *frames);
 
+/* The same at the sensor's operating point: the reference I0 (the mean spot in the loop, with the seeing of
+ * lgs.wfs.reference_seeing) instead of the image of the sampled OPD, with noise when `noise`. For the
+ * reconstruction of pure noise: the centroider's noise where the loop holds it (the flat wavefront's spot is
+ * narrower than the loop's and its noise smaller). Outside parallel regions only. */
+int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
+
 /* Bytes the sensor holds: spot tables and workspaces, centroider, reference images, per-frame buffers. */
 size_t wt_sensing_memory(const wt_sensing *ws);
 

@@ -383,8 +383,13 @@ static int sense_diffractive(wt_loop *lp, long t, int nsens)
     for (int i = 0; i < nsens; i++) {
         const wt_sensor *s = &sys->sensors[i];
         if (!s->diffr) continue;
-        int st = wt_sensing_detect(s->diffr, lp->opt.noise, lp->opt.seed,
-                                   NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i, lp->s + s->offset);
+        /* without turbulence (the reconstruction of pure noise) the spots are the reference, the mean spot in
+         * the loop, so that the noise is the centroider's at its operating point (the LGS jitter, a tilt the
+         * reconstructor removes, is left out there) */
+        const uint64_t stream = NOISE_STREAM_BASE + 64ULL * (uint64_t)t + (uint64_t)i;
+        int st = lp->opt.no_turbulence
+                     ? wt_sensing_detect_reference(s->diffr, lp->opt.noise, lp->opt.seed, stream, lp->s + s->offset)
+                     : wt_sensing_detect(s->diffr, lp->opt.noise, lp->opt.seed, stream, lp->s + s->offset);
         if (st < 0) return st;
     }
     return WT_OK;
