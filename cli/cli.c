@@ -12,6 +12,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/base/names.h"
+#include <unistd.h>
+
 #include "core/io/h5.h"
 #include "core/model/estimate.h"
 
@@ -138,6 +141,49 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
     return 1;
 }
 
+/* "unknown option", with the nearest option the command's --help text names (the help is where every
+ * command lists its options, so the suggestion and the documentation cannot disagree) or a common one */
+static int unknown_option(wt_cli *cli, const char *opt)
+{
+    enum { MAXOPT = 96 };
+    static const char *const common[] = {"--config", "--set", "--threads", "--quiet", "--help", "--max-memory", "--force"};
+    char text[16384] = "", words[MAXOPT][40];
+    const char *names[MAXOPT];
+    int n = 0;
+    for (size_t k = 0; k < sizeof common / sizeof *common; k++) names[n++] = common[k];
+    FILE *tmp = cli->help ? tmpfile() : NULL;
+    if (tmp) {
+        fflush(stdout);
+        const int saved = dup(STDOUT_FILENO);
+        if (saved >= 0 && dup2(fileno(tmp), STDOUT_FILENO) >= 0) {
+            cli->help();
+            fflush(stdout);
+            dup2(saved, STDOUT_FILENO);
+            rewind(tmp);
+            const size_t got = fread(text, 1, sizeof text - 1, tmp);
+            text[got] = '\0';
+        }
+        if (saved >= 0) close(saved);
+        fclose(tmp);
+    }
+    for (const char *p = strstr(text, "--"); p && n < MAXOPT; p = strstr(p + 2, "--")) {
+        size_t len = 2;
+        while ((p[len] >= 'a' && p[len] <= 'z') || p[len] == '-') len++;
+        if (len < 4 || len >= sizeof words[0]) continue;
+        memcpy(words[n], p, len);
+        words[n][len] = '\0';
+        names[n] = words[n];
+        n++;
+    }
+    const char *eq = strchr(opt, '=');
+    char word[64];
+    snprintf(word, sizeof word, "%.*s", eq ? (int)(eq - opt) : (int)strlen(opt), opt);
+    const int near = opt[0] == '-' ? wt_nearest_name(word, names, n) : -1;
+    if (near >= 0 && strcmp(names[near], word))
+        return wt_cli_usage_error(cli, "unknown option '%s' (did you mean '%s'?)", opt, names[near]);
+    return wt_cli_usage_error(cli, "unknown option '%s'", opt);
+}
+
 int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user)
 {
     for (int i = 1; i < argc; i++) {
@@ -153,7 +199,7 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
         /* a word that is no option is CONFIG, as --config gives it: every command takes either */
         if (h == 0 && argv[i][0] != '-' && argv[i][0] != '\0') h = wt_cli_config_arg(cli, argv[i], &cli->config_path);
         if (h < 0) return 2;
-        if (h == 0) return wt_cli_usage_error(cli, "unknown option '%s'", argv[i]);
+        if (h == 0) return unknown_option(cli, argv[i]);
     }
     return -1;
 }
