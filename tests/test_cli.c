@@ -84,6 +84,10 @@ START_TEST(test_did_you_mean)
     ck_assert(stderr_has("(did you mean '--config'?)"));
     ck_assert_int_eq(run("sim data/presets/demo.cfg --zzzzzzzzzz"), 2);
     ck_assert(stderr_has("unknown option '--zzzzzzzzzz'") && !stderr_has("did you mean"));
+    /* a bad value of a sweep is named as the user wrote it, before any case runs */
+    ck_assert_int_ne(run("compare data/presets/demo.cfg --recon pcg3 --frames 30 --sweep recon.alpha=0.5,abc --out %s/sw",
+                         dir), 0);
+    ck_assert(stderr_has("--sweep recon.alpha: value 2 ('abc')") && !stderr_has("--set"));
 }
 END_TEST
 
