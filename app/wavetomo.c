@@ -32,7 +32,9 @@ static void usage(FILE *f)
             "\n"
             "Every command takes --set key=value (any config key, repeatable), --threads N (OpenMP and OpenBLAS),\n"
             "--force (replace an existing file that is not a wavetomo output) and --help.\n"
-            "Presets: data/presets/eelt-mcao.cfg (the paper's E-ELT system), data/presets/demo.cfg.\n");
+            "CONFIG is a file or a preset's name (demo, demo-diffractive, eelt-mcao, eelt-mcao-eso35, ...), looked up\n"
+            "in data/presets/ beside the executable's directory (the source tree), in ./data/presets/, then in\n"
+            "share/wavetomo/presets/ beside it (after make install). eelt-mcao is the paper's E-ELT system.\n");
 }
 
 int main(int argc, char **argv)

@@ -10,10 +10,10 @@
 #include <limits.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <dirent.h>
 #include <unistd.h>
 
 #include "core/base/names.h"
-#include <unistd.h>
 
 #include "core/io/h5.h"
 #include "core/model/estimate.h"
@@ -407,6 +407,55 @@ int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed)
     return 0;
 }
 
+/* A preset's name (no '/', the file absent), e.g. "demo" or "eelt-mcao.cfg", as the file of the source tree
+ * (data/presets/ beside the executable's bin/, or under the working directory) or of the installation
+ * (share/wavetomo/presets beside the executable's bin/): the first that exists. NULL when the name is a
+ * path, exists as given, or none is found (the reader then names the file as given). */
+static const char *resolve_preset(wt_cli *cli, const char *name, int *missing)
+{
+    *missing = 0;
+    if (strchr(name, '/') || access(name, F_OK) == 0 || strlen(name) > 200) return NULL;
+    char exe[4096] = "";
+    const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    exe[n > 0 ? n : 0] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (slash) *slash = '\0'; /* the executable's directory */
+    const char *ext = strstr(name, ".cfg") ? "" : ".cfg";
+    const char *const where[3][2] = {{exe, "/../data/presets"}, {".", "/data/presets"}, {exe, "/../share/wavetomo/presets"}};
+    for (int k = 0; k < 3; k++) {
+        if (!where[k][0][0]) continue;
+        snprintf(cli->preset_path, sizeof cli->preset_path, "%s%s/%s%s", where[k][0], where[k][1], name, ext);
+        if (access(cli->preset_path, R_OK) == 0) return cli->preset_path;
+    }
+    /* not found: say where presets are, and the nearest preset name */
+    char names[64][128], found[4300] = "";
+    const char *list[64];
+    int nn = 0;
+    for (int k = 0; k < 3; k++) {
+        char dirpath[4200];
+        snprintf(dirpath, sizeof dirpath, "%s%s", where[k][0], where[k][1]);
+        DIR *d = where[k][0][0] ? opendir(dirpath) : NULL;
+        if (!d) continue;
+        if (!found[0]) snprintf(found, sizeof found, "%s", dirpath);
+        for (struct dirent *e; (e = readdir(d)) && nn < 64;) {
+            const size_t l = strlen(e->d_name);
+            if (l < 5 || l > 120 || strcmp(e->d_name + l - 4, ".cfg")) continue;
+            snprintf(names[nn], sizeof names[nn], "%.*s", (int)(l - 4), e->d_name);
+            list[nn] = names[nn], nn++;
+        }
+        closedir(d);
+    }
+    char base[256];
+    snprintf(base, sizeof base, "%.*s", (int)(strstr(name, ".cfg") ? strstr(name, ".cfg") - name : (long)strlen(name)), name);
+    const int near = wt_nearest_name(base, list, nn);
+    wt_error_set(cli->ctx, WT_ERR_IO, __FILE__, __LINE__,
+                 "no configuration file '%s', nor a preset of that name%s%s%s (presets: %s)", name,
+                 near >= 0 ? " (did you mean '" : "", near >= 0 ? list[near] : "", near >= 0 ? "'?)" : "",
+                 found[0] ? found : "none found beside the executable or under ./data/presets");
+    *missing = 1;
+    return NULL;
+}
+
 int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
 {
     if (!path) path = cli->config_path;
@@ -414,6 +463,10 @@ int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
         wt_error_set(cli->ctx, WT_ERR_INVALID, __FILE__, __LINE__, "no configuration given (use --config FILE)");
         return WT_ERR_INVALID;
     }
+    int missing;
+    const char *preset = resolve_preset(cli, path, &missing);
+    if (missing) return WT_ERR_IO;
+    if (preset) path = preset;
     int st = wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
     if (st == WT_ERR_CONFIG && cli->frames > 0 && strstr(wt_error_message(cli->ctx), "settle_frames") &&
         cli->nset < WT_CLI_MAX_SET) {

@@ -84,6 +84,11 @@ START_TEST(test_did_you_mean)
     ck_assert(stderr_has("(did you mean '--config'?)"));
     ck_assert_int_eq(run("sim data/presets/demo.cfg --zzzzzzzzzz"), 2);
     ck_assert(stderr_has("unknown option '--zzzzzzzzzz'") && !stderr_has("did you mean"));
+    /* a preset by its name, from any directory; a misspelt one refused with the nearest name */
+    ck_assert_int_eq(run("info demo --no-nnz"), 0);
+    ck_assert_int_eq(run("info eelt-mcao.cfg --no-nnz"), 0);
+    ck_assert_int_ne(run("info demoo"), 0);
+    ck_assert(stderr_has("nor a preset of that name (did you mean 'demo'?)"));
     /* a bad value of a sweep is named as the user wrote it, before any case runs */
     ck_assert_int_ne(run("compare data/presets/demo.cfg --recon pcg3 --frames 30 --sweep recon.alpha=0.5,abc --out %s/sw",
                          dir), 0);
