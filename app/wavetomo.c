@@ -8,6 +8,7 @@
 #include "compare/compare.h"
 #include "runtime/runtime.h"
 #include "cli/cli.h"
+#include "core/base/names.h"
 #include "core/io/h5.h"
 
 static void usage(FILE *f)
@@ -31,7 +32,9 @@ static void usage(FILE *f)
             "\n"
             "Every command takes --set key=value (any config key, repeatable), --threads N (OpenMP and OpenBLAS),\n"
             "--force (replace an existing file that is not a wavetomo output) and --help.\n"
-            "Presets: data/presets/eelt-mcao.cfg (the paper's E-ELT system), data/presets/demo.cfg.\n");
+            "CONFIG is a file or a preset's name (demo, demo-diffractive, eelt-mcao, eelt-mcao-eso35, ...), looked up\n"
+            "in data/presets/ beside the executable's directory (the source tree), in ./data/presets/, then in\n"
+            "share/wavetomo/presets/ beside it (after make install). eelt-mcao is the paper's E-ELT system.\n");
 }
 
 int main(int argc, char **argv)
@@ -50,15 +53,21 @@ int main(int argc, char **argv)
         printf("wavetomo %s\n", WT_VERSION);
         return 0;
     }
-    if (!strcmp(cmd, "info")) return wt_cmd_info(argc - 1, argv + 1);
-    if (!strcmp(cmd, "bench")) return wt_cmd_bench(argc - 1, argv + 1);
-    if (!strcmp(cmd, "wisdom")) return wt_cmd_wisdom(argc - 1, argv + 1);
-    if (!strcmp(cmd, "sim")) return wt_cmd_sim(argc - 1, argv + 1);
-    if (!strcmp(cmd, "build")) return wt_cmd_build(argc - 1, argv + 1);
-    if (!strcmp(cmd, "run")) return wt_cmd_run(argc - 1, argv + 1);
-    if (!strcmp(cmd, "compare")) return wt_cmd_compare(argc - 1, argv + 1);
-    if (!strcmp(cmd, "budget")) return wt_cmd_budget(argc - 1, argv + 1);
-    fprintf(stderr, "wavetomo: error: unknown command '%s'\n\n", cmd);
+    static const struct {
+        const char *name;
+        int (*fn)(int, char **);
+    } cmds[] = {{"info", wt_cmd_info},       {"bench", wt_cmd_bench}, {"wisdom", wt_cmd_wisdom},
+                {"sim", wt_cmd_sim},         {"build", wt_cmd_build}, {"run", wt_cmd_run},
+                {"compare", wt_cmd_compare}, {"budget", wt_cmd_budget}};
+    enum { NCMD = sizeof cmds / sizeof *cmds };
+    const char *names[NCMD];
+    for (int k = 0; k < NCMD; k++) {
+        if (!strcmp(cmd, cmds[k].name)) return cmds[k].fn(argc - 1, argv + 1);
+        names[k] = cmds[k].name;
+    }
+    const int near = wt_nearest_name(cmd, names, NCMD);
+    if (near >= 0) fprintf(stderr, "wavetomo: error: unknown command '%s' (did you mean '%s'?)\n\n", cmd, names[near]);
+    else fprintf(stderr, "wavetomo: error: unknown command '%s'\n\n", cmd);
     usage(stderr);
     return 2;
 }

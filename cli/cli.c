@@ -10,7 +10,10 @@
 #include <limits.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <dirent.h>
 #include <unistd.h>
+
+#include "core/base/names.h"
 
 #include "core/io/h5.h"
 #include "core/model/estimate.h"
@@ -138,6 +141,49 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
     return 1;
 }
 
+/* "unknown option", with the nearest option the command's --help text names (the help is where every
+ * command lists its options, so the suggestion and the documentation cannot disagree) or a common one */
+static int unknown_option(wt_cli *cli, const char *opt)
+{
+    enum { MAXOPT = 96 };
+    static const char *const common[] = {"--config", "--set", "--threads", "--quiet", "--help", "--max-memory", "--force"};
+    char text[16384] = "", words[MAXOPT][40];
+    const char *names[MAXOPT];
+    int n = 0;
+    for (size_t k = 0; k < sizeof common / sizeof *common; k++) names[n++] = common[k];
+    FILE *tmp = cli->help ? tmpfile() : NULL;
+    if (tmp) {
+        fflush(stdout);
+        const int saved = dup(STDOUT_FILENO);
+        if (saved >= 0 && dup2(fileno(tmp), STDOUT_FILENO) >= 0) {
+            cli->help();
+            fflush(stdout);
+            dup2(saved, STDOUT_FILENO);
+            rewind(tmp);
+            const size_t got = fread(text, 1, sizeof text - 1, tmp);
+            text[got] = '\0';
+        }
+        if (saved >= 0) close(saved);
+        fclose(tmp);
+    }
+    for (const char *p = strstr(text, "--"); p && n < MAXOPT; p = strstr(p + 2, "--")) {
+        size_t len = 2;
+        while ((p[len] >= 'a' && p[len] <= 'z') || p[len] == '-') len++;
+        if (len < 4 || len >= sizeof words[0]) continue;
+        memcpy(words[n], p, len);
+        words[n][len] = '\0';
+        names[n] = words[n];
+        n++;
+    }
+    const char *eq = strchr(opt, '=');
+    char word[64];
+    snprintf(word, sizeof word, "%.*s", eq ? (int)(eq - opt) : (int)strlen(opt), opt);
+    const int near = opt[0] == '-' ? wt_nearest_name(word, names, n) : -1;
+    if (near >= 0 && strcmp(names[near], word))
+        return wt_cli_usage_error(cli, "unknown option '%s' (did you mean '%s'?)", opt, names[near]);
+    return wt_cli_usage_error(cli, "unknown option '%s'", opt);
+}
+
 int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *user)
 {
     for (int i = 1; i < argc; i++) {
@@ -153,7 +199,7 @@ int wt_cli_parse(wt_cli *cli, int argc, char **argv, wt_cli_option_fn fn, void *
         /* a word that is no option is CONFIG, as --config gives it: every command takes either */
         if (h == 0 && argv[i][0] != '-' && argv[i][0] != '\0') h = wt_cli_config_arg(cli, argv[i], &cli->config_path);
         if (h < 0) return 2;
-        if (h == 0) return wt_cli_usage_error(cli, "unknown option '%s'", argv[i]);
+        if (h == 0) return unknown_option(cli, argv[i]);
     }
     return -1;
 }
@@ -361,6 +407,55 @@ int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed)
     return 0;
 }
 
+/* A preset's name (no '/', the file absent), e.g. "demo" or "eelt-mcao.cfg", as the file of the source tree
+ * (data/presets/ beside the executable's bin/, or under the working directory) or of the installation
+ * (share/wavetomo/presets beside the executable's bin/): the first that exists. NULL when the name is a
+ * path, exists as given, or none is found (the reader then names the file as given). */
+static const char *resolve_preset(wt_cli *cli, const char *name, int *missing)
+{
+    *missing = 0;
+    if (strchr(name, '/') || access(name, F_OK) == 0 || strlen(name) > 200) return NULL;
+    char exe[4096] = "";
+    const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    exe[n > 0 ? n : 0] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (slash) *slash = '\0'; /* the executable's directory */
+    const char *ext = strstr(name, ".cfg") ? "" : ".cfg";
+    const char *const where[3][2] = {{exe, "/../data/presets"}, {".", "/data/presets"}, {exe, "/../share/wavetomo/presets"}};
+    for (int k = 0; k < 3; k++) {
+        if (!where[k][0][0]) continue;
+        snprintf(cli->preset_path, sizeof cli->preset_path, "%s%s/%s%s", where[k][0], where[k][1], name, ext);
+        if (access(cli->preset_path, R_OK) == 0) return cli->preset_path;
+    }
+    /* not found: say where presets are, and the nearest preset name */
+    char names[64][128], found[4300] = "";
+    const char *list[64];
+    int nn = 0;
+    for (int k = 0; k < 3; k++) {
+        char dirpath[4200];
+        snprintf(dirpath, sizeof dirpath, "%s%s", where[k][0], where[k][1]);
+        DIR *d = where[k][0][0] ? opendir(dirpath) : NULL;
+        if (!d) continue;
+        if (!found[0]) snprintf(found, sizeof found, "%s", dirpath);
+        for (struct dirent *e; (e = readdir(d)) && nn < 64;) {
+            const size_t l = strlen(e->d_name);
+            if (l < 5 || l > 120 || strcmp(e->d_name + l - 4, ".cfg")) continue;
+            snprintf(names[nn], sizeof names[nn], "%.*s", (int)(l - 4), e->d_name);
+            list[nn] = names[nn], nn++;
+        }
+        closedir(d);
+    }
+    char base[256];
+    snprintf(base, sizeof base, "%.*s", (int)(strstr(name, ".cfg") ? strstr(name, ".cfg") - name : (long)strlen(name)), name);
+    const int near = wt_nearest_name(base, list, nn);
+    wt_error_set(cli->ctx, WT_ERR_IO, __FILE__, __LINE__,
+                 "no configuration file '%s', nor a preset of that name%s%s%s (presets: %s)", name,
+                 near >= 0 ? " (did you mean '" : "", near >= 0 ? list[near] : "", near >= 0 ? "'?)" : "",
+                 found[0] ? found : "none found beside the executable or under ./data/presets");
+    *missing = 1;
+    return NULL;
+}
+
 int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
 {
     if (!path) path = cli->config_path;
@@ -368,6 +463,10 @@ int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
         wt_error_set(cli->ctx, WT_ERR_INVALID, __FILE__, __LINE__, "no configuration given (use --config FILE)");
         return WT_ERR_INVALID;
     }
+    int missing;
+    const char *preset = resolve_preset(cli, path, &missing);
+    if (missing) return WT_ERR_IO;
+    if (preset) path = preset;
     int st = wt_config_read(cli->ctx, path, cli->nset, cli->set, cfg);
     if (st == WT_ERR_CONFIG && cli->frames > 0 && strstr(wt_error_message(cli->ctx), "settle_frames") &&
         cli->nset < WT_CLI_MAX_SET) {

@@ -27,6 +27,7 @@ typedef struct wt_cli {
     double max_memory;          /* --max-memory SIZE [bytes]; 0: the memory available */
     int noutputs;               /* outputs checked so far (wt_cli_check_output) */
     char outputs[4][4096];      /* their resolved paths */
+    char preset_path[4096];     /* a preset name resolved to its file (wt_cli_read_config) */
 } wt_cli;
 
 /* Create the context (log to stderr unless quiet). Non-zero on allocation failure (message printed). */

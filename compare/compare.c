@@ -138,6 +138,14 @@ static int read_case(wt_cli *cli, const wt_cmp_cases *a, int base_nset, int v, c
     if (a->nv) snprintf(set, n, "%s=%s", a->key, a->values[v]), cli->set[cli->nset++] = set;
     int st = wt_cli_read_config(cli, NULL, cfg);
     cli->nset = base_nset;
+    if (st < 0 && a->nv) {
+        /* the reader names the override as --set KEY=VALUE; the user wrote it as one value of --sweep */
+        char detail[1024], pre[1300];
+        snprintf(detail, sizeof detail, "%s", wt_error_message(cli->ctx));
+        snprintf(pre, sizeof pre, "--set %s: ", set);
+        const char *d = strncmp(detail, pre, strlen(pre)) ? detail : detail + strlen(pre);
+        st = WT_ERROR(cli->ctx, st, "--sweep %s: value %d ('%s'): %s", a->key, v + 1, a->values[v], d);
+    }
     return st;
 }
 

@@ -66,6 +66,36 @@ static int is_png(const char *d, const char *name)
 static void setup(void) { tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_cli_"); }
 static void teardown(void) { tu_cli_teardown(dir); }
 
+START_TEST(test_did_you_mean)
+{
+    /* a misspelt command or option is refused (exit 2) with the nearest name: a dropped or doubled letter,
+     * a transposition; a word far from every name gets no guess */
+    ck_assert_int_eq(run("simm"), 2);
+    ck_assert(stderr_has("unknown command 'simm' (did you mean 'sim'?)"));
+    ck_assert_int_eq(run("comapre"), 2);
+    ck_assert(stderr_has("(did you mean 'compare'?)"));
+    ck_assert_int_eq(run("simulate-everything"), 2);
+    ck_assert(!stderr_has("did you mean"));
+    ck_assert_int_eq(run("sim data/presets/demo.cfg --frame 3"), 2);
+    ck_assert(stderr_has("unknown option '--frame' (did you mean '--frames'?)"));
+    ck_assert_int_eq(run("compare data/presets/demo.cfg --recno pcg3"), 2);
+    ck_assert(stderr_has("(did you mean '--recon'?)"));
+    ck_assert_int_eq(run("info --confg data/presets/demo.cfg"), 2);
+    ck_assert(stderr_has("(did you mean '--config'?)"));
+    ck_assert_int_eq(run("sim data/presets/demo.cfg --zzzzzzzzzz"), 2);
+    ck_assert(stderr_has("unknown option '--zzzzzzzzzz'") && !stderr_has("did you mean"));
+    /* a preset by its name, from any directory; a misspelt one refused with the nearest name */
+    ck_assert_int_eq(run("info demo --no-nnz"), 0);
+    ck_assert_int_eq(run("info eelt-mcao.cfg --no-nnz"), 0);
+    ck_assert_int_ne(run("info demoo"), 0);
+    ck_assert(stderr_has("nor a preset of that name (did you mean 'demo'?)"));
+    /* a bad value of a sweep is named as the user wrote it, before any case runs */
+    ck_assert_int_ne(run("compare data/presets/demo.cfg --recon pcg3 --frames 30 --sweep recon.alpha=0.5,abc --out %s/sw",
+                         dir), 0);
+    ck_assert(stderr_has("--sweep recon.alpha: value 2 ('abc')") && !stderr_has("--set"));
+}
+END_TEST
+
 START_TEST(test_compare_writes_the_report)
 {
     /* issue #4: compare on the demo preset writes every file of the report; the plots are non-empty PNGs */
@@ -374,6 +404,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_compare_writes_the_report);
     tcase_add_test(tc, test_build_run_chain_and_refusals);
     tcase_add_test(tc, test_run_rejects_bad_frames);
+    tcase_add_test(tc, test_did_you_mean);
     tcase_add_test(tc, test_info_spots);
     tcase_add_test(tc, test_wisdom_command);
     suite_add_tcase(s, tc);

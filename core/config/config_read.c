@@ -9,6 +9,7 @@
  */
 #include "config_private.h"
 
+#include "../base/names.h"
 #include "../base/sha256.h"
 
 #define WT_SH_TILT_Z_CFG 1 /* ngs.wfs.tilt = "z" (WT_SH_TILT_Z of core/op/shack_hartmann.h) */
@@ -109,25 +110,6 @@ static int is_group_path(const char *path)
     return 0;
 }
 
-static int edit_distance(const char *a, size_t na, const char *b, size_t nb)
-{
-    int row[128];
-    if (na > 127 || nb > 127) return INT_MAX;
-    for (size_t j = 0; j <= nb; j++) row[j] = (int)j;
-    for (size_t i = 1; i <= na; i++) {
-        int diag = row[0];
-        row[0] = (int)i;
-        for (size_t j = 1; j <= nb; j++) {
-            int up = row[j], best = diag + (a[i - 1] != b[j - 1]);
-            if (up + 1 < best) best = up + 1;
-            if (row[j - 1] + 1 < best) best = row[j - 1] + 1;
-            diag = up;
-            row[j] = best;
-        }
-    }
-    return row[nb];
-}
-
 /* " (did you mean 'x'?)" or "": the nearest key or group by edit distance; else a key that only adds
  * the unit suffix (loop.rate -> loop.rate_hz); else a key of the same name in another group. */
 static void suggest(const char *path, char *buf, size_t n)
@@ -141,7 +123,7 @@ static void suggest(const char *path, char *buf, size_t n)
         const char *p = wt_config_priv_keys[k].path;
         for (size_t len = 0;; len++) { /* the key itself and each of its group prefixes */
             if (p[len] == '.' || p[len] == '\0') {
-                int d = edit_distance(path, np, p, len);
+                int d = wt_edit_distance(path, np, p, len);
                 if (d < bestd) bestd = d, best = p, bestlen = len;
             }
             if (p[len] == '\0') break;
