@@ -24,6 +24,7 @@ static void usage(FILE *f)
             "  sim              closed-loop simulation of one reconstructor (pcg3, cg9, mvm, none)\n"
             "  build            offline MVM builder: CHOLMOD factorisation -> control matrix MATRIX.h5\n"
             "  run              apply a stored MVM or the wavelet PCG to every frame of a telemetry file\n"
+            "  learn            identify r0 and the Cn2 profile from the pseudo-open-loop slopes of a telemetry file\n"
             "  compare          side-by-side closed-loop comparison (MVM, PCG-3, CG-9) with a report\n"
             "  budget           error budget: fitting, tomography, noise, servo lag, tip-tilt, rim (SPEC §11)\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
@@ -56,6 +57,7 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "sim")) return wt_cmd_sim(argc - 1, argv + 1);
     if (!strcmp(cmd, "build")) return wt_cmd_build(argc - 1, argv + 1);
     if (!strcmp(cmd, "run")) return wt_cmd_run(argc - 1, argv + 1);
+    if (!strcmp(cmd, "learn")) return wt_cmd_learn(argc - 1, argv + 1);
     if (!strcmp(cmd, "compare")) return wt_cmd_compare(argc - 1, argv + 1);
     if (!strcmp(cmd, "budget")) return wt_cmd_budget(argc - 1, argv + 1);
     fprintf(stderr, "wavetomo: error: unknown command '%s'\n\n", cmd);

@@ -100,6 +100,8 @@ typedef struct wt_learn_estimate {
     int nbatch;                          /* batches with frames */
     int64_t rows;                        /* (pair, component, offset) terms in the fit */
     double residual;                     /* weighted rms misfit / weighted rms data, all frames [-] */
+    double batch_fraction[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* each batch's f_h (nbatch ≥ 2) [-] */
+    double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
 } wt_learn_estimate;
 
 /* Fit the profile on the nalt increasing altitudes alt (< H) with outer scale L0. Needs ≥ 2 frames in every

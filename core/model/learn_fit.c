@@ -192,8 +192,10 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
             for (int a = 0; a < m; a++) t += x[a + (size_t)m * r];
             double r0b = t > 0 ? pow(t, -3.0 / 5.0) : 0.0;
             s0 += r0b, s1 += r0b * r0b;
+            est->batch_r0[r - 1] = r0b;
             for (int a = 0; a < m; a++) {
                 double f = t > 0 ? x[a + (size_t)m * r] / t : 0.0;
+                est->batch_fraction[r - 1][a] = f;
                 fs[a] += f, fs2[a] += f * f;
             }
         }
