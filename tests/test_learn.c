@@ -1,6 +1,12 @@
 /* tests/test_learn.c: identification from telemetry (SPEC §12; core/model/learn.h): the FFT cross-covariance maps
  * against the direct pair average, the non-negative least squares, the response maps against the covariance of
  * simulated von Kármán screens, and a single layer found at its altitude. */
+#include <stdarg.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/config/config.h"
+#include "core/io/h5.h"
 #include "core/model/learn.h"
 #include "core/sim/atmosphere.h"
 #include "core/op/grid.h"
@@ -334,6 +340,113 @@ START_TEST(test_refusals)
 }
 END_TEST
 
+
+/* ---------------------------------------------------------------- the command */
+
+static char wt[512], dir[64];
+
+static int run(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static int run(const char *fmt, ...)
+{
+    char cmd[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = snprintf(cmd, sizeof cmd, "%s ", wt);
+    vsnprintf(cmd + n, sizeof cmd - (size_t)n, fmt, ap);
+    va_end(ap);
+    size_t l = strlen(cmd);
+    snprintf(cmd + l, sizeof cmd - l, " > %s/stdout.txt 2> %s/stderr.txt", dir, dir);
+    int st = system(cmd);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static int file_has(const char *name, const char *text)
+{
+    char path[256], buf[16384] = {0};
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return strstr(buf, text) != NULL;
+}
+
+/* A telemetry-like file: the demo's configuration (or none), F frames of slopes_ol (or none) */
+static void write_tel(const char *path, int with_config, int with_ol, int F)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg = NULL;
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
+    wt_h5_writer *w;
+    wt_h5_series *so;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    if (with_config) ck_assert_int_eq(wt_h5_write_string(w, "config", cfg->canonical, "configuration"), WT_OK);
+    const int64_t nslopes = 1548; /* the demo system's slopes (wavetomo info) */
+    ck_assert_int_eq(wt_h5_series_create(w, with_ol ? "slopes_ol" : "slopes", WT_H5_F32, nslopes, "rad", "slopes", &so),
+                     WT_OK);
+    float *buf = calloc((size_t)nslopes, sizeof *buf);
+    for (int t = 0; t < F; t++) {
+        for (int64_t i = 0; i < nslopes; i++) buf[i] = 1e-7f * (float)((i * 7 + t) % 13);
+        ck_assert_int_eq(wt_h5_series_append(so, WT_H5_F32, buf), WT_OK);
+    }
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    free(buf);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+
+/* Refusals, each naming the file and what is missing, exit 1 and no output; then a short demo telemetry learnt */
+START_TEST(test_command)
+{
+    tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_learn_");
+    char p[256];
+    ck_assert_int_eq(run("learn --help"), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/none.h5 --out %s/e.h5", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "none.h5"));
+    snprintf(p, sizeof p, "%s/noconf.h5", dir);
+    write_tel(p, 0, 1, 30);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "no dataset 'config'"));
+    snprintf(p, sizeof p, "%s/nool.h5", dir);
+    write_tel(p, 1, 0, 30);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "pseudo-open-loop"));
+    ck_assert(file_has("stderr.txt", "nool.h5"));
+    snprintf(p, sizeof p, "%s/short.h5", dir);
+    write_tel(p, 1, 1, 12);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "12 frames, fewer than an estimate"));
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5 --batches 2 --frames 13", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "fewer than --frames 13"));
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5 --config data/presets/demo.cfg --set lgs.radius_arcsec=40", p,
+                         dir), 1);
+    ck_assert(file_has("stderr.txt", "another system"));
+    ck_assert(file_has("stderr.txt", "lgs.radius_arcsec"));
+    snprintf(p, sizeof p, "%s/e.h5", dir);
+    ck_assert_int_ne(access(p, F_OK), 0);
+    /* a short closed loop's telemetry (60 frames: the numbers mean little, the chain and the file are the point) */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 60 --telemetry %s/tel.h5 --out %s/r.h5 "
+                         "--quiet", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet", dir, dir), 0);
+    ck_assert(file_has("stdout.txt", "r0 (500 nm)"));
+    ck_assert(file_has("stdout.txt", "compressed onto cg9's layers"));
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r;
+    ck_assert_int_eq(wt_h5_open(ctx, p, &r), WT_OK);
+    double r0;
+    ck_assert_int_eq(wt_h5_read_double(r, "estimate/r0_m", &r0), WT_OK);
+    ck_assert(r0 > 0.03 && r0 < 1.0);
+    char *u = NULL;
+    ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/pcg3/cn2_fraction", "description", &u), WT_OK);
+    ck_assert_ptr_nonnull(strstr(u, "pcg3"));
+    wt_free(ctx, u);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+    tu_cli_teardown(dir);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("learn");
@@ -344,6 +457,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_response_screens);
     tcase_add_test(tc, test_single_layer);
     tcase_add_test(tc, test_refusals);
+    tcase_add_test(tc, test_command);
     suite_add_tcase(s, tc);
     return s;
 }
