@@ -8,6 +8,7 @@
 
 #include "runtime/runtime.h"
 #include "cli/cli.h"
+#include "compare/plot.h"
 #include "core/io/h5.h"
 #include "core/model/learn.h"
 #include "core/model/profile.h"
@@ -21,7 +22,7 @@
 static void help(void)
 {
     printf("usage: wavetomo learn --telemetry TEL.h5 --out EST.h5 [--config CFG] [--frames N] [--batches B]\n"
-           "                      [--threads N] [--set key=value] [--quiet]\n"
+           "                      [--png PROFILE.png] [--threads N] [--set key=value] [--quiet]\n"
            "\n"
            "Identifies r0 and the Cn2 profile from the pseudo-open-loop LGS slopes of a telemetry file written by\n"
            "`wavetomo sim --telemetry` (SPEC 12): the slope cross-covariance maps of every LGS pair (tip-tilt\n"
@@ -33,6 +34,7 @@ static void help(void)
            "  --frames N   use the first N frames (default: all)\n"
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
            "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
+           "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
            "Prints r0 and the profile on the grid and compressed onto pcg3's and cg9's layers, with the\n"
            "uncertainty, and the truth of the telemetry's configuration binned the same way beside; writes EST.h5\n"
            "(docs/formats.md).\n",
@@ -40,7 +42,7 @@ static void help(void)
 }
 
 typedef struct {
-    const char *tel, *out;
+    const char *tel, *out, *png;
     long frames, batches;
 } learn_args;
 
@@ -48,7 +50,8 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
     learn_args *a = user;
     const char *o = argv[*i];
-    const char **str = !strcmp(o, "--telemetry") ? &a->tel : !strcmp(o, "--out") ? &a->out : NULL;
+    const char **str = !strcmp(o, "--telemetry") ? &a->tel : !strcmp(o, "--out") ? &a->out
+                       : !strcmp(o, "--png") ? &a->png : NULL;
     if (str) {
         if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
     } else if (!strcmp(o, "--frames") || !strcmp(o, "--batches")) {
@@ -130,7 +133,7 @@ int wt_cmd_learn(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo learn", help)) return 1;
-    learn_args args = {NULL, NULL, 0, LEARN_DEFAULT_BATCHES};
+    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES};
     int rc = wt_cli_parse(&cli, argc, argv, learn_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -289,6 +292,22 @@ int wt_cmd_learn(int argc, char **argv)
     w = NULL;
     if (st < 0) goto fail_e;
     printf("  estimate: %s\n", args.out);
+    if (args.png) {
+        /* estimate and truth side by side on cg9's layers (the finest of the two reconstructors') */
+        char labels[WT_MAX_LAYERS][32], title[160];
+        const char *groups[WT_MAX_LAYERS], *series[2] = {"estimate", "truth"};
+        double v[2 * WT_MAX_LAYERS];
+        for (int l = 0; l < use->cg9.nlayers; l++) {
+            snprintf(labels[l], sizeof labels[l], "%.1f km", use->cg9.altitudes[l] / 1e3);
+            groups[l] = labels[l], v[2 * l] = e9[l], v[2 * l + 1] = t9[l];
+        }
+        snprintf(title, sizeof title, "%lld frames: r0 %.3f +- %.3f m (truth %.3f)",
+                 (long long)e->frames, e->r0, e->r0_sigma, tcfg->r0);
+        if ((st = wt_plot_grouped_bars(cli.ctx, args.png, title, "Cn2 fraction", use->cg9.nlayers, groups, 2, series, v,
+                                       NULL)) < 0)
+            goto fail_e;
+        printf("  plot: %s\n", args.png);
+    }
     free(e);
     goto cleanup;
 fail_e:
