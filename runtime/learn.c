@@ -214,11 +214,14 @@ int wt_cmd_learn(int argc, char **argv)
         goto fail;
     }
     wt_progress pr;
+    double tadd = 0;
     wt_progress_start(&pr, "frames", "frames", (long)F);
     for (int64_t t = 0; t < F; t++) {
         if ((st = wt_h5_read_rows(tr, "slopes_ol", WT_H5_F32, t, 1, sf)) < 0) goto fail;
         for (int64_t k = 0; k < nl; k++) sd[k] = sf[k];
+        const double ta = wt_time_now();
         if ((st = wt_learn_add(L, sd)) < 0) goto fail;
+        tadd += wt_time_now() - ta;
         wt_progress_update(&pr, (long)(t + 1), NULL);
     }
     wt_progress_end(&pr);
@@ -247,8 +250,10 @@ int wt_cmd_learn(int argc, char **argv)
                         use->cg9.altitudes, t9, NULL, NULL);
     compress_estimate(e, use->pcg3.nlayers, use->pcg3.altitudes, e3, s3);
     compress_estimate(e, use->cg9.nlayers, use->cg9.altitudes, e9, s9);
-    printf("learn: %lld frames of %s in %d batches, %d LGS pairs, %lld terms fitted (relative misfit %.3f), fit %.2f s\n",
-           (long long)e->frames, args.tel, e->nbatch, wt_learn_npairs(L), (long long)e->rows, e->residual, tfit);
+    printf("learn: %lld frames of %s in %d batches, %d LGS pairs, %lld terms fitted (relative misfit %.3f)\n"
+           "  accumulation %.3f ms per frame, fit %.2f s\n",
+           (long long)e->frames, args.tel, e->nbatch, wt_learn_npairs(L), (long long)e->rows, e->residual,
+           1e3 * tadd / (double)F, tfit);
     printf("  r0 (500 nm)  %.4f ± %.4f m   truth %.4f m (%+.1f %%); L0 %.1f m (fixed, recon.atmosphere)\n", e->r0,
            e->r0_sigma, tcfg->r0, 100 * (e->r0 / tcfg->r0 - 1), e->L0);
     print_table("Cn2 fractions on the altitude grid", na, alt, e->fraction, e->fraction_sigma, tgrid);
