@@ -150,26 +150,13 @@ int wt_cmd_learn(int argc, char **argv)
     wt_config *cfg = NULL, *tcfg = NULL;
     wt_system *sys = NULL;
     wt_learn *L = NULL;
-    char *ttext = NULL;
     float *sf = NULL;
     double *sd = NULL;
     int st;
     if ((st = wt_cli_check_output(&cli, args.out, 0, args.tel, NULL)) < 0) goto fail;
     if ((st = wt_h5_open(cli.ctx, args.tel, &tr)) < 0) goto fail;
-    if (!wt_h5_exists(tr, "config")) {
-        st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s holds no dataset 'config' (the system it was recorded on): not a "
-                      "telemetry file of `wavetomo sim --telemetry`", args.tel);
-        goto fail;
-    }
-    if ((st = wt_h5_read_string(tr, "config", &ttext)) < 0) goto fail;
-    {
-        char name[1100];
-        snprintf(name, sizeof name, "%s:config", args.tel);
-        const int nov = cli.config_path ? 0 : cli.nset;
-        if ((st = wt_config_parse(cli.ctx, ttext, name, nov, nov ? cli.set : NULL, &tcfg)) < 0) goto fail;
-    }
-    if (cli.config_path) {
-        if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;
+    if ((st = wt_cli_telemetry_config(&cli, tr, args.tel, &tcfg, &cfg)) < 0) goto fail;
+    if (cfg) {
         if ((st = same_lgs_system(cli.ctx, cfg, tcfg, args.tel)) < 0) goto fail;
     }
     const wt_config *use = cfg ? cfg : tcfg;
@@ -322,7 +309,6 @@ fail:
 cleanup:
     wt_h5_abort(w);
     wt_h5_close(tr);
-    wt_free(cli.ctx, ttext);
     free(sf), free(sd);
     wt_learn_free(L);
     wt_system_free(sys);

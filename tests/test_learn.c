@@ -1,8 +1,6 @@
 /* tests/test_learn.c: identification from telemetry (SPEC §12; core/model/learn.h): the FFT cross-covariance maps
  * against the direct pair average, the non-negative least squares, the response maps against the covariance of
  * simulated von Kármán screens, and a single layer found at its altitude. */
-#include <stdarg.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "core/config/config.h"
@@ -345,32 +343,8 @@ END_TEST
 
 static char wt[512], dir[64];
 
-static int run(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-static int run(const char *fmt, ...)
-{
-    char cmd[4096];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = snprintf(cmd, sizeof cmd, "%s ", wt);
-    vsnprintf(cmd + n, sizeof cmd - (size_t)n, fmt, ap);
-    va_end(ap);
-    size_t l = strlen(cmd);
-    snprintf(cmd + l, sizeof cmd - l, " > %s/stdout.txt 2> %s/stderr.txt", dir, dir);
-    int st = system(cmd);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
-
-static int file_has(const char *name, const char *text)
-{
-    char path[256], buf[16384] = {0};
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "r");
-    if (!f) return 0;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    buf[n] = 0;
-    fclose(f);
-    return strstr(buf, text) != NULL;
-}
+#define run(...) tu_run(wt, dir, __VA_ARGS__)
+#define file_has(name, text) tu_file_has(dir, name, text)
 
 /* A telemetry-like file: the demo's configuration (or none), F frames of slopes_ol (or none) */
 static void write_tel(const char *path, int with_config, int with_ol, int F)
