@@ -122,6 +122,40 @@ START_TEST(test_map_direct)
 }
 END_TEST
 
+/* The per-frame call allocates nothing (counted through the allocator hook); every allocation failure of _alloc is
+ * WT_ERR_NOMEM with nothing left allocated. */
+START_TEST(test_alloc)
+{
+    wt_context *ctx = tu_context();
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_install(ctx, &fa);
+    geom G;
+    geom_make(&G, 8, 3, 30.0);
+    const int ns = geom_nsub(&G);
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 2, 3, &L), WT_OK);
+    const long granted = fa.nalloc;
+    double *s = malloc(sizeof(double) * (size_t)G.nlgs * 2 * ns);
+    for (int t = 0; t < 8; t++) {
+        tu_randn(s, (long)G.nlgs * 2 * ns, (unsigned long)(20 + t));
+        ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    }
+    ck_assert_int_eq(fa.nalloc, granted);
+    wt_learn_free(L);
+    ck_assert_int_eq(fa.live, 0);
+    for (long k = 0; k < granted; k++) {
+        tu_alloc_budget(&fa, k);
+        L = NULL;
+        ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 2, 3, &L), WT_ERR_NOMEM);
+        ck_assert_ptr_null(L);
+        ck_assert_int_eq(fa.live, 0);
+    }
+    tu_alloc_budget(&fa, -1);
+    free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* ---------------------------------------------------------------- NNLS */
 
 /* A consistent problem b = A x* with x* ≥ 0 (some zeros): the minimum is x* (to the conditioning of AᵀA times ε);
@@ -427,6 +461,7 @@ Suite *make_suite(void)
     TCase *tc = tcase_create("core");
     tcase_set_timeout(tc, 120);
     tcase_add_test(tc, test_map_direct);
+    tcase_add_test(tc, test_alloc);
     tcase_add_test(tc, test_nnls);
     tcase_add_test(tc, test_response_screens);
     tcase_add_test(tc, test_single_layer);
