@@ -109,9 +109,11 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
         if (L->bframes[b] >= 2) used[nb++] = b;
     if (nb < 2) nb = 0; /* one batch: no spread */
     const int nrhs = 1 + nb;
-    double *resp = NULL, *map = NULL, *G = NULL, *q = NULL, *work = NULL, *x = NULL, *dn = NULL;
+    int auto_done = 0;
+    double *resp = NULL, *resp_auto = NULL, *map = NULL, *G = NULL, *q = NULL, *work = NULL, *x = NULL, *dn = NULL;
     int *iwork = NULL;
     WT_ALLOC(ctx, resp, (size_t)m * WT_LEARN_NCOMP * S2, "the response maps of a pair");
+    WT_ALLOC(ctx, resp_auto, (size_t)m * WT_LEARN_NCOMP * S2, "the response maps of the auto pairs");
     WT_ALLOC(ctx, map, (size_t)nrhs * WT_LEARN_NCOMP * S2, "the maps of a pair");
     WT_ALLOC(ctx, G, (size_t)m * m, "the normal matrix");
     WT_ALLOC(ctx, q, (size_t)m * nrhs, "the normal right-hand sides");
@@ -123,7 +125,15 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
     for (int p = 0; p < L->npairs; p++) {
         int i, j;
         wt_learn_pair(L, p, &i, &j);
-        if ((st = wt_learn_response(L, p, m, alt, L0, resp)) < 0) goto fail;
+        /* every auto pair sees the same thing (θ_j − θ_i = 0, one mask): its response maps are computed once */
+        if (i != j || !auto_done) {
+            if ((st = wt_learn_response(L, p, m, alt, L0, resp)) < 0) goto fail;
+            if (i == j) {
+                memcpy(resp_auto, resp, (size_t)m * WT_LEARN_NCOMP * S2 * sizeof *resp);
+                auto_done = 1;
+            }
+        } else
+            memcpy(resp, resp_auto, (size_t)m * WT_LEARN_NCOMP * S2 * sizeof *resp);
         for (int r = 0; r < nrhs; r++)
             for (int c = 0; c < WT_LEARN_NCOMP; c++)
                 if ((st = wt_learn_map(L, r ? used[r - 1] : -1, p, c, map + ((size_t)r * WT_LEARN_NCOMP + c) * S2, NULL)) < 0)
@@ -203,7 +213,7 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
         for (int a = 0; a < m; a++) est->fraction_sigma[a] = sqrt(fmax(0.0, (fs2[a] - fs[a] * fs[a] / nb) / (nb - 1)) / nb);
     }
 fail:
-    wt_free(ctx, resp), wt_free(ctx, map), wt_free(ctx, G), wt_free(ctx, q), wt_free(ctx, x), wt_free(ctx, dn);
+    wt_free(ctx, resp), wt_free(ctx, resp_auto), wt_free(ctx, map), wt_free(ctx, G), wt_free(ctx, q), wt_free(ctx, x), wt_free(ctx, dn);
     wt_free(ctx, work), wt_free(ctx, iwork);
     return st;
 }
