@@ -25,6 +25,7 @@ static void usage(FILE *f)
             "  sim              closed-loop simulation of one reconstructor (pcg3, cg9, mvm, none)\n"
             "  build            offline MVM builder: CHOLMOD factorisation -> control matrix MATRIX.h5\n"
             "  run              apply a stored MVM or the wavelet PCG to every frame of a telemetry file\n"
+            "  learn            identify r0 and the Cn2 profile from the pseudo-open-loop slopes of a telemetry file\n"
             "  compare          side-by-side closed-loop comparison (MVM, PCG-3, CG-9) with a report\n"
             "  budget           error budget: fitting, tomography, noise, servo lag, tip-tilt, rim (SPEC §11)\n"
             "  bench CONFIG     time the reconstructor kernels (normal operator, PCG iteration)\n"
@@ -58,7 +59,7 @@ int main(int argc, char **argv)
         int (*fn)(int, char **);
     } cmds[] = {{"info", wt_cmd_info},       {"bench", wt_cmd_bench}, {"wisdom", wt_cmd_wisdom},
                 {"sim", wt_cmd_sim},         {"build", wt_cmd_build}, {"run", wt_cmd_run},
-                {"compare", wt_cmd_compare}, {"budget", wt_cmd_budget}};
+                {"learn", wt_cmd_learn},     {"compare", wt_cmd_compare}, {"budget", wt_cmd_budget}};
     enum { NCMD = sizeof cmds / sizeof *cmds };
     const char *names[NCMD];
     for (int k = 0; k < NCMD; k++) {

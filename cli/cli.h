@@ -111,6 +111,13 @@ int wt_cli_write_provenance(wt_cli *cli, struct wt_h5_writer *w, const wt_config
  * groups "atmosphere" and "model_atmosphere" (docs/formats.md). */
 int wt_cli_write_layout(struct wt_h5_writer *w, const struct wt_system *sys);
 
+/* The configurations of a telemetry file (run, learn): *tcfg = the one it was recorded with (its dataset
+ * "config"; without --config the --set overrides apply to it), *cfg = --config's (NULL without one: the caller
+ * compares the two as its use requires). A file without "config" is refused, naming it. Both owned by the
+ * caller (wt_config_free). */
+struct wt_h5_reader;
+int wt_cli_telemetry_config(wt_cli *cli, struct wt_h5_reader *tr, const char *tel, wt_config **tcfg, wt_config **cfg);
+
 /* mkdir -p: the directory and its missing parents (cli/output.c). */
 int wt_cli_ensure_dir(wt_context *ctx, const char *path);
 /* The MVM (pcg3 layers) of cfg: read from DIR/cache/mvm-pcg3-<hash>.h5 when it matches, else built and

@@ -6,7 +6,7 @@
 set -euo pipefail
 WT=$1
 VERSION=$2
-COMMANDS="info sim build run compare budget bench wisdom"
+COMMANDS="info sim build run learn compare budget bench wisdom"
 # the date of the sources (reproducible: the last commit, or SOURCE_DATE_EPOCH), not of the build
 EPOCH=${SOURCE_DATE_EPOCH:-$(git -C "$(dirname "$0")/.." log -1 --format=%ct 2>/dev/null || date +%s)}
 DATE=$(date -u -d "@$EPOCH" +%Y-%m-%d)

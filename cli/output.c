@@ -251,3 +251,22 @@ int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *s
     wt_h5_abort(w);
     return st;
 }
+
+int wt_cli_telemetry_config(wt_cli *cli, struct wt_h5_reader *tr, const char *tel, wt_config **tcfg, wt_config **cfg)
+{
+    *tcfg = NULL, *cfg = NULL;
+    if (!wt_h5_exists(tr, "config"))
+        return WT_ERROR(cli->ctx, WT_ERR_FORMAT, "%s holds no dataset 'config' (the system it was recorded on): not a "
+                        "telemetry file of `wavetomo sim --telemetry`", tel);
+    char *text = NULL, name[1100];
+    int st = wt_h5_read_string(tr, "config", &text);
+    if (st < 0) return st;
+    snprintf(name, sizeof name, "%s:config", tel);
+    /* without --config the stored configuration is the one in use: the --set overrides apply to it (a key that
+     * changes the matrices then refuses a --matrix built without it, as for --config) */
+    const int nov = cli->config_path ? 0 : cli->nset;
+    st = wt_config_parse(cli->ctx, text, name, nov, nov ? cli->set : NULL, tcfg);
+    wt_free(cli->ctx, text);
+    if (st >= 0 && cli->config_path) st = wt_cli_read_config(cli, NULL, cfg);
+    return st;
+}

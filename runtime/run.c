@@ -94,24 +94,14 @@ int wt_cmd_run(int argc, char **argv)
     wt_config *cfg = NULL, *tcfg = NULL;
     wt_system *sys = NULL;
     wt_rtc *rtc = NULL;
-    char *ttext = NULL;
     float *sf = NULL, *af = NULL, *rf = NULL;
     double *times = NULL;
     int st;
     if ((st = wt_cli_check_output(&cli, args.out, 0, args.tel, args.matrix)) < 0) goto fail;
     if ((st = wt_h5_open(cli.ctx, args.tel, &tr)) < 0) goto fail;
     /* the telemetry's own system, and the one asked for on the command line */
-    if ((st = wt_h5_read_string(tr, "config", &ttext)) < 0) goto fail;
-    {
-        char name[1100];
-        snprintf(name, sizeof name, "%s:config", args.tel);
-        /* without --config the stored configuration is the one in use: the --set overrides apply to it (a key
-         * that changes the matrices then refuses a --matrix built without it, as for --config) */
-        const int nov = cli.config_path ? 0 : cli.nset;
-        if ((st = wt_config_parse(cli.ctx, ttext, name, nov, nov ? cli.set : NULL, &tcfg)) < 0) goto fail;
-    }
-    if (cli.config_path) {
-        if ((st = wt_cli_read_config(&cli, NULL, &cfg)) < 0) goto fail;
+    if ((st = wt_cli_telemetry_config(&cli, tr, args.tel, &tcfg, &cfg)) < 0) goto fail;
+    if (cfg) {
         if (strcmp(cfg->matrix_sha256, tcfg->matrix_sha256) != 0) {
             char diff[1024];
             wt_mvm_file_text_diff(tcfg->matrix_text, cfg->matrix_text, args.tel, cfg->path, diff, sizeof diff);
@@ -200,7 +190,6 @@ fail:
 cleanup:
     wt_h5_abort(w);
     wt_h5_close(tr);
-    wt_free(cli.ctx, ttext);
     free(sf), free(af), free(rf), free(times);
     wt_rtc_close(rtc);
     wt_system_free(sys);

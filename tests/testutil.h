@@ -4,6 +4,8 @@
 #define WT_TESTUTIL_H
 
 #include <check.h>
+#include <stdarg.h>
+#include <sys/wait.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,6 +37,37 @@ static inline void tu_cli_teardown(const char *dir)
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
+}
+
+/* Run `wt fmt…` through the shell with its stdout and stderr in dir/stdout.txt and dir/stderr.txt; the exit
+ * status (−1: killed). */
+static inline int tu_run(const char *wt, const char *dir, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static inline int tu_run(const char *wt, const char *dir, const char *fmt, ...)
+{
+    char cmd[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = snprintf(cmd, sizeof cmd, "%s ", wt);
+    vsnprintf(cmd + n, sizeof cmd - (size_t)n, fmt, ap);
+    va_end(ap);
+    size_t l = strlen(cmd);
+    snprintf(cmd + l, sizeof cmd - l, " > %s/stdout.txt 2> %s/stderr.txt", dir, dir);
+    int st = system(cmd);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* Whether dir/name (its first 64 kB) holds text. */
+static inline int tu_file_has(const char *dir, const char *name, const char *text)
+{
+    char path[512];
+    static char buf[65536];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return strstr(buf, text) != NULL;
 }
 
 static inline double tu_dot(const double *x, const double *y, long n)

@@ -1,0 +1,118 @@
+/* core/model/learn.h: identification of the Cn² profile and r0 from the loop's own pseudo-open-loop LGS slopes
+ * (SPEC §12, "Identification from the loop's own data": SLODAR generalised to many LGS).
+ *
+ * Data. Per frame, each LGS i's slopes with its own tip-tilt removed (s − mean over its valid subapertures, per
+ * axis: LGS tip-tilt is not measured), laid on a zero-padded N × N grid (N = 2n ≥ 2n − 1: no wrap-around of the
+ * correlation) and Fourier transformed. For every pair i ≤ j (autos included) and component c ∈ {xx, yy, xy}
+ * (x slope of i with x of j, y with y, x of i with y of j) the cross-spectrum conj(Ŝ_i^a) Ŝ_j^b is summed over the
+ * frames, so that a frame costs 2 n_lgs r2c FFTs plus n_pairs · 3 · N (N/2 + 1) complex products; the maps are
+ * transformed back only when asked:
+ *
+ *   C_ij^c(δ) = Σ_t Σ_a M(a) M(a + δ) s_i^a(a, t) s_j^b(a + δ, t) / (K · P(δ)),   P(δ) = Σ_a M(a) M(a + δ),
+ *
+ * δ the offset in subapertures, M the valid mask (all LGS share it), K the frames.
+ *
+ * Model (core/model/learn_response.c). The same statistic for a unit layer (r0 = 1 m at 500 nm, outer scale L0)
+ * at altitude h: R_ij^c(δ; h), computed from the von Kármán OPD structure function D (core/optics/seeing.h) over
+ * the cone-beam footprints (scaled by 1 − h/H, shifted by θ h), with the same tip-tilt removal applied to the
+ * model as to the data. D scales as r0^(−5/3), so the data are Σ_h c_h R(δ; h) with c_h = f_h r0^(−5/3) (f_h the Cn²
+ * fractions) plus noise on the autos' δ = 0, which the fit leaves out.
+ *
+ * Fit (core/model/learn_fit.c). c_h ≥ 0 on an altitude grid by non-negative least squares over the offsets where
+ * P(δ) ≥ WT_LEARN_MIN_PAIRS · P(0), each weighted by P(δ) (the inverse variance of a mean over P(δ) products);
+ * r0 = (Σ c_h)^(−3/5), f_h = c_h / Σ c_h. Frames are kept in B consecutive batches; the uncertainty of each output is
+ * the spread of the B batch estimates / √B.
+ *
+ * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
+ */
+#ifndef WT_LEARN_H
+#define WT_LEARN_H
+
+#include <stdint.h>
+
+#include "../base/base.h"
+
+/* Offsets whose pair count P(δ) is below this fraction of P(0) are left out of the fit: their mean is over few
+ * products, and the few subapertures at the pupil's edge are the ones whose partial lighting the model ignores. */
+#define WT_LEARN_MIN_PAIRS 0.25
+#define WT_LEARN_MAX_ALT 64   /* altitudes of a grid */
+#define WT_LEARN_MAX_BATCH 16 /* batches of frames for the uncertainty */
+enum { WT_LEARN_XX = 0, WT_LEARN_YY = 1, WT_LEARN_XY = 2, WT_LEARN_NCOMP = 3 };
+
+/* The LGS geometry, plain data (copied by _alloc). Subaperture (ix, iy) is mask index ix + n iy, its centre at
+ * ((ix − (n − 1)/2) d, (iy − (n − 1)/2) d); each LGS's slope block is [s_x of its valid subapertures in index
+ * order, s_y …] (core/op/shack_hartmann.h), the blocks of the nlgs LGS one after the other. */
+typedef struct wt_learn_geometry {
+    int n;                       /* subapertures per side */
+    double d;                    /* subaperture side [m] */
+    const uint8_t *valid;        /* n*n valid mask, shared by every LGS */
+    int nlgs;                    /* ≥ 1 */
+    const double *theta_x;       /* [nlgs] directions [rad] */
+    const double *theta_y;
+    double H;                    /* LGS range [m] (> 0: the cone) */
+} wt_learn_geometry;
+
+typedef struct wt_learn wt_learn;
+
+/* nbatch (1 … WT_LEARN_MAX_BATCH) batches of batch_frames frames each: frame t of _add goes to batch
+ * min(t / batch_frames, nbatch − 1) (batch_frames ≤ 0: all to batch 0). Allocates the spectra (nbatch · npairs ·
+ * 3 · N (N/2 + 1) complex) and plans the FFTs (FFTW_ESTIMATE; the planner is not thread-safe: call from one
+ * thread). WT_ERR_INVALID naming a bad geometry. */
+int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, wt_learn **out);
+void wt_learn_free(wt_learn *L);
+
+/* Accumulate one frame: slopes = the nlgs LGS blocks (2 nsub each, as above) [rad]. Allocates nothing.
+ * WT_ERR_NUMERIC naming the LGS and slope for NaN/Inf (the frame is then not counted). */
+int wt_learn_add(wt_learn *L, const double *slopes);
+int64_t wt_learn_frames(const wt_learn *L);    /* frames added */
+int wt_learn_npairs(const wt_learn *L);        /* nlgs (nlgs + 1) / 2; pair p = (i, j), i ≤ j, i-major order */
+void wt_learn_pair(const wt_learn *L, int p, int *i, int *j);
+int wt_learn_map_side(const wt_learn *L);      /* 2n − 1: maps are (2n − 1)² offsets, δ = (−(n−1) … n−1)² */
+
+/* The averaged map C_p^c(δ) of batch b (−1: all frames) into map[(δx + n − 1) + (2n − 1)(δy + n − 1)] [rad²];
+ * count (may be NULL) the pair counts P(δ). 0 where P(δ) = 0. WT_ERR_INVALID for no frames or a bad index. */
+int wt_learn_map(const wt_learn *L, int batch, int p, int comp, double *map, double *count);
+
+/* The response maps R_p^c(δ; h) of pair p for unit layers (r0 = 1 m) at the nalt altitudes alt [m] (each < H) with
+ * outer scale L0 [m] (≤ 0: Kolmogorov), laid out as wt_learn_map's: resp[(a · 3 + c) · (2n−1)² + k] [rad²], the
+ * same statistic as the data's (tip-tilt removed, averaged over the pairs of valid subapertures). A slope is the
+ * mean OPD gradient over its subaperture: the difference of the OPD averaged along the two edges across the axis,
+ * over d (WT_LEARN_EDGE_POINTS Gauss–Legendre points per edge); the covariance of two such differences is
+ * −½ Σ ± D(…) over the four edge pairs. D is tabulated as D(ρ)/ρ^(5/3) (smooth) every d/WT_LEARN_TABLE_STEPS.
+ * Allocates temporaries; uses the OpenMP team. */
+#define WT_LEARN_EDGE_POINTS 3
+#define WT_LEARN_TABLE_STEPS 16
+int wt_learn_response(const wt_learn *L, int p, int nalt, const double *alt, double L0, double *resp);
+
+/* A default altitude grid below H: 0, 0.5 km, then every 1 km to 20 km. Returns the count (≤ max). */
+int wt_learn_default_grid(double H, int max, double *alt);
+
+/* The estimate (plain data). */
+typedef struct wt_learn_estimate {
+    int nalt;
+    double altitude[WT_LEARN_MAX_ALT];   /* the grid [m] */
+    double cn2[WT_LEARN_MAX_ALT];        /* c_h = f_h r0^(−5/3) [m^(−5/3)], all frames */
+    double fraction[WT_LEARN_MAX_ALT];   /* f_h [-], sum 1 */
+    double fraction_sigma[WT_LEARN_MAX_ALT]; /* spread of the batches' f_h / √B [-] (0 with one batch) */
+    double r0, r0_sigma;                 /* [m] at 500 nm, and its uncertainty as above */
+    double L0;                           /* the outer scale used [m] */
+    int64_t frames;                      /* frames used */
+    int nbatch;                          /* batches with frames */
+    int64_t rows;                        /* (pair, component, offset) terms in the fit */
+    double residual;                     /* weighted rms misfit / weighted rms data, all frames [-] */
+    double batch_fraction[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* each batch's f_h (nbatch ≥ 2) [-] */
+    double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
+} wt_learn_estimate;
+
+/* Fit the profile on the nalt increasing altitudes alt (< H) with outer scale L0. Needs ≥ 2 frames in every
+ * batch used (WT_ERR_INVALID otherwise, saying how many). WT_ERR_NUMERIC when the fit finds no turbulence
+ * (every c_h = 0). Allocates temporaries. */
+int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_estimate *est);
+
+/* Non-negative least squares in normal-equation form: minimise ½ xᵀ G x − qᵀ x over x ≥ 0 (Lawson & Hanson 1974,
+ * ch. 23, on the Gram matrix G = AᵀA, q = Aᵀb), G m × m column-major symmetric positive semi-definite. x [m] out.
+ * work ≥ m (2 m + 3) doubles, iwork ≥ m ints. Returns the outer iterations, or WT_ERR_NUMERIC if a cap (3 m outer,
+ * m + 1 inner) is hit. */
+int wt_learn_nnls(int m, const double *G, const double *q, double *x, double *work, int *iwork);
+
+#endif

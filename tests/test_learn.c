@@ -1,0 +1,474 @@
+/* tests/test_learn.c: identification from telemetry (SPEC §12; core/model/learn.h): the FFT cross-covariance maps
+ * against the direct pair average, the non-negative least squares, the response maps against the covariance of
+ * simulated von Kármán screens, and a single layer found at its altitude. */
+#include <unistd.h>
+
+#include "core/config/config.h"
+#include "core/io/h5.h"
+#include "core/model/learn.h"
+#include "core/sim/atmosphere.h"
+#include "core/op/grid.h"
+#include "testutil.h"
+
+#define ARCSEC (M_PI / 180.0 / 3600.0)
+
+/* n x n subapertures of d on an annulus (centre inside [obs, 1] x n/2 subapertures), nlgs LGS on a ring of
+ * radius rad_as arcsec at 90 km */
+typedef struct {
+    int n, nlgs;
+    double d;
+    uint8_t valid[32 * 32];
+    double tx[8], ty[8];
+    wt_learn_geometry g;
+} geom;
+
+static void geom_make(geom *G, int n, int nlgs, double rad_as)
+{
+    G->n = n, G->nlgs = nlgs, G->d = 0.5;
+    for (int iy = 0; iy < n; iy++)
+        for (int ix = 0; ix < n; ix++) {
+            double x = ix - (n - 1) / 2.0, y = iy - (n - 1) / 2.0, r = hypot(x, y) / (n / 2.0);
+            G->valid[ix + n * iy] = r <= 1.0 && r >= 0.25;
+        }
+    for (int i = 0; i < nlgs; i++) {
+        G->tx[i] = rad_as * ARCSEC * cos(2 * M_PI * i / nlgs);
+        G->ty[i] = rad_as * ARCSEC * sin(2 * M_PI * i / nlgs);
+    }
+    G->g = (wt_learn_geometry){n, G->d, G->valid, nlgs, G->tx, G->ty, 90e3};
+}
+
+static int geom_nsub(const geom *G)
+{
+    int s = 0;
+    for (int k = 0; k < G->n * G->n; k++) s += G->valid[k];
+    return s;
+}
+
+/* ---------------------------------------------------------------- the maps against the direct average */
+
+/* The accumulated map equals Σ_t Σ_{a, a+δ valid} s̃_i(a) s̃_j(a + δ) / (K P(δ)) computed pair by pair (s̃: tip-tilt
+ * removed). Both are sums of the same ~K nsub products; the FFT's rounding is ~ε log N relative to the largest
+ * spectrum term, i.e. to Σ |s|² — tolerance 1e-11 of the maps' largest value. */
+START_TEST(test_map_direct)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 9, 3, 30.0);
+    const int n = G.n, ns = geom_nsub(&G), S = 2 * n - 1, K = 4;
+    int sub[81];
+    for (int k = 0, m = 0; k < n * n; k++)
+        if (G.valid[k]) sub[m++] = k;
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 2, 2, &L), WT_OK);
+    double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
+    tu_randn(s, (long)K * G.nlgs * 2 * ns, 11);
+    /* a correlated component (common to the LGS, shifted) so that the maps are not just a spike at 0 */
+    for (int t = 0; t < K; t++)
+        for (int i = 1; i < G.nlgs; i++)
+            for (int k = 0; k < 2 * ns; k++) s[((size_t)t * G.nlgs + i) * 2 * ns + k] += 0.7 * s[((size_t)t * G.nlgs) * 2 * ns + (k + 1) % (2 * ns)];
+    for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
+    ck_assert_int_eq(wt_learn_frames(L), K);
+    ck_assert_int_eq(wt_learn_map_side(L), S);
+    double *map = malloc(sizeof(double) * S * S), *cnt = malloc(sizeof(double) * S * S);
+    double *dir = calloc((size_t)S * S, sizeof(double)), *dcnt = calloc((size_t)S * S, sizeof(double));
+    static const int ca[3] = {0, 1, 0}, cb[3] = {0, 1, 1};
+    for (int p = 0; p < wt_learn_npairs(L); p++) {
+        int i, j;
+        wt_learn_pair(L, p, &i, &j);
+        ck_assert(i <= j);
+        for (int c = 0; c < 3; c++) {
+            ck_assert_int_eq(wt_learn_map(L, -1, p, c, map, cnt), WT_OK);
+            memset(dir, 0, sizeof(double) * S * S), memset(dcnt, 0, sizeof(double) * S * S);
+            for (int t = 0; t < K; t++) {
+                const double *si = s + ((size_t)t * G.nlgs + i) * 2 * ns + (size_t)ca[c] * ns;
+                const double *sj = s + ((size_t)t * G.nlgs + j) * 2 * ns + (size_t)cb[c] * ns;
+                double mi = 0, mj = 0;
+                for (int k = 0; k < ns; k++) mi += si[k] / ns, mj += sj[k] / ns;
+                for (int a = 0; a < ns; a++)
+                    for (int b = 0; b < ns; b++) {
+                        int dx = sub[b] % n - sub[a] % n, dy = sub[b] / n - sub[a] / n;
+                        int o = (dx + n - 1) + S * (dy + n - 1);
+                        dir[o] += (si[a] - mi) * (sj[b] - mj);
+                        if (t == 0) dcnt[o] += 1;
+                    }
+            }
+            double mx = 0;
+            for (int o = 0; o < S * S; o++) {
+                if (dcnt[o] > 0) dir[o] /= K * dcnt[o];
+                mx = fmax(mx, fabs(dir[o]));
+            }
+            for (int o = 0; o < S * S; o++) {
+                ck_assert_msg(cnt[o] == dcnt[o], "pair count at %d: %g vs %g", o, cnt[o], dcnt[o]);
+                ck_assert_msg(fabs(map[o] - dir[o]) <= 1e-11 * mx, "pair %d comp %d offset %d: %.17g vs %.17g", p, c, o,
+                              map[o], dir[o]);
+            }
+        }
+    }
+    /* the batches add up to the whole */
+    double *m0 = malloc(sizeof(double) * S * S), *m1 = malloc(sizeof(double) * S * S);
+    ck_assert_int_eq(wt_learn_map(L, 0, 1, 0, m0, NULL), WT_OK);
+    ck_assert_int_eq(wt_learn_map(L, 1, 1, 0, m1, NULL), WT_OK);
+    ck_assert_int_eq(wt_learn_map(L, -1, 1, 0, map, NULL), WT_OK);
+    for (int o = 0; o < S * S; o++) ck_assert(fabs(0.5 * (m0[o] + m1[o]) - map[o]) <= 1e-12 * (fabs(map[o]) + 1e-3));
+    /* a NaN is refused, naming it, and not counted */
+    s[3] = NAN;
+    ck_assert_int_eq(wt_learn_add(L, s), WT_ERR_NUMERIC);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "LGS 1 slope 3"));
+    ck_assert_int_eq(wt_learn_frames(L), K);
+    ck_assert_int_eq(wt_learn_map(L, 5, 0, 0, map, NULL), WT_ERR_INVALID);
+    free(s), free(map), free(cnt), free(dir), free(dcnt), free(m0), free(m1);
+    wt_learn_free(L);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The per-frame call allocates nothing (counted through the allocator hook); every allocation failure of _alloc is
+ * WT_ERR_NOMEM with nothing left allocated. */
+START_TEST(test_alloc)
+{
+    wt_context *ctx = tu_context();
+    tu_alloc fa = TU_ALLOC_INIT;
+    tu_alloc_install(ctx, &fa);
+    geom G;
+    geom_make(&G, 8, 3, 30.0);
+    const int ns = geom_nsub(&G);
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 2, 3, &L), WT_OK);
+    const long granted = fa.nalloc;
+    double *s = malloc(sizeof(double) * (size_t)G.nlgs * 2 * ns);
+    for (int t = 0; t < 8; t++) {
+        tu_randn(s, (long)G.nlgs * 2 * ns, (unsigned long)(20 + t));
+        ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    }
+    ck_assert_int_eq(fa.nalloc, granted);
+    wt_learn_free(L);
+    ck_assert_int_eq(fa.live, 0);
+    for (long k = 0; k < granted; k++) {
+        tu_alloc_budget(&fa, k);
+        L = NULL;
+        ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 2, 3, &L), WT_ERR_NOMEM);
+        ck_assert_ptr_null(L);
+        ck_assert_int_eq(fa.live, 0);
+    }
+    tu_alloc_budget(&fa, -1);
+    free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* ---------------------------------------------------------------- NNLS */
+
+/* A consistent problem b = A x* with x* ≥ 0 (some zeros): the minimum is x* (to the conditioning of AᵀA times ε);
+ * an inconsistent one: the KKT conditions, x ≥ 0, (q − G x)_k = 0 where x_k > 0 and ≤ 0 where x_k = 0. */
+START_TEST(test_nnls)
+{
+    enum { M = 40, N = 10 };
+    double A[M * N], xs[N], b[M], G[N * N], q[N], x[N], work[N * (2 * N + 3)];
+    int iw[N];
+    tu_randn(A, M * N, 3);
+    for (int k = 0; k < N; k++) xs[k] = k % 3 == 0 ? 0.0 : 0.5 + k;
+    for (int trial = 0; trial < 2; trial++) {
+        for (int r = 0; r < M; r++) {
+            b[r] = 0;
+            for (int k = 0; k < N; k++) b[r] += A[r + M * k] * xs[k];
+        }
+        if (trial) {
+            double e[M];
+            tu_randn(e, M, 4);
+            for (int r = 0; r < M; r++) b[r] += 3 * e[r];
+        }
+        for (int i = 0; i < N; i++) {
+            q[i] = 0;
+            for (int r = 0; r < M; r++) q[i] += A[r + M * i] * b[r];
+            for (int k = 0; k < N; k++) {
+                G[i + N * k] = 0;
+                for (int r = 0; r < M; r++) G[i + N * k] += A[r + M * i] * A[r + M * k];
+            }
+        }
+        ck_assert_int_ge(wt_learn_nnls(N, G, q, x, work, iw), 0);
+        for (int k = 0; k < N; k++) {
+            ck_assert(x[k] >= 0);
+            if (!trial) ck_assert_msg(fabs(x[k] - xs[k]) <= 1e-9 * (1 + xs[k]), "x[%d] = %g vs %g", k, x[k], xs[k]);
+            double g = q[k];
+            for (int j = 0; j < N; j++) g -= G[k + N * j] * x[j];
+            if (x[k] > 0) ck_assert_msg(fabs(g) <= 1e-9 * M * 10, "gradient %g at free x[%d]", g, k);
+            else ck_assert_msg(g <= 1e-9 * M * 10, "gradient %g > 0 at held x[%d]", g, k);
+        }
+    }
+}
+END_TEST
+
+/* ---------------------------------------------------------------- open-loop slopes of simulated screens */
+
+/* K frames of the LGS slopes of a von Kármán atmosphere (core/sim/atmosphere.h), each slope the mean OPD gradient
+ * over its subaperture, from q = 4 samples per side (trapezoid edge means), into s (K × nlgs × 2 nsub). Frames are
+ * `step` metres of frozen flow apart (independent when step exceeds the footprint); each seed a new screen. */
+static void simulate(wt_context *ctx, const geom *G, int nl, const double *alt, const double *frac, double r0,
+                     double L0, int seeds, int per_seed, double *s)
+{
+    const int n = G->n, q = 4, np = n * q + 1, ns = geom_nsub(G);
+    const double d = G->d, step = 10.0;
+    wt_grid tg = {np, np, d / q, -n * d / 2, -n * d / 2};
+    double *opd = malloc(sizeof(double) * np * np);
+    double ws[8], wd[8];
+    for (int l = 0; l < nl; l++) ws[l] = step, wd[l] = 0.0;
+    int sub[32 * 32];
+    for (int k = 0, m = 0; k < n * n; k++)
+        if (G->valid[k]) sub[m++] = k;
+    for (int sd = 0; sd < seeds; sd++) {
+        wt_atmosphere_params ap = {nl, alt, frac, ws, wd, r0, L0, 512, 0.125, (uint64_t)(100 + sd), 0};
+        wt_atmosphere *atm = NULL;
+        ck_assert_int_eq(wt_atmosphere_alloc(ctx, &ap, &atm), WT_OK);
+        for (int f = 0; f < per_seed; f++) {
+            double *sf = s + ((size_t)sd * per_seed + f) * G->nlgs * 2 * ns;
+            for (int i = 0; i < G->nlgs; i++) {
+                memset(opd, 0, sizeof(double) * np * np);
+                ck_assert_int_eq(wt_atmosphere_project(atm, f, 90e3, G->tx[i], G->ty[i], &tg, NULL, 1.0, opd), WT_OK);
+                for (int k = 0; k < ns; k++) {
+                    int ix = sub[k] % n, iy = sub[k] / n;
+                    double gx = 0, gy = 0;
+                    for (int u = 0; u <= q; u++) {
+                        double w = (u == 0 || u == q ? 0.5 : 1.0) / q;
+                        gx += w * (opd[(ix * q + q) + np * (iy * q + u)] - opd[(ix * q) + np * (iy * q + u)]);
+                        gy += w * (opd[(ix * q + u) + np * (iy * q + q)] - opd[(ix * q + u) + np * (iy * q)]);
+                    }
+                    sf[(size_t)i * 2 * ns + k] = gx / d, sf[(size_t)i * 2 * ns + ns + k] = gy / d;
+                }
+            }
+        }
+        wt_atmosphere_free(atm);
+    }
+    free(opd);
+}
+
+static int cmp_desc(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x < y) - (x > y);
+}
+
+/* The response maps against the covariance of simulated screens at two altitudes: over the offsets (all pairs and
+ * components, P(δ) ≥ WT_LEARN_MIN_PAIRS P(0)) that hold 90 % of Σ R², the rms of the difference is within 10 % of
+ * the rms of R. Measured (4 sets of seeds): 0.053–0.094 with these 240 frames, 0.054–0.055 with 4× as many; so
+ * ~6–7 % is Monte Carlo error (falling as 1/√frames) and ~4–5 % the model's against these screens (64 m period,
+ * bilinear sampling at d/4, the 3-point edge quadrature). 10 % holds both at this size (seeds fixed: deterministic). */
+START_TEST(test_response_screens)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 10, 3, 30.0);
+    const int n = G.n, ns = geom_nsub(&G), S = 2 * n - 1, seeds = 12, per = 20, K = seeds * per;
+    const double r0 = 0.15, L0 = 25.0, alts[2] = {0.0, 8000.0};
+    double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
+    for (int ia = 0; ia < 2; ia++) {
+        double one = 1.0;
+        simulate(ctx, &G, 1, &alts[ia], &one, r0, L0, seeds, per, s);
+        wt_learn *L = NULL;
+        ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 1, 0, &L), WT_OK);
+        for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
+        const int np = wt_learn_npairs(L), tot = np * 3 * S * S;
+        double *R = malloc(sizeof(double) * 3 * S * S), *map = malloc(sizeof(double) * S * S);
+        double *cnt = malloc(sizeof(double) * S * S), *rr = malloc(sizeof(double) * tot), *mm = malloc(sizeof(double) * tot);
+        double *sq = malloc(sizeof(double) * tot);
+        int m = 0;
+        for (int p = 0; p < np; p++) {
+            ck_assert_int_eq(wt_learn_response(L, p, 1, &alts[ia], L0, R), WT_OK);
+            for (int c = 0; c < 3; c++) {
+                ck_assert_int_eq(wt_learn_map(L, -1, p, c, map, cnt), WT_OK);
+                for (int o = 0; o < S * S; o++)
+                    if (cnt[o] >= WT_LEARN_MIN_PAIRS * cnt[(n - 1) * (S + 1)])
+                        rr[m] = R[c * S * S + o] * pow(r0, -5.0 / 3.0), mm[m] = map[o], sq[m] = rr[m] * rr[m], m++;
+            }
+        }
+        qsort(sq, (size_t)m, sizeof *sq, cmp_desc);
+        double all = 0, acc = 0, thr = 0;
+        for (int k = 0; k < m; k++) all += sq[k];
+        for (int k = 0; k < m && acc < 0.9 * all; k++) acc += sq[k], thr = sq[k];
+        double dd = 0, rs = 0;
+        int used = 0;
+        for (int k = 0; k < m; k++)
+            if (rr[k] * rr[k] >= thr) dd += (mm[k] - rr[k]) * (mm[k] - rr[k]), rs += rr[k] * rr[k], used++;
+        const double rel = sqrt(dd / rs);
+        fprintf(stderr, "test_response_screens: h = %g m: rms difference %.3f of rms R over %d of %d offsets\n", alts[ia],
+                rel, used, m);
+        ck_assert_msg(rel <= 0.10, "h = %g m: response vs screens rms relative difference %.3f > 0.10", alts[ia], rel);
+        free(R), free(map), free(cnt), free(rr), free(mm), free(sq);
+        wt_learn_free(L);
+    }
+    free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* ---------------------------------------------------------------- a single layer found at its altitude */
+
+/* One layer at 6 km (demo geometry: 16 x 16 subapertures of 0.5 m, 4 LGS at 45″; altitude resolution d/θ ≈
+ * 1.1–1.6 km): ≥ 90 % of the fitted Cn² within one grid step (1 km) of 6 km, and r0 within 10 % (4 sets of seeds:
+ * 0.961–1.000 of the Cn² there, r0 −4 % to +2 %; the batches' spread 2–3 %). */
+START_TEST(test_single_layer)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 16, 4, 45.0);
+    const int ns = geom_nsub(&G), seeds = 8, per = 30, K = seeds * per;
+    const double r0 = 0.15, L0 = 25.0, h = 6000.0, one = 1.0;
+    double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
+    simulate(ctx, &G, 1, &h, &one, r0, L0, seeds, per, s);
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 4, K / 4, &L), WT_OK);
+    for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
+    double alt[WT_LEARN_MAX_ALT];
+    const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+    ck_assert_int_eq(na, 22);
+    wt_learn_estimate e;
+    ck_assert_int_eq(wt_learn_fit(L, na, alt, L0, &e), WT_OK);
+    double near = 0;
+    for (int a = 0; a < na; a++) {
+        if (fabs(alt[a] - h) <= 1000.0) near += e.fraction[a];
+        fprintf(stderr, "  %5.1f km  %.3f ± %.3f\n", alt[a] / 1e3, e.fraction[a], e.fraction_sigma[a]);
+    }
+    fprintf(stderr, "test_single_layer: r0 %.4f ± %.4f m (truth %.3f), %.3f of the Cn² within 1 km of %g km, residual %.3f\n",
+            e.r0, e.r0_sigma, r0, near, h / 1e3, e.residual);
+    ck_assert_msg(near >= 0.9, "%.3f of the Cn² within 1 km of the layer", near);
+    ck_assert_rel(e.r0, r0, 0.10, 0);
+    ck_assert_int_eq(e.nbatch, 4);
+    ck_assert(e.r0_sigma > 0 && e.r0_sigma < 0.05 * r0);
+    free(s);
+    wt_learn_free(L);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* ---------------------------------------------------------------- refusals */
+
+START_TEST(test_refusals)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 8, 2, 30.0);
+    wt_learn *L = NULL;
+    wt_learn_geometry bad = G.g;
+    bad.H = 0;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &bad, 1, 0, &L), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "range H"));
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 0, 0, &L), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 1, 0, &L), WT_OK);
+    double alt[3] = {0, 1000, 2000};
+    wt_learn_estimate e;
+    ck_assert_int_eq(wt_learn_fit(L, 3, alt, 25.0, &e), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "at least 2"));
+    double s[2 * 2 * 64] = {0};
+    tu_randn(s, 2 * 2 * 40, 5);
+    ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    ck_assert_int_eq(wt_learn_fit(L, 3, alt, 25.0, &e), WT_ERR_INVALID);
+    alt[2] = 500;
+    ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    ck_assert_int_eq(wt_learn_fit(L, 3, alt, 25.0, &e), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "not increasing"));
+    alt[2] = 95e3;
+    ck_assert_int_eq(wt_learn_fit(L, 3, alt, 25.0, &e), WT_ERR_INVALID);
+    wt_learn_free(L);
+    wt_context_free(ctx);
+}
+END_TEST
+
+
+/* ---------------------------------------------------------------- the command */
+
+static char wt[512], dir[64];
+
+#define run(...) tu_run(wt, dir, __VA_ARGS__)
+#define file_has(name, text) tu_file_has(dir, name, text)
+
+/* A telemetry-like file: the demo's configuration (or none), F frames of slopes_ol (or none) */
+static void write_tel(const char *path, int with_config, int with_ol, int F)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg = NULL;
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
+    wt_h5_writer *w;
+    wt_h5_series *so;
+    ck_assert_int_eq(wt_h5_create(ctx, path, &w), WT_OK);
+    if (with_config) ck_assert_int_eq(wt_h5_write_string(w, "config", cfg->canonical, "configuration"), WT_OK);
+    const int64_t nslopes = 1548; /* the demo system's slopes (wavetomo info) */
+    ck_assert_int_eq(wt_h5_series_create(w, with_ol ? "slopes_ol" : "slopes", WT_H5_F32, nslopes, "rad", "slopes", &so),
+                     WT_OK);
+    float *buf = calloc((size_t)nslopes, sizeof *buf);
+    for (int t = 0; t < F; t++) {
+        for (int64_t i = 0; i < nslopes; i++) buf[i] = 1e-7f * (float)((i * 7 + t) % 13);
+        ck_assert_int_eq(wt_h5_series_append(so, WT_H5_F32, buf), WT_OK);
+    }
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    free(buf);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+
+/* Refusals, each naming the file and what is missing, exit 1 and no output; then a short demo telemetry learnt */
+START_TEST(test_command)
+{
+    tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_learn_");
+    char p[256];
+    ck_assert_int_eq(run("learn --help"), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/none.h5 --out %s/e.h5", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "none.h5"));
+    snprintf(p, sizeof p, "%s/noconf.h5", dir);
+    write_tel(p, 0, 1, 30);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "no dataset 'config'"));
+    snprintf(p, sizeof p, "%s/nool.h5", dir);
+    write_tel(p, 1, 0, 30);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "pseudo-open-loop"));
+    ck_assert(file_has("stderr.txt", "nool.h5"));
+    snprintf(p, sizeof p, "%s/short.h5", dir);
+    write_tel(p, 1, 1, 12);
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "12 frames, fewer than an estimate"));
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5 --batches 2 --frames 13", p, dir), 1);
+    ck_assert(file_has("stderr.txt", "fewer than --frames 13"));
+    ck_assert_int_eq(run("learn --telemetry %s --out %s/e.h5 --config data/presets/demo.cfg --set lgs.radius_arcsec=40", p,
+                         dir), 1);
+    ck_assert(file_has("stderr.txt", "another system"));
+    ck_assert(file_has("stderr.txt", "lgs.radius_arcsec"));
+    snprintf(p, sizeof p, "%s/e.h5", dir);
+    ck_assert_int_ne(access(p, F_OK), 0);
+    /* a short closed loop's telemetry (60 frames: the numbers mean little, the chain and the file are the point) */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 60 --telemetry %s/tel.h5 --out %s/r.h5 "
+                         "--quiet", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet", dir, dir), 0);
+    ck_assert(file_has("stdout.txt", "r0 (500 nm)"));
+    ck_assert(file_has("stdout.txt", "compressed onto cg9's layers"));
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r;
+    ck_assert_int_eq(wt_h5_open(ctx, p, &r), WT_OK);
+    double r0;
+    ck_assert_int_eq(wt_h5_read_double(r, "estimate/r0_m", &r0), WT_OK);
+    ck_assert(r0 > 0.03 && r0 < 1.0);
+    char *u = NULL;
+    ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/pcg3/cn2_fraction", "description", &u), WT_OK);
+    ck_assert_ptr_nonnull(strstr(u, "pcg3"));
+    wt_free(ctx, u);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+    tu_cli_teardown(dir);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("learn");
+    TCase *tc = tcase_create("core");
+    tcase_set_timeout(tc, 120);
+    tcase_add_test(tc, test_map_direct);
+    tcase_add_test(tc, test_alloc);
+    tcase_add_test(tc, test_nnls);
+    tcase_add_test(tc, test_response_screens);
+    tcase_add_test(tc, test_single_layer);
+    tcase_add_test(tc, test_refusals);
+    tcase_add_test(tc, test_command);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
