@@ -190,6 +190,53 @@ START_TEST(test_mvm_and_none)
 }
 END_TEST
 
+/* recon.predict: with the model's wind zero the commands keep their bits (no layer moves: the same as without
+ * prediction); with the demo's wind they change (by ≥ 1e-3 relative: the layers move by 2–8 cm of their 0.5–1 m
+ * grids over the 4 ms lead, a few % of a random field's point-to-point difference). The shift itself is tested
+ * exactly in test_shift. */
+static void commands(const char *const *set, int nset, int kind, double *a, int64_t *na_out)
+{
+    fixture f;
+    setup(&f, nset, (const char **)set);
+    const int64_t ns = f.sys->nslopes;
+    wt_reconstructor *r;
+    wt_reconstructor_params rp;
+    wt_reconstructor_params_from_config(f.cfg, kind, -1, &rp);
+    ck_assert_msg(wt_reconstructor_alloc(f.ctx, f.sys, kind, &rp, &r) == WT_OK, "%s", wt_error_message(f.ctx));
+    double *s = malloc(ns * sizeof *s);
+    tu_randn(s, ns, 5);
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+    apply(r, s, a);
+    *na_out = f.sys->nact;
+    free(s);
+    wt_reconstructor_free(r);
+    teardown(&f);
+}
+
+START_TEST(test_predict)
+{
+    for (int kind = WT_RECON_PCG3; kind <= WT_RECON_CG9; kind++) {
+        double *a0 = malloc(20000 * sizeof *a0), *a1 = malloc(20000 * sizeof *a1), *a2 = malloc(20000 * sizeof *a2);
+        int64_t na;
+        const char *base[] = {"recon.warm_start=false"};
+        const char *still[] = {"recon.warm_start=false", "recon.predict=true",
+                               "atmosphere.wind_speed_mps=[0.0, 0.0, 0.0, 0.0, 0.0]"};
+        const char *still0[] = {"recon.warm_start=false", "atmosphere.wind_speed_mps=[0.0, 0.0, 0.0, 0.0, 0.0]"};
+        const char *moving[] = {"recon.warm_start=false", "recon.predict=true"};
+        commands(still0, 2, kind, a0, &na);
+        ck_assert_int_le(na, 20000);
+        commands(still, 3, kind, a1, &na);
+        ck_assert_msg(!memcmp(a0, a1, na * sizeof *a0), "%s: zero wind with recon.predict changed the commands",
+                      wt_reconstructor_name(kind));
+        commands(base, 1, kind, a0, &na);
+        commands(moving, 2, kind, a2, &na);
+        ck_assert_msg(tu_rel_diff(a2, a0, na) > 1e-3, "%s: the wind moved nothing (%g)", wt_reconstructor_name(kind),
+                      tu_rel_diff(a2, a0, na));
+        free(a0), free(a1), free(a2);
+    }
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("reconstructor");
@@ -200,6 +247,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_pcg3_converged_linear);
     tcase_add_test(tc, test_mvm_and_none);
     tcase_add_test(tc, test_pcg3_command_map_split);
+    tcase_add_test(tc, test_predict);
     suite_add_tcase(s, tc);
     return s;
 }

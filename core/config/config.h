@@ -207,6 +207,7 @@ typedef struct wt_config {
     int exact_prior;                 /* recon.prior as given (WT_CFG_PRIOR_*), or -1 when left out; the variants'
                                         resolved values are in pcg3.prior and cg9.prior */
     int warm_start;
+    int predict;                     /* recon.predict: the layers moved by their wind over the loop's delay */
     wt_model_atmosphere_config model; /* the reconstructors' atmosphere (recon.atmosphere), not the truth's above */
     wt_recon_variant_config pcg3;    /* layers at the DM altitudes, no fitting */
     wt_recon_variant_config cg9;     /* layers at the atmosphere altitudes, fitting over the evaluation directions */

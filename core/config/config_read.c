@@ -812,7 +812,7 @@ static int affects_matrix(const pstate *ps, const char *path)
             goto diffractive;
     if (lgs_only) goto diffractive;
     static const char *const skip[] = {"sim.", "loop.", "evaluation.settle_frames", "evaluation.wavelength_nm",
-                                       "lgs.tt_jitter_arcsec", "recon.warm_start",
+                                       "lgs.tt_jitter_arcsec", "recon.warm_start", "recon.predict",
                                        "recon.pcg3.iterations", "recon.pcg3.tolerance", "recon.pcg3.preconditioner",
                                        "recon.pcg3.coarse_levels", "recon.cg9.iterations", "recon.cg9.tolerance",
                                        "recon.cg9.preconditioner", "recon.cg9.coarse_levels",

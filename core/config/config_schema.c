@@ -286,6 +286,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "LGS noise variance plus the slope variance of the layer-binning model error (true layers between "
      "the reconstruction altitudes; zero for cg9's layers) (optional, default false)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
+    {"recon.predict", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(predict), NOCOUNT, 0, 0, NULL, 0,
+     "pcg3 and cg9: move each reconstructed layer by its wind (the reconstructor's atmosphere, recon.atmosphere, "
+     "compressed onto the variant's layers) over the loop's delay, loop.delay_frames / loop.rate_hz, before the "
+     "fitting (cg9) or the commands (pcg3): frozen flow predicted over the delay (SPEC §12); refused for the MVM "
+     "(optional, default false)"},
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
      "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},

@@ -3,6 +3,7 @@
 #include "profile.h"
 
 #include "../la/sparse.h"
+#include "../op/shift.h"
 #include "../solve/mvm.h"
 
 #include <math.h>
@@ -22,6 +23,7 @@ struct wt_reconstructor {
     wt_fitting *fit;
     double *c;               /* wavelet coefficients (warm start) */
     double *phi;             /* spatial layers */
+    wt_shift *shift;         /* recon.predict: the layers moved by their wind over the delay (else NULL) */
     double *a_fit;           /* fitting warm start */
     wt_sparse *cmap;         /* pcg3: Sᵀ, layer points x actuators (wt_reconstructor_command_map) */
     const wt_mvm *mvm;       /* mvm: the control matrix (not owned) */
@@ -164,6 +166,20 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
     int64_t n = wt_tomography_nunknowns(r->tomo);
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
+    if (par->predict_lead > 0.0) {
+        /* each layer's wind: the model's compressed as its Cn² (SPEC §12), the shift v τ */
+        const int L = wt_tomography_nlayers(r->tomo);
+        const wt_tomography_params *tp = &par->tomography;
+        double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+        const wt_grid *g[WT_MAX_LAYERS];
+        int64_t off[WT_MAX_LAYERS];
+        for (int l = 0; l < L; l++)
+            alt[l] = wt_tomography_layer_altitude(r->tomo, l), g[l] = wt_tomography_layer_grid(r->tomo, l),
+            off[l] = wt_tomography_layer_offset(r->tomo, l);
+        wt_profile_compress(tp->natm, tp->atm_altitude, tp->atm_fraction, par->atm_vx, par->atm_vy, L, alt, frac, vx, vy);
+        for (int l = 0; l < L; l++) vx[l] *= par->predict_lead, vy[l] *= par->predict_lead;
+        WT_TRY(wt_shift_alloc(ctx, L, g, off, vx, vy, &r->shift));
+    }
     if (kind == WT_RECON_PCG3) {
         /* the commands are the layer values at the actuators: the same map as the MVM builder's */
         WT_TRY(wt_reconstructor_command_map(ctx, r->tomo, &r->cmap));
@@ -208,6 +224,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
     wt_precond_free(r->pre);
     wt_tomography_free(r->tomo);
     wt_fitting_free(r->fit);
+    wt_shift_free(r->shift);
     wt_free(r->ctx, r->c);
     wt_free(r->ctx, r->phi);
     wt_free(r->ctx, r->a_fit);
@@ -254,6 +271,7 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     r->cont = r->warm && st >= 0;
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
+    if (r->shift) wt_shift_apply(r->shift, r->phi);
     r->t_tomo = wt_time_now() - t0;
     if (r->kind == WT_RECON_PCG3) {
         memset(a, 0, (size_t)na * sizeof *a);

@@ -39,6 +39,8 @@ typedef struct wt_reconstructor_params {
     wt_tomography_params tomography;        /* α, τ, wavelet, prior, profile */
     wt_precond_params precond;              /* the tomography's preconditioner: kind, coarse levels */
     wt_fitting_params fitting;              /* cg9: ε and the sampling of the fitting */
+    double predict_lead;                    /* the layers moved by their wind over this time [s]; 0: not */
+    double atm_vx[WT_MAX_LAYERS], atm_vy[WT_MAX_LAYERS]; /* the model's wind per layer of tomography.atm_* [m/s] */
 } wt_reconstructor_params;
 
 /* kind WT_RECON_NONE, PCG3 or CG9 (par is not read for NONE except warm_start, and may then be NULL). */

@@ -1,0 +1,98 @@
+/* tests/test_shift.c: the layers moved by their wind (core/op/shift.h): a band-limited periodic field moved
+ * by a sub-sample shift equals the field evaluated at the translated points (the method is exact for it, so
+ * to rounding); two shifts compose; a zero shift leaves the layer's bits; a shift of a quarter of the grid
+ * or a non-finite one is refused naming the layer. */
+#include "testutil.h"
+
+#include "core/op/shift.h"
+
+/* f(x, y) = Σ_m a_m cos(2π (kx_m x + ky_m y)/L + p_m): frequencies below both grids' Nyquist (|k| < 8) */
+#define NM 6
+static const double KX[NM] = {1, 3, -5, 7, 0, 6}, KY[NM] = {0, 2, 4, -6, 7, -5}, A[NM] = {1, .5, .3, .2, .4, .1},
+                    P[NM] = {.1, 2, -1, .7, 3, -2};
+static double field(double x, double y, double L)
+{
+    double v = 0;
+    for (int m = 0; m < NM; m++) v += A[m] * cos(2 * M_PI * (KX[m] * x + KY[m] * y) / L + P[m]);
+    return v;
+}
+
+START_TEST(t_band_limited_exact)
+{
+    wt_context *ctx = tu_context();
+    const int n1 = 32, n2 = 16;
+    const double d1 = 0.5, d2 = 1.0;
+    wt_grid g1 = {.nx = n1, .ny = n1, .dx = d1}, g2 = {.nx = n2, .ny = n2, .dx = d2};
+    const wt_grid *g[3] = {&g1, &g2, &g1};
+    const int64_t off[3] = {0, n1 * n1, n1 * n1 + n2 * n2};
+    /* sub-sample and several-sample shifts; the third layer does not move */
+    const double sx[3] = {0.37, -2.6, 0.0}, sy[3] = {-0.81, 1.3, 0.0};
+    const int64_t N = off[2] + n1 * n1;
+    double *phi = malloc(N * sizeof *phi), *orig = malloc(N * sizeof *orig);
+    for (int l = 0; l < 3; l++) {
+        const int n = g[l]->nx;
+        const double dx = g[l]->dx, L = n * dx;
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) phi[off[l] + ix + (int64_t)n * iy] = field(ix * dx, iy * dx, L);
+    }
+    memcpy(orig, phi, N * sizeof *phi);
+    wt_shift *s = NULL;
+    ck_assert_int_eq(wt_shift_alloc(ctx, 3, g, off, sx, sy, &s), WT_OK);
+    ck_assert_int_eq(wt_shift_nmoving(s), 2);
+    wt_shift_apply(s, phi);
+    /* φ_new(x) = φ(x − s): to rounding of two n² FFTs (n = 32: ~1e-14 of the field's scale) */
+    for (int l = 0; l < 2; l++) {
+        const int n = g[l]->nx;
+        const double dx = g[l]->dx, L = n * dx;
+        double err = 0;
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++)
+                err = fmax(err, fabs(phi[off[l] + ix + (int64_t)n * iy] - field(ix * dx - sx[l], iy * dx - sy[l], L)));
+        ck_assert_msg(err < 1e-12, "layer %d: max error %g", l + 1, err);
+    }
+    ck_assert_int_eq(memcmp(phi + off[2], orig + off[2], (size_t)n1 * n1 * sizeof *phi), 0);
+    wt_shift_free(s);
+
+    /* two shifts compose: (s then −s) returns the field */
+    const double mx[1] = {-0.37}, my[1] = {0.81};
+    const wt_grid *g0[1] = {&g1};
+    const int64_t o0[1] = {0};
+    ck_assert_int_eq(wt_shift_alloc(ctx, 1, g0, o0, mx, my, &s), WT_OK);
+    wt_shift_apply(s, phi);
+    ck_assert_double_lt(tu_rel_diff(phi, orig, n1 * n1), 1e-13);
+    wt_shift_free(s);
+    free(phi), free(orig);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(t_refusals)
+{
+    wt_context *ctx = tu_context();
+    wt_grid g1 = {.nx = 16, .ny = 16, .dx = 0.5}, godd = {.nx = 15, .ny = 15, .dx = 0.5};
+    const wt_grid *g[2] = {&g1, &g1};
+    const int64_t off[2] = {0, 256};
+    wt_shift *s = NULL;
+    const double big[2] = {0.0, 2.1}, zero[2] = {0.0, 0.0}, nan[2] = {NAN, 0.0};
+    ck_assert_int_eq(wt_shift_alloc(ctx, 2, g, off, big, zero, &s), WT_ERR_CONFIG);
+    ck_assert_ptr_null(s);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "layer 2"));
+    ck_assert_int_eq(wt_shift_alloc(ctx, 2, g, off, nan, zero, &s), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "layer 1"));
+    const wt_grid *go[1] = {&godd};
+    ck_assert_int_eq(wt_shift_alloc(ctx, 1, go, off, zero, zero, &s), WT_ERR_INVALID);
+    wt_context_free(ctx);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("shift");
+    TCase *tc = tcase_create("core");
+    tcase_add_test(tc, t_band_limited_exact);
+    tcase_add_test(tc, t_refusals);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
