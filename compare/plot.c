@@ -630,7 +630,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                 plpsty(0);
                 plcol0(C_FG);
                 plline(5, fx, fy);
-                snprintf(txt, sizeof txt, "%.0f", v);
+                snprintf(txt, sizeof txt, ymax < 10.0 ? "%.2f" : "%.0f", v); /* fractions: two decimals */
                 plptex(x0 + 0.5 * w, fabs(v) + 0.03 * ymax, 1.0, 0.0, 0.5, txt);
             }
             double m = marks ? marks[k * nseries + s] : NAN;
