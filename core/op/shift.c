@@ -4,6 +4,13 @@
 #include <fftw3.h>
 #include <math.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+static int thread_id(void) { return omp_get_thread_num(); }
+#else
+static int thread_id(void) { return 0; }
+static int omp_in_parallel(void) { return 0; }
+#endif
 
 typedef struct {
     int n;
@@ -14,10 +21,11 @@ typedef struct {
 
 struct wt_shift {
     wt_context *ctx;
-    int L;
+    int L, nthreads;
     layer *lay;
-    double *work;       /* the largest n² */
-    fftw_complex *spec; /* the largest n (n/2 + 1) */
+    double *work;       /* per thread: the largest n² */
+    fftw_complex *spec; /* per thread: the largest n (n/2 + 1) */
+    size_t nwork, nspec;
 };
 
 void wt_shift_free(wt_shift *s)
@@ -57,8 +65,12 @@ int wt_shift_alloc(wt_context *ctx, int L, const wt_grid *const *g, const int64_
     s->ctx = ctx;
     s->L = L;
     WT_ALLOC(ctx, s->lay, L, "shift layers");
-    s->work = fftw_alloc_real((size_t)nmax * nmax);
-    s->spec = fftw_alloc_complex((size_t)nmax * (nmax / 2 + 1));
+    /* the layers run on the context's threads, one layer each: a work pair per thread (the plans are
+     * executed on any thread's arrays with FFTW's new-array functions; fftw_alloc aligns them alike) */
+    s->nthreads = wt_context_threads(ctx) > 1 ? wt_context_threads(ctx) : 1;
+    s->nwork = (size_t)nmax * nmax, s->nspec = (size_t)nmax * (nmax / 2 + 1);
+    s->work = fftw_alloc_real(s->nwork * s->nthreads);
+    s->spec = fftw_alloc_complex(s->nspec * s->nthreads);
     if (!s->work || !s->spec) {
         st = WT_ERROR(ctx, WT_ERR_NOMEM, "shift: out of memory for the %d x %d work arrays", nmax, nmax);
         goto fail;
@@ -99,20 +111,25 @@ fail:
 
 void wt_shift_apply(wt_shift *s, double *phi)
 {
+    const int moving = wt_shift_nmoving(s);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads) if (s->nthreads > 1 && moving > 1 && !omp_in_parallel())
     for (int l = 0; l < s->L; l++) {
         const layer *y = &s->lay[l];
         if (!y->ramp) continue;
+        const int t = thread_id();
+        double *w = s->work + s->nwork * t;
+        fftw_complex *sp = s->spec + s->nspec * t;
         const size_t n2 = (size_t)y->n * y->n, nc = (size_t)y->n * (y->n / 2 + 1);
         double *p = phi + y->offset;
-        memcpy(s->work, p, n2 * sizeof *p);
-        fftw_execute_dft_r2c(y->r2c, s->work, s->spec);
+        memcpy(w, p, n2 * sizeof *p);
+        fftw_execute_dft_r2c(y->r2c, w, sp);
         for (size_t q = 0; q < nc; q++) {
-            const double a = s->spec[q][0], b = s->spec[q][1], c = y->ramp[q][0], d = y->ramp[q][1];
-            s->spec[q][0] = a * c - b * d;
-            s->spec[q][1] = a * d + b * c;
+            const double a = sp[q][0], b = sp[q][1], c = y->ramp[q][0], d = y->ramp[q][1];
+            sp[q][0] = a * c - b * d;
+            sp[q][1] = a * d + b * c;
         }
-        fftw_execute_dft_c2r(y->c2r, s->spec, s->work);
-        memcpy(p, s->work, n2 * sizeof *p);
+        fftw_execute_dft_c2r(y->c2r, sp, w);
+        memcpy(p, w, n2 * sizeof *p);
     }
 }
 
