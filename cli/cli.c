@@ -498,8 +498,10 @@ void wt_progress_update(wt_progress *p, long done, const char *extra)
     p->last = now;
     double el = now - p->start, rate = el > 0 ? done / el : 0.0;
     double eta = rate > 0 ? (p->total - done) / rate : 0.0;
-    fprintf(stderr, "\r%s %ld/%ld %s  %.2f %s/s  ETA %02d:%02d%s%s\033[K", p->label, done, p->total, p->unit, rate,
-            p->unit, (int)(eta / 60), (int)eta % 60, extra ? "  " : "", extra ? extra : "");
+    /* "frames 34/200", or "pcg3: open loop 34/200 frames" when the label is not the unit */
+    const int same = !strcmp(p->label, p->unit);
+    fprintf(stderr, "\r%s %ld/%ld%s%s  %.2f %s/s  ETA %02d:%02d%s%s\033[K", p->label, done, p->total, same ? "" : " ",
+            same ? "" : p->unit, rate, p->unit, (int)(eta / 60), (int)eta % 60, extra ? "  " : "", extra ? extra : "");
     fflush(stderr);
 }
 
