@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# tests/test_tour.sh: the README's commands as a newcomer types them. Every command line of the README's
-# ```sh blocks (default; or of the documents given as arguments, e.g. docs/guide.md) runs in order, as
+# tests/test_tour.sh: the README's and the guide's commands as a newcomer types them. Every command line of
+# their ```sh blocks (default README.md then docs/guide.md; or the documents given as arguments) runs in order, as
 # written, in order (a block's variable assignments carry over to its later lines) inside a temporary directory where bin/ is this
 # build's ($BIN, as make test passes it) and data/ the source tree's; a command that exits non-zero fails.
 # Reported as a Check suite's summary line ("NN%: Checks: C, Failures: F, Errors: E") so that tests/run.sh
@@ -9,13 +9,14 @@
 # gigabytes each) run with --dry-run added: their arguments and configuration are checked, not the run
 # (bench, which has no --dry-run, is skipped). Skipped, and listed as skipped: mpirun lines (tests/test_mpi.c runs MPI with the
 # launcher's options for this machine) and make targets (`make test` is what runs this; `make demo` is the
-# tour's compare with its output in the source tree). The README's demo-size tour takes 40–90 s on 2 cores.
+# tour's compare with its output in the source tree). The README's demo-size tour takes 40–90 s on 2 cores, the
+# guide's ~60 s more.
 set -u
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root" || exit 1
 abs() { case "$1" in /*) echo "$1" ;; *) echo "$root/$1" ;; esac; }
 BIN=$(abs "${BIN:-bin}")
-[ $# -gt 0 ] || set -- README.md
+[ $# -gt 0 ] || set -- README.md docs/guide.md
 tmp=$(mktemp -d /tmp/wt-tour.XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
 ln -s "$BIN" "$tmp/bin"
