@@ -37,7 +37,7 @@ static void help(void)
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
            "memory (--no-build skips it; ~6 minutes at E-ELT size with the default full prior, whose normal matrix is dense).\n"
            "\n"
-           "Diffractive sensing (issue 19): the diffractive sensors of DCONFIG (--sensing; default CONFIG itself when\n"
+           "Diffractive sensing: the diffractive sensors of DCONFIG (--sensing; default CONFIG itself when\n"
            "it has any, e.g. data/presets/eelt-mcao-diffractive.cfg), LGS and NGS separately: per frame, images +\n"
            "detector noise + centroider of every sensor of the kind, median and [p10, p90] of --sensing-frames\n"
            "frames (default 7) on the --threads threads, with the parts, the sensors' set-up time and memory, and\n"
@@ -45,7 +45,7 @@ static void help(void)
            "geometric sensors' time per frame of the closed loop above. --sensing-only times only the machine\n"
            "and the sensing (--set applies to DCONFIG too).\n"
            "\n"
-           "Paired mode (issue 20 §5), when --pair-a or --pair-b is given (and then only it): two configurations\n"
+           "Paired mode, when --pair-a or --pair-b is given (and then only it): two configurations\n"
            "side by side in one process. A = CONFIG with the --set overrides and then the --pair-a ones (each\n"
            "key=value as for --set, repeatable), B the same with the --pair-b ones. Both reconstructors of\n"
            "--pair-recon (default cg9) are built, then apply frame after frame, alternately (A B, B A, A B, ...),\n"
@@ -207,7 +207,7 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
                "grows with the machine's load)\n",
                b.cpu * 1e3, threads, b.cpu / threads * 1e3, threads);
         if (kind == WT_SENSOR_LGS)
-            printf("    target (issue 19): <= 1 s per frame for the 6 E-ELT LGS on 2 threads (stretch 0.5 s): median "
+            printf("    target: <= 1 s per frame for the 6 E-ELT LGS on 2 threads (stretch 0.5 s): median "
                    "%.2f s, %.2f s on idle cores\n",
                    b.frame.med, b.cpu / threads);
     }

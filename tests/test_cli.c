@@ -163,6 +163,15 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s/M3.h5 --out %s/r3.h5", dir, dir), 0);
     ck_assert(stderr_has("built for another system"));
     ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in data/presets/demo.cfg"));
+    /* prediction is the matrix-free reconstructors' (the matrix would need the shift inside R): refused, named */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s --set recon.predict=true --frames 12 "
+                         "--out %s/rp.h5", mat, dir), 1);
+    ck_assert(stderr_has("key 'recon.predict' = true: the MVM's control matrix has no predictor"));
+    ck_assert_int_ne(run("sim --config data/presets/demo.cfg --set recon.predict=maybe --out %s/rq.h5", dir), 0);
+    ck_assert(stderr_has("recon.predict"));
+    ck_assert_int_ne(run("sim --config data/presets/demo-diffractive.cfg --set 'lgs.wfs.reference_seeing=\"blurred\"' "
+                         "--out %s/rs.h5", dir), 0);
+    ck_assert(stderr_has("lgs.wfs.reference_seeing") && stderr_has("tilt_removed"));
     /* telemetry and --config of two systems: the key named too */
     ck_assert_int_ne(run("run --recon pcg3 --config data/presets/demo.cfg --set lgs.wfs.photons=50 --telemetry %s "
                          "--out %s/c4.h5", tel, dir), 0);

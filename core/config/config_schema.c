@@ -359,7 +359,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.cg9.fit_kernels", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(cg9.fit_kernels), NOCOUNT, 0, 0, "fast|reference", 0,
      "the fitting frame's kernels: fast, or reference = the plain ones (each direction through its own zeroed "
      "pupil buffer by the tomography's projection kernels, the Cholesky solves' scalar loops): the same bits, "
-     "slower; the baseline of the paired bench (issue 20 §2, docs/results.md §20) (optional, default fast)"},
+     "slower; the baseline of the paired bench (docs/results.md §20) (optional, default fast)"},
 };
 _Static_assert(sizeof wt_config_priv_keys / sizeof wt_config_priv_keys[0] == WT_CONFIG_PRIV_NKEYS,
                "WT_CONFIG_PRIV_NKEYS (config_private.h) must be the number of keys of the table");

@@ -339,7 +339,11 @@ static void gain_accumulate(wt_sensing *ws, const double *slopes)
     ws->gain_sum[4] += 1.0;
 }
 
-void wt_sensing_gain_reset(wt_sensing *ws) { memset(ws->gain_sum, 0, sizeof ws->gain_sum); }
+void wt_sensing_gain_reset(wt_sensing *ws)
+{
+    memset(ws->gain_sum, 0, sizeof ws->gain_sum);
+    ws->gain_on = 1;
+}
 
 void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across, long *frames)
 {
@@ -355,7 +359,7 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
     if (st < 0) return st;
     if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
-    gain_accumulate(ws, slopes);
+    if (ws->gain_on) gain_accumulate(ws, slopes);
     return WT_OK;
 }
 

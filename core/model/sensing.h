@@ -76,6 +76,7 @@ typedef struct wt_sensing {
     double setup_seconds;      /* wall time of the set-up */
     double launch_x, launch_y; /* LGS launch position [m] (the elongation's direction) */
     double gain_sum[5];        /* in-loop gain sums since the last reset: Σ s∥g∥, Σ g∥², Σ s⊥g⊥, Σ g⊥², frames */
+    int gain_on;               /* 1 once reset: the frames after it are counted (none before: no cost) */
     float *opd;                /* [nsub n_p²] per-frame OPD on the samples [m] */
     float *img;                /* [nsub Ns²] per-frame images */
 } wt_sensing;
@@ -103,7 +104,8 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
  * position to the subaperture, the elongation; x for an NGS) and across it; the gain is the least-squares
  * slope of s on g over subapertures and frames, Σ s g / Σ g² (noise in s, independent of g, leaves it
  * unbiased). A matched filter whose reference is the spot it sees has gain 1; a reference narrower than
- * the in-loop spot gives less. Reset (the loop: at its settle frame) and read: */
+ * the in-loop spot gives less. Counted from the first reset on (the loop resets at its settle frame; before any
+ * reset nothing is computed, so the bench and the budget pay nothing). Reset and read: */
 void wt_sensing_gain_reset(wt_sensing *ws);
 /* *along, *across: the gains (NaN when no true slope was seen); *frames: the frames accumulated. */
 void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across, long *frames);
