@@ -30,7 +30,27 @@ struct wt_reconstructor {
     float *sf, *af;          /* mvm: float32 slopes and commands */
     double t_tomo, t_fit;
     wt_pcg_result last;
+    wt_precond_params precond; /* to rebuild the preconditioner for a new model */
+    double predict_lead;     /* [s] */
+    int natm;                /* the current atmosphere model (SPEC §12): r0, profile, wind */
+    double r0, atm_alt[WT_MAX_LAYERS], atm_frac[WT_MAX_LAYERS], atm_vx[WT_MAX_LAYERS], atm_vy[WT_MAX_LAYERS];
+    double t_model, t_precond; /* the last wt_reconstructor_set_model's parts [s] */
 };
+
+/* The shift of each layer by its wind (the model's compressed as its Cn², SPEC §12) over the prediction lead */
+static int make_shift(wt_reconstructor *r, wt_shift **out)
+{
+    const int L = wt_tomography_nlayers(r->tomo);
+    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+    const wt_grid *g[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++)
+        alt[l] = wt_tomography_layer_altitude(r->tomo, l), g[l] = wt_tomography_layer_grid(r->tomo, l),
+        off[l] = wt_tomography_layer_offset(r->tomo, l);
+    wt_profile_compress(r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, L, alt, frac, vx, vy);
+    for (int l = 0; l < L; l++) vx[l] *= r->predict_lead, vy[l] *= r->predict_lead;
+    return wt_shift_alloc(r->ctx, L, g, off, vx, vy, out);
+}
 
 /* Layer l's value at (x, y) as bilinear weights on its grid points, times `weight`, into column col of
  * the triplet list (an actuator on a grid point gives one entry). WT_ERR_CONFIG when (x, y) is off the grid. */
@@ -166,20 +186,17 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
     int64_t n = wt_tomography_nunknowns(r->tomo);
     WT_ALLOC(ctx, r->c, n, "coefficients");
     WT_ALLOC(ctx, r->phi, n, "layers");
-    if (par->predict_lead > 0.0) {
-        /* each layer's wind: the model's compressed as its Cn² (SPEC §12), the shift v τ */
-        const int L = wt_tomography_nlayers(r->tomo);
+    r->precond = par->precond;
+    r->predict_lead = par->predict_lead;
+    {
         const wt_tomography_params *tp = &par->tomography;
-        double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
-        const wt_grid *g[WT_MAX_LAYERS];
-        int64_t off[WT_MAX_LAYERS];
-        for (int l = 0; l < L; l++)
-            alt[l] = wt_tomography_layer_altitude(r->tomo, l), g[l] = wt_tomography_layer_grid(r->tomo, l),
-            off[l] = wt_tomography_layer_offset(r->tomo, l);
-        wt_profile_compress(tp->natm, tp->atm_altitude, tp->atm_fraction, par->atm_vx, par->atm_vy, L, alt, frac, vx, vy);
-        for (int l = 0; l < L; l++) vx[l] *= par->predict_lead, vy[l] *= par->predict_lead;
-        WT_TRY(wt_shift_alloc(ctx, L, g, off, vx, vy, &r->shift));
+        r->natm = tp->natm;
+        r->r0 = tp->r0;
+        for (int k = 0; k < tp->natm; k++)
+            r->atm_alt[k] = tp->atm_altitude[k], r->atm_frac[k] = tp->atm_fraction[k], r->atm_vx[k] = par->atm_vx[k],
+            r->atm_vy[k] = par->atm_vy[k];
     }
+    if (par->predict_lead > 0.0) WT_TRY(make_shift(r, &r->shift));
     if (kind == WT_RECON_PCG3) {
         /* the commands are the layer values at the actuators: the same map as the MVM builder's */
         WT_TRY(wt_reconstructor_command_map(ctx, r->tomo, &r->cmap));
@@ -306,6 +323,67 @@ double wt_reconstructor_bytes(const wt_reconstructor *r)
     if (r->fit) b += wt_fitting_bytes(r->fit) + 8.0 * (double)r->sys->nact;
     if (r->cmap) b += 16.0 * (double)wt_sparse_nnz(r->cmap) + 8.0 * (double)(r->cmap->ncol + 1);
     return b;
+}
+
+int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const double *alt, const double *frac,
+                               const double *vx, const double *vy)
+{
+    if (r->kind != WT_RECON_PCG3 && r->kind != WT_RECON_CG9)
+        return WT_ERROR(r->ctx, WT_ERR_INVALID, "reconstructor %s: a new atmosphere model is for pcg3 and cg9 (an MVM "
+                        "is rebuilt from it)", wt_reconstructor_name(r->kind));
+    const double t0 = wt_time_now();
+    int st = wt_tomography_set_profile(r->tomo, r0, natm, alt, frac);
+    if (st < 0) return st;
+    const double t1 = wt_time_now();
+    wt_precond *pre = NULL;
+    wt_shift *sh = NULL;
+    const int keep_n = r->natm;
+    const double keep_r0 = r->r0;
+    double keep[4][WT_MAX_LAYERS];
+    memcpy(keep[0], r->atm_alt, sizeof keep[0]);
+    memcpy(keep[1], r->atm_frac, sizeof keep[1]);
+    memcpy(keep[2], r->atm_vx, sizeof keep[2]);
+    memcpy(keep[3], r->atm_vy, sizeof keep[3]);
+    r->natm = natm;
+    r->r0 = r0;
+    for (int k = 0; k < natm; k++) {
+        r->atm_alt[k] = alt[k], r->atm_frac[k] = frac[k];
+        if (vx && vy) r->atm_vx[k] = vx[k], r->atm_vy[k] = vy[k];
+        else if (natm != keep_n || alt[k] != keep[0][k]) r->atm_vx[k] = r->atm_vy[k] = 0.0; /* (checked below) */
+    }
+    if (!(vx && vy) && r->predict_lead > 0.0 && natm != keep_n)
+        st = WT_ERROR(r->ctx, WT_ERR_INVALID, "reconstructor %s: a new model of %d layers (was %d) without its wind: "
+                      "prediction needs the wind of every layer", wt_reconstructor_name(r->kind), natm, keep_n);
+    if (st >= 0) st = wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
+    if (st >= 0 && r->predict_lead > 0.0) st = make_shift(r, &sh);
+    if (st < 0) { /* back to the old model, whole */
+        wt_precond_free(pre);
+        r->natm = keep_n;
+        r->r0 = keep_r0;
+        memcpy(r->atm_alt, keep[0], sizeof keep[0]);
+        memcpy(r->atm_frac, keep[1], sizeof keep[1]);
+        memcpy(r->atm_vx, keep[2], sizeof keep[2]);
+        memcpy(r->atm_vy, keep[3], sizeof keep[3]);
+        const int st2 = wt_tomography_set_profile(r->tomo, keep_r0, keep_n, keep[0], keep[1]);
+        (void)st2; /* (the old model's altitudes are in the model-error cache or need none: it cannot fail) */
+        return st;
+    }
+    wt_precond_free(r->pre);
+    r->pre = pre;
+    if (sh) {
+        wt_shift_free(r->shift);
+        r->shift = sh;
+    }
+    /* the warm start stays (the layers change slowly with the model); the solve restarts from M c */
+    r->t_model = t1 - t0;
+    r->t_precond = wt_time_now() - t1;
+    return WT_OK;
+}
+
+void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model, double *precond)
+{
+    *model = r->t_model;
+    *precond = r->t_precond;
 }
 
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }

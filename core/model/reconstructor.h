@@ -71,6 +71,15 @@ wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r);
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r);
 /* The fitting (cg9; NULL otherwise). */
 const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r);
+/* A new atmosphere model for pcg3 / cg9 (SPEC §12 "Updates": the loop that learns its atmosphere takes it at the
+ * next frame): r0 [m], the natm-layer Cn² profile (altitudes [m] increasing, fractions ≥ 0) and, for prediction, the
+ * wind of each layer (vx, vy [m/s]; NULL: kept when the layers are the same, else zero). The tomography's priors,
+ * model error and noise weights (wt_tomography_set_profile), the preconditioner rebuilt, the prediction's shifts.
+ * The warm start stays. On error the reconstructor keeps its old model. WT_ERR_INVALID for mvm and none. */
+int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const double *alt, const double *frac,
+                               const double *vx, const double *vy);
+/* Wall time [s] of the last set_model's parts: the tomography's model, the preconditioner (and the shifts). */
+void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model, double *precond);
 /* Forget the warm-start state (the next apply starts from zero). */
 void wt_reconstructor_reset(wt_reconstructor *r);
 

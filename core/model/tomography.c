@@ -1,6 +1,6 @@
 /* core/model/tomography.c: normal operator, right-hand side and (P)CG solve
  * of the wavelet MAP tomography (paper eq. eqn_lse; SPEC §6). */
-#include "tomography.h"
+#include "tomography_private.h"
 #include "profile.h"
 #include "sensing.h"
 
@@ -19,76 +19,6 @@
 #include "../op/wavelet.h"
 #include "../base/rng.h"
 
-struct wt_tomography {
-    wt_context *ctx;
-    const wt_system *sys;
-    char variant[16];
-    int L;
-    wt_grid grid[WT_MAX_LAYERS];
-    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS];
-    int64_t off[WT_MAX_LAYERS + 1];
-    wt_wavelet *wav[WT_MAX_LAYERS];
-    wt_prior *prior[WT_MAX_LAYERS];
-    int64_t n;
-    double *alpha_d;
-    double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
-    int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
-    int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
-    int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the LGS in float */
-    uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's part in float (the LGS; the NGS's stays double: layers_dwt) */
-    int any64;                /* fp32: some sensor's part is double (an NGS): the explicit term below */
-    /* fp32 with NGS: their part of the operator through the explicit matrix G = [Pᵀ Γᵀ e_k] over the NGS slopes k
-     * (layers' values x NGS slopes; CSR by layer point, made at set-up): forward Gᵀ φ, adjoint G (Ĉ⁻¹ s), in double
-     * (ngs_explicit) */
-    int64_t ngs_nrow;         /* layer points where G has a non-zero */
-    int64_t *ngs_row;         /* [ngs_nrow] those points, ascending */
-    int64_t *ngs_ptr;         /* [ngs_nrow + 1] row i's entries [ngs_ptr[i], ngs_ptr[i + 1]) */
-    int32_t *ngs_col;         /* the entry's slope (its index in the slopes vector), ascending within a row */
-    double *ngs_val;          /* the entry's value */
-    wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
-    int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
-    int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
-    size_t pwsize;            /* its work per thread (doubles) */
-    int iterations;
-    double tol;
-    int S;                    /* sensors */
-    wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
-    wt_projection **projs;    /* S: sensor m, all L layers in one (the applies run the layers per point) */
-    wt_sensor_stack stack;    /* Σ_m Γ_m P_m over projs (a view) */
-    int64_t zero_offset;
-    wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
-    double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
-    int64_t ncg;              /* corner grid points */
-    int nthreads;
-    int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
-    size_t wsize;             /* wavelet workspace per thread (doubles) */
-    wt_tomography_work *work; /* the object's own workspace: solve, set-up, the workspace-less applies */
-    wt_pcg *pcg;
-};
-
-/* What one application of the operators writes (GSL's workspaces): the operator itself stays const. */
-struct wt_tomography_work {
-    wt_context *ctx;
-    double *phi;      /* n: spatial layers / adjoint sum */
-    double *acc;      /* WT_GROUPS x n adjoint accumulators */
-    double *phase;    /* S x ncg */
-    double *slopes;   /* nslopes */
-    double *weighted; /* nslopes */
-    double *wwork;    /* nthreads x wsize wavelet workspace */
-    double *b;        /* n: the applies' scratch, the solve's right-hand side */
-    double *pphi;     /* full prior: n, α C_φ⁻¹ φ per layer */
-    double *phi_raw, *pphi_raw; /* the allocations phi and pphi sit in at 64-byte boundaries: every layer starts at
-                                   one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
-                                   layers in place (wt_prior_apply_full) */
-    double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
-    /* fp32 (t->fp32): the float layers, group accumulators, phases, slopes and weighted slopes, and per thread one
-       layer's float sum (the by-layers adjoint); one allocation, every array at a 64-byte boundary */
-    float *f32_raw, *phi32, *acc32, *phase32, *slopes32, *weighted32, *lay32;
-    float *wwork32;   /* fp32: nthreads x wsize float wavelet workspace */
-    double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
-                         busy time on a cache line of its own); NULL or prof_on 0: not timing */
-    int prof_on;
-};
 
 /* A stage's slots in w->prof: calls and wall, then nthreads busy times 8 doubles apart (no two threads write
  * one cache line) */
@@ -115,16 +45,6 @@ static int thread_id(void)
 #else
     return 0;
 #endif
-}
-
-/* The model's Cn² profile compressed onto the reconstruction altitudes (SPEC §12, wt_profile_compress), then
- * floored: a layer that receives less than WT_PRIOR_FRACTION_FLOOR keeps that much, so that its prior still
- * regularises it (a zero fraction is an infinite prior weight, a layer the data could not move). */
-static void bin_profile(const wt_tomography_params *par, int L, const double *alt, double *frac)
-{
-    wt_profile_compress(par->natm, par->atm_altitude, par->atm_fraction, NULL, NULL, L, alt, frac, NULL, NULL);
-    for (int l = 0; l < L; l++)
-        if (frac[l] < WT_PRIOR_FRACTION_FLOOR) frac[l] = WT_PRIOR_FRACTION_FLOOR;
 }
 
 int64_t wt_tomography_nunknowns(const wt_tomography *t) { return t->n; }
@@ -188,111 +108,6 @@ const wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int
 const wt_noise *wt_tomography_noise(const wt_tomography *t, int m) { return t->noise[m]; }
 const wt_system *wt_tomography_system(const wt_tomography *t) { return t->sys; }
 int wt_tomography_threads(const wt_tomography *t) { return t->nthreads; }
-
-/* ---- Layer-binning model error of the LGS slopes (recon.model_error) ---------------------------------
- *
- * The prior puts the Cn² of a true layer at altitude h on the two nearest reconstruction layers
- * (wt_profile_bin_altitude): the model sees the layer's screen φ as (1 − w) φ at h_l plus w φ at h_{l+1}. Sensor m
- * then predicts Γ_m[(1 − w) P_m(h_l) + w P_m(h_{l+1})] φ where it measures Γ_m P_m(h) φ; the difference
- * (sub-metre structure seen through the shifts (h − h_l)θ_m and the LGS cone (h − h_l) r / H) cannot be
- * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
- * structure on the other layers. So it is treated as noise ("tomographic error as noise"): its variance
- * per slope, averaged over the sensor's slopes with their global tip-tilt removed (the weight removes
- * it), is added to σ²:
- *   σ²_e,m = Σ_k E|(I − T) Γ_m [P_m(h_k) − (1 − w_k) P_m(h_l) − w_k P_m(h_{l+1})] φ_k|² / (2 nsub),
- * φ_k drawn from the layer's exact wavelet prior (Cn² fraction f_k) on the finest reconstruction
- * spacing, WT_MODEL_ERROR_DRAWS draws per layer with a fixed seed (the reconstructor stays a
- * deterministic function of the configuration). Zero when every true layer sits on a reconstruction
- * altitude (cg9's default layers). Only the LGS: the NGS are the only tip-tilt/low-order sensors and
- * average over 21–42 m, where the linear split is accurate (SPEC §6; docs/design.md). */
-enum { WT_MODEL_ERROR_DRAWS = 4 };
-
-static int model_error(wt_tomography *t, const wt_recon_variant_config *var, const wt_tomography_params *par,
-                       double *var_e)
-{
-    int st = WT_OK;
-    wt_context *ctx = t->ctx;
-    const wt_system *sys = t->sys;
-    wt_wavelet *wav = NULL;
-    wt_prior *prior = NULL;
-    wt_projection *proj[3] = {NULL, NULL, NULL};
-    double *c = NULL, *phi = NULL, *work = NULL, *ph = NULL, *sl = NULL;
-    for (int m = 0; m < t->S; m++) var_e[m] = 0.0;
-    /* one sample grid for every true layer: the finest spacing, as wide as the widest layer */
-    double dx = var->spacing[0], width = 0.0;
-    for (int l = 0; l < t->L; l++) {
-        if (var->spacing[l] < dx) dx = var->spacing[l];
-        if (var->size[l] * var->spacing[l] > width) width = var->size[l] * var->spacing[l];
-    }
-    int n = 1 << par->wavelet_levels;
-    while (n * dx < width - 1e-9) n *= 2;
-    const wt_grid g = wt_grid_layer(n, dx);
-    const int64_t np = wt_grid_size(&g);
-    int nslopes_max = 0;
-    for (int m = 0; m < t->S; m++)
-        if (sys->sensors[m].nslopes > nslopes_max) nslopes_max = sys->sensors[m].nslopes;
-    WT_TRY(wt_wavelet_alloc(ctx, n, par->wavelet_order, par->wavelet_levels, &wav));
-    WT_ALLOC(ctx, c, np, "model-error coefficients");
-    WT_ALLOC(ctx, phi, (size_t)WT_MODEL_ERROR_DRAWS * np, "model-error screens");
-    WT_ALLOC(ctx, work, wt_wavelet_work_size(wav), "model-error wavelet workspace");
-    WT_ALLOC(ctx, ph, t->ncg, "model-error phase");
-    WT_ALLOC(ctx, sl, nslopes_max, "model-error slopes");
-    for (int k = 0; k < par->natm; k++) {
-        const double h = par->atm_altitude[k], f = par->atm_fraction[k];
-        int l;
-        double w;
-        wt_profile_bin_altitude(t->L, t->alt, h, &l, &w);
-        if (f <= 0.0 || (w == 0.0 && fabs(h - t->alt[l]) <= 1e-6 * fmax(1.0, h))) continue;
-        WT_TRY(wt_prior_alloc(ctx, wav, dx, par->r0, f, par->L0, WT_PRIOR_EXACT, NULL, &prior));
-        const double *d = wt_prior_diag(prior);
-        wt_rng rng;
-        wt_rng_init(&rng, 0x6d6f64656c657272ULL, (uint64_t)k); /* fixed: "modelerr", one stream per layer */
-        for (int r = 0; r < WT_MODEL_ERROR_DRAWS; r++) {
-            for (int64_t i = 0; i < np; i++) c[i] = wt_rng_normal(&rng) / sqrt(d[i]);
-            wt_wavelet_inverse(wav, c, phi + (size_t)r * np, work);
-        }
-        wt_prior_free(prior);
-        prior = NULL;
-        const double alt3[3] = {h, t->alt[l], w > 0.0 ? t->alt[l + 1] : t->alt[l]};
-        const double wt3[3] = {1.0, -(1.0 - w), -w};
-        for (int m = 0; m < t->S; m++) {
-            const wt_sensor *s = &sys->sensors[m];
-            if (s->kind != WT_SENSOR_LGS) continue;
-            for (int q = 0; q < 3; q++)
-                WT_TRY(wt_projection_alloc(ctx, 1, &g, &alt3[q], s->altitude, s->theta_x, s->theta_y, &sys->sense_grid,
-                                           wt_shack_hartmann_corner_mask(s->sh), 0, &proj[q]));
-            double sum = 0.0;
-            for (int r = 0; r < WT_MODEL_ERROR_DRAWS; r++) {
-                memset(ph, 0, (size_t)t->ncg * sizeof *ph);
-                for (int q = 0; q < 3; q++)
-                    if (wt3[q] != 0.0) wt_projection_apply(proj[q], wt3[q], phi + (size_t)r * np, ph);
-                memset(sl, 0, (size_t)s->nslopes * sizeof *sl);
-                wt_shack_hartmann_apply(s->sh, 1.0, ph, sl);
-                for (int axis = 0; axis < 2; axis++) { /* (I − T): the global tip and tilt removed */
-                    double *v = sl + (size_t)axis * s->nsub, mean = 0.0;
-                    for (int i = 0; i < s->nsub; i++) mean += v[i];
-                    mean /= s->nsub;
-                    for (int i = 0; i < s->nsub; i++) sum += (v[i] - mean) * (v[i] - mean);
-                }
-            }
-            var_e[m] += sum / ((double)s->nslopes * WT_MODEL_ERROR_DRAWS);
-            for (int q = 0; q < 3; q++) {
-                wt_projection_free(proj[q]);
-                proj[q] = NULL;
-            }
-        }
-    }
-fail:
-    for (int q = 0; q < 3; q++) wt_projection_free(proj[q]);
-    wt_prior_free(prior);
-    wt_wavelet_free(wav);
-    wt_free(ctx, c);
-    wt_free(ctx, phi);
-    wt_free(ctx, work);
-    wt_free(ctx, ph);
-    wt_free(ctx, sl);
-    return st;
-}
 
 /* The fp32 operator's NGS term. At low noise the NGS weigh ~10⁵ times the LGS, so their part stays double (layers_dwt
  * says why); as the chain Γ P, Ĉ⁻¹, Γᵀ, Pᵀ it was the double work of every apply, its projections scalar (short
@@ -434,7 +249,11 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
             t->by_size[k] = t->by_size[k - 1];
         t->by_size[k] = l;
     }
-    bin_profile(par, t->L, t->alt, t->frac);
+    wt_tomography__bin_profile(t->L, t->alt, par->natm, par->atm_altitude, par->atm_fraction, t->frac);
+    t->r0 = par->r0;
+    t->L0 = par->L0;
+    t->wavelet_order = par->wavelet_order;
+    t->wavelet_levels = par->wavelet_levels;
 
     WT_ALLOC(ctx, t->alpha_d, t->n, "prior diagonal");
     t->alpha = par->alpha;
@@ -469,13 +288,16 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     WT_ALLOC(ctx, t->proj, (size_t)t->S * t->L, "projections");
     WT_ALLOC(ctx, t->projs, t->S, "projections");
     WT_ALLOC(ctx, t->noise, t->S, "noise models");
-    if (par->model_error) WT_TRY(model_error(t, var, par, t->model_var));
     /* loop_noise_average: the loop applies an average of the reconstructions over its memory (the POLC
      * integrator): white measurement noise reaches the command with variance κσ², κ = Σh² (0.389 for
      * g 0.4, delay 2), while the turbulence, and the model error that moves with it, stays nearly the
      * same over those few frames. The per-frame estimate whose loop average is best is then the MAP
      * with noise κσ² (a weaker prior against the noise, not against the model error). */
-    const double kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
+    t->kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
+    t->tau = par->tau;
+    t->model_error = par->model_error != 0;
+    wt_tomography__model_error_grid(t, var, par->wavelet_levels);
+    if (par->model_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {
@@ -497,35 +319,8 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
         }
         WT_TRY(wt_projection_alloc(ctx, t->L, t->grid, t->alt, s->altitude, s->theta_x, s->theta_y, &sys->sense_grid,
                                    wt_shack_hartmann_corner_mask(s->sh), 0, &t->projs[m]));
-        /* C̃_i = κσ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ), σ²_t = κσ² + σ²_e:
-         * the model error is isotropic, the elongation term keeps its size; κ (loop_noise_average, else 1)
-         * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
-         * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
-         * proportion: both options are off by default). */
-        if (s->diffr) {
-            /* a diffractive sensor: the centroider's calibrated 2x2 blocks Σ_i (sensing.h), κΣ_i + σ²_e I; τ
-             * scales the part beyond the short axis, κ(Σ_i − λ_i I), which the isotropic model error leaves as
-             * it is (the same rule as the paper's model above) */
-            const int ns = s->nsub;
-            double *cov = wt_malloc(ctx, 3 * (size_t)ns, sizeof *cov);
-            if (!cov) {
-                st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for %s's noise blocks", s->name);
-                goto fail;
-            }
-            for (int i = 0; i < ns; i++) {
-                cov[i] = kappa * s->diffr->cov[i] + t->model_var[m];
-                cov[ns + i] = kappa * s->diffr->cov[ns + i];
-                cov[2 * ns + i] = kappa * s->diffr->cov[2 * ns + i] + t->model_var[m];
-            }
-            st = wt_noise_alloc_blocks(ctx, ns, cov, par->tau, s->kind == WT_SENSOR_LGS, &t->noise[m]);
-            wt_free(ctx, cov);
-            if (st < 0) goto fail;
-            continue;
-        }
-        const double s2n = kappa * s->sigma2, s2t = s2n + t->model_var[m];
-        WT_TRY(wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
-                                     par->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, &t->noise[m]));
     }
+    WT_TRY(wt_tomography__noise(t));
 
     t->stack = (wt_sensor_stack){.sys = sys, .nin = 1, .proj = t->projs, .in_offset = &t->zero_offset};
 
@@ -1219,6 +1014,7 @@ static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c,
     }
     timed_precond tp = {t, P};
     if (t->work->prof_on && P.apply) P = (wt_pcg_precond){timed_precond_apply, &tp};
+    if (t->fresh) continuing = 0, t->fresh = 0;
     const int st = wt_pcg_solve_rhs(t->pcg, apply_cb, t, NULL, P.apply, P.user, c, continuing,
                                     max_iter >= 0 ? max_iter : t->iterations, rtol >= 0 ? rtol : t->tol, history, res);
     prof_wall(t, t->work, WT_TOMO_STAGE_SOLVE, t0);

@@ -168,6 +168,16 @@ void wt_tomography_layers(wt_tomography *t, const double *c, double *phi);
  * for tests of the probing. diag: ncoef values. */
 int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
 
+/* A new atmosphere model (SPEC §12 "Updates": the loop that learns its atmosphere): r0 [m] and the natm-layer Cn²
+ * profile (altitudes [m] increasing, fractions ≥ 0, normalised here), compressed onto the layers as at set-up; the
+ * outer scale stays. Rescales every layer's prior to its new strength f_ℓ r0^(−5/3) (exact: the von Kármán
+ * spectrum is linear in it at fixed L0), recomputes the layer-binning model error (recon.model_error; a unit layer
+ * is drawn once per new altitude and kept, its term linear in f r0^(−5/3)) and the sensors' noise weights. The
+ * next solve starts from M c (not the previous residual). A preconditioner built on the old model must be rebuilt
+ * (wt_precond_alloc). On error the object is unchanged. Allocates (the noise models; a new altitude's draws). */
+int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const double *alt, const double *frac);
+double wt_tomography_r0(const wt_tomography *t);
+
 /* Bytes the object holds (operators, prior, workspace; the preconditioner's are wt_precond_bytes): for reports. */
 double wt_tomography_bytes(const wt_tomography *t);
 

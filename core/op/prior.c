@@ -313,3 +313,14 @@ double wt_prior_level_variance(const wt_prior *p, int level, int orient)
 }
 
 double wt_prior_scale(const wt_prior *p) { return p->scale; }
+
+void wt_prior_rescale(wt_prior *p, double factor)
+{
+    if (!(factor > 0.0) || !isfinite(factor)) return;
+    const int64_t n2 = (int64_t)p->n * p->n;
+    for (int i = 0; i < (p->levels + 2) * 4; i++) p->var[i] *= factor; /* (NaN entries stay NaN) */
+    for (int64_t i = 0; i < n2; i++) p->diag[i] /= factor;
+    if (p->inv)
+        for (int64_t i = 0; i < (int64_t)p->n * (p->n / 2 + 1); i++) p->inv[i] /= factor;
+    p->scale *= factor;
+}

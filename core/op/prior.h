@@ -55,6 +55,11 @@ double wt_prior_level_variance(const wt_prior *p, int level, int orient);
 /* The fitted normalisation c_ℓ. */
 double wt_prior_scale(const wt_prior *p);
 
+/* The same prior for a layer of strength factor × f r0^(−5/3) (L0 unchanged): every variance times factor, D,
+ * C_φ⁻¹ and its diagonal divided by it (the spectrum is linear in f r0^(−5/3); equal to a new wt_prior_alloc's
+ * values to rounding). factor must be finite and > 0 (anything else is ignored). Allocates nothing. */
+void wt_prior_rescale(wt_prior *p, double factor);
+
 /* Von Kármán OPD power spectral density Φ(κ) [m² · m²] (per cycles/m squared). */
 double wt_von_karman_psd(double kappa, double r0, double fraction, double L0);
 

@@ -1,0 +1,108 @@
+/* core/model/tomography_private.h: the tomography object's layout, shared by tomography.c (the operators and the
+ * solve) and tomography_model.c (what the atmosphere model sets: the prior's strengths, the layer-binning model
+ * error, the sensors' noise weights); not part of any interface. */
+#ifndef WT_TOMOGRAPHY_PRIVATE_H
+#define WT_TOMOGRAPHY_PRIVATE_H
+
+#include "tomography.h"
+
+#include "../op/noise.h"
+#include "../op/prior.h"
+#include "../op/projection.h"
+#include "../op/wavelet.h"
+
+/* distinct altitudes of the model profiles one tomography can take over its updates (a learned model's grid) */
+#define WT_TOMO_MODEL_CACHE 128
+
+struct wt_tomography {
+    wt_context *ctx;
+    const wt_system *sys;
+    char variant[16];
+    int L;
+    wt_grid grid[WT_MAX_LAYERS];
+    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS + 1];
+    wt_wavelet *wav[WT_MAX_LAYERS];
+    wt_prior *prior[WT_MAX_LAYERS];
+    int64_t n;
+    double *alpha_d;
+    double alpha;             /* α (the full prior's weight; alpha_d holds α D otherwise) */
+    int full_prior;           /* recon.prior = "full": α C_φ⁻¹ applied by FFT on the layers (core/op/prior.h) */
+    int space;                /* the unknowns are the layers' values (no DWT pair around the operator) */
+    int fp32;                 /* recon.<variant>.operator_precision = "fp32": normal() runs the LGS in float */
+    uint8_t s32[2 * WT_MAX_GS]; /* fp32: sensor m's part in float (the LGS; the NGS's stays double: layers_dwt) */
+    int any64;                /* fp32: some sensor's part is double (an NGS): the explicit term below */
+    /* fp32 with NGS: their part of the operator through the explicit matrix G = [Pᵀ Γᵀ e_k] over the NGS slopes k
+     * (layers' values x NGS slopes; CSR by layer point, made at set-up): forward Gᵀ φ, adjoint G (Ĉ⁻¹ s), in double
+     * (ngs_explicit) */
+    int64_t ngs_nrow;         /* layer points where G has a non-zero */
+    int64_t *ngs_row;         /* [ngs_nrow] those points, ascending */
+    int64_t *ngs_ptr;         /* [ngs_nrow + 1] row i's entries [ngs_ptr[i], ngs_ptr[i + 1]) */
+    int32_t *ngs_col;         /* the entry's slope (its index in the slopes vector), ascending within a row */
+    double *ngs_val;          /* the entry's value */
+    wt_fft_wisdom *fft;       /* recon.fft_wisdom as read (NULL: FFTW_ESTIMATE plans) */
+    int by_size[WT_MAX_LAYERS]; /* the layers, largest first (ties in index order): the FFT tasks' order */
+    int owner[WT_MAX_LAYERS]; /* the thread that transforms layer l (inverse, forward, its FFTs), fixed */
+    size_t pwsize;            /* its work per thread (doubles) */
+    int iterations;
+    double tol;
+    int S;                    /* sensors */
+    wt_projection **proj;     /* S x L: sensor m, layer l at [m * L + l] */
+    wt_projection **projs;    /* S: sensor m, all L layers in one (the applies run the layers per point) */
+    wt_sensor_stack stack;    /* Σ_m Γ_m P_m over projs (a view) */
+    int64_t zero_offset;
+    wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
+    double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
+    int64_t ncg;              /* corner grid points */
+    int nthreads;
+    int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
+    size_t wsize;             /* wavelet workspace per thread (doubles) */
+    wt_tomography_work *work; /* the object's own workspace: solve, set-up, the workspace-less applies */
+    wt_pcg *pcg;
+    /* the atmosphere model's part (core/model/tomography_model.c) */
+    double r0, L0;            /* the model's r0 and outer scale [m] (the priors' strengths: f_ℓ r0^(−5/3)) */
+    int wavelet_order, wavelet_levels;
+    double kappa, tau;        /* the measurement noise's loop factor κ and the elongation weight τ of C̃ */
+    int model_error;          /* recon.model_error */
+    double me_dx;             /* the model error's sample grid: spacing [m] and side */
+    int me_n;
+    int me_ncache;            /* unit layers' model error kept per altitude (wt_tomography_set_profile) */
+    double me_alt[WT_TOMO_MODEL_CACHE];
+    double me_unit[WT_TOMO_MODEL_CACHE * 2 * WT_MAX_GS];
+    int fresh;                /* 1: the next solve applies M (the model changed since the last) */
+};
+
+/* What one application of the operators writes (GSL's workspaces): the operator itself stays const. */
+struct wt_tomography_work {
+    wt_context *ctx;
+    double *phi;      /* n: spatial layers / adjoint sum */
+    double *acc;      /* WT_GROUPS x n adjoint accumulators */
+    double *phase;    /* S x ncg */
+    double *slopes;   /* nslopes */
+    double *weighted; /* nslopes */
+    double *wwork;    /* nthreads x wsize wavelet workspace */
+    double *b;        /* n: the applies' scratch, the solve's right-hand side */
+    double *pphi;     /* full prior: n, α C_φ⁻¹ φ per layer */
+    double *phi_raw, *pphi_raw; /* the allocations phi and pphi sit in at 64-byte boundaries: every layer starts at
+                                   one (its n² is a multiple of 8 for n >= 4), so the full prior's FFTs read and write the
+                                   layers in place (wt_prior_apply_full) */
+    double *pwork;    /* full prior: nthreads x pwsize FFT workspace */
+    /* fp32 (t->fp32): the float layers, group accumulators, phases, slopes and weighted slopes, and per thread one
+       layer's float sum (the by-layers adjoint); one allocation, every array at a 64-byte boundary */
+    float *f32_raw, *phi32, *acc32, *phase32, *slopes32, *weighted32, *lay32;
+    float *wwork32;   /* fp32: nthreads x wsize float wavelet workspace */
+    double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
+                         busy time on a cache line of its own); NULL or prof_on 0: not timing */
+    int prof_on;
+};
+
+/* core/model/tomography_model.c: the profile compressed onto the L layers at alt and floored; the model error's sample
+ * grid from the variant; the model error σ²_e of the profile into t->model_var; the sensors' noise models from
+ * t->model_var, κ and τ (replacing t->noise). */
+void wt_tomography__bin_profile(int L, const double *alt, int natm, const double *atm_alt, const double *atm_frac,
+                                double *frac);
+void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
+int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
+int wt_tomography__noise(wt_tomography *t);
+
+#endif
