@@ -7,6 +7,7 @@
 
 #include "runtime/runtime.h"
 #include "cli/cli.h"
+#include "core/build/mvm_build.h"
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
 #include "core/sim/loop.h"
@@ -107,6 +108,27 @@ static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     return 1;
 }
 
+/* A learning loop's updates: every estimate's r0 and ground-layer fraction, and what the learning cost. */
+static void print_learned(const wt_adapt *a, long frames, double learning)
+{
+    if (!a) return;
+    const int n = wt_adapt_nupdates(a);
+    const wt_adapt_update *u = wt_adapt_updates(a);
+    printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms)\n", n,
+           learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3);
+    for (int k = 0; k < n; k++) {
+        double low = 0.0; /* the Cn2 below 1 km */
+        for (int j = 0; j < u[k].nalt; j++)
+            if (u[k].altitude[j] < 1000.0) low += u[k].fraction[j];
+        printf("    after frame %6ld (night %8.2f s): r0 %.4f +- %.4f m, below 1 km %.3f; fit %.2f s", u[k].frame,
+               u[k].night, u[k].r0, u[k].r0_sigma, low, u[k].fit_s);
+        if (u[k].build_s > 0.0) printf(", MVM build %.1f s", u[k].build_s);
+        else if (u[k].applied_frame >= 0) printf(", new model %.3f s + preconditioner %.3f s", u[k].model_s, u[k].precond_s);
+        if (u[k].applied_frame >= 0) printf(", in use from frame %ld\n", u[k].applied_frame);
+        else printf(", never in use\n");
+    }
+}
+
 int wt_cmd_sim(int argc, char **argv)
 {
     wt_cli cli;
@@ -164,6 +186,9 @@ int wt_cmd_sim(int argc, char **argv)
     }
     if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
+    /* a learning MVM loop rebuilds its matrix (the variant it was built for) from each estimate */
+    wt_mvm_rebuilder rb = {cli.ctx, sys, mvm && mvm->commands == WT_MVM_FITTING ? "cg9" : "pcg3", NULL};
+    if (mvm && cfg->model.source == WT_MODEL_LEARNED) o.rebuild = wt_mvm_rebuild_model, o.rebuild_user = &rb;
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;
     wt_psf_params pp;
@@ -249,6 +274,7 @@ int wt_cmd_sim(int argc, char **argv)
            tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
            tm.evaluation / frames * 1e3, setup);
     inloop_gain(NULL, sys, 1);
+    print_learned(wt_loop_adapt(lp), frames, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
     printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");
     goto cleanup;

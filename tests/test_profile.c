@@ -440,7 +440,7 @@ START_TEST(test_profile_bad_input)
 END_TEST
 
 /* Conflicting keys: the lists beside a profile at the same level, directions missing or doubled; a missing file;
- * learned; a given model's key under the oracle, a given model without its keys. */
+ * learned without its start model, a learning key without learning; a given model's key under the oracle, a given model without its keys. */
 START_TEST(test_model_refusals)
 {
     wt_context *ctx = tu_context();
@@ -468,8 +468,12 @@ START_TEST(test_model_refusals)
                   wt_error_message(ctx));
     const char *learned[] = {"recon.atmosphere.source=\"learned\""};
     ck_assert_int_eq(read_demo(ctx, 1, learned, &c), WT_ERR_CONFIG);
-    ck_assert_msg(strstr(wt_error_message(ctx), "\"learned\"") && strstr(wt_error_message(ctx), "not available yet"),
-                  "%s", wt_error_message(ctx));
+    ck_assert_msg(strstr(wt_error_message(ctx), "\"learned\" but key 'recon.atmosphere.r0_m' is missing") &&
+                      strstr(wt_error_message(ctx), "the one it starts from"), "%s", wt_error_message(ctx));
+    const char *update_oracle[] = {"recon.atmosphere.update_s=30.0"};
+    ck_assert_int_eq(read_demo(ctx, 1, update_oracle, &c), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(ctx), "key 'recon.atmosphere.update_s' is for a learned model, but "
+                                                "'recon.atmosphere.source' is \"oracle\""), "%s", wt_error_message(ctx));
     const char *oracle_r0[] = {"recon.atmosphere.r0_m=0.1"};
     ck_assert_int_eq(read_demo(ctx, 1, oracle_r0, &c), WT_ERR_CONFIG);
     ck_assert_msg(strstr(wt_error_message(ctx), "'recon.atmosphere.source' is \"oracle\" (its default)"), "%s",

@@ -299,8 +299,10 @@ fail:
     return st;
 }
 
-int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
-                         const wt_mvm_options *opt_in, wt_mvm **out)
+/* The matrix of variant `name` of cfg, with the model's r0 and profile replaced when natm > 0. */
+static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
+                       const wt_mvm_options *opt_in, double r0, int natm, const double *alt, const double *frac,
+                       wt_mvm **out)
 {
     const double t0 = wt_time_now();
     const int cg9 = !strcmp(name, "cg9");
@@ -313,6 +315,13 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
     opt.fit_sampling = var.fit_sampling;
     wt_tomography_params tp;
     wt_tomography_params_from_config(cfg, &tp);
+    if (natm > 0) {
+        if (natm > WT_MAX_LAYERS)
+            return WT_ERROR(ctx, WT_ERR_INVALID, "MVM build: a model of %d layers (at most %d)", natm, WT_MAX_LAYERS);
+        tp.r0 = r0;
+        tp.natm = natm;
+        for (int k = 0; k < natm; k++) tp.atm_altitude[k] = alt[k], tp.atm_fraction[k] = frac[k];
+    }
     wt_tomography *t = NULL;
     *out = NULL;
     int st = wt_tomography_alloc(ctx, sys, &var, name, &tp, &t);
@@ -326,4 +335,17 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
     }
     if (st >= 0) (*out)->stats.t_total = wt_time_now() - t0;
     return st;
+}
+
+int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
+                         const wt_mvm_options *opt_in, wt_mvm **out)
+{
+    return build_model(ctx, sys, cfg, name, opt_in, 0.0, 0, NULL, NULL, out);
+}
+
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, wt_mvm **out)
+{
+    const wt_mvm_rebuilder *rb = user;
+    if (natm < 1) return WT_ERROR(rb->ctx, WT_ERR_INVALID, "MVM rebuild: a model without layers");
+    return build_model(rb->ctx, rb->sys, rb->sys->cfg, rb->variant, rb->opt, r0, natm, alt, frac, out);
 }

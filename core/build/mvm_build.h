@@ -113,4 +113,16 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt, w
 int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt, wt_mvm **out);
 
+/* The same for a learned atmosphere model (core/sim/adapt.h's rebuild callback, which the drivers pass to a learning
+ * MVM loop: core/sim cannot call this module): the variant's tomography with the model's r0 and natm-layer profile
+ * (alt [m], frac) in place of the configuration's, the rest as wt_mvm_build_variant with sys->cfg. user: a
+ * wt_mvm_rebuilder. */
+typedef struct wt_mvm_rebuilder {
+    wt_context *ctx;
+    const wt_system *sys;          /* its configuration is the rest of the model */
+    const char *variant;           /* "pcg3" or "cg9": the variant of the matrix the loop starts with */
+    const wt_mvm_options *opt;     /* NULL: defaults */
+} wt_mvm_rebuilder;
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, wt_mvm **out);
+
 #endif

@@ -97,14 +97,14 @@ typedef struct wt_recon_variant_config {
 } wt_recon_variant_config;
 
 /* The reconstructor's atmosphere (SPEC §12 "Truth and model are separate objects"; recon.atmosphere): where it
- * comes from. The extension point of identification from telemetry is WT_MODEL_LEARNED, refused when read
- * until the estimator exists. */
+ * comes from. WT_MODEL_LEARNED starts from the given model and replaces it by the loop's own estimates
+ * (core/sim/adapt.h). */
 enum { WT_MODEL_ORACLE = 0, WT_MODEL_GIVEN = 1, WT_MODEL_LEARNED = 2 };
 
 /* The reconstructor's atmosphere as a profile before it is compressed onto each variant's layers
  * (core/model/profile.h): the truth's for the oracle, the user's for a given model. */
 typedef struct wt_model_atmosphere_config {
-    int source;                           /* WT_MODEL_ORACLE, WT_MODEL_GIVEN (WT_MODEL_LEARNED is refused) */
+    int source;                           /* WT_MODEL_ORACLE, WT_MODEL_GIVEN, WT_MODEL_LEARNED (starts from given) */
     double r0;                            /* Fried parameter at 500 nm [m] */
     double L0;                            /* outer scale [m] */
     int nlayers;
@@ -113,6 +113,9 @@ typedef struct wt_model_atmosphere_config {
     double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
     double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
     char profile[1024];                   /* given: the profile file as resolved, "" when the lists were given */
+    double update_s;                      /* learned: night time between two estimates [s] */
+    double mvm_latency_s;                 /* learned, mvm: night time from an estimate to its matrix in the loop [s];
+                                             < 0: the build's measured wall time */
 } wt_model_atmosphere_config;
 
 typedef struct wt_config {

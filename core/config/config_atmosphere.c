@@ -232,11 +232,14 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     wt_model_atmosphere_config *m = &cfg->model;
     const int ks = wt_config_priv_find_key("recon.atmosphere.source");
     wt_config_priv_where(ps, ks, ps->set[ks], oth, sizeof oth);
-    if (m->source == WT_MODEL_LEARNED)
-        return wt_config_priv_fail(ps, oth, "key 'recon.atmosphere.source' = \"learned\": the reconstructor's "
-                                   "atmosphere estimated from the loop's own telemetry (SPEC §12) is not available "
-                                   "yet; use \"oracle\" (the truth compressed onto the reconstructors' layers) or "
-                                   "\"given\" (a profile of your own, recon.atmosphere.*)");
+    static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s"};
+    for (int i = 0; i < 2; i++) {
+        const int k = wt_config_priv_find_key(learn_keys[i]);
+        if (m->source != WT_MODEL_LEARNED && ps->set[k])
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
+                                       "key '%s' is for a learned model, but 'recon.atmosphere.source' is \"%s\"",
+                                       learn_keys[i], m->source == WT_MODEL_ORACLE ? "oracle" : "given");
+    }
     for (int i = 0; i < NMODEL_KEYS; i++) {
         const int k = wt_config_priv_find_key(model_keys[i]);
         if (m->source == WT_MODEL_ORACLE && ps->set[k])
@@ -245,10 +248,13 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
                                        "takes the truth's profile, r0 and L0; set source = \"given\" to use your own",
                                        model_keys[i], ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0
                                                          ? oth : "its default");
-        if (m->source == WT_MODEL_GIVEN && !ps->set[k] && i != 2)
-            return wt_config_priv_fail(ps, oth, "'recon.atmosphere.source' is \"given\" but key '%s' is missing: a given "
+        if (m->source != WT_MODEL_ORACLE && !ps->set[k] && i != 2)
+            return wt_config_priv_fail(ps, oth, "'recon.atmosphere.source' is \"%s\" but key '%s' is missing: a %s "
                                        "model needs r0_m, L0_m and its layers (altitudes_m, cn2_fractions, "
-                                       "wind_speed_mps, wind_direction_deg, or a profile file)", model_keys[i]);
+                                       "wind_speed_mps, wind_direction_deg, or a profile file)%s",
+                                       m->source == WT_MODEL_GIVEN ? "given" : "learned", model_keys[i],
+                                       m->source == WT_MODEL_GIVEN ? "given" : "learned",
+                                       m->source == WT_MODEL_GIVEN ? "" : ": the one it starts from");
     }
     /* the profile files are in the canonical text as their lists */
     ps->set[wt_config_priv_find_key("atmosphere.profile")] = NULL;
@@ -280,6 +286,7 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
 {
     /* the model's numbers make the matrix, not how they were specified; no reconstructor reads a wind yet */
     if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
+        !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
         !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
         !strncmp(path, "atmosphere.wind_", 16))
         return 0;

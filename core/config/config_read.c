@@ -693,7 +693,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
             (st = check_below_lgs(ps, cfg, "recon.pcg3.layer_altitudes_m", cfg->pcg3.altitudes, cfg->pcg3.nlayers)) < 0 ||
             (st = check_below_lgs(ps, cfg, "recon.cg9.layer_altitudes_m", cfg->cg9.altitudes, cfg->cg9.nlayers)) < 0 ||
             (st = check_below_lgs(ps, cfg, "recon.atmosphere.altitudes_m", cfg->model.altitude,
-                                  cfg->model.source == WT_MODEL_GIVEN ? cfg->model.nlayers : 0)) < 0)
+                                  cfg->model.source != WT_MODEL_ORACLE ? cfg->model.nlayers : 0)) < 0)
             return st;
     }
     if ((st = resolve_grid(ps, cfg, "pcg3", &cfg->pcg3)) < 0 || (st = resolve_grid(ps, cfg, "cg9", &cfg->cg9)) < 0)

@@ -315,10 +315,21 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      WT_MODEL_ORACLE,
      "the reconstructors' atmosphere (SPEC §12; the simulation's is atmosphere.*): oracle = the truth's profile, r0 "
      "and L0, compressed onto each variant's layer altitudes; given = the profile of the recon.atmosphere keys below "
-     "(or its profile file), compressed the same way; learned = estimated from the loop's own telemetry, not "
-     "available yet (refused). Compression: each profile layer's Cn2 split linearly in altitude between the two "
-     "nearest reconstruction altitudes (all of it to the end layer outside their range), the wind of a layer the "
-     "Cn2-weighted mean of the wind vectors it absorbs (optional, default oracle)"},
+     "(or its profile file), compressed the same way; learned = starts from the given profile (the same keys) and "
+     "replaces it every update_s of night time by the loop's own estimate from its pseudo-open-loop LGS slopes "
+     "(r0 and the Cn2 profile on 22 altitudes to 20 km; L0 and the wind stay the given ones): pcg3 and cg9 take it at "
+     "the next frame, the MVM is rebuilt from it and swapped in after mvm_latency_s. Compression: each profile "
+     "layer's Cn2 split linearly in altitude between the two nearest reconstruction altitudes (all of it to the end "
+     "layer outside their range), the wind of a layer the Cn2-weighted mean of the wind vectors it absorbs "
+     "(optional, default oracle)"},
+    {"recon.atmosphere.update_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e6, "s", 1, CF(model.update_s), NOCOUNT, 0, 0, NULL, 60.0,
+         "learned: night time between two estimates (each from the frames since the previous one: at least 100); "
+         "the frames of a night time are 1/loop.rate_hz each unless the night compresses time (optional, default 60, "
+         "refused with another source)"},
+    {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
+         "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
+         "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "
+         "cluster is a smaller value (optional, default -1, refused with another source)"},
     {"recon.atmosphere.r0_m", K_FLOAT, F_OPT, 1e-3, 1e4, "m", 1, CF(model.r0), NOCOUNT, 0, 0, NULL, 0,
      "given: the model's Fried parameter r0 at 500 nm (required with source = \"given\", refused otherwise)"},
     {"recon.atmosphere.L0_m", K_FLOAT, F_OPT, 1.0, 1e4, "m", 1, CF(model.L0), NOCOUNT, 0, 0, NULL, 0,

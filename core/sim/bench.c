@@ -306,7 +306,7 @@ int wt_bench_loop_run(wt_context *ctx, const wt_system *sys, const wt_loop_optio
         out->per_frame = (wt_loop_times){(b.atmosphere - a.atmosphere) / frames, (b.sensors - a.sensors) / frames,
                                          (b.reconstruction - a.reconstruction) / frames,
                                          (b.fitting - a.fitting) / frames, (b.control - a.control) / frames,
-                                         (b.evaluation - a.evaluation) / frames};
+                                         (b.evaluation - a.evaluation) / frames, (b.learning - a.learning) / frames};
     }
     free(ft);
     wt_loop_free(lp);

@@ -56,6 +56,7 @@ struct wt_loop {
     double *maps;                 /* perfect_fit: true OPD along each evaluation direction on its samples */
     double *dm_opd;               /* true_polc: per sensor, −(the DM shapes along its line of sight) (nsensors x nfine) */
     double *s_dm;                 /* true_polc: the truth sensors' slopes of dm_opd (nslopes) */
+    wt_adapt *adapt;              /* the closed loop learns its atmosphere (par.learn.every > 0), else NULL */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -274,6 +275,9 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         WT_ALLOC(ctx, lp->dm_opd, (size_t)sys->nsensors * lp->nfine, "true POLC maps");
         WT_ALLOC(ctx, lp->s_dm, sys->nslopes, "true POLC slopes");
     }
+    if (par->learn.every > 0 && opt->open_loop == WT_LOOP_CLOSED)
+        WT_TRY(wt_adapt_alloc(ctx, sys, opt->recon, &par->learn, opt->rebuild, opt->rebuild_user, par->learn_max_updates,
+                              &lp->adapt));
     lp->t = opt->first_frame;
     if (opt->perfect_fit > 0) {
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
@@ -318,6 +322,7 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->dm_grids);
     wt_interaction_free(lp->ia);
     wt_reconstructor_free(lp->rec);
+    wt_adapt_free(lp->adapt); /* (after the reconstructor: it may hold the matrix the adapt built) */
     wt_free(ctx, lp->s);
     wt_free(ctx, lp->s_ol);
     wt_free(ctx, lp->a_rec);
@@ -548,6 +553,9 @@ int wt_loop_step(wt_loop *lp)
     const int64_t nf = lp->nfine;
     int st = WT_OK;
 
+    /* a learning MVM loop: the matrix of an earlier estimate whose build is finished by now */
+    if (lp->adapt && (st = wt_adapt_swap(lp->adapt, t, &lp->rec)) < 0) return st;
+
     /* a_t: the commands applied during this frame */
     memcpy(lp->applied, lp->ring[t % D1], (size_t)sys->nact * sizeof *lp->applied);
     wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
@@ -622,6 +630,12 @@ int wt_loop_step(wt_loop *lp)
     wt_reconstructor_last_times(lp->rec, &tt, &tf);
     lp->times.reconstruction += (t4 - t3) - tf;
     lp->times.fitting += tf;
+    if (lp->adapt) { /* this frame's s_ol into the estimate; an estimate made now is used from the next frame */
+        if ((st = wt_adapt_frame(lp->adapt, t, lp->s_ol, lp->rec)) < 0) return st;
+        const double t5 = wt_time_now();
+        lp->times.learning += t5 - t4;
+        t4 = t5; /* (the control's time below leaves it out) */
+    }
     const double *prev = lp->ring[(t + lp->delay - 1) % D1];
     double *next = lp->ring[(t + lp->delay) % D1];
     if (lp->opt.recon == WT_RECON_NONE) {
@@ -659,3 +673,4 @@ const double *wt_loop_residual(const wt_loop *lp, int j)
 }
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp) { return lp->atm; }
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp) { return lp->rec; }
+const wt_adapt *wt_loop_adapt(const wt_loop *lp) { return lp->adapt; }

@@ -22,6 +22,7 @@
 #include "../model/fitting.h"
 #include "../model/reconstructor.h"
 #include "../model/system.h"
+#include "adapt.h"
 #include "atmosphere.h"
 #include "scale_gain.h"
 #include "strehl.h"
@@ -57,11 +58,16 @@ typedef struct wt_loop_options {
                          * applied DM shapes, s_ol = s − S(−H a), in place of the model's Â a: the pseudo-open-
                          * loop slopes are then exactly those of the turbulence, so the closed loop differs
                          * from the open loop by the delay and the integrator only (budget: servo vs POLC) */
+    wt_adapt_rebuild_fn rebuild; /* a learning MVM loop (recon.atmosphere.source = "learned"): builds the matrix of
+                                  * an estimate (the driver's: core/build is above this module); else NULL */
+    void *rebuild_user;
 } wt_loop_options;
 
 /* Cumulative wall time per part [s]. */
 typedef struct wt_loop_times {
     double atmosphere, sensors, reconstruction, fitting, control, evaluation;
+    double learning;    /* a learned model: the accumulation, the estimates and the model updates (not the MVM's
+                           builds, which are simulated as latency) */
 } wt_loop_times;
 
 /* What the loop uses of the system description, filled from a configuration by wt_loop_params_from_config
@@ -82,6 +88,8 @@ typedef struct wt_loop_params {
     int settle_frames;               /* frames left out of the long-exposure averages */
     wt_reconstructor_params recon;   /* the iterative reconstructor of opt->recon (opt->iterations applied) */
     wt_fitting_params perfect_fit;   /* the cg9 fitting of the perfect_fit budget mode */
+    wt_adapt_params learn;           /* learn.every > 0: the closed loop learns its atmosphere (core/sim/adapt.h) */
+    long learn_max_updates;          /* room for its updates' record */
 } wt_loop_params;
 
 /* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
@@ -116,5 +124,7 @@ const double *wt_loop_residual(const wt_loop *lp, int j);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);
+/* The learning of the atmosphere (NULL unless the closed loop learns). */
+const wt_adapt *wt_loop_adapt(const wt_loop *lp);
 
 #endif

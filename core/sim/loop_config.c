@@ -3,6 +3,7 @@
  * the loop itself reads no configuration. Calls go one way: this file → loop.c. */
 #include "loop.h"
 
+#include <math.h>
 #include <string.h>
 
 #include "../model/params.h"
@@ -36,6 +37,21 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
     par->settle_frames = cfg->settle_frames;
     wt_reconstructor_params_from_config(cfg, opt->recon, opt->iterations, &par->recon);
     par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
+    const wt_model_atmosphere_config *m = &cfg->model;
+    if (m->source == WT_MODEL_LEARNED && !opt->open_loop) {
+        par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate),
+                                       .frame_night = 1.0 / cfg->rate,
+                                       .L0 = m->L0,
+                                       .latency = m->mvm_latency_s,
+                                       .nstart = m->nlayers};
+        /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
+        for (int k = 0; k < m->nlayers; k++) {
+            par->learn.start_alt[k] = m->altitude[k];
+            par->learn.start_vx[k] = m->wind_speed[k] * cos(m->wind_direction[k]);
+            par->learn.start_vy[k] = m->wind_speed[k] * sin(m->wind_direction[k]);
+        }
+        par->learn_max_updates = par->learn.every > 0 ? cfg->frames / par->learn.every + 1 : 1;
+    }
 }
 
 int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out)

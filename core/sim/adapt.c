@@ -1,0 +1,221 @@
+/* core/sim/adapt.c: the loop that learns its atmosphere (see adapt.h; SPEC §12 "Identification from the loop's own
+ * data" and "Updates"). */
+#include "adapt.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../io/h5.h"
+#include "../solve/mvm.h"
+
+struct wt_adapt {
+    wt_context *ctx;
+    const wt_system *sys;
+    int kind;
+    wt_adapt_params par;
+    double tx[WT_MAX_GS], ty[WT_MAX_GS];
+    wt_learn_geometry g;
+    wt_learn *L;
+    long since;               /* frames accumulated since the last estimate */
+    int na;
+    double alt[WT_LEARN_MAX_ALT];
+    double vx[WT_LEARN_MAX_ALT], vy[WT_LEARN_MAX_ALT]; /* the learned altitudes' wind (the start model's nearest) */
+    wt_learn_estimate *est;
+    wt_adapt_rebuild_fn rebuild;
+    void *rebuild_user;
+    wt_adapt_update *up;
+    int nup, maxup;
+    struct wt_mvm *owned;     /* mvm: the matrix in use when it was built here (else the caller's) */
+    struct wt_mvm *pending;   /* mvm: built, in the loop from night time pending_ready on */
+    double pending_ready;
+    int pending_update;
+    int waiting;              /* mvm: an estimate waiting for the build machine (−1: none) */
+    double tacc;
+};
+
+static int learn_alloc(wt_adapt *a)
+{
+    wt_learn_free(a->L);
+    a->L = NULL;
+    return wt_learn_alloc(a->ctx, &a->g, WT_ADAPT_BATCHES, a->par.every / WT_ADAPT_BATCHES, &a->L);
+}
+
+int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_adapt_params *par, wt_adapt_rebuild_fn rebuild,
+                   void *rebuild_user, long max_updates, wt_adapt **out)
+{
+    int st = WT_OK;
+    wt_adapt *a = NULL;
+    *out = NULL;
+    if (sys->nlgs < 2)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: recon.atmosphere.source = \"learned\" needs at least 2 LGS (pairs of LGS "
+                        "resolve altitude), the system has %d", sys->cfg ? sys->cfg->path : "system", sys->nlgs);
+    if (par->every < WT_ADAPT_MIN_FRAMES)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.atmosphere.update_s': an estimate every %ld frames; one "
+                        "estimate needs at least %d (%d batches of 25)", sys->cfg ? sys->cfg->path : "system", par->every,
+                        WT_ADAPT_MIN_FRAMES, WT_ADAPT_BATCHES);
+    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "a learned atmosphere is for pcg3, cg9 and mvm, not %s",
+                        wt_reconstructor_name(kind));
+    if (kind == WT_RECON_MVM && !rebuild)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "a learning MVM loop needs a rebuild callback (the driver's)");
+    if (par->nstart < 1 || par->nstart > WT_MAX_LAYERS)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "adapt: %d start layers", par->nstart);
+    WT_ALLOC(ctx, a, 1, "learning loop");
+    a->ctx = ctx;
+    a->sys = sys;
+    a->kind = kind;
+    a->par = *par;
+    for (int i = 0; i < sys->nlgs; i++) a->tx[i] = sys->sensors[i].theta_x, a->ty[i] = sys->sensors[i].theta_y;
+    a->g = (wt_learn_geometry){sys->n, sys->d, sys->valid, sys->nlgs, a->tx, a->ty, sys->sensors[0].altitude};
+    WT_TRY(learn_alloc(a));
+    a->na = wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+    for (int k = 0; k < a->na; k++) { /* the start model's wind at the nearest of its layers */
+        int best = 0;
+        for (int j = 1; j < par->nstart; j++)
+            if (fabs(par->start_alt[j] - a->alt[k]) < fabs(par->start_alt[best] - a->alt[k])) best = j;
+        a->vx[k] = par->start_vx[best], a->vy[k] = par->start_vy[best];
+    }
+    WT_ALLOC(ctx, a->est, 1, "profile estimate");
+    a->maxup = max_updates > 0 ? (int)max_updates : 1;
+    WT_ALLOC(ctx, a->up, a->maxup, "update record");
+    a->rebuild = rebuild;
+    a->rebuild_user = rebuild_user;
+    a->waiting = -1;
+    *out = a;
+    return WT_OK;
+fail:
+    wt_adapt_free(a);
+    return st;
+}
+
+void wt_adapt_free(wt_adapt *a)
+{
+    if (!a) return;
+    wt_learn_free(a->L);
+    wt_mvm_free(a->owned);
+    wt_mvm_free(a->pending);
+    wt_free(a->ctx, a->est);
+    wt_free(a->ctx, a->up);
+    wt_free(a->ctx, a);
+}
+
+/* the matrix of update u, built now (night time `start`: when the build machine takes it) */
+static int start_build(wt_adapt *a, int u, double start)
+{
+    wt_adapt_update *p = &a->up[u];
+    const double t0 = wt_time_now();
+    struct wt_mvm *m = NULL;
+    const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction, &m);
+    if (st < 0) return st;
+    p->build_s = wt_time_now() - t0;
+    a->pending = m;
+    a->pending_ready = start + (a->par.latency >= 0.0 ? a->par.latency : p->build_s);
+    a->pending_update = u;
+    return WT_OK;
+}
+
+int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *rec)
+{
+    const double t0 = wt_time_now();
+    int st = wt_learn_add(a->L, s_ol);
+    a->tacc += wt_time_now() - t0;
+    if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: %s", t, wt_error_message(a->ctx));
+    if (++a->since < a->par.every) return WT_OK;
+    a->since = 0;
+    if (a->nup == a->maxup) return WT_ERROR(a->ctx, WT_ERR_INVALID, "adapt: more than %d updates", a->maxup);
+    wt_adapt_update *u = &a->up[a->nup];
+    memset(u, 0, sizeof *u);
+    u->frame = t;
+    u->night = (double)(t + 1) * a->par.frame_night;
+    u->applied_frame = -1;
+    const double tf = wt_time_now();
+    st = wt_learn_fit(a->L, a->na, a->alt, a->par.L0, a->est);
+    u->fit_s = wt_time_now() - tf;
+    if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t, a->par.every,
+                                wt_error_message(a->ctx));
+    if ((st = learn_alloc(a)) < 0) return st; /* the next estimate is of the next frames only */
+    const wt_learn_estimate *e = a->est;
+    u->r0 = e->r0;
+    u->r0_sigma = e->r0_sigma;
+    u->nalt = e->nalt;
+    for (int k = 0; k < e->nalt; k++) u->altitude[k] = e->altitude[k], u->fraction[k] = e->fraction[k];
+    const int idx = a->nup++;
+    if (a->kind != WT_RECON_MVM) {
+        if ((st = wt_reconstructor_set_model(rec, u->r0, u->nalt, u->altitude, u->fraction, a->vx, a->vy)) < 0)
+            return WT_ERROR(a->ctx, st, "frame %ld: the learned model: %s", t, wt_error_message(a->ctx));
+        wt_reconstructor_last_update_times(rec, &u->model_s, &u->precond_s);
+        u->applied_frame = t + 1;
+        return WT_OK;
+    }
+    if (!a->pending) return start_build(a, idx, u->night);
+    a->waiting = idx; /* (a waiting estimate it replaces is never built) */
+    return WT_OK;
+}
+
+int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec)
+{
+    const double now = (double)t * a->par.frame_night;
+    while (a->pending && now >= a->pending_ready) {
+        wt_reconstructor *r = NULL;
+        int st = wt_reconstructor_alloc_mvm(a->ctx, a->sys, a->pending, &r);
+        if (st < 0) return st;
+        wt_reconstructor_free(*rec);
+        *rec = r;
+        wt_mvm_free(a->owned);
+        a->owned = a->pending;
+        a->pending = NULL;
+        a->up[a->pending_update].applied_frame = t;
+        if (a->waiting >= 0) { /* the build machine is free from pending_ready on */
+            const int w = a->waiting;
+            a->waiting = -1;
+            if ((st = start_build(a, w, a->pending_ready)) < 0) return st;
+        }
+    }
+    return WT_OK;
+}
+
+int wt_adapt_nupdates(const wt_adapt *a) { return a->nup; }
+const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
+double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
+
+int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
+{
+    int st = WT_OK;
+    const int n = a->nup, na = a->na;
+    double *v = NULL;
+    int64_t *iv = NULL;
+    WT_ALLOC(a->ctx, v, (size_t)(n > 0 ? n : 1) * (na > 0 ? na : 1), "update record");
+    WT_ALLOC(a->ctx, iv, n > 0 ? n : 1, "update record");
+    const int64_t d1[1] = {n}, d2[2] = {n, na}, dg[1] = {na};
+    WT_TRY(wt_h5_write_int64(w, "learned/every_frames", a->par.every, "frames", "frames between two estimates (each from "
+                             "the frames since the previous one; recon.atmosphere.update_s)"));
+    WT_TRY(wt_h5_write(w, "learned/altitude", WT_H5_F64, WT_H5_F64, 1, dg, a->alt, "m", "the learning grid's altitudes"));
+#define COL(name, field, unit, desc)                                                                                    \
+    do {                                                                                                               \
+        for (int u = 0; u < n; u++) v[u] = a->up[u].field;                                                           \
+        WT_TRY(wt_h5_write(w, "learned/" name, WT_H5_F64, WT_H5_F64, 1, d1, v, unit, desc));                          \
+    } while (0)
+    COL("night_s", night, "s", "night time of each estimate (after its last frame)");
+    COL("r0", r0, "m", "estimated r0 at 500 nm");
+    COL("r0_sigma", r0_sigma, "m", "its uncertainty: spread of the batches' estimates / sqrt(batches)");
+    COL("fit_s", fit_s, "s", "wall time of the fit");
+    COL("model_s", model_s, "s", "pcg3/cg9: wall time of the reconstructor's new model (priors, model error, noise)");
+    COL("precond_s", precond_s, "s", "pcg3/cg9: wall time of the preconditioner rebuilt for it");
+    COL("build_s", build_s, "s", "mvm: wall time of its control matrix's build (0: never built)");
+#undef COL
+    for (int u = 0; u < n; u++)
+        for (int k = 0; k < na; k++) v[(size_t)u * na + k] = a->up[u].fraction[k];
+    WT_TRY(wt_h5_write(w, "learned/fraction", WT_H5_F64, WT_H5_F64, 2, d2, v, "", "estimated Cn2 fractions [update, "
+                       "altitude of learned/altitude]"));
+    for (int u = 0; u < n; u++) iv[u] = a->up[u].frame;
+    WT_TRY(wt_h5_write(w, "learned/frame", WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the frame after which each estimate "
+                       "was made"));
+    for (int u = 0; u < n; u++) iv[u] = a->up[u].applied_frame;
+    WT_TRY(wt_h5_write(w, "learned/applied_frame", WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the first frame that used it "
+                       "(pcg3/cg9: the next; mvm: when its build was finished; -1: never, replaced while waiting)"));
+fail:
+    wt_free(a->ctx, v);
+    wt_free(a->ctx, iv);
+    return st;
+}

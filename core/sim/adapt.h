@@ -1,0 +1,81 @@
+/* core/sim/adapt.h: the loop that learns its atmosphere (SPEC §12 "Updates"; recon.atmosphere.source = "learned").
+ *
+ * Every frame the LGS part of the pseudo-open-loop slopes s_ol = s + Â a (the reconstructor's own input: the truth is
+ * never read) goes into the cross-covariance accumulator of core/model/learn.h. Every `every` frames (the update
+ * interval T in night time over the night time of a frame) the Cn² profile and r0 are fitted on the learning grid
+ * from the frames since the last estimate, and the accumulator starts again (a night changes: an estimate is of
+ * its last T). What the estimate replaces:
+ *   pcg3, cg9: the reconstructor's model at the next frame (wt_reconstructor_set_model: priors, model error,
+ *              noise weights, preconditioner, prediction shifts); its wall time is reported, not simulated;
+ *   mvm:       a new control matrix built from the estimate by the driver's rebuild callback (core/build is above
+ *              this module), swapped in when the build would be finished: `latency` night seconds after the
+ *              estimate (< 0: the build's measured wall time on this machine); the old matrix is applied
+ *              meanwhile. One build at a time, as on one build machine: an estimate made while a build runs
+ *              waits and is built when that one is done (a newer one replaces a waiting one).
+ * The wind of the model (prediction) is not learned here: each learned altitude takes the wind of the start model's
+ * layer nearest in altitude.
+ */
+#ifndef WT_ADAPT_H
+#define WT_ADAPT_H
+
+#include "../model/learn.h"
+#include "../model/reconstructor.h"
+#include "../model/system.h"
+
+struct wt_mvm;
+
+/* Build a control matrix for the model (r0 [m], natm layers at alt [m] with fractions frac): *out owned by the
+ * caller of the callback afterwards (wt_mvm_free). */
+typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double *alt, const double *frac,
+                                   struct wt_mvm **out);
+
+typedef struct wt_adapt_params {
+    long every;               /* frames between estimates (≥ WT_ADAPT_MIN_FRAMES) */
+    double frame_night;       /* night time of one frame [s] (1/rate times the night's time compression) */
+    double L0;                /* outer scale of the fit [m] (the model's: not fitted) */
+    double latency;           /* mvm: night seconds from an estimate to its matrix in the loop; < 0: measured */
+    int nstart;               /* the start model's layers: their wind goes to the learned altitudes */
+    double start_alt[WT_MAX_LAYERS], start_vx[WT_MAX_LAYERS], start_vy[WT_MAX_LAYERS]; /* [m], [m/s] */
+} wt_adapt_params;
+
+/* An estimate needs this many frames: WT_ADAPT_BATCHES batches (its uncertainty) of at least 25 each. */
+#define WT_ADAPT_BATCHES 4
+#define WT_ADAPT_MIN_FRAMES (WT_ADAPT_BATCHES * 25)
+
+/* What each update did (the run's record). */
+typedef struct wt_adapt_update {
+    long frame;               /* the frame after which the estimate was made */
+    double night;             /* its night time [s] */
+    double r0, r0_sigma;      /* the estimate [m] */
+    int nalt;
+    double altitude[WT_LEARN_MAX_ALT], fraction[WT_LEARN_MAX_ALT];
+    double fit_s;             /* wall time of the fit [s] */
+    double model_s, precond_s; /* pcg3/cg9: wall time of the new model, of the preconditioner [s] */
+    double build_s;           /* mvm: wall time of the matrix's build [s] (0 while waiting) */
+    long applied_frame;       /* the first frame that used it (−1: never, e.g. replaced while waiting) */
+} wt_adapt_update;
+
+typedef struct wt_adapt wt_adapt;
+
+/* sys's LGS (≥ 2) are the first nlgs sensors, their slopes the first blocks (core/model/system.h). kind: the
+ * loop's reconstructor. rebuild (mvm only, else NULL). max_updates: room in the record (a run's frames / every). */
+int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_adapt_params *par, wt_adapt_rebuild_fn rebuild,
+                   void *rebuild_user, long max_updates, wt_adapt **out);
+void wt_adapt_free(wt_adapt *a);
+
+/* Frame t measured s_ol: accumulate it; after the `every`-th frame since the last estimate, fit and update rec
+ * (pcg3/cg9) or start/queue an MVM build. Allocates only on an update. */
+int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *rec);
+/* mvm: before frame t runs, a matrix whose build is finished by then (in night time) is swapped in: *rec replaced
+ * by a reconstructor of it (the old one freed) and the matrix before it freed. No-op otherwise. */
+int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec);
+
+int wt_adapt_nupdates(const wt_adapt *a);
+const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
+double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
+/* The updates into w under learned/ (one row per update: frame, night time, r0 and its uncertainty, the profile on the
+ * learning grid, the wall times, the frame that first used it), self-documenting. */
+struct wt_h5_writer;
+int wt_adapt_write(const wt_adapt *a, struct wt_h5_writer *w);
+
+#endif
