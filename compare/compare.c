@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "cli/mpi.h"
+#include "core/build/mvm_build.h"
 #include "compare/compare.h"
 #include "compare/report.h"
 #include "compare/spots.h"
@@ -271,7 +272,10 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
             break;
         }
         wt_compare_series ser = {.wfe = X->wfe[c]};
-        st = wt_compare_run(cli->ctx, sys, kind, mvm, build, a->seeds[s], on_frame, &p, res, &ser);
+        wt_mvm_rebuilder rb = {cli->ctx, sys, mvm && mvm->commands == WT_MVM_FITTING ? "cg9" : "pcg3", NULL};
+        const int learn = mvm && cfg->model.source == WT_MODEL_LEARNED;
+        st = wt_compare_run_rebuild(cli->ctx, sys, kind, mvm, build, a->seeds[s], learn ? wt_mvm_rebuild_model : NULL,
+                                    learn ? &rb : NULL, on_frame, &p, res, &ser);
         X->psf[c] = ser.psf;
         build = 0.0; /* the build counts in the set-up of the first seed that used it */
         wt_progress_end(&p.pr);

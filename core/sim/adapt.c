@@ -31,7 +31,7 @@ struct wt_adapt {
     double pending_ready;
     int pending_update;
     int waiting;              /* mvm: an estimate waiting for the build machine (−1: none) */
-    double tacc;
+    double tacc, tbuild;
 };
 
 static int learn_alloc(wt_adapt *a)
@@ -109,6 +109,7 @@ static int start_build(wt_adapt *a, int u, double start)
     const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction, &m);
     if (st < 0) return st;
     p->build_s = wt_time_now() - t0;
+    a->tbuild += p->build_s;
     a->pending = m;
     a->pending_ready = start + (a->par.latency >= 0.0 ? a->par.latency : p->build_s);
     a->pending_update = u;
@@ -156,7 +157,8 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *re
 int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec)
 {
     const double now = (double)t * a->par.frame_night;
-    while (a->pending && now >= a->pending_ready) {
+    while (a->pending && now + 1e-6 * a->par.frame_night >= a->pending_ready) { /* (the frame at the ready time
+                                                                                    itself, whatever the rounding) */
         wt_reconstructor *r = NULL;
         int st = wt_reconstructor_alloc_mvm(a->ctx, a->sys, a->pending, &r);
         if (st < 0) return st;
@@ -178,6 +180,7 @@ int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec)
 int wt_adapt_nupdates(const wt_adapt *a) { return a->nup; }
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
 double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
+double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
 
 int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
 {

@@ -73,6 +73,7 @@ int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec);
 int wt_adapt_nupdates(const wt_adapt *a);
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
+double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
 /* The updates into w under learned/ (one row per update: frame, night time, r0 and its uncertainty, the profile on the
  * learning grid, the wall times, the frame that first used it), self-documenting. */
 struct wt_h5_writer;

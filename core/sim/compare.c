@@ -29,12 +29,20 @@ void wt_compare_psf_params(const wt_config *cfg, wt_psf_params *par)
 int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
                    wt_compare_frame_fn fn, void *user, wt_compare_result *res, wt_compare_series *ser)
 {
+    return wt_compare_run_rebuild(ctx, sys, kind, mvm, build_s, seed, NULL, NULL, fn, user, res, ser);
+}
+
+int wt_compare_run_rebuild(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+                           uint64_t seed, wt_adapt_rebuild_fn rebuild, void *rebuild_user, wt_compare_frame_fn fn,
+                           void *user, wt_compare_result *res, wt_compare_series *ser)
+{
     const wt_config *cfg = sys->cfg;
     wt_loop *lp = NULL;
     wt_psf *psf = NULL;
     memset(res, 0, sizeof *res);
     if (ser) ser->psf = NULL;
-    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = seed, .noise = cfg->noise};
+    wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = seed, .noise = cfg->noise,
+                         .rebuild = rebuild, .rebuild_user = rebuild_user};
     double t0 = wt_time_now();
     int st = wt_loop_alloc(ctx, sys, &o, &lp);
     if (st < 0) return st;

@@ -55,6 +55,10 @@ typedef struct wt_compare_series {
  * PSFs too (core/sim/psf.h). ser: NULL, or what to keep of the frames. */
 int wt_compare_run(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s, uint64_t seed,
                    wt_compare_frame_fn fn, void *user, wt_compare_result *res, wt_compare_series *ser);
+/* The same with a learning MVM loop's rebuild callback (core/sim/adapt.h; NULL: none). */
+int wt_compare_run_rebuild(wt_context *ctx, const wt_system *sys, int kind, const wt_mvm *mvm, double build_s,
+                           uint64_t seed, wt_adapt_rebuild_fn rebuild, void *rebuild_user, wt_compare_frame_fn fn,
+                           void *user, wt_compare_result *res, wt_compare_series *ser);
 /* The parameters of the long-exposure PSFs of cfg (sim.psf_interval_frames, evaluation wavelength, settle frames,
  * Nyquist sampling); every = 0: none. */
 struct wt_psf_params;

@@ -631,9 +631,10 @@ int wt_loop_step(wt_loop *lp)
     lp->times.reconstruction += (t4 - t3) - tf;
     lp->times.fitting += tf;
     if (lp->adapt) { /* this frame's s_ol into the estimate; an estimate made now is used from the next frame */
+        const double b0 = wt_adapt_build_seconds(lp->adapt);
         if ((st = wt_adapt_frame(lp->adapt, t, lp->s_ol, lp->rec)) < 0) return st;
         const double t5 = wt_time_now();
-        lp->times.learning += t5 - t4;
+        lp->times.learning += t5 - t4 - (wt_adapt_build_seconds(lp->adapt) - b0); /* (a build: latency, simulated) */
         t4 = t5; /* (the control's time below leaves it out) */
     }
     const double *prev = lp->ring[(t + lp->delay - 1) % D1];

@@ -1,0 +1,167 @@
+/* tests/test_adapt.c: the loop that learns its atmosphere (core/sim/adapt.h, SPEC §12 "Updates"): a learned run
+ * that starts from the truth's profile is the oracle's run, bit for bit, until its first estimate, which it uses
+ * from the next frame on; a learning MVM loop applies its old matrix until the new one's build latency has passed
+ * (bit for bit the never-rebuilt loop's frames), then the new one; too few frames per estimate, a reconstructor
+ * that cannot learn and an MVM without its rebuild are refused. */
+#include "core/build/mvm_build.h"
+#include "core/model/system.h"
+#include "core/sim/loop.h"
+#include "testutil.h"
+
+#define DEMO "data/presets/demo.cfg"
+
+/* the demo's own truth as the start model (recon.atmosphere.* of a learned source), estimates every 100 frames */
+#define START_TRUTH                                                                                                     \
+    "recon.atmosphere.r0_m=0.129", "recon.atmosphere.L0_m=25.0",                                                     \
+        "recon.atmosphere.altitudes_m=[0.0, 600.0, 2000.0, 6000.0, 12000.0]",                                        \
+        "recon.atmosphere.cn2_fractions=[0.55, 0.1, 0.1, 0.15, 0.1]",                                                \
+        "recon.atmosphere.wind_speed_mps=[8.0, 10.0, 12.0, 18.0, 25.0]",                                             \
+        "recon.atmosphere.wind_direction_deg=[0.0, 72.0, 144.0, 216.0, 288.0]"
+#define START_WRONG                                                                                                     \
+    "recon.atmosphere.r0_m=0.2", "recon.atmosphere.L0_m=25.0", "recon.atmosphere.altitudes_m=[0.0, 10000.0]",       \
+        "recon.atmosphere.cn2_fractions=[0.9, 0.1]", "recon.atmosphere.wind_speed_mps=[8.0, 20.0]",                  \
+        "recon.atmosphere.wind_direction_deg=[0.0, 90.0]"
+
+typedef struct {
+    wt_context *ctx;
+    wt_config *cfg;
+    wt_system *sys;
+    wt_loop *lp;
+    wt_mvm *mvm;
+    wt_mvm_rebuilder rb;
+} run;
+
+static int open_run(run *r, int recon, int nset, const char *const *set, int with_rebuild)
+{
+    memset(r, 0, sizeof *r);
+    r->ctx = tu_context();
+    ck_assert_msg(wt_config_read(r->ctx, DEMO, nset, set, &r->cfg) == WT_OK, "%s", wt_error_message(r->ctx));
+    ck_assert_msg(wt_system_alloc(r->ctx, r->cfg, &r->sys) == WT_OK, "%s", wt_error_message(r->ctx));
+    wt_loop_options o = {.recon = recon, .iterations = -1, .seed = r->cfg->seed, .noise = r->cfg->noise};
+    if (recon == WT_RECON_MVM) {
+        ck_assert_msg(wt_mvm_build_variant(r->ctx, r->sys, r->cfg, "pcg3", NULL, &r->mvm) == WT_OK, "%s",
+                      wt_error_message(r->ctx));
+        o.mvm = r->mvm;
+        r->rb = (wt_mvm_rebuilder){r->ctx, r->sys, "pcg3", NULL};
+        if (with_rebuild) o.rebuild = wt_mvm_rebuild_model, o.rebuild_user = &r->rb;
+    }
+    return wt_loop_alloc(r->ctx, r->sys, &o, &r->lp);
+}
+
+static void close_run(run *r)
+{
+    wt_loop_free(r->lp);
+    wt_mvm_free(r->mvm);
+    wt_system_free(r->sys);
+    wt_config_free(r->ctx, r->cfg);
+    wt_context_free(r->ctx);
+}
+
+static int same_frame(const run *a, const run *b)
+{
+    return !memcmp(wt_loop_rms(a->lp), wt_loop_rms(b->lp), (size_t)a->sys->neval * sizeof(double));
+}
+
+START_TEST(t_learned_start_equals_oracle)
+{
+    const char *oracle[] = {"loop.frames=110"};
+    const char *learned[] = {"loop.frames=110", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
+                             START_TRUTH};
+    run o, l;
+    ck_assert_int_eq(open_run(&o, WT_RECON_PCG3, 1, oracle, 0), WT_OK);
+    ck_assert_msg(open_run(&l, WT_RECON_PCG3, 9, learned, 0) == WT_OK, "%s", wt_error_message(l.ctx));
+    ck_assert_ptr_null(wt_loop_adapt(o.lp));
+    ck_assert_ptr_nonnull(wt_loop_adapt(l.lp));
+    int differ = 0;
+    for (int t = 0; t < 110; t++) {
+        ck_assert_int_eq(wt_loop_step(o.lp), WT_OK);
+        ck_assert_msg(wt_loop_step(l.lp) == WT_OK, "%s", wt_error_message(l.ctx));
+        /* the estimate after frame 99 is used from frame 100 on: its commands reach the DMs 2 frames later */
+        if (t < 102) ck_assert_msg(same_frame(&o, &l), "frame %d differs before the first estimate is applied", t);
+        else differ += !same_frame(&o, &l);
+    }
+    ck_assert_int_gt(differ, 0);
+    const wt_adapt *a = wt_loop_adapt(l.lp);
+    ck_assert_int_eq(wt_adapt_nupdates(a), 1);
+    const wt_adapt_update *u = wt_adapt_updates(a);
+    ck_assert_int_eq(u[0].frame, 99);
+    ck_assert_int_eq(u[0].applied_frame, 100);
+    ck_assert_double_eq_tol(u[0].night, 0.2, 1e-12);
+    /* 100 frames (0.2 s, the ground layer moves 1.6 m): an estimate of r0 within a factor 1.5 of the truth */
+    ck_assert_msg(u[0].r0 > 0.129 / 1.5 && u[0].r0 < 0.129 * 1.5, "r0 %g", u[0].r0);
+    double sum = 0.0;
+    for (int k = 0; k < u[0].nalt; k++) sum += u[0].fraction[k];
+    ck_assert_double_eq_tol(sum, 1.0, 1e-12);
+    close_run(&o);
+    close_run(&l);
+}
+END_TEST
+
+/* mvm: the estimate after frame 99 (night 0.2 s) is built and in the loop 0.1 s later: frame 150 */
+START_TEST(t_mvm_swap_after_latency)
+{
+    const char *given[] = {"loop.frames=160", "recon.atmosphere.source=\"given\"", START_WRONG};
+    const char *learned[] = {"loop.frames=160", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
+                             "recon.atmosphere.mvm_latency_s=0.1", START_WRONG};
+    run g, l;
+    ck_assert_msg(open_run(&g, WT_RECON_MVM, 8, given, 0) == WT_OK, "%s", wt_error_message(g.ctx));
+    ck_assert_msg(open_run(&l, WT_RECON_MVM, 10, learned, 1) == WT_OK, "%s", wt_error_message(l.ctx));
+    const wt_reconstructor *first = wt_loop_reconstructor(l.lp);
+    int differ = 0;
+    for (int t = 0; t < 160; t++) {
+        ck_assert(wt_loop_reconstructor(l.lp) == first || t > 150);
+        ck_assert_int_eq(wt_loop_step(g.lp), WT_OK);
+        ck_assert_msg(wt_loop_step(l.lp) == WT_OK, "%s", wt_error_message(l.ctx));
+        /* the old matrix until frame 149; the new one's commands reach the DMs from frame 152 */
+        if (t < 152) ck_assert_msg(same_frame(&g, &l), "frame %d differs while the old matrix is applied", t);
+        else differ += !same_frame(&g, &l);
+    }
+    ck_assert_int_gt(differ, 0);
+    ck_assert(wt_loop_reconstructor(l.lp) != first);
+    const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(l.lp));
+    ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(l.lp)), 1);
+    ck_assert_int_eq(u[0].applied_frame, 150);
+    ck_assert_double_gt(u[0].build_s, 0.0);
+    close_run(&g);
+    close_run(&l);
+}
+END_TEST
+
+START_TEST(t_refusals)
+{
+    run r;
+    /* 0.1 s at 500 Hz: 50 frames, fewer than an estimate needs */
+    const char *few[] = {"recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.1", START_WRONG};
+    ck_assert_int_eq(open_run(&r, WT_RECON_PCG3, 8, few, 0), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(r.ctx), "'recon.atmosphere.update_s'") &&
+                      strstr(wt_error_message(r.ctx), "every 50 frames"), "%s", wt_error_message(r.ctx));
+    close_run(&r);
+    const char *ok[] = {"recon.atmosphere.source=\"learned\"", START_WRONG};
+    ck_assert_int_eq(open_run(&r, WT_RECON_NONE, 7, ok, 0), WT_ERR_CONFIG);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "not none"));
+    close_run(&r);
+    ck_assert_int_eq(open_run(&r, WT_RECON_MVM, 7, ok, 0), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "rebuild"));
+    close_run(&r);
+    const char *one_lgs[] = {"recon.atmosphere.source=\"learned\"", "lgs.count=1", START_WRONG};
+    if (open_run(&r, WT_RECON_PCG3, 8, one_lgs, 0) != WT_OK)
+        ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "at least 2 LGS"));
+    else
+        ck_abort_msg("a learned model with 1 LGS was accepted");
+    close_run(&r);
+}
+END_TEST
+
+Suite *make_suite(void)
+{
+    Suite *s = suite_create("adapt");
+    TCase *tc = tcase_create("core");
+    tcase_set_timeout(tc, 300);
+    tcase_add_test(tc, t_learned_start_equals_oracle);
+    tcase_add_test(tc, t_mvm_swap_after_latency);
+    tcase_add_test(tc, t_refusals);
+    suite_add_tcase(s, tc);
+    return s;
+}
+
+TU_MAIN
