@@ -70,8 +70,14 @@ static void print_atmospheres(const wt_config *cfg)
         printf("reconstructors' atmosphere: oracle (recon.atmosphere.source): the truth above, compressed onto each "
                "variant's layers below\n");
     else {
-        printf("reconstructors' atmosphere: given (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
-               "each variant's layers below\n", m->profile[0] ? ", profile " : "", m->profile, m->nlayers, m->r0, m->L0);
+        if (m->source == WT_MODEL_LEARNED)
+            printf("reconstructors' atmosphere: learned (recon.atmosphere.source): an estimate from the loop's own LGS "
+                   "slopes every %g s of night (r0 and the Cn2 on 22 altitudes to 20 km; L0 and wind stay the start's); "
+                   "the MVM's in the loop %s after it; it starts from:\n", m->update_s,
+                   m->mvm_latency_s >= 0.0 ? "mvm_latency_s" : "its measured build time");
+        printf("%sreconstructors' atmosphere: given (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
+               "each variant's layers below\n", m->source == WT_MODEL_LEARNED ? "  " : "", m->profile[0] ? ", profile " : "",
+               m->profile, m->nlayers, m->r0, m->L0);
         printf("  %-5s %10s %12s %10s %10s\n", "layer", "altitude_m", "Cn2_fraction", "wind_mps", "towards_deg");
         for (int l = 0; l < m->nlayers; l++)
             printf("  %-5d %10.0f %12.6f %10.1f %10.1f\n", l + 1, m->altitude[l], m->fraction[l], m->wind_speed[l],

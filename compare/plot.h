@@ -48,6 +48,14 @@ int wt_plot_psf_mosaic(wt_context *ctx, const char *path, const char *title, int
 int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
                        long nframes, const double *wfe, int settle);
 
+/* Every case's residual over the run, smoothed: the rms of the field WFE over a trailing window of `window` frames
+ * [nm] (wfe[(m * nvalues + v) * nframes + t], NaN: none) against time t · dt [s], one colour per method, one line
+ * style per sweep value (values: their labels); the settle window shaded. For the runs whose model changes (a
+ * learned atmosphere, a night): which method follows, and when. */
+int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
+                    int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
+                    double dt);
+
 /* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`, issue 19 item 7) ---- */
 
 /* Where the subapertures are: the valid subapertures' centres and side, the annulus outline, the launch. */

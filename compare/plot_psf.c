@@ -183,3 +183,95 @@ int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int
     free(x), free(y);
     return wt_plot_job_end(&j);
 }
+
+int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
+                    int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
+                    double dt)
+{
+    enum { MAXM = 8, MAXV = 5 };
+    if (nmethods < 1 || nmethods > MAXM || nvalues < 1 || nvalues > MAXV || nframes < 2 || window < 1 ||
+        window > nframes || settle < 0 || settle >= nframes || !(dt > 0.0))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': %d methods x %d values x %ld frames, window %d, settle %d, dt %g; "
+                        "expected 1..%d methods, 1..%d values, a window within the frames and dt > 0", wt_plot_pname(path),
+                        nmethods, nvalues, nframes, window, settle, dt, MAXM, MAXV);
+    const long nc = (long)nmethods * nvalues, np = nframes - window + 1;
+    double *y = malloc((size_t)nc * np * sizeof *y), *x = malloc((size_t)np * sizeof *x);
+    if (!y || !x) {
+        free(y), free(x);
+        return WT_ERROR(ctx, WT_ERR_NOMEM, "plot '%s': out of memory", wt_plot_pname(path));
+    }
+    double lo = INFINITY, hi = 0.0;
+    for (long c = 0; c < nc; c++) { /* the trailing window's rms: point i covers frames i … i + window − 1 */
+        const double *w = wfe + c * nframes;
+        double acc = 0.0;
+        long bad = 0;
+        for (long t = 0; t < nframes; t++) {
+            if (isfinite(w[t])) acc += w[t] * w[t];
+            else bad++;
+            if (t >= window) {
+                if (isfinite(w[t - window])) acc -= w[t - window] * w[t - window];
+                else bad--;
+            }
+            if (t >= window - 1) {
+                const double v = bad ? NAN : sqrt(fmax(acc, 0.0) / window);
+                y[c * np + t - window + 1] = v;
+                if (isfinite(v)) lo = fmin(lo, v), hi = fmax(hi, v);
+            }
+        }
+    }
+    if (!(hi > 0.0)) {
+        free(y), free(x);
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': no residual to draw", wt_plot_pname(path));
+    }
+    for (long i = 0; i < np; i++) x[i] = (double)(i + window) * dt;
+    const double pad = 0.05 * (hi - lo) + 1.0, ylo = fmax(0.0, lo - pad), yhi = hi + pad;
+    wt_plot_job j;
+    int st = wt_plot_job_begin(&j, ctx, path);
+    if (st < 0) {
+        free(y), free(x);
+        return st;
+    }
+    plvpor(0.11, 0.66, 0.12, 0.90);
+    plwind(0.0, (double)nframes * dt, ylo, yhi);
+    if (settle > 0) {
+        PLFLT fx[4] = {0.0, settle * dt, settle * dt, 0.0}, fy[4] = {ylo, ylo, yhi, yhi};
+        plcol0(C_MISSING);
+        plfill(4, fx, fy);
+    }
+    wt_plot_axes("bcnstg", "bcnstgv", "g", "");
+    char xl[96];
+    snprintf(xl, sizeof xl, "time [s] (the end of a trailing %d-frame window)", window);
+    wt_plot_labels(xl, "", title);
+    plmtex("l", 4.2, 0.5, 0.5, "residual WFE, field rms over the window [nm]");
+    for (long c = 0; c < nc; c++) {
+        plcol0(C_PAL + (int)(c / nvalues) % N_PAL);
+        pllsty((PLINT)(c % nvalues) + 1);
+        plwidth(1.8);
+        for (long i = 0; i + 1 < np; i++)
+            if (isfinite(y[c * np + i]) && isfinite(y[c * np + i + 1]))
+                pljoin(x[i], y[c * np + i], x[i + 1], y[c * np + i + 1]);
+    }
+    plwidth(1.0);
+    pllsty(1);
+    /* legend: the methods' colours, then the values' line styles */
+    PLINT opt[MAXM + MAXV], tcol[MAXM + MAXV], lcol[MAXM + MAXV], lsty[MAXM + MAXV], bcol[MAXM + MAXV], bpat[MAXM + MAXV];
+    PLFLT lwid[MAXM + MAXV], bscale[MAXM + MAXV], bwid[MAXM + MAXV];
+    const char *text[MAXM + MAXV];
+    char buf[MAXM + MAXV][LABEL_MAX];
+    int nl = 0;
+    for (int m = 0; m < nmethods; m++, nl++) {
+        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], methods[m]);
+        opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_PAL + m % N_PAL, lsty[nl] = 1, lwid[nl] = 2.4;
+    }
+    for (int v = 0; v < nvalues && nvalues > 1; v++, nl++) {
+        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], values[v]);
+        opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_FG, lsty[nl] = v + 1, lwid[nl] = 1.8;
+    }
+    for (int i = 0; i < nl; i++) bcol[i] = C_MISSING, bpat[i] = 0, bscale[i] = 0.8, bwid[i] = 1.0;
+    PLFLT lw, lh;
+    pllegend(&lw, &lh, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
+             PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.10, C_BG, C_GRID, 1, 0, 0, nl,
+             opt, 1.0, 0.95, 2.0, 0.0, tcol, text, bcol, bpat, bscale, bwid, lcol, lsty, lwid, NULL, NULL, NULL, NULL);
+    free(y), free(x);
+    return wt_plot_job_end(&j);
+}

@@ -15,6 +15,9 @@
 
 static int cols(const wt_cmp_cases *a) { return a->nv ? a->nv : 1; }
 static const char *val(const wt_cmp_cases *a, int v) { return a->nv ? a->values[v] : ""; }
+/* The run figure: a sweep of 2–5 values over 2–8 methods, long enough for a window (wt_plot_wfe_run) */
+static int run_plot(const wt_cmp_cases *a, long frames) { return a->nv >= 2 && a->nv <= 5 && a->nm <= 8 && frames >= 100; }
+static int run_window(long frames) { return frames / 24 > 10 ? (int)(frames / 24) : 10; }
 
 int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
 {
@@ -41,6 +44,8 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
         snprintf(path, sizeof path, "%s/wfe_per_frame_%d.png", a->out, v);
         if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     }
+    snprintf(path, sizeof path, "%s/wfe_over_run.png", a->out);
+    if (a->nv >= 2 && (st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     return WT_OK;
 }
 
@@ -516,6 +521,11 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                        "long-exposure value from the settle window on (thick, ending at the WFE of the table); the "
                        "grey band is the settle window, left out of every average%s.\n\n", a->ns > 1 ? " (first seed)" : "");
             for (int v = 0; v < nv; v++) fprintf(f, "![residual WFE per frame%s%s](wfe_per_frame_%d.png) ", a->nv ? " " : "", val(a, v), v);
+            if (run_plot(a, cfg->frames))
+                fprintf(f, "\n\nEvery case over the run, one colour per method and one line style per value of %s: the "
+                           "field WFE's rms over a trailing window of %d frames (for a model that changes during the "
+                           "run: a learned atmosphere, a night)%s.\n\n![residual WFE over the run](wfe_over_run.png)",
+                        a->key, run_window(cfg->frames), a->ns > 1 ? " (first seed)" : "");
             int psfs = 0;
             for (int c = 0; c < a->nm * nv; c++) psfs += S[c].mean.done && S[c].mean.psf_frames > 0;
             if (psfs) {
@@ -567,6 +577,26 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
                  a->nv ? "=" : "", val(a, v));
         st = wt_plot_wfe_frames(cli->ctx, path, title, nm, (const char *const *)a->methods, F, y,
                                 sys->cfg->settle_frames);
+        free(y);
+    }
+    if (st >= 0 && run_plot(a, sys->cfg->frames)) { /* every (method, value) of the first seed done */
+        const long F = sys->cfg->frames;
+        double *y = malloc((size_t)nm * nv * F * sizeof *y);
+        if (!y) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the run's curves");
+        const char *vals[5];
+        for (int v = 0; v < nv; v++) vals[v] = val(a, v);
+        for (int m = 0; m < nm; m++)
+            for (int v = 0; v < nv; v++) {
+                int c = -1;
+                for (int k = ns - 1; k >= 0; k--)
+                    if (R[wt_cmp_case(a, m, v, k)].done && X->wfe[wt_cmp_case(a, m, v, k)]) c = wt_cmp_case(a, m, v, k);
+                for (long t = 0; t < F; t++)
+                    y[((size_t)m * nv + v) * F + t] = c >= 0 && t < (long)R[c].frames ? X->wfe[c][t] : NAN;
+            }
+        snprintf(path, sizeof path, "%s/wfe_over_run.png", a->out);
+        snprintf(title, sizeof title, "residual WFE over the run, by %s", a->key);
+        st = wt_plot_wfe_run(cli->ctx, path, title, nm, (const char *const *)a->methods, nv, vals, F, y,
+                             sys->cfg->settle_frames, run_window(F), 1.0 / sys->cfg->rate);
         free(y);
     }
     for (int c = 0; c < nm * nv && st >= 0; c++) {

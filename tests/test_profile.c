@@ -478,6 +478,13 @@ START_TEST(test_model_refusals)
     ck_assert_int_eq(read_demo(ctx, 1, oracle_r0, &c), WT_ERR_CONFIG);
     ck_assert_msg(strstr(wt_error_message(ctx), "'recon.atmosphere.source' is \"oracle\" (its default)"), "%s",
                   wt_error_message(ctx));
+    /* an oracle chosen explicitly keeps another source's model unused (a sweep over the sources) */
+    const char *oracle_kept[] = {"recon.atmosphere.source=\"oracle\"", "recon.atmosphere.r0_m=0.1",
+                                 "recon.atmosphere.update_s=30.0"};
+    ck_assert_msg(read_demo(ctx, 3, oracle_kept, &c) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert(c->model.source == WT_MODEL_ORACLE && c->model.r0 == c->r0);
+    wt_config_free(ctx, c);
+    c = NULL;
     const char *given_bare[] = {"recon.atmosphere.source=\"given\"", "recon.atmosphere.r0_m=0.1"};
     ck_assert_int_eq(read_demo(ctx, 2, given_bare, &c), WT_ERR_CONFIG);
     ck_assert_msg(strstr(wt_error_message(ctx), "key 'recon.atmosphere.L0_m' is missing"), "%s", wt_error_message(ctx));

@@ -232,17 +232,20 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     wt_model_atmosphere_config *m = &cfg->model;
     const int ks = wt_config_priv_find_key("recon.atmosphere.source");
     wt_config_priv_where(ps, ks, ps->set[ks], oth, sizeof oth);
+    /* a model's keys under another source by default are a mistake; under a source chosen explicitly they are a model
+     * kept for another source (a --sweep recon.atmosphere.source=oracle,given,learned) and wait unused */
+    const int explicit_src = ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0;
     static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s"};
     for (int i = 0; i < 2; i++) {
         const int k = wt_config_priv_find_key(learn_keys[i]);
-        if (m->source != WT_MODEL_LEARNED && ps->set[k])
+        if (m->source != WT_MODEL_LEARNED && ps->set[k] && !explicit_src)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
                                        "key '%s' is for a learned model, but 'recon.atmosphere.source' is \"%s\"",
                                        learn_keys[i], m->source == WT_MODEL_ORACLE ? "oracle" : "given");
     }
     for (int i = 0; i < NMODEL_KEYS; i++) {
         const int k = wt_config_priv_find_key(model_keys[i]);
-        if (m->source == WT_MODEL_ORACLE && ps->set[k])
+        if (m->source == WT_MODEL_ORACLE && ps->set[k] && !explicit_src)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
                                        "key '%s' is given but 'recon.atmosphere.source' is \"oracle\" (%s): the oracle "
                                        "takes the truth's profile, r0 and L0; set source = \"given\" to use your own",
