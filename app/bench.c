@@ -12,6 +12,7 @@
 #include "cli/cli.h"
 #include "core/build/mvm_build.h"
 #include "core/la/half.h"
+#include "core/model/learn.h"
 #include "core/model/params.h"
 #include "core/model/system.h"
 #include "core/sim/bench.h"
@@ -31,7 +32,10 @@ static void help(void)
            "operand traffic; the working sets (~10 MB for the E-ELT pcg3) live in cache, so the implied GB/s can\n"
            "exceed the DRAM triad figure. Each variant's frame is then run again with its stages timed (where a\n"
            "frame goes: inverse DWT, forward, adjoint by sensor and by layer, preconditioner, the rest), with the\n"
-           "least and most busy thread's time inside each stage. Then the closed-loop simulation speed with pcg3\n"
+           "least and most busy thread's time inside each stage. Then a learned atmosphere model taken by pcg3 and\n"
+           "cg9 at the next frame (priors, model error, noise weights, preconditioner; median of up to 7 updates\n"
+           "between two 22-altitude profiles, and the first, which draws the model error's unit layers). Then the\n"
+           "closed-loop simulation speed with pcg3\n"
            "(--loop-frames, default 20, after 3 warm-up frames; --no-loop skips it); the MVM apply (float32 GEMV of the real size, and\n"
            "the fp16 and bf16 GEMVs of recon.mvm_precision on the same matrix)\n"
            "against a STREAM copy of the same bytes; and the offline build of the pcg3 MVM with its peak\n"
@@ -124,6 +128,50 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
                b.fitting.p90 * 1e3, b.fitting.p99 * 1e3);
     }
     return WT_OK;
+}
+
+/* A learned model taken at the next frame (SPEC §12 "Updates"; wt_reconstructor_set_model): two profiles on the
+ * learning grid (22 altitudes, as an estimate gives them) in turn, r0 0.129 and 0.11 m; the first update draws
+ * the unit layers' model error of every new altitude (once per reconstructor), the later ones rescale. */
+static int bench_update(wt_cli *cli, const wt_system *sys, int kind, int reps)
+{
+    wt_reconstructor_params par;
+    wt_reconstructor_params_from_config(sys->cfg, kind, -1, &par);
+    wt_reconstructor *r = NULL;
+    int st = wt_reconstructor_alloc(cli->ctx, sys, kind, &par, &r);
+    if (st < 0) return st;
+    double alt[WT_LEARN_MAX_ALT], f[2][WT_LEARN_MAX_ALT];
+    const int na = wt_learn_default_grid(sys->nlgs ? sys->sensors[0].altitude : 0.0, WT_LEARN_MAX_ALT, alt);
+    for (int p = 0; p < 2; p++) {
+        double sum = 0.0;
+        for (int k = 0; k < na; k++) sum += f[p][k] = exp(-alt[k] / (p ? 2000.0 : 4000.0)) + (k == 0 ? 0.5 * p : 0.0);
+        for (int k = 0; k < na; k++) f[p][k] /= sum;
+    }
+    double t0 = wt_time_now(), first = 0.0, m1 = 0.0, p1 = 0.0;
+    double *tm = malloc((size_t)reps * sizeof *tm), *tp = malloc((size_t)reps * sizeof *tp),
+           *tt = malloc((size_t)reps * sizeof *tt);
+    if (!tm || !tp || !tt) st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the update times");
+    if (st >= 0 && (st = wt_reconstructor_set_model(r, 0.129, na, alt, f[0], NULL, NULL)) >= 0) {
+        first = wt_time_now() - t0;
+        wt_reconstructor_last_update_times(r, &m1, &p1);
+    }
+    for (int i = 0; i < reps && st >= 0; i++) {
+        t0 = wt_time_now();
+        st = wt_reconstructor_set_model(r, i % 2 ? 0.129 : 0.11, na, alt, f[(i + 1) % 2], NULL, NULL);
+        tt[i] = wt_time_now() - t0;
+        wt_reconstructor_last_update_times(r, &tm[i], &tp[i]);
+    }
+    if (st >= 0) {
+        const wt_bench_stats a = wt_bench_summarise(tt, reps), b = wt_bench_summarise(tm, reps),
+                             c = wt_bench_summarise(tp, reps);
+        printf("%s: a learned model (%d altitudes) at the next frame: %.1f ms [%.1f, %.1f] (the model %.1f ms: priors, "
+               "model error, noise; the preconditioner %.1f ms), median of %d; the first %.2f s (model %.2f s: the model "
+               "error's unit layers drawn once)\n", wt_reconstructor_name(kind), na, a.med * 1e3, a.p10 * 1e3,
+               a.p90 * 1e3, b.med * 1e3, c.med * 1e3, reps, first, m1);
+    }
+    free(tm), free(tp), free(tt);
+    wt_reconstructor_free(r);
+    return st;
 }
 
 /* Closed-loop speed (issue #3 goal: >= 5 frames/s at E-ELT size with pcg3): warm-up frames, then
@@ -425,6 +473,9 @@ int wt_cmd_bench(int argc, char **argv)
     st = bench_variant(&cli, sys, WT_RECON_PCG3, reps);
     if (st < 0) goto out;
     st = bench_variant(&cli, sys, WT_RECON_CG9, reps < 20 ? reps : 20);
+    if (st < 0) goto out;
+    printf("\n");
+    for (int kind = WT_RECON_PCG3; kind <= WT_RECON_CG9 && st >= 0; kind++) st = bench_update(&cli, sys, kind, reps < 7 ? reps : 7);
     if (st < 0) goto out;
     /* the build first: its peak memory is read from the process's high-water mark, which the GEMV's
      * 2 x 2.3 GB buffers would otherwise set */
