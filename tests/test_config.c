@@ -871,8 +871,8 @@ START_TEST(test_reference)
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
      * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
-     * keys under the oracle (the demo's: its source is there), nor the learned model's two */
-    ck_assert_int_eq(nkeys + 18, nlines);
+     * keys under the oracle (the demo's: its source is there), nor the learned model's three */
+    ck_assert_int_eq(nkeys + 19, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.profile "));
     ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_levels "));

@@ -235,8 +235,9 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     /* a model's keys under another source by default are a mistake; under a source chosen explicitly they are a model
      * kept for another source (a --sweep recon.atmosphere.source=oracle,given,learned) and wait unused */
     const int explicit_src = ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0;
-    static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s"};
-    for (int i = 0; i < 2; i++) {
+    static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s",
+                                             "recon.atmosphere.learn_window"};
+    for (int i = 0; i < 3; i++) {
         const int k = wt_config_priv_find_key(learn_keys[i]);
         if (m->source != WT_MODEL_LEARNED && ps->set[k] && !explicit_src)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
@@ -290,6 +291,7 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
     /* the model's numbers make the matrix, not how they were specified; no reconstructor reads a wind yet */
     if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
+        !strcmp(path, "recon.atmosphere.learn_window") ||
         !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
         !strncmp(path, "atmosphere.wind_", 16))
         return 0;

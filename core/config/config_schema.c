@@ -326,6 +326,10 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
          "learned: night time between two estimates (each from the frames since the previous one: at least 100); "
          "the frames of a night time are 1/loop.rate_hz each unless the night compresses time (optional, default 60, "
          "refused with another source)"},
+    {"recon.atmosphere.learn_window", K_ENUM, F_OPT, 0, 0, "", 1, CF(model.learn_window), NOCOUNT, 0, 0, "interval|all",
+     0, "learned: the frames of an estimate: interval = those since the previous estimate (a night that changes: the "
+     "estimate follows it), all = every frame since the start (a static night: the estimate converges; its "
+     "uncertainty needs frames in two quarters of the run) (optional, default interval, refused with another source)"},
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
          "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "

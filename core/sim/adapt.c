@@ -38,7 +38,8 @@ static int learn_alloc(wt_adapt *a)
 {
     wt_learn_free(a->L);
     a->L = NULL;
-    return wt_learn_alloc(a->ctx, &a->g, WT_ADAPT_BATCHES, a->par.every / WT_ADAPT_BATCHES, &a->L);
+    const long span = a->par.cumulative ? a->par.run_frames : a->par.every;
+    return wt_learn_alloc(a->ctx, &a->g, WT_ADAPT_BATCHES, span / WT_ADAPT_BATCHES > 0 ? span / WT_ADAPT_BATCHES : 1, &a->L);
 }
 
 int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_adapt_params *par, wt_adapt_rebuild_fn rebuild,
@@ -135,7 +136,7 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *re
     u->fit_s = wt_time_now() - tf;
     if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t, a->par.every,
                                 wt_error_message(a->ctx));
-    if ((st = learn_alloc(a)) < 0) return st; /* the next estimate is of the next frames only */
+    if (!a->par.cumulative && (st = learn_alloc(a)) < 0) return st; /* the next estimate: the next frames only */
     const wt_learn_estimate *e = a->est;
     u->r0 = e->r0;
     u->r0_sigma = e->r0_sigma;

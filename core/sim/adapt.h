@@ -4,7 +4,7 @@
  * never read) goes into the cross-covariance accumulator of core/model/learn.h. Every `every` frames (the update
  * interval T in night time over the night time of a frame) the Cn² profile and r0 are fitted on the learning grid
  * from the frames since the last estimate, and the accumulator starts again (a night changes: an estimate is of
- * its last T). What the estimate replaces:
+ * its last T); or, cumulative, from every frame since the start (a static night). What the estimate replaces:
  *   pcg3, cg9: the reconstructor's model at the next frame (wt_reconstructor_set_model: priors, model error,
  *              noise weights, preconditioner, prediction shifts); its wall time is reported, not simulated;
  *   mvm:       a new control matrix built from the estimate by the driver's rebuild callback (core/build is above
@@ -31,6 +31,9 @@ typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double
 
 typedef struct wt_adapt_params {
     long every;               /* frames between estimates (≥ WT_ADAPT_MIN_FRAMES) */
+    int cumulative;           /* 0: each estimate from the frames since the previous one (a night that changes);
+                                 1: from every frame since the start (a static night: the estimate converges) */
+    long run_frames;          /* cumulative: the run's frames (its WT_ADAPT_BATCHES batches are quarters of the run) */
     double frame_night;       /* night time of one frame [s] (1/rate times the night's time compression) */
     double L0;                /* outer scale of the fit [m] (the model's: not fitted) */
     double latency;           /* mvm: night seconds from an estimate to its matrix in the loop; < 0: measured */

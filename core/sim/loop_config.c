@@ -43,6 +43,8 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .frame_night = 1.0 / cfg->rate,
                                        .L0 = m->L0,
                                        .latency = m->mvm_latency_s,
+                                       .cumulative = m->learn_window == 1,
+                                       .run_frames = cfg->frames,
                                        .nstart = m->nlayers};
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
         for (int k = 0; k < m->nlayers; k++) {
