@@ -243,9 +243,10 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
     snprintf(xl, sizeof xl, "time [s] (the end of a trailing %d-frame window)", window);
     wt_plot_labels(xl, "", title);
     plmtex("l", 4.2, 0.5, 0.5, "residual WFE, field rms over the window [nm]");
+    static const PLINT style[MAXV] = {1, 3, 2, 4, 5}; /* solid, long dashes, short dashes, … (PLplot's 1 … 8) */
     for (long c = 0; c < nc; c++) {
         plcol0(C_PAL + (int)(c / nvalues) % N_PAL);
-        pllsty((PLINT)(c % nvalues) + 1);
+        pllsty(style[c % nvalues]);
         plwidth(1.8);
         for (long i = 0; i + 1 < np; i++)
             if (isfinite(y[c * np + i]) && isfinite(y[c * np + i + 1]))
@@ -264,8 +265,12 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
         opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_PAL + m % N_PAL, lsty[nl] = 1, lwid[nl] = 2.4;
     }
     for (int v = 0; v < nvalues && nvalues > 1; v++, nl++) {
-        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], values[v]);
-        opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_FG, lsty[nl] = v + 1, lwid[nl] = 1.8;
+        char bare[LABEL_MAX]; /* a string value without its quotes */
+        const size_t n = strlen(values[v]);
+        snprintf(bare, sizeof bare, "%.*s", n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"' ? (int)n - 2 : (int)n,
+                 values[v] + (n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"'));
+        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], bare);
+        opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_FG, lsty[nl] = style[v], lwid[nl] = 1.8;
     }
     for (int i = 0; i < nl; i++) bcol[i] = C_MISSING, bpat[i] = 0, bscale[i] = 0.8, bwid[i] = 1.0;
     PLFLT lw, lh;

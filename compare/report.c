@@ -594,7 +594,8 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
                     y[((size_t)m * nv + v) * F + t] = c >= 0 && t < (long)R[c].frames ? X->wfe[c][t] : NAN;
             }
         snprintf(path, sizeof path, "%s/wfe_over_run.png", a->out);
-        snprintf(title, sizeof title, "residual WFE over the run, by %s", a->key);
+        const char *dot = strrchr(a->key, '.');
+        snprintf(title, sizeof title, "over the run, by %s", dot ? dot + 1 : a->key);
         st = wt_plot_wfe_run(cli->ctx, path, title, nm, (const char *const *)a->methods, nv, vals, F, y,
                              sys->cfg->settle_frames, run_window(F), 1.0 / sys->cfg->rate);
         free(y);
