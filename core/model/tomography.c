@@ -602,6 +602,9 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
 #pragma omp barrier
 #pragma omp master
         t1 = prof_t0(w);
+        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
+#pragma omp barrier
+        }
         b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int k = 0; k < t->L; k++) {
@@ -717,6 +720,9 @@ static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const dou
 #pragma omp barrier
 #pragma omp master
         t1 = prof_t0(w);
+        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
+#pragma omp barrier
+        }
         adjoint_layers_team(t, w, cx, c, f32, id, nt);
     }
     prof_wall_to(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0, t1);
@@ -799,6 +805,9 @@ static void dwt_forward_f32(const wt_tomography *t, wt_tomography_work *w, const
 #pragma omp barrier
 #pragma omp master
         t1 = prof_t0(w);
+        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
+#pragma omp barrier
+        }
         forward_f32_team(t, w, phi, pphi, id, nt);
     }
     prof_wall_to(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0, t1);
@@ -890,6 +899,9 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
 #pragma omp barrier
 #pragma omp master
         t1 = prof_t0(w);
+        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
+#pragma omp barrier
+        }
         b0 = prof_t0(w);
         float *sum = w->lay32 + (size_t)id * nl32;
 #pragma omp for schedule(dynamic, 1) nowait
