@@ -51,8 +51,9 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
     par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
     const wt_model_atmosphere_config *m = &cfg->model;
     if (m->source == WT_MODEL_LEARNED && !opt->open_loop) {
-        par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate),
-                                       .frame_night = 1.0 / cfg->rate,
+        /* in night time: a frame is 1 / rate times the night's compression (atmosphere.night.compression) */
+        par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate / cfg->night.compression),
+                                       .frame_night = cfg->night.compression / cfg->rate,
                                        .L0 = m->L0,
                                        .latency = m->mvm_latency_s,
                                        .cumulative = m->learn_window == 1,
