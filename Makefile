@@ -155,6 +155,7 @@ PY_SRC     := $(sort $(wildcard python/wavetomo/*.py))
 PRESETS    := $(sort $(wildcard data/presets/*.cfg))
 SODIUM     := $(sort $(wildcard data/sodium/*.txt))
 ATMOSPHERE := $(sort $(wildcard data/atmosphere/*.txt))
+NIGHTS     := $(sort $(wildcard data/nights/*.txt))
 PC_REQUIRES := openblas lapacke hdf5-serial fftw3 fftw3f libconfig
 
 # the directories below the prefix are written relative to it (${prefix}/lib): `pkg-config --define-prefix`
@@ -171,7 +172,7 @@ install: all
 	@$(MAKE) --no-print-directory $(MAN) $(PCFILE)
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(INCLUDEDIR)/wavetomo \
 	    $(DESTDIR)$(MANDIR)/man1 $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
-	    $(DESTDIR)$(PKGDATADIR)/atmosphere \
+	    $(DESTDIR)$(PKGDATADIR)/atmosphere $(DESTDIR)$(PKGDATADIR)/nights \
 	    $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(PYTHONDIR)/wavetomo
 	install -m 755 $(BIN)/wavetomo $(DESTDIR)$(BINDIR)/wavetomo
 	install -m 755 $(SHLIB) $(DESTDIR)$(LIBDIR)/
@@ -184,6 +185,7 @@ install: all
 	install -m 644 $(PRESETS) $(DESTDIR)$(PKGDATADIR)/presets/
 	install -m 644 $(SODIUM) $(DESTDIR)$(PKGDATADIR)/sodium/
 	install -m 644 $(ATMOSPHERE) $(DESTDIR)$(PKGDATADIR)/atmosphere/
+	install -m 644 $(NIGHTS) $(DESTDIR)$(PKGDATADIR)/nights/
 	install -m 644 docs/c-api.md docs/python-api.md $(DESTDIR)$(DOCDIR)/
 	install -m 644 examples/rtc_loop.c $(DESTDIR)$(DOCDIR)/examples/
 	install -m 644 $(PY_SRC) $(DESTDIR)$(PYTHONDIR)/wavetomo/
@@ -197,11 +199,12 @@ uninstall:
 	    $(PRESETS:data/presets/%=$(DESTDIR)$(PKGDATADIR)/presets/%) \
 	    $(SODIUM:data/sodium/%=$(DESTDIR)$(PKGDATADIR)/sodium/%) \
 	    $(ATMOSPHERE:data/atmosphere/%=$(DESTDIR)$(PKGDATADIR)/atmosphere/%) \
+	    $(NIGHTS:data/nights/%=$(DESTDIR)$(PKGDATADIR)/nights/%) \
 	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/python-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c \
 	    $(PY_SRC:python/wavetomo/%=$(DESTDIR)$(PYTHONDIR)/wavetomo/%)
 	rm -rf $(DESTDIR)$(PYTHONDIR)/wavetomo/__pycache__
 	@rmdir $(DESTDIR)$(INCLUDEDIR)/wavetomo $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
-	    $(DESTDIR)$(PKGDATADIR)/atmosphere \
+	    $(DESTDIR)$(PKGDATADIR)/atmosphere $(DESTDIR)$(PKGDATADIR)/nights \
 	    $(DESTDIR)$(PKGDATADIR) $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(DOCDIR) $(DESTDIR)$(PYTHONDIR)/wavetomo \
 	    2>/dev/null || true
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi

@@ -65,6 +65,12 @@ static void print_atmospheres(const wt_config *cfg)
     for (int l = 0; l < cfg->nlayers; l++)
         printf("  %-5d %10.0f %12.6f %10.1f %10.1f\n", l + 1, cfg->layer_altitude[l], cfg->layer_fraction[l],
                cfg->wind_speed[l], cfg->wind_direction[l] / WT_DEG);
+    const wt_night_config *nc = &cfg->night;
+    if (nc->source != WT_NIGHT_CFG_NONE)
+        printf("a changing night (atmosphere.night): %s%s, night time %g s to %g s (compression %g); the table above is "
+               "its reference, the state the screens are made with\n",
+               nc->source == WT_NIGHT_CFG_FILE ? "the states of " : "the stochastic model", nc->file, nc->start,
+               nc->start + (double)(cfg->frames - 1) * (1.0 / cfg->rate) * nc->compression, nc->compression);
     const wt_model_atmosphere_config *m = &cfg->model;
     if (m->source == WT_MODEL_ORACLE)
         printf("reconstructors' atmosphere: oracle (recon.atmosphere.source): the truth above, compressed onto each "

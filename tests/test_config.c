@@ -828,8 +828,14 @@ START_TEST(test_reference)
     wt_config_print_reference(f);
     fclose(f);
     wt_context *ctx = tu_context();
-    const char *ov[] = {"lgs.wfs.nea_mas=1.0", "ngs.wfs.nea_mas=1.0"}; /* so that the optional keys appear too */
-    wt_config *c = parse_ok(ctx, VALID, 2, ov);
+    /* so that the optional keys appear too (the stochastic night's: all but atmosphere.night.file) */
+    const char *ov[] = {"lgs.wfs.nea_mas=1.0", "ngs.wfs.nea_mas=1.0", "atmosphere.night.source=\"random\"",
+                        "atmosphere.night.start_s=10.0", "atmosphere.night.compression=100.0",
+                        "atmosphere.night.seed=3", "atmosphere.night.correlation_time_s=600.0",
+                        "atmosphere.night.step_s=5.0", "atmosphere.night.r0_log_rms=0.1",
+                        "atmosphere.night.fraction_log_rms=0.2", "atmosphere.night.wind_speed_log_rms=0.1",
+                        "atmosphere.night.wind_direction_rms_deg=5.0"};
+    wt_config *c = parse_ok(ctx, VALID, (int)(sizeof ov / sizeof *ov), ov);
     char group[4][64], path[256];
     int depth = 0, nkeys = 0, nlines = 0;
     for (const char *s = buf; *s; s++) nlines += *s == '\n';
@@ -860,7 +866,9 @@ START_TEST(test_reference)
             /* the diffractive sensor's keys without a unit (counts, switches, seeds, ratios) */
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
             !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&
-            !strstr(path, "_sha256") && !strstr(path, "reference_seeing")) {
+            !strstr(path, "_sha256") && !strstr(path, "reference_seeing") &&
+            /* the stochastic night's rms of a logarithm (a ratio) */
+            !strstr(path, "_log_rms")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];
@@ -871,8 +879,10 @@ START_TEST(test_reference)
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
      * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
-     * keys under the oracle (the demo's: its source is there), nor the learned model's three */
-    ck_assert_int_eq(nkeys + 19, nlines);
+     * keys under the oracle (the demo's: its source is there), nor the learned model's three, nor
+     * atmosphere.night.file for a stochastic night */
+    ck_assert_int_eq(nkeys + 20, nlines);
+    ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.profile "));
     ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_levels "));

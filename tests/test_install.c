@@ -93,7 +93,9 @@ START_TEST(test_tree)
                            "include/wavetomo/rtc.h", "share/man/man1/wavetomo.1", "share/wavetomo/presets/demo.cfg",
                            "share/wavetomo/presets/eelt-mcao.cfg", "share/wavetomo/presets/demo-diffractive.cfg",
                            "share/wavetomo/sodium/default.txt", "share/wavetomo/atmosphere/eso35-median.txt",
-                           "share/wavetomo/presets/eelt-mcao-eso35.cfg", "share/doc/wavetomo/c-api.md",
+                           "share/wavetomo/presets/eelt-mcao-eso35.cfg", "share/wavetomo/nights/demo-ground-doubling.txt",
+                           "share/wavetomo/nights/eso35-ground-doubling.txt", "share/wavetomo/presets/demo-night.cfg",
+                           "share/wavetomo/presets/eelt-mcao-night.cfg", "share/doc/wavetomo/c-api.md",
                            "share/doc/wavetomo/examples/rtc_loop.c"};
     char p[1024];
     for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
@@ -114,10 +116,12 @@ START_TEST(test_tree)
     /* exactly the public headers */
     SH_OK("ls $SHARE/../../include/wavetomo | tr '\\n' ' '");
     ck_assert_str_eq(out(), "context.h rtc.h version.h wavetomo.h ");
-    /* the installed presets read, the diffractive one finds its sodium profile next to them and the ESO one its
-     * atmosphere profile */
+    /* the installed presets read, the diffractive one finds its sodium profile next to them, the ESO one its
+     * atmosphere profile and the night one its night (read when the loop is set up: two frames) */
     SH_OK("for f in $SHARE/presets/*.cfg; do $WT sim --config $f --out x.h5 --dry-run > /dev/null || exit 1; done && "
-          "$WT info $SHARE/presets/demo-diffractive.cfg --no-nnz > /dev/null");
+          "$WT info $SHARE/presets/demo-diffractive.cfg --no-nnz > /dev/null && "
+          "$WT sim --config $SHARE/presets/demo-night.cfg --frames 2 --set evaluation.settle_frames=0 --out n.h5 "
+          "--quiet > /dev/null");
     /* the man page: every command's section, the version, and groff finds nothing to warn about */
     SH_OK("cat $SHARE/../man/man1/wavetomo.1");
     ck_assert(strstr(out(), ".TH WAVETOMO 1") && strstr(out(), "wavetomo " WT_VERSION_STRING));

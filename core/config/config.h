@@ -12,6 +12,7 @@
 #include "../base/base.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #define WT_MAX_LAYERS 64 /* atmosphere and reconstruction layers: the ESO 35-layer profile with room */
@@ -119,6 +120,22 @@ typedef struct wt_model_atmosphere_config {
                                              < 0: the build's measured wall time */
 } wt_model_atmosphere_config;
 
+/* A changing night of the truth (SPEC §12 "A changing night"; atmosphere.night.*, core/sim/night.h): the r0,
+ * Cn² fractions and winds of the truth's layers over the night's time, from a file or a stochastic model. */
+enum { WT_NIGHT_CFG_NONE = 0, WT_NIGHT_CFG_FILE = 1, WT_NIGHT_CFG_RANDOM = 2 };
+typedef struct wt_night_config {
+    int source;                      /* WT_NIGHT_CFG_NONE (the atmosphere fixed), _FILE or _RANDOM */
+    char file[1024];                 /* the night file as resolved (relative paths against the configuration's
+                                        directory); "" without one */
+    double start;                    /* night time of frame 0 [s] */
+    double compression;              /* night seconds per simulated second [1] */
+    uint64_t seed;                   /* random: its own seed */
+    double correlation_time;         /* random: τ of the Ornstein–Uhlenbeck walks [s] */
+    double step;                     /* random: spacing of its knots [s] */
+    double r0_rms, fraction_rms, wind_speed_rms; /* random: rms of ln r0, ln f, ln v [1] */
+    double wind_direction_rms;       /* random: rms of the direction [rad] */
+} wt_night_config;
+
 typedef struct wt_config {
     char path[1024];                 /* file it was read from */
     char *canonical;                 /* the effective configuration as libconfig text (owned) */
@@ -139,6 +156,7 @@ typedef struct wt_config {
     double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
     char atm_profile[1024];          /* atmosphere.profile as resolved: the file the four lists above came from,
                                         "" when the configuration gave them */
+    wt_night_config night;           /* the truth's changing night (atmosphere.night.*) */
 
     /* laser guide stars */
     int nlgs;

@@ -286,8 +286,38 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     return WT_OK;
 }
 
+int wt_config_priv_check_night(wt_config_priv_state *ps, const wt_config *cfg)
+{
+    static const char *const walk[] = {"seed", "correlation_time_s", "step_s", "r0_log_rms", "fraction_log_rms",
+                                       "wind_speed_log_rms", "wind_direction_rms_deg"};
+    char loc[1100], oth[1100], key[96];
+    const int ks = wt_config_priv_find_key("atmosphere.night.source"), kf = wt_config_priv_find_key("atmosphere.night.file");
+    const int src = cfg->night.source;
+    const char *name[] = {"none", "file", "random"};
+    wt_config_priv_where(ps, ks, ps->set[ks], oth, sizeof oth);
+    if (src == WT_NIGHT_CFG_FILE && !ps->set[kf])
+        return wt_config_priv_fail(ps, oth, "'atmosphere.night.source' is \"file\" but key 'atmosphere.night.file' is "
+                                   "missing: give the night's states (data/nights/ has some), or source = \"random\"");
+    for (int i = -3; i < (int)(sizeof walk / sizeof *walk); i++) {
+        if (i < 0) snprintf(key, sizeof key, "atmosphere.night.%s", i == -3 ? "file" : i == -2 ? "start_s" : "compression");
+        else snprintf(key, sizeof key, "atmosphere.night.%s", walk[i]);
+        const int k = wt_config_priv_find_key(key);
+        const int ok = i == -3 ? src == WT_NIGHT_CFG_FILE : i < 0 ? src != WT_NIGHT_CFG_NONE : src == WT_NIGHT_CFG_RANDOM;
+        if (ps->set[k] && !ok)
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
+                                       "key '%s' is given but 'atmosphere.night.source' is \"%s\" (%s): it %s", key,
+                                       name[src], ps->set[ks] ? oth : "its default",
+                                       i == -3   ? "is the states of source = \"file\""
+                                       : i < 0   ? "means nothing without a night (source = \"file\" or \"random\")"
+                                                 : "is a key of the stochastic night (source = \"random\")");
+    }
+    return WT_OK;
+}
+
 int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const char *path)
 {
+    /* the night changes the truth only: the reconstructors' matrices never see it (SPEC §12) */
+    if (!strncmp(path, "atmosphere.night.", 17)) return 0;
     /* the model's numbers make the matrix, not how they were specified; no reconstructor reads a wind yet */
     if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||

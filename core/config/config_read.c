@@ -368,6 +368,7 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
             /* an optional list left out has no elements; a scalar takes its default */
             if (wt_config_priv_is_list(ks->type)) *(int *)((char *)cfg + ks->count_off) = 0;
             else if (ks->type == K_FLOAT) *(double *)dst = ks->def;
+            else if (ks->type == K_INT64) *(uint64_t *)dst = (uint64_t)ks->def;
             else *(int *)dst = (int)ks->def; /* K_INT, K_BOOL, K_ENUM (the index of the choice) */
             return WT_OK;
         }
@@ -677,6 +678,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
                     "(they are then normalised to sum exactly 1)", sum);
     for (int i = 0; i < cfg->nlayers; i++) cfg->layer_fraction[i] /= sum;
     if ((st = wt_config_priv_resolve_model(ps, cfg)) < 0) return st;
+    if ((st = wt_config_priv_check_night(ps, cfg)) < 0) return st;
 
     k = wt_config_priv_find_key("evaluation.settle_frames");
     if (cfg->settle_frames >= cfg->frames)

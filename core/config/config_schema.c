@@ -174,6 +174,46 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KFL("atmosphere.wind_speed_mps", GE0(1000.0), "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
     KFL("atmosphere.wind_direction_deg", ANYANGLE, "deg", DEG, wind_direction, nlayers, 1, WT_MAX_LAYERS,
         "direction each layer moves towards, from +x towards +y"),
+    /* a changing night of the truth (SPEC §12; core/sim/night.h): simulation only, never in the matrix identity */
+    {"atmosphere.night.source", K_ENUM, F_OPT, 0, 0, "", 1, CF(night.source), NOCOUNT, 0, 0, "none|file|random", 0,
+     "a changing night for the truth (the simulated atmosphere only; the reconstructors keep their own): none = the "
+     "atmosphere above, fixed for the run; file = the states of atmosphere.night.file; random = the stochastic model "
+     "of the atmosphere.night walk keys around the atmosphere above. The night's state at each frame's night time "
+     "(start_s + frame time x compression x frame) scales each layer's screen by sqrt(f r0^(-5/3) / (f_0 r0_0^(-5/3))) "
+     "against the configured f_0, r0_0 (L0 fixed; the layer count and altitudes are the configured ones) and moves "
+     "it by its current wind over each frame time (docs/design.md \"A changing night\") (default none)"},
+    {"atmosphere.night.file", K_STR, F_OPT, 0, 0, "", 1, CF(night.file), NOCOUNT, 0, 0, NULL, 0,
+     "file: the night's states (relative to the configuration file's directory like @include; shipped: data/nights/),"
+     " one a line: night time [s], r0 [m], then per layer of the truth its Cn2 fraction, wind speed [m/s] and wind "
+     "direction [deg]; '#' starts a comment. Times strictly increasing, r0 > 0, fractions >= 0 summing to 1 within "
+     "1e-3; interpolated linearly in time (fractions renormalised to 1, directions along the shorter arc); the states "
+     "must cover the run's night times"},
+    {"atmosphere.night.start_s", K_FLOAT, F_OPT, 0.0, 1e7, "s", 1, CF(night.start), NOCOUNT, 0, 0, NULL, 0.0,
+     "the night time of the run's first frame (default 0)"},
+    {"atmosphere.night.compression", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "", 1, CF(night.compression), NOCOUNT, 0,
+     0, NULL, 1.0,
+     "time compression: night seconds per simulated second; each frame advances the night's clock by frame time x "
+     "this while the turbulence moves by the frame time (SPEC §12: a short run stands for a long night) (default 1)"},
+    {"atmosphere.night.seed", K_INT64, F_OPT, 0.0, INF, "", 1, CF(night.seed), NOCOUNT, 0, 0, NULL, 1,
+     "random: the walks' own seed (not sim.seed: the same night under other turbulence) (default 1)"},
+    {"atmosphere.night.correlation_time_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "s", 1, CF(night.correlation_time),
+     NOCOUNT, 0, 0, NULL, 1800.0,
+     "random: correlation time tau of every walk, an Ornstein-Uhlenbeck process in log r0, log f, log v and the "
+     "direction: correlation exp(-|dt| / tau) (default 1800, an assumption: profiles change over tens of minutes)"},
+    {"atmosphere.night.step_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e6, "s", 1, CF(night.step), NOCOUNT, 0, 0, NULL, 10.0,
+     "random: the walks are sampled exactly every step_s from night time 0 (where they start at the configured "
+     "state) and interpolated linearly between (default 10)"},
+    {"atmosphere.night.r0_log_rms", K_FLOAT, F_OPT, 0.0, 10.0, "", 1, CF(night.r0_rms), NOCOUNT, 0, 0, NULL, 0.2,
+     "random: stationary rms of ln r0 (r0 = r0_m exp(this z), z a unit walk) (default 0.2, an assumption)"},
+    {"atmosphere.night.fraction_log_rms", K_FLOAT, F_OPT, 0.0, 10.0, "", 1, CF(night.fraction_rms), NOCOUNT, 0, 0,
+     NULL, 0.3,
+     "random: stationary rms of ln f of each layer's Cn2 weight, each its own walk, renormalised to sum 1 (default "
+     "0.3, an assumption)"},
+    {"atmosphere.night.wind_speed_log_rms", K_FLOAT, F_OPT, 0.0, 10.0, "", 1, CF(night.wind_speed_rms), NOCOUNT, 0, 0,
+     NULL, 0.2, "random: stationary rms of ln v of each layer's wind speed (default 0.2, an assumption)"},
+    {"atmosphere.night.wind_direction_rms_deg", K_FLOAT, F_OPT, 0.0, 360.0, "deg", DEG, CF(night.wind_direction_rms),
+     NOCOUNT, 0, 0, NULL, 10.0 * DEG,
+     "random: stationary rms of each layer's wind direction about the configured one (default 10)"},
 
     KI("lgs.count", 0, 0, WT_MAX_GS, nlgs, "number of laser guide stars, evenly spaced in azimuth"),
     KF("lgs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),

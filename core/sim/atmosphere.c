@@ -51,6 +51,7 @@ typedef struct atm_layer {
     double *screen;         /* [n*n] periodic grid part [m] (inside atm->block) */
     double sh[SHL][3][3][2]; /* subharmonic amplitudes c √Φ Δκ_p [m]: [level][kx + 1][ky + 1][re, im] */
     double sh_offset;       /* minus the grid mean of the subharmonic field [m] */
+    double scale, sx, sy;   /* wt_atmosphere_set_drift: screen factor [1], extra displacement [m] */
 } atm_layer;
 
 struct wt_atmosphere {
@@ -361,6 +362,7 @@ int wt_atmosphere_alloc(wt_context *ctx, const wt_atmosphere_params *params, wt_
         ly->vx = params->wind_speed[l] * cos(params->wind_direction[l]);
         ly->vy = params->wind_speed[l] * sin(params->wind_direction[l]);
         ly->screen = atm->block + nn * l;
+        ly->scale = 1.0;
     }
 
     /* Work space: the FFT buffer and the amplitude table √Φ(κ_k) Δκ shared by all layers. */
@@ -405,6 +407,13 @@ fail:
 /* Accessors */
 
 int wt_atmosphere_nlayers(const wt_atmosphere *atm) { return atm->nlayers; }
+void wt_atmosphere_set_drift(wt_atmosphere *atm, const double *scale, const double *shift_x, const double *shift_y)
+{
+    for (int l = 0; l < atm->nlayers; l++) {
+        atm_layer *ly = &atm->layers[l];
+        ly->scale = scale ? scale[l] : 1.0, ly->sx = shift_x ? shift_x[l] : 0.0, ly->sy = shift_y ? shift_y[l] : 0.0;
+    }
+}
 wt_grid wt_atmosphere_grid(const wt_atmosphere *atm) { return atm->grid; }
 size_t wt_atmosphere_bytes(const wt_atmosphere *atm)
 {
@@ -472,8 +481,8 @@ static void layer_call_init(const wt_atmosphere *atm, int l, double t, double H,
     const atm_layer *ly = &atm->layers[l];
     lc->ly = ly;
     lc->c = H > 0.0 ? 1.0 - ly->altitude / H : 1.0;
-    lc->ax = thx * ly->altitude - ly->vx * t;
-    lc->ay = thy * ly->altitude - ly->vy * t;
+    lc->ax = thx * ly->altitude - ly->vx * t - ly->sx;
+    lc->ay = thy * ly->altitude - ly->vy * t - ly->sy;
     lc->b = lc->c * tg->dx / atm->delta;
     lc->q = NULL;
 }
@@ -891,7 +900,7 @@ static int project_with(row_kernel row, const wt_atmosphere *atm, double t, doub
         for (int iy = 0; iy < ny; iy++) {
             row_span sp;
             row_span_init(mask, target->nx, iy, &sp);
-            row(atm, &lc, target, &sp, alpha, out, iy, NULL, 0);
+            row(atm, &lc, target, &sp, alpha * lc.ly->scale, out, iy, NULL, 0);
         }
     }
     return WT_OK;
@@ -1013,7 +1022,7 @@ int wt_atmosphere_project_many(const wt_atmosphere *atm, double t, int nlos, con
                 row_span tmp;
                 const row_span *sp = span_lookup(&spm, los[i].mask, target->nx, iy, &tmp);
                 for (int l = 0; l < nl; l++)
-                    project_row(atm, &lc[i * nl + l], target, sp, alpha, los[i].out, iy, &mm[l],
+                    project_row(atm, &lc[i * nl + l], target, sp, alpha * lc[i * nl + l].ly->scale, los[i].out, iy, &mm[l],
                                 l == 0 && los[i].set);
             }
         }

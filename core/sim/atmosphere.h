@@ -106,6 +106,12 @@ int wt_atmosphere_project_reference(const wt_atmosphere *atm, double t, double s
                                     double theta_y, const wt_grid *target, const uint8_t *mask, double alpha,
                                     double *out);
 
+/* A changing truth (core/sim/night.h): from now on layer ℓ's screen is scaled by scale[ℓ] and sampled at
+ * θh − v_ℓ t − (shift_x, shift_y)[ℓ] [m] (the displacement its changing wind adds to frozen flow). NULL arrays:
+ * 1 and 0, today's (x − 0 and α·1 are exact: the same bits as without a drift). Allocates nothing; not while a
+ * projection runs. */
+void wt_atmosphere_set_drift(wt_atmosphere *atm, const double *scale, const double *shift_x, const double *shift_y);
+
 int wt_atmosphere_nlayers(const wt_atmosphere *atm);
 /* The screen grid wt_grid_layer(n, δ) shared by all layers. */
 wt_grid wt_atmosphere_grid(const wt_atmosphere *atm);

@@ -23,6 +23,7 @@ struct wt_loop {
     wt_loop_params par;
     wt_loop_options opt;
     wt_atmosphere *atm;
+    wt_night *night;              /* the truth's changing night (NULL: the atmosphere fixed) */
     wt_grid fine;                 /* fine simulation grid over the pupil */
     int64_t nfine;
     uint8_t *pupil;               /* fine points inside the annulus */
@@ -194,6 +195,7 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     ap.seed = opt->seed;
     ap.no_subharmonics = 0;
     WT_TRY(wt_atmosphere_alloc(ctx, &ap, &lp->atm));
+    if (par->night.source != WT_NIGHT_NONE) WT_TRY(wt_night_alloc(ctx, &par->night, &lp->night));
 
     WT_ALLOC(ctx, lp->wfs, sys->nsensors, "truth sensors");
     WT_ALLOC(ctx, lp->noise, sys->nsensors, "truth noise");
@@ -295,6 +297,7 @@ void wt_loop_free(wt_loop *lp)
     if (!lp) return;
     wt_context *ctx = lp->ctx;
     wt_atmosphere_free(lp->atm);
+    wt_night_free(lp->night);
     if (lp->wfs)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_wfs_free(lp->wfs[m]);
     if (lp->dmask)
@@ -540,6 +543,11 @@ static int step_polc_instant(wt_loop *lp)
 
 int wt_loop_step(wt_loop *lp)
 {
+    /* a changing night: the truth's screens scaled and moved to this frame's state */
+    if (lp->night) {
+        const int e = wt_night_drive(lp->night, lp->atm, lp->t);
+        if (e < 0) return e;
+    }
     /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
     if (lp->t == lp->par.settle_frames)
         for (int i = 0; i < lp->sys->nsensors; i++)
@@ -673,5 +681,11 @@ const double *wt_loop_residual(const wt_loop *lp, int j)
     return lp->opd + (size_t)(lp->sys->nsensors + j) * lp->nfine;
 }
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp) { return lp->atm; }
+int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out)
+{
+    if (!lp->night) return 0;
+    *out = wt_night_current(lp->night);
+    return 1;
+}
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp) { return lp->rec; }
 const wt_adapt *wt_loop_adapt(const wt_loop *lp) { return lp->adapt; }

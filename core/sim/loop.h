@@ -24,6 +24,7 @@
 #include "../model/system.h"
 #include "adapt.h"
 #include "atmosphere.h"
+#include "night.h"
 #include "scale_gain.h"
 #include "strehl.h"
 
@@ -90,6 +91,9 @@ typedef struct wt_loop_params {
     wt_fitting_params perfect_fit;   /* the cg9 fitting of the perfect_fit budget mode */
     wt_adapt_params learn;           /* learn.every > 0: the closed loop learns its atmosphere (core/sim/adapt.h) */
     long learn_max_updates;          /* room for its updates' record */
+    wt_night_params night;           /* source WT_NIGHT_NONE: the atmosphere fixed; else the truth's changing night
+                                      * (core/sim/night.h), whose reference state must be `atmosphere`'s and
+                                      * frame_time 1 / rate */
 } wt_loop_params;
 
 /* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
@@ -121,6 +125,10 @@ wt_loop_times wt_loop_get_times(const wt_loop *lp);
 const wt_grid *wt_loop_fine_grid(const wt_loop *lp);
 const uint8_t *wt_loop_pupil_mask(const wt_loop *lp);
 const double *wt_loop_residual(const wt_loop *lp, int j);
+/* The truth's state of the last frame run (before any: of frame 0) when a night drives it (params.night):
+ * 1 and *out (its arrays the loop's, valid until the next step); 0 without a night (the truth is then
+ * params.atmosphere, fixed). */
+int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);

@@ -32,6 +32,18 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                              .wind_direction = cfg->wind_direction,
                                              .r0 = cfg->r0,
                                              .L0 = cfg->L0};
+    const wt_night_config *nc = &cfg->night; /* the night's reference is the configured atmosphere */
+    par->night = (wt_night_params){.source = nc->source == WT_NIGHT_CFG_FILE     ? WT_NIGHT_FILE
+                                             : nc->source == WT_NIGHT_CFG_RANDOM ? WT_NIGHT_RANDOM
+                                                                                 : WT_NIGHT_NONE,
+                                   .nlayers = cfg->nlayers, .r0 = cfg->r0, .fraction = cfg->layer_fraction,
+                                   .wind_speed = cfg->wind_speed, .wind_direction = cfg->wind_direction,
+                                   .frame_time = 1.0 / cfg->rate, .start = nc->start, .compression = nc->compression,
+                                   .frames = cfg->frames,
+                                   .origin = "keys atmosphere.night.*, loop.frames and loop.rate_hz",
+                                   .file = nc->file, .seed = nc->seed, .correlation_time = nc->correlation_time,
+                                   .step = nc->step, .r0_rms = nc->r0_rms, .fraction_rms = nc->fraction_rms,
+                                   .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
     par->lgs_tt_jitter = cfg->lgs_tt_jitter;
     par->eval_wavelength = cfg->eval_wavelength;
     par->settle_frames = cfg->settle_frames;
@@ -39,8 +51,9 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
     par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
     const wt_model_atmosphere_config *m = &cfg->model;
     if (m->source == WT_MODEL_LEARNED && !opt->open_loop) {
-        par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate),
-                                       .frame_night = 1.0 / cfg->rate,
+        /* in night time: a frame is 1 / rate times the night's compression (atmosphere.night.compression) */
+        par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate / cfg->night.compression),
+                                       .frame_night = cfg->night.compression / cfg->rate,
                                        .L0 = m->L0,
                                        .latency = m->mvm_latency_s,
                                        .cumulative = m->learn_window == 1,

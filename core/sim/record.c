@@ -21,6 +21,9 @@ struct wt_sim_record {
     wt_loop_times prev;                   /* the loop's cumulative times at the previous frame */
     float *fbuf;                          /* max(nslopes, nact): one telemetry row */
     wt_h5_series *slopes, *slopes_ol, *commands; /* telemetry (NULL: none) */
+    int nl;                               /* a changing night: the truth's layers (0: no night) */
+    double *night_t, *night_r0;           /* frames: night time [s], r0 [m] */
+    double *night_f, *night_v, *night_d;  /* frames x nl: fractions, wind speed [m/s], direction [deg] */
 };
 
 int wt_sim_record_alloc(wt_context *ctx, const wt_system *sys, long frames, double eval_wavelength,
@@ -39,6 +42,14 @@ int wt_sim_record_alloc(wt_context *ctx, const wt_system *sys, long frames, doub
     WT_ALLOC(ctx, r->rms_nm, (size_t)frames * sys->neval, "per-frame residual rms");
     WT_ALLOC(ctx, r->time_ms, (size_t)frames * WT_RECORD_NSTAGES, "per-frame stage times");
     WT_ALLOC(ctx, r->fbuf, sys->nslopes > sys->nact ? sys->nslopes : sys->nact, "telemetry row");
+    if (sys->cfg->night.source != WT_NIGHT_CFG_NONE) { /* the truth's state per frame */
+        r->nl = sys->cfg->nlayers;
+        WT_ALLOC(ctx, r->night_t, frames, "per-frame night time");
+        WT_ALLOC(ctx, r->night_r0, frames, "per-frame r0");
+        WT_ALLOC(ctx, r->night_f, (size_t)frames * r->nl, "per-frame Cn2 fractions");
+        WT_ALLOC(ctx, r->night_v, (size_t)frames * r->nl, "per-frame wind speeds");
+        WT_ALLOC(ctx, r->night_d, (size_t)frames * r->nl, "per-frame wind directions");
+    }
     if (tel) {
         WT_TRY(wt_h5_series_create(tel, "slopes", WT_H5_F32, sys->nslopes, "rad",
                                    "measured slopes s_t per frame (OPD gradient), ordering in layout/", &r->slopes));
@@ -64,6 +75,8 @@ void wt_sim_record_free(wt_sim_record *r)
     wt_free(r->ctx, r->rms_nm);
     wt_free(r->ctx, r->time_ms);
     wt_free(r->ctx, r->fbuf);
+    double *night[] = {r->night_t, r->night_r0, r->night_f, r->night_v, r->night_d};
+    for (int k = 0; k < 5; k++) wt_free(r->ctx, night[k]);
     wt_free(r->ctx, r);
 }
 
@@ -82,6 +95,17 @@ int wt_sim_record_frame(wt_sim_record *r, const wt_loop *lp, double step)
                                          b.control - a.control, b.evaluation - a.evaluation, step};
     for (int k = 0; k < WT_RECORD_NSTAGES; k++) r->time_ms[(size_t)t * WT_RECORD_NSTAGES + k] = (float)(d[k] * 1e3);
     r->prev = b;
+    wt_night_sample ns;
+    if (r->nl && wt_loop_truth_state(lp, &ns) && ns.nlayers == r->nl) {
+        r->night_t[t] = ns.t;
+        r->night_r0[t] = ns.r0;
+        for (int l = 0; l < r->nl; l++) {
+            const size_t i = (size_t)t * r->nl + l;
+            r->night_f[i] = ns.fraction[l];
+            r->night_v[i] = ns.wind_speed[l];
+            r->night_d[i] = ns.wind_direction[l] * (180.0 / M_PI);
+        }
+    }
     r->t++;
     if (!r->slopes) return WT_OK;
     const double *src[3] = {wt_loop_slopes(lp), wt_loop_slopes_ol(lp), wt_loop_applied(lp)};
@@ -96,6 +120,28 @@ int wt_sim_record_frame(wt_sim_record *r, const wt_loop *lp, double step)
 }
 
 double wt_sim_record_field_strehl(const wt_sim_record *r, long t) { return r->se_field[t]; }
+
+/* A changing night: the truth's state per frame (atmosphere.night). */
+static int write_night(const wt_sim_record *r, wt_h5_writer *w)
+{
+    if (!r->nl) return WT_OK;
+    int st;
+    int64_t df[1] = {r->t}, dl[2] = {r->t, r->nl};
+    if ((st = wt_h5_write(w, "frame/night_time", WT_H5_F64, WT_H5_F64, 1, df, r->night_t, "s",
+                          "the night's time of each frame (atmosphere.night: start_s + frame x frame time x "
+                          "compression), at which the truth's state below was evaluated")) < 0 ||
+        (st = wt_h5_write(w, "frame/r0", WT_H5_F64, WT_H5_F64, 1, df, r->night_r0, "m",
+                          "the truth's Fried parameter at 500 nm in each frame (the changing night)")) < 0 ||
+        (st = wt_h5_write(w, "frame/cn2_fractions", WT_H5_F64, WT_H5_F64, 2, dl, r->night_f, "",
+                          "the truth's Cn2 fraction of each layer in each frame (sum 1; layers in the order of "
+                          "atmosphere.altitudes_m)")) < 0 ||
+        (st = wt_h5_write(w, "frame/wind_speed", WT_H5_F64, WT_H5_F64, 2, dl, r->night_v, "m/s",
+                          "the truth's wind speed of each layer in each frame")) < 0 ||
+        (st = wt_h5_write(w, "frame/wind_direction", WT_H5_F64, WT_H5_F64, 2, dl, r->night_d, "deg",
+                          "the truth's wind direction of each layer in each frame (towards, from +x towards +y)")) < 0)
+        return st;
+    return WT_OK;
+}
 
 int wt_sim_record_write(const wt_sim_record *r, wt_h5_writer *w, const wt_loop *lp, int settle_frames)
 {
@@ -158,6 +204,7 @@ int wt_sim_record_write(const wt_sim_record *r, wt_h5_writer *w, const wt_loop *
                           "control, evaluation, total (the whole step; attribute columns)")) < 0 ||
         (st = wt_h5_attr_write_string(w, "frame/time", "columns", record_stage_columns)) < 0)
         return st;
+    if ((st = write_night(r, w)) < 0) return st;
     wt_loop_times tm = wt_loop_get_times(lp);
     const char *names[] = {"atmosphere", "sensors", "reconstruction", "fitting", "control", "evaluation"};
     double vals[] = {tm.atmosphere, tm.sensors, tm.reconstruction, tm.fitting, tm.control, tm.evaluation};
