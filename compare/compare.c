@@ -273,7 +273,7 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
         }
         wt_compare_series ser = {.wfe = X->wfe[c]};
         wt_mvm_rebuilder rb = {cli->ctx, sys, mvm && mvm->commands == WT_MVM_FITTING ? "cg9" : "pcg3", NULL};
-        const int learn = mvm && cfg->model.source == WT_MODEL_LEARNED;
+        const int learn = mvm != NULL; /* (the rebuild is used when it learns or follows a night) */
         st = wt_compare_run_rebuild(cli->ctx, sys, kind, mvm, build, a->seeds[s], learn ? wt_mvm_rebuild_model : NULL,
                                     learn ? &rb : NULL, on_frame, &p, res, &ser);
         X->psf[c] = ser.psf;

@@ -114,8 +114,12 @@ static void print_learned(const wt_adapt *a, long frames, double learning)
     if (!a) return;
     const int n = wt_adapt_nupdates(a);
     const wt_adapt_update *u = wt_adapt_updates(a);
-    printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms)\n", n,
-           learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3);
+    if (wt_adapt_follows_truth(a))
+        printf("  the oracle follows the night: %d updates to the truth's state; %.2f ms per frame\n", n,
+               learning / frames * 1e3);
+    else
+        printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms)\n", n,
+               learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3);
     for (int k = 0; k < n; k++) {
         double low = 0.0; /* the Cn2 below 1 km */
         for (int j = 0; j < u[k].nalt; j++)
@@ -188,7 +192,7 @@ int wt_cmd_sim(int argc, char **argv)
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
     /* a learning MVM loop rebuilds its matrix (the variant it was built for) from each estimate */
     wt_mvm_rebuilder rb = {cli.ctx, sys, mvm && mvm->commands == WT_MVM_FITTING ? "cg9" : "pcg3", NULL};
-    if (mvm && cfg->model.source == WT_MODEL_LEARNED) o.rebuild = wt_mvm_rebuild_model, o.rebuild_user = &rb;
+    if (mvm) o.rebuild = wt_mvm_rebuild_model, o.rebuild_user = &rb; /* (used when it learns or follows a night) */
     double t0 = wt_time_now();
     if ((st = wt_loop_alloc(cli.ctx, sys, &o, &lp)) < 0) goto fail;
     wt_psf_params pp;

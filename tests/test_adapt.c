@@ -127,6 +127,39 @@ START_TEST(t_mvm_swap_after_latency)
 }
 END_TEST
 
+/* the oracle in a changing night takes the truth's state every `every` frames (demo-night: 6 s of night a frame, an
+ * update every 60 s = 10 frames), pcg3 at the next frame */
+START_TEST(t_oracle_follows_night)
+{
+    const char *set[] = {"loop.frames=35", "atmosphere.night.source=\"file\"",
+                         "atmosphere.night.file=\"../nights/demo-ground-doubling.txt\"",
+                         "atmosphere.night.compression=3000.0"};
+    run r;
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 4, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    const wt_adapt *a = wt_loop_adapt(r.lp);
+    ck_assert_ptr_nonnull(a);
+    ck_assert(wt_adapt_follows_truth(a));
+    double r0[35], f0[35];
+    for (int t = 0; t < 35; t++) {
+        ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
+        wt_night_sample s;
+        ck_assert(wt_loop_truth_state(r.lp, &s));
+        r0[t] = s.r0, f0[t] = s.fraction[0];
+    }
+    ck_assert_int_eq(wt_adapt_nupdates(a), 3);
+    const wt_adapt_update *u = wt_adapt_updates(a);
+    for (int k = 0; k < 3; k++) {
+        ck_assert_int_eq(u[k].frame, 10 * k + 9);
+        ck_assert_int_eq(u[k].applied_frame, 10 * k + 10);
+        ck_assert_double_eq(u[k].r0, r0[10 * k + 9]);
+        ck_assert_double_eq(u[k].fraction[0], f0[10 * k + 9]);
+        ck_assert_double_eq_tol(u[k].night, (10 * k + 10) * 6.0, 1e-9);
+    }
+    ck_assert_double_lt(u[2].r0, u[0].r0); /* (the night's r0 falls) */
+    close_run(&r);
+}
+END_TEST
+
 START_TEST(t_refusals)
 {
     run r;
@@ -159,6 +192,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, t_learned_start_equals_oracle);
     tcase_add_test(tc, t_mvm_swap_after_latency);
+    tcase_add_test(tc, t_oracle_follows_night);
     tcase_add_test(tc, t_refusals);
     suite_add_tcase(s, tc);
     return s;

@@ -19,8 +19,8 @@ struct wt_adapt {
     wt_learn *L;
     long since;               /* frames accumulated since the last estimate */
     int na;
-    double alt[WT_LEARN_MAX_ALT];
-    double vx[WT_LEARN_MAX_ALT], vy[WT_LEARN_MAX_ALT]; /* the learned altitudes' wind (the start model's nearest) */
+    double alt[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];      /* the learning grid, or (follow_truth) the truth's layers */
+    double vx[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], vy[WT_MAX_LAYERS + WT_LEARN_MAX_ALT]; /* their wind */
     wt_learn_estimate *est;
     wt_adapt_rebuild_fn rebuild;
     void *rebuild_user;
@@ -48,13 +48,15 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
     int st = WT_OK;
     wt_adapt *a = NULL;
     *out = NULL;
-    if (sys->nlgs < 2)
+    if (sys->nlgs < 2 && !par->follow_truth)
         return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: recon.atmosphere.source = \"learned\" needs at least 2 LGS (pairs of LGS "
                         "resolve altitude), the system has %d", sys->cfg ? sys->cfg->path : "system", sys->nlgs);
-    if (par->every < WT_ADAPT_MIN_FRAMES)
+    if (par->every < (par->follow_truth ? 1 : WT_ADAPT_MIN_FRAMES))
         return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.atmosphere.update_s': an estimate every %ld frames; one "
                         "estimate needs at least %d (%d batches of 25)", sys->cfg ? sys->cfg->path : "system", par->every,
-                        WT_ADAPT_MIN_FRAMES, WT_ADAPT_BATCHES);
+                        par->follow_truth ? 1 : WT_ADAPT_MIN_FRAMES, WT_ADAPT_BATCHES);
+    if (par->follow_truth && (par->ntruth < 1 || par->ntruth > WT_MAX_LAYERS))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "adapt: a truth of %d layers", par->ntruth);
     if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM)
         return WT_ERROR(ctx, WT_ERR_CONFIG, "a learned atmosphere is for pcg3, cg9 and mvm, not %s",
                         wt_reconstructor_name(kind));
@@ -69,8 +71,13 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
     a->par = *par;
     for (int i = 0; i < sys->nlgs; i++) a->tx[i] = sys->sensors[i].theta_x, a->ty[i] = sys->sensors[i].theta_y;
     a->g = (wt_learn_geometry){sys->n, sys->d, sys->valid, sys->nlgs, a->tx, a->ty, sys->sensors[0].altitude};
-    WT_TRY(learn_alloc(a));
-    a->na = wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+    if (par->follow_truth) {
+        a->na = par->ntruth;
+        for (int k = 0; k < a->na; k++) a->alt[k] = par->truth_alt[k];
+    } else {
+        WT_TRY(learn_alloc(a));
+        a->na = wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+    }
     for (int k = 0; k < a->na; k++) { /* the start model's wind at the nearest of its layers */
         int best = 0;
         for (int j = 1; j < par->nstart; j++)
@@ -117,12 +124,15 @@ static int start_build(wt_adapt *a, int u, double start)
     return WT_OK;
 }
 
-int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *rec)
+int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sample *truth, wt_reconstructor *rec)
 {
-    const double t0 = wt_time_now();
-    int st = wt_learn_add(a->L, s_ol);
-    a->tacc += wt_time_now() - t0;
-    if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: %s", t, wt_error_message(a->ctx));
+    int st = WT_OK;
+    if (!a->par.follow_truth) {
+        const double t0 = wt_time_now();
+        st = wt_learn_add(a->L, s_ol);
+        a->tacc += wt_time_now() - t0;
+        if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: %s", t, wt_error_message(a->ctx));
+    }
     if (++a->since < a->par.every) return WT_OK;
     a->since = 0;
     if (a->nup == a->maxup) return WT_ERROR(a->ctx, WT_ERR_INVALID, "adapt: more than %d updates", a->maxup);
@@ -131,17 +141,30 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *re
     u->frame = t;
     u->night = (double)(t + 1) * a->par.frame_night;
     u->applied_frame = -1;
-    const double tf = wt_time_now();
-    st = wt_learn_fit(a->L, a->na, a->alt, a->par.L0, a->est);
-    u->fit_s = wt_time_now() - tf;
-    if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t, a->par.every,
-                                wt_error_message(a->ctx));
-    if (!a->par.cumulative && (st = learn_alloc(a)) < 0) return st; /* the next estimate: the next frames only */
-    const wt_learn_estimate *e = a->est;
-    u->r0 = e->r0;
-    u->r0_sigma = e->r0_sigma;
-    u->nalt = e->nalt;
-    for (int k = 0; k < e->nalt; k++) u->altitude[k] = e->altitude[k], u->fraction[k] = e->fraction[k];
+    if (a->par.follow_truth) { /* the oracle: the truth's state of this frame */
+        if (!truth || truth->nlayers != a->na)
+            return WT_ERROR(a->ctx, WT_ERR_INVALID, "frame %ld: the oracle follows the night, but the truth's state %s",
+                            t, truth ? "has another layer count" : "is missing");
+        u->r0 = truth->r0;
+        u->nalt = a->na;
+        for (int k = 0; k < a->na; k++) {
+            u->altitude[k] = a->alt[k], u->fraction[k] = truth->fraction[k];
+            a->vx[k] = truth->wind_speed[k] * cos(truth->wind_direction[k]);
+            a->vy[k] = truth->wind_speed[k] * sin(truth->wind_direction[k]);
+        }
+    } else {
+        const double tf = wt_time_now();
+        st = wt_learn_fit(a->L, a->na, a->alt, a->par.L0, a->est);
+        u->fit_s = wt_time_now() - tf;
+        if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t,
+                                    a->par.every, wt_error_message(a->ctx));
+        if (!a->par.cumulative && (st = learn_alloc(a)) < 0) return st; /* the next estimate: the next frames only */
+        const wt_learn_estimate *e = a->est;
+        u->r0 = e->r0;
+        u->r0_sigma = e->r0_sigma;
+        u->nalt = e->nalt;
+        for (int k = 0; k < e->nalt; k++) u->altitude[k] = e->altitude[k], u->fraction[k] = e->fraction[k];
+    }
     const int idx = a->nup++;
     if (a->kind != WT_RECON_MVM) {
         if ((st = wt_reconstructor_set_model(rec, u->r0, u->nalt, u->altitude, u->fraction, a->vx, a->vy)) < 0)
@@ -179,6 +202,7 @@ int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec)
 }
 
 int wt_adapt_nupdates(const wt_adapt *a) { return a->nup; }
+int wt_adapt_follows_truth(const wt_adapt *a) { return a->par.follow_truth; }
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
 double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
 double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
@@ -192,8 +216,10 @@ int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
     WT_ALLOC(a->ctx, v, (size_t)(n > 0 ? n : 1) * (na > 0 ? na : 1), "update record");
     WT_ALLOC(a->ctx, iv, n > 0 ? n : 1, "update record");
     const int64_t d1[1] = {n}, d2[2] = {n, na}, dg[1] = {na};
-    WT_TRY(wt_h5_write_int64(w, "learned/every_frames", a->par.every, "frames", "frames between two estimates (each from "
-                             "the frames since the previous one; recon.atmosphere.update_s)"));
+    WT_TRY(wt_h5_write_int64(w, "learned/every_frames", a->par.every, "frames", a->par.follow_truth
+                             ? "frames between two updates of the oracle's model to the truth's state (a changing night; "
+                               "recon.atmosphere.update_s)"
+                             : "frames between two estimates (recon.atmosphere.update_s)"));
     WT_TRY(wt_h5_write(w, "learned/altitude", WT_H5_F64, WT_H5_F64, 1, dg, a->alt, "m", "the learning grid's altitudes"));
 #define COL(name, field, unit, desc)                                                                                    \
     do {                                                                                                               \

@@ -14,6 +14,9 @@
  *              waits and is built when that one is done (a newer one replaces a waiting one).
  * The wind of the model (prediction) is not learned here: each learned altitude takes the wind of the start model's
  * layer nearest in altitude.
+ * The oracle in a changing night (follow_truth): no estimate; every `every` frames the model becomes the truth's
+ * state of that frame (its layers, fractions, r0 and wind, core/sim/night.h), taken as a learned one is (pcg3 and
+ * cg9 at the next frame, the MVM after its latency): what a perfect profiler would give.
  */
 #ifndef WT_ADAPT_H
 #define WT_ADAPT_H
@@ -21,6 +24,7 @@
 #include "../model/learn.h"
 #include "../model/reconstructor.h"
 #include "../model/system.h"
+#include "night.h"
 
 struct wt_mvm;
 
@@ -37,6 +41,9 @@ typedef struct wt_adapt_params {
     double frame_night;       /* night time of one frame [s] (1/rate times the night's time compression) */
     double L0;                /* outer scale of the fit [m] (the model's: not fitted) */
     double latency;           /* mvm: night seconds from an estimate to its matrix in the loop; < 0: measured */
+    int follow_truth;         /* 1: the oracle following a changing night (no estimate; the truth's state) */
+    int ntruth;               /* follow_truth: the truth's layers and their altitudes [m] */
+    double truth_alt[WT_MAX_LAYERS];
     int nstart;               /* the start model's layers: their wind goes to the learned altitudes */
     double start_alt[WT_MAX_LAYERS], start_vx[WT_MAX_LAYERS], start_vy[WT_MAX_LAYERS]; /* [m], [m/s] */
 } wt_adapt_params;
@@ -51,7 +58,7 @@ typedef struct wt_adapt_update {
     double night;             /* its night time [s] */
     double r0, r0_sigma;      /* the estimate [m] */
     int nalt;
-    double altitude[WT_LEARN_MAX_ALT], fraction[WT_LEARN_MAX_ALT];
+    double altitude[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], fraction[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];
     double fit_s;             /* wall time of the fit [s] */
     double model_s, precond_s; /* pcg3/cg9: wall time of the new model, of the preconditioner [s] */
     double build_s;           /* mvm: wall time of the matrix's build [s] (0 while waiting) */
@@ -66,14 +73,16 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
                    void *rebuild_user, long max_updates, wt_adapt **out);
 void wt_adapt_free(wt_adapt *a);
 
-/* Frame t measured s_ol: accumulate it; after the `every`-th frame since the last estimate, fit and update rec
- * (pcg3/cg9) or start/queue an MVM build. Allocates only on an update. */
-int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, wt_reconstructor *rec);
+/* Frame t measured s_ol: accumulate it; after the `every`-th frame since the last estimate, fit (follow_truth: take
+ * `truth`, the truth's state of frame t, required then) and update rec (pcg3/cg9) or start/queue an MVM build.
+ * Allocates only on an update. */
+int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sample *truth, wt_reconstructor *rec);
 /* mvm: before frame t runs, a matrix whose build is finished by then (in night time) is swapped in: *rec replaced
  * by a reconstructor of it (the old one freed) and the matrix before it freed. No-op otherwise. */
 int wt_adapt_swap(wt_adapt *a, long t, wt_reconstructor **rec);
 
 int wt_adapt_nupdates(const wt_adapt *a);
+int wt_adapt_follows_truth(const wt_adapt *a); /* 1: the oracle following a night (no estimates) */
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */

@@ -640,7 +640,9 @@ int wt_loop_step(wt_loop *lp)
     lp->times.fitting += tf;
     if (lp->adapt) { /* this frame's s_ol into the estimate; an estimate made now is used from the next frame */
         const double b0 = wt_adapt_build_seconds(lp->adapt);
-        if ((st = wt_adapt_frame(lp->adapt, t, lp->s_ol, lp->rec)) < 0) return st;
+        wt_night_sample truth; /* (the oracle following a night takes the truth's state of this frame) */
+        const int has_truth = wt_loop_truth_state(lp, &truth);
+        if ((st = wt_adapt_frame(lp->adapt, t, lp->s_ol, has_truth ? &truth : NULL, lp->rec)) < 0) return st;
         const double t5 = wt_time_now();
         lp->times.learning += t5 - t4 - (wt_adapt_build_seconds(lp->adapt) - b0); /* (a build: latency, simulated) */
         t4 = t5; /* (the control's time below leaves it out) */

@@ -50,7 +50,8 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
     wt_reconstructor_params_from_config(cfg, opt->recon, opt->iterations, &par->recon);
     par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
     const wt_model_atmosphere_config *m = &cfg->model;
-    if (m->source == WT_MODEL_LEARNED && !opt->open_loop) {
+    const int follow = m->source == WT_MODEL_ORACLE && nc->source != WT_NIGHT_CFG_NONE; /* the oracle in a night */
+    if ((m->source == WT_MODEL_LEARNED || (follow && opt->recon != WT_RECON_NONE)) && !opt->open_loop) {
         /* in night time: a frame is 1 / rate times the night's compression (atmosphere.night.compression) */
         par->learn = (wt_adapt_params){.every = lround(m->update_s * cfg->rate / cfg->night.compression),
                                        .frame_night = cfg->night.compression / cfg->rate,
@@ -58,7 +59,10 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .latency = m->mvm_latency_s,
                                        .cumulative = m->learn_window == 1,
                                        .run_frames = cfg->frames,
-                                       .nstart = m->nlayers};
+                                       .nstart = m->nlayers,
+                                       .follow_truth = follow,
+                                       .ntruth = cfg->nlayers};
+        for (int k = 0; k < cfg->nlayers; k++) par->learn.truth_alt[k] = cfg->layer_altitude[k];
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
         for (int k = 0; k < m->nlayers; k++) {
             par->learn.start_alt[k] = m->altitude[k];
