@@ -239,7 +239,9 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
                                              "recon.atmosphere.learn_window"};
     for (int i = 0; i < 3; i++) {
         const int k = wt_config_priv_find_key(learn_keys[i]);
-        if (m->source != WT_MODEL_LEARNED && ps->set[k] && !explicit_src)
+        /* the oracle in a changing night follows the truth every update_s (an MVM after its latency) */
+        const int night_oracle = i < 2 && m->source == WT_MODEL_ORACLE && cfg->night.source != WT_NIGHT_CFG_NONE;
+        if (m->source != WT_MODEL_LEARNED && ps->set[k] && !explicit_src && !night_oracle)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
                                        "key '%s' is for a learned model, but 'recon.atmosphere.source' is \"%s\"",
                                        learn_keys[i], m->source == WT_MODEL_ORACLE ? "oracle" : "given");

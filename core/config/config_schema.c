@@ -363,9 +363,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "layer outside their range), the wind of a layer the Cn2-weighted mean of the wind vectors it absorbs "
      "(optional, default oracle)"},
     {"recon.atmosphere.update_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e6, "s", 1, CF(model.update_s), NOCOUNT, 0, 0, NULL, 60.0,
-         "learned: night time between two estimates (each from the frames since the previous one: at least 100); "
-         "the frames of a night time are 1/loop.rate_hz each unless the night compresses time (optional, default 60, "
-         "refused with another source)"},
+         "learned: night time between two estimates (each from at least 100 frames); the oracle in a changing night "
+         "(atmosphere.night): between two updates of its model to the truth's state; a frame is 1/loop.rate_hz of "
+         "night times atmosphere.night.compression (optional, default 60, refused with a given source)"},
     {"recon.atmosphere.learn_window", K_ENUM, F_OPT, 0, 0, "", 1, CF(model.learn_window), NOCOUNT, 0, 0, "interval|all",
      0, "learned: the frames of an estimate: interval = those since the previous estimate (a night that changes: the "
      "estimate follows it), all = every frame since the start (a static night: the estimate converges; its "
@@ -373,7 +373,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
          "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "
-         "cluster is a smaller value (optional, default -1, refused with another source)"},
+         "cluster is a smaller value; also the oracle's MVM in a changing night (optional, default -1, refused with a "
+         "given source)"},
     {"recon.atmosphere.r0_m", K_FLOAT, F_OPT, 1e-3, 1e4, "m", 1, CF(model.r0), NOCOUNT, 0, 0, NULL, 0,
      "given: the model's Fried parameter r0 at 500 nm (required with source = \"given\", refused otherwise)"},
     {"recon.atmosphere.L0_m", K_FLOAT, F_OPT, 1.0, 1e4, "m", 1, CF(model.L0), NOCOUNT, 0, 0, NULL, 0,
