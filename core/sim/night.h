@@ -30,9 +30,9 @@
  * lines are skipped, fields are separated by blanks. Refused with FILE:LINE: a field that is not a finite
  * number, a line of another column count (a layer count other than the truth's), a time not above the previous
  * line's, r0 ≤ 0, a negative fraction or fractions that do not sum to 1 within WT_NIGHT_SUM_TOL, a negative
- * wind speed, a direction outside [−360, 360] deg; naming the file: no state, a first time after the run's
- * first night time or a last time before its last one (both times said), a layer whose reference fraction is 0
- * but whose fraction in the file is not (its screen has no power to scale up).
+ * wind speed, a direction outside [−360, 360] deg, a positive fraction of a layer whose reference fraction is 0
+ * (its screen has no power to scale up), a first time after the run's first night time or a last time before
+ * its last one (both times said); naming the file: no state.
  *
  * The truth (SPEC §2 with a night): the screens are generated once with the reference state (the configured
  * r0_ref, f_ℓ,ref; L0 fixed over the night); in frame j (night time t_j = start + j Δt c, Δt the frame time,
@@ -98,7 +98,7 @@ typedef struct wt_night_sample {
 } wt_night_sample;
 
 /* Validate p, read the night file or draw the stochastic knots, check that they cover the run's night times.
- * Allocates the knots (file: its states; random: ⌈(last night time)/step⌉ + 2 knots) and the drive's state.
+ * Allocates the knots (file: its states; random: ⌊(last night time)/step⌋ + 2 knots) and the drive's state.
  * Errors: WT_ERR_INVALID (a bad parameter, named), WT_ERR_IO (the file cannot be opened or read), WT_ERR_CONFIG
  * (the file's contents, FILE:LINE; a night that does not cover the run), WT_ERR_NOMEM. */
 int wt_night_alloc(wt_context *ctx, const wt_night_params *p, wt_night **out);
