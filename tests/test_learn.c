@@ -339,6 +339,65 @@ START_TEST(test_single_layer)
 }
 END_TEST
 
+
+/* ---------------------------------------------------------------- reset, and one model for many fits */
+
+/* After wt_learn_reset and the same frames again, every map is bit-identical to a fresh object's (the spectra are
+ * zeroed, not approximately cancelled); a model built once fits as wt_learn_fit does, bit for bit, and refuses an
+ * accumulator of another geometry. */
+START_TEST(test_reset_model)
+{
+    wt_context *ctx = tu_context();
+    geom G, G2;
+    geom_make(&G, 10, 3, 30.0);
+    geom_make(&G2, 10, 3, 40.0);
+    const int ns = geom_nsub(&G), S = 2 * 10 - 1, K = 12, fl = G.nlgs * 2 * ns;
+    double *s = malloc(sizeof(double) * (size_t)K * fl), *junk = malloc(sizeof(double) * fl);
+    const double h = 5000.0, one = 1.0;
+    simulate(ctx, &G, 1, &h, &one, 0.15, 25.0, 2, K / 2, s); /* a profile the fit can find */
+    tu_randn(junk, fl, 32);
+    wt_learn *A = NULL, *B = NULL, *C = NULL;
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 3, 4, &A), WT_OK);
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 3, 4, &B), WT_OK);
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G2.g, 3, 4, &C), WT_OK);
+    for (int t = 0; t < 7; t++) ck_assert_int_eq(wt_learn_add(A, junk), WT_OK);
+    wt_learn_reset(A);
+    ck_assert_int_eq(wt_learn_frames(A), 0);
+    for (int t = 0; t < K; t++) {
+        ck_assert_int_eq(wt_learn_add(A, s + (size_t)t * fl), WT_OK);
+        ck_assert_int_eq(wt_learn_add(B, s + (size_t)t * fl), WT_OK);
+        ck_assert_int_eq(wt_learn_add(C, s + (size_t)t * fl), WT_OK);
+    }
+    double *ma = malloc(sizeof(double) * S * S), *mb = malloc(sizeof(double) * S * S);
+    for (int b = -1; b < 3; b++)
+        for (int p = 0; p < wt_learn_npairs(A); p++)
+            for (int c = 0; c < 3; c++) {
+                ck_assert_int_eq(wt_learn_map(A, b, p, c, ma, NULL), WT_OK);
+                ck_assert_int_eq(wt_learn_map(B, b, p, c, mb, NULL), WT_OK);
+                ck_assert(!memcmp(ma, mb, sizeof(double) * S * S));
+            }
+    double alt[WT_LEARN_MAX_ALT];
+    const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+    wt_learn_model *M = NULL;
+    ck_assert_int_eq(wt_learn_model_alloc(A, na, alt, 25.0, &M), WT_OK);
+    wt_learn_estimate e1, e2, e3;
+    ck_assert_int_eq(wt_learn_fit_model(B, M, &e1), WT_OK);
+    ck_assert_int_eq(wt_learn_fit(A, na, alt, 25.0, &e2), WT_OK);
+    ck_assert(!memcmp(e1.cn2, e2.cn2, sizeof e1.cn2) && e1.r0 == e2.r0 && e1.residual == e2.residual);
+    ck_assert(!memcmp(e1.batch_r0, e2.batch_r0, sizeof e1.batch_r0) && e1.rows == e2.rows && e1.nbatch == 3);
+    ck_assert_int_eq(wt_learn_fit_model(C, M, &e3), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "another geometry"));
+    alt[1] = -5;
+    wt_learn_model *M2 = NULL;
+    ck_assert_int_eq(wt_learn_model_alloc(A, na, alt, 25.0, &M2), WT_ERR_INVALID);
+    ck_assert_ptr_null(M2);
+    wt_learn_model_free(M);
+    wt_learn_free(A), wt_learn_free(B), wt_learn_free(C);
+    free(s), free(junk), free(ma), free(mb);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* ---------------------------------------------------------------- refusals */
 
 START_TEST(test_refusals)
@@ -465,6 +524,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_nnls);
     tcase_add_test(tc, test_response_screens);
     tcase_add_test(tc, test_single_layer);
+    tcase_add_test(tc, test_reset_model);
     tcase_add_test(tc, test_refusals);
     tcase_add_test(tc, test_command);
     suite_add_tcase(s, tc);

@@ -113,6 +113,13 @@ fail:
 }
 
 int64_t wt_learn_frames(const wt_learn *L) { return L->frames; }
+
+void wt_learn_reset(wt_learn *L)
+{
+    memset(L->spec, 0, (size_t)L->nbatch * L->npairs * WT_LEARN_NCOMP * L->nf * 2 * sizeof(double));
+    memset(L->bframes, 0, (size_t)L->nbatch * sizeof *L->bframes);
+    L->frames = 0;
+}
 int wt_learn_npairs(const wt_learn *L) { return L->npairs; }
 int wt_learn_map_side(const wt_learn *L) { return 2 * L->n - 1; }
 

@@ -65,6 +65,9 @@ void wt_learn_free(wt_learn *L);
  * WT_ERR_NUMERIC naming the LGS and slope for NaN/Inf (the frame is then not counted). */
 int wt_learn_add(wt_learn *L, const double *slopes);
 int64_t wt_learn_frames(const wt_learn *L);    /* frames added */
+/* Forget every frame added (the spectra, batch counts and, with lags, the ring of recent frames); the geometry and
+ * plans stay, so that a loop can estimate from its last T seconds only. Allocates nothing. */
+void wt_learn_reset(wt_learn *L);
 int wt_learn_npairs(const wt_learn *L);        /* nlgs (nlgs + 1) / 2; pair p = (i, j), i ≤ j, i-major order */
 void wt_learn_pair(const wt_learn *L, int p, int *i, int *j);
 int wt_learn_map_side(const wt_learn *L);      /* 2n − 1: maps are (2n − 1)² offsets, δ = (−(n−1) … n−1)² */
@@ -104,10 +107,24 @@ typedef struct wt_learn_estimate {
     double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
 } wt_learn_estimate;
 
+/* The response maps of the nalt increasing altitudes alt (< H) at outer scale L0, restricted to the offsets the fit
+ * uses, and their normal matrix: computed once (the costly part of a fit, OpenMP team), so that a fit of new frames
+ * is inverse FFTs of the accumulated spectra, the right-hand sides AᵀWb and an NNLS of nalt unknowns. Holds
+ * nslot · 3 · nu · nalt doubles (nslot = 1 + nlgs (nlgs − 1)/2 distinct pairs, nu ≈ half of (2n − 1)² offsets: 118 MB
+ * at 84 × 84 subapertures, 6 LGS, 22 altitudes). WT_ERR_INVALID for a bad grid. */
+typedef struct wt_learn_model wt_learn_model;
+int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_model **out);
+void wt_learn_model_free(wt_learn_model *M);
+
+/* Fit with a model built from L or from an object of the same geometry (WT_ERR_INVALID otherwise); the estimate as
+ * wt_learn_fit's, bit for bit on one thread. Allocates temporaries (a few spectra per thread); OpenMP team. */
+int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_estimate *est);
+
 /* Fit the profile on the nalt increasing altitudes alt (< H) with outer scale L0. Needs ≥ 2 frames in every
  * batch used (WT_ERR_INVALID otherwise, saying how many). WT_ERR_NUMERIC when the fit finds no turbulence
  * (every c_h = 0). Allocates temporaries. */
 int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_estimate *est);
+/* (a convenience: wt_learn_model_alloc, wt_learn_fit_model, wt_learn_model_free) */
 
 /* Non-negative least squares in normal-equation form: minimise ½ xᵀ G x − qᵀ x over x ≥ 0 (Lawson & Hanson 1974,
  * ch. 23, on the Gram matrix G = AᵀA, q = Aᵀb), G m × m column-major symmetric positive semi-definite. x [m] out.
