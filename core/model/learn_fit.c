@@ -36,7 +36,7 @@ static int thread_id(void)
 /* Solve A z = b for the k × k symmetric positive definite A (column-major, leading dimension lda) by Cholesky in
  * place on a copy w (k²). A pivot that is not positive (a column that the others reproduce) is lifted to a
  * relative 1e-12 of the diagonal's largest: that column's z then comes out ~0, which the active set drops. */
-static void spd_solve(int k, const double *A, int lda, const double *b, double *z, double *w)
+void wt_learn__spd_solve(int k, const double *A, int lda, const double *b, double *z, double *w)
 {
     double dmax = 0;
     for (int c = 0; c < k; c++) dmax = fmax(dmax, A[c + (size_t)lda * c]);
@@ -94,7 +94,7 @@ int wt_learn_nnls(int m, const double *G, const double *q, double *x, double *wo
                         if (act[k]) sub[r++ + (size_t)m * np] = G[k + (size_t)m * i];
                     rhs[np++] = q[i];
                 }
-            spd_solve(np, sub, m, rhs, zs, chol);
+            wt_learn__spd_solve(np, sub, m, rhs, zs, chol);
             for (int i = 0, r = 0; i < m; i++) z[i] = act[i] ? zs[r++] : 0.0;
             /* all of P positive: accept; otherwise step from x towards z to the first variable reaching 0 */
             double alpha = 1.0;

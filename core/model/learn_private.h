@@ -31,6 +31,11 @@ struct wt_learn {
     double *four_a;
     struct fftw_plan_s *r2c, *c2r; /* grid_a -> four_a slot; c2r of a work spectrum (made with the work arrays) */
     double *cwork, *cwork_a; /* [nf][2] + 8: a spectrum for c2r */
+    int nlag, kmax;          /* lags (0: none), the largest [frames] */
+    int lag[WT_LEARN_MAX_LAG]; /* [frames], increasing */
+    double *ring;            /* [kmax + 1][2 nlgs][nf][2] the last frames' spectra, frame t at slot t mod (kmax + 1) */
+    double *lspec;           /* [nbatch][nlag][nlgs (i)][nlgs (j)][2 (x x, y y)][nf][2] lagged cross-spectra */
+    int64_t *lframes;        /* [nbatch][nlag] frame pairs accumulated */
 };
 
 /* The response maps of one (altitude grid, L0) restricted to the offsets the fit uses, and their Gram matrix
@@ -77,6 +82,10 @@ void wt_learn__rws_free(const wt_learn *L, wt_learn__rws *w);
  * s = v τ), laid out as wt_learn_map's. Allocates nothing; thread-safe on distinct work spaces. */
 void wt_learn__resp_eval(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx, double sy,
                          int ca, int cb, double *r);
+
+/* Solve A z = b for the k × k symmetric positive (semi-)definite A (column-major, leading dimension lda) by Cholesky
+ * on a copy w (k²); a pivot that is not positive is lifted to 1e-12 of the largest diagonal (learn_fit.c). */
+void wt_learn__spd_solve(int k, const double *A, int lda, const double *b, double *z, double *w);
 
 /* The N × N real correlation (unnormalised, FFT order) of spectrum sp (nf complex) into out (N*N): copies sp
  * into the work spectrum, runs the c2r plan and scales by 1/N². Not thread-safe on one object. */

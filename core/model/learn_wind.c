@@ -1,0 +1,356 @@
+/* core/model/learn_wind.c: the wind of each identified layer from the time-lagged LGS cross-covariance maps (SPEC
+ * §12, "Wind"; the model in core/model/learn.h).
+ *
+ * Under frozen flow the layer at h moves by s = v_h k Δt in k frames, so that the lag-k map of the ordered pair
+ * (i, j) is
+ *
+ *   C_ij^c(δ; k) = γ_k Σ_h c_h R_ij^c(δ; h, v_h k Δt) + ε,
+ *
+ * R the response of a unit layer at the displacement δ d (1 − h/H) + (θ_j − θ_i) h − s (learn_response.c), c_h the
+ * profile fit's (fixed), γ_k a decorrelation per lag (1 for pure frozen flow). The unknowns p = (γ_1 … γ_K, v_1x,
+ * v_1y, …) minimise
+ *
+ *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (C − model)²,   w = P(δ)/P(0),
+ *
+ * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s by central differences of
+ * ±WIND_EPS d. The layers are fitted jointly: they overlap in every map (their peaks sit (θ_j − θ_i) Δh apart,
+ * about a subaperture per km), so one at a time would let the strongest absorb its neighbours. The lags enter one
+ * by one from the shortest, each stage starting from the last's v: a stage's new shifts are then within a
+ * subaperture of their final value, where the model is close to linear in v.
+ * The uncertainty: each batch fitted from the all-frames solution; the spread of its v over √B.
+ */
+#include "learn_private.h"
+#include "core/model/profile.h"
+
+#include <fftw3.h>
+#include <math.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define WIND_ITERS 25        /* Levenberg–Marquardt iterations per stage (each stage converges in ~5) */
+#define WIND_BATCH_ITERS 12  /* for a batch, from the all-frames solution */
+#define WIND_EPS 0.02        /* the derivative's step [subaperture sides d]: well inside the peak's width d */
+#define WIND_STEP_CAP 0.5    /* largest change of a layer's shift per iteration at the longest lag [d] */
+#define WIND_TOL 0.01        /* convergence: every |Δv| below this [m/s] (a tenth of the batches' spread) */
+#define WIND_VMAX 100.0      /* |v| is held below this [m/s] (the table of D covers the shifts it makes) */
+#define WIND_MAX_LAYERS 20   /* bins holding ≥ 5 % of the Cn² are at most 20 */
+
+typedef struct {
+    const wt_learn *L;
+    int nl;                      /* layers fitted */
+    double h[WIND_MAX_LAYERS];   /* their altitudes [m] */
+    double c[WIND_MAX_LAYERS];   /* their c_h [m^(−5/3)] */
+    int nu, *uoff;               /* used offsets (FFT index) */
+    double *uw;                  /* their weights */
+    double dt;                   /* [s] */
+    int nth;
+    wt_learn__rws *ws[WT_LEARN_MAX_THREADS];
+    double *rb;                  /* [nth][nl][5][S²] response maps of a block */
+    double *data;                /* [nlag][nlgs][nlgs][2][nu] the maps being fitted */
+    double *blk;                 /* [nblock][(1 + 2 nl)² + (1 + 2 nl) + 2] each block's normal equations, cost, norm */
+} wfit;
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+/* The normal equations of the first nq lags at p = (γ[nq], v[nl][2]): A (np × np), g = JᵀW r, *cost = Φ, *norm =
+ * Σ w C². Blocks (lag, slot, component) in parallel, each into its own slot of blk, summed in block order (the
+ * result does not depend on the thread count). Slot 0 is every auto pair (one response), then each ordered cross
+ * pair. */
+static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, double *cost, double *norm)
+{
+    const wt_learn *L = F->L;
+    const int nl = F->nl, nlgs = L->nlgs, nslot = 1 + nlgs * (nlgs - 1), S = 2 * L->n - 1, S2 = S * S;
+    const int ml = 1 + 2 * nl, bs = ml * ml + ml + 2, nblock = nq * nslot * 2, np = nq + 2 * nl, N = L->N;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
+    for (int b = 0; b < nblock; b++) {
+        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+        double *out = F->blk + (size_t)b * bs, *rb = F->rb + (size_t)tid * nl * 5 * S2;
+        memset(out, 0, (size_t)bs * sizeof *out);
+        /* the pair(s) of this slot */
+        int pi[64] = {0}, pj[64] = {0}, npair = 0;
+        if (sl == 0)
+            for (int i = 0; i < nlgs; i++) pi[npair] = i, pj[npair++] = i;
+        else {
+            int s = sl - 1, i = s / (nlgs - 1), j = s % (nlgs - 1);
+            pi[0] = i, pj[0] = j >= i ? j + 1 : j, npair = 1;
+        }
+        const double tx = L->theta_x[pj[0]] - L->theta_x[pi[0]], ty = L->theta_y[pj[0]] - L->theta_y[pi[0]];
+        const double eps = WIND_EPS * L->d, gam = p[q];
+        for (int l = 0; l < nl; l++) {
+            const double sx = p[nq + 2 * l] * k * F->dt, sy = p[nq + 2 * l + 1] * k * F->dt;
+            static const double ox[5] = {0, 1, -1, 0, 0}, oy[5] = {0, 0, 0, 1, -1};
+            for (int e = 0; e < 5; e++)
+                wt_learn__resp_eval(L, F->ws[tid], tx, ty, F->h[l], sx + ox[e] * eps, sy + oy[e] * eps, c, c,
+                                    rb + ((size_t)l * 5 + e) * S2);
+        }
+        double J[1 + 2 * WIND_MAX_LAYERS];
+        for (int u = 0; u < F->nu; u++) {
+            int f = F->uoff[u], dx = f % N, dy = f / N;
+            dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
+            const int o = (dx + L->n - 1) + S * (dy + L->n - 1);
+            double base = 0;
+            for (int l = 0; l < nl; l++) {
+                const double *r = rb + (size_t)l * 5 * S2 + o, cl = F->c[l];
+                base += cl * r[0];
+                /* ∂/∂v = γ c k Δt ∂R/∂s */
+                const double fac = gam * cl * k * F->dt / (2 * eps);
+                J[1 + 2 * l] = fac * (r[S2] - r[2 * S2]), J[2 + 2 * l] = fac * (r[3 * S2] - r[4 * S2]);
+            }
+            J[0] = base;
+            const double w = F->uw[u];
+            for (int a = 0; a < npair; a++) {
+                const double C = F->data[((((size_t)q * nlgs + pi[a]) * nlgs + pj[a]) * 2 + c) * F->nu + u];
+                const double r = C - gam * base;
+                for (int x = 0; x < ml; x++) {
+                    out[ml * ml + x] += w * J[x] * r;
+                    for (int y = 0; y <= x; y++) out[x + ml * y] += w * J[x] * J[y];
+                }
+                out[ml * ml + ml] += w * r * r, out[ml * ml + ml + 1] += w * C * C;
+            }
+        }
+    }
+    memset(A, 0, (size_t)np * np * sizeof *A);
+    memset(g, 0, (size_t)np * sizeof *g);
+    *cost = *norm = 0;
+    for (int b = 0; b < nblock; b++) {
+        const int q = b / (nslot * 2);
+        const double *in = F->blk + (size_t)b * bs;
+        /* local index 0 → γ_q (global q), 1 + t → v (global nq + t) */
+        for (int x = 0; x < ml; x++) {
+            const int gx = x ? nq + x - 1 : q;
+            g[gx] += in[ml * ml + x];
+            for (int y = 0; y <= x; y++) {
+                const int gy = y ? nq + y - 1 : q;
+                A[gx + (size_t)np * gy] += in[x + ml * y];
+                if (gx != gy) A[gy + (size_t)np * gx] += in[x + ml * y];
+            }
+        }
+        *cost += in[ml * ml + ml], *norm += in[ml * ml + ml + 1];
+    }
+}
+
+/* Levenberg–Marquardt over the first nq lags from p (updated in place); returns the iterations, or −1 if λ ran away
+ * before convergence (a flat or inconsistent problem) */
+static int lm(wfit *F, int nq, double *p, int maxit, double *cost_out, double *norm_out, double *work)
+{
+    const int nl = F->nl, np = nq + 2 * nl;
+    double *A = work, *g = A + np * np, *At = g + np, *gt = At + np * np, *M = gt + np, *dp = M + np * np,
+           *pt = dp + np, *ch = pt + np;
+    double cost, norm, ct, nt;
+    normal_eq(F, nq, p, A, g, &cost, &norm);
+    double lambda = 1e-3;
+    const double kdt = F->L->lag[nq - 1] * F->dt;
+    int it;
+    for (it = 1; it <= maxit; it++) {
+        for (int x = 0; x < np * np; x++) M[x] = A[x];
+        for (int x = 0; x < np; x++) M[x + (size_t)np * x] += lambda * (A[x + (size_t)np * x] > 0 ? A[x + (size_t)np * x] : 1.0);
+        wt_learn__spd_solve(np, M, np, g, dp, ch);
+        /* at most WIND_STEP_CAP subapertures of new shift per layer at the longest lag in use */
+        double dvmax = 0;
+        for (int l = 0; l < nl; l++) {
+            double *d = dp + nq + 2 * l, m = hypot(d[0], d[1]) * kdt / (WIND_STEP_CAP * F->L->d);
+            if (m > 1) d[0] /= m, d[1] /= m;
+            dvmax = fmax(dvmax, fmax(fabs(d[0]), fabs(d[1])));
+        }
+        for (int x = 0; x < np; x++) pt[x] = p[x] + dp[x];
+        for (int l = 0; l < nl; l++) {
+            double *v = pt + nq + 2 * l, m = hypot(v[0], v[1]) / WIND_VMAX;
+            if (m > 1) v[0] /= m, v[1] /= m;
+        }
+        normal_eq(F, nq, pt, At, gt, &ct, &nt);
+        if (ct <= cost) {
+            memcpy(p, pt, (size_t)np * sizeof *p);
+            memcpy(A, At, (size_t)np * np * sizeof *A), memcpy(g, gt, (size_t)np * sizeof *g);
+            cost = ct, lambda = fmax(lambda / 3, 1e-9);
+            if (dvmax < WIND_TOL) break;
+        } else {
+            lambda *= 4;
+            if (lambda > 1e8) break; /* no step lowers Φ: the minimum, to rounding */
+        }
+    }
+    *cost_out = cost, *norm_out = norm;
+    return it > maxit ? maxit : it;
+}
+
+/* The lagged maps of batch b (−1: all) at the used offsets into F->data */
+static int load_maps(wfit *F, int batch, double *buf, int nth)
+{
+    const wt_learn *L = F->L;
+    const int nlgs = L->nlgs, nf = L->nf, NN = L->N * L->N, ntask = L->nlag * nlgs * nlgs * 2;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+    for (int t = 0; t < ntask; t++) {
+        const int q = t / (nlgs * nlgs * 2), tid = thread_id();
+        double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
+        int64_t K = 0;
+        memset(sp, 0, (size_t)2 * nf * sizeof *sp);
+        for (int b = batch < 0 ? 0 : batch; b <= (batch < 0 ? L->nbatch - 1 : batch); b++) {
+            /* t enumerates (q, i, j, c) in lspec's order within a batch */
+            const double *s = L->lspec + ((size_t)b * L->nlag * nlgs * nlgs * 2 + t) * nf * 2;
+            for (int k = 0; k < 2 * nf; k++) sp[k] += s[k];
+            K += L->lframes[(size_t)b * L->nlag + q];
+        }
+        fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
+        for (int u = 0; u < F->nu; u++)
+            F->data[(size_t)t * F->nu + u] = corr[F->uoff[u]] / ((double)NN * (double)K * L->pairs[F->uoff[u]]);
+    }
+    return WT_OK;
+}
+
+static double wrap_pi(double a) { return a - 2 * M_PI * floor((a + M_PI) / (2 * M_PI)); }
+
+int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt, double min_fraction, wt_learn_wind *w)
+{
+    wt_context *ctx = L->ctx;
+    const int n = L->n, N = L->N, S = 2 * n - 1, S2 = S * S, nlgs = L->nlgs;
+    int st = WT_OK;
+    memset(w, 0, sizeof *w);
+    if (L->nlag < 1)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no lagged maps for the wind (allocate with wt_learn_alloc_lagged)");
+    if (!(dt > 0) || !isfinite(dt))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: frame time %g s, expected > 0", dt);
+    if (!(min_fraction >= 0 && min_fraction < 1))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: wind threshold %g of the Cn², expected in [0, 1)", min_fraction);
+    if (L->frames < L->kmax + 2)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: %lld frames accumulated, too few for the longest lag (%d frames): "
+                        "the wind needs at least %d", (long long)L->frames, L->kmax, L->kmax + 2);
+    if (est->nalt < 1 || est->nalt > WT_LEARN_MAX_ALT)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: an estimate of %d altitudes", est->nalt);
+    wfit F = {0};
+    F.L = L, F.dt = dt;
+    w->nalt = est->nalt, w->dt = dt, w->nlag = L->nlag;
+    memcpy(w->lag, L->lag, (size_t)L->nlag * sizeof *L->lag);
+    for (int a = 0; a < est->nalt; a++) {
+        w->altitude[a] = est->altitude[a], w->fraction[a] = est->fraction[a];
+        if (!(est->altitude[a] >= 0 && est->altitude[a] < L->H) || !isfinite(est->cn2[a]))
+            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: estimate altitude %g m outside [0, H = %g m)", est->altitude[a], L->H);
+        if (est->fraction[a] >= min_fraction && est->cn2[a] > 0) {
+            if (F.nl == WIND_MAX_LAYERS)
+                return WT_ERROR(ctx, WT_ERR_INVALID, "learn: more than %d bins above %g of the Cn²", WIND_MAX_LAYERS,
+                                min_fraction);
+            F.h[F.nl] = est->altitude[a], F.c[F.nl++] = est->cn2[a], w->fitted[a] = 1;
+        }
+    }
+    if (F.nl == 0)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no altitude holds %g of the Cn²: no layer to find the wind of",
+                        min_fraction);
+    const int nl = F.nl, np = L->nlag + 2 * nl, ml = 1 + 2 * nl, nslot = 1 + nlgs * (nlgs - 1);
+    F.nth = 1;
+#ifdef _OPENMP
+    F.nth = omp_get_max_threads();
+#endif
+    if (F.nth > WT_LEARN_MAX_THREADS) F.nth = WT_LEARN_MAX_THREADS;
+    double *buf = NULL, *work = NULL, *p = NULL, *pb = NULL;
+    /* the used offsets: the profile fit's (every offset counts here: noise is white, so a lag carries none) */
+    WT_ALLOC(ctx, F.uoff, S2, "the used offsets");
+    WT_ALLOC(ctx, F.uw, S2, "the offsets' weights");
+    for (int o = 0; o < S2; o++) {
+        int dx = o % S - (n - 1), dy = o / S - (n - 1), f = (dx + N) % N + N * ((dy + N) % N);
+        if (L->pairs[f] < WT_LEARN_MIN_PAIRS * L->pairs[0]) continue;
+        F.uoff[F.nu] = f, F.uw[F.nu++] = L->pairs[f] / L->pairs[0];
+    }
+    double thmax = 0, hmax = 0;
+    for (int i = 0; i < nlgs; i++)
+        for (int j = 0; j < nlgs; j++)
+            thmax = fmax(thmax, hypot(L->theta_x[j] - L->theta_x[i], L->theta_y[j] - L->theta_y[i]));
+    for (int l = 0; l < nl; l++) hmax = fmax(hmax, F.h[l]);
+    const double smax = WIND_VMAX * L->kmax * dt + 2 * WIND_EPS * L->d;
+    for (int k = 0; k < F.nth; k++)
+        if ((st = wt_learn__rws_alloc(L, est->L0, wt_learn__rmax(L, thmax, hmax, smax), &F.ws[k])) < 0) goto fail;
+    WT_ALLOC(ctx, F.rb, (size_t)F.nth * nl * 5 * S2, "the wind's response maps");
+    WT_ALLOC(ctx, F.data, (size_t)L->nlag * nlgs * nlgs * 2 * F.nu, "the lagged maps");
+    WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (ml * ml + ml + 2), "the blocks' normal equations");
+    WT_ALLOC(ctx, buf, (size_t)F.nth * (2 * L->nf + N * N + 16), "the inverse FFT work arrays");
+    WT_ALLOC(ctx, work, (size_t)3 * np * np + 6 * np + np * np, "the Levenberg-Marquardt work space");
+    WT_ALLOC(ctx, p, np, "the wind parameters");
+    WT_ALLOC(ctx, pb, np, "a batch's wind parameters");
+    /* all frames: the lags one by one (stage q fits γ_0 … γ_q and v, from the last stage's v, γ_q from 1) */
+    if ((st = load_maps(&F, -1, buf, F.nth)) < 0) goto fail;
+    double cost = 0, norm = 0;
+    for (int q = 0; q < L->nlag; q++) {
+        /* p is laid out (γ[nq], v): move v up by one for the new γ */
+        double v[2 * WIND_MAX_LAYERS];
+        memcpy(v, p + q, (size_t)2 * nl * sizeof *v);
+        p[q] = 1.0;
+        memcpy(p + q + 1, v, (size_t)2 * nl * sizeof *v);
+        if (q == 0) memset(p + 1, 0, (size_t)2 * nl * sizeof *p);
+        int it = lm(&F, q + 1, p, WIND_ITERS, &cost, &norm, work);
+        w->iterations += it;
+    }
+    for (int q = 0; q < L->nlag; q++) w->gamma[q] = p[q];
+    w->residual = norm > 0 ? sqrt(cost / norm) : 0.0;
+    for (int l = 0, a = 0; a < est->nalt; a++) {
+        if (!w->fitted[a]) continue;
+        w->vx[a] = p[L->nlag + 2 * l], w->vy[a] = p[L->nlag + 2 * l + 1], l++;
+        w->speed[a] = hypot(w->vx[a], w->vy[a]);
+        w->direction[a] = fmod(atan2(w->vy[a], w->vx[a]) + 2 * M_PI, 2 * M_PI);
+    }
+    /* the batches: each from the all-frames solution, all lags */
+    int used[WT_LEARN_MAX_BATCH], nb = 0;
+    for (int b = 0; b < L->nbatch; b++) {
+        int ok = 1;
+        for (int q = 0; q < L->nlag; q++) ok = ok && L->lframes[(size_t)b * L->nlag + q] >= 2;
+        if (ok) used[nb++] = b;
+    }
+    if (nb >= 2) {
+        w->nbatch = nb;
+        double s1[WT_LEARN_MAX_ALT][4] = {{0}}, s2[WT_LEARN_MAX_ALT][4] = {{0}};
+        for (int r = 0; r < nb; r++) {
+            if ((st = load_maps(&F, used[r], buf, F.nth)) < 0) goto fail;
+            memcpy(pb, p, (size_t)np * sizeof *p);
+            double cb, nbn;
+            lm(&F, L->nlag, pb, WIND_BATCH_ITERS, &cb, &nbn, work);
+            for (int l = 0, a = 0; a < est->nalt; a++) {
+                if (!w->fitted[a]) continue;
+                const double vx = pb[L->nlag + 2 * l], vy = pb[L->nlag + 2 * l + 1];
+                l++;
+                w->batch_vx[r][a] = vx, w->batch_vy[r][a] = vy;
+                const double x[4] = {vx, vy, hypot(vx, vy), wrap_pi(atan2(vy, vx) - w->direction[a])};
+                for (int c = 0; c < 4; c++) s1[a][c] += x[c], s2[a][c] += x[c] * x[c];
+            }
+        }
+        for (int a = 0; a < est->nalt; a++) {
+            if (!w->fitted[a]) continue;
+            double sg[4];
+            for (int c = 0; c < 4; c++) sg[c] = sqrt(fmax(0.0, (s2[a][c] - s1[a][c] * s1[a][c] / nb) / (nb - 1)) / nb);
+            w->vx_sigma[a] = sg[0], w->vy_sigma[a] = sg[1], w->speed_sigma[a] = sg[2], w->direction_sigma[a] = sg[3];
+        }
+    }
+fail:
+    for (int k = 0; k < F.nth; k++) wt_learn__rws_free(L, F.ws[k]);
+    wt_free(ctx, F.uoff), wt_free(ctx, F.uw), wt_free(ctx, F.rb), wt_free(ctx, F.data), wt_free(ctx, F.blk);
+    wt_free(ctx, buf), wt_free(ctx, work), wt_free(ctx, p), wt_free(ctx, pb);
+    return st;
+}
+
+void wt_learn_wind_compress(const wt_learn_wind *w, int nl, const double *ralt, double *rfrac, double *rvx, double *rvy,
+                            double *sigma_x, double *sigma_y)
+{
+    double ff[WT_LEARN_MAX_ALT], junk[WT_LEARN_MAX_ALT > 64 ? WT_LEARN_MAX_ALT : 64];
+    for (int a = 0; a < w->nalt; a++) ff[a] = w->fitted[a] ? w->fraction[a] : 0.0;
+    wt_profile_compress(w->nalt, w->altitude, w->fraction, NULL, NULL, nl, ralt, rfrac, NULL, NULL);
+    /* the wind over the fitted bins only: an unfitted bin's 0 is "unknown", not "still air" */
+    wt_profile_compress(w->nalt, w->altitude, ff, w->vx, w->vy, nl, ralt, junk, rvx, rvy);
+    if (!sigma_x && !sigma_y) return;
+    double s1x[64] = {0}, s2x[64] = {0}, s1y[64] = {0}, s2y[64] = {0}, bx[64], by[64];
+    for (int r = 0; r < w->nbatch; r++) {
+        wt_profile_compress(w->nalt, w->altitude, ff, w->batch_vx[r], w->batch_vy[r], nl, ralt, junk, bx, by);
+        for (int l = 0; l < nl && l < 64; l++) s1x[l] += bx[l], s2x[l] += bx[l] * bx[l], s1y[l] += by[l], s2y[l] += by[l] * by[l];
+    }
+    const int B = w->nbatch;
+    for (int l = 0; l < nl && l < 64; l++) {
+        double sx = B >= 2 ? sqrt(fmax(0.0, (s2x[l] - s1x[l] * s1x[l] / B) / (B - 1)) / B) : 0.0;
+        double sy = B >= 2 ? sqrt(fmax(0.0, (s2y[l] - s1y[l] * s1y[l] / B) / (B - 1)) / B) : 0.0;
+        if (sigma_x) sigma_x[l] = sx;
+        if (sigma_y) sigma_y[l] = sy;
+    }
+}
