@@ -14,11 +14,17 @@
 #include "core/model/profile.h"
 #include "core/model/system.h"
 #include "core/base/rng.h"
+#include "runtime/learn_wind.h"
 
 /* An estimate is the mean of its batches' cross-products: a batch of fewer frames than this gives a spread that
  * says little (the batch covariance of 4 frames is itself ±70 %). */
 #define LEARN_MIN_BATCH_FRAMES 5
 #define LEARN_DEFAULT_BATCHES 4
+/* The default lags: the shortest moves a layer of LEARN_WIND_VMAX by at most half a subaperture (where the fit's
+ * start v = 0 is within reach), then ×2, ×4, ×8 (each stage refines the last one's v; the longest gives the
+ * precision: v is the shift over k Δt) */
+#define LEARN_WIND_VMAX 40.0
+#define LEARN_WIND_NLAG 4
 #define LEARN_BENCH_FITS 5     /* fits timed by --bench: the median of 5 */
 #define LEARN_BENCH_FRAMES 20  /* frames accumulated by --bench (the fit's cost does not depend on them) */
 
@@ -39,19 +45,27 @@ static void help(void)
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
            "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
+           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (default: k, 2k, 4k, 8k with k the frames\n"
+           "               in which %.0f m/s moves half a subaperture, at the telemetry's loop.rate_hz)\n"
+           "  --no-wind    the profile only\n"
            "  --bench      time, on CFG's LGS geometry and synthetic frames (seed 1): accumulation per frame,\n"
            "               the response model's set-up (once per grid and L0) and a fit (median of %d)\n"
+           "The wind of each altitude holding >= 5 %% of the Cn2 (speed, direction of motion counter-clockwise from\n"
+           "+x) from the time-lagged maps of frozen flow, with its uncertainty from the batches, per altitude, per\n"
+           "reconstructor layer and on the truth's layers.\n"
            "Prints r0 and the profile on the grid and compressed onto pcg3's and cg9's layers, with the\n"
            "uncertainty, and the truth of the telemetry's configuration binned the same way beside; writes EST.h5\n"
            "(docs/formats.md).\n",
-           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES, LEARN_BENCH_FITS);
+           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES, LEARN_WIND_VMAX, LEARN_BENCH_FITS);
 }
 
 typedef struct {
     const char *tel, *out, *png;
     long frames, batches;
-    int bench;
+    int bench, no_wind;
+    int nlag, lags[WT_LEARN_MAX_LAG];
 } learn_args;
+
 
 
 static int cmp_double(const void *a, const void *b)
@@ -132,6 +146,24 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
     } else if (!strcmp(o, "--bench")) {
         a->bench = 1;
+    } else if (!strcmp(o, "--no-wind")) {
+        a->no_wind = 1;
+    } else if (!strcmp(o, "--lags")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        if (!v) return -1;
+        a->nlag = 0;
+        for (const char *c = v; *c;) {
+            char *end;
+            long k = strtol(c, &end, 10);
+            if (end == c || k < 1 || k > WT_LEARN_MAX_LAG_FRAMES || a->nlag == WT_LEARN_MAX_LAG ||
+                (a->nlag > 0 && k <= a->lags[a->nlag - 1]) || (*end && *end != ',')) {
+                wt_cli_usage_error(cli, "--lags %s: expected up to %d increasing frame counts 1-%d, comma-separated", v,
+                                   WT_LEARN_MAX_LAG, WT_LEARN_MAX_LAG_FRAMES);
+                return -1;
+            }
+            a->lags[a->nlag++] = (int)k;
+            c = *end ? end + 1 : end;
+        }
     } else if (!strcmp(o, "--frames") || !strcmp(o, "--batches")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
         if (!v) return -1;
@@ -211,7 +243,7 @@ int wt_cmd_learn(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo learn", help)) return 1;
-    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0};
+    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0, 0, 0, {0}};
     int rc = wt_cli_parse(&cli, argc, argv, learn_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -279,7 +311,21 @@ int wt_cmd_learn(int argc, char **argv)
     double tx[WT_MAX_GS], ty[WT_MAX_GS];
     for (int i = 0; i < sys->nlgs; i++) tx[i] = sys->sensors[i].theta_x, ty[i] = sys->sensors[i].theta_y;
     const wt_learn_geometry g = {sys->n, sys->d, sys->valid, sys->nlgs, tx, ty, sys->sensors[0].altitude};
-    if ((st = wt_learn_alloc(cli.ctx, &g, (int)args.batches, F / args.batches, &L)) < 0) goto fail;
+    /* the wind's lags (frames of the telemetry's rate) */
+    const double dt = 1.0 / tcfg->rate;
+    if (!args.no_wind && args.nlag == 0) {
+        const int k1 = (int)fmax(1.0, floor(0.5 * sys->d / (LEARN_WIND_VMAX * dt)));
+        for (int q = 0; q < LEARN_WIND_NLAG; q++) args.lags[args.nlag++] = k1 << q;
+    }
+    if (args.no_wind) args.nlag = 0;
+    if (args.nlag > 0 && F < args.lags[args.nlag - 1] + 2) {
+        st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s: %lld frames, too few for the wind's longest lag of %d frames (it "
+                      "needs %d): give shorter --lags or --no-wind", args.tel, (long long)F, args.lags[args.nlag - 1],
+                      args.lags[args.nlag - 1] + 2);
+        goto fail;
+    }
+    if ((st = wt_learn_alloc_lagged(cli.ctx, &g, (int)args.batches, F / args.batches, args.nlag, args.lags, &L)) < 0)
+        goto fail;
     const int64_t nl = sys->sensors[sys->nlgs - 1].offset + sys->sensors[sys->nlgs - 1].nslopes;
     sf = malloc((size_t)sys->nslopes * sizeof *sf);
     sd = malloc((size_t)nl * sizeof *sd);
@@ -302,7 +348,9 @@ int wt_cmd_learn(int argc, char **argv)
     double alt[WT_LEARN_MAX_ALT];
     const int na = wt_learn_default_grid(g.H, WT_LEARN_MAX_ALT, alt);
     if (!cli.quiet) fprintf(stderr, "%s: fitting %d altitudes to %d LGS pairs ...\n", cli.prog, na, wt_learn_npairs(L));
-    wt_learn_estimate *e = malloc(sizeof *e);
+    /* the estimate first: free(e) frees both */
+    struct learn_result { wt_learn_estimate e; wt_learn_wind wind; } *res = malloc(sizeof *res);
+    wt_learn_estimate *e = res ? &res->e : NULL;
     if (!e) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory for the estimate");
         goto fail;
@@ -333,6 +381,12 @@ int wt_cmd_learn(int argc, char **argv)
     print_table("Cn2 fractions on the altitude grid", na, alt, e->fraction, e->fraction_sigma, tgrid);
     print_table("compressed onto pcg3's layers", use->pcg3.nlayers, use->pcg3.altitudes, e3, s3, t3);
     print_table("compressed onto cg9's layers", use->cg9.nlayers, use->cg9.altitudes, e9, s9, t9);
+    if (args.nlag > 0) {
+        if (!cli.quiet) fprintf(stderr, "%s: fitting the wind to %d lags ...\n", cli.prog, args.nlag);
+        const double tw = wt_time_now();
+        if ((st = wt_learn_wind_fit(L, e, dt, WT_LEARN_WIND_MIN_FRACTION, &res->wind)) < 0) goto fail_e;
+        wt_learn_wind_print(&res->wind, use, tcfg, wt_time_now() - tw);
+    }
     /* EST.h5 */
     if ((st = wt_h5_create(cli.ctx, args.out, &w)) < 0) goto fail_e;
     if ((st = write_profile(w, "estimate", na, alt, e->fraction, e->fraction_sigma, "the identification grid")) < 0) goto fail_e;
@@ -365,6 +419,7 @@ int wt_cmd_learn(int argc, char **argv)
                             "the telemetry's simulated atmosphere (never read by the estimate)")) < 0 ||
         (st = wt_h5_write_double(w, "truth/r0_m", tcfg->r0, "m", "the simulated atmosphere's r0 at 500 nm")) < 0)
         goto fail_e;
+    if (args.nlag > 0 && (st = wt_learn_wind_write(w, &res->wind, use, tcfg)) < 0) goto fail_e;
     if ((st = wt_cli_write_provenance(&cli, w, use, argc, argv)) < 0) goto fail_e;
     if ((st = wt_h5_attr_write_string(w, "/", "telemetry", args.tel)) < 0) goto fail_e;
     st = wt_h5_commit(w);

@@ -30,10 +30,11 @@
  * for every ordered pair (i, j) (a lag breaks the symmetry) from a ring of the last k_max frames' spectra. Under
  * frozen flow (screen(x − v t), core/sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
  * screen moved by v k Δt, so that it adds c_h R_ij^c(δ; h, s = v k Δt) to that map: the response of the
- * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: for the altitudes holding ≥ min_fraction of the
- * fitted Cn² (c_h from wt_learn_fit, fixed), v_h (2 each) and a decorrelation γ_k per lag (1 for pure frozen
+ * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: for the layers holding ≥ min_fraction of the fitted
+ * Cn² (c_h from wt_learn_fit, fixed; a layer is a local maximum of c_h and the bins nearest to it, which share
+ * its v: the grid is finer than the pairs' altitude resolution), v (2 each) and a decorrelation γ_k per lag (1 for pure frozen
  * flow) minimise Σ_{k,i,j,c,δ} w(δ) (C − γ_k Σ_h c_h R(δ; h, v_h k Δt))², w = P(δ)/P(0) as for the profile, by
- * Levenberg–Marquardt (derivatives in s by central differences), the lags entered one by one from the shortest
+ * Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest
  * (its shifts are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v).
  *
  * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
@@ -160,7 +161,7 @@ typedef struct wt_learn_wind {
     int nalt;
     double altitude[WT_LEARN_MAX_ALT];   /* the estimate's grid [m] */
     double fraction[WT_LEARN_MAX_ALT];   /* its Cn² fractions [-] */
-    int fitted[WT_LEARN_MAX_ALT];        /* 1 where a wind was estimated (fraction ≥ min_fraction) */
+    int fitted[WT_LEARN_MAX_ALT];        /* 1 where a wind was estimated (its layer ≥ min_fraction) */
     double vx[WT_LEARN_MAX_ALT], vy[WT_LEARN_MAX_ALT];           /* [m/s], 0 where not fitted */
     double speed[WT_LEARN_MAX_ALT], direction[WT_LEARN_MAX_ALT]; /* [m/s], [rad] */
     double vx_sigma[WT_LEARN_MAX_ALT], vy_sigma[WT_LEARN_MAX_ALT]; /* spread of the batches / √B [m/s] */
@@ -175,7 +176,7 @@ typedef struct wt_learn_wind {
     double batch_vx[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT], batch_vy[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* [m/s] */
 } wt_learn_wind;
 
-/* The wind of the bins of est (wt_learn_fit of the same L) holding ≥ min_fraction of the Cn², from L's lagged maps
+/* The wind of the layers of est (wt_learn_fit of the same L) holding ≥ min_fraction of the Cn², from L's lagged maps
  * (wt_learn_alloc_lagged), dt the frame time [s]. WT_ERR_INVALID without lags, with too few frames for the longest
  * lag (saying how many), with no bin above min_fraction or a bad dt; WT_ERR_NUMERIC if the fit does not converge.
  * Allocates temporaries; OpenMP team. */

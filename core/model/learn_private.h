@@ -68,9 +68,9 @@ typedef struct wt_learn__rws {
     int ntab;
     double *tab;             /* [ntab] D(ρ)/ρ^(5/3) for r0 = 1 m [rad² m^(−5/3)] */
     double *buf;             /* all the arrays below */
-    double *C, *g, *k2;      /* [N*N] (64-byte aligned) */
+    double *C, *Cx, *Cy, *g, *k2; /* [N*N] (64-byte aligned) */
     double *Mh, *sp, *tmp;   /* [nf][2] (aligned) */
-    double *Df;              /* [9][(2n+1)²] D on the shifted lattices */
+    double *Df;              /* [3][9][(2n+1)²] D on the shifted lattices, then ∂D/∂s_x, ∂D/∂s_y */
 } wt_learn__rws;
 
 /* The largest separation [m] the table must cover: beams θ apart [rad] up to hmax [m], shifts up to smax [m]. */
@@ -82,6 +82,9 @@ void wt_learn__rws_free(const wt_learn *L, wt_learn__rws *w);
  * s = v τ), laid out as wt_learn_map's. Allocates nothing; thread-safe on distinct work spaces. */
 void wt_learn__resp_eval(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx, double sy,
                          int ca, int cb, double *r);
+/* The same and (rx non-NULL) its derivatives ∂r/∂s_x, ∂r/∂s_y [rad²/m], exact for the tabulated D's interpolant */
+void wt_learn__resp_eval_grad(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx,
+                              double sy, int ca, int cb, double *r, double *rx, double *ry);
 
 /* Solve A z = b for the k × k symmetric positive (semi-)definite A (column-major, leading dimension lda) by Cholesky
  * on a copy w (k²); a pivot that is not positive is lifted to 1e-12 of the largest diagonal (learn_fit.c). */

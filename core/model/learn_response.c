@@ -35,6 +35,22 @@ static inline double dtable_eval(const wt_learn__rws *t, double rho)
     return ((1 - w) * t->tab[k] + w * t->tab[k + 1]) * rho * c * c;
 }
 
+/* D and dD/dρ of the same interpolant: D = f ρ^(5/3), D' = f' ρ^(5/3) + (5/3) f ρ^(2/3), f' the segment's slope */
+static inline double dtable_eval_d(const wt_learn__rws *t, double rho, double *dd)
+{
+    if (!(rho > 0)) {
+        *dd = 0;
+        return 0.0;
+    }
+    double x = rho / t->step;
+    int k = (int)x;
+    if (k >= t->ntab - 1) k = t->ntab - 2;
+    double w = x - k, c = cbrt(rho), f = (1 - w) * t->tab[k] + w * t->tab[k + 1];
+    double fp = (t->tab[k + 1] - t->tab[k]) / t->step, r23 = c * c;
+    *dd = fp * rho * r23 + (5.0 / 3.0) * f * r23;
+    return f * rho * r23;
+}
+
 double wt_learn__rmax(const wt_learn *L, double theta, double hmax, double smax)
 {
     /* the farthest edge points of two subapertures: the pupil's diagonal, the beams' separation, the shift */
@@ -57,10 +73,12 @@ int wt_learn__rws_alloc(const wt_learn *L, double L0, double rmax, wt_learn__rws
     w->step = L->d / WT_LEARN_TABLE_STEPS;
     w->ntab = (int)ceil(rmax / w->step) + 2;
     WT_ALLOC(L->ctx, w->tab, w->ntab, "the structure-function table");
-    /* C, g, k2 (N²), the mask's, a work and a spare spectrum (nf complex each), 9 lattices of D (E²), 8 for
-     * alignment of each of the 6 arrays that FFTW reads or writes */
-    WT_ALLOC(L->ctx, w->buf, (size_t)3 * (NN + 8) + (size_t)3 * (2 * nf + 8) + (size_t)9 * E * E, "the response work arrays");
-    w->C = wt_align64(w->buf), w->g = wt_align64(w->C + NN), w->k2 = wt_align64(w->g + NN);
+    /* C, its two derivatives, g, k2 (N²), the mask's, a work and a spare spectrum (nf complex each), 9 lattices of
+     * D and of its two derivatives (E²), 8 for alignment of each of the arrays that FFTW reads or writes */
+    WT_ALLOC(L->ctx, w->buf, (size_t)5 * (NN + 8) + (size_t)3 * (2 * nf + 8) + (size_t)27 * E * E,
+             "the response work arrays");
+    w->C = wt_align64(w->buf), w->Cx = wt_align64(w->C + NN), w->Cy = wt_align64(w->Cx + NN);
+    w->g = wt_align64(w->Cy + NN), w->k2 = wt_align64(w->g + NN);
     w->Mh = wt_align64(w->k2 + NN), w->sp = wt_align64(w->Mh + 2 * nf), w->tmp = wt_align64(w->sp + 2 * nf);
     w->Df = w->tmp + 2 * nf;
     for (int k = 1; k < w->ntab; k++)
@@ -95,51 +113,14 @@ static void inverse(const wt_learn *L, double *sp, double *out)
     for (int k = 0; k < L->N * L->N; k++) out[k] *= s;
 }
 
-void wt_learn__resp_eval(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx, double sy,
-                         int ca, int cb, double *r)
+/* r = the data's statistic of the stationary covariance C (FFT layout): tip-tilt removal as the data's,
+ * C(δ) − g(a)/nv − k(a+δ)/nv + c̄, averaged over the pairs (a, a + δ), with g(a) = Σ_u C(u) M(a + u),
+ * k(b) = Σ_u C(u) M(b − u), c̄ = Σ_a M(a) g(a) / nv². Linear in C (so it maps ∂C/∂s to ∂r/∂s too). */
+static void tt_remove(const wt_learn *L, wt_learn__rws *w, const double *C, double *r)
 {
-    static const double gx[WT_LEARN_EDGE_POINTS] = {-0.7745966692414834, 0.0, 0.7745966692414834};
-    static const double gw[WT_LEARN_EDGE_POINTS] = {5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0}; /* sum 1: edge means */
-    const int n = L->n, N = L->N, NN = N * N, nf = L->nf, S = 2 * n - 1, E = 2 * n + 1;
-    const double d = L->d, sc = 1.0 - h / L->H, e = 0.5 * d * sc, Ls = d * sc, nv = L->nsub;
-    const double *P = L->pairs;
-    /* the terms: each (edge point pair) difference v = b − a = m Ls + f, m integer (|m| ≤ 1), f ∈ [0, Ls) */
-    enum { NT = 4 * WT_LEARN_EDGE_POINTS * WT_LEARN_EDGE_POINTS };
-    double fx[NT], fy[NT], wt[NT];
-    int mx[NT], my[NT], fi[NT], nfr = 0, nt = 0;
-    for (int it = 0; it < WT_LEARN_EDGE_POINTS; it++)
-        for (int iu = 0; iu < WT_LEARN_EDGE_POINTS; iu++)
-            for (int sa = -1; sa <= 1; sa += 2)
-                for (int sb = -1; sb <= 1; sb += 2) {
-                    /* edge points: x slope (±e, t e), y slope (t e, ±e); + for the far edge */
-                    double ax = ca ? gx[it] * e : sa * e, ay = ca ? sa * e : gx[it] * e;
-                    double bx = cb ? gx[iu] * e : sb * e, by = cb ? sb * e : gx[iu] * e;
-                    double vx = bx - ax, vy = by - ay;
-                    int kx = (int)floor(vx / Ls + 1e-9), ky = (int)floor(vy / Ls + 1e-9);
-                    double ux = vx - kx * Ls, uy = vy - ky * Ls;
-                    int f = 0;
-                    while (f < nfr && !(fabs(fx[f] - ux) < 1e-9 * Ls && fabs(fy[f] - uy) < 1e-9 * Ls)) f++;
-                    if (f == nfr) fx[nfr] = ux, fy[nfr] = uy, nfr++;
-                    mx[nt] = kx, my[nt] = ky, fi[nt] = f, wt[nt] = gw[it] * gw[iu] * sa * sb, nt++;
-                }
-    /* D on the lattice Δ = k Ls + θh − s + f, k ∈ [−n, n]² */
-    const double ox = tx * h - sx, oy = ty * h - sy;
-    for (int f = 0; f < nfr; f++)
-        for (int ky = 0; ky < E; ky++) {
-            double *D = w->Df + ((size_t)f * E + ky) * E, y = (ky - n) * Ls + oy + fy[f];
-            for (int kx = 0; kx < E; kx++) D[kx] = dtable_eval(w, hypot((kx - n) * Ls + ox + fx[f], y));
-        }
-    /* the stationary covariance C(δ) of subapertures δ apart, at FFT index (δ mod N) */
-    double *C = w->C, *g = w->g, *k2 = w->k2, *sp = w->sp, *tmp = w->tmp;
-    memset(C, 0, (size_t)NN * sizeof *C);
-    for (int o = 0; o < S * S; o++) {
-        int dx = o % S - (n - 1), dy = o / S - (n - 1);
-        double sum = 0;
-        for (int q = 0; q < nt; q++) sum += wt[q] * w->Df[((size_t)fi[q] * E + dy + my[q] + n) * E + dx + mx[q] + n];
-        C[(dx + N) % N + N * ((dy + N) % N)] = -0.5 * sum / (d * d);
-    }
-    /* tip-tilt removal as the data's: C(δ) − g(a)/nv − k(a+δ)/nv + c̄, averaged over the pairs (a, a + δ),
-     * with g(a) = Σ_u C(u) M(a + u), k(b) = Σ_u C(u) M(b − u), c̄ = Σ_a M(a) g(a) / nv² */
+    const int n = L->n, N = L->N, NN = N * N, nf = L->nf, S = 2 * n - 1;
+    const double nv = L->nsub, *P = L->pairs;
+    double *g = w->g, *k2 = w->k2, *sp = w->sp, *tmp = w->tmp;
     memcpy(g, C, (size_t)NN * sizeof *C);
     fftw_execute_dft_r2c((fftw_plan)L->r2c, g, (fftw_complex *)sp);
     cmul(nf, sp, w->Mh, 1, tmp);
@@ -164,6 +145,75 @@ void wt_learn__resp_eval(const wt_learn *L, wt_learn__rws *w, double tx, double 
         int dx = o % S - (n - 1), dy = o / S - (n - 1), f = (dx + N) % N + N * ((dy + N) % N);
         r[o] = P[f] > 0 ? C[f] + cbar - (g[f] + k2[f]) / (nv * P[f]) : 0.0;
     }
+}
+
+void wt_learn__resp_eval_grad(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx,
+                              double sy, int ca, int cb, double *r, double *rx, double *ry)
+{
+    static const double gx[WT_LEARN_EDGE_POINTS] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+    static const double gw[WT_LEARN_EDGE_POINTS] = {5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0}; /* sum 1: edge means */
+    const int n = L->n, N = L->N, NN = N * N, S = 2 * n - 1, E = 2 * n + 1, grad = rx != NULL;
+    const double d = L->d, sc = 1.0 - h / L->H, e = 0.5 * d * sc, Ls = d * sc;
+    const size_t E2 = (size_t)E * E;
+    /* the terms: each (edge point pair) difference v = b − a = m Ls + f, m integer (|m| ≤ 1), f ∈ [0, Ls) */
+    enum { NT = 4 * WT_LEARN_EDGE_POINTS * WT_LEARN_EDGE_POINTS };
+    double fx[NT], fy[NT], wt[NT];
+    int mx[NT], my[NT], fi[NT], nfr = 0, nt = 0;
+    for (int it = 0; it < WT_LEARN_EDGE_POINTS; it++)
+        for (int iu = 0; iu < WT_LEARN_EDGE_POINTS; iu++)
+            for (int sa = -1; sa <= 1; sa += 2)
+                for (int sb = -1; sb <= 1; sb += 2) {
+                    /* edge points: x slope (±e, t e), y slope (t e, ±e); + for the far edge */
+                    double ax = ca ? gx[it] * e : sa * e, ay = ca ? sa * e : gx[it] * e;
+                    double bx = cb ? gx[iu] * e : sb * e, by = cb ? sb * e : gx[iu] * e;
+                    double vx = bx - ax, vy = by - ay;
+                    int kx = (int)floor(vx / Ls + 1e-9), ky = (int)floor(vy / Ls + 1e-9);
+                    double ux = vx - kx * Ls, uy = vy - ky * Ls;
+                    int f = 0;
+                    while (f < nfr && !(fabs(fx[f] - ux) < 1e-9 * Ls && fabs(fy[f] - uy) < 1e-9 * Ls)) f++;
+                    if (f == nfr) fx[nfr] = ux, fy[nfr] = uy, nfr++;
+                    mx[nt] = kx, my[nt] = ky, fi[nt] = f, wt[nt] = gw[it] * gw[iu] * sa * sb, nt++;
+                }
+    /* D on the lattice Δ = k Ls + θh − s + f, k ∈ [−n, n]² (and ∂D/∂s = −D'(ρ) Δ/ρ) */
+    const double ox = tx * h - sx, oy = ty * h - sy;
+    double *Dx = w->Df + 9 * E2, *Dy = w->Df + 18 * E2;
+    for (int f = 0; f < nfr; f++)
+        for (int ky = 0; ky < E; ky++) {
+            const size_t row = ((size_t)f * E + ky) * E;
+            double *D = w->Df + row, y = (ky - n) * Ls + oy + fy[f];
+            if (!grad)
+                for (int kx = 0; kx < E; kx++) D[kx] = dtable_eval(w, hypot((kx - n) * Ls + ox + fx[f], y));
+            else
+                for (int kx = 0; kx < E; kx++) {
+                    double x = (kx - n) * Ls + ox + fx[f], rho = hypot(x, y), dd;
+                    D[kx] = dtable_eval_d(w, rho, &dd);
+                    double q = rho > 0 ? -dd / rho : 0.0;
+                    Dx[row + kx] = q * x, Dy[row + kx] = q * y;
+                }
+        }
+    /* the stationary covariance C(δ) of subapertures δ apart, at FFT index (δ mod N) */
+    double *C = w->C, *Cx = w->Cx, *Cy = w->Cy;
+    memset(C, 0, (size_t)NN * sizeof *C);
+    if (grad) memset(Cx, 0, (size_t)NN * sizeof *C), memset(Cy, 0, (size_t)NN * sizeof *C);
+    for (int o = 0; o < S * S; o++) {
+        int dx = o % S - (n - 1), dy = o / S - (n - 1), f = (dx + N) % N + N * ((dy + N) % N);
+        double sum = 0, sumx = 0, sumy = 0;
+        for (int q = 0; q < nt; q++) {
+            const size_t at = ((size_t)fi[q] * E + dy + my[q] + n) * E + dx + mx[q] + n;
+            sum += wt[q] * w->Df[at];
+            if (grad) sumx += wt[q] * Dx[at], sumy += wt[q] * Dy[at];
+        }
+        C[f] = -0.5 * sum / (d * d);
+        if (grad) Cx[f] = -0.5 * sumx / (d * d), Cy[f] = -0.5 * sumy / (d * d);
+    }
+    tt_remove(L, w, C, r);
+    if (grad) tt_remove(L, w, Cx, rx), tt_remove(L, w, Cy, ry);
+}
+
+void wt_learn__resp_eval(const wt_learn *L, wt_learn__rws *w, double tx, double ty, double h, double sx, double sy,
+                         int ca, int cb, double *r)
+{
+    wt_learn__resp_eval_grad(L, w, tx, ty, h, sx, sy, ca, cb, r, NULL, NULL);
 }
 
 int wt_learn_response(const wt_learn *L, int p, int nalt, const double *alt, double L0, double *resp)

@@ -8,12 +8,12 @@
  *
  * R the response of a unit layer at the displacement δ d (1 − h/H) + (θ_j − θ_i) h − s (learn_response.c), c_h the
  * profile fit's (fixed), γ_k a decorrelation per lag (1 for pure frozen flow). The unknowns p = (γ_1 … γ_K, v_1x,
- * v_1y, …) minimise
+ * v_1y, …), one v per layer (a peak of c_h and the bins around it, shared by those bins), minimise
  *
  *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (C − model)²,   w = P(δ)/P(0),
  *
- * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s by central differences of
- * ±WIND_EPS d. The layers are fitted jointly: they overlap in every map (their peaks sit (θ_j − θ_i) Δh apart,
+ * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s analytic (of the tabulated D,
+ * through the same linear tip-tilt removal). The layers are fitted jointly: they overlap in every map (their peaks sit (θ_j − θ_i) Δh apart,
  * about a subaperture per km), so one at a time would let the strongest absorb its neighbours. The lags enter one
  * by one from the shortest, each stage starting from the last's v: a stage's new shifts are then within a
  * subaperture of their final value, where the model is close to linear in v.
@@ -32,23 +32,25 @@
 
 #define WIND_ITERS 25        /* Levenberg–Marquardt iterations per stage (each stage converges in ~5) */
 #define WIND_BATCH_ITERS 12  /* for a batch, from the all-frames solution */
-#define WIND_EPS 0.02        /* the derivative's step [subaperture sides d]: well inside the peak's width d */
 #define WIND_STEP_CAP 0.5    /* largest change of a layer's shift per iteration at the longest lag [d] */
 #define WIND_TOL 0.01        /* convergence: every |Δv| below this [m/s] (a tenth of the batches' spread) */
 #define WIND_VMAX 100.0      /* |v| is held below this [m/s] (the table of D covers the shifts it makes) */
-#define WIND_MAX_LAYERS 20   /* bins holding ≥ 5 % of the Cn² are at most 20 */
+#define WIND_MAX_LAYERS 20   /* layers holding ≥ 5 % of the Cn² are at most 20 */
 
 typedef struct {
     const wt_learn *L;
-    int nl;                      /* layers fitted */
-    double h[WIND_MAX_LAYERS];   /* their altitudes [m] */
-    double c[WIND_MAX_LAYERS];   /* their c_h [m^(−5/3)] */
+    int nl;                      /* layers fitted (one v each) */
+    int nb;                      /* bins of the grid in the model */
+    double bh[WT_LEARN_MAX_ALT]; /* their altitudes [m] */
+    double bc[WT_LEARN_MAX_ALT]; /* their c_h [m^(−5/3)] */
+    int bl[WT_LEARN_MAX_ALT];    /* their layer */
+    int ba[WT_LEARN_MAX_ALT];    /* their index in the estimate */
     int nu, *uoff;               /* used offsets (FFT index) */
     double *uw;                  /* their weights */
     double dt;                   /* [s] */
     int nth;
     wt_learn__rws *ws[WT_LEARN_MAX_THREADS];
-    double *rb;                  /* [nth][nl][5][S²] response maps of a block */
+    double *rb;                  /* [nth][nb][3][S²] response maps of a block and their ∂/∂s_x, ∂/∂s_y */
     double *data;                /* [nlag][nlgs][nlgs][2][nu] the maps being fitted */
     double *blk;                 /* [nblock][(1 + 2 nl)² + (1 + 2 nl) + 2] each block's normal equations, cost, norm */
 } wfit;
@@ -74,7 +76,7 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
 #pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
     for (int b = 0; b < nblock; b++) {
         const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
-        double *out = F->blk + (size_t)b * bs, *rb = F->rb + (size_t)tid * nl * 5 * S2;
+        double *out = F->blk + (size_t)b * bs, *rb = F->rb + (size_t)tid * F->nb * 3 * S2;
         memset(out, 0, (size_t)bs * sizeof *out);
         /* the pair(s) of this slot */
         int pi[64] = {0}, pj[64] = {0}, npair = 0;
@@ -85,13 +87,12 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
             pi[0] = i, pj[0] = j >= i ? j + 1 : j, npair = 1;
         }
         const double tx = L->theta_x[pj[0]] - L->theta_x[pi[0]], ty = L->theta_y[pj[0]] - L->theta_y[pi[0]];
-        const double eps = WIND_EPS * L->d, gam = p[q];
-        for (int l = 0; l < nl; l++) {
+        const double gam = p[q];
+        for (int bi = 0; bi < F->nb; bi++) {
+            const int l = F->bl[bi];
             const double sx = p[nq + 2 * l] * k * F->dt, sy = p[nq + 2 * l + 1] * k * F->dt;
-            static const double ox[5] = {0, 1, -1, 0, 0}, oy[5] = {0, 0, 0, 1, -1};
-            for (int e = 0; e < 5; e++)
-                wt_learn__resp_eval(L, F->ws[tid], tx, ty, F->h[l], sx + ox[e] * eps, sy + oy[e] * eps, c, c,
-                                    rb + ((size_t)l * 5 + e) * S2);
+            double *r = rb + (size_t)bi * 3 * S2;
+            wt_learn__resp_eval_grad(L, F->ws[tid], tx, ty, F->bh[bi], sx, sy, c, c, r, r + S2, r + 2 * S2);
         }
         double J[1 + 2 * WIND_MAX_LAYERS];
         for (int u = 0; u < F->nu; u++) {
@@ -99,12 +100,14 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
             dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
             const int o = (dx + L->n - 1) + S * (dy + L->n - 1);
             double base = 0;
-            for (int l = 0; l < nl; l++) {
-                const double *r = rb + (size_t)l * 5 * S2 + o, cl = F->c[l];
-                base += cl * r[0];
-                /* ∂/∂v = γ c k Δt ∂R/∂s */
-                const double fac = gam * cl * k * F->dt / (2 * eps);
-                J[1 + 2 * l] = fac * (r[S2] - r[2 * S2]), J[2 + 2 * l] = fac * (r[3 * S2] - r[4 * S2]);
+            for (int x = 1; x < ml; x++) J[x] = 0;
+            for (int bi = 0; bi < F->nb; bi++) {
+                const double *r = rb + (size_t)bi * 3 * S2 + o, cb = F->bc[bi];
+                const int l = F->bl[bi];
+                base += cb * r[0];
+                /* ∂/∂v = γ c k Δt ∂R/∂s, summed over the layer's bins */
+                const double fac = gam * cb * k * F->dt;
+                J[1 + 2 * l] += fac * r[S2], J[2 + 2 * l] += fac * r[2 * S2];
             }
             J[0] = base;
             const double w = F->uw[u];
@@ -229,19 +232,47 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     F.L = L, F.dt = dt;
     w->nalt = est->nalt, w->dt = dt, w->nlag = L->nlag;
     memcpy(w->lag, L->lag, (size_t)L->nlag * sizeof *L->lag);
-    for (int a = 0; a < est->nalt; a++) {
+    /* the layers: each local maximum of the fitted c_h and the bins nearest to it (ties: the larger maximum's). The
+     * grid's 1 km is finer than the pairs' resolution d/θ, so one layer spreads over 2–3 bins whose responses
+     * differ by less than the noise: a wind per bin would be ill-conditioned, a wind per peak is not. A layer whose
+     * bins hold ≥ min_fraction of the Cn² is fitted; the others are left out of the model. */
+    const int na = est->nalt;
+    int peak[WT_LEARN_MAX_ALT], npk = 0, owner[WT_LEARN_MAX_ALT];
+    double pf[WT_LEARN_MAX_ALT] = {0};
+    for (int a = 0; a < na; a++) {
         w->altitude[a] = est->altitude[a], w->fraction[a] = est->fraction[a];
-        if (!(est->altitude[a] >= 0 && est->altitude[a] < L->H) || !isfinite(est->cn2[a]))
-            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: estimate altitude %g m outside [0, H = %g m)", est->altitude[a], L->H);
-        if (est->fraction[a] >= min_fraction && est->cn2[a] > 0) {
-            if (F.nl == WIND_MAX_LAYERS)
-                return WT_ERROR(ctx, WT_ERR_INVALID, "learn: more than %d bins above %g of the Cn²", WIND_MAX_LAYERS,
-                                min_fraction);
-            F.h[F.nl] = est->altitude[a], F.c[F.nl++] = est->cn2[a], w->fitted[a] = 1;
-        }
+        if (!(est->altitude[a] >= 0 && est->altitude[a] < L->H) || !isfinite(est->cn2[a]) || est->cn2[a] < 0)
+            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: estimate altitude %g m (Cn² %g) outside [0, H = %g m)",
+                            est->altitude[a], est->cn2[a], L->H);
+        const double c = est->cn2[a];
+        if (c > 0 && (a == 0 || c >= est->cn2[a - 1]) && (a == na - 1 || c > est->cn2[a + 1])) peak[npk++] = a;
     }
+    for (int a = 0; a < na; a++) {
+        owner[a] = -1;
+        if (!(est->cn2[a] > 0)) continue;
+        for (int k = 0; k < npk; k++) {
+            const double dk = fabs(est->altitude[a] - est->altitude[peak[k]]);
+            const double db = owner[a] < 0 ? INFINITY : fabs(est->altitude[a] - est->altitude[peak[owner[a]]]);
+            if (dk < db || (dk == db && est->cn2[peak[k]] > est->cn2[peak[owner[a]]])) owner[a] = k;
+        }
+        pf[owner[a]] += est->fraction[a];
+    }
+    int lay_of_peak[WT_LEARN_MAX_ALT];
+    for (int k = 0; k < npk; k++) {
+        lay_of_peak[k] = -1;
+        if (pf[k] < min_fraction) continue;
+        if (F.nl == WIND_MAX_LAYERS)
+            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: more than %d layers above %g of the Cn²", WIND_MAX_LAYERS,
+                            min_fraction);
+        lay_of_peak[k] = F.nl++;
+    }
+    for (int a = 0; a < na; a++)
+        if (owner[a] >= 0 && lay_of_peak[owner[a]] >= 0) {
+            F.bh[F.nb] = est->altitude[a], F.bc[F.nb] = est->cn2[a], F.bl[F.nb] = lay_of_peak[owner[a]];
+            F.ba[F.nb++] = a, w->fitted[a] = 1;
+        }
     if (F.nl == 0)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no altitude holds %g of the Cn²: no layer to find the wind of",
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no layer holds %g of the Cn²: no layer to find the wind of",
                         min_fraction);
     const int nl = F.nl, np = L->nlag + 2 * nl, ml = 1 + 2 * nl, nslot = 1 + nlgs * (nlgs - 1);
     F.nth = 1;
@@ -262,11 +293,11 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     for (int i = 0; i < nlgs; i++)
         for (int j = 0; j < nlgs; j++)
             thmax = fmax(thmax, hypot(L->theta_x[j] - L->theta_x[i], L->theta_y[j] - L->theta_y[i]));
-    for (int l = 0; l < nl; l++) hmax = fmax(hmax, F.h[l]);
-    const double smax = WIND_VMAX * L->kmax * dt + 2 * WIND_EPS * L->d;
+    for (int b = 0; b < F.nb; b++) hmax = fmax(hmax, F.bh[b]);
+    const double smax = WIND_VMAX * L->kmax * dt;
     for (int k = 0; k < F.nth; k++)
         if ((st = wt_learn__rws_alloc(L, est->L0, wt_learn__rmax(L, thmax, hmax, smax), &F.ws[k])) < 0) goto fail;
-    WT_ALLOC(ctx, F.rb, (size_t)F.nth * nl * 5 * S2, "the wind's response maps");
+    WT_ALLOC(ctx, F.rb, (size_t)F.nth * F.nb * 3 * S2, "the wind's response maps");
     WT_ALLOC(ctx, F.data, (size_t)L->nlag * nlgs * nlgs * 2 * F.nu, "the lagged maps");
     WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (ml * ml + ml + 2), "the blocks' normal equations");
     WT_ALLOC(ctx, buf, (size_t)F.nth * (2 * L->nf + N * N + 16), "the inverse FFT work arrays");
@@ -288,9 +319,9 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     }
     for (int q = 0; q < L->nlag; q++) w->gamma[q] = p[q];
     w->residual = norm > 0 ? sqrt(cost / norm) : 0.0;
-    for (int l = 0, a = 0; a < est->nalt; a++) {
-        if (!w->fitted[a]) continue;
-        w->vx[a] = p[L->nlag + 2 * l], w->vy[a] = p[L->nlag + 2 * l + 1], l++;
+    for (int b = 0; b < F.nb; b++) {
+        const int a = F.ba[b], l = F.bl[b];
+        w->vx[a] = p[L->nlag + 2 * l], w->vy[a] = p[L->nlag + 2 * l + 1];
         w->speed[a] = hypot(w->vx[a], w->vy[a]);
         w->direction[a] = fmod(atan2(w->vy[a], w->vx[a]) + 2 * M_PI, 2 * M_PI);
     }
@@ -309,10 +340,9 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
             memcpy(pb, p, (size_t)np * sizeof *p);
             double cb, nbn;
             lm(&F, L->nlag, pb, WIND_BATCH_ITERS, &cb, &nbn, work);
-            for (int l = 0, a = 0; a < est->nalt; a++) {
-                if (!w->fitted[a]) continue;
+            for (int b = 0; b < F.nb; b++) {
+                const int a = F.ba[b], l = F.bl[b];
                 const double vx = pb[L->nlag + 2 * l], vy = pb[L->nlag + 2 * l + 1];
-                l++;
                 w->batch_vx[r][a] = vx, w->batch_vy[r][a] = vy;
                 const double x[4] = {vx, vy, hypot(vx, vy), wrap_pi(atan2(vy, vx) - w->direction[a])};
                 for (int c = 0; c < 4; c++) s1[a][c] += x[c], s2[a][c] += x[c] * x[c];
