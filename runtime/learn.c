@@ -48,6 +48,7 @@ static void help(void)
            "  --lags K,..  the lags [frames] of the wind's time-lagged maps (default: k, 2k, 4k, 8k with k the frames\n"
            "               in which %.0f m/s moves half a subaperture, at the telemetry's loop.rate_hz)\n"
            "  --no-wind    the profile only\n"
+           "  --wind-threshold F  the Cn2 fraction a layer needs for its wind to be fitted (default %.2f)\n"
            "  --bench      time, on CFG's LGS geometry and synthetic frames (seed 1): accumulation per frame,\n"
            "               the response model's set-up (once per grid and L0) and a fit (median of %d)\n"
            "The wind of each altitude holding >= 5 %% of the Cn2 (speed, direction of motion counter-clockwise from\n"
@@ -56,7 +57,8 @@ static void help(void)
            "Prints r0 and the profile on the grid and compressed onto pcg3's and cg9's layers, with the\n"
            "uncertainty, and the truth of the telemetry's configuration binned the same way beside; writes EST.h5\n"
            "(docs/formats.md).\n",
-           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES, LEARN_WIND_VMAX, LEARN_BENCH_FITS);
+           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES, LEARN_WIND_VMAX, WT_LEARN_WIND_MIN_FRACTION,
+           LEARN_BENCH_FITS);
 }
 
 typedef struct {
@@ -64,6 +66,7 @@ typedef struct {
     long frames, batches;
     int bench, no_wind;
     int nlag, lags[WT_LEARN_MAX_LAG];
+    double wind_min;
 } learn_args;
 
 
@@ -148,6 +151,15 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         a->bench = 1;
     } else if (!strcmp(o, "--no-wind")) {
         a->no_wind = 1;
+    } else if (!strcmp(o, "--wind-threshold")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        char *end;
+        if (!v) return -1;
+        a->wind_min = strtod(v, &end);
+        if (*end || !(a->wind_min > 0 && a->wind_min < 1)) {
+            wt_cli_usage_error(cli, "--wind-threshold %s: expected a Cn2 fraction in (0, 1)", v);
+            return -1;
+        }
     } else if (!strcmp(o, "--lags")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
         if (!v) return -1;
@@ -243,7 +255,7 @@ int wt_cmd_learn(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo learn", help)) return 1;
-    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0, 0, 0, {0}};
+    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0, 0, 0, {0}, WT_LEARN_WIND_MIN_FRACTION};
     int rc = wt_cli_parse(&cli, argc, argv, learn_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -384,7 +396,7 @@ int wt_cmd_learn(int argc, char **argv)
     if (args.nlag > 0) {
         if (!cli.quiet) fprintf(stderr, "%s: fitting the wind to %d lags ...\n", cli.prog, args.nlag);
         const double tw = wt_time_now();
-        if ((st = wt_learn_wind_fit(L, e, dt, WT_LEARN_WIND_MIN_FRACTION, &res->wind)) < 0) goto fail_e;
+        if ((st = wt_learn_wind_fit(L, e, dt, args.wind_min, &res->wind)) < 0) goto fail_e;
         wt_learn_wind_print(&res->wind, use, tcfg, wt_time_now() - tw);
     }
     /* EST.h5 */

@@ -42,15 +42,14 @@ void wt_learn_wind_print(const wt_learn_wind *wd, const wt_config *use, const wt
 {
     printf("  wind: lags");
     for (int q = 0; q < wd->nlag; q++) printf(" %d", wd->lag[q]);
-    printf(" frames of %.3g ms (decorrelation", 1e3 * wd->dt);
-    for (int q = 0; q < wd->nlag; q++) printf(" %.3f", wd->gamma[q]);
-    printf("), relative misfit %.3f, %d iterations, fit %.2f s\n", wd->residual, wd->iterations, fit_s);
-    printf("    altitude [km]  Cn2      speed [m/s]      direction [deg]   (vx, vy) [m/s]\n");
+    printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, fit %.2f s\n", 1e3 * wd->dt, wd->residual,
+           wd->iterations, fit_s);
+    printf("    altitude [km]  Cn2      speed [m/s]      direction [deg]   (vx, vy) [m/s]     amplitude\n");
     for (int a = 0; a < wd->nalt; a++)
         if (wd->fitted[a])
-            printf("    %8.2f       %.3f   %6.2f ± %.2f    %6.1f ± %.1f     (%6.2f, %6.2f)\n", wd->altitude[a] / 1e3,
+            printf("    %8.2f       %.3f   %6.2f ± %.2f    %6.1f ± %.1f     (%6.2f, %6.2f)   %.3f\n", wd->altitude[a] / 1e3,
                    wd->fraction[a], wd->speed[a], wd->speed_sigma[a], wd->direction[a] * DEG,
-                   wd->direction_sigma[a] * DEG, wd->vx[a], wd->vy[a]);
+                   wd->direction_sigma[a] * DEG, wd->vx[a], wd->vy[a], wd->amplitude[a]);
     print_layers("wind on pcg3's layers (Cn2-weighted over the fitted altitudes)", wd, tcfg, use->pcg3.nlayers,
                  use->pcg3.altitudes);
     print_layers("wind on cg9's layers", wd, tcfg, use->cg9.nlayers, use->cg9.altitudes);
@@ -119,8 +118,8 @@ int wt_learn_wind_write(wt_h5_writer *w, const wt_learn_wind *wd, const wt_confi
         (st = vec(w, g, "direction_sigma_rad", na, wd->direction_sigma, "rad", "uncertainty of the direction at", at)) < 0 ||
         (st = wt_h5_write(w, "estimate/wind/lags_frames", WT_H5_F64, WT_H5_F64, 1, dl, lag, "frames",
                           "the lags of the time-lagged cross-covariance maps fitted")) < 0 ||
-        (st = wt_h5_write(w, "estimate/wind/decorrelation", WT_H5_F64, WT_H5_F64, 1, dl, wd->gamma, "",
-                          "fitted amplitude of each lag's maps relative to frozen flow (1: no decorrelation)")) < 0 ||
+        (st = vec(w, g, "amplitude", na, wd->amplitude, "", "the layer's Cn2 in the lagged maps over the profile "
+                  "fit's (1: the same) at", at)) < 0 ||
         (st = wt_h5_write_double(w, "estimate/wind/frame_time_s", wd->dt, "s", "frame time (1 / loop.rate_hz of the "
                                  "telemetry)")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/wind/residual", wd->residual, "", "weighted rms misfit of the wind fit "

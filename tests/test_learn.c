@@ -478,8 +478,8 @@ START_TEST(test_wind)
                         alt[a] / 1e3, e.fraction[a], w.vx[a], w.vy[a], w.vx_sigma[a], w.vy_sigma[a], w.speed[a],
                         w.direction[a] * 180 / M_PI, w.direction_sigma[a] * 180 / M_PI);
         }
-        fprintf(stderr, "test_wind: truth %g m/s towards %g° at %g km; residual %.3f, %d iterations, gamma %.3f %.3f %.3f\n",
-                vs[c], ds[c], hs[c] / 1e3, w.residual, w.iterations, w.gamma[0], w.gamma[1], w.gamma[2]);
+        fprintf(stderr, "test_wind: truth %g m/s towards %g° at %g km; residual %.3f, %d iterations, amplitude %.3f\n",
+                vs[c], ds[c], hs[c] / 1e3, w.residual, w.iterations, w.amplitude[best]);
         const double ex = w.vx[best] - vs[c] * cos(dir), ey = w.vy[best] - vs[c] * sin(dir);
         ck_assert_msg(w.fitted[best] && hypot(ex, ey) <= 0.5, "wind error (%.2f, %.2f) m/s at %g km", ex, ey, alt[best]);
         ck_assert_int_eq(w.nbatch, 4);
@@ -635,9 +635,15 @@ START_TEST(test_command)
     /* a short closed loop's telemetry (60 frames: the numbers mean little, the chain and the file are the point) */
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 60 --telemetry %s/tel.h5 --out %s/r.h5 "
                          "--quiet", dir, dir), 0);
-    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 70", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 70 frames"));
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 2,1", dir, dir), 2);
+    /* the wind of the strongest layer only (--wind-threshold 0.3: one layer, no search), two short lags: the chain
+     * and the file; the accuracy is test_wind's */
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3", dir, dir), 0);
     ck_assert(file_has("stdout.txt", "r0 (500 nm)"));
     ck_assert(file_has("stdout.txt", "compressed onto cg9's layers"));
+    ck_assert(file_has("stdout.txt", "wind on pcg3's layers"));
     wt_context *ctx = tu_context();
     wt_h5_reader *r;
     ck_assert_int_eq(wt_h5_open(ctx, p, &r), WT_OK);
@@ -648,6 +654,10 @@ START_TEST(test_command)
     ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/pcg3/cn2_fraction", "description", &u), WT_OK);
     ck_assert_ptr_nonnull(strstr(u, "pcg3"));
     wt_free(ctx, u);
+    ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/wind/direction_rad", "description", &u), WT_OK);
+    ck_assert_ptr_nonnull(strstr(u, "counter-clockwise from +x"));
+    wt_free(ctx, u);
+    ck_assert(wt_h5_exists(r, "truth/cg9/wind_speed_mps") && wt_h5_exists(r, "estimate/pcg3/wind_vx_sigma_mps"));
     wt_h5_close(r);
     wt_context_free(ctx);
     tu_cli_teardown(dir);

@@ -30,12 +30,13 @@
  * for every ordered pair (i, j) (a lag breaks the symmetry) from a ring of the last k_max frames' spectra. Under
  * frozen flow (screen(x − v t), core/sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
  * screen moved by v k Δt, so that it adds c_h R_ij^c(δ; h, s = v k Δt) to that map: the response of the
- * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: for the layers holding ≥ min_fraction of the fitted
- * Cn² (c_h from wt_learn_fit, fixed; a layer is a local maximum of c_h and the bins nearest to it, which share
- * its v: the grid is finer than the pairs' altitude resolution), v (2 each) and a decorrelation γ_k per lag (1 for pure frozen
- * flow) minimise Σ_{k,i,j,c,δ} w(δ) (C − γ_k Σ_h c_h R(δ; h, v_h k Δt))², w = P(δ)/P(0) as for the profile, by
- * Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest
- * (its shifts are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v).
+ * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: a layer l is a local maximum of the profile fit's c_h
+ * and the bins nearest to it (they share its wind: the grid is finer than the pairs' altitude resolution); with v_l
+ * and an amplitude a_l per layer (1 when the lagged maps hold the profile's Cn²),
+ *   minimise Σ_{k,i,j,c,δ} w(δ) (C − Σ_l a_l Σ_{h∈l} c_h R(δ; h, v_l k Δt))²,  w = P(δ)/P(0) as for the profile,
+ * by Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest (its shifts
+ * are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v). Layers holding
+ * ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled, not reported.
  *
  * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
  */
@@ -168,7 +169,7 @@ typedef struct wt_learn_wind {
     double speed_sigma[WT_LEARN_MAX_ALT], direction_sigma[WT_LEARN_MAX_ALT]; /* [m/s], [rad] */
     int nlag;
     int lag[WT_LEARN_MAX_LAG];           /* [frames] */
-    double gamma[WT_LEARN_MAX_LAG];      /* fitted decorrelation per lag [-] (1: frozen flow) */
+    double amplitude[WT_LEARN_MAX_ALT];  /* the layer's Cn² in the lagged maps / the profile fit's [-] (fitted bins) */
     double dt;                           /* frame time [s] */
     double residual;                     /* weighted rms misfit / weighted rms of the lagged maps, all frames [-] */
     int iterations;                      /* Levenberg–Marquardt iterations, all frames */

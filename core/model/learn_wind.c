@@ -4,11 +4,12 @@
  * Under frozen flow the layer at h moves by s = v_h k Δt in k frames, so that the lag-k map of the ordered pair
  * (i, j) is
  *
- *   C_ij^c(δ; k) = γ_k Σ_h c_h R_ij^c(δ; h, v_h k Δt) + ε,
+ *   C_ij^c(δ; k) = Σ_l a_l Σ_{h ∈ l} c_h R_ij^c(δ; h, v_l k Δt) + ε,
  *
  * R the response of a unit layer at the displacement δ d (1 − h/H) + (θ_j − θ_i) h − s (learn_response.c), c_h the
- * profile fit's (fixed), γ_k a decorrelation per lag (1 for pure frozen flow). The unknowns p = (γ_1 … γ_K, v_1x,
- * v_1y, …), one v per layer (a peak of c_h and the bins around it, shared by those bins), minimise
+ * profile fit's, a_l an amplitude per layer (1 when the lagged maps hold the profile fit's Cn²: it frees the wind
+ * from that fit's errors, e.g. a layer it under-estimates). The unknowns p = (a_1 … a_L, v_1x, v_1y, …), one a
+ * and v per layer (a peak of c_h and the bins around it, sharing them), minimise
  *
  *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (C − model)²,   w = P(δ)/P(0),
  *
@@ -35,7 +36,15 @@
 #define WIND_STEP_CAP 0.5    /* largest change of a layer's shift per iteration at the longest lag [d] */
 #define WIND_TOL 0.01        /* convergence: every |Δv| below this [m/s] (a tenth of the batches' spread) */
 #define WIND_VMAX 100.0      /* |v| is held below this [m/s] (the table of D covers the shifts it makes) */
-#define WIND_MAX_LAYERS 20   /* layers holding ≥ 5 % of the Cn² are at most 20 */
+#define WIND_SEARCH_VMAX 40.0 /* the search's grid: speeds 0 … 40 m/s every 5 m/s, directions every 22.5° (LM refines) */
+#define WIND_SEARCH_DV 5.0
+#define WIND_SEARCH_NDIR 16
+#define WIND_SEARCH_LAGS 2   /* the search fits the first 2 lags (shifts ≤ 1 subaperture at 40 m/s with the default
+                                lags: one minimum per layer within the grid's reach, and half the cost of 3) */
+#define WIND_MAX_LAYERS 20   /* layers in the model (peaks of c_h) */
+#define WIND_MODEL_MIN 0.02  /* a peak with less of the Cn² is left out of the model: its wind would be noise, and
+                                one above it is modelled (with its own wind) even when too weak to report, so that
+                                its moving structure is not taken up by the layers reported */
 
 typedef struct {
     const wt_learn *L;
@@ -52,7 +61,9 @@ typedef struct {
     wt_learn__rws *ws[WT_LEARN_MAX_THREADS];
     double *rb;                  /* [nth][nb][3][S²] response maps of a block and their ∂/∂s_x, ∂/∂s_y */
     double *data;                /* [nlag][nlgs][nlgs][2][nu] the maps being fitted */
-    double *blk;                 /* [nblock][(1 + 2 nl)² + (1 + 2 nl) + 2] each block's normal equations, cost, norm */
+    double *blk;                 /* [nblock][(3 nl)² + 3 nl + 2] each block's normal equations, cost, norm */
+    double *oth;                 /* [nblock][nu] the model of the other layers (the search) */
+    double lpf[WIND_MAX_LAYERS]; /* each layer's Cn² fraction (the search's order) */
 } wfit;
 
 static int thread_id(void)
@@ -64,7 +75,7 @@ static int thread_id(void)
 #endif
 }
 
-/* The normal equations of the first nq lags at p = (γ[nq], v[nl][2]): A (np × np), g = JᵀW r, *cost = Φ, *norm =
+/* The normal equations of the first nq lags at p = (a[nl], v[nl][2]): A (np × np), g = JᵀW r, *cost = Φ, *norm =
  * Σ w C². Blocks (lag, slot, component) in parallel, each into its own slot of blk, summed in block order (the
  * result does not depend on the thread count). Slot 0 is every auto pair (one response), then each ordered cross
  * pair. */
@@ -72,7 +83,7 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
 {
     const wt_learn *L = F->L;
     const int nl = F->nl, nlgs = L->nlgs, nslot = 1 + nlgs * (nlgs - 1), S = 2 * L->n - 1, S2 = S * S;
-    const int ml = 1 + 2 * nl, bs = ml * ml + ml + 2, nblock = nq * nslot * 2, np = nq + 2 * nl, N = L->N;
+    const int np = 3 * nl, bs = np * np + np + 2, nblock = nq * nslot * 2, N = L->N;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
     for (int b = 0; b < nblock; b++) {
         const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
@@ -87,38 +98,37 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
             pi[0] = i, pj[0] = j >= i ? j + 1 : j, npair = 1;
         }
         const double tx = L->theta_x[pj[0]] - L->theta_x[pi[0]], ty = L->theta_y[pj[0]] - L->theta_y[pi[0]];
-        const double gam = p[q];
         for (int bi = 0; bi < F->nb; bi++) {
             const int l = F->bl[bi];
-            const double sx = p[nq + 2 * l] * k * F->dt, sy = p[nq + 2 * l + 1] * k * F->dt;
+            const double sx = p[nl + 2 * l] * k * F->dt, sy = p[nl + 2 * l + 1] * k * F->dt;
             double *r = rb + (size_t)bi * 3 * S2;
             wt_learn__resp_eval_grad(L, F->ws[tid], tx, ty, F->bh[bi], sx, sy, c, c, r, r + S2, r + 2 * S2);
         }
-        double J[1 + 2 * WIND_MAX_LAYERS];
+        double J[3 * WIND_MAX_LAYERS];
         for (int u = 0; u < F->nu; u++) {
             int f = F->uoff[u], dx = f % N, dy = f / N;
             dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
             const int o = (dx + L->n - 1) + S * (dy + L->n - 1);
-            double base = 0;
-            for (int x = 1; x < ml; x++) J[x] = 0;
+            double model = 0;
+            for (int x = 0; x < np; x++) J[x] = 0;
             for (int bi = 0; bi < F->nb; bi++) {
                 const double *r = rb + (size_t)bi * 3 * S2 + o, cb = F->bc[bi];
                 const int l = F->bl[bi];
-                base += cb * r[0];
-                /* ∂/∂v = γ c k Δt ∂R/∂s, summed over the layer's bins */
-                const double fac = gam * cb * k * F->dt;
-                J[1 + 2 * l] += fac * r[S2], J[2 + 2 * l] += fac * r[2 * S2];
+                /* ∂/∂a_l = Σ_b c_b R_b, ∂/∂v_l = a_l Σ_b c_b k Δt ∂R_b/∂s */
+                J[l] += cb * r[0];
+                const double fac = p[l] * cb * k * F->dt;
+                J[nl + 2 * l] += fac * r[S2], J[nl + 2 * l + 1] += fac * r[2 * S2];
             }
-            J[0] = base;
+            for (int l = 0; l < nl; l++) model += p[l] * J[l];
             const double w = F->uw[u];
             for (int a = 0; a < npair; a++) {
                 const double C = F->data[((((size_t)q * nlgs + pi[a]) * nlgs + pj[a]) * 2 + c) * F->nu + u];
-                const double r = C - gam * base;
-                for (int x = 0; x < ml; x++) {
-                    out[ml * ml + x] += w * J[x] * r;
-                    for (int y = 0; y <= x; y++) out[x + ml * y] += w * J[x] * J[y];
+                const double r = C - model;
+                for (int x = 0; x < np; x++) {
+                    out[np * np + x] += w * J[x] * r;
+                    for (int y = 0; y <= x; y++) out[x + np * y] += w * J[x] * J[y];
                 }
-                out[ml * ml + ml] += w * r * r, out[ml * ml + ml + 1] += w * C * C;
+                out[np * np + np] += w * r * r, out[np * np + np + 1] += w * C * C;
             }
         }
     }
@@ -126,27 +136,22 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
     memset(g, 0, (size_t)np * sizeof *g);
     *cost = *norm = 0;
     for (int b = 0; b < nblock; b++) {
-        const int q = b / (nslot * 2);
         const double *in = F->blk + (size_t)b * bs;
-        /* local index 0 → γ_q (global q), 1 + t → v (global nq + t) */
-        for (int x = 0; x < ml; x++) {
-            const int gx = x ? nq + x - 1 : q;
-            g[gx] += in[ml * ml + x];
+        for (int x = 0; x < np; x++) {
+            g[x] += in[np * np + x];
             for (int y = 0; y <= x; y++) {
-                const int gy = y ? nq + y - 1 : q;
-                A[gx + (size_t)np * gy] += in[x + ml * y];
-                if (gx != gy) A[gy + (size_t)np * gx] += in[x + ml * y];
+                A[x + (size_t)np * y] += in[x + np * y];
+                if (x != y) A[y + (size_t)np * x] += in[x + np * y];
             }
         }
-        *cost += in[ml * ml + ml], *norm += in[ml * ml + ml + 1];
+        *cost += in[np * np + np], *norm += in[np * np + np + 1];
     }
 }
 
-/* Levenberg–Marquardt over the first nq lags from p (updated in place); returns the iterations, or −1 if λ ran away
- * before convergence (a flat or inconsistent problem) */
+/* Levenberg–Marquardt over the first nq lags from p (updated in place); returns the iterations */
 static int lm(wfit *F, int nq, double *p, int maxit, double *cost_out, double *norm_out, double *work)
 {
-    const int nl = F->nl, np = nq + 2 * nl;
+    const int nl = F->nl, np = 3 * nl;
     double *A = work, *g = A + np * np, *At = g + np, *gt = At + np * np, *M = gt + np, *dp = M + np * np,
            *pt = dp + np, *ch = pt + np;
     double cost, norm, ct, nt;
@@ -161,14 +166,15 @@ static int lm(wfit *F, int nq, double *p, int maxit, double *cost_out, double *n
         /* at most WIND_STEP_CAP subapertures of new shift per layer at the longest lag in use */
         double dvmax = 0;
         for (int l = 0; l < nl; l++) {
-            double *d = dp + nq + 2 * l, m = hypot(d[0], d[1]) * kdt / (WIND_STEP_CAP * F->L->d);
+            double *d = dp + nl + 2 * l, m = hypot(d[0], d[1]) * kdt / (WIND_STEP_CAP * F->L->d);
             if (m > 1) d[0] /= m, d[1] /= m;
             dvmax = fmax(dvmax, fmax(fabs(d[0]), fabs(d[1])));
         }
         for (int x = 0; x < np; x++) pt[x] = p[x] + dp[x];
         for (int l = 0; l < nl; l++) {
-            double *v = pt + nq + 2 * l, m = hypot(v[0], v[1]) / WIND_VMAX;
+            double *v = pt + nl + 2 * l, m = hypot(v[0], v[1]) / WIND_VMAX;
             if (m > 1) v[0] /= m, v[1] /= m;
+            if (pt[l] < 0) pt[l] = 0; /* an amplitude is a Cn²: ≥ 0 */
         }
         normal_eq(F, nq, pt, At, gt, &ct, &nt);
         if (ct <= cost) {
@@ -183,6 +189,80 @@ static int lm(wfit *F, int nq, double *p, int maxit, double *cost_out, double *n
     }
     *cost_out = cost, *norm_out = norm;
     return it > maxit ? maxit : it;
+}
+
+/* The search of layer l's v: the others held, the cost of the first nq lags on a polar grid of v, each with its
+ * best amplitude a ≥ 0 (closed form: the cost is quadratic in a); p[l] and v_l set to the best. LM's start: a
+ * layer's lagged maps may have several local minima in v once layers overlap (a fast layer's moving peak can pass
+ * for another's), which v = 0 does not choose between. */
+static void search_layer(wfit *F, int nq, double *p, int l)
+{
+    const wt_learn *L = F->L;
+    const int nl = F->nl, nlgs = L->nlgs, nslot = 1 + nlgs * (nlgs - 1), S = 2 * L->n - 1, S2 = S * S;
+    const int nblock = nq * nslot * 2, N = L->N, ncand = 1 + (int)(WIND_SEARCH_VMAX / WIND_SEARCH_DV) * WIND_SEARCH_NDIR;
+    /* the other layers' model per block */
+#pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
+    for (int b = 0; b < nblock; b++) {
+        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+        int i = 0, j = 0;
+        if (sl > 0) i = (sl - 1) / (nlgs - 1), j = (sl - 1) % (nlgs - 1), j = j >= i ? j + 1 : j;
+        const double tx = L->theta_x[j] - L->theta_x[i], ty = L->theta_y[j] - L->theta_y[i];
+        double *o = F->oth + (size_t)b * F->nu, *r = F->rb + (size_t)tid * F->nb * 3 * S2;
+        memset(o, 0, (size_t)F->nu * sizeof *o);
+        for (int bi = 0; bi < F->nb; bi++) {
+            const int lb = F->bl[bi];
+            if (lb == l) continue;
+            wt_learn__resp_eval(L, F->ws[tid], tx, ty, F->bh[bi], p[nl + 2 * lb] * k * F->dt, p[nl + 2 * lb + 1] * k * F->dt,
+                                c, c, r);
+            for (int u = 0; u < F->nu; u++) {
+                int f = F->uoff[u], dx = f % N, dy = f / N;
+                dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
+                o[u] += p[lb] * F->bc[bi] * r[(dx + L->n - 1) + S * (dy + L->n - 1)];
+            }
+        }
+    }
+    double best = INFINITY, bvx = 0, bvy = 0, ba = p[l];
+    for (int cnd = 0; cnd < ncand; cnd++) {
+        const double sp = cnd ? WIND_SEARCH_DV * (1 + (cnd - 1) / WIND_SEARCH_NDIR) : 0.0;
+        const double ang = cnd ? 2 * M_PI * ((cnd - 1) % WIND_SEARCH_NDIR) / WIND_SEARCH_NDIR : 0.0;
+        const double vx = sp * cos(ang), vy = sp * sin(ang);
+        /* per block: Σ w J r0, Σ w J², Σ w r0² with J the layer's unit-amplitude model, r0 = C − others */
+#pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
+        for (int b = 0; b < nblock; b++) {
+            const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+            int pi[64] = {0}, pj[64] = {0}, npair = 0;
+            if (sl == 0)
+                for (int i = 0; i < nlgs; i++) pi[npair] = i, pj[npair++] = i;
+            else {
+                int i = (sl - 1) / (nlgs - 1), j = (sl - 1) % (nlgs - 1);
+                pi[0] = i, pj[0] = j >= i ? j + 1 : j, npair = 1;
+            }
+            const double tx = L->theta_x[pj[0]] - L->theta_x[pi[0]], ty = L->theta_y[pj[0]] - L->theta_y[pi[0]];
+            double *r = F->rb + (size_t)tid * F->nb * 3 * S2, *J = r + S2, *out = F->blk + (size_t)b * 3;
+            memset(J, 0, (size_t)S2 * sizeof *J);
+            for (int bi = 0; bi < F->nb; bi++) {
+                if (F->bl[bi] != l) continue;
+                wt_learn__resp_eval(L, F->ws[tid], tx, ty, F->bh[bi], vx * k * F->dt, vy * k * F->dt, c, c, r);
+                for (int o = 0; o < S2; o++) J[o] += F->bc[bi] * r[o];
+            }
+            out[0] = out[1] = out[2] = 0;
+            const double *o = F->oth + (size_t)b * F->nu;
+            for (int u = 0; u < F->nu; u++) {
+                int f = F->uoff[u], dx = f % N, dy = f / N;
+                dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
+                const double Ju = J[(dx + L->n - 1) + S * (dy + L->n - 1)], w = F->uw[u];
+                for (int a = 0; a < npair; a++) {
+                    const double r0 = F->data[((((size_t)q * nlgs + pi[a]) * nlgs + pj[a]) * 2 + c) * F->nu + u] - o[u];
+                    out[0] += w * Ju * r0, out[1] += w * Ju * Ju, out[2] += w * r0 * r0;
+                }
+            }
+        }
+        double jr = 0, jj = 0, rr = 0;
+        for (int b = 0; b < nblock; b++) jr += F->blk[3 * b], jj += F->blk[3 * b + 1], rr += F->blk[3 * b + 2];
+        const double a = jj > 0 ? fmax(0.0, jr / jj) : 0.0, cost = rr - 2 * a * jr + a * a * jj;
+        if (cost < best) best = cost, bvx = vx, bvy = vy, ba = a;
+    }
+    p[l] = ba, p[nl + 2 * l] = bvx, p[nl + 2 * l + 1] = bvy;
 }
 
 /* The lagged maps of batch b (−1: all) at the used offsets into F->data */
@@ -260,21 +340,23 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     int lay_of_peak[WT_LEARN_MAX_ALT];
     for (int k = 0; k < npk; k++) {
         lay_of_peak[k] = -1;
-        if (pf[k] < min_fraction) continue;
+        if (pf[k] < fmin(min_fraction, WIND_MODEL_MIN)) continue;
         if (F.nl == WIND_MAX_LAYERS)
             return WT_ERROR(ctx, WT_ERR_INVALID, "learn: more than %d layers above %g of the Cn²", WIND_MAX_LAYERS,
                             min_fraction);
-        lay_of_peak[k] = F.nl++;
+        F.lpf[F.nl] = pf[k], lay_of_peak[k] = F.nl++;
     }
     for (int a = 0; a < na; a++)
         if (owner[a] >= 0 && lay_of_peak[owner[a]] >= 0) {
             F.bh[F.nb] = est->altitude[a], F.bc[F.nb] = est->cn2[a], F.bl[F.nb] = lay_of_peak[owner[a]];
-            F.ba[F.nb++] = a, w->fitted[a] = 1;
+            F.ba[F.nb++] = a, w->fitted[a] = pf[owner[a]] >= min_fraction;
         }
-    if (F.nl == 0)
+    int nfit = 0;
+    for (int a = 0; a < na; a++) nfit += w->fitted[a];
+    if (nfit == 0)
         return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no layer holds %g of the Cn²: no layer to find the wind of",
                         min_fraction);
-    const int nl = F.nl, np = L->nlag + 2 * nl, ml = 1 + 2 * nl, nslot = 1 + nlgs * (nlgs - 1);
+    const int nl = F.nl, np = 3 * nl, nslot = 1 + nlgs * (nlgs - 1);
     F.nth = 1;
 #ifdef _OPENMP
     F.nth = omp_get_max_threads();
@@ -299,29 +381,33 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
         if ((st = wt_learn__rws_alloc(L, est->L0, wt_learn__rmax(L, thmax, hmax, smax), &F.ws[k])) < 0) goto fail;
     WT_ALLOC(ctx, F.rb, (size_t)F.nth * F.nb * 3 * S2, "the wind's response maps");
     WT_ALLOC(ctx, F.data, (size_t)L->nlag * nlgs * nlgs * 2 * F.nu, "the lagged maps");
-    WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (ml * ml + ml + 2), "the blocks' normal equations");
+    WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (np * np + np + 3), "the blocks' normal equations");
+    WT_ALLOC(ctx, F.oth, (size_t)L->nlag * nslot * 2 * F.nu, "the other layers' model");
     WT_ALLOC(ctx, buf, (size_t)F.nth * (2 * L->nf + N * N + 16), "the inverse FFT work arrays");
     WT_ALLOC(ctx, work, (size_t)3 * np * np + 6 * np + np * np, "the Levenberg-Marquardt work space");
     WT_ALLOC(ctx, p, np, "the wind parameters");
     WT_ALLOC(ctx, pb, np, "a batch's wind parameters");
-    /* all frames: the lags one by one (stage q fits γ_0 … γ_q and v, from the last stage's v, γ_q from 1) */
+    /* all frames: the lags one by one from the shortest, each stage from the last's a, v (a from 1, v from 0) */
     if ((st = load_maps(&F, -1, buf, F.nth)) < 0) goto fail;
     double cost = 0, norm = 0;
-    for (int q = 0; q < L->nlag; q++) {
-        /* p is laid out (γ[nq], v): move v up by one for the new γ */
-        double v[2 * WIND_MAX_LAYERS];
-        memcpy(v, p + q, (size_t)2 * nl * sizeof *v);
-        p[q] = 1.0;
-        memcpy(p + q + 1, v, (size_t)2 * nl * sizeof *v);
-        if (q == 0) memset(p + 1, 0, (size_t)2 * nl * sizeof *p);
-        int it = lm(&F, q + 1, p, WIND_ITERS, &cost, &norm, work);
-        w->iterations += it;
-    }
-    for (int q = 0; q < L->nlag; q++) w->gamma[q] = p[q];
+    for (int l = 0; l < nl; l++) p[l] = 1.0;
+    /* each layer's start from the search, strongest first (the others at their last values), then the stages */
+    const int nqs = L->nlag < WIND_SEARCH_LAGS ? L->nlag : WIND_SEARCH_LAGS;
+    int order[WIND_MAX_LAYERS];
+    for (int l = 0; l < nl; l++) order[l] = l;
+    for (int x = 1; x < nl; x++)
+        for (int y = x; y > 0 && F.lpf[order[y]] > F.lpf[order[y - 1]]; y--) {
+            int t = order[y];
+            order[y] = order[y - 1], order[y - 1] = t;
+        }
+    /* one layer alone has one minimum within the first lag's reach of v = 0 (tests/test_learn.c): no search */
+    for (int x = 0; nl > 1 && x < nl; x++) search_layer(&F, nqs, p, order[x]);
+    for (int q = 0; q < L->nlag; q++) w->iterations += lm(&F, q + 1, p, WIND_ITERS, &cost, &norm, work);
     w->residual = norm > 0 ? sqrt(cost / norm) : 0.0;
     for (int b = 0; b < F.nb; b++) {
         const int a = F.ba[b], l = F.bl[b];
-        w->vx[a] = p[L->nlag + 2 * l], w->vy[a] = p[L->nlag + 2 * l + 1];
+        if (!w->fitted[a]) continue;
+        w->vx[a] = p[nl + 2 * l], w->vy[a] = p[nl + 2 * l + 1], w->amplitude[a] = p[l];
         w->speed[a] = hypot(w->vx[a], w->vy[a]);
         w->direction[a] = fmod(atan2(w->vy[a], w->vx[a]) + 2 * M_PI, 2 * M_PI);
     }
@@ -342,7 +428,8 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
             lm(&F, L->nlag, pb, WIND_BATCH_ITERS, &cb, &nbn, work);
             for (int b = 0; b < F.nb; b++) {
                 const int a = F.ba[b], l = F.bl[b];
-                const double vx = pb[L->nlag + 2 * l], vy = pb[L->nlag + 2 * l + 1];
+                if (!w->fitted[a]) continue;
+                const double vx = pb[nl + 2 * l], vy = pb[nl + 2 * l + 1];
                 w->batch_vx[r][a] = vx, w->batch_vy[r][a] = vy;
                 const double x[4] = {vx, vy, hypot(vx, vy), wrap_pi(atan2(vy, vx) - w->direction[a])};
                 for (int c = 0; c < 4; c++) s1[a][c] += x[c], s2[a][c] += x[c] * x[c];
@@ -357,7 +444,7 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     }
 fail:
     for (int k = 0; k < F.nth; k++) wt_learn__rws_free(L, F.ws[k]);
-    wt_free(ctx, F.uoff), wt_free(ctx, F.uw), wt_free(ctx, F.rb), wt_free(ctx, F.data), wt_free(ctx, F.blk);
+    wt_free(ctx, F.oth), wt_free(ctx, F.uoff), wt_free(ctx, F.uw), wt_free(ctx, F.rb), wt_free(ctx, F.data), wt_free(ctx, F.blk);
     wt_free(ctx, buf), wt_free(ctx, work), wt_free(ctx, p), wt_free(ctx, pb);
     return st;
 }
