@@ -79,7 +79,7 @@ int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int6
 void wt_learn_free(wt_learn *L);
 /* The same, also accumulating the lagged maps of the nlag (0 … WT_LEARN_MAX_LAG) increasing lags [frames] (1 …
  * WT_LEARN_MAX_LAG_FRAMES) for the wind: a ring of the last lags[nlag − 1] + 1 frames' spectra ((k_max + 1) · 2 nlgs
- * · N (N/2 + 1) complex) and nbatch · nlag · nlgs² · 2 spectra (at 84 × 84 subapertures, 6 LGS: 57 MB of ring for
+ * · N (N/2 + 1) complex) and nbatch · nlag · nlgs² · 2 spectra (at 84 × 84 subapertures, 6 LGS: 69 MB of ring for
  * k_max = 24 and 16 MB per lag and batch). A frame costs nlag · nlgs² · 2 · N (N/2 + 1) more complex products. */
 int wt_learn_alloc_lagged(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, int nlag,
                           const int *lags, wt_learn **out);
