@@ -20,11 +20,12 @@
  * says little (the batch covariance of 4 frames is itself ±70 %). */
 #define LEARN_MIN_BATCH_FRAMES 5
 #define LEARN_DEFAULT_BATCHES 4
-/* The default lags: the shortest moves a layer of LEARN_WIND_VMAX by at most half a subaperture (where the fit's
- * start v = 0 is within reach), then ×2, ×4, ×8 (each stage refines the last one's v; the longest gives the
- * precision: v is the shift over k Δt) */
+/* The default lags: the shortest moves a layer of LEARN_WIND_VMAX by at most one subaperture (the search's and
+ * LM's start are within reach), then ×2 … ×16 (each stage refines the last one's v; the longest separates layers
+ * by their relative motion and gives the precision: on the demo 6 … 96 frames beat 3 … 24 and 3 … 48,
+ * docs/results.md §36) */
 #define LEARN_WIND_VMAX 40.0
-#define LEARN_WIND_NLAG 4
+#define LEARN_WIND_NLAG 5
 #define LEARN_BENCH_FITS 5     /* fits timed by --bench: the median of 5 */
 #define LEARN_BENCH_FRAMES 20  /* frames accumulated by --bench (the fit's cost does not depend on them) */
 
@@ -45,8 +46,8 @@ static void help(void)
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
            "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
-           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (default: k, 2k, 4k, 8k with k the frames\n"
-           "               in which %.0f m/s moves half a subaperture, at the telemetry's loop.rate_hz)\n"
+           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (default: k, 2k, 4k, 8k, 16k with k the\n"
+           "               frames in which %.0f m/s moves one subaperture, at the telemetry's loop.rate_hz)\n"
            "  --no-wind    the profile only\n"
            "  --wind-threshold F  the Cn2 fraction a layer needs for its wind to be fitted (default %.2f)\n"
            "  --bench      time, on CFG's LGS geometry and synthetic frames (seed 1): accumulation per frame,\n"
@@ -326,7 +327,7 @@ int wt_cmd_learn(int argc, char **argv)
     /* the wind's lags (frames of the telemetry's rate) */
     const double dt = 1.0 / tcfg->rate;
     if (!args.no_wind && args.nlag == 0) {
-        const int k1 = (int)fmax(1.0, floor(0.5 * sys->d / (LEARN_WIND_VMAX * dt)));
+        const int k1 = (int)fmax(1.0, floor(sys->d / (LEARN_WIND_VMAX * dt)));
         for (int q = 0; q < LEARN_WIND_NLAG; q++) args.lags[args.nlag++] = k1 << q;
     }
     if (args.no_wind) args.nlag = 0;
