@@ -46,13 +46,14 @@ static void help(void)
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
            "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
-           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (default: k, 2k, 4k, 8k, 16k with k the\n"
-           "               frames in which %.0f m/s moves one subaperture, at the telemetry's loop.rate_hz)\n"
-           "  --no-wind    the profile only\n"
+           "  --wind       also the wind of each layer holding >= 5 %% of the Cn2 (minutes on the demo: the lagged\n"
+           "               maps' fit evaluates the response maps at many shifts)\n"
+           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (implies --wind; default: k, 2k, 4k, 8k,\n"
+           "               16k with k the frames in which %.0f m/s moves one subaperture, at loop.rate_hz)\n"
            "  --wind-threshold F  the Cn2 fraction a layer needs for its wind to be fitted (default %.2f)\n"
            "  --bench      time, on CFG's LGS geometry and synthetic frames (seed 1): accumulation per frame,\n"
            "               the response model's set-up (once per grid and L0) and a fit (median of %d)\n"
-           "The wind of each altitude holding >= 5 %% of the Cn2 (speed, direction of motion counter-clockwise from\n"
+           "With --wind, the wind of each altitude holding >= 5 %% of the Cn2 (speed, direction of motion counter-clockwise from\n"
            "+x) from the time-lagged maps of frozen flow, with its uncertainty from the batches, per altitude, per\n"
            "reconstructor layer and on the truth's layers.\n"
            "Prints r0 and the profile on the grid and compressed onto pcg3's and cg9's layers, with the\n"
@@ -65,7 +66,7 @@ static void help(void)
 typedef struct {
     const char *tel, *out, *png;
     long frames, batches;
-    int bench, no_wind;
+    int bench, wind;
     int nlag, lags[WT_LEARN_MAX_LAG];
     double wind_min;
 } learn_args;
@@ -150,8 +151,8 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
         if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
     } else if (!strcmp(o, "--bench")) {
         a->bench = 1;
-    } else if (!strcmp(o, "--no-wind")) {
-        a->no_wind = 1;
+    } else if (!strcmp(o, "--wind")) {
+        a->wind = 1;
     } else if (!strcmp(o, "--wind-threshold")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
         char *end;
@@ -174,7 +175,7 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
                                    WT_LEARN_MAX_LAG, WT_LEARN_MAX_LAG_FRAMES);
                 return -1;
             }
-            a->lags[a->nlag++] = (int)k;
+            a->lags[a->nlag++] = (int)k, a->wind = 1;
             c = *end ? end + 1 : end;
         }
     } else if (!strcmp(o, "--frames") || !strcmp(o, "--batches")) {
@@ -326,14 +327,13 @@ int wt_cmd_learn(int argc, char **argv)
     const wt_learn_geometry g = {sys->n, sys->d, sys->valid, sys->nlgs, tx, ty, sys->sensors[0].altitude};
     /* the wind's lags (frames of the telemetry's rate) */
     const double dt = 1.0 / tcfg->rate;
-    if (!args.no_wind && args.nlag == 0) {
+    if (args.wind && args.nlag == 0) {
         const int k1 = (int)fmax(1.0, floor(sys->d / (LEARN_WIND_VMAX * dt)));
         for (int q = 0; q < LEARN_WIND_NLAG; q++) args.lags[args.nlag++] = k1 << q;
     }
-    if (args.no_wind) args.nlag = 0;
     if (args.nlag > 0 && F < args.lags[args.nlag - 1] + 2) {
         st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s: %lld frames, too few for the wind's longest lag of %d frames (it "
-                      "needs %d): give shorter --lags or --no-wind", args.tel, (long long)F, args.lags[args.nlag - 1],
+                      "needs %d): give shorter --lags", args.tel, (long long)F, args.lags[args.nlag - 1],
                       args.lags[args.nlag - 1] + 2);
         goto fail;
     }

@@ -635,6 +635,8 @@ START_TEST(test_command)
     /* a short closed loop's telemetry (60 frames: the numbers mean little, the chain and the file are the point) */
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 60 --telemetry %s/tel.h5 --out %s/r.h5 "
                          "--quiet", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --wind", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 96 frames"));
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 70", dir, dir), 1);
     ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 70 frames"));
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 2,1", dir, dir), 2);
