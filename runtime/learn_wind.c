@@ -42,8 +42,8 @@ void wt_learn_wind_print(const wt_learn_wind *wd, const wt_config *use, const wt
 {
     printf("  wind: lags");
     for (int q = 0; q < wd->nlag; q++) printf(" %d", wd->lag[q]);
-    printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, fit %.2f s\n", 1e3 * wd->dt, wd->residual,
-           wd->iterations, fit_s);
+    printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, %d layer(s) dropped (past 60 m/s), fit %.2f s\n",
+           1e3 * wd->dt, wd->residual, wd->iterations, wd->dropped, fit_s);
     printf("    altitude [km]  Cn2      speed [m/s]      direction [deg]   (vx, vy) [m/s]     amplitude\n");
     for (int a = 0; a < wd->nalt; a++)
         if (wd->fitted[a])

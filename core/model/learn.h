@@ -36,7 +36,9 @@
  *   minimise Σ_{k,i,j,c,δ} w(δ) (C − Σ_l a_l Σ_{h∈l} c_h R(δ; h, v_l k Δt))²,  w = P(δ)/P(0) as for the profile,
  * by Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest (its shifts
  * are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v). Layers holding
- * ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled, not reported.
+ * ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled, not reported. A layer whose
+ * wind runs past 60 m/s is not in the lagged maps where its altitude says (Cn² the profile put at the wrong
+ * altitude): it is dropped, the others refitted, and it is reported as not fitted.
  *
  * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
  */
@@ -173,6 +175,7 @@ typedef struct wt_learn_wind {
     double dt;                           /* frame time [s] */
     double residual;                     /* weighted rms misfit / weighted rms of the lagged maps, all frames [-] */
     int iterations;                      /* Levenberg–Marquardt iterations, all frames */
+    int dropped;                         /* layers dropped: their wind ran past 60 m/s (then reported as not fitted) */
     int nbatch;                          /* batches fitted for the spread (0: one batch, no spread) */
     double batch_vx[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT], batch_vy[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* [m/s] */
 } wt_learn_wind;

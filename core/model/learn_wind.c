@@ -41,6 +41,8 @@
 #define WIND_SEARCH_NDIR 16
 #define WIND_SEARCH_LAGS 2   /* the search fits the first 2 lags (shifts ≤ 1 subaperture at 40 m/s with the default
                                 lags: one minimum per layer within the grid's reach, and half the cost of 3) */
+#define WIND_PLAUSIBLE 60.0  /* a layer whose fit runs faster [m/s] is not in the lagged maps where its altitude
+                                says (e.g. Cn² the profile put at the wrong altitude): it is dropped, the others refitted */
 #define WIND_MAX_LAYERS 20   /* layers in the model (peaks of c_h) */
 #define WIND_MODEL_MIN 0.02  /* a peak with less of the Cn² is left out of the model: its wind would be noise, and
                                 one above it is modelled (with its own wind) even when too weak to report, so that
@@ -64,6 +66,7 @@ typedef struct {
     double *blk;                 /* [nblock][(3 nl)² + 3 nl + 2] each block's normal equations, cost, norm */
     double *oth;                 /* [nblock][nu] the model of the other layers (the search) */
     double lpf[WIND_MAX_LAYERS]; /* each layer's Cn² fraction (the search's order) */
+    int off[WIND_MAX_LAYERS];    /* 1: dropped (its wind ran past WIND_PLAUSIBLE): out of the model */
 } wfit;
 
 static int thread_id(void)
@@ -100,6 +103,7 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
         const double tx = L->theta_x[pj[0]] - L->theta_x[pi[0]], ty = L->theta_y[pj[0]] - L->theta_y[pi[0]];
         for (int bi = 0; bi < F->nb; bi++) {
             const int l = F->bl[bi];
+            if (F->off[l]) continue;
             const double sx = p[nl + 2 * l] * k * F->dt, sy = p[nl + 2 * l + 1] * k * F->dt;
             double *r = rb + (size_t)bi * 3 * S2;
             wt_learn__resp_eval_grad(L, F->ws[tid], tx, ty, F->bh[bi], sx, sy, c, c, r, r + S2, r + 2 * S2);
@@ -114,6 +118,7 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
             for (int bi = 0; bi < F->nb; bi++) {
                 const double *r = rb + (size_t)bi * 3 * S2 + o, cb = F->bc[bi];
                 const int l = F->bl[bi];
+                if (F->off[l]) continue;
                 /* ∂/∂a_l = Σ_b c_b R_b, ∂/∂v_l = a_l Σ_b c_b k Δt ∂R_b/∂s */
                 J[l] += cb * r[0];
                 const double fac = p[l] * cb * k * F->dt;
@@ -160,8 +165,13 @@ static int lm(wfit *F, int nq, double *p, int maxit, double *cost_out, double *n
     const double kdt = F->L->lag[nq - 1] * F->dt;
     int it;
     for (it = 1; it <= maxit; it++) {
+        /* a dropped layer's parameters have no equations: their diagonal gets the largest one's scale (not 1, which
+         * would make every other pivot look singular to the Cholesky's relative test), so their step is 0 */
+        double dA = 0;
+        for (int x = 0; x < np; x++) dA = fmax(dA, A[x + (size_t)np * x]);
         for (int x = 0; x < np * np; x++) M[x] = A[x];
-        for (int x = 0; x < np; x++) M[x + (size_t)np * x] += lambda * (A[x + (size_t)np * x] > 0 ? A[x + (size_t)np * x] : 1.0);
+        for (int x = 0; x < np; x++)
+            M[x + (size_t)np * x] += A[x + (size_t)np * x] > 0 ? lambda * A[x + (size_t)np * x] : (dA > 0 ? dA : 1.0);
         wt_learn__spd_solve(np, M, np, g, dp, ch);
         /* at most WIND_STEP_CAP subapertures of new shift per layer at the longest lag in use */
         double dvmax = 0;
@@ -211,7 +221,7 @@ static void search_layer(wfit *F, int nq, double *p, int l)
         memset(o, 0, (size_t)F->nu * sizeof *o);
         for (int bi = 0; bi < F->nb; bi++) {
             const int lb = F->bl[bi];
-            if (lb == l) continue;
+            if (lb == l || F->off[lb]) continue;
             wt_learn__resp_eval(L, F->ws[tid], tx, ty, F->bh[bi], p[nl + 2 * lb] * k * F->dt, p[nl + 2 * lb + 1] * k * F->dt,
                                 c, c, r);
             for (int u = 0; u < F->nu; u++) {
@@ -403,9 +413,21 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     /* one layer alone has one minimum within the first lag's reach of v = 0 (tests/test_learn.c): no search */
     for (int x = 0; nl > 1 && x < nl; x++) search_layer(&F, nqs, p, order[x]);
     for (int q = 0; q < L->nlag; q++) w->iterations += lm(&F, q + 1, p, WIND_ITERS, &cost, &norm, work);
+    /* the implausible layers out, one at a time from the fastest, the others refitted over all lags from their v */
+    for (;;) {
+        int worst = -1;
+        double vmax = WIND_PLAUSIBLE;
+        for (int l = 0; l < nl; l++)
+            if (!F.off[l] && hypot(p[nl + 2 * l], p[nl + 2 * l + 1]) > vmax) vmax = hypot(p[nl + 2 * l], p[nl + 2 * l + 1]), worst = l;
+        if (worst < 0) break;
+        F.off[worst] = 1, p[worst] = 0, p[nl + 2 * worst] = p[nl + 2 * worst + 1] = 0;
+        w->dropped++;
+        w->iterations += lm(&F, L->nlag, p, WIND_ITERS, &cost, &norm, work);
+    }
     w->residual = norm > 0 ? sqrt(cost / norm) : 0.0;
     for (int b = 0; b < F.nb; b++) {
         const int a = F.ba[b], l = F.bl[b];
+        if (F.off[l]) w->fitted[a] = 0;
         if (!w->fitted[a]) continue;
         w->vx[a] = p[nl + 2 * l], w->vy[a] = p[nl + 2 * l + 1], w->amplitude[a] = p[l];
         w->speed[a] = hypot(w->vx[a], w->vy[a]);
