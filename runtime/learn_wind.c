@@ -44,12 +44,19 @@ void wt_learn_wind_print(const wt_learn_wind *wd, const wt_config *use, const wt
     for (int q = 0; q < wd->nlag; q++) printf(" %d", wd->lag[q]);
     printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, %d layer(s) dropped (past 60 m/s), fit %.2f s\n",
            1e3 * wd->dt, wd->residual, wd->iterations, wd->dropped, fit_s);
-    printf("    altitude [km]  Cn2      speed [m/s]      direction [deg]   (vx, vy) [m/s]     amplitude\n");
+    /* the truth binned onto the grid the same way (each truth layer split between its two nearest altitudes) */
+    double tvx[WT_MAX_LAYERS], tvy[WT_MAX_LAYERS], gf[WT_LEARN_MAX_ALT], gvx[WT_LEARN_MAX_ALT], gvy[WT_LEARN_MAX_ALT];
+    truth_vectors(tcfg, tvx, tvy);
+    wt_profile_compress(tcfg->nlayers, tcfg->layer_altitude, tcfg->layer_fraction, tvx, tvy, wd->nalt, wd->altitude, gf,
+                        gvx, gvy);
+    printf("    altitude [km]  Cn2      speed [m/s]      direction [deg]   (vx, vy) [m/s]     amplitude   truth binned "
+           "[m/s, deg]\n");
     for (int a = 0; a < wd->nalt; a++)
         if (wd->fitted[a])
-            printf("    %8.2f       %.3f   %6.2f ± %.2f    %6.1f ± %.1f     (%6.2f, %6.2f)   %.3f\n", wd->altitude[a] / 1e3,
-                   wd->fraction[a], wd->speed[a], wd->speed_sigma[a], wd->direction[a] * DEG,
-                   wd->direction_sigma[a] * DEG, wd->vx[a], wd->vy[a], wd->amplitude[a]);
+            printf("    %8.2f       %.3f   %6.2f ± %.2f    %6.1f ± %.1f     (%6.2f, %6.2f)   %.3f      %.3f: %6.2f towards "
+                   "%6.1f\n", wd->altitude[a] / 1e3, wd->fraction[a], wd->speed[a], wd->speed_sigma[a],
+                   wd->direction[a] * DEG, wd->direction_sigma[a] * DEG, wd->vx[a], wd->vy[a], wd->amplitude[a], gf[a],
+                   hypot(gvx[a], gvy[a]), dir_of(gvx[a], gvy[a]) * DEG);
     print_layers("wind on pcg3's layers (Cn2-weighted over the fitted altitudes)", wd, tcfg, use->pcg3.nlayers,
                  use->pcg3.altitudes);
     print_layers("wind on cg9's layers", wd, tcfg, use->cg9.nlayers, use->cg9.altitudes);
