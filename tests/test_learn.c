@@ -342,8 +342,8 @@ END_TEST
 
 /* ---------------------------------------------------------------- reset, and one model for many fits */
 
-/* After wt_learn_reset and the same frames again, every map is bit-identical to a fresh object's (the spectra are
- * zeroed, not approximately cancelled); a model built once fits as wt_learn_fit does, bit for bit, and refuses an
+/* After wt_learn_reset and the same frames again, every map (lag 0 and lagged) is bit-identical to a fresh object's
+ * (the spectra are zeroed, not approximately cancelled); a model built once fits as wt_learn_fit does, bit for bit, and refuses an
  * accumulator of another geometry. */
 START_TEST(test_reset_model)
 {
@@ -357,8 +357,9 @@ START_TEST(test_reset_model)
     simulate(ctx, &G, 1, &h, &one, 0.15, 25.0, 2, K / 2, s); /* a profile the fit can find */
     tu_randn(junk, fl, 32);
     wt_learn *A = NULL, *B = NULL, *C = NULL;
-    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 3, 4, &A), WT_OK);
-    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 3, 4, &B), WT_OK);
+    const int lags[2] = {1, 3};
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 3, 4, 2, lags, &A), WT_OK);
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 3, 4, 2, lags, &B), WT_OK);
     ck_assert_int_eq(wt_learn_alloc(ctx, &G2.g, 3, 4, &C), WT_OK);
     for (int t = 0; t < 7; t++) ck_assert_int_eq(wt_learn_add(A, junk), WT_OK);
     wt_learn_reset(A);
@@ -376,6 +377,16 @@ START_TEST(test_reset_model)
                 ck_assert_int_eq(wt_learn_map(B, b, p, c, mb, NULL), WT_OK);
                 ck_assert(!memcmp(ma, mb, sizeof(double) * S * S));
             }
+    /* the lagged maps too: the ring's frames from before the reset are never paired with the new ones */
+    for (int b = -1; b < 3; b++)
+        for (int q = 0; q < 2; q++)
+            for (int i = 0; i < G.nlgs; i++)
+                for (int j = 0; j < G.nlgs; j++)
+                    for (int c = 0; c < 2; c++) {
+                        ck_assert_int_eq(wt_learn_lag_map(A, b, q, i, j, c, ma, NULL), WT_OK);
+                        ck_assert_int_eq(wt_learn_lag_map(B, b, q, i, j, c, mb, NULL), WT_OK);
+                        ck_assert(!memcmp(ma, mb, sizeof(double) * S * S));
+                    }
     double alt[WT_LEARN_MAX_ALT];
     const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
     wt_learn_model *M = NULL;
