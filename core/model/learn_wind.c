@@ -13,11 +13,13 @@
  *
  *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (C − model)²,   w = P(δ)/P(0),
  *
- * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s analytic (of the tabulated D,
- * through the same linear tip-tilt removal). The layers are fitted jointly: they overlap in every map (their peaks sit (θ_j − θ_i) Δh apart,
- * about a subaperture per km), so one at a time would let the strongest absorb its neighbours. The lags enter one
- * by one from the shortest, each stage starting from the last's v: a stage's new shifts are then within a
- * subaperture of their final value, where the model is close to linear in v.
+ * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s analytic (of the tabulated
+ * D, through the same linear tip-tilt removal). The layers are fitted jointly: they overlap in every map (their
+ * peaks sit (θ_j − θ_i) Δh apart, about a subaperture per km), so one at a time would let the strongest absorb its
+ * neighbours. With two layers or more, each starts from a coarse polar search of v (the others held, its best
+ * amplitude in closed form), strongest first. The lags then enter one by one from the shortest, each stage
+ * starting from the last's v: a stage's new shifts are within a subaperture or so of their final value, where the
+ * model is close to linear in v. A layer whose v runs past WIND_PLAUSIBLE is dropped and the others refitted.
  * The uncertainty: each batch fitted from the all-frames solution; the spread of its v over √B.
  */
 #include "learn_private.h"
@@ -39,7 +41,7 @@
 #define WIND_SEARCH_VMAX 40.0 /* the search's grid: speeds 0 … 40 m/s every 5 m/s, directions every 22.5° (LM refines) */
 #define WIND_SEARCH_DV 5.0
 #define WIND_SEARCH_NDIR 16
-#define WIND_SEARCH_LAGS 2   /* the search fits the first 2 lags (shifts ≤ 1 subaperture at 40 m/s with the default
+#define WIND_SEARCH_LAGS 2   /* the search fits the first 2 lags (shifts ≤ 2 subapertures at 40 m/s with the default
                                 lags: one minimum per layer within the grid's reach, and half the cost of 3) */
 #define WIND_PLAUSIBLE 60.0  /* a layer whose fit runs faster [m/s] is not in the lagged maps where its altitude
                                 says (e.g. Cn² the profile put at the wrong altitude): it is dropped, the others refitted */
