@@ -13,16 +13,27 @@
 #include "core/model/learn.h"
 #include "core/model/profile.h"
 #include "core/model/system.h"
+#include "core/base/rng.h"
+#include "runtime/learn_wind.h"
 
 /* An estimate is the mean of its batches' cross-products: a batch of fewer frames than this gives a spread that
  * says little (the batch covariance of 4 frames is itself ±70 %). */
 #define LEARN_MIN_BATCH_FRAMES 5
 #define LEARN_DEFAULT_BATCHES 4
+/* The default lags: the shortest moves a layer of LEARN_WIND_VMAX by at most one subaperture (the search's and
+ * LM's start are within reach), then ×2 … ×16 (each stage refines the last one's v; the longest separates layers
+ * by their relative motion and gives the precision: on the demo 6 … 96 frames beat 3 … 24 and 3 … 48,
+ * docs/results.md §38) */
+#define LEARN_WIND_VMAX 40.0
+#define LEARN_WIND_NLAG 5
+#define LEARN_BENCH_FITS 5     /* fits timed by --bench: the median of 5 */
+#define LEARN_BENCH_FRAMES 20  /* frames accumulated by --bench (the fit's cost does not depend on them) */
 
 static void help(void)
 {
     printf("usage: wavetomo learn --telemetry TEL.h5 --out EST.h5 [--config CFG] [--frames N] [--batches B]\n"
            "                      [--png PROFILE.png] [--threads N] [--set key=value] [--quiet]\n"
+           "       wavetomo learn --bench --config CFG [--frames N] [--threads N]\n"
            "\n"
            "Identifies r0 and the Cn2 profile from the pseudo-open-loop LGS slopes of a telemetry file written by\n"
            "`wavetomo sim --telemetry` (SPEC 12): the slope cross-covariance maps of every LGS pair (tip-tilt\n"
@@ -35,16 +46,100 @@ static void help(void)
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
            "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
+           "  --wind       also the wind of each layer holding >= 5 %% of the Cn2 (minutes on the demo: the lagged\n"
+           "               maps' fit evaluates the response maps at many shifts)\n"
+           "  --lags K,..  the lags [frames] of the wind's time-lagged maps (implies --wind; default: k, 2k, 4k, 8k,\n"
+           "               16k with k the frames in which %.0f m/s moves one subaperture, at loop.rate_hz)\n"
+           "  --wind-threshold F  the Cn2 fraction a layer needs for its wind to be fitted (default %.2f)\n"
+           "  --bench      time, on CFG's LGS geometry and synthetic frames (seed 1): accumulation per frame,\n"
+           "               the response model's set-up (once per grid and L0) and a fit (median of %d)\n"
+           "With --wind, the wind of each altitude holding >= 5 %% of the Cn2 (speed, direction of motion counter-clockwise from\n"
+           "+x) from the time-lagged maps of frozen flow, with its uncertainty from the batches, per altitude, per\n"
+           "reconstructor layer and on the truth's layers.\n"
            "Prints r0 and the profile on the grid and compressed onto pcg3's and cg9's layers, with the\n"
            "uncertainty, and the truth of the telemetry's configuration binned the same way beside; writes EST.h5\n"
            "(docs/formats.md).\n",
-           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES);
+           WT_LEARN_MAX_BATCH, LEARN_DEFAULT_BATCHES, LEARN_MIN_BATCH_FRAMES, LEARN_WIND_VMAX, WT_LEARN_WIND_MIN_FRACTION,
+           LEARN_BENCH_FITS);
 }
 
 typedef struct {
     const char *tel, *out, *png;
     long frames, batches;
+    int bench, wind;
+    int nlag, lags[WT_LEARN_MAX_LAG];
+    double wind_min;
 } learn_args;
+
+
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* --bench: the costs of identification on the configuration's LGS geometry, from synthetic frames (a slope pattern
+ * common to the LGS plus each LGS's own, both N(0, 1) µrad, seed 1: correlated, so the fit finds turbulence; the
+ * times do not depend on the values): accumulation per frame, the model's set-up, a fit (median of 5). */
+static int learn_bench(wt_cli *cli, long frames)
+{
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    wt_learn *L = NULL;
+    wt_learn_model *M = NULL;
+    double *s = NULL, *z = NULL, *tadd = NULL;
+    int st;
+    if ((st = wt_cli_read_config(cli, NULL, &cfg)) < 0) goto done;
+    if ((st = wt_system_alloc(cli->ctx, cfg, &sys)) < 0) goto done;
+    double tx[WT_MAX_GS], ty[WT_MAX_GS];
+    for (int i = 0; i < sys->nlgs; i++) tx[i] = sys->sensors[i].theta_x, ty[i] = sys->sensors[i].theta_y;
+    const wt_learn_geometry g = {sys->n, sys->d, sys->valid, sys->nlgs, tx, ty, sys->sensors[0].altitude};
+    const long F = frames > 0 ? frames : LEARN_BENCH_FRAMES;
+    if ((st = wt_learn_alloc(cli->ctx, &g, LEARN_DEFAULT_BATCHES, F / LEARN_DEFAULT_BATCHES, &L)) < 0) goto done;
+    const int64_t ns = sys->sensors[0].nslopes, nl = ns * sys->nlgs;
+    s = malloc((size_t)nl * sizeof *s), z = malloc((size_t)ns * sizeof *z), tadd = malloc((size_t)F * sizeof *tadd);
+    if (!s || !z || !tadd) {
+        st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the bench's frames");
+        goto done;
+    }
+    wt_rng rng;
+    wt_rng_init(&rng, 1, 0);
+    for (long t = 0; t < F; t++) {
+        for (int64_t k = 0; k < ns; k++) z[k] = 1e-6 * wt_rng_normal(&rng);
+        for (int64_t k = 0; k < nl; k++) s[k] = z[k % ns] + 1e-6 * wt_rng_normal(&rng);
+        const double t0 = wt_time_now();
+        if ((st = wt_learn_add(L, s)) < 0) goto done;
+        tadd[t] = wt_time_now() - t0;
+    }
+    qsort(tadd, (size_t)F, sizeof *tadd, cmp_double);
+    double alt[WT_LEARN_MAX_ALT], tfit[LEARN_BENCH_FITS];
+    const int na = wt_learn_default_grid(g.H, WT_LEARN_MAX_ALT, alt);
+    double t0 = wt_time_now();
+    if ((st = wt_learn_model_alloc(L, na, alt, cfg->model.L0, &M)) < 0) goto done;
+    const double tmodel = wt_time_now() - t0;
+    wt_learn_estimate e;
+    for (int k = 0; k < LEARN_BENCH_FITS; k++) {
+        t0 = wt_time_now();
+        if ((st = wt_learn_fit_model(L, M, &e)) < 0) goto done;
+        tfit[k] = wt_time_now() - t0;
+    }
+    qsort(tfit, LEARN_BENCH_FITS, sizeof *tfit, cmp_double);
+    printf("learn bench: %s, %d x %d subapertures (%d valid), %d LGS, %d pairs, %d altitudes, %lld terms\n"
+           "  accumulation %.2f ms per frame (median of %ld)\n"
+           "  model set-up %.2f s (response maps and normal matrix, once per grid and L0)\n"
+           "  fit %.3f s (median of %d; min %.3f, max %.3f)\n",
+           cfg->path, sys->n, sys->n, (int)ns / 2, sys->nlgs, wt_learn_npairs(L), na, (long long)e.rows,
+           1e3 * tadd[F / 2], F, tmodel, tfit[LEARN_BENCH_FITS / 2], LEARN_BENCH_FITS, tfit[0],
+           tfit[LEARN_BENCH_FITS - 1]);
+done:
+    free(s), free(z), free(tadd);
+    wt_learn_model_free(M);
+    wt_learn_free(L);
+    wt_system_free(sys);
+    wt_config_free(cli->ctx, cfg);
+    return st;
+}
 
 static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
@@ -54,6 +149,35 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
                        : !strcmp(o, "--png") ? &a->png : NULL;
     if (str) {
         if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
+    } else if (!strcmp(o, "--bench")) {
+        a->bench = 1;
+    } else if (!strcmp(o, "--wind")) {
+        a->wind = 1;
+    } else if (!strcmp(o, "--wind-threshold")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        char *end;
+        if (!v) return -1;
+        a->wind_min = strtod(v, &end);
+        if (*end || !(a->wind_min > 0 && a->wind_min < 1)) {
+            wt_cli_usage_error(cli, "--wind-threshold %s: expected a Cn2 fraction in (0, 1)", v);
+            return -1;
+        }
+    } else if (!strcmp(o, "--lags")) {
+        const char *v = wt_cli_value(cli, argc, argv, i);
+        if (!v) return -1;
+        a->nlag = 0;
+        for (const char *c = v; *c;) {
+            char *end;
+            long k = strtol(c, &end, 10);
+            if (end == c || k < 1 || k > WT_LEARN_MAX_LAG_FRAMES || a->nlag == WT_LEARN_MAX_LAG ||
+                (a->nlag > 0 && k <= a->lags[a->nlag - 1]) || (*end && *end != ',')) {
+                wt_cli_usage_error(cli, "--lags %s: expected up to %d increasing frame counts 1-%d, comma-separated", v,
+                                   WT_LEARN_MAX_LAG, WT_LEARN_MAX_LAG_FRAMES);
+                return -1;
+            }
+            a->lags[a->nlag++] = (int)k, a->wind = 1;
+            c = *end ? end + 1 : end;
+        }
     } else if (!strcmp(o, "--frames") || !strcmp(o, "--batches")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
         if (!v) return -1;
@@ -133,13 +257,22 @@ int wt_cmd_learn(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo learn", help)) return 1;
-    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES};
+    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0, 0, 0, {0}, WT_LEARN_WIND_MIN_FRACTION};
     int rc = wt_cli_parse(&cli, argc, argv, learn_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
         return rc;
     }
     rc = 0;
+    if (args.bench) {
+        if (!cli.config_path) rc = wt_cli_usage_error(&cli, "--bench needs --config CFG (the LGS geometry)");
+        else {
+            const int bst = learn_bench(&cli, args.frames);
+            if (bst < 0) rc = wt_cli_fail(&cli, bst);
+        }
+        wt_cli_done(&cli);
+        return rc;
+    }
     if (!args.tel || !args.out) {
         rc = wt_cli_usage_error(&cli, "give --telemetry TEL.h5 and --out EST.h5");
         wt_cli_done(&cli);
@@ -192,7 +325,20 @@ int wt_cmd_learn(int argc, char **argv)
     double tx[WT_MAX_GS], ty[WT_MAX_GS];
     for (int i = 0; i < sys->nlgs; i++) tx[i] = sys->sensors[i].theta_x, ty[i] = sys->sensors[i].theta_y;
     const wt_learn_geometry g = {sys->n, sys->d, sys->valid, sys->nlgs, tx, ty, sys->sensors[0].altitude};
-    if ((st = wt_learn_alloc(cli.ctx, &g, (int)args.batches, F / args.batches, &L)) < 0) goto fail;
+    /* the wind's lags (frames of the telemetry's rate) */
+    const double dt = 1.0 / tcfg->rate;
+    if (args.wind && args.nlag == 0) {
+        const int k1 = (int)fmax(1.0, floor(sys->d / (LEARN_WIND_VMAX * dt)));
+        for (int q = 0; q < LEARN_WIND_NLAG; q++) args.lags[args.nlag++] = k1 << q;
+    }
+    if (args.nlag > 0 && F < args.lags[args.nlag - 1] + 2) {
+        st = WT_ERROR(cli.ctx, WT_ERR_FORMAT, "%s: %lld frames, too few for the wind's longest lag of %d frames (it "
+                      "needs %d): give shorter --lags", args.tel, (long long)F, args.lags[args.nlag - 1],
+                      args.lags[args.nlag - 1] + 2);
+        goto fail;
+    }
+    if ((st = wt_learn_alloc_lagged(cli.ctx, &g, (int)args.batches, F / args.batches, args.nlag, args.lags, &L)) < 0)
+        goto fail;
     const int64_t nl = sys->sensors[sys->nlgs - 1].offset + sys->sensors[sys->nlgs - 1].nslopes;
     sf = malloc((size_t)sys->nslopes * sizeof *sf);
     sd = malloc((size_t)nl * sizeof *sd);
@@ -215,7 +361,9 @@ int wt_cmd_learn(int argc, char **argv)
     double alt[WT_LEARN_MAX_ALT];
     const int na = wt_learn_default_grid(g.H, WT_LEARN_MAX_ALT, alt);
     if (!cli.quiet) fprintf(stderr, "%s: fitting %d altitudes to %d LGS pairs ...\n", cli.prog, na, wt_learn_npairs(L));
-    wt_learn_estimate *e = malloc(sizeof *e);
+    /* the estimate first: free(e) frees both */
+    struct learn_result { wt_learn_estimate e; wt_learn_wind wind; } *res = malloc(sizeof *res);
+    wt_learn_estimate *e = res ? &res->e : NULL;
     if (!e) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory for the estimate");
         goto fail;
@@ -246,6 +394,12 @@ int wt_cmd_learn(int argc, char **argv)
     print_table("Cn2 fractions on the altitude grid", na, alt, e->fraction, e->fraction_sigma, tgrid);
     print_table("compressed onto pcg3's layers", use->pcg3.nlayers, use->pcg3.altitudes, e3, s3, t3);
     print_table("compressed onto cg9's layers", use->cg9.nlayers, use->cg9.altitudes, e9, s9, t9);
+    if (args.nlag > 0) {
+        if (!cli.quiet) fprintf(stderr, "%s: fitting the wind to %d lags ...\n", cli.prog, args.nlag);
+        const double tw = wt_time_now();
+        if ((st = wt_learn_wind_fit(L, e, dt, args.wind_min, &res->wind)) < 0) goto fail_e;
+        wt_learn_wind_print(&res->wind, use, tcfg, wt_time_now() - tw);
+    }
     /* EST.h5 */
     if ((st = wt_h5_create(cli.ctx, args.out, &w)) < 0) goto fail_e;
     if ((st = write_profile(w, "estimate", na, alt, e->fraction, e->fraction_sigma, "the identification grid")) < 0) goto fail_e;
@@ -278,6 +432,7 @@ int wt_cmd_learn(int argc, char **argv)
                             "the telemetry's simulated atmosphere (never read by the estimate)")) < 0 ||
         (st = wt_h5_write_double(w, "truth/r0_m", tcfg->r0, "m", "the simulated atmosphere's r0 at 500 nm")) < 0)
         goto fail_e;
+    if (args.nlag > 0 && (st = wt_learn_wind_write(w, &res->wind, use, tcfg)) < 0) goto fail_e;
     if ((st = wt_cli_write_provenance(&cli, w, use, argc, argv)) < 0) goto fail_e;
     if ((st = wt_h5_attr_write_string(w, "/", "telemetry", args.tel)) < 0) goto fail_e;
     st = wt_h5_commit(w);

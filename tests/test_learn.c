@@ -339,6 +339,216 @@ START_TEST(test_single_layer)
 }
 END_TEST
 
+
+/* ---------------------------------------------------------------- reset, and one model for many fits */
+
+/* After wt_learn_reset and the same frames again, every map (lag 0 and lagged) is bit-identical to a fresh object's
+ * (the spectra are zeroed, not approximately cancelled); a model built once fits as wt_learn_fit does, bit for bit, and refuses an
+ * accumulator of another geometry. */
+START_TEST(test_reset_model)
+{
+    wt_context *ctx = tu_context();
+    geom G, G2;
+    geom_make(&G, 10, 3, 30.0);
+    geom_make(&G2, 10, 3, 40.0);
+    const int ns = geom_nsub(&G), S = 2 * 10 - 1, K = 12, fl = G.nlgs * 2 * ns;
+    double *s = malloc(sizeof(double) * (size_t)K * fl), *junk = malloc(sizeof(double) * fl);
+    const double h = 5000.0, one = 1.0;
+    simulate(ctx, &G, 1, &h, &one, 0.15, 25.0, 2, K / 2, s); /* a profile the fit can find */
+    tu_randn(junk, fl, 32);
+    wt_learn *A = NULL, *B = NULL, *C = NULL;
+    const int lags[2] = {1, 3};
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 3, 4, 2, lags, &A), WT_OK);
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 3, 4, 2, lags, &B), WT_OK);
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G2.g, 3, 4, &C), WT_OK);
+    for (int t = 0; t < 7; t++) ck_assert_int_eq(wt_learn_add(A, junk), WT_OK);
+    wt_learn_reset(A);
+    ck_assert_int_eq(wt_learn_frames(A), 0);
+    for (int t = 0; t < K; t++) {
+        ck_assert_int_eq(wt_learn_add(A, s + (size_t)t * fl), WT_OK);
+        ck_assert_int_eq(wt_learn_add(B, s + (size_t)t * fl), WT_OK);
+        ck_assert_int_eq(wt_learn_add(C, s + (size_t)t * fl), WT_OK);
+    }
+    double *ma = malloc(sizeof(double) * S * S), *mb = malloc(sizeof(double) * S * S);
+    for (int b = -1; b < 3; b++)
+        for (int p = 0; p < wt_learn_npairs(A); p++)
+            for (int c = 0; c < 3; c++) {
+                ck_assert_int_eq(wt_learn_map(A, b, p, c, ma, NULL), WT_OK);
+                ck_assert_int_eq(wt_learn_map(B, b, p, c, mb, NULL), WT_OK);
+                ck_assert(!memcmp(ma, mb, sizeof(double) * S * S));
+            }
+    /* the lagged maps too: the ring's frames from before the reset are never paired with the new ones */
+    for (int b = -1; b < 3; b++)
+        for (int q = 0; q < 2; q++)
+            for (int i = 0; i < G.nlgs; i++)
+                for (int j = 0; j < G.nlgs; j++)
+                    for (int c = 0; c < 2; c++) {
+                        ck_assert_int_eq(wt_learn_lag_map(A, b, q, i, j, c, ma, NULL), WT_OK);
+                        ck_assert_int_eq(wt_learn_lag_map(B, b, q, i, j, c, mb, NULL), WT_OK);
+                        ck_assert(!memcmp(ma, mb, sizeof(double) * S * S));
+                    }
+    double alt[WT_LEARN_MAX_ALT];
+    const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+    wt_learn_model *M = NULL;
+    ck_assert_int_eq(wt_learn_model_alloc(A, na, alt, 25.0, &M), WT_OK);
+    wt_learn_estimate e1, e2, e3;
+    ck_assert_int_eq(wt_learn_fit_model(B, M, &e1), WT_OK);
+    ck_assert_int_eq(wt_learn_fit(A, na, alt, 25.0, &e2), WT_OK);
+    ck_assert(!memcmp(e1.cn2, e2.cn2, sizeof e1.cn2) && e1.r0 == e2.r0 && e1.residual == e2.residual);
+    ck_assert(!memcmp(e1.batch_r0, e2.batch_r0, sizeof e1.batch_r0) && e1.rows == e2.rows && e1.nbatch == 3);
+    ck_assert_int_eq(wt_learn_fit_model(C, M, &e3), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "another geometry"));
+    alt[1] = -5;
+    wt_learn_model *M2 = NULL;
+    ck_assert_int_eq(wt_learn_model_alloc(A, na, alt, 25.0, &M2), WT_ERR_INVALID);
+    ck_assert_ptr_null(M2);
+    wt_learn_model_free(M);
+    wt_learn_free(A), wt_learn_free(B), wt_learn_free(C);
+    free(s), free(junk), free(ma), free(mb);
+    wt_context_free(ctx);
+}
+END_TEST
+
+
+/* ---------------------------------------------------------------- wind */
+
+/* F consecutive frames (frame time dt) of one frozen-flow layer at h moving at `speed` towards `dir` [rad], seen by
+ * the LGS of G as in simulate(), seed `seed` */
+static void simulate_flow(wt_context *ctx, const geom *G, double h, double speed, double dir, double r0, double L0,
+                          int F, double dt, uint64_t seed, double *s)
+{
+    const int n = G->n, q = 4, np = n * q + 1, ns = geom_nsub(G);
+    const double d = G->d, one = 1.0;
+    wt_grid tg = {np, np, d / q, -n * d / 2, -n * d / 2};
+    double *opd = malloc(sizeof(double) * np * np);
+    int sub[32 * 32];
+    for (int k = 0, m = 0; k < n * n; k++)
+        if (G->valid[k]) sub[m++] = k;
+    /* no subharmonics: the large scales they add move with the layer too but cost 24 terms a point */
+    wt_atmosphere_params ap = {1, &h, &one, &speed, &dir, r0, L0, 512, 0.125, seed, 1};
+    wt_atmosphere *atm = NULL;
+    ck_assert_int_eq(wt_atmosphere_alloc(ctx, &ap, &atm), WT_OK);
+    for (int f = 0; f < F; f++) {
+        double *sf = s + (size_t)f * G->nlgs * 2 * ns;
+        for (int i = 0; i < G->nlgs; i++) {
+            memset(opd, 0, sizeof(double) * np * np);
+            ck_assert_int_eq(wt_atmosphere_project(atm, f * dt, 90e3, G->tx[i], G->ty[i], &tg, NULL, 1.0, opd), WT_OK);
+            for (int k = 0; k < ns; k++) {
+                int ix = sub[k] % n, iy = sub[k] / n;
+                double gx = 0, gy = 0;
+                for (int u = 0; u <= q; u++) {
+                    double w = (u == 0 || u == q ? 0.5 : 1.0) / q;
+                    gx += w * (opd[(ix * q + q) + np * (iy * q + u)] - opd[(ix * q) + np * (iy * q + u)]);
+                    gy += w * (opd[(ix * q + u) + np * (iy * q + q)] - opd[(ix * q + u) + np * (iy * q)]);
+                }
+                sf[(size_t)i * 2 * ns + k] = gx / d, sf[(size_t)i * 2 * ns + ns + k] = gy / d;
+            }
+        }
+    }
+    wt_atmosphere_free(atm);
+    free(opd);
+}
+
+/* A single frozen-flow layer (demo geometry, 4 LGS at 45″) has its wind found: at 3 km, 10 m/s towards 30°, and at
+ * 8 km, 15 m/s towards 200° (a second direction, both components negative). Frame time 10 ms, lags 1, 3, 8
+ * frames (shifts 0.1–1.2 m against d = 0.5 m), 600 frames (two screens of 300: a lag pair across the seam is of two
+ * independent screens, zero mean, so it adds noise and no bias). The error expected: the batches' spread ~0.1–0.2
+ * m/s (the screen is 64 m, the layer crosses it ~once, so the frames hold few independent samples of the large
+ * scales); 0.5 m/s is the task's figure and ~3σ. The strongest bin is checked (the profile fit may give a
+ * neighbouring bin ≥ 5 % too, and fits its own wind). */
+START_TEST(test_wind)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 16, 4, 45.0);
+    const int ns = geom_nsub(&G), per = 300, K = 2 * per, lags[3] = {1, 3, 8};
+    const double r0 = 0.15, L0 = 25.0, dt = 0.01;
+    const double hs[2] = {3000.0, 8000.0}, vs[2] = {10.0, 15.0}, ds[2] = {30.0, 200.0};
+    double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
+    for (int c = 0; c < 2; c++) {
+        const double dir = ds[c] * M_PI / 180;
+        for (int sd = 0; sd < 2; sd++)
+            simulate_flow(ctx, &G, hs[c], vs[c], dir, r0, L0, per, dt, (uint64_t)(700 + 10 * c + sd),
+                          s + (size_t)sd * per * G.nlgs * 2 * ns);
+        wt_learn *L = NULL;
+        ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 4, K / 4, 3, lags, &L), WT_OK);
+        for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
+        double alt[WT_LEARN_MAX_ALT];
+        const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+        wt_learn_estimate e;
+        ck_assert_int_eq(wt_learn_fit(L, na, alt, L0, &e), WT_OK);
+        wt_learn_wind w;
+        const double t0 = wt_time_now();
+        ck_assert_int_eq(wt_learn_wind_fit(L, &e, dt, WT_LEARN_WIND_MIN_FRACTION, &w), WT_OK);
+        fprintf(stderr, "test_wind: the wind fit took %.2f s\n", wt_time_now() - t0);
+        int best = 0;
+        for (int a = 0; a < na; a++) {
+            if (e.fraction[a] > e.fraction[best]) best = a;
+            if (w.fitted[a])
+                fprintf(stderr, "test_wind: %5.1f km  %.3f  v (%6.2f, %6.2f) ± (%.2f, %.2f) m/s, %5.2f m/s towards %6.1f° ± %.1f°\n",
+                        alt[a] / 1e3, e.fraction[a], w.vx[a], w.vy[a], w.vx_sigma[a], w.vy_sigma[a], w.speed[a],
+                        w.direction[a] * 180 / M_PI, w.direction_sigma[a] * 180 / M_PI);
+        }
+        fprintf(stderr, "test_wind: truth %g m/s towards %g° at %g km; residual %.3f, %d iterations, amplitude %.3f\n",
+                vs[c], ds[c], hs[c] / 1e3, w.residual, w.iterations, w.amplitude[best]);
+        const double ex = w.vx[best] - vs[c] * cos(dir), ey = w.vy[best] - vs[c] * sin(dir);
+        ck_assert_msg(w.fitted[best] && hypot(ex, ey) <= 0.5, "wind error (%.2f, %.2f) m/s at %g km", ex, ey, alt[best]);
+        ck_assert_int_eq(w.nbatch, 4);
+        ck_assert(w.vx_sigma[best] > 0 && w.vx_sigma[best] < 0.5);
+        /* onto one reconstruction layer at the layer's altitude: the fitted bins' weighted mean, near the truth */
+        double rf, rvx, rvy, sx, sy;
+        wt_learn_wind_compress(&w, 1, &hs[c], &rf, &rvx, &rvy, &sx, &sy);
+        ck_assert(fabs(rf - 1.0) < 1e-12);
+        ck_assert_msg(hypot(rvx - vs[c] * cos(dir), rvy - vs[c] * sin(dir)) <= 1.0, "compressed wind (%.2f, %.2f)", rvx, rvy);
+        wt_learn_free(L);
+    }
+    free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The wind's refusals: no lags, too few frames for the longest lag, a bad frame time, a bad lag list */
+START_TEST(test_wind_refusals)
+{
+    wt_context *ctx = tu_context();
+    geom G;
+    geom_make(&G, 8, 2, 30.0);
+    const int ns = geom_nsub(&G), lags[2] = {2, 5}, bad[2] = {5, 2};
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 1, 0, 2, bad, &L), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "lags must increase"));
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 1, 0, 2, lags, &L), WT_OK);
+    ck_assert_int_eq(wt_learn_nlags(L), 2);
+    ck_assert_int_eq(wt_learn_lag(L, 1), 5);
+    double *s = malloc(sizeof(double) * G.nlgs * 2 * ns);
+    wt_learn_estimate e = {0};
+    e.nalt = 1, e.altitude[0] = 0, e.cn2[0] = 1, e.fraction[0] = 1, e.L0 = 25;
+    wt_learn_wind w;
+    for (int t = 0; t < 6; t++) {
+        tu_randn(s, G.nlgs * 2 * ns, (unsigned long)(40 + t));
+        ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    }
+    ck_assert_int_eq(wt_learn_wind_fit(L, &e, 0.002, 0.05, &w), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "at least 7"));
+    double map[15 * 15];
+    ck_assert_int_eq(wt_learn_lag_map(L, -1, 1, 0, 1, WT_LEARN_XX, map, NULL), WT_OK);
+    ck_assert_int_eq(wt_learn_lag_map(L, -1, 1, 0, 1, WT_LEARN_XY, map, NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    ck_assert_int_eq(wt_learn_wind_fit(L, &e, 0.0, 0.05, &w), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "frame time"));
+    wt_learn_reset(L);
+    ck_assert_int_eq(wt_learn_lag_map(L, -1, 0, 0, 1, WT_LEARN_XX, map, NULL), WT_ERR_INVALID);
+    wt_learn_free(L);
+    ck_assert_int_eq(wt_learn_alloc(ctx, &G.g, 1, 0, &L), WT_OK);
+    for (int t = 0; t < 3; t++) ck_assert_int_eq(wt_learn_add(L, s), WT_OK);
+    ck_assert_int_eq(wt_learn_wind_fit(L, &e, 0.002, 0.05, &w), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "no lagged maps"));
+    wt_learn_free(L);
+    free(s);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* ---------------------------------------------------------------- refusals */
 
 START_TEST(test_refusals)
@@ -436,9 +646,17 @@ START_TEST(test_command)
     /* a short closed loop's telemetry (60 frames: the numbers mean little, the chain and the file are the point) */
     ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon pcg3 --frames 60 --telemetry %s/tel.h5 --out %s/r.h5 "
                          "--quiet", dir, dir), 0);
-    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --wind", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 96 frames"));
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 70", dir, dir), 1);
+    ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 70 frames"));
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 2,1", dir, dir), 2);
+    /* the wind of the strongest layer only (--wind-threshold 0.3: one layer, no search), two short lags: the chain
+     * and the file; the accuracy is test_wind's */
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3", dir, dir), 0);
     ck_assert(file_has("stdout.txt", "r0 (500 nm)"));
     ck_assert(file_has("stdout.txt", "compressed onto cg9's layers"));
+    ck_assert(file_has("stdout.txt", "wind on pcg3's layers"));
     wt_context *ctx = tu_context();
     wt_h5_reader *r;
     ck_assert_int_eq(wt_h5_open(ctx, p, &r), WT_OK);
@@ -449,6 +667,10 @@ START_TEST(test_command)
     ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/pcg3/cn2_fraction", "description", &u), WT_OK);
     ck_assert_ptr_nonnull(strstr(u, "pcg3"));
     wt_free(ctx, u);
+    ck_assert_int_eq(wt_h5_attr_read_string(r, "estimate/wind/direction_rad", "description", &u), WT_OK);
+    ck_assert_ptr_nonnull(strstr(u, "counter-clockwise from +x"));
+    wt_free(ctx, u);
+    ck_assert(wt_h5_exists(r, "truth/cg9/wind_speed_mps") && wt_h5_exists(r, "estimate/pcg3/wind_vx_sigma_mps"));
     wt_h5_close(r);
     wt_context_free(ctx);
     tu_cli_teardown(dir);
@@ -465,9 +687,15 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_nnls);
     tcase_add_test(tc, test_response_screens);
     tcase_add_test(tc, test_single_layer);
+    tcase_add_test(tc, test_reset_model);
     tcase_add_test(tc, test_refusals);
     tcase_add_test(tc, test_command);
     suite_add_tcase(s, tc);
+    TCase *tw = tcase_create("wind");
+    tcase_set_timeout(tw, 120);
+    tcase_add_test(tw, test_wind);
+    tcase_add_test(tw, test_wind_refusals);
+    suite_add_tcase(s, tw);
     return s;
 }
 

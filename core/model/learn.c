@@ -43,10 +43,17 @@ void wt_learn_free(wt_learn *L)
     wt_free(ctx, L->valid), wt_free(ctx, L->sub), wt_free(ctx, L->theta_x), wt_free(ctx, L->theta_y);
     wt_free(ctx, L->bframes), wt_free(ctx, L->spec), wt_free(ctx, L->pairs), wt_free(ctx, L->grid);
     wt_free(ctx, L->four), wt_free(ctx, L->cwork);
+    wt_free(ctx, L->ring), wt_free(ctx, L->lspec), wt_free(ctx, L->lframes);
     wt_free(ctx, L);
 }
 
 int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, wt_learn **out)
+{
+    return wt_learn_alloc_lagged(ctx, g, nbatch, batch_frames, 0, NULL, out);
+}
+
+int wt_learn_alloc_lagged(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, int nlag,
+                          const int *lags, wt_learn **out)
 {
     int st = WT_OK;
     wt_learn *L = NULL;
@@ -58,6 +65,12 @@ int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int6
                         g ? g->nlgs : 0, g ? g->H : 0.0);
     if (nbatch < 1 || nbatch > WT_LEARN_MAX_BATCH)
         return WT_ERROR(ctx, WT_ERR_INVALID, "learn: %d batches, expected 1 to %d", nbatch, WT_LEARN_MAX_BATCH);
+    if (nlag < 0 || nlag > WT_LEARN_MAX_LAG || (nlag > 0 && !lags))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: %d lags, expected 0 to %d", nlag, WT_LEARN_MAX_LAG);
+    for (int q = 0; q < nlag; q++)
+        if (lags[q] < 1 || lags[q] > WT_LEARN_MAX_LAG_FRAMES || (q > 0 && lags[q] <= lags[q - 1]))
+            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: lag %d frames (lag %d of %d): lags must increase, from 1 to %d "
+                            "frames", lags[q], q + 1, nlag, WT_LEARN_MAX_LAG_FRAMES);
     L = wt_calloc(ctx, 1, sizeof *L);
     if (!L) return WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating the learn accumulator");
     L->ctx = ctx;
@@ -85,6 +98,13 @@ int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int6
     WT_ALLOC(ctx, L->grid, N * N + 8, "the FFT grid");
     WT_ALLOC(ctx, L->four, (size_t)2 * g->nlgs * L->nf * 2 + 8, "the frame spectra");
     WT_ALLOC(ctx, L->cwork, (size_t)L->nf * 2 + 8, "the FFT work spectrum");
+    if (nlag > 0) {
+        L->nlag = nlag, L->kmax = lags[nlag - 1];
+        memcpy(L->lag, lags, (size_t)nlag * sizeof *lags);
+        WT_ALLOC(ctx, L->ring, (size_t)(L->kmax + 1) * 2 * g->nlgs * L->nf * 2, "the ring of recent frames' spectra");
+        WT_ALLOC(ctx, L->lspec, (size_t)nbatch * nlag * g->nlgs * g->nlgs * 2 * L->nf * 2, "the lagged cross-spectra");
+        WT_ALLOC(ctx, L->lframes, (size_t)nbatch * nlag, "the lagged frame counts");
+    }
     L->grid_a = wt_align64(L->grid), L->four_a = wt_align64(L->four), L->cwork_a = wt_align64(L->cwork);
     /* planned on the arrays they run on (or others of the same 64-byte alignment: every spectrum slot is, as
      * N (N/2 + 1) · 16 bytes is a multiple of 64 for even N) */
@@ -113,6 +133,17 @@ fail:
 }
 
 int64_t wt_learn_frames(const wt_learn *L) { return L->frames; }
+
+void wt_learn_reset(wt_learn *L)
+{
+    memset(L->spec, 0, (size_t)L->nbatch * L->npairs * WT_LEARN_NCOMP * L->nf * 2 * sizeof(double));
+    memset(L->bframes, 0, (size_t)L->nbatch * sizeof *L->bframes);
+    if (L->nlag > 0) {
+        memset(L->lspec, 0, (size_t)L->nbatch * L->nlag * L->nlgs * L->nlgs * 2 * L->nf * 2 * sizeof(double));
+        memset(L->lframes, 0, (size_t)L->nbatch * L->nlag * sizeof *L->lframes);
+    }
+    L->frames = 0; /* the ring's old frames are never read again: a lag pairs frames added since the reset */
+}
 int wt_learn_npairs(const wt_learn *L) { return L->npairs; }
 int wt_learn_map_side(const wt_learn *L) { return 2 * L->n - 1; }
 
@@ -158,6 +189,26 @@ int wt_learn_add(wt_learn *L, const double *slopes)
             }
         }
     }
+    /* the lagged products conj(Ŝ_i^c(t − k)) Ŝ_j^c(t), every ordered pair, c ∈ {x, y}: to the batch of t */
+    if (L->nlag > 0) {
+        const int R = L->kmax + 1, nl = L->nlgs;
+        for (int q = 0; q < L->nlag; q++) {
+            if (L->frames < L->lag[q]) continue;
+            const double *old = L->ring + (size_t)((L->frames - L->lag[q]) % R) * 2 * nl * nf * 2;
+            for (int i = 0; i < nl; i++)
+                for (int j = 0; j < nl; j++)
+                    for (int c = 0; c < 2; c++) {
+                        const double *x = old + (size_t)(2 * i + c) * nf * 2, *y = L->four_a + (size_t)(2 * j + c) * nf * 2;
+                        double *acc = L->lspec + ((((size_t)b * L->nlag + q) * nl + i) * nl * 2 + (size_t)j * 2 + c) * nf * 2;
+                        for (int k = 0; k < nf; k++) {
+                            acc[2 * k] += x[2 * k] * y[2 * k] + x[2 * k + 1] * y[2 * k + 1];
+                            acc[2 * k + 1] += x[2 * k] * y[2 * k + 1] - x[2 * k + 1] * y[2 * k];
+                        }
+                    }
+            L->lframes[(size_t)b * L->nlag + q]++;
+        }
+        memcpy(L->ring + (size_t)(L->frames % R) * 2 * nl * nf * 2, L->four_a, (size_t)2 * nl * nf * 2 * sizeof(double));
+    }
     L->bframes[b]++;
     L->frames++;
     return WT_OK;
@@ -176,6 +227,40 @@ int wt_learn_map(const wt_learn *L, int batch, int p, int comp, double *map, dou
     double *corr = sum + (size_t)nf * 2;
     for (int b = batch < 0 ? 0 : batch; b <= (batch < 0 ? L->nbatch - 1 : batch); b++) {
         const double *s = L->spec + (((size_t)b * L->npairs + p) * WT_LEARN_NCOMP + comp) * nf * 2;
+        for (int k = 0; k < 2 * nf; k++) sum[k] += s[k];
+    }
+    wt_learn__inverse(L, sum, corr);
+    for (int dy = -(n - 1); dy <= n - 1; dy++)
+        for (int dx = -(n - 1); dx <= n - 1; dx++) {
+            int f = (dx + N) % N + N * ((dy + N) % N), o = (dx + n - 1) + S * (dy + n - 1);
+            double P = L->pairs[f];
+            map[o] = P > 0 ? corr[f] / ((double)K * P) : 0.0;
+            if (count) count[o] = P;
+        }
+    wt_free(L->ctx, sum);
+    return WT_OK;
+}
+
+int wt_learn_nlags(const wt_learn *L) { return L->nlag; }
+int wt_learn_lag(const wt_learn *L, int q) { return q >= 0 && q < L->nlag ? L->lag[q] : 0; }
+
+int wt_learn_lag_map(const wt_learn *L, int batch, int q, int i, int j, int comp, double *map, double *count)
+{
+    const int n = L->n, N = L->N, nf = L->nf, S = 2 * n - 1, nl = L->nlgs;
+    if (batch < -1 || batch >= L->nbatch || q < 0 || q >= L->nlag || i < 0 || i >= nl || j < 0 || j >= nl || comp < 0 ||
+        comp > WT_LEARN_YY)
+        return WT_ERROR(L->ctx, WT_ERR_INVALID, "learn: no lagged map for batch %d, lag %d, LGS %d and %d, component %d "
+                        "(%d batches, %d lags, %d LGS; x x and y y only)", batch, q, i, j, comp, L->nbatch, L->nlag, nl);
+    int64_t K = 0;
+    for (int b = batch < 0 ? 0 : batch; b <= (batch < 0 ? L->nbatch - 1 : batch); b++) K += L->lframes[(size_t)b * L->nlag + q];
+    if (K < 1)
+        return WT_ERROR(L->ctx, WT_ERR_INVALID, "learn: no frame pairs %d frames apart in %s (%lld frames added)", L->lag[q],
+                        batch < 0 ? "the accumulator" : "the batch", (long long)L->frames);
+    double *sum = wt_calloc(L->ctx, (size_t)nf * 2 + (size_t)N * N, sizeof(double));
+    if (!sum) return WT_ERROR(L->ctx, WT_ERR_NOMEM, "out of memory for a learn map");
+    double *corr = sum + (size_t)nf * 2;
+    for (int b = batch < 0 ? 0 : batch; b <= (batch < 0 ? L->nbatch - 1 : batch); b++) {
+        const double *s = L->lspec + ((((size_t)b * L->nlag + q) * nl + i) * nl * 2 + (size_t)j * 2 + comp) * nf * 2;
         for (int k = 0; k < 2 * nf; k++) sum[k] += s[k];
     }
     wt_learn__inverse(L, sum, corr);

@@ -23,6 +23,23 @@
  * r0 = (Σ c_h)^(−3/5), f_h = c_h / Σ c_h. Frames are kept in B consecutive batches; the uncertainty of each output is
  * the spread of the B batch estimates / √B.
  *
+ * Wind (core/model/learn_wind.c, SPEC §12 "Wind"; opt-in: wt_learn_alloc_lagged). The maps of frames k apart,
+ *
+ *   C_ij^c(δ; k) = Σ_t Σ_a M(a) M(a + δ) s_i^c(a, t − k) s_j^c(a + δ, t) / (K_k P(δ)),   c ∈ {x x, y y},
+ *
+ * for every ordered pair (i, j) (a lag breaks the symmetry) from a ring of the last k_max frames' spectra. Under
+ * frozen flow (screen(x − v t), core/sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
+ * screen moved by v k Δt, so that it adds c_h R_ij^c(δ; h, s = v k Δt) to that map: the response of the
+ * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: a layer l is a local maximum of the profile fit's c_h
+ * and the bins nearest to it (they share its wind: the grid is finer than the pairs' altitude resolution); with v_l
+ * and an amplitude a_l per layer (1 when the lagged maps hold the profile's Cn²),
+ *   minimise Σ_{k,i,j,c,δ} w(δ) (C − Σ_l a_l Σ_{h∈l} c_h R(δ; h, v_l k Δt))²,  w = P(δ)/P(0) as for the profile,
+ * by Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest (its shifts
+ * are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v). Layers holding
+ * ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled, not reported. A layer whose
+ * wind runs past 60 m/s is not in the lagged maps where its altitude says (Cn² the profile put at the wrong
+ * altitude): it is dropped, the others refitted, and it is reported as not fitted.
+ *
  * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
  */
 #ifndef WT_LEARN_H
@@ -37,6 +54,8 @@
 #define WT_LEARN_MIN_PAIRS 0.25
 #define WT_LEARN_MAX_ALT 64   /* altitudes of a grid */
 #define WT_LEARN_MAX_BATCH 16 /* batches of frames for the uncertainty */
+#define WT_LEARN_MAX_LAG 8    /* lags of the wind maps */
+#define WT_LEARN_MAX_LAG_FRAMES 4096 /* the longest lag [frames] (the ring holds that many frames' spectra) */
 enum { WT_LEARN_XX = 0, WT_LEARN_YY = 1, WT_LEARN_XY = 2, WT_LEARN_NCOMP = 3 };
 
 /* The LGS geometry, plain data (copied by _alloc). Subaperture (ix, iy) is mask index ix + n iy, its centre at
@@ -60,11 +79,20 @@ typedef struct wt_learn wt_learn;
  * thread). WT_ERR_INVALID naming a bad geometry. */
 int wt_learn_alloc(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, wt_learn **out);
 void wt_learn_free(wt_learn *L);
+/* The same, also accumulating the lagged maps of the nlag (0 … WT_LEARN_MAX_LAG) increasing lags [frames] (1 …
+ * WT_LEARN_MAX_LAG_FRAMES) for the wind: a ring of the last lags[nlag − 1] + 1 frames' spectra ((k_max + 1) · 2 nlgs
+ * · N (N/2 + 1) complex) and nbatch · nlag · nlgs² · 2 spectra (at 84 × 84 subapertures, 6 LGS: 69 MB of ring for
+ * k_max = 24 and 16 MB per lag and batch). A frame costs nlag · nlgs² · 2 · N (N/2 + 1) more complex products. */
+int wt_learn_alloc_lagged(wt_context *ctx, const wt_learn_geometry *g, int nbatch, int64_t batch_frames, int nlag,
+                          const int *lags, wt_learn **out);
 
 /* Accumulate one frame: slopes = the nlgs LGS blocks (2 nsub each, as above) [rad]. Allocates nothing.
  * WT_ERR_NUMERIC naming the LGS and slope for NaN/Inf (the frame is then not counted). */
 int wt_learn_add(wt_learn *L, const double *slopes);
 int64_t wt_learn_frames(const wt_learn *L);    /* frames added */
+/* Forget every frame added (the spectra, batch counts and, with lags, the ring of recent frames); the geometry and
+ * plans stay, so that a loop can estimate from its last T seconds only. Allocates nothing. */
+void wt_learn_reset(wt_learn *L);
 int wt_learn_npairs(const wt_learn *L);        /* nlgs (nlgs + 1) / 2; pair p = (i, j), i ≤ j, i-major order */
 void wt_learn_pair(const wt_learn *L, int p, int *i, int *j);
 int wt_learn_map_side(const wt_learn *L);      /* 2n − 1: maps are (2n − 1)² offsets, δ = (−(n−1) … n−1)² */
@@ -72,6 +100,12 @@ int wt_learn_map_side(const wt_learn *L);      /* 2n − 1: maps are (2n − 1)�
 /* The averaged map C_p^c(δ) of batch b (−1: all frames) into map[(δx + n − 1) + (2n − 1)(δy + n − 1)] [rad²];
  * count (may be NULL) the pair counts P(δ). 0 where P(δ) = 0. WT_ERR_INVALID for no frames or a bad index. */
 int wt_learn_map(const wt_learn *L, int batch, int p, int comp, double *map, double *count);
+
+int wt_learn_nlags(const wt_learn *L);          /* 0 without lags */
+int wt_learn_lag(const wt_learn *L, int q);      /* lag q [frames] (0 for a bad q) */
+/* The lagged map C_ij^c(δ; lag q) of batch b (−1: all) laid out as wt_learn_map's, comp WT_LEARN_XX or _YY; pair
+ * (t − k, t) counts in the batch of t. WT_ERR_INVALID for a bad index or no frame pairs k apart. */
+int wt_learn_lag_map(const wt_learn *L, int batch, int q, int i, int j, int comp, double *map, double *count);
 
 /* The response maps R_p^c(δ; h) of pair p for unit layers (r0 = 1 m) at the nalt altitudes alt [m] (each < H) with
  * outer scale L0 [m] (≤ 0: Kolmogorov), laid out as wt_learn_map's: resp[(a · 3 + c) · (2n−1)² + k] [rad²], the
@@ -104,10 +138,60 @@ typedef struct wt_learn_estimate {
     double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
 } wt_learn_estimate;
 
+/* The response maps of the nalt increasing altitudes alt (< H) at outer scale L0, restricted to the offsets the fit
+ * uses, and their normal matrix: computed once (the costly part of a fit, OpenMP team), so that a fit of new frames
+ * is inverse FFTs of the accumulated spectra, the right-hand sides AᵀWb and an NNLS of nalt unknowns. Holds
+ * nslot · 3 · nu · nalt doubles (nslot = 1 + nlgs (nlgs − 1)/2 distinct pairs, nu ≈ half of (2n − 1)² offsets: 118 MB
+ * at 84 × 84 subapertures, 6 LGS, 22 altitudes). WT_ERR_INVALID for a bad grid. */
+typedef struct wt_learn_model wt_learn_model;
+int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_model **out);
+void wt_learn_model_free(wt_learn_model *M);
+
+/* Fit with a model built from L or from an object of the same geometry (WT_ERR_INVALID otherwise); the estimate as
+ * wt_learn_fit's, bit for bit on one thread. Allocates temporaries (a few spectra per thread); OpenMP team. */
+int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_estimate *est);
+
 /* Fit the profile on the nalt increasing altitudes alt (< H) with outer scale L0. Needs ≥ 2 frames in every
  * batch used (WT_ERR_INVALID otherwise, saying how many). WT_ERR_NUMERIC when the fit finds no turbulence
  * (every c_h = 0). Allocates temporaries. */
 int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_estimate *est);
+/* (a convenience: wt_learn_model_alloc, wt_learn_fit_model, wt_learn_model_free) */
+
+/* The wind per altitude of an estimate (plain data). Direction: of motion, counter-clockwise from +x [rad] in
+ * [0, 2π) (core/sim/atmosphere.h's convention). */
+#define WT_LEARN_WIND_MIN_FRACTION 0.05 /* SPEC §12 / the task: a wind for bins with ≥ 5 % of the Cn² */
+typedef struct wt_learn_wind {
+    int nalt;
+    double altitude[WT_LEARN_MAX_ALT];   /* the estimate's grid [m] */
+    double fraction[WT_LEARN_MAX_ALT];   /* its Cn² fractions [-] */
+    int fitted[WT_LEARN_MAX_ALT];        /* 1 where a wind was estimated (its layer ≥ min_fraction) */
+    double vx[WT_LEARN_MAX_ALT], vy[WT_LEARN_MAX_ALT];           /* [m/s], 0 where not fitted */
+    double speed[WT_LEARN_MAX_ALT], direction[WT_LEARN_MAX_ALT]; /* [m/s], [rad] */
+    double vx_sigma[WT_LEARN_MAX_ALT], vy_sigma[WT_LEARN_MAX_ALT]; /* spread of the batches / √B [m/s] */
+    double speed_sigma[WT_LEARN_MAX_ALT], direction_sigma[WT_LEARN_MAX_ALT]; /* [m/s], [rad] */
+    int nlag;
+    int lag[WT_LEARN_MAX_LAG];           /* [frames] */
+    double amplitude[WT_LEARN_MAX_ALT];  /* the layer's Cn² in the lagged maps / the profile fit's [-] (fitted bins) */
+    double dt;                           /* frame time [s] */
+    double residual;                     /* weighted rms misfit / weighted rms of the lagged maps, all frames [-] */
+    int iterations;                      /* Levenberg–Marquardt iterations, all frames */
+    int dropped;                         /* layers dropped: their wind ran past 60 m/s (then reported as not fitted) */
+    int nbatch;                          /* batches fitted for the spread (0: one batch, no spread) */
+    double batch_vx[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT], batch_vy[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* [m/s] */
+} wt_learn_wind;
+
+/* The wind of the layers of est (wt_learn_fit of the same L) holding ≥ min_fraction of the Cn², from L's lagged maps
+ * (wt_learn_alloc_lagged), dt the frame time [s]. WT_ERR_INVALID without lags, with too few frames for the longest
+ * lag (saying how many), with no bin above min_fraction or a bad dt; WT_ERR_NUMERIC if the fit does not converge.
+ * Allocates temporaries; OpenMP team. */
+int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt, double min_fraction, wt_learn_wind *w);
+
+/* The estimate's profile and wind compressed onto nl reconstruction layers at the increasing altitudes ralt [m]
+ * (core/model/profile.h: Cn² split linearly in altitude; a layer's wind = the Cn²-weighted mean of the vectors it
+ * absorbs, over the fitted bins only: an unfitted bin's wind is unknown, not 0). rvx, rvy [m/s], rfrac [-]; also the
+ * batches' spread of rvx, rvy (sigma_x, sigma_y may be NULL). Allocates nothing. */
+void wt_learn_wind_compress(const wt_learn_wind *w, int nl, const double *ralt, double *rfrac, double *rvx, double *rvy,
+                            double *sigma_x, double *sigma_y);
 
 /* Non-negative least squares in normal-equation form: minimise ½ xᵀ G x − qᵀ x over x ≥ 0 (Lawson & Hanson 1974,
  * ch. 23, on the Gram matrix G = AᵀA, q = Aᵀb), G m × m column-major symmetric positive semi-definite. x [m] out.

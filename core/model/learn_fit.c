@@ -1,14 +1,42 @@
 /* core/model/learn_fit.c: the non-negative fit of the Cn² profile to the LGS cross-covariance maps, r0 from its
- * total, the batches' spread as the uncertainty (SPEC §12, "Identification from the loop's own data"). */
+ * total, the batches' spread as the uncertainty (SPEC §12, "Identification from the loop's own data").
+ *
+ * The fit minimises Σ_{p,c,δ∈U} w(δ) (C_p^c(δ) − Σ_h c_h R_p^c(δ; h))² over c ≥ 0, U the offsets with
+ * P(δ) ≥ WT_LEARN_MIN_PAIRS P(0) (less the autos' variances), w = P(δ)/P(0): normal equations G c = q with
+ * G_ab = Σ w R_a R_b (fixed by the geometry: the model object) and q_a = Σ w R_a C (the frames). */
 #include "learn_private.h"
 
+#include <fftw3.h>
 #include <math.h>
 #include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+static int team(void)
+{
+#ifdef _OPENMP
+    int t = omp_get_max_threads();
+    return t < WT_LEARN_MAX_THREADS ? t : WT_LEARN_MAX_THREADS;
+#else
+    return 1;
+#endif
+}
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
 
 /* Solve A z = b for the k × k symmetric positive definite A (column-major, leading dimension lda) by Cholesky in
  * place on a copy w (k²). A pivot that is not positive (a column that the others reproduce) is lifted to a
  * relative 1e-12 of the diagonal's largest: that column's z then comes out ~0, which the active set drops. */
-static void spd_solve(int k, const double *A, int lda, const double *b, double *z, double *w)
+void wt_learn__spd_solve(int k, const double *A, int lda, const double *b, double *z, double *w)
 {
     double dmax = 0;
     for (int c = 0; c < k; c++) dmax = fmax(dmax, A[c + (size_t)lda * c]);
@@ -66,7 +94,7 @@ int wt_learn_nnls(int m, const double *G, const double *q, double *x, double *wo
                         if (act[k]) sub[r++ + (size_t)m * np] = G[k + (size_t)m * i];
                     rhs[np++] = q[i];
                 }
-            spd_solve(np, sub, m, rhs, zs, chol);
+            wt_learn__spd_solve(np, sub, m, rhs, zs, chol);
             for (int i = 0, r = 0; i < m; i++) z[i] = act[i] ? zs[r++] : 0.0;
             /* all of P positive: accept; otherwise step from x towards z to the first variable reaching 0 */
             double alpha = 1.0;
@@ -89,17 +117,135 @@ int wt_learn_nnls(int m, const double *G, const double *q, double *x, double *wo
     return WT_ERR_NUMERIC;
 }
 
-int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_estimate *est)
+
+void wt_learn_model_free(wt_learn_model *M)
+{
+    if (!M) return;
+    wt_context *ctx = M->ctx;
+    wt_free(ctx, M->valid), wt_free(ctx, M->uoff), wt_free(ctx, M->uw), wt_free(ctx, M->slot), wt_free(ctx, M->R), wt_free(ctx, M->G);
+    wt_free(ctx, M);
+}
+
+/* whether term (pair p = (i, j), component c, used offset u) enters the fit: the autos' variances carry the noise
+ * (SPEC §12: noise at δ = 0 only) and are left out */
+static int term_used(const wt_learn_model *M, int auto_pair, int c, int u)
+{
+    return !(auto_pair && u == M->u0 && c != WT_LEARN_XY);
+}
+
+int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_model **out)
 {
     wt_context *ctx = L->ctx;
-    const int n = L->n, S = 2 * n - 1, S2 = S * S, m = nalt;
-    int st = WT_OK;
-    memset(est, 0, sizeof *est);
+    const int n = L->n, N = L->N, S = 2 * n - 1, S2 = S * S, m = nalt;
+    int st = WT_OK, nth = team();
+    wt_learn_model *M = NULL;
+    wt_learn__rws *ws[WT_LEARN_MAX_THREADS] = {0};
+    double *rb = NULL;
+    *out = NULL;
     if (nalt < 1 || nalt > WT_LEARN_MAX_ALT)
         return WT_ERROR(ctx, WT_ERR_INVALID, "learn: %d altitudes, expected 1 to %d", nalt, WT_LEARN_MAX_ALT);
-    for (int a = 1; a < nalt; a++)
-        if (!(alt[a] > alt[a - 1]))
+    for (int a = 0; a < nalt; a++) {
+        if (a > 0 && !(alt[a] > alt[a - 1]))
             return WT_ERROR(ctx, WT_ERR_INVALID, "learn: altitudes not increasing (%g m then %g m)", alt[a - 1], alt[a]);
+        if (!(alt[a] >= 0 && alt[a] < L->H))
+            return WT_ERROR(ctx, WT_ERR_INVALID, "learn: altitude %g m outside [0, H = %g m)", alt[a], L->H);
+    }
+    WT_ALLOC(ctx, M, 1, "the learn model");
+    M->ctx = ctx, M->n = n, M->nsub = L->nsub, M->nlgs = L->nlgs, M->d = L->d, M->H = L->H, M->nalt = m, M->L0 = L0;
+    memcpy(M->theta_x, L->theta_x, (size_t)L->nlgs * sizeof(double));
+    memcpy(M->theta_y, L->theta_y, (size_t)L->nlgs * sizeof(double));
+    memcpy(M->alt, alt, (size_t)m * sizeof(double));
+    WT_ALLOC(ctx, M->valid, n * n, "the model's valid mask");
+    memcpy(M->valid, L->valid, (size_t)n * n);
+    /* the used offsets, in the maps' order */
+    const double P0 = L->pairs[0];
+    WT_ALLOC(ctx, M->uoff, S2, "the used offsets");
+    WT_ALLOC(ctx, M->uw, S2, "the offsets' weights");
+    M->u0 = -1;
+    for (int o = 0; o < S2; o++) {
+        int dx = o % S - (n - 1), dy = o / S - (n - 1), f = (dx + N) % N + N * ((dy + N) % N);
+        if (L->pairs[f] < WT_LEARN_MIN_PAIRS * P0) continue;
+        if (dx == 0 && dy == 0) M->u0 = M->nu;
+        M->uoff[M->nu] = f, M->uw[M->nu] = L->pairs[f] / P0, M->nu++;
+    }
+    const int nu = M->nu;
+    /* slots: 0 for every auto pair (θ_j − θ_i = 0, one mask: one response), one per cross pair */
+    WT_ALLOC(ctx, M->slot, L->npairs, "the pairs' slots");
+    int pslot[64 * 65 / 2];
+    M->nslot = 1;
+    for (int p = 0; p < L->npairs; p++) {
+        int i, j;
+        wt_learn_pair(L, p, &i, &j);
+        M->slot[p] = i == j ? 0 : M->nslot++;
+        if (i != j) pslot[M->slot[p]] = p;
+        else pslot[0] = p;
+    }
+    WT_ALLOC(ctx, M->R, (size_t)M->nslot * WT_LEARN_NCOMP * nu * m, "the response maps");
+    WT_ALLOC(ctx, M->G, (size_t)m * m, "the normal matrix");
+    double thmax = 0, hmax = alt[m - 1];
+    for (int i = 0; i < L->nlgs; i++)
+        for (int j = 0; j < L->nlgs; j++)
+            thmax = fmax(thmax, hypot(L->theta_x[j] - L->theta_x[i], L->theta_y[j] - L->theta_y[i]));
+    const int ntask = M->nslot * m * WT_LEARN_NCOMP;
+    if (nth > ntask) nth = ntask;
+    for (int k = 0; k < nth; k++)
+        if ((st = wt_learn__rws_alloc(L, L0, wt_learn__rmax(L, thmax, hmax, 0.0), &ws[k])) < 0) goto fail;
+    WT_ALLOC(ctx, rb, (size_t)nth * S2, "the response work maps");
+    /* one (slot, altitude, component) per task, each thread on its own work space */
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+    for (int t = 0; t < ntask; t++) {
+        static const int ca[WT_LEARN_NCOMP] = {0, 1, 0}, cb[WT_LEARN_NCOMP] = {0, 1, 1};
+        const int tid = thread_id(), sl = t / (m * WT_LEARN_NCOMP), a = (t / WT_LEARN_NCOMP) % m, c = t % WT_LEARN_NCOMP;
+        int i, j;
+        wt_learn_pair(L, pslot[sl], &i, &j);
+        double *r = rb + (size_t)tid * S2;
+        wt_learn__resp_eval(L, ws[tid], L->theta_x[j] - L->theta_x[i], L->theta_y[j] - L->theta_y[i], M->alt[a], 0.0,
+                            0.0, ca[c], cb[c], r);
+        double *R = M->R + ((size_t)sl * WT_LEARN_NCOMP + c) * nu * m;
+        for (int u = 0; u < nu; u++) {
+            int f = M->uoff[u], dx = f % N, dy = f / N;
+            dx = dx >= n ? dx - N : dx, dy = dy >= n ? dy - N : dy;
+            R[(size_t)u * m + a] = r[(dx + n - 1) + S * (dy + n - 1)];
+        }
+    }
+    /* G = Σ_p Σ_c Σ_u w R Rᵀ, in pair order (every auto pair adds slot 0's terms) */
+    for (int p = 0; p < L->npairs; p++) {
+        int i, j;
+        wt_learn_pair(L, p, &i, &j);
+        for (int c = 0; c < WT_LEARN_NCOMP; c++) {
+            const double *R = M->R + ((size_t)M->slot[p] * WT_LEARN_NCOMP + c) * nu * m;
+            for (int u = 0; u < nu; u++) {
+                if (!term_used(M, i == j, c, u)) continue;
+                const double w = M->uw[u], *Ru = R + (size_t)u * m;
+                for (int b = 0; b < m; b++)
+                    for (int a = b; a < m; a++) M->G[a + (size_t)m * b] += w * Ru[a] * Ru[b];
+                M->rows++;
+            }
+        }
+    }
+    for (int a = 0; a < m; a++)
+        for (int b = 0; b < a; b++) M->G[b + (size_t)m * a] = M->G[a + (size_t)m * b];
+    *out = M;
+    M = NULL;
+fail:
+    for (int k = 0; k < nth; k++) wt_learn__rws_free(L, ws[k]);
+    wt_free(ctx, rb);
+    wt_learn_model_free(M);
+    return st;
+}
+
+int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_estimate *est)
+{
+    wt_context *ctx = L->ctx;
+    const int N = L->N, NN = N * N, nf = L->nf, m = M->nalt, nu = M->nu;
+    int st = WT_OK;
+    memset(est, 0, sizeof *est);
+    int same = M->n == L->n && M->nsub == L->nsub && M->nlgs == L->nlgs && M->d == L->d && M->H == L->H;
+    for (int i = 0; same && i < L->nlgs; i++) same = M->theta_x[i] == L->theta_x[i] && M->theta_y[i] == L->theta_y[i];
+    same = same && !memcmp(M->valid, L->valid, (size_t)L->n * L->n);
+    if (!same)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "learn: the model was built for another geometry (%d x %d subapertures, "
+                        "%d LGS) than the accumulator's (%d x %d, %d LGS)", M->n, M->n, M->nlgs, L->n, L->n, L->nlgs);
     if (L->frames < 2)
         return WT_ERROR(ctx, WT_ERR_INVALID, "learn: %lld frame(s) accumulated; a covariance estimate needs at least 2",
                         (long long)L->frames);
@@ -108,66 +254,64 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
     for (int b = 0; b < L->nbatch; b++)
         if (L->bframes[b] >= 2) used[nb++] = b;
     if (nb < 2) nb = 0; /* one batch: no spread */
-    const int nrhs = 1 + nb;
-    int auto_done = 0;
-    double *resp = NULL, *resp_auto = NULL, *map = NULL, *G = NULL, *q = NULL, *work = NULL, *x = NULL, *dn = NULL;
+    const int nrhs = 1 + nb, ntask = L->npairs * WT_LEARN_NCOMP;
+    int nth = team();
+    if (nth > ntask) nth = ntask;
+    double *G = NULL, *q = NULL, *qt = NULL, *work = NULL, *x = NULL, *dn = NULL, *buf = NULL;
     int *iwork = NULL;
-    WT_ALLOC(ctx, resp, (size_t)m * WT_LEARN_NCOMP * S2, "the response maps of a pair");
-    WT_ALLOC(ctx, resp_auto, (size_t)m * WT_LEARN_NCOMP * S2, "the response maps of the auto pairs");
-    WT_ALLOC(ctx, map, (size_t)nrhs * WT_LEARN_NCOMP * S2, "the maps of a pair");
     WT_ALLOC(ctx, G, (size_t)m * m, "the normal matrix");
     WT_ALLOC(ctx, q, (size_t)m * nrhs, "the normal right-hand sides");
+    WT_ALLOC(ctx, qt, (size_t)ntask * (m + 1) * nrhs, "the right-hand sides of each map");
     WT_ALLOC(ctx, x, (size_t)m * nrhs, "the fitted profiles");
     WT_ALLOC(ctx, dn, nrhs, "the data norms");
     WT_ALLOC(ctx, work, (size_t)m * (2 * m + 3), "the NNLS work space");
     WT_ALLOC(ctx, iwork, m, "the NNLS work space");
-    const double P0 = L->pairs[0];
-    for (int p = 0; p < L->npairs; p++) {
+    WT_ALLOC(ctx, buf, (size_t)nth * (2 * nf + NN + 16), "the inverse FFT work arrays");
+    /* per (pair, component): the map of each right-hand side (the batches' spectra summed, c2r), then its terms
+     * q_a += w R_a C(δ), C = corr / (K P), w = P/P0; into its own slot of qt, summed in task order below (the result
+     * does not depend on the thread count) */
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+    for (int t = 0; t < ntask; t++) {
+        const int tid = thread_id(), p = t / WT_LEARN_NCOMP, c = t % WT_LEARN_NCOMP;
+        double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
         int i, j;
         wt_learn_pair(L, p, &i, &j);
-        /* every auto pair sees the same thing (θ_j − θ_i = 0, one mask): its response maps are computed once */
-        if (i != j || !auto_done) {
-            if ((st = wt_learn_response(L, p, m, alt, L0, resp)) < 0) goto fail;
-            if (i == j) {
-                memcpy(resp_auto, resp, (size_t)m * WT_LEARN_NCOMP * S2 * sizeof *resp);
-                auto_done = 1;
+        const double *R = M->R + ((size_t)M->slot[p] * WT_LEARN_NCOMP + c) * nu * m;
+        for (int r = 0; r < nrhs; r++) {
+            const int b0 = r ? used[r - 1] : 0, b1 = r ? used[r - 1] : L->nbatch - 1;
+            const int64_t K = r ? L->bframes[b0] : L->frames;
+            memset(sp, 0, (size_t)2 * nf * sizeof *sp);
+            for (int b = b0; b <= b1; b++) {
+                const double *s = L->spec + (((size_t)b * L->npairs + p) * WT_LEARN_NCOMP + c) * nf * 2;
+                for (int k = 0; k < 2 * nf; k++) sp[k] += s[k];
             }
-        } else
-            memcpy(resp, resp_auto, (size_t)m * WT_LEARN_NCOMP * S2 * sizeof *resp);
-        for (int r = 0; r < nrhs; r++)
-            for (int c = 0; c < WT_LEARN_NCOMP; c++)
-                if ((st = wt_learn_map(L, r ? used[r - 1] : -1, p, c, map + ((size_t)r * WT_LEARN_NCOMP + c) * S2, NULL)) < 0)
-                    goto fail;
-        for (int c = 0; c < WT_LEARN_NCOMP; c++)
-            for (int o = 0; o < S2; o++) {
-                int dx = o % S - (n - 1), dy = o / S - (n - 1);
-                double P = L->pairs[(dx + L->N) % L->N + L->N * ((dy + L->N) % L->N)];
-                /* the autos' variances carry the noise (SPEC §12: noise at δ = 0 only): left out */
-                if (P < WT_LEARN_MIN_PAIRS * P0 || (i == j && dx == 0 && dy == 0 && c != WT_LEARN_XY)) continue;
-                const double w = P / P0;
-                const double *R = resp + (size_t)c * S2 + o;
-                for (int a = 0; a < m; a++)
-                    for (int b = 0; b <= a; b++) G[a + (size_t)m * b] += w * R[(size_t)a * WT_LEARN_NCOMP * S2] *
-                                                                          R[(size_t)b * WT_LEARN_NCOMP * S2];
-                for (int r = 0; r < nrhs; r++) {
-                    double v = map[((size_t)r * WT_LEARN_NCOMP + c) * S2 + o];
-                    dn[r] += w * v * v;
-                    for (int a = 0; a < m; a++) q[a + (size_t)m * r] += w * R[(size_t)a * WT_LEARN_NCOMP * S2] * v;
-                }
-                est->rows++;
+            fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
+            double *qr = qt + ((size_t)t * nrhs + r) * (m + 1); /* q_a then the data norm */
+            const double sc = 1.0 / ((double)NN * (double)K * L->pairs[0]);
+            for (int u = 0; u < nu; u++) {
+                if (!term_used(M, i == j, c, u)) continue;
+                /* w C = (P/P0) corr/(N² K P) */
+                const double wv = corr[M->uoff[u]] * sc, v = wv / M->uw[u], *Ru = R + (size_t)u * m;
+                qr[m] += wv * v;
+                for (int a = 0; a < m; a++) qr[a] += Ru[a] * wv;
             }
+        }
     }
+    for (int t = 0; t < ntask; t++)
+        for (int r = 0; r < nrhs; r++) {
+            const double *qr = qt + ((size_t)t * nrhs + r) * (m + 1);
+            for (int a = 0; a < m; a++) q[a + (size_t)m * r] += qr[a];
+            dn[r] += qr[m];
+        }
+    est->rows = M->rows;
     /* the scale: the slope variances are ~1e-12 rad²; the minimiser is unchanged by a common factor of G and q */
     double gmax = 0;
-    for (int a = 0; a < m; a++) {
-        for (int b = 0; b < a; b++) G[b + (size_t)m * a] = G[a + (size_t)m * b];
-        gmax = fmax(gmax, G[a + (size_t)m * a]);
-    }
+    for (int a = 0; a < m; a++) gmax = fmax(gmax, M->G[a + (size_t)m * a]);
     if (!(gmax > 0)) {
         st = WT_ERROR(ctx, WT_ERR_NUMERIC, "learn: the response maps are all zero (no offsets with enough pairs?)");
         goto fail;
     }
-    for (int k = 0; k < m * m; k++) G[k] /= gmax;
+    for (int k = 0; k < m * m; k++) G[k] = M->G[k] / gmax;
     for (int k = 0; k < m * nrhs; k++) q[k] /= gmax;
     for (int r = 0; r < nrhs; r++)
         if (wt_learn_nnls(m, G, q + (size_t)m * r, x + (size_t)m * r, work, iwork) < 0) {
@@ -175,7 +319,8 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
                           r ? "a batch" : "all frames");
             goto fail;
         }
-    est->nalt = m, est->L0 = L0, est->frames = L->frames, est->nbatch = nb ? nb : 1;
+    const double *alt = M->alt;
+    est->nalt = m, est->L0 = M->L0, est->frames = L->frames, est->nbatch = nb ? nb : 1;
     double tot = 0, mis = 0;
     for (int a = 0; a < m; a++) tot += x[a];
     if (!(tot > 0)) {
@@ -213,7 +358,27 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
         for (int a = 0; a < m; a++) est->fraction_sigma[a] = sqrt(fmax(0.0, (fs2[a] - fs[a] * fs[a] / nb) / (nb - 1)) / nb);
     }
 fail:
-    wt_free(ctx, resp), wt_free(ctx, resp_auto), wt_free(ctx, map), wt_free(ctx, G), wt_free(ctx, q), wt_free(ctx, x), wt_free(ctx, dn);
+    wt_free(ctx, G), wt_free(ctx, q), wt_free(ctx, qt), wt_free(ctx, x), wt_free(ctx, dn), wt_free(ctx, buf);
     wt_free(ctx, work), wt_free(ctx, iwork);
+    return st;
+}
+
+int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_estimate *est)
+{
+    memset(est, 0, sizeof *est);
+    /* the cheap refusals first: a model costs seconds */
+    if (nalt < 1 || nalt > WT_LEARN_MAX_ALT)
+        return WT_ERROR(L->ctx, WT_ERR_INVALID, "learn: %d altitudes, expected 1 to %d", nalt, WT_LEARN_MAX_ALT);
+    for (int a = 1; a < nalt; a++)
+        if (!(alt[a] > alt[a - 1]))
+            return WT_ERROR(L->ctx, WT_ERR_INVALID, "learn: altitudes not increasing (%g m then %g m)", alt[a - 1], alt[a]);
+    if (L->frames < 2)
+        return WT_ERROR(L->ctx, WT_ERR_INVALID, "learn: %lld frame(s) accumulated; a covariance estimate needs at least 2",
+                        (long long)L->frames);
+    wt_learn_model *M = NULL;
+    int st = wt_learn_model_alloc(L, nalt, alt, L0, &M);
+    if (st < 0) return st;
+    st = wt_learn_fit_model(L, M, est);
+    wt_learn_model_free(M);
     return st;
 }
