@@ -118,8 +118,9 @@ static void print_learned(const wt_adapt *a, long frames, double learning)
         printf("  the oracle follows the night: %d updates to the truth's state; %.2f ms per frame\n", n,
                learning / frames * 1e3);
     else
-        printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms)\n", n,
-               learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3);
+        printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms); the grid's response "
+               "maps %.2f s at set-up\n", n, learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3,
+               wt_adapt_model_setup_seconds(a));
     for (int k = 0; k < n; k++) {
         double low = 0.0; /* the Cn2 below 1 km */
         for (int j = 0; j < u[k].nalt; j++)

@@ -17,6 +17,8 @@ struct wt_adapt {
     double tx[WT_MAX_GS], ty[WT_MAX_GS];
     wt_learn_geometry g;
     wt_learn *L;
+    wt_learn_model *M;        /* the response maps and normal matrix of the learning grid: computed once */
+    double model_setup;       /* its wall time [s] */
     long since;               /* frames accumulated since the last estimate */
     int na;
     double alt[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];      /* the learning grid, or (follow_truth) the truth's layers */
@@ -36,8 +38,6 @@ struct wt_adapt {
 
 static int learn_alloc(wt_adapt *a)
 {
-    wt_learn_free(a->L);
-    a->L = NULL;
     const long span = a->par.cumulative ? a->par.run_frames : a->par.every;
     return wt_learn_alloc(a->ctx, &a->g, WT_ADAPT_BATCHES, span / WT_ADAPT_BATCHES > 0 ? span / WT_ADAPT_BATCHES : 1, &a->L);
 }
@@ -77,6 +77,9 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
     } else {
         WT_TRY(learn_alloc(a));
         a->na = wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+        const double t0 = wt_time_now();
+        WT_TRY(wt_learn_model_alloc(a->L, a->na, a->alt, par->L0, &a->M));
+        a->model_setup = wt_time_now() - t0;
     }
     for (int k = 0; k < a->na; k++) { /* the start model's wind at the nearest of its layers */
         int best = 0;
@@ -100,6 +103,7 @@ fail:
 void wt_adapt_free(wt_adapt *a)
 {
     if (!a) return;
+    wt_learn_model_free(a->M);
     wt_learn_free(a->L);
     wt_mvm_free(a->owned);
     wt_mvm_free(a->pending);
@@ -154,11 +158,11 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
         }
     } else {
         const double tf = wt_time_now();
-        st = wt_learn_fit(a->L, a->na, a->alt, a->par.L0, a->est);
+        st = wt_learn_fit_model(a->L, a->M, a->est);
         u->fit_s = wt_time_now() - tf;
         if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t,
                                     a->par.every, wt_error_message(a->ctx));
-        if (!a->par.cumulative && (st = learn_alloc(a)) < 0) return st; /* the next estimate: the next frames only */
+        if (!a->par.cumulative) wt_learn_reset(a->L); /* the next estimate: the next frames only */
         const wt_learn_estimate *e = a->est;
         u->r0 = e->r0;
         u->r0_sigma = e->r0_sigma;
@@ -206,6 +210,7 @@ int wt_adapt_follows_truth(const wt_adapt *a) { return a->par.follow_truth; }
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
 double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
 double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
+double wt_adapt_model_setup_seconds(const wt_adapt *a) { return a->model_setup; }
 
 int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
 {

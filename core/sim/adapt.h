@@ -3,6 +3,7 @@
  * Every frame the LGS part of the pseudo-open-loop slopes s_ol = s + Â a (the reconstructor's own input: the truth is
  * never read) goes into the cross-covariance accumulator of core/model/learn.h. Every `every` frames (the update
  * interval T in night time over the night time of a frame) the Cn² profile and r0 are fitted on the learning grid
+ * (its response maps computed once, at alloc: wt_learn_model)
  * from the frames since the last estimate, and the accumulator starts again (a night changes: an estimate is of
  * its last T); or, cumulative, from every frame since the start (a static night). What the estimate replaces:
  *   pcg3, cg9: the reconstructor's model at the next frame (wt_reconstructor_set_model: priors, model error,
@@ -12,8 +13,8 @@
  *              estimate (< 0: the build's measured wall time on this machine); the old matrix is applied
  *              meanwhile. One build at a time, as on one build machine: an estimate made while a build runs
  *              waits and is built when that one is done (a newer one replaces a waiting one).
- * The wind of the model (prediction) is not learned here: each learned altitude takes the wind of the start model's
- * layer nearest in altitude.
+ * The wind of the model (prediction) is not learned here (the lagged maps' fit, wt_learn_wind_fit, takes minutes on
+ * the demo): each learned altitude takes the wind of the start model's layer nearest in altitude.
  * The oracle in a changing night (follow_truth): no estimate; every `every` frames the model becomes the truth's
  * state of that frame (its layers, fractions, r0 and wind, core/sim/night.h), taken as a learned one is (pcg3 and
  * cg9 at the next frame, the MVM after its latency): what a perfect profiler would give.
@@ -86,6 +87,7 @@ int wt_adapt_follows_truth(const wt_adapt *a); /* 1: the oracle following a nigh
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
+double wt_adapt_model_setup_seconds(const wt_adapt *a); /* the learning grid's response maps, at alloc [s] */
 /* The updates into w under learned/ (one row per update: frame, night time, r0 and its uncertainty, the profile on the
  * learning grid, the wall times, the frame that first used it), self-documenting. */
 struct wt_h5_writer;
