@@ -97,6 +97,27 @@ START_TEST(t_learned_start_equals_oracle)
 }
 END_TEST
 
+/* the memory: the model's total Cn² r0^(−5/3) is the exponential average of the estimates' (weight 1/3 on the
+ * newest), to rounding */
+START_TEST(t_learned_memory)
+{
+    const char *set[] = {"loop.frames=200", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
+                         "recon.atmosphere.learn_memory=3.0", START_WRONG};
+    run r;
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 11, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    for (int t = 0; t < 200; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
+    const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(r.lp));
+    ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(r.lp)), 2);
+    ck_assert_double_eq(u[0].r0, u[0].r0_raw);
+    const double c = (2.0 / 3.0) * pow(u[0].r0_raw, -5.0 / 3.0) + (1.0 / 3.0) * pow(u[1].r0_raw, -5.0 / 3.0);
+    ck_assert_double_eq_tol(u[1].r0, pow(c, -3.0 / 5.0), 1e-12 * u[1].r0);
+    double sum = 0.0;
+    for (int k = 0; k < u[1].nalt; k++) sum += u[1].fraction[k];
+    ck_assert_double_eq_tol(sum, 1.0, 1e-12);
+    close_run(&r);
+}
+END_TEST
+
 /* mvm: the estimate after frame 99 (night 0.2 s) is built and in the loop 0.1 s later: frame 150 */
 START_TEST(t_mvm_swap_after_latency)
 {
@@ -193,6 +214,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, t_learned_start_equals_oracle);
     tcase_add_test(tc, t_mvm_swap_after_latency);
     tcase_add_test(tc, t_oracle_follows_night);
+    tcase_add_test(tc, t_learned_memory);
     tcase_add_test(tc, t_refusals);
     suite_add_tcase(s, tc);
     return s;

@@ -881,7 +881,7 @@ START_TEST(test_reference)
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
      * keys under the oracle (the demo's: its source is there), nor the learned model's three, nor
      * atmosphere.night.file for a stochastic night */
-    ck_assert_int_eq(nkeys + 20, nlines);
+    ck_assert_int_eq(nkeys + 21, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.profile "));

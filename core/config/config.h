@@ -116,6 +116,7 @@ typedef struct wt_model_atmosphere_config {
     char profile[1024];                   /* given: the profile file as resolved, "" when the lists were given */
     double update_s;                      /* learned: night time between two estimates [s] */
     int learn_window;                     /* learned: 0 the frames since the previous estimate, 1 all since the start */
+    double learn_memory;                  /* learned, interval: the estimates' memory [updates] (1: none) */
     double mvm_latency_s;                 /* learned, mvm: night time from an estimate to its matrix in the loop [s];
                                              < 0: the build's measured wall time */
 } wt_model_atmosphere_config;

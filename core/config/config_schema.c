@@ -370,6 +370,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      0, "learned: the frames of an estimate: interval = those since the previous estimate (a night that changes: the "
      "estimate follows it), all = every frame since the start (a static night: the estimate converges; its "
      "uncertainty needs frames in two quarters of the run) (optional, default interval, refused with another source)"},
+    {"recon.atmosphere.learn_memory", K_FLOAT, F_OPT, 1.0, 1e6, "", 1, CF(model.learn_memory), NOCOUNT, 0, 0, NULL, 1.0,
+     "learned, learn_window = interval: the memory of the estimates, in updates: the model's Cn2 per altitude (f r0^-5/3, "
+     "what the maps measure linearly) is the exponential average of the estimates with weight 1/learn_memory on the "
+     "newest (1: each estimate alone; 3: about the last three intervals, less scatter, more lag in a changing night) "
+     "(optional, default 1, refused with another source)"},
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
          "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "

@@ -24,6 +24,7 @@ struct wt_adapt {
     double alt[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];      /* the learning grid, or (follow_truth) the truth's layers */
     double vx[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], vy[WT_MAX_LAYERS + WT_LEARN_MAX_ALT]; /* their wind */
     wt_learn_estimate *est;
+    double cavg[WT_LEARN_MAX_ALT];  /* the memory's average of c = f r0^(−5/3) per altitude (nup > 0) */
     wt_adapt_rebuild_fn rebuild;
     void *rebuild_user;
     wt_adapt_update *up;
@@ -164,10 +165,16 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
                                     a->par.every, wt_error_message(a->ctx));
         if (!a->par.cumulative) wt_learn_reset(a->L); /* the next estimate: the next frames only */
         const wt_learn_estimate *e = a->est;
-        u->r0 = e->r0;
+        /* the memory: c = f r0^(−5/3) per altitude averaged over the estimates (the maps are linear in it) */
+        const double w = a->nup == 0 || a->par.memory <= 1.0 ? 1.0 : 1.0 / a->par.memory;
+        double sum = 0.0;
+        for (int k = 0; k < e->nalt; k++) sum += a->cavg[k] = (1.0 - w) * a->cavg[k] + w * e->cn2[k];
+        u->r0_raw = e->r0;
+        u->r0 = w == 1.0 ? e->r0 : pow(sum, -3.0 / 5.0);
         u->r0_sigma = e->r0_sigma;
         u->nalt = e->nalt;
-        for (int k = 0; k < e->nalt; k++) u->altitude[k] = e->altitude[k], u->fraction[k] = e->fraction[k];
+        for (int k = 0; k < e->nalt; k++)
+            u->altitude[k] = e->altitude[k], u->fraction[k] = w == 1.0 ? e->fraction[k] : a->cavg[k] / sum;
     }
     const int idx = a->nup++;
     if (a->kind != WT_RECON_MVM) {
@@ -233,7 +240,8 @@ int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
     } while (0)
     COL("night_s", night, "s", "night time of each estimate (after its last frame)");
     COL("r0", r0, "m", "estimated r0 at 500 nm");
-    COL("r0_sigma", r0_sigma, "m", "its uncertainty: spread of the batches' estimates / sqrt(batches)");
+    COL("r0_sigma", r0_sigma, "m", "the estimate's uncertainty: spread of the batches' estimates / sqrt(batches)");
+    COL("r0_raw", r0_raw, "m", "this estimate alone (r0 is after the memory's average, recon.atmosphere.learn_memory)");
     COL("fit_s", fit_s, "s", "wall time of the fit");
     COL("model_s", model_s, "s", "pcg3/cg9: wall time of the reconstructor's new model (priors, model error, noise)");
     COL("precond_s", precond_s, "s", "pcg3/cg9: wall time of the preconditioner rebuilt for it");

@@ -39,6 +39,8 @@ typedef struct wt_adapt_params {
     int cumulative;           /* 0: each estimate from the frames since the previous one (a night that changes);
                                  1: from every frame since the start (a static night: the estimate converges) */
     long run_frames;          /* cumulative: the run's frames (its WT_ADAPT_BATCHES batches are quarters of the run) */
+    double memory;            /* ≥ 1: the model's Cn² per altitude c = f r0^(−5/3) is the exponential average of the
+                                 estimates', weight 1/memory on the newest (1: each estimate alone) */
     double frame_night;       /* night time of one frame [s] (1/rate times the night's time compression) */
     double L0;                /* outer scale of the fit [m] (the model's: not fitted) */
     double latency;           /* mvm: night seconds from an estimate to its matrix in the loop; < 0: measured */
@@ -57,7 +59,8 @@ typedef struct wt_adapt_params {
 typedef struct wt_adapt_update {
     long frame;               /* the frame after which the estimate was made */
     double night;             /* its night time [s] */
-    double r0, r0_sigma;      /* the estimate [m] */
+    double r0, r0_sigma;      /* the estimate, after the memory's average [m] */
+    double r0_raw;            /* this estimate alone [m] */
     int nalt;
     double altitude[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], fraction[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];
     double fit_s;             /* wall time of the fit [s] */

@@ -59,6 +59,7 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .latency = m->mvm_latency_s,
                                        .cumulative = m->learn_window == 1,
                                        .run_frames = cfg->frames,
+                                       .memory = m->learn_memory,
                                        .nstart = m->nlayers,
                                        .follow_truth = follow,
                                        .ntruth = cfg->nlayers};
