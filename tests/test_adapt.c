@@ -104,7 +104,7 @@ START_TEST(t_learned_memory)
     const char *set[] = {"loop.frames=200", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
                          "recon.atmosphere.learn_memory=3.0", START_WRONG};
     run r;
-    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 11, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 10, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
     for (int t = 0; t < 200; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
     const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(r.lp));
     ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(r.lp)), 2);
