@@ -9,6 +9,7 @@
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
+#define N(a) ((int)(sizeof a / sizeof *a))
 
 /* the demo's own truth as the start model (recon.atmosphere.* of a learned source), estimates every 100 frames */
 #define START_TRUTH                                                                                                     \
@@ -68,8 +69,8 @@ START_TEST(t_learned_start_equals_oracle)
     const char *learned[] = {"loop.frames=110", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
                              START_TRUTH};
     run o, l;
-    ck_assert_int_eq(open_run(&o, WT_RECON_PCG3, 1, oracle, 0), WT_OK);
-    ck_assert_msg(open_run(&l, WT_RECON_PCG3, 9, learned, 0) == WT_OK, "%s", wt_error_message(l.ctx));
+    ck_assert_int_eq(open_run(&o, WT_RECON_PCG3, N(oracle), oracle, 0), WT_OK);
+    ck_assert_msg(open_run(&l, WT_RECON_PCG3, N(learned), learned, 0) == WT_OK, "%s", wt_error_message(l.ctx));
     ck_assert_ptr_null(wt_loop_adapt(o.lp));
     ck_assert_ptr_nonnull(wt_loop_adapt(l.lp));
     int differ = 0;
@@ -104,7 +105,7 @@ START_TEST(t_learned_memory)
     const char *set[] = {"loop.frames=200", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
                          "recon.atmosphere.learn_memory=3.0", START_WRONG};
     run r;
-    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 10, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, N(set), set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
     for (int t = 0; t < 200; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
     const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(r.lp));
     ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(r.lp)), 2);
@@ -125,8 +126,8 @@ START_TEST(t_mvm_swap_after_latency)
     const char *learned[] = {"loop.frames=160", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
                              "recon.atmosphere.mvm_latency_s=0.1", START_WRONG};
     run g, l;
-    ck_assert_msg(open_run(&g, WT_RECON_MVM, 8, given, 0) == WT_OK, "%s", wt_error_message(g.ctx));
-    ck_assert_msg(open_run(&l, WT_RECON_MVM, 10, learned, 1) == WT_OK, "%s", wt_error_message(l.ctx));
+    ck_assert_msg(open_run(&g, WT_RECON_MVM, N(given), given, 0) == WT_OK, "%s", wt_error_message(g.ctx));
+    ck_assert_msg(open_run(&l, WT_RECON_MVM, N(learned), learned, 1) == WT_OK, "%s", wt_error_message(l.ctx));
     const wt_reconstructor *first = wt_loop_reconstructor(l.lp);
     int differ = 0;
     for (int t = 0; t < 160; t++) {
@@ -156,7 +157,7 @@ START_TEST(t_oracle_follows_night)
                          "atmosphere.night.file=\"../nights/demo-ground-doubling.txt\"",
                          "atmosphere.night.compression=3000.0"};
     run r;
-    ck_assert_msg(open_run(&r, WT_RECON_PCG3, 4, set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, N(set), set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
     const wt_adapt *a = wt_loop_adapt(r.lp);
     ck_assert_ptr_nonnull(a);
     ck_assert(wt_adapt_follows_truth(a));
@@ -186,19 +187,19 @@ START_TEST(t_refusals)
     run r;
     /* 0.1 s at 500 Hz: 50 frames, fewer than an estimate needs */
     const char *few[] = {"recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.1", START_WRONG};
-    ck_assert_int_eq(open_run(&r, WT_RECON_PCG3, 8, few, 0), WT_ERR_CONFIG);
+    ck_assert_int_eq(open_run(&r, WT_RECON_PCG3, N(few), few, 0), WT_ERR_CONFIG);
     ck_assert_msg(strstr(wt_error_message(r.ctx), "'recon.atmosphere.update_s'") &&
                       strstr(wt_error_message(r.ctx), "every 50 frames"), "%s", wt_error_message(r.ctx));
     close_run(&r);
     const char *ok[] = {"recon.atmosphere.source=\"learned\"", START_WRONG};
-    ck_assert_int_eq(open_run(&r, WT_RECON_NONE, 7, ok, 0), WT_ERR_CONFIG);
+    ck_assert_int_eq(open_run(&r, WT_RECON_NONE, N(ok), ok, 0), WT_ERR_CONFIG);
     ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "not none"));
     close_run(&r);
-    ck_assert_int_eq(open_run(&r, WT_RECON_MVM, 7, ok, 0), WT_ERR_INVALID);
+    ck_assert_int_eq(open_run(&r, WT_RECON_MVM, N(ok), ok, 0), WT_ERR_INVALID);
     ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "rebuild"));
     close_run(&r);
     const char *one_lgs[] = {"recon.atmosphere.source=\"learned\"", "lgs.count=1", START_WRONG};
-    if (open_run(&r, WT_RECON_PCG3, 8, one_lgs, 0) != WT_OK)
+    if (open_run(&r, WT_RECON_PCG3, N(one_lgs), one_lgs, 0) != WT_OK)
         ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "at least 2 LGS"));
     else
         ck_abort_msg("a learned model with 1 LGS was accepted");
