@@ -108,11 +108,21 @@ typedef struct wt_model_atmosphere_config {
     double r0;                            /* Fried parameter at 500 nm [m] */
     double L0;                            /* outer scale [m] */
     int nlayers;
-    double altitude[WT_MAX_LAYERS];       /* [m], increasing */
+    double altitude[WT_MAX_LAYERS];       /* [m], increasing (non-decreasing after error_high_shift: two layers
+                                             may meet, the compression does not mind) */
     double fraction[WT_MAX_LAYERS];       /* Cn2 fractions, normalised to sum 1 */
     double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
     double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
     char profile[1024];                   /* given: the profile file as resolved, "" when the lists were given */
+    /* a controlled error of the model (recon.atmosphere.error_*, config_atmosphere.c), applied to the fields above
+     * once the oracle's or the given profile is formed; the values of "no error" leave every bit as it was */
+    double error_ground_fraction;         /* added to the ground layer's Cn2 fraction, the rest rescaled [-] */
+    double error_ground_top;              /* the ground layer: the lowest layer and those at or below this [m] */
+    double error_r0_scale;                /* r0 times this [-] */
+    double error_high_shift;              /* altitude added to the layers at or above error_high_bottom [m] */
+    double error_high_bottom;             /* [m] */
+    double error_wind_speed_scale;        /* every layer's wind speed times this [-] */
+    double error_wind_direction;          /* added to every layer's wind direction [rad] */
 } wt_model_atmosphere_config;
 
 typedef struct wt_config {
