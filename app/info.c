@@ -72,18 +72,26 @@ static void print_atmospheres(const wt_config *cfg)
                nc->source == WT_NIGHT_CFG_FILE ? "the states of " : "the stochastic model", nc->file, nc->start,
                nc->start + (double)(cfg->frames - 1) * (1.0 / cfg->rate) * nc->compression, nc->compression);
     const wt_model_atmosphere_config *m = &cfg->model;
-    if (m->source == WT_MODEL_ORACLE)
+    const int err = m->error_ground_fraction != 0.0 || m->error_r0_scale != 1.0 || m->error_high_shift != 0.0 ||
+                    m->error_wind_speed_scale != 1.0 || m->error_wind_direction != 0.0;
+    if (m->source == WT_MODEL_ORACLE && !err)
         printf("reconstructors' atmosphere: oracle (recon.atmosphere.source): the truth above, compressed onto each "
                "variant's layers below\n");
     else {
+        if (err)
+            printf("reconstructors' atmosphere with a controlled error (recon.atmosphere.error_*): ground fraction "
+                   "%+g (layers up to %g m), r0 x %g, layers from %g m moved %+g m, wind speed x %g, direction %+g "
+                   "deg\n", m->error_ground_fraction, m->error_ground_top, m->error_r0_scale, m->error_high_bottom,
+                   m->error_high_shift, m->error_wind_speed_scale, m->error_wind_direction / WT_DEG);
         if (m->source == WT_MODEL_LEARNED)
             printf("reconstructors' atmosphere: learned (recon.atmosphere.source): an estimate from the loop's own LGS "
                    "slopes every %g s of night (r0 and the Cn2 on 22 altitudes to 20 km; L0 and wind stay the start's); "
                    "the MVM's in the loop %s after it; it starts from:\n", m->update_s,
                    m->mvm_latency_s >= 0.0 ? "mvm_latency_s" : "its measured build time");
-        printf("%sreconstructors' atmosphere: given (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
-               "each variant's layers below\n", m->source == WT_MODEL_LEARNED ? "  " : "", m->profile[0] ? ", profile " : "",
-               m->profile, m->nlayers, m->r0, m->L0);
+        printf("%sreconstructors' atmosphere: %s (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
+               "each variant's layers below\n", m->source == WT_MODEL_LEARNED ? "  " : "",
+               m->source == WT_MODEL_ORACLE ? "oracle" : "given", m->profile[0] ? ", profile " : "", m->profile,
+               m->nlayers, m->r0, m->L0);
         printf("  %-5s %10s %12s %10s %10s\n", "layer", "altitude_m", "Cn2_fraction", "wind_mps", "towards_deg");
         for (int l = 0; l < m->nlayers; l++)
             printf("  %-5d %10.0f %12.6f %10.1f %10.1f\n", l + 1, m->altitude[l], m->fraction[l], m->wind_speed[l],

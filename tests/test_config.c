@@ -867,8 +867,8 @@ START_TEST(test_reference)
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
             !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&
             !strstr(path, "_sha256") && !strstr(path, "reference_seeing") &&
-            /* the stochastic night's rms of a logarithm (a ratio) */
-            !strstr(path, "_log_rms")) {
+            /* the stochastic night's rms of a logarithm (a ratio); a dimensionless factor (error_*_scale) */
+            !strstr(path, "_log_rms") && !strstr(path, "_scale")) {
             char unit[32];
             snprintf(unit, sizeof unit, "[%s]", !strcmp(u, "_mps") ? "m/s" : !strcmp(u, "_hz") ? "Hz" : u + 1);
             char ref[512];
@@ -879,10 +879,12 @@ START_TEST(test_reference)
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
      * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
-     * keys under the oracle (the demo's: its source is there), nor the learned model's three, nor
-     * atmosphere.night.file for a stochastic night */
-    ck_assert_int_eq(nkeys + 21, nlines);
+     * keys under the oracle (the demo's: its source is there), nor the learned model's four, nor
+     * atmosphere.night.file for a stochastic night, nor the seven keys of a model error (recon.atmosphere.error_*)
+     * without one */
+    ck_assert_int_eq(nkeys + 28, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
+    ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.error_high_shift_m "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.profile "));
     ck_assert_ptr_nonnull(strstr(buf, "\nloop.gain_levels "));

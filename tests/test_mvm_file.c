@@ -78,6 +78,21 @@ START_TEST(test_round_trip_and_refusals)
     ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "built for another system"));
     ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), path));
     ck_assert_ptr_null(m);
+    wt_config_free(ctx, other);
+    /* a model with a controlled error is another system (the prior's r0), named in the refusal ... */
+    const char *r0err[] = {"recon.atmosphere.error_r0_scale=1.2"};
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 1, r0err, &other), WT_OK);
+    ck_assert_int_eq(wt_mvm_read(ctx, path, other, sys->nact, sys->nslopes, &m, NULL), WT_ERR_FORMAT);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "built for another system"));
+    ck_assert_msg(strstr(wt_error_message(ctx), "recon.atmosphere.error_r0_scale = not set in the matrix, 1.2 in"), "%s",
+                  wt_error_message(ctx));
+    ck_assert_ptr_null(m);
+    wt_config_free(ctx, other);
+    /* ... but not an error of the wind, which no matrix holds (the MVM refuses prediction) */
+    const char *winderr[] = {"recon.atmosphere.error_wind_speed_scale=1.5", "recon.atmosphere.error_wind_direction_deg=20.0"};
+    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 2, winderr, &other), WT_OK);
+    ck_assert_msg(wt_mvm_read(ctx, path, other, sys->nact, sys->nslopes, &m, NULL) == WT_OK, "%s", wt_error_message(ctx));
+    wt_mvm_free(m);
 
     /* truncated: refused cleanly */
     struct stat sb;

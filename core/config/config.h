@@ -109,7 +109,8 @@ typedef struct wt_model_atmosphere_config {
     double r0;                            /* Fried parameter at 500 nm [m] */
     double L0;                            /* outer scale [m] */
     int nlayers;
-    double altitude[WT_MAX_LAYERS];       /* [m], increasing */
+    double altitude[WT_MAX_LAYERS];       /* [m], increasing (non-decreasing after error_high_shift: two layers
+                                             may meet, the compression does not mind) */
     double fraction[WT_MAX_LAYERS];       /* Cn2 fractions, normalised to sum 1 */
     double wind_speed[WT_MAX_LAYERS];     /* [m/s] */
     double wind_direction[WT_MAX_LAYERS]; /* [rad], direction the layer moves towards */
@@ -119,6 +120,15 @@ typedef struct wt_model_atmosphere_config {
     double learn_memory;                  /* learned, interval: the estimates' memory [updates] (1: none) */
     double mvm_latency_s;                 /* learned, mvm: night time from an estimate to its matrix in the loop [s];
                                              < 0: the build's measured wall time */
+    /* a controlled error of the model (recon.atmosphere.error_*, config_atmosphere.c), applied to the fields above
+     * once the oracle's or the given profile is formed; the values of "no error" leave every bit as it was */
+    double error_ground_fraction;         /* added to the ground layer's Cn2 fraction, the rest rescaled [-] */
+    double error_ground_top;              /* the ground layer: the lowest layer and those at or below this [m] */
+    double error_r0_scale;                /* r0 times this [-] */
+    double error_high_shift;              /* altitude added to the layers at or above error_high_bottom [m] */
+    double error_high_bottom;             /* [m] */
+    double error_wind_speed_scale;        /* every layer's wind speed times this [-] */
+    double error_wind_direction;          /* added to every layer's wind direction [rad] */
 } wt_model_atmosphere_config;
 
 /* A changing night of the truth (SPEC §12 "A changing night"; atmosphere.night.*, core/sim/night.h): the r0,

@@ -11,6 +11,9 @@
  * than a deliberate one; within it they are normalised to 1 as the configuration's lists are). The values are
  * rounded to the 15 significant digits of the canonical text, where they are written as the group's lists: a
  * stored configuration reads back to the same bits without the file.
+ *
+ * The model may then be given a controlled error (recon.atmosphere.error_*: sensitivity experiments; see
+ * apply_errors below). The truth is never touched.
  */
 #include "config_private.h"
 
@@ -226,6 +229,118 @@ static const char *const model_keys[] = {"recon.atmosphere.r0_m",           "rec
                                          "recon.atmosphere.wind_direction_deg"};
 enum { NMODEL_KEYS = sizeof model_keys / sizeof *model_keys };
 
+/* ---------------------------------------------------------------- a controlled model error */
+
+/* The keys of recon.atmosphere.error_* (sensitivity experiments: what a wrong profile costs each reconstructor).
+ * Each changes the model only, after the oracle's or the given profile is formed, in this order: r0; the ground
+ * layer's fraction (on the profile's altitudes); the high layers' altitudes; the wind. A key left out, or given
+ * with its value of no error, changes nothing and is left out of the canonical text (so a sweep's 0 is the
+ * error-free run, matrix identity included); the two keys that qualify another (error_ground_top_m,
+ * error_high_bottom_m) likewise when that one is. The high layers' bottom is a key, not a constant: what is
+ * "high" depends on the profile and on the reconstructor's layers (5 km, the default, is above the boundary
+ * layer and PCG-3's 4 km DM). */
+enum { E_GROUND, E_GROUND_TOP, E_R0, E_SHIFT, E_BOTTOM, E_SPEED, E_DIR, NERR };
+static const char *const err_keys[NERR] = {
+    "recon.atmosphere.error_ground_fraction", "recon.atmosphere.error_ground_top_m",
+    "recon.atmosphere.error_r0_scale",        "recon.atmosphere.error_high_shift_m",
+    "recon.atmosphere.error_high_bottom_m",   "recon.atmosphere.error_wind_speed_scale",
+    "recon.atmosphere.error_wind_direction_deg"};
+
+/* "LOC: key 'K': text" for error key e. */
+static int err_fail(wt_config_priv_state *ps, int e, const char *text)
+{
+    char loc[1100];
+    const int k = wt_config_priv_find_key(err_keys[e]);
+    wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc);
+    return wt_config_priv_fail(ps, loc, "key '%s': %s", err_keys[e], text);
+}
+
+static int apply_errors(wt_config_priv_state *ps, wt_config *cfg)
+{
+    wt_model_atmosphere_config *m = &cfg->model;
+    int k[NERR];
+    for (int e = 0; e < NERR; e++) k[e] = wt_config_priv_find_key(err_keys[e]);
+    /* no error: out of the canonical text (and of the matrix identity) */
+    if (m->error_ground_fraction == 0.0) ps->set[k[E_GROUND]] = NULL;
+    if (!ps->set[k[E_GROUND]]) ps->set[k[E_GROUND_TOP]] = NULL;
+    if (m->error_r0_scale == 1.0) ps->set[k[E_R0]] = NULL;
+    if (m->error_high_shift == 0.0) ps->set[k[E_SHIFT]] = NULL;
+    if (!ps->set[k[E_SHIFT]]) ps->set[k[E_BOTTOM]] = NULL;
+    if (m->error_wind_speed_scale == 1.0) ps->set[k[E_SPEED]] = NULL;
+    if (m->error_wind_direction == 0.0) ps->set[k[E_DIR]] = NULL;
+    for (int e = 0; e < NERR; e++) /* and as if left out: the canonical text reads back to the same numbers */
+        if (!ps->set[k[e]]) *(double *)((char *)cfg + wt_config_priv_keys[k[e]].off) = wt_config_priv_keys[k[e]].def;
+    char msg[600];
+    if (ps->set[k[E_R0]]) {
+        const wt_config_priv_key_spec *r0k = &wt_config_priv_keys[wt_config_priv_find_key("recon.atmosphere.r0_m")];
+        const double r0 = m->error_r0_scale * m->r0;
+        if (!(r0 >= r0k->lo && r0 <= r0k->hi)) {
+            snprintf(msg, sizeof msg, "the model's r0 would be %g x %g m = %g m, outside recon.atmosphere.r0_m's range "
+                     "[%g, %g] m", m->error_r0_scale, m->r0, r0, r0k->lo, r0k->hi);
+            return err_fail(ps, E_R0, msg);
+        }
+        m->r0 = r0;
+    }
+    if (ps->set[k[E_GROUND]]) {
+        /* the ground layers' fraction G becomes G + e, each ground layer scaled by (G + e)/G, the others by
+         * (1 − G − e)/(1 − G): the profile's shape within each part is kept, the total stays 1 */
+        double g = 0.0, o = 0.0;
+        int ng = 0;
+        for (int l = 0; l < m->nlayers; l++) {
+            const int ground = l == 0 || m->altitude[l] <= m->error_ground_top;
+            if (ground) g += m->fraction[l], ng++;
+            else o += m->fraction[l];
+        }
+        const double g1 = g + m->error_ground_fraction;
+        if (!(g1 >= 0.0 && g1 <= 1.0) || (g == 0.0 && g1 > 0.0) || (o == 0.0 && g1 < 1.0)) {
+            snprintf(msg, sizeof msg, "the model's ground layer (%d layer%s up to %g m, error_ground_top_m = %g m) holds "
+                     "%.6g of the Cn2, the other layers %.6g; with this error it would hold %.6g, %s", ng,
+                     ng > 1 ? "s" : "", m->altitude[ng - 1], m->error_ground_top, g, o, g1,
+                     !(g1 >= 0.0 && g1 <= 1.0) ? "not a fraction in [0, 1]"
+                     : g == 0.0                ? "but it holds no Cn2 to scale"
+                                               : "but no other layer holds Cn2 to take the rest");
+            return err_fail(ps, E_GROUND, msg);
+        }
+        const double sg = g > 0.0 ? g1 / g : 0.0, so = o > 0.0 ? (1.0 - g1) / o : 0.0;
+        for (int l = 0; l < m->nlayers; l++)
+            m->fraction[l] *= l == 0 || m->altitude[l] <= m->error_ground_top ? sg : so;
+    }
+    if (ps->set[k[E_SHIFT]]) {
+        int moved = 0;
+        for (int l = 0; l < m->nlayers; l++) {
+            if (!(m->altitude[l] >= m->error_high_bottom)) continue;
+            const double h = m->altitude[l] + m->error_high_shift;
+            if (h < 0.0 || (cfg->nlgs > 0 && h >= cfg->lgs_altitude)) {
+                snprintf(msg, sizeof msg, "it would move the model layer at %g m to %g m, %s", m->altitude[l], h,
+                         h < 0.0 ? "below the ground" : "at or above the LGS altitude (lgs.altitude_m)");
+                return err_fail(ps, E_SHIFT, msg);
+            }
+            m->altitude[l] = h;
+            moved++;
+        }
+        if (!moved) {
+            snprintf(msg, sizeof msg, "no model layer is at or above error_high_bottom_m = %g m (the highest is at %g "
+                     "m): the shift would move nothing", m->error_high_bottom, m->altitude[m->nlayers - 1]);
+            return err_fail(ps, E_SHIFT, msg);
+        }
+        /* in order of altitude again (stable: layers that meet keep their order) */
+        for (int i = 1; i < m->nlayers; i++)
+            for (int j = i; j > 0 && m->altitude[j - 1] > m->altitude[j]; j--) {
+                double *col[4] = {m->altitude, m->fraction, m->wind_speed, m->wind_direction};
+                for (int c = 0; c < 4; c++) {
+                    const double t = col[c][j];
+                    col[c][j] = col[c][j - 1];
+                    col[c][j - 1] = t;
+                }
+            }
+    }
+    for (int l = 0; l < m->nlayers; l++) {
+        if (ps->set[k[E_SPEED]]) m->wind_speed[l] *= m->error_wind_speed_scale;
+        if (ps->set[k[E_DIR]]) m->wind_direction[l] += m->error_wind_direction;
+    }
+    return WT_OK;
+}
+
 int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
 {
     char loc[1100], oth[1100];
@@ -275,7 +390,7 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
             m->wind_speed[l] = cfg->wind_speed[l];
             m->wind_direction[l] = cfg->wind_direction[l];
         }
-        return WT_OK;
+        return apply_errors(ps, cfg);
     }
     double sum = 0.0; /* the same rule as the truth's lists (config_read.c) */
     for (int l = 0; l < m->nlayers; l++) sum += m->fraction[l];
@@ -285,7 +400,7 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
                                    "key 'recon.atmosphere.cn2_fractions': the fractions sum to %.6g; expected 1 within "
                                    "1 %% (they are then normalised to sum exactly 1)", sum);
     for (int l = 0; l < m->nlayers; l++) m->fraction[l] /= sum;
-    return WT_OK;
+    return apply_errors(ps, cfg);
 }
 
 int wt_config_priv_check_night(wt_config_priv_state *ps, const wt_config *cfg)
@@ -320,8 +435,11 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
 {
     /* the night changes the truth only: the reconstructors' matrices never see it (SPEC §12) */
     if (!strncmp(path, "atmosphere.night.", 17)) return 0;
-    /* the model's numbers make the matrix, not how they were specified; no reconstructor reads a wind yet */
+    /* the model's numbers make the matrix, not how they were specified; only recon.predict reads the wind, and the
+     * MVM refuses it (so neither the wind nor its error recon.atmosphere.error_wind_* is in its identity); nor do
+     * the learning's keys (the loop's matrices are rebuilt from each estimate) */
     if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
+        !strncmp(path, "recon.atmosphere.error_wind_", 28) ||
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
         !strcmp(path, "recon.atmosphere.learn_window") || !strcmp(path, "recon.atmosphere.learn_memory") ||
         !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||

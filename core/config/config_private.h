@@ -42,7 +42,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 153 };
+enum { WT_CONFIG_PRIV_NKEYS = 160 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
@@ -96,7 +96,9 @@ int wt_config_priv_write_list(wt_config_priv_state *ps, int k, const double *f, 
  * ones (the text reads back without the file). */
 int wt_config_priv_expand_profiles(wt_config_priv_state *ps);
 /* recon.atmosphere (SPEC §12): the source's keys checked against each other; "oracle" copies the truth's
- * profile into cfg->model, "given" normalises the user's fractions, "learned" is refused (not available yet).
+ * profile into cfg->model, "given" normalises the user's fractions, "learned" is refused (not available yet);
+ * then the controlled model error of recon.atmosphere.error_* (r0, ground fraction, high layers' altitudes, wind;
+ * its values of no error are left out of the canonical text).
  * The profile files' keys are left out of the canonical text (their lists are in it). Runs after every key
  * is loaded and the truth's fractions are normalised. */
 int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg);

@@ -399,6 +399,42 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.atmosphere.wind_direction_deg", K_FLOATS, F_OPT, -360.0, 360.0, "deg", DEG, CF(model.wind_direction),
      CF(model.nlayers), 1, WT_MAX_LAYERS, NULL, 0,
      "given: the direction each of the model's layers moves towards, from +x towards +y"},
+    /* a controlled error of the model (sensitivity experiments; config_atmosphere.c): each left out = no error,
+     * and a value of no error is left out of the canonical text, so the matrix identity is the error-free one */
+    {"recon.atmosphere.error_ground_fraction", K_FLOAT, F_OPT, -1.0, 1.0, "", 1, CF(model.error_ground_fraction),
+     NOCOUNT, 0, 0, NULL, 0.0,
+     "a model error: added to the Cn2 fraction of the model's ground layer (its lowest layer and those at or below "
+     "error_ground_top_m), each of those layers scaled alike, the other layers scaled so that the total stays 1; a "
+     "ground fraction outside [0, 1] is refused. Applied, as every error_* key, to the oracle's or the given "
+     "profile before it is compressed onto each variant's layers; the simulated truth never changes "
+     "(default 0: no error)"},
+    {"recon.atmosphere.error_ground_top_m", K_FLOAT, F_OPT, 0.0, MAXALT, "m", 1, CF(model.error_ground_top), NOCOUNT,
+     0, 0, NULL, 0.0,
+     "with error_ground_fraction: the model's layers at or below this altitude form its ground layer with the "
+     "lowest one (a 35-layer profile spreads the ground layer over several); left out of the canonical text without "
+     "error_ground_fraction (default 0: the lowest layer alone)"},
+    {"recon.atmosphere.error_r0_scale", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 100.0, "", 1, CF(model.error_r0_scale),
+     NOCOUNT, 0, 0, NULL, 1.0,
+     "a model error: the model's r0 times this (the prior's weight, and the diffractive LGS reference's seeing); "
+     "the result must stay within recon.atmosphere.r0_m's range (default 1: no error)"},
+    {"recon.atmosphere.error_high_shift_m", K_FLOAT, F_OPT, -1e5, 1e5, "m", 1, CF(model.error_high_shift), NOCOUNT,
+     0, 0, NULL, 0.0,
+     "a model error: added to the altitude of every model layer at or above error_high_bottom_m (the layers are "
+     "then ordered by altitude again; one that would go below 0 or reach the LGS altitude is refused, and so is a "
+     "shift that moves no layer) (default 0: no error)"},
+    {"recon.atmosphere.error_high_bottom_m", K_FLOAT, F_OPT, 0.0, MAXALT, "m", 1, CF(model.error_high_bottom),
+     NOCOUNT, 0, 0, NULL, 5000.0,
+     "with error_high_shift_m: the lowest altitude of the model layers it moves (the free atmosphere above the "
+     "boundary layer and PCG-3's middle DM); left out of the canonical text without error_high_shift_m "
+     "(default 5000)"},
+    {"recon.atmosphere.error_wind_speed_scale", K_FLOAT, F_OPT, 0.0, 100.0, "", 1, CF(model.error_wind_speed_scale),
+     NOCOUNT, 0, 0, NULL, 1.0,
+     "a model error: every model layer's wind speed times this; only recon.predict reads the wind, so it is not "
+     "in an MVM's identity (the MVM refuses prediction) (default 1: no error)"},
+    {"recon.atmosphere.error_wind_direction_deg", K_FLOAT, F_OPT, -360.0, 360.0, "deg", DEG,
+     CF(model.error_wind_direction), NOCOUNT, 0, 0, NULL, 0.0,
+     "a model error: added to every model layer's wind direction (a rotation from +x towards +y); not in an MVM's "
+     "identity, as error_wind_speed_scale (default 0: no error)"},
     VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT),
     VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT),
     KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
