@@ -102,6 +102,15 @@ void wt_thread_team(int *id, int *nt)
 #endif
 }
 
+int wt_thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
 int wt_error_set(wt_context *ctx, int status, const char *file, int line, const char *fmt, ...)
 {
     if (!ctx) return status;

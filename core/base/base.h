@@ -70,5 +70,8 @@ static inline double *wt_align64(double *p) { return (double *)(((uintptr_t)p + 
 /* The calling thread's index in its OpenMP team and the team's size (0 and 1 outside a parallel region or
  * without OpenMP): the split of a parallel region's fixed pieces. */
 void wt_thread_team(int *id, int *nt);
+/* The calling thread's index in its OpenMP team (0 outside a parallel region or without OpenMP): a per-thread
+ * workspace's slot. */
+int wt_thread_id(void);
 
 #endif

@@ -24,14 +24,6 @@ static int team(void)
 #endif
 }
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 /* Solve A z = b for the k × k symmetric positive definite A (column-major, leading dimension lda) by Cholesky in
  * place on a copy w (k²). A pivot that is not positive (a column that the others reproduce) is lifted to a
@@ -195,7 +187,7 @@ int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double 
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
     for (int t = 0; t < ntask; t++) {
         static const int ca[WT_LEARN_NCOMP] = {0, 1, 0}, cb[WT_LEARN_NCOMP] = {0, 1, 1};
-        const int tid = thread_id(), sl = t / (m * WT_LEARN_NCOMP), a = (t / WT_LEARN_NCOMP) % m, c = t % WT_LEARN_NCOMP;
+        const int tid = wt_thread_id(), sl = t / (m * WT_LEARN_NCOMP), a = (t / WT_LEARN_NCOMP) % m, c = t % WT_LEARN_NCOMP;
         int i, j;
         wt_learn_pair(L, pslot[sl], &i, &j);
         double *r = rb + (size_t)tid * S2;
@@ -272,7 +264,7 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
      * does not depend on the thread count) */
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
     for (int t = 0; t < ntask; t++) {
-        const int tid = thread_id(), p = t / WT_LEARN_NCOMP, c = t % WT_LEARN_NCOMP;
+        const int tid = wt_thread_id(), p = t / WT_LEARN_NCOMP, c = t % WT_LEARN_NCOMP;
         double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
         int i, j;
         wt_learn_pair(L, p, &i, &j);

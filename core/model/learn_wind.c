@@ -71,14 +71,6 @@ typedef struct {
     int off[WIND_MAX_LAYERS];    /* 1: dropped (its wind ran past WIND_PLAUSIBLE): out of the model */
 } wfit;
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 /* The normal equations of the first nq lags at p = (a[nl], v[nl][2]): A (np × np), g = JᵀW r, *cost = Φ, *norm =
  * Σ w C². Blocks (lag, slot, component) in parallel, each into its own slot of blk, summed in block order (the
@@ -91,7 +83,7 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
     const int np = 3 * nl, bs = np * np + np + 2, nblock = nq * nslot * 2, N = L->N;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
     for (int b = 0; b < nblock; b++) {
-        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = wt_thread_id(), k = L->lag[q];
         double *out = F->blk + (size_t)b * bs, *rb = F->rb + (size_t)tid * F->nb * 3 * S2;
         memset(out, 0, (size_t)bs * sizeof *out);
         /* the pair(s) of this slot */
@@ -215,7 +207,7 @@ static void search_layer(wfit *F, int nq, double *p, int l)
     /* the other layers' model per block */
 #pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
     for (int b = 0; b < nblock; b++) {
-        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+        const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = wt_thread_id(), k = L->lag[q];
         int i = 0, j = 0;
         if (sl > 0) i = (sl - 1) / (nlgs - 1), j = (sl - 1) % (nlgs - 1), j = j >= i ? j + 1 : j;
         const double tx = L->theta_x[j] - L->theta_x[i], ty = L->theta_y[j] - L->theta_y[i];
@@ -241,7 +233,7 @@ static void search_layer(wfit *F, int nq, double *p, int l)
         /* per block: Σ w J r0, Σ w J², Σ w r0² with J the layer's unit-amplitude model, r0 = C − others */
 #pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
         for (int b = 0; b < nblock; b++) {
-            const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = thread_id(), k = L->lag[q];
+            const int q = b / (nslot * 2), sl = (b / 2) % nslot, c = b % 2, tid = wt_thread_id(), k = L->lag[q];
             int pi[64] = {0}, pj[64] = {0}, npair = 0;
             if (sl == 0)
                 for (int i = 0; i < nlgs; i++) pi[npair] = i, pj[npair++] = i;
@@ -284,7 +276,7 @@ static int load_maps(wfit *F, int batch, double *buf, int nth)
     const int nlgs = L->nlgs, nf = L->nf, NN = L->N * L->N, ntask = L->nlag * nlgs * nlgs * 2;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
     for (int t = 0; t < ntask; t++) {
-        const int q = t / (nlgs * nlgs * 2), tid = thread_id();
+        const int q = t / (nlgs * nlgs * 2), tid = wt_thread_id();
         double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
         int64_t K = 0;
         memset(sp, 0, (size_t)2 * nf * sizeof *sp);

@@ -95,14 +95,6 @@ int wt_precond_kind(const char *name)
     return -1;
 }
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 /* ---- modified Jacobi diagonal ------------------------------------------------------------------ */
 
@@ -246,7 +238,7 @@ static int compute_jacobi(wt_precond *p, const wt_tomography *t)
 #pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
                 for (int b0 = 0; b0 < se; b0++)
                     for (int a0 = 0; a0 < se; a0++) {
-                        double *base = buf + (size_t)thread_id() * per;
+                        double *base = buf + (size_t)wt_thread_id() * per;
                         double *coef = base, *field = coef + maxn2, *work = field + maxn2;
                         double *ph = work + wsize, *sl = ph + phn, *z = sl + maxsl;
                         probe_block(t, l, level, orient, s, diag, coef, field, work, ph, sl, z, a0, b0);
@@ -662,7 +654,7 @@ static int compute_layer_blocks(wt_precond *p, const wt_tomography *t, const int
 #pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(nth)
             for (int b0 = 0; b0 < se; b0++)
                 for (int a0 = 0; a0 < se; a0++) {
-                    double *base = buf + (size_t)thread_id() * per;
+                    double *base = buf + (size_t)wt_thread_id() * per;
                     double *coef = base, *work = coef + maxn2, *fields = work + wsize, *ph = fields + L * maxn2;
                     double *sl = ph + phn, *z = sl + L * maxsl;
                     int key[WT_MAX_LAYERS];
@@ -1081,7 +1073,7 @@ static void fourier_apply(const wt_precond *p, const double *r, double *z, int n
     {
 #pragma omp for schedule(dynamic, 1)
         for (int l = 0; l < L; l++) {
-            const int id = thread_id();
+            const int id = wt_thread_id();
             double *phi = fourier_phi(p, id), *hat = (double *)fourier_hat(p, id);
             double *u = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n; /* the contractions' work */
             const int64_t o = wt_tomography_layer_offset(t, l);

@@ -38,14 +38,6 @@ static void prof_busy(const wt_tomography *t, wt_tomography_work *w, int k, int 
     if (w->prof_on && id < t->nthreads) w->prof[k * prof_stride(t) + 8 * (1 + id)] += wt_time_now() - t0;
 }
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 int64_t wt_tomography_nunknowns(const wt_tomography *t) { return t->n; }
 int wt_tomography_nlayers(const wt_tomography *t) { return t->L; }
@@ -587,7 +579,7 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
     double t1 = t0;
 #pragma omp parallel num_threads(t->nthreads)
     {
-        const int id = thread_id();
+        const int id = wt_thread_id();
         double b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m < t->S; m++) {
@@ -882,7 +874,7 @@ static void adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, con
     const size_t nl32 = lay32_size(t);
 #pragma omp parallel num_threads(t->nthreads)
     {
-        const int id = thread_id();
+        const int id = wt_thread_id();
         double b0 = prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int m = 0; m <= t->S; m++) { /* the LGS, then (m = S) every NGS's double weights */
@@ -1186,7 +1178,7 @@ int wt_tomography_count_nnz(wt_tomography *t, int64_t *nnz_gp, int64_t *nnz_a)
         int64_t counts[2 * WT_MAX_GS] = {0};
 #pragma omp parallel num_threads(nth)
         {
-            int tid = thread_id();
+            int tid = wt_thread_id();
             int64_t local[2 * WT_MAX_GS] = {0};
             int64_t *mk = mark + (size_t)tid * S * maxsl;
             double *e = buf + (size_t)tid * (2 * maxn2 + t->wsize), *psi = e + maxn2, *work = psi + maxn2;

@@ -6,9 +6,7 @@
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
-static int thread_id(void) { return omp_get_thread_num(); }
 #else
-static int thread_id(void) { return 0; }
 static int omp_in_parallel(void) { return 0; }
 #endif
 
@@ -116,7 +114,7 @@ void wt_shift_apply(wt_shift *s, double *phi)
     for (int l = 0; l < s->L; l++) {
         const layer *y = &s->lay[l];
         if (!y->ramp) continue;
-        const int t = thread_id();
+        const int t = wt_thread_id();
         double *w = s->work + s->nwork * t;
         fftw_complex *sp = s->spec + s->nspec * t;
         const size_t n2 = (size_t)y->n * y->n, nc = (size_t)y->n * (y->n / 2 + 1);

@@ -555,14 +555,6 @@ static void image_one(const wt_spot *s, int is, const float *opdf, const double 
         }
 }
 
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 static int images(const wt_spot *s, const float *opdf, const double *opdd, float *img)
 {
@@ -571,7 +563,7 @@ static int images(const wt_spot *s, const float *opdf, const double *opdd, float
     const size_t n2 = (size_t)s->np * s->np, ns2 = (size_t)s->Ns * s->Ns;
 #pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
     for (int is = 0; is < s->nsub; is++)
-        image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, NULL, &s->ws[thread_id()],
+        image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, NULL, &s->ws[wt_thread_id()],
                   img + is * ns2);
     return WT_OK;
 }
@@ -601,7 +593,7 @@ int wt_spot_reference(const wt_spot *s, double dtheta, const wt_spot_seeing *see
     }
 #pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
     for (int is = 0; is < s->nsub; is++) {
-        const int t = thread_id();
+        const int t = wt_thread_id();
         workspace *w = &s->ws[t];
         const float *otf = NULL;
         if (see) {
