@@ -354,10 +354,14 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     if (!(vx && vy) && r->predict_lead > 0.0 && natm != keep_n)
         st = WT_ERROR(r->ctx, WT_ERR_INVALID, "reconstructor %s: a new model of %d layers (was %d) without its wind: "
                       "prediction needs the wind of every layer", wt_reconstructor_name(r->kind), natm, keep_n);
-    if (st >= 0) st = wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
+    /* the preconditioner: updated in place from its parts (wt_precond_update: no apply of M) when it kept them, else
+     * rebuilt; the shift first, so that a failure of either leaves the old preconditioner untouched */
     if (st >= 0 && r->predict_lead > 0.0) st = make_shift(r, &sh);
+    const int in_place = wt_precond_updatable(r->pre);
+    if (st >= 0) st = in_place ? wt_precond_update(r->pre) : wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
     if (st < 0) { /* back to the old model, whole */
         wt_precond_free(pre);
+        wt_shift_free(sh);
         r->natm = keep_n;
         r->r0 = keep_r0;
         memcpy(r->atm_alt, keep[0], sizeof keep[0]);
@@ -368,8 +372,10 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
         (void)st2; /* (the old model's altitudes are in the model-error cache or need none: it cannot fail) */
         return st;
     }
-    wt_precond_free(r->pre);
-    r->pre = pre;
+    if (!in_place) {
+        wt_precond_free(r->pre);
+        r->pre = pre;
+    }
     if (sh) {
         wt_shift_free(r->shift);
         r->shift = sh;

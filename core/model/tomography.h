@@ -78,6 +78,9 @@ double wt_tomography_layer_altitude(const wt_tomography *t, int l);
 double wt_tomography_layer_fraction(const wt_tomography *t, int l);
 /* The layer-binning model error added to sensor m's noise variance per axis [rad²] (recon.model_error). */
 double wt_tomography_model_error(const wt_tomography *t, int m);
+/* Sensor m's short-axis noise precision Σ_i 1/λ_min(C̃_i) over its subapertures [rad⁻²], C̃_i its weight's 2x2 block
+ * before the tip-tilt removal: what a new model's σ²_e scales (wt_precond_update). */
+double wt_tomography_lgs_precision(const wt_tomography *t, int m);
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l);
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
 /* The operators the tomography is built from (for the MVM builder, which assembles the same ones):

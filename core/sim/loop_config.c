@@ -64,6 +64,7 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .follow_truth = follow,
                                        .ntruth = cfg->nlayers};
         for (int k = 0; k < cfg->nlayers; k++) par->learn.truth_alt[k] = cfg->layer_altitude[k];
+        par->recon.precond.updatable = 1; /* the model changes: its preconditioner is updated, not rebuilt */
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
         for (int k = 0; k < m->nlayers; k++) {
             par->learn.start_alt[k] = m->altitude[k];
