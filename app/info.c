@@ -234,7 +234,7 @@ int wt_cmd_info(int argc, char **argv)
     }
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto out;
-    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE)) >= 0) goto out;
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE, 0)) >= 0) goto out;
     rc = 0;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
     if (st < 0) goto out;

@@ -179,7 +179,7 @@ int wt_cmd_sim(int argc, char **argv)
     double tpsf = 0.0;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
-    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind)) >= 0) goto cleanup; /* --dry-run, or too big */
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind, iters)) >= 0) goto cleanup; /* --dry-run, or too big */
     rc = 0;
     /* find an unwritable output before the run, not after it */
     if ((st = wt_cli_check_output(&cli, out, 0, args.matrix, NULL)) < 0) goto fail;
