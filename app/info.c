@@ -300,7 +300,7 @@ int wt_cmd_info(int argc, char **argv)
     printf("loop: %.0f Hz, delay %d frames, ", cfg->rate, cfg->delay);
     if (cfg->ngain_levels == 0) {
         printf("integrator gain %g\n", cfg->gain);
-    } else if (cfg->gain_basis == 0) { /* loop.gain_levels (core/sim/scale_gain.h): V_j bilinear on squares of 2^(L+1-j) */
+    } else if (cfg->gain_basis == 0) { /* loop.gain_levels (core/op/scale_gain.h): V_j bilinear on squares of 2^(L+1-j) */
         const int L = cfg->ngain_levels - 1;
         printf("integrator gain per scale of the DM commands (bilinear bands, squares of N actuators):");
         for (int j = 0; j <= L; j++) printf(" %d: %g%s", 2 << (L - j), cfg->gain_levels[j], j < L ? "," : "\n");

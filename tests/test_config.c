@@ -593,7 +593,7 @@ START_TEST(test_overrides)
         {"dm.pitch_m=[0.5, 1, 1]", "mismatched element type", "write 1.0, not 1"},
         {"loop.frames=1; lgs = 3", "--set loop.frames=1; lgs = 3: expected one value", ""},
         {"recon.prior=best", "--set recon.prior=best: key 'recon.prior': value \"best\" is not accepted", "\"paper\", \"exact\""},
-        /* the scale-dependent gain (core/sim/scale_gain.h): each gain in (0, 1], 2 or more bands, no more than the
+        /* the scale-dependent gain (core/op/scale_gain.h): each gain in (0, 1], 2 or more bands, no more than the
          * smallest DM grid holds (DM 2: 13 + 2 guard = 15 actuators in 16 points: squares of 16, 4 bands) */
         {"loop.gain_levels=[0.6, 0.0]", "key 'loop.gain_levels', element [1]: value 0 is out of range", "(0, 1]"},
         {"loop.gain_levels=[0.6, 1.2]", "key 'loop.gain_levels', element [1]: value 1.2 is out of range", "(0, 1]"},

@@ -212,7 +212,7 @@ typedef struct wt_config {
     int frames;
     int delay;                       /* frames between measurement and application (2 in the paper) */
     double gain;                     /* integrator gain g */
-    int ngain_levels;                /* 0: the single gain; else L + 1 (core/sim/scale_gain.h) */
+    int ngain_levels;                /* 0: the single gain; else L + 1 (core/op/scale_gain.h) */
     double gain_levels[WT_MAX_GAIN_BANDS]; /* gain per spatial band of the DM commands, coarsest first */
     int gain_basis;                  /* the bands: 0 bilinear multiwavelets, 1 Daubechies DWT */
 

@@ -640,7 +640,7 @@ static int resolve_file_sha256(pstate *ps, const char *key, int used, const char
 
 /* loop.gain_levels: L + 1 values need every DM's grid (actuators + 2 guard rings per side), embedded in
  * the smallest power of two n, to hold squares (or a Daubechies scaling block) of 2^(L+1) actuators:
- * L + 1 <= log2 n (core/sim/scale_gain.h). loop.gain_basis means nothing without them. */
+ * L + 1 <= log2 n (core/op/scale_gain.h). loop.gain_basis means nothing without them. */
 static int check_gain_levels(pstate *ps, const wt_config *cfg)
 {
     char loc[512], oth[512];

@@ -6,21 +6,19 @@
 #include <math.h>
 #include <string.h>
 
+#include "../model/control.h"
 #include "../model/params.h"
 
-_Static_assert(WT_MAX_GAIN_BANDS == WT_SCALE_GAIN_MAX_BANDS, "loop.gain_levels must fit wt_scale_gain_params");
 
 void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par)
 {
     memset(par, 0, sizeof *par);
     par->rate = cfg->rate;
-    par->delay = cfg->delay;
-    par->gain = cfg->gain;
-    if (cfg->ngain_levels > 0) {
-        par->scale_gain.nbands = cfg->ngain_levels;
-        memcpy(par->scale_gain.gain, cfg->gain_levels, (size_t)cfg->ngain_levels * sizeof *cfg->gain_levels);
-        par->scale_gain.basis = cfg->gain_basis ? WT_SCALE_GAIN_DAUBECHIES : WT_SCALE_GAIN_BILINEAR;
-        par->scale_gain.wavelet_order = cfg->wavelet_order;
+    {
+        const wt_control_params cp = wt_control_params_from_config(cfg); /* the law every loop and frame API uses */
+        par->delay = cp.delay;
+        par->gain = cp.gain;
+        par->scale_gain = cp.scale_gain;
     }
     par->points_per_subaperture = cfg->points_per_subaperture;
     par->diameter = cfg->diameter;
