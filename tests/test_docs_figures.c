@@ -6,10 +6,12 @@
  *  - every default stated next to its key ("`sim.psf_pixels` (default 64") against `wavetomo info --keys`;
  *  - every relative link (file and #section) of the user docs resolves;
  *  - the README reads as an introduction: at most 150 lines, no "§", issue number or date above its links, the
- *    test command that .ci/run relies on; and no issue numbers in the user docs or any command's --help.
+ *    test command that .ci/run relies on; and no issue numbers in the user docs, the presets' comments or any
+ *    command's --help.
  * A figure is found by the sentence that states it: rewording that sentence fails here with the sentence
  * wanted, so that the figure is checked again. Runs $BIN/wavetomo (else bin/wavetomo) from the top directory. */
 #include <ctype.h>
+#include <dirent.h>
 #include <regex.h>
 
 #include "testutil.h"
@@ -521,6 +523,23 @@ START_TEST(test_no_issue_numbers)
         bad += issue_refs(user_docs[d], text);
         free(text);
     }
+    /* the presets, whose comments document every key */
+    DIR *pd = opendir("data/presets");
+    ck_assert_ptr_nonnull(pd);
+    int npreset = 0;
+    for (struct dirent *e; (e = readdir(pd));) {
+        size_t l = strlen(e->d_name);
+        if (l < 5 || strcmp(e->d_name + l - 4, ".cfg")) continue;
+        char path[600];
+        snprintf(path, sizeof path, "data/presets/%s", e->d_name);
+        char *text = slurp_file(path);
+        ck_assert_ptr_nonnull(text);
+        bad += issue_refs(path, text);
+        npreset++;
+        free(text);
+    }
+    closedir(pd);
+    ck_assert_int_ge(npreset, 6);
     char cmd[700];
     snprintf(cmd, sizeof cmd, "%s --help", wt);
     char *help = slurp_cmd(cmd);
