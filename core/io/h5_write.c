@@ -68,19 +68,22 @@ fail:
 static int is_ours(const char *path)
 {
     if (H5Fis_hdf5(path) <= 0) return 0;
-    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1, space = -1;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1, space = -1, mt = -1;
     int ours = 0;
     char buf[64] = {0}, *vl = NULL;
     if (f >= 0 && H5Aexists(f, "creator") > 0 && (a = H5Aopen(f, "creator", H5P_DEFAULT)) >= 0 &&
         (t = H5Aget_type(a)) >= 0 && H5Tget_class(t) == H5T_STRING && (space = H5Aget_space(a)) >= 0 &&
         H5Sget_simple_extent_npoints(space) == 1) {
         if (H5Tis_variable_str(t) > 0) {
-            if (H5Aread(a, t, &vl) >= 0 && vl) ours = !strncmp(vl, "wavetomo", 8);
-            if (vl) H5Dvlen_reclaim(t, space, H5P_DEFAULT, &vl);
+            if ((mt = H5Tcopy(H5T_C_S1)) >= 0 && H5Tset_size(mt, H5T_VARIABLE) >= 0 &&
+                H5Tset_cset(mt, H5Tget_cset(t)) >= 0 && H5Aread(a, mt, &vl) >= 0 && vl)
+                ours = !strncmp(vl, "wavetomo", 8);
+            if (vl) H5Dvlen_reclaim(mt, space, H5P_DEFAULT, &vl);
         } else if (H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0) {
             ours = !strncmp(buf, "wavetomo", 8);
         }
     }
+    wt_h5_priv_drop(mt);
     wt_h5_priv_drop(space);
     wt_h5_priv_drop(t);
     wt_h5_priv_drop(a);
