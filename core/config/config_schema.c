@@ -265,8 +265,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      NULL, 0.0,
      "diffractive LGS with lgs.sodium_sequence: night time between two rebuilds of the truth's spot tables from the "
      "sequence (0: every frame; otherwise at least one frame's night time, 1 / loop.rate_hz x "
-     "atmosphere.night.compression). A rebuild costs ~0.3 s for the 6 E-ELT LGS on 2 threads, about half a "
-     "diffractive frame (optional, default 0)"},
+     "atmosphere.night.compression). A rebuild costs ~1.1 s of 2 idle cores for the 6 E-ELT LGS, ~3 times a "
+     "diffractive frame's sensing (make bench): at that size give a cadence of several frames (optional, default 0)"},
     {"lgs.wfs.reference", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_reference), NOCOUNT, 0, 0, "static|oracle", 0,
      "diffractive LGS: the centroider's reference I0 and its derivatives in the loop: static = built once at set-up "
      "from lgs.sodium_profile; oracle = rebuilt from the truth's current sodium profile (lgs.sodium_sequence) every "
