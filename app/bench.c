@@ -46,7 +46,8 @@ static void help(void)
            "detector noise + centroider of every sensor of the kind, median and [p10, p90] of --sensing-frames\n"
            "frames (default 7) on the --threads threads, with the parts, the sensors' set-up time and memory, and\n"
            "the flops and bytes per subaperture against the machine's DGEMM rate and triad bandwidth; next to the\n"
-           "geometric sensors' time per frame of the closed loop above. --sensing-only times only the machine\n"
+           "geometric sensors' time per frame of the closed loop above. Then the sodium layer in time (LGS): the\n"
+           "truth's spot tables of a new profile and the oracle's reference rebuilt from them (lgs.wfs.reference). --sensing-only times only the machine\n"
            "and the sensing (--set applies to DCONFIG too).\n"
            "\n"
            "Paired mode, when --pair-a or --pair-b is given (and then only it): two configurations\n"
@@ -272,6 +273,18 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
                    "%.2f s, %.2f s on idle cores\n",
                    b.frame.med, b.cpu / threads);
     }
+    wt_bench_sodium na;
+    const int st = wt_bench_sodium_run(cli->ctx, sys, 3, &na);
+    if (st < 0) return st;
+    if (na.nsensors)
+        printf("  sodium layer in time, %d LGS (%lld subapertures), median [p10, p90] of 3: the truth's spot tables of a "
+               "new profile %.3f s [%.3f, %.3f] (CPU %.3f s: %.3f s on %d idle cores); the oracle's reference rebuilt "
+               "(I0, derivatives, matched filter, covariance) %.3f s [%.3f, %.3f] from the kept cells (CPU %.3f s: "
+               "%.3f s on %d idle cores; the first, with its FFTs, %.2f s); target <= 2 s for the 6 E-ELT LGS on 2 "
+               "threads\n",
+               na.nsensors, (long long)na.nsub, na.tables.med, na.tables.p10, na.tables.p90, na.cpu_tables,
+               na.cpu_tables / threads, threads, na.reference.med, na.reference.p10, na.reference.p90, na.cpu_reference,
+               na.cpu_reference / threads, threads, na.full);
     if (!any) printf("  (no diffractive sensor in %s)\n", sys->cfg->path);
     if (geometric >= 0)
         printf("  geometric sensors of the closed loop above (all sensors, slopes + noise): %.1f ms per frame\n",

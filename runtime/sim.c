@@ -279,6 +279,15 @@ int wt_cmd_sim(int argc, char **argv)
            tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
            tm.evaluation / frames * 1e3, setup);
     inloop_gain(NULL, sys, 1);
+    if (wt_loop_sodium(lp)) {
+        const wt_sodium_drive_stats ds = wt_sodium_drive_get_stats(wt_loop_sodium(lp));
+        printf("  sodium: truth's LGS spot tables rebuilt %ld times (%.3f s each); LGS reference %s, rebuilt %ld times "
+               "(%.3f s each, of which C_E and preconditioner %.3f s)\n",
+               ds.truth_rebuilds, ds.truth_rebuilds ? ds.truth_seconds / ds.truth_rebuilds : 0.0,
+               cfg->lgs_reference == 1 ? "oracle" : "static", ds.reference_rebuilds,
+               ds.reference_rebuilds ? ds.reference_seconds / ds.reference_rebuilds : 0.0,
+               ds.reference_rebuilds ? ds.c_e_seconds / ds.reference_rebuilds : 0.0);
+    }
     print_learned(wt_loop_adapt(lp), frames, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
     printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");

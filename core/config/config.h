@@ -184,6 +184,11 @@ typedef struct wt_config {
                                         configuration file's directory); "" = Gaussian of sodium_fwhm */
     char sodium_profile_sha256[65];  /* diffractive LGS with a profile: SHA-256 (hex) of the file's bytes, taken at
                                         reading (or as recorded in a stored text); "" when not used or unreadable */
+    char sodium_sequence[1024];      /* diffractive LGS: the truth's profile in time (core/optics/sodium.h), resolved;
+                                        "" = the set-up profile for the whole run */
+    double sodium_sequence_update;   /* night time between two rebuilds of the truth's spot tables [s]; 0: every frame */
+    int lgs_reference;               /* diffractive LGS reference in the loop: 0 static (set-up), 1 oracle */
+    double lgs_reference_update;     /* oracle: night time between two rebuilds [s] */
     wt_sensor_config lgs_wfs;
 
     /* natural guide stars */

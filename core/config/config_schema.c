@@ -250,6 +250,32 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "the file's contents (not its name); left out (or \"auto\"): computed when the configuration is read and "
      "written into the canonical text; given (a stored configuration): the file must still hash to it when the "
      "sensors are built"},
+    /* the sodium layer in time (SPEC §12 "The sodium layer changes too"; core/optics/sodium.h): the truth's spots
+     * and the loop's reference only, never in the matrix identity (the set-up reference is lgs.sodium_profile's) */
+    {"lgs.sodium_sequence", K_STR, F_OPT, 0, 0, "", 1, CF(sodium_sequence), NOCOUNT, 0, 0, NULL, 0,
+     "diffractive LGS: the truth's sodium profile in time, a file (relative to the configuration file's directory "
+     "like @include; shipped: data/sodium/drift-1km-10min.txt, sporadic-2min.txt): a line 'altitude_m h1 h2 ...', "
+     "then one line per night time 'time_s d1 d2 ...', interpolated linearly in time (format in "
+     "core/optics/sodium.h). Each frame's night time is atmosphere.night.start_s + frame / loop.rate_hz x "
+     "atmosphere.night.compression (the night's clock, with or without atmosphere.night.source), and the sequence "
+     "must cover the run's. The spots follow it; the set-up reference (and the MVM's noise model) stays that of "
+     "lgs.sodium_profile (or the Gaussian of lgs.sodium_fwhm_m), so start the sequence from that profile for a "
+     "reference right at the start; lgs.wfs.reference = oracle follows the truth (optional, default none)"},
+    {"lgs.sodium_sequence_update_s", K_FLOAT, F_OPT, 0.0, 1e7, "s", 1, CF(sodium_sequence_update), NOCOUNT, 0, 0,
+     NULL, 0.0,
+     "diffractive LGS with lgs.sodium_sequence: night time between two rebuilds of the truth's spot tables from the "
+     "sequence (0: every frame; otherwise at least one frame's night time, 1 / loop.rate_hz x "
+     "atmosphere.night.compression). A rebuild costs ~1.1 s of 2 idle cores for the 6 E-ELT LGS, ~3 times a "
+     "diffractive frame's sensing (make bench): at that size give a cadence of several frames (optional, default 0)"},
+    {"lgs.wfs.reference", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_reference), NOCOUNT, 0, 0, "static|oracle", 0,
+     "diffractive LGS: the centroider's reference I0 and its derivatives in the loop: static = built once at set-up "
+     "from lgs.sodium_profile; oracle = rebuilt from the truth's current sodium profile (lgs.sodium_sequence) every "
+     "lgs.wfs.reference_update_s of night time from the first frame on, with the matched filter, its covariance "
+     "and the pcg3 / cg9 noise weights C_E (an MVM keeps the C_E it was built with) (optional, default static)"},
+    {"lgs.wfs.reference_update_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "s", 1, CF(lgs_reference_update), NOCOUNT,
+     0, 0, NULL, 60.0,
+     "lgs.wfs.reference = oracle: night time between two rebuilds of the reference (at least one frame's night "
+     "time) (optional, default 60)"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),

@@ -95,6 +95,8 @@ static void diffractive_sensors(const wt_config *c, int lgs, double *tables, dou
         const double qmax = ceil((N - 1 - N / 2) * theta_f / cell + half + hf);
         const double M = qmax - qmin + 1, Lp = Ns + floor((M - 1) / k), tab = (double)k * k * Lp * Lp;
         *tables += nsub * (4.0 * tab + 4.0 * np * np + 12.0);
+        /* lgs.wfs.reference = oracle: the reference's five images' rebinned cells kept (spot.h) */
+        if (lgs && c->lgs_reference == 1) *tables += nsub * 5.0 * 4.0 * M * M;
         *rest += nsub * (8.0 * np * np + 8.0 * Ns * Ns + (w->centroider == 2 ? 8.0 * Ns * Ns : 0.0) + 150.0) +
                  8.0 * Ns * Ns * nsub / (lgs ? c->nlgs : 1);
         const double flops = 20.0 * np * np + 5.0 * N * log2(N) * (np + N) + 7.0 * N * N + 4.0 * M * N +

@@ -386,6 +386,18 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     return WT_OK;
 }
 
+int wt_reconstructor_refresh_noise(wt_reconstructor *r)
+{
+    if (r->kind != WT_RECON_PCG3 && r->kind != WT_RECON_CG9) return WT_OK;
+    int st = wt_tomography_refresh_noise(r->tomo);
+    if (st < 0) return st;
+    wt_precond *pre = NULL;
+    if ((st = wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre)) < 0) return st;
+    wt_precond_free(r->pre);
+    r->pre = pre;
+    return WT_OK;
+}
+
 void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model, double *precond)
 {
     *model = r->t_model;

@@ -78,6 +78,10 @@ const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r);
  * The warm start stays. On error the reconstructor keeps its old model. WT_ERR_INVALID for mvm and none. */
 int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const double *alt, const double *frac,
                                const double *vx, const double *vy);
+/* The noise weights C_E of pcg3 / cg9 rebuilt from the system's sensors as they are now (a diffractive LGS reference
+ * rebuilt in the loop, core/model/sensing.h), the preconditioner with them; the model and the warm start stay.
+ * WT_OK and nothing done for mvm and none (an MVM keeps the C_E it was built with). */
+int wt_reconstructor_refresh_noise(wt_reconstructor *r);
 /* Wall time [s] of the last set_model's parts: the tomography's model, the preconditioner (and the shifts). */
 void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model, double *precond);
 /* Forget the warm-start state (the next apply starts from zero). */

@@ -179,6 +179,11 @@ int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
  * next solve starts from M c (not the previous residual). A preconditioner built on the old model must be rebuilt
  * (wt_precond_alloc). On error the object is unchanged. Allocates (the noise models; a new altitude's draws). */
 int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const double *alt, const double *frac);
+/* The sensors' noise weights rebuilt from the system's sensors as they are now (a diffractive sensor whose
+ * reference, so its covariance C_E, was rebuilt: core/model/sensing.h), with the model's σ²_e, κ and τ as they are;
+ * core/model/tomography_noise.c. The next solve starts from M c; a preconditioner must be rebuilt. Allocates the
+ * noise models. On error (out of memory, a block not positive definite) some sensors may keep their old weights. */
+int wt_tomography_refresh_noise(wt_tomography *t);
 double wt_tomography_r0(const wt_tomography *t);
 
 /* Bytes the object holds (operators, prior, workspace; the preconditioner's are wt_precond_bytes): for reports. */

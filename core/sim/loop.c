@@ -55,6 +55,7 @@ struct wt_loop {
     double *dm_opd;               /* true_polc: per sensor, −(the DM shapes along its line of sight) (nsensors x nfine) */
     double *s_dm;                 /* true_polc: the truth sensors' slopes of dm_opd (nslopes) */
     wt_adapt *adapt;              /* the closed loop learns its atmosphere (par.learn.every > 0), else NULL */
+    wt_sodium_drive *sodium;      /* the sodium sequence / the loop's LGS reference (NULL: fixed, static) */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -273,6 +274,11 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         WT_TRY(wt_adapt_alloc(ctx, sys, opt->recon, &par->learn, opt->rebuild, opt->rebuild_user, par->learn_max_updates,
                               &lp->adapt));
     lp->t = opt->first_frame;
+    {
+        wt_sodium_drive_params sp = par->sodium;
+        sp.first_frame = opt->first_frame;
+        WT_TRY(wt_sodium_drive_alloc(ctx, sys, &sp, &lp->sodium));
+    }
     if (opt->perfect_fit > 0) {
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
         WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
@@ -290,6 +296,7 @@ void wt_loop_free(wt_loop *lp)
     wt_context *ctx = lp->ctx;
     wt_atmosphere_free(lp->atm);
     wt_night_free(lp->night);
+    wt_sodium_drive_free(lp->sodium);
     if (lp->wfs)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_wfs_free(lp->wfs[m]);
     if (lp->dmask)
@@ -535,6 +542,11 @@ int wt_loop_step(wt_loop *lp)
         const int e = wt_night_drive(lp->night, lp->atm, lp->t);
         if (e < 0) return e;
     }
+    /* the sodium layer: the truth's spots of this frame's profile, the reference rebuilt when it is time */
+    if (lp->sodium) {
+        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec);
+        if (e < 0) return e;
+    }
     /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
     if (lp->t == lp->par.settle_frames)
         for (int i = 0; i < lp->sys->nsensors; i++)
@@ -658,6 +670,8 @@ const double *wt_loop_residual(const wt_loop *lp, int j)
     return lp->opd + (size_t)(lp->sys->nsensors + j) * lp->nfine;
 }
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp) { return lp->atm; }
+const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp) { return lp->sodium; }
+
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out)
 {
     if (!lp->night) return 0;

@@ -26,6 +26,7 @@
 #include "atmosphere.h"
 #include "night.h"
 #include "../op/scale_gain.h"
+#include "sodium_drive.h"
 #include "strehl.h"
 
 typedef struct wt_loop wt_loop;
@@ -94,6 +95,8 @@ typedef struct wt_loop_params {
     wt_night_params night;           /* source WT_NIGHT_NONE: the atmosphere fixed; else the truth's changing night
                                       * (core/sim/night.h), whose reference state must be `atmosphere`'s and
                                       * frame_time 1 / rate */
+    wt_sodium_drive_params sodium;   /* the truth's sodium sequence and the LGS reference in the loop
+                                      * (core/sim/sodium_drive.h); none and static: nothing runs */
 } wt_loop_params;
 
 /* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
@@ -129,6 +132,8 @@ const double *wt_loop_residual(const wt_loop *lp, int j);
  * 1 and *out (its arrays the loop's, valid until the next step); 0 without a night (the truth is then
  * params.atmosphere, fixed). */
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out);
+/* The sodium layer's drive (NULL when the profile is fixed and the reference static). */
+const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);

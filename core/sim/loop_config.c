@@ -42,6 +42,14 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                    .file = nc->file, .seed = nc->seed, .correlation_time = nc->correlation_time,
                                    .step = nc->step, .r0_rms = nc->r0_rms, .fraction_rms = nc->fraction_rms,
                                    .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
+    par->sodium = (wt_sodium_drive_params){.sequence = cfg->sodium_sequence,
+                                           .sequence_update = cfg->sodium_sequence_update,
+                                           .reference = cfg->lgs_reference == 1 ? WT_REFERENCE_ORACLE : WT_REFERENCE_STATIC,
+                                           .reference_update = cfg->lgs_reference_update,
+                                           .start = nc->start, .frame_time = 1.0 / cfg->rate,
+                                           .compression = nc->compression, .frames = cfg->frames,
+                                           .origin = "keys atmosphere.night.start_s, atmosphere.night.compression, "
+                                                     "loop.frames and loop.rate_hz"};
     par->lgs_tt_jitter = cfg->lgs_tt_jitter;
     par->eval_wavelength = cfg->eval_wavelength;
     par->settle_frames = cfg->settle_frames;
