@@ -131,6 +131,13 @@ static void print_learned(const wt_adapt *a, long frames, double learning)
         else if (u[k].applied_frame >= 0) printf(", new model %.3f s + preconditioner %.3f s", u[k].model_s, u[k].precond_s);
         if (u[k].applied_frame >= 0) printf(", in use from frame %ld\n", u[k].applied_frame);
         else printf(", never in use\n");
+        if (u[k].nwind > 0) { /* learn_wind: each layer's wind, speed and direction (* kept: no clear estimate) */
+            printf("      layers' wind [m/s, deg]:");
+            for (int l = 0; l < u[k].nwind; l++)
+                printf(" %.2f@%.0f%s%s", hypot(u[k].wind_vx[l], u[k].wind_vy[l]),
+                       atan2(u[k].wind_vy[l], u[k].wind_vx[l]) * 180.0 / M_PI, u[k].wind_valid[l] ? "" : "*",
+                       l + 1 < u[k].nwind ? "," : "\n");
+        }
     }
 }
 

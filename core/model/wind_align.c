@@ -368,9 +368,8 @@ static void gather(wt_wind_align *w, const layer *y, int b0, int b1, double *nq,
     }
 }
 
-/* The weights of layer y: hw = the gradient filter's power |H|² = 4 sin²(π kx/n) + 4 sin²(π ky/n) (0 at k = 0 and on
- * the Nyquist row and column) and aw = |T̂|², T̂ the transform of the taper (1 at k = 0 alone without one), each times
- * the multiplicity */
+/* The weights of layer y: hw = 1 (0 at k = 0 and on the Nyquist row and column) and aw = |T̂|², T̂ the transform of the
+ * taper (1 at k = 0 alone without one), each times the multiplicity */
 static void footprint_weights(wt_wind_align *w, const layer *y)
 {
     const int n = y->n, nh = y->nh;
@@ -382,9 +381,9 @@ static void footprint_weights(wt_wind_align *w, const layer *y)
     for (int iy = 0; iy < n; iy++)
         for (int ix = 0; ix < nh; ix++) {
             const size_t k = (size_t)iy * nh + ix;
-            const double m = multiplicity(ix, n), sx = sin(M_PI * ix / n), sy = sin(M_PI * iy / n);
+            const double m = multiplicity(ix, n);
             w->aw[k] = y->T ? m * (w->spec[k][0] * w->spec[k][0] + w->spec[k][1] * w->spec[k][1]) : k == 0;
-            w->hw[k] = ix == n / 2 || iy == n / 2 ? 0.0 : m * 4.0 * (sx * sx + sy * sy);
+            w->hw[k] = ix == n / 2 || iy == n / 2 || k == 0 ? 0.0 : m;
         }
 }
 
