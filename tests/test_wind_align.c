@@ -133,7 +133,7 @@ END_TEST
 
 /* the layer seen through a disc of half the grid (a footprint of 32 points that the turbulence moves through), the
  * estimator's taper on the same radius, white noise of 0.2 the layer's rms: what is left of the overlap's pull
- * towards zero (−2 % here, −10 % on a footprint of 16 points, −0.5 % on 64) within the issue's 0.5 m/s and 3° */
+ * towards zero (−2 % to 0 % of the speed here, tests/bias_wind_align.c) within the issue's 0.5 m/s and 3° */
 START_TEST(t_footprint_noise)
 {
     const scene sc = {.L = 1, .n = {64}, .d = {0.5}, .vx = {9.0}, .vy = {6.0}, .frozen = 1.0, .window = 32.0,

@@ -14,8 +14,8 @@
  *     R_q(s) = c_q(s) / A(s),   c_q(s) = Σ_k Re[S_q(k) e^{+2πi k·s/n}],   A(s) = Σ_k |T̂(k)|² e^{+2πi k·s/n}
  * (k = 0 and the Nyquist row and column left out of c: a real field cannot give their direction). Without the
  * division the overlap, which falls with the shift, pulls the peak towards zero (a third of the speed on a
- * 16-point footprint); with it, and the taper's soft edge, what is left is −0.5 % to −10 % of the speed for
- * footprints of 64 to 16 points (tests/test_wind_align.c, docs/results.md). A whitened (phase-correlation or
+ * 16-point footprint); with it, and the taper's soft edge, what is left is within the scatter: −6 % to 0 % of the
+ * speed on a 16-point footprint, −2 % to 0 % on 32, 0 to +1 % on 64 (tests/bias_wind_align.c, docs/results.md). A whitened (phase-correlation or
  * coherence-weighted) sum sharpens the peak, but it weights the small scales, where a reconstruction's estimate
  * holds a part that does not move with the wind (measured on the demo: speeds 25–50 % low), so the plain sum,
  * dominated by the large scales the tomography resolves best, is used. The lags are one velocity u [points per
