@@ -209,7 +209,7 @@ int wt_wind_align_add(wt_wind_align *w, long t, const double *phi)
 /* How often half-spectrum column ix stands for a frequency of the full plane (0 and n/2 once, the others twice) */
 static inline double multiplicity(int ix, int n) { return ix == 0 || ix == n / 2 ? 1.0 : 2.0; }
 
-/* The lag's numerator c(s) = Σ hw Re[S e^{2πi k·s/n}] (hw: the filter's power times the multiplicity) or, S NULL, the
+/* The lag's numerator c(s) = Σ hw Re[S e^{2πi k·s/n}] (hw: the multiplicity, 0 where left out) or, S NULL, the
  * footprint's overlap A(s) = Σ aw cos(2π k·s/n): the value, gradient and Hessian (hxx, hxy, hyy) at s [points]. The
  * phase factor is separable: two 1-D tables. */
 static double fsum(const layer *y, double *tab, const double *S, const double *wt, double sx, double sy, double *g,
