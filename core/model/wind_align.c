@@ -11,6 +11,10 @@
 static int omp_in_parallel(void) { return 0; }
 #endif
 
+/* a snapshot's layers run on the context's threads from this many points on: below it waking a team costs more
+ * than the transforms (a few µs of work against a team that, on a loaded host, may wait a time slice) */
+#define WT_WIND_ALIGN_PARALLEL_POINTS 65536
+
 typedef struct {
     int n, nh;           /* n × n points; nh = n/2 + 1 columns of the r2c half spectrum */
     size_t nc, slot;     /* n · nh complex values; a ring slot's length (nc rounded up to 4: 64-byte aligned) */
@@ -26,6 +30,7 @@ typedef struct {
 struct wt_wind_align {
     wt_context *ctx;
     int L, nthreads, R;  /* R: the longest lag [snapshots] */
+    int parallel;        /* the layers of a snapshot on the context's threads (enough points to pay a team) */
     wt_wind_align_params par;
     layer *lay;
     double *work;        /* per thread: the largest n² (the layer copied to FFTW's alignment; the correlation) */
@@ -97,6 +102,9 @@ int wt_wind_align_alloc(wt_context *ctx, int L, const wt_grid *const *g, const i
     w->par = *par;
     w->R = par->lag[par->nlag - 1];
     w->nthreads = wt_context_threads(ctx) > 1 ? wt_context_threads(ctx) : 1;
+    int64_t points = 0;
+    for (int l = 0; l < L; l++) points += (int64_t)g[l]->nx * g[l]->ny;
+    w->parallel = w->nthreads > 1 && L > 1 && points >= WT_WIND_ALIGN_PARALLEL_POINTS;
     WT_ALLOC(ctx, w->lay, L, "wind alignment layers");
     w->nwork = ((size_t)nmax * nmax + 7) & ~(size_t)7; /* (slots of 64 bytes: FFTW's alignment on every thread) */
     w->ncmax = (size_t)nmax * (nmax / 2 + 1);
@@ -173,7 +181,7 @@ int wt_wind_align_add(wt_wind_align *w, long t, const double *phi)
     const int R1 = w->R + 1, nlag = w->par.nlag;
     long b = j / (w->par.batch_snapshots > 0 ? w->par.batch_snapshots : 1);
     if (b >= w->par.nbatch) b = w->par.nbatch - 1;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) if (w->nthreads > 1 && w->L > 1 && !omp_in_parallel())
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) if (w->parallel && !omp_in_parallel())
     for (int l = 0; l < w->L; l++) {
         layer *y = &w->lay[l];
         double *wk = w->work + w->nwork * wt_thread_id();

@@ -107,6 +107,7 @@ int wt_adapt_nupdates(const wt_adapt *a);
 int wt_adapt_follows_truth(const wt_adapt *a); /* 1: the oracle following a night (no estimates) */
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
+double wt_adapt_wind_seconds(const wt_adapt *a);       /* learn_wind: the layers' part of it [s] (0 without) */
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
 double wt_adapt_model_setup_seconds(const wt_adapt *a); /* the learning grid's response maps, at alloc [s] */
 /* The updates into w under learned/ (one row per update: frame, night time, r0 and its uncertainty, the profile on the
