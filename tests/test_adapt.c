@@ -183,9 +183,9 @@ START_TEST(t_oracle_follows_night)
 END_TEST
 
 /* learn_wind = aligned: each of PCG-3's layers gets a wind estimated on its own estimates at every update (recorded
- * with its uncertainty), the reconstructor predicts with exactly that wind, and the ground layer (55 % of the Cn²,
- * 8 m/s towards 0°) moves the right way: within 45° (a loose bound: 100 frames of a 16-point footprint, docs/results.md
- * has the accuracy) */
+ * with its uncertainty), the reconstructor predicts with exactly that wind, and its ground layer (what it absorbs
+ * moves at 6.3 m/s towards 16°, the Cn²-weighted mean) moves the right way: within 45° of 0° (a loose bound: 100
+ * frames of a 16-point footprint; docs/results.md §42 has the accuracy) */
 START_TEST(t_learned_wind)
 {
     const char *set[] = {"loop.frames=200", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
