@@ -273,6 +273,7 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     if (par->learn.every > 0 && opt->open_loop == WT_LOOP_CLOSED)
         WT_TRY(wt_adapt_alloc(ctx, sys, opt->recon, &par->learn, opt->rebuild, opt->rebuild_user, par->learn_max_updates,
                               &lp->adapt));
+    if (lp->adapt) WT_TRY(wt_adapt_wind_alloc(lp->adapt, lp->rec));
     lp->t = opt->first_frame;
     {
         wt_sodium_drive_params sp = par->sodium;

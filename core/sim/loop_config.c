@@ -68,7 +68,9 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .memory = m->learn_memory,
                                        .nstart = m->nlayers,
                                        .follow_truth = follow,
-                                       .ntruth = cfg->nlayers};
+                                       .ntruth = cfg->nlayers,
+                                       .learn_wind = m->source == WT_MODEL_LEARNED && m->learn_wind == 1,
+                                       .frame_dt = 1.0 / cfg->rate};
         for (int k = 0; k < cfg->nlayers; k++) par->learn.truth_alt[k] = cfg->layer_altitude[k];
         par->recon.precond.updatable = 1; /* the model changes: its preconditioner is updated, not rebuilt */
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
