@@ -370,6 +370,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      0, "learned: the frames of an estimate: interval = those since the previous estimate (a night that changes: the "
      "estimate follows it), all = every frame since the start (a static night: the estimate converges; its "
      "uncertainty needs frames in two quarters of the run) (optional, default interval, refused with another source)"},
+    {"recon.atmosphere.learn_grid", K_ENUM, F_OPT, 0, 0, "", 1, CF(model.learn_grid), NOCOUNT, 0, 0, "default|layers",
+     1, "learned: the altitudes the profile is fitted on: default = 0, 0.5 km and every 1 km to 20 km; layers = those "
+     "and each variant's own layer altitudes, a default point closer to one of them than half the finest altitude "
+     "resolution of the LGS pairs, d / (2 theta_max), dropped (the compression onto the variant's layers then keeps "
+     "what the fit puts at its altitudes there instead of spreading it over two neighbours) (optional, default "
+     "layers, refused with another source)"},
     {"recon.atmosphere.learn_memory", K_FLOAT, F_OPT, 1.0, 1e6, "", 1, CF(model.learn_memory), NOCOUNT, 0, 0, NULL, 1.0,
      "learned, learn_window = interval: the memory of the estimates, in updates: the model's Cn2 per altitude (f r0^-5/3, "
      "what the maps measure linearly) is the exponential average of the estimates with weight 1/learn_memory on the "
