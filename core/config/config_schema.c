@@ -357,7 +357,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "and L0, compressed onto each variant's layer altitudes; given = the profile of the recon.atmosphere keys below "
      "(or its profile file), compressed the same way; learned = starts from the given profile (the same keys) and "
      "replaces it every update_s of night time by the loop's own estimate from its pseudo-open-loop LGS slopes "
-     "(r0 and the Cn2 profile on 22 altitudes to 20 km; L0 and the wind stay the given ones): pcg3 and cg9 take it at "
+     "(r0 and the Cn2 profile on 22 altitudes to 20 km and the variant's own, learn_grid; L0 and the wind stay the given ones): pcg3 and cg9 take it at "
      "the next frame, the MVM is rebuilt from it and swapped in after mvm_latency_s. Compression: each profile "
      "layer's Cn2 split linearly in altitude between the two nearest reconstruction altitudes (all of it to the end "
      "layer outside their range), the wind of a layer the Cn2-weighted mean of the wind vectors it absorbs "
