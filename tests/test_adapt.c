@@ -187,12 +187,12 @@ START_TEST(t_oracle_follows_night)
 END_TEST
 
 /* compare's case keeps the loop's record of updates (wt_compare_series.learned): the sim loop's own, bit for bit, and
- * written under a case's group as sim writes it; the learning grid holds pcg3's layer at 12.7 km (learn_grid = layers,
- * the default) */
+ * written under a case's group as sim writes it; with learn_grid = layers the learning grid holds pcg3's layer at
+ * 12.7 km */
 START_TEST(t_compare_keeps_record)
 {
     const char *set[] = {"loop.frames=110", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
-                         START_WRONG};
+                         "recon.atmosphere.learn_grid=\"layers\"", START_WRONG};
     run r;
     ck_assert_msg(open_run(&r, WT_RECON_PCG3, N(set), set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
     for (int t = 0; t < 110; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
