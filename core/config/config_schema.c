@@ -375,7 +375,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "and each variant's own layer altitudes, a default point closer to one of them than half the finest altitude "
      "resolution of the LGS pairs, d / (2 theta_max), dropped (what the fit puts at a variant's altitude then stays on "
      "that layer; but below the pairs' resolution the fit puts the Cn2 of several close layers on the lowest: on "
-     "the E-ELT it cost CG-9 6-12 nm, docs/results.md section 42) (optional, default default, refused with another "
+     "the E-ELT it cost CG-9 6-12 nm, docs/results.md section 44) (optional, default default, refused with another "
      "source)"},
     {"recon.atmosphere.learn_memory", K_FLOAT, F_OPT, 1.0, 1e6, "", 1, CF(model.learn_memory), NOCOUNT, 0, 0, NULL, 1.0,
      "learned, learn_window = interval: the memory of the estimates, in updates: the model's Cn2 per altitude (f r0^-5/3, "
