@@ -46,7 +46,8 @@ static void help(void)
            "detector noise + centroider of every sensor of the kind, median and [p10, p90] of --sensing-frames\n"
            "frames (default 7) on the --threads threads, with the parts, the sensors' set-up time and memory, and\n"
            "the flops and bytes per subaperture against the machine's DGEMM rate and triad bandwidth; next to the\n"
-           "geometric sensors' time per frame of the closed loop above. --sensing-only times only the machine\n"
+           "geometric sensors' time per frame of the closed loop above. Then the sodium layer in time (LGS): the\n"
+           "truth's spot tables of a new profile and the oracle's reference rebuilt from them (lgs.wfs.reference). --sensing-only times only the machine\n"
            "and the sensing (--set applies to DCONFIG too).\n"
            "\n"
            "Paired mode, when --pair-a or --pair-b is given (and then only it): two configurations\n"
@@ -132,14 +133,21 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
 
 /* A learned model taken at the next frame (SPEC §12 "Updates"; wt_reconstructor_set_model): two profiles on the
  * learning grid (22 altitudes, as an estimate gives them) in turn, r0 0.129 and 0.11 m; the first update draws
- * the unit layers' model error of every new altitude (once per reconstructor), the later ones rescale. */
+ * the unit layers' model error of every new altitude (once per reconstructor), the later ones rescale. The
+ * preconditioner is updated from its parts (as a learning loop builds it, wt_precond_params.updatable); after
+ * each update, side by side, the rebuild it replaces (wt_precond_alloc on the same tomography). */
 static int bench_update(wt_cli *cli, const wt_system *sys, int kind, int reps)
 {
     wt_reconstructor_params par;
     wt_reconstructor_params_from_config(sys->cfg, kind, -1, &par);
+    par.precond.updatable = 1;
     wt_reconstructor *r = NULL;
+    const double ts = wt_time_now();
     int st = wt_reconstructor_alloc(cli->ctx, sys, kind, &par, &r);
     if (st < 0) return st;
+    const double setup = wt_time_now() - ts;
+    wt_precond_params rebuild = par.precond;
+    rebuild.updatable = 0;
     double alt[WT_LEARN_MAX_ALT], f[2][WT_LEARN_MAX_ALT];
     const int na = wt_learn_default_grid(sys->nlgs ? sys->sensors[0].altitude : 0.0, WT_LEARN_MAX_ALT, alt);
     for (int p = 0; p < 2; p++) {
@@ -149,8 +157,8 @@ static int bench_update(wt_cli *cli, const wt_system *sys, int kind, int reps)
     }
     double t0 = wt_time_now(), first = 0.0, m1 = 0.0, p1 = 0.0;
     double *tm = malloc((size_t)reps * sizeof *tm), *tp = malloc((size_t)reps * sizeof *tp),
-           *tt = malloc((size_t)reps * sizeof *tt);
-    if (!tm || !tp || !tt) st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the update times");
+           *tt = malloc((size_t)reps * sizeof *tt), *tr = malloc((size_t)reps * sizeof *tr);
+    if (!tm || !tp || !tt || !tr) st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the update times");
     if (st >= 0 && (st = wt_reconstructor_set_model(r, 0.129, na, alt, f[0], NULL, NULL)) >= 0) {
         first = wt_time_now() - t0;
         wt_reconstructor_last_update_times(r, &m1, &p1);
@@ -160,16 +168,22 @@ static int bench_update(wt_cli *cli, const wt_system *sys, int kind, int reps)
         st = wt_reconstructor_set_model(r, i % 2 ? 0.129 : 0.11, na, alt, f[(i + 1) % 2], NULL, NULL);
         tt[i] = wt_time_now() - t0;
         wt_reconstructor_last_update_times(r, &tm[i], &tp[i]);
+        wt_precond *pre = NULL;
+        t0 = wt_time_now();
+        if (st >= 0) st = wt_precond_alloc(cli->ctx, wt_reconstructor_tomography(r), &rebuild, &pre);
+        tr[i] = wt_time_now() - t0;
+        wt_precond_free(pre);
     }
     if (st >= 0) {
         const wt_bench_stats a = wt_bench_summarise(tt, reps), b = wt_bench_summarise(tm, reps),
-                             c = wt_bench_summarise(tp, reps);
+                             c = wt_bench_summarise(tp, reps), d = wt_bench_summarise(tr, reps);
         printf("%s: a learned model (%d altitudes) at the next frame: %.1f ms [%.1f, %.1f] (the model %.1f ms: priors, "
-               "model error, noise; the preconditioner %.1f ms), median of %d; the first %.2f s (model %.2f s: the model "
-               "error's unit layers drawn once)\n", wt_reconstructor_name(kind), na, a.med * 1e3, a.p10 * 1e3,
-               a.p90 * 1e3, b.med * 1e3, c.med * 1e3, reps, first, m1);
+               "model error, noise; the preconditioner's update %.1f ms, against %.1f ms to rebuild it: x%.3f), median "
+               "of %d; the first %.2f s (model %.2f s: the model error's unit layers drawn once); set-up with the "
+               "update's parts %.2f s\n", wt_reconstructor_name(kind), na, a.med * 1e3, a.p10 * 1e3, a.p90 * 1e3,
+               b.med * 1e3, c.med * 1e3, d.med * 1e3, c.med / d.med, reps, first, m1, setup);
     }
-    free(tm), free(tp), free(tt);
+    free(tm), free(tp), free(tt), free(tr);
     wt_reconstructor_free(r);
     return st;
 }
@@ -259,6 +273,18 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
                    "%.2f s, %.2f s on idle cores\n",
                    b.frame.med, b.cpu / threads);
     }
+    wt_bench_sodium na;
+    const int st = wt_bench_sodium_run(cli->ctx, sys, 3, &na);
+    if (st < 0) return st;
+    if (na.nsensors)
+        printf("  sodium layer in time, %d LGS (%lld subapertures), median [p10, p90] of 3: the truth's spot tables of a "
+               "new profile %.3f s [%.3f, %.3f] (CPU %.3f s: %.3f s on %d idle cores); the oracle's reference rebuilt "
+               "(I0, derivatives, matched filter, covariance) %.3f s [%.3f, %.3f] from the kept cells (CPU %.3f s: "
+               "%.3f s on %d idle cores; the first, with its FFTs, %.2f s); target <= 2 s for the 6 E-ELT LGS on 2 "
+               "threads\n",
+               na.nsensors, (long long)na.nsub, na.tables.med, na.tables.p10, na.tables.p90, na.cpu_tables,
+               na.cpu_tables / threads, threads, na.reference.med, na.reference.p10, na.reference.p90, na.cpu_reference,
+               na.cpu_reference / threads, threads, na.full);
     if (!any) printf("  (no diffractive sensor in %s)\n", sys->cfg->path);
     if (geometric >= 0)
         printf("  geometric sensors of the closed loop above (all sensors, slopes + noise): %.1f ms per frame\n",

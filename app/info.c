@@ -86,8 +86,9 @@ static void print_atmospheres(const wt_config *cfg)
         if (m->source == WT_MODEL_LEARNED)
             printf("reconstructors' atmosphere: learned (recon.atmosphere.source): an estimate from the loop's own LGS "
                    "slopes every %g s of night (r0 and the Cn2 on the learning grid, "
-                   "recon.atmosphere.learn_grid; L0 and wind stay the start's); "
-                   "the MVM's in the loop %s after it; it starts from:\n", m->update_s,
+                   "recon.atmosphere.learn_grid; L0 stays the start's, the wind "
+                   "%s); the MVM's in the loop %s after it; it starts from:\n", m->update_s,
+                   m->learn_wind ? "of each pcg3/cg9 layer aligned on its own estimates (learn_wind)" : "too",
                    m->mvm_latency_s >= 0.0 ? "mvm_latency_s" : "its measured build time");
         printf("%sreconstructors' atmosphere: %s (recon.atmosphere)%s%s: %d layers, r0 %g m, L0 %g m, compressed onto "
                "each variant's layers below\n", m->source == WT_MODEL_LEARNED ? "  " : "",
@@ -235,7 +236,7 @@ int wt_cmd_info(int argc, char **argv)
     }
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto out;
-    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE)) >= 0) goto out;
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_INFO, WT_RECON_NONE, 0)) >= 0) goto out;
     rc = 0;
     st = wt_system_alloc(cli.ctx, cfg, &sys);
     if (st < 0) goto out;
@@ -301,7 +302,7 @@ int wt_cmd_info(int argc, char **argv)
     printf("loop: %.0f Hz, delay %d frames, ", cfg->rate, cfg->delay);
     if (cfg->ngain_levels == 0) {
         printf("integrator gain %g\n", cfg->gain);
-    } else if (cfg->gain_basis == 0) { /* loop.gain_levels (core/sim/scale_gain.h): V_j bilinear on squares of 2^(L+1-j) */
+    } else if (cfg->gain_basis == 0) { /* loop.gain_levels (core/op/scale_gain.h): V_j bilinear on squares of 2^(L+1-j) */
         const int L = cfg->ngain_levels - 1;
         printf("integrator gain per scale of the DM commands (bilinear bands, squares of N actuators):");
         for (int j = 0; j <= L; j++) printf(" %d: %g%s", 2 << (L - j), cfg->gain_levels[j], j < L ? "," : "\n");

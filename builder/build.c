@@ -153,7 +153,7 @@ static int build_main(wt_mpi *mp, int argc, char **argv)
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     if (args.memory_gb > 0 && !(cli.max_memory > 0)) cli.max_memory = args.memory_gb * 1e9; /* --memory GB */
-    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_BUILD, strcmp(args.recon, "cg9") ? WT_RECON_PCG3 : WT_RECON_CG9)) >= 0)
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_BUILD, strcmp(args.recon, "cg9") ? WT_RECON_PCG3 : WT_RECON_CG9, 0)) >= 0)
         goto cleanup;
     rc = 0;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;

@@ -372,10 +372,11 @@ int wt_cli_resources(wt_cli *cli, const wt_estimate *e)
     return -1;
 }
 
-int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon)
+int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon, int iterations)
 {
     wt_estimate e;
-    wt_estimate_resources(cfg, &(wt_estimate_request){.task = task, .recon = recon, .frames = cfg->frames}, &e);
+    wt_estimate_resources(cfg, &(wt_estimate_request){.task = task, .recon = recon, .frames = cfg->frames,
+                                                      .iterations = iterations}, &e);
     return wt_cli_resources(cli, &e);
 }
 

@@ -72,8 +72,9 @@ int wt_cli_check_text_output(wt_cli *cli, const char *path, const char *signatur
  * print its first line on stderr (unless --quiet) and return -1: go on. */
 struct wt_estimate;
 int wt_cli_resources(wt_cli *cli, const struct wt_estimate *e);
-/* The same for one command: task WT_TASK_* and reconstructor WT_RECON_* on cfg for its loop.frames. */
-int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon);
+/* The same for one command: task WT_TASK_* and reconstructor WT_RECON_* on cfg for its loop.frames, with
+ * `iterations` (P)CG iterations per frame (≤ 0: the variant's; --iters). */
+int wt_cli_estimate(wt_cli *cli, const wt_config *cfg, int task, int recon, int iterations);
 /* Print "PROG: error: <message>" for a failed status and return the process exit code (1). */
 int wt_cli_fail(wt_cli *cli, int status);
 /* Usage error: print the message and a hint to --help; returns 2. */

@@ -121,11 +121,11 @@ static int estimate(wt_cli *cli, const budget_args *a, const wt_config *cfg)
     wt_estimate total = {0}, e;
     for (int m = 0; m < a->nm; m++) {
         int kind = wt_reconstructor_kind(a->methods[m]);
-        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames}, &e);
+        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames, 0}, &e);
         e.seconds *= 7.0;
         wt_estimate_add(&total, &e);
         if (kind != WT_RECON_MVM) continue;
-        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0}, &e);
+        wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0, 0}, &e);
         wt_estimate_add(&total, &e);
     }
     return wt_cli_resources(cli, &total);

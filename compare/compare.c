@@ -178,11 +178,11 @@ static int estimate(wt_cli *cli, const wt_cmp_cases *a, int base_nset, char *set
         cc->build[v] = 0.0;
         for (int m = 0; m < a->nm; m++) {
             int kind = wt_reconstructor_kind(a->methods[m]);
-            wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames}, &e);
+            wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_SIM, kind, cfg->frames, 0}, &e);
             cc->run[m][v] = e.seconds;
             for (int s = 0; s < a->ns; s++) wt_estimate_add(&total, &e);
             if (kind != WT_RECON_MVM) continue;
-            wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0}, &e);
+            wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0, 0}, &e);
             cc->build[v] = e.seconds;
             wt_estimate_add(&total, &e);
         }

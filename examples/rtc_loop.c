@@ -19,14 +19,25 @@ static int row(hid_t f, const char *name, hsize_t t, hsize_t n, float *out)
     return e < 0 ? -1 : 0;
 }
 
-/* a string dataset (fixed length, as wavetomo writes them) */
+/* a string dataset: variable-length UTF-8 as wavetomo writes them, or fixed-length (files of earlier builds) */
 static char *text(hid_t f, const char *name)
 {
-    hid_t d = H5Dopen2(f, name, H5P_DEFAULT), t = H5Dget_type(d);
-    char *s = calloc(H5Tget_size(t) + 1, 1);
-    if (H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) s[0] = 0;
-    H5Tclose(t), H5Dclose(d);
-    return s;
+    hid_t d = H5Dopen2(f, name, H5P_DEFAULT), ft = H5Dget_type(d), sp = H5Dget_space(d), mt = H5Tcopy(H5T_C_S1);
+    int var = H5Tis_variable_str(ft) > 0;
+    size_t n = var ? 0 : H5Tget_size(ft);
+    char *s = NULL, *v = NULL;
+    H5Tset_cset(mt, H5Tget_cset(ft));
+    if (var && H5Tset_size(mt, H5T_VARIABLE) >= 0 && H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) >= 0 && v) {
+        n = strlen(v);
+        s = calloc(n + 1, 1);
+        memcpy(s, v, n);
+        H5Dvlen_reclaim(mt, sp, H5P_DEFAULT, &v);
+    } else if (!var) {
+        s = calloc(n + 1, 1);
+        if (H5Tset_size(mt, n + 1) < 0 || H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) s[0] = 0;
+    }
+    H5Tclose(mt), H5Sclose(sp), H5Tclose(ft), H5Dclose(d);
+    return s ? s : calloc(1, 1);
 }
 
 int main(int argc, char **argv)

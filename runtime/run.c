@@ -112,7 +112,7 @@ int wt_cmd_run(int argc, char **argv)
     }
     const wt_config *use = cfg ? cfg : tcfg;
     /* the telemetry's stored loop.frames is the number of frames it holds */
-    if ((rc = wt_cli_estimate(&cli, use, WT_TASK_RUN, kind)) >= 0) goto cleanup;
+    if ((rc = wt_cli_estimate(&cli, use, WT_TASK_RUN, kind, (int)args.iters)) >= 0) goto cleanup;
     rc = 0;
     if ((st = wt_system_alloc(cli.ctx, use, &sys)) < 0) goto fail;
     int64_t dims[3], F;

@@ -114,13 +114,16 @@ static void print_learned(const wt_adapt *a, long frames, double learning)
     if (!a) return;
     const int n = wt_adapt_nupdates(a);
     const wt_adapt_update *u = wt_adapt_updates(a);
+    char wind[64] = "";
+    if (wt_adapt_wind_seconds(a) > 0.0)
+        snprintf(wind, sizeof wind, ", of which the layers' wind %.2f ms", wt_adapt_wind_seconds(a) / frames * 1e3);
     if (wt_adapt_follows_truth(a))
         printf("  the oracle follows the night: %d updates to the truth's state; %.2f ms per frame\n", n,
                learning / frames * 1e3);
     else
-        printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms); the grid's response "
-               "maps %.2f s at set-up\n", n, learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3,
-               wt_adapt_model_setup_seconds(a));
+        printf("  learned atmosphere: %d estimates; learning %.2f ms per frame (accumulation %.2f ms%s); the grid's "
+               "response maps %.2f s at set-up\n", n, learning / frames * 1e3, wt_adapt_accumulate_seconds(a) / frames * 1e3,
+               wind, wt_adapt_model_setup_seconds(a));
     for (int k = 0; k < n; k++) {
         double low = 0.0; /* the Cn2 below 1 km */
         for (int j = 0; j < u[k].nalt; j++)
@@ -131,6 +134,13 @@ static void print_learned(const wt_adapt *a, long frames, double learning)
         else if (u[k].applied_frame >= 0) printf(", new model %.3f s + preconditioner %.3f s", u[k].model_s, u[k].precond_s);
         if (u[k].applied_frame >= 0) printf(", in use from frame %ld\n", u[k].applied_frame);
         else printf(", never in use\n");
+        if (u[k].nwind > 0) { /* learn_wind: each layer's wind, speed and direction (* kept: no clear estimate) */
+            printf("      layers' wind [m/s, deg]:");
+            for (int l = 0; l < u[k].nwind; l++)
+                printf(" %.2f@%.0f%s%s", hypot(u[k].wind_vx[l], u[k].wind_vy[l]),
+                       atan2(u[k].wind_vy[l], u[k].wind_vx[l]) * 180.0 / M_PI, u[k].wind_valid[l] ? "" : "*",
+                       l + 1 < u[k].nwind ? "," : "\n");
+        }
     }
 }
 
@@ -179,7 +189,7 @@ int wt_cmd_sim(int argc, char **argv)
     double tpsf = 0.0;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
-    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind)) >= 0) goto cleanup; /* --dry-run, or too big */
+    if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind, iters)) >= 0) goto cleanup; /* --dry-run, or too big */
     rc = 0;
     /* find an unwritable output before the run, not after it */
     if ((st = wt_cli_check_output(&cli, out, 0, args.matrix, NULL)) < 0) goto fail;
@@ -279,6 +289,15 @@ int wt_cmd_sim(int argc, char **argv)
            tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
            tm.evaluation / frames * 1e3, setup);
     inloop_gain(NULL, sys, 1);
+    if (wt_loop_sodium(lp)) {
+        const wt_sodium_drive_stats ds = wt_sodium_drive_get_stats(wt_loop_sodium(lp));
+        printf("  sodium: truth's LGS spot tables rebuilt %ld times (%.3f s each); LGS reference %s, rebuilt %ld times "
+               "(%.3f s each, of which C_E and preconditioner %.3f s)\n",
+               ds.truth_rebuilds, ds.truth_rebuilds ? ds.truth_seconds / ds.truth_rebuilds : 0.0,
+               cfg->lgs_reference == 1 ? "oracle" : "static", ds.reference_rebuilds,
+               ds.reference_rebuilds ? ds.reference_seconds / ds.reference_rebuilds : 0.0,
+               ds.reference_rebuilds ? ds.c_e_seconds / ds.reference_rebuilds : 0.0);
+    }
     print_learned(wt_loop_adapt(lp), frames, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
     printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");

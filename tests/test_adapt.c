@@ -236,6 +236,36 @@ START_TEST(t_compare_keeps_record)
 }
 END_TEST
 
+/* learn_wind = aligned: each of PCG-3's layers gets a wind estimated on its own estimates at every update (recorded
+ * with its uncertainty), the reconstructor predicts with exactly that wind, and its ground layer (what it absorbs
+ * moves at 6.3 m/s towards 16°, the Cn²-weighted mean) moves the right way: within 45° of 0° (a loose bound: 100
+ * frames of a 16-point footprint; docs/results.md §45 has the accuracy) */
+START_TEST(t_learned_wind)
+{
+    const char *set[] = {"loop.frames=200", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
+                         "recon.atmosphere.learn_wind=\"aligned\"", "recon.predict=true", START_WRONG};
+    run r;
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, N(set), set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    for (int t = 0; t < 200; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
+    const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(r.lp));
+    ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(r.lp)), 2);
+    double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+    wt_reconstructor_layer_wind(wt_loop_reconstructor(r.lp), vx, vy);
+    for (int k = 0; k < 2; k++) {
+        ck_assert_int_eq(u[k].nwind, 3);
+        ck_assert_int_eq(u[k].wind_valid[0], 1);
+        ck_assert(u[k].wind_sx[0] > 0.0 && u[k].wind_sy[0] > 0.0);
+        ck_assert_msg(fabs(atan2(u[k].wind_vy[0], u[k].wind_vx[0])) < M_PI / 4, "ground layer's wind (%g, %g) m/s",
+                      u[k].wind_vx[0], u[k].wind_vy[0]);
+    }
+    for (int l = 0; l < 3; l++) {
+        ck_assert_double_eq(vx[l], u[1].wind_vx[l]);
+        ck_assert_double_eq(vy[l], u[1].wind_vy[l]);
+    }
+    close_run(&r);
+}
+END_TEST
+
 START_TEST(t_refusals)
 {
     run r;
@@ -252,6 +282,20 @@ START_TEST(t_refusals)
     ck_assert_int_eq(open_run(&r, WT_RECON_MVM, N(ok), ok, 0), WT_ERR_INVALID);
     ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "rebuild"));
     close_run(&r);
+    const char *aligned[] = {"recon.atmosphere.source=\"learned\"", "recon.atmosphere.learn_wind=\"aligned\"",
+                             START_WRONG};
+    ck_assert_int_eq(open_run(&r, WT_RECON_MVM, N(aligned), aligned, 1), WT_ERR_CONFIG);
+    ck_assert_msg(strstr(wt_error_message(r.ctx), "'recon.atmosphere.learn_wind'") &&
+                      strstr(wt_error_message(r.ctx), "not mvm"), "%s", wt_error_message(r.ctx));
+    close_run(&r);
+    const char *oracle[] = {"recon.atmosphere.learn_wind=\"aligned\""};
+    {
+        wt_context *ctx = tu_context();
+        wt_config *cfg = NULL;
+        ck_assert_int_eq(wt_config_read(ctx, DEMO, 1, oracle, &cfg), WT_ERR_CONFIG);
+        ck_assert_msg(strstr(wt_error_message(ctx), "learn_wind"), "%s", wt_error_message(ctx));
+        wt_context_free(ctx);
+    }
     const char *one_lgs[] = {"recon.atmosphere.source=\"learned\"", "lgs.count=1", START_WRONG};
     if (open_run(&r, WT_RECON_PCG3, N(one_lgs), one_lgs, 0) != WT_OK)
         ck_assert_ptr_nonnull(strstr(wt_error_message(r.ctx), "at least 2 LGS"));
@@ -270,6 +314,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, t_mvm_swap_after_latency);
     tcase_add_test(tc, t_oracle_follows_night);
     tcase_add_test(tc, t_learned_memory);
+    tcase_add_test(tc, t_learned_wind);
     tcase_add_test(tc, t_refusals);
     tcase_add_test(tc, t_compare_keeps_record);
     suite_add_tcase(s, tc);

@@ -593,7 +593,7 @@ START_TEST(test_overrides)
         {"dm.pitch_m=[0.5, 1, 1]", "mismatched element type", "write 1.0, not 1"},
         {"loop.frames=1; lgs = 3", "--set loop.frames=1; lgs = 3: expected one value", ""},
         {"recon.prior=best", "--set recon.prior=best: key 'recon.prior': value \"best\" is not accepted", "\"paper\", \"exact\""},
-        /* the scale-dependent gain (core/sim/scale_gain.h): each gain in (0, 1], 2 or more bands, no more than the
+        /* the scale-dependent gain (core/op/scale_gain.h): each gain in (0, 1], 2 or more bands, no more than the
          * smallest DM grid holds (DM 2: 13 + 2 guard = 15 actuators in 16 points: squares of 16, 4 bands) */
         {"loop.gain_levels=[0.6, 0.0]", "key 'loop.gain_levels', element [1]: value 0 is out of range", "(0, 1]"},
         {"loop.gain_levels=[0.6, 1.2]", "key 'loop.gain_levels', element [1]: value 1.2 is out of range", "(0, 1]"},
@@ -879,10 +879,11 @@ START_TEST(test_reference)
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
      * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
-     * keys under the oracle (the demo's: its source is there), nor the learned model's five, nor
+     * keys under the oracle (the demo's: its source is there), nor the learned model's six, nor
      * atmosphere.night.file for a stochastic night, nor the seven keys of a model error (recon.atmosphere.error_*)
-     * without one */
-    ck_assert_int_eq(nkeys + 29, nlines);
+     * without one, nor the four of the sodium layer in time (lgs.sodium_sequence*, lgs.wfs.reference*: diffractive
+     * LGS only) */
+    ck_assert_int_eq(nkeys + 34, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.error_high_shift_m "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));

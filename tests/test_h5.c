@@ -790,7 +790,7 @@ END_TEST
 /* HDF5's automatic error printing is the caller's setting: off inside our calls, restored after.
  * A counting handler must see none of our failures and still see a direct HDF5 failure afterwards.
  * Then files the API cannot write, forged with HDF5 directly: "complete" = 0 (refused) and a
- * variable-length string attribute (read like our fixed-length ones). */
+ * variable-length string attribute written by HDF5 directly (ASCII, as h5py writes them). */
 static int hdf5_prints;
 static herr_t count_prints(hid_t stack, void *user)
 {
@@ -824,7 +824,7 @@ START_TEST(test_hdf5_error_state)
     const int64_t zero = 0;
     ck_assert(file >= 0 && a >= 0 && H5Awrite(a, H5T_NATIVE_INT64, &zero) >= 0);
     H5Aclose(a);
-    /* and a variable-length string, as h5py writes them, next to our fixed-length ones */
+    /* and a variable-length ASCII string, as h5py writes them (ours are UTF-8) */
     hid_t vt = H5Tcopy(H5T_C_S1), sp = H5Screate(H5S_SCALAR);
     const char *vl = "written by h5py";
     H5Tset_size(vt, H5T_VARIABLE);

@@ -79,7 +79,7 @@ START_TEST(test_same_seed_same_numbers)
 }
 END_TEST
 
-/* loop.gain_levels (core/sim/scale_gain.h): all gains equal to loop.gain is today's loop bit for bit (G = g I
+/* loop.gain_levels (core/op/scale_gain.h): all gains equal to loop.gain is today's loop bit for bit (G = g I
  * adds the same (1 g) e_k); a profile changes the numbers; and the frames allocate nothing (counted through
  * the allocator hook), with either basis. */
 START_TEST(test_scale_gain_loop)

@@ -161,6 +161,12 @@ START_TEST(test_tolerance_zero_stops_cleanly)
         ck_assert_double_le(r.rel_resid, 1e-12); /* converged to rounding level (κ ≈ 1e4, ε = 2e-16) */
         ck_assert_double_le(tu_rel_diff(x, xs, n), 1e-9);
         ck_assert_int_lt(r.iterations, 20000);   /* it stopped, rather than running on rounding noise */
+        /* and at ε² of ‖b‖ at the latest (pcg.c WT_PCG_ROUNDING): CG's bound ‖r_k‖ ≤ 2 √κ ρ^k ‖r_0‖, ρ = (√κ − 1) /
+         * (√κ + 1), κ ≤ 1e4 here, reaches it within log(2·100/ε²) / −log ρ iterations (~4000); running on to a
+         * subnormal rᵀz took ~2.5x that */
+        const double rho = (100.0 - 1.0) / (100.0 + 1.0), eps2 = 0x1p-104;
+        ck_assert_double_le(r.iterations, log(200.0 / eps2) / -log(rho) + 1.0);
+        printf("tolerance 0, %s: %d iterations, relative residual %.3g\n", pre ? "Jacobi" : "none", r.iterations, r.rel_resid);
     }
     ck_assert_int_ge(broke, 1); /* the case this guards against does happen here */
     /* an operator that is not positive definite is still an error at the first iteration */

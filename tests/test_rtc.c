@@ -172,26 +172,29 @@ END_TEST
  * commands (WT_RTC_SLOPES_OL: r = R s_ol, the loop's form), also bit for bit; from s and its own queue
  * (r = R s + (R Â) a_t, rounded differently in float32) within 1e-4 of the commands' norm: a float32
  * GEMV of ~2000 terms rounds at ~1e-6 relative, accumulated over 8 frames of an integrator of gain < 1;
- * a missing or mis-signed POLC term is an O(1) difference. */
+ * a missing or mis-signed POLC term is an O(1) difference. Cases 4–7 again with the scale-dependent gain
+ * (loop.gain_levels, one law for both: core/model/control.h), 6–7 with a delay of 1 frame. */
 START_TEST(test_polc_equals_loop)
 {
-    const int k = _i; /* 0 pcg3, 1 cg9, 2 MVM via s_ol, 3 MVM via s */
+    const int k = _i % 4; /* 0 pcg3, 1 cg9, 2 MVM via s_ol, 3 MVM via s */
     wt_context *ctx = tu_context();
-    const char *set[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2"};
+    const char *set[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2",
+                         "loop.gain_levels=[0.6, 0.5, 0.4, 0.3]", "loop.delay_frames=1"};
+    const int nset = _i < 4 ? 3 : _i < 6 ? 4 : 5;
     wt_config *cfg;
     wt_system *sys;
     wt_loop *lp;
     wt_rtc *rtc;
-    ck_assert_int_eq(wt_config_read(ctx, DEMO, 3, set, &cfg), WT_OK);
+    ck_assert_int_eq(wt_config_read(ctx, DEMO, nset, set, &cfg), WT_OK);
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     char m[256];
     path(m, sizeof m, "M.h5");
     struct wt_mvm *mvm = NULL;
     if (k >= 2) {
-        ck_assert_msg(wt_rtc_open_mvm(ctx, m, DEMO, 3, set, &rtc) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_msg(wt_rtc_open_mvm(ctx, m, DEMO, nset, set, &rtc) == WT_OK, "%s", wt_error_message(ctx));
         ck_assert_int_eq(wt_mvm_read(ctx, m, cfg, sys->nact, sys->nslopes, &mvm, NULL), WT_OK);
     } else {
-        ck_assert_msg(wt_rtc_open(ctx, k ? "cg9" : "pcg3", DEMO, 3, set, &rtc) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_msg(wt_rtc_open(ctx, k ? "cg9" : "pcg3", DEMO, nset, set, &rtc) == WT_OK, "%s", wt_error_message(ctx));
     }
     wt_loop_options o = {.recon = k == 0 ? WT_RECON_PCG3 : k == 1 ? WT_RECON_CG9 : WT_RECON_MVM, .mvm = mvm,
                          .iterations = -1, .seed = cfg->seed, .noise = cfg->noise};
@@ -646,7 +649,7 @@ Suite *make_suite(void)
     tcase_add_unchecked_fixture(tc, files_setup, files_teardown);
     tcase_add_test(tc, test_version);
     tcase_add_loop_test(tc, test_equals_run, 0, 3);
-    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 4);
+    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 8);
     tcase_add_loop_test(tc, test_no_allocation_per_frame, 0, 2);
     tcase_add_test(tc, test_reset_and_raw);
     tcase_add_test(tc, test_instances_in_threads);

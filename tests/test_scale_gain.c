@@ -1,4 +1,4 @@
-/* tests/test_scale_gain.c: the scale-dependent integrator gain G = Σ_j g_j Π_j (core/sim/scale_gain.h), both
+/* tests/test_scale_gain.c: the scale-dependent integrator gain G = Σ_j g_j Π_j (core/op/scale_gain.h), both
  * bases: equal gains give g x (bit for bit for the bilinear basis, to rounding through the Daubechies
  * transform); G is symmetric, with eigenvalues exactly the g_j (bilinear, multiplicities dim V_j − dim V_{j−1})
  * or in [min g, max g] (Daubechies) — the full matrix on the demo DMs, LAPACK; piston, tilt and saddle get
@@ -10,7 +10,7 @@
 #include "core/config/config.h"
 #include "core/op/dm.h"
 #include "core/op/wavelet.h"
-#include "core/sim/scale_gain.h"
+#include "core/op/scale_gain.h"
 #include "testutil.h"
 
 /* The demo preset's DMs (data/presets/demo.cfg): 19x19, 15x15, 23x23 grids with one guard ring, embedded

@@ -3,7 +3,8 @@
  * the phase variance, the rendered spectrum below the sky's; W(0) = 1, W even, no seeing for r0 → ∞;
  * the reference image with seeing against the Monte-Carlo mean of images of Gaussian phase screens with
  * the same covariance (the exactness of the OTF route); the elongation's sense against the OPD of the
- * path-length difference of a source at another altitude (spot.h). */
+ * path-length difference of a source at another altitude (spot.h); a new sodium profile's spots where the
+ * launch geometry puts them, and the reference rebuilt from kept cells (SPEC §12 "The sodium layer changes"). */
 #include "testutil.h"
 
 #include <lapacke.h>
@@ -227,6 +228,117 @@ START_TEST(t_sodium_shift_is_focus)
 }
 END_TEST
 
+/* ⟨1/h⟩ of the piecewise-linear profile by the midpoint rule on 2000 steps per segment (the integrand's
+ * curvature across a 0.5 km segment at 90 km makes it exact to ~1e-12) */
+static double mean_inv_h(const wt_sodium *na)
+{
+    double m = 0, m1 = 0;
+    for (int i = 0; i + 1 < na->n; i++)
+        for (int j = 0; j < 2000; j++) {
+            const double t = (j + 0.5) / 2000, h = na->alt[i] + t * (na->alt[i + 1] - na->alt[i]);
+            const double f = (na->dens[i] + t * (na->dens[i + 1] - na->dens[i])) * (na->alt[i + 1] - na->alt[i]);
+            m += f, m1 += f / h;
+        }
+    return m1 / m;
+}
+
+START_TEST(t_new_profile_moves_spots)
+{
+    /* The spots of a sodium profile that rose by 1 km (wt_spot_set_sodium on the same object): every spot's
+     * centroid moves by (r − l)(⟨1/h⟩₁ − ⟨1/h⟩₀) (spot.h: each altitude at (r − l)(1/h − 1/H)), towards the
+     * launch, proportional to the distance from it: the focus of a source that moved away. The images of a
+     * flat wavefront, on a field (24 × 0.5″) that holds the longest spot (35 m from the launch, ~9″) whole; the
+     * CoG of the pixels is then the source's centroid exactly but for the kernel's midpoint line sampling
+     * (< 1e-3 of the shift). Back to the first profile: the first images, bit for bit. */
+    wt_context *ctx = tu_context();
+    const double H = 90e3, lx = 4.0, ly = -3.0;
+    const double xc[5] = {-21.0, -2.0, 5.0, 12.0, 31.0}, yc[5] = {3.0, 14.0, -3.0, -9.0, 8.0};
+    wt_sodium *n0 = NULL, *n1 = NULL;
+    ck_assert_int_eq(wt_sodium_read(ctx, "data/sodium/default.txt", &n0), WT_OK);
+    ck_assert_int_eq(wt_sodium_copy(n0, &n1), WT_OK);
+    for (int i = 0; i < n1->n; i++) n1->alt[i] += 1000.0;
+    wt_spot_params p = {0};
+    p.wavelength = 589e-9, p.subap_side = 0.5, p.pupil_samples = 16, p.fft_size = 32, p.npix = 48;
+    p.pixel = 0.5 * AS, p.cells_per_pixel = 3, p.photons = 1000, p.uplink_fwhm = 1.0 * AS;
+    p.lgs_altitude = H, p.launch_x = lx, p.launch_y = ly, p.sodium = n0;
+    wt_spot *sp = NULL;
+    ck_assert_int_eq(wt_spot_alloc(ctx, &p, 5, xc, yc, NULL, NULL, &sp), WT_OK);
+    const int ns2 = 48 * 48;
+    float *a = malloc(5 * ns2 * sizeof *a), *b = malloc(5 * ns2 * sizeof *b), *c = malloc(5 * ns2 * sizeof *c);
+    double opd[5 * 256] = {0};
+    ck_assert_int_eq(wt_spot_image_d(sp, opd, a), WT_OK);
+    ck_assert_int_eq(wt_spot_set_sodium(sp, n1), WT_OK);
+    ck_assert_int_eq(wt_spot_image_d(sp, opd, b), WT_OK);
+    const double dinv = mean_inv_h(n1) - mean_inv_h(n0);
+    for (int k = 0; k < 5; k++) {
+        double ca[2] = {0}, cb[2] = {0}, sa = 0, sb = 0;
+        for (int q = 0; q < ns2; q++) {
+            const double x = (q % 48 - 23.5) * p.pixel, y = (q / 48 - 23.5) * p.pixel;
+            sa += a[k * ns2 + q], ca[0] += a[k * ns2 + q] * x, ca[1] += a[k * ns2 + q] * y;
+            sb += b[k * ns2 + q], cb[0] += b[k * ns2 + q] * x, cb[1] += b[k * ns2 + q] * y;
+        }
+        const double want[2] = {(xc[k] - lx) * dinv, (yc[k] - ly) * dinv};
+        for (int ax = 0; ax < 2; ax++)
+            ck_assert_msg(fabs(cb[ax] / sb - ca[ax] / sa - want[ax]) < 1e-3 * fabs(want[ax]) + 1e-4 * AS,
+                          "subaperture %d axis %d: moved %g arcsec, the geometry says %g", k, ax,
+                          (cb[ax] / sb - ca[ax] / sa) / AS, want[ax] / AS);
+        /* towards the launch: the shift is along −(r − l) */
+        ck_assert((cb[0] / sb - ca[0] / sa) * (xc[k] - lx) + (cb[1] / sb - ca[1] / sa) * (yc[k] - ly) < 0);
+    }
+    ck_assert_int_eq(wt_spot_set_sodium(sp, n0), WT_OK);
+    ck_assert_int_eq(wt_spot_image_d(sp, opd, c), WT_OK);
+    ck_assert_int_eq(memcmp(a, c, 5 * ns2 * sizeof *a), 0);
+    /* a profile that does not hold the LGS altitude, and an NGS spot, are refused */
+    for (int i = 0; i < n1->n; i++) n1->alt[i] += 20000.0;
+    ck_assert_int_eq(wt_spot_set_sodium(sp, n1), WT_ERR_INVALID);
+    wt_spot *ngs = NULL;
+    p.sodium = NULL;
+    ck_assert_int_eq(wt_spot_alloc(ctx, &p, 1, xc, yc, NULL, NULL, &ngs), WT_OK);
+    ck_assert_int_eq(wt_spot_set_sodium(ngs, n0), WT_ERR_INVALID);
+    wt_spot_free(ngs), wt_spot_free(sp), wt_sodium_free(n0), wt_sodium_free(n1);
+    free(a), free(b), free(c);
+    wt_context_free(ctx);
+}
+END_TEST
+
+START_TEST(t_reference_from_kept_cells)
+{
+    /* The oracle's reference (wt_spot_keep_reference, then wt_spot_reference after wt_spot_set_sodium) against
+     * the reference of a spot built with the new profile from the start: the same bits, with the seeing and
+     * without it (another seeing than the kept cells' is computed anew), partly lit subapertures included. */
+    wt_context *ctx = tu_context();
+    const double xc[3] = {-3.0, 1.0, 6.5}, yc[3] = {2.0, -1.0, 0.25};
+    wt_sodium *n0 = NULL, *n1 = NULL;
+    ck_assert_int_eq(wt_sodium_read(ctx, "data/sodium/default.txt", &n0), WT_OK);
+    ck_assert_int_eq(wt_sodium_copy(n0, &n1), WT_OK);
+    for (int i = 0; i < n1->n; i++) n1->dens[i] *= 1.0 + 0.5 * sin(i * 0.3); /* another shape */
+    wt_spot_params p = {0};
+    p.wavelength = 589e-9, p.subap_side = 0.5, p.pupil_samples = 8, p.fft_size = 16, p.npix = 12;
+    p.pixel = 0.8 * AS, p.cells_per_pixel = 3, p.photons = 500, p.uplink_fwhm = 1.0 * AS;
+    p.lgs_altitude = 90e3, p.launch_x = 4.0, p.launch_y = 0.0, p.sodium = n0;
+    float amp[3 * 64];
+    for (int q = 0; q < 3 * 64; q++) amp[q] = q >= 128 && (q % 8) < 3 ? 0.0f : 1.0f; /* the third partly lit */
+    wt_spot *kept = NULL, *fresh = NULL;
+    ck_assert_int_eq(wt_spot_alloc(ctx, &p, 3, xc, yc, amp, NULL, &kept), WT_OK);
+    p.sodium = n1;
+    ck_assert_int_eq(wt_spot_alloc(ctx, &p, 3, xc, yc, amp, NULL, &fresh), WT_OK);
+    const int n = 3 * 144;
+    float r[2][3][3 * 144];
+    const wt_spot_seeing see = {.r0 = 0.12, .L0 = 25.0, .grid = 0.0};
+    ck_assert_int_eq(wt_spot_keep_reference(kept), WT_OK);
+    ck_assert_int_eq(wt_spot_reference(kept, 0.0, &see, r[0][0], r[0][1], r[0][2]), WT_OK); /* cells kept */
+    ck_assert_int_eq(wt_spot_set_sodium(kept, n1), WT_OK);
+    for (int pass = 0; pass < 2; pass++) {
+        const wt_spot_seeing *sv = pass ? NULL : &see;
+        ck_assert_int_eq(wt_spot_reference(kept, 0.0, sv, r[0][0], r[0][1], r[0][2]), WT_OK);
+        ck_assert_int_eq(wt_spot_reference(fresh, 0.0, sv, r[1][0], r[1][1], r[1][2]), WT_OK);
+        for (int i = 0; i < 3; i++) ck_assert_int_eq(memcmp(r[0][i], r[1][i], n * sizeof(float)), 0);
+    }
+    wt_spot_free(kept), wt_spot_free(fresh), wt_sodium_free(n0), wt_sodium_free(n1);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("seeing");
@@ -237,6 +349,8 @@ Suite *make_suite(void)
     tcase_add_test(tc, t_otf_properties);
     tcase_add_test(tc, t_reference_is_mean_of_screens);
     tcase_add_test(tc, t_sodium_shift_is_focus);
+    tcase_add_test(tc, t_new_profile_moves_spots);
+    tcase_add_test(tc, t_reference_from_kept_cells);
     suite_add_tcase(s, tc);
     return s;
 }

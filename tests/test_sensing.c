@@ -1,7 +1,11 @@
 /* tests/test_sensing.c: the diffractive sensors wired end to end (issue 19; core/model/sensing.h, the loop's
  * truth, the reconstructor's noise model): the set-up covariance against the covariance of the truth's
  * slopes, thread-independence, no allocation per frame, a pure tilt measured as that tilt, and the demo's
- * closed loop against the uncorrected one. */
+ * closed loop against the uncorrected one; the sodium layer in time (core/sim/sodium_drive.h): an unchanging
+ * sequence gives today's bits, the oracle's reference of an unchanging profile is the set-up's, the system is
+ * left as it was found, and the keys' and the sequence's refusals. */
+#include <unistd.h>
+
 #include "core/model/estimate.h"
 #include "core/model/reconstructor.h"
 #include "core/model/sensing.h"
@@ -328,6 +332,146 @@ START_TEST(test_estimate_diffractive)
 }
 END_TEST
 
+/* A sequence whose every knot is data/sodium/default.txt (%.17g: the same doubles), over night times 0 … 10^5 s. */
+static void write_constant_sequence(char *path, size_t n)
+{
+    wt_context *ctx = tu_context();
+    wt_sodium *na = NULL;
+    ck_assert_int_eq(wt_sodium_read(ctx, "data/sodium/default.txt", &na), WT_OK);
+    snprintf(path, n, "/tmp/wt_sequence_XXXXXX");
+    const int fd = mkstemp(path);
+    ck_assert_int_ge(fd, 0);
+    FILE *f = fdopen(fd, "w");
+    fprintf(f, "altitude_m");
+    for (int i = 0; i < na->n; i++) fprintf(f, " %.17g", na->alt[i]);
+    for (int t = 0; t < 2; t++) {
+        fprintf(f, "\n%d", t * 100000);
+        for (int i = 0; i < na->n; i++) fprintf(f, " %.17g", na->dens[i]);
+    }
+    fprintf(f, "\n");
+    fclose(f);
+    wt_sodium_free(na);
+    wt_context_free(ctx);
+}
+
+/* The LGS references of a system (i0 and cov of every diffractive LGS), concatenated, for bitwise comparisons */
+static double *lgs_reference_copy(const wt_system *sys, size_t *n)
+{
+    size_t k = 0;
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS) {
+            const wt_sensing *ws = sys->sensors[m].diffr;
+            k += (size_t)ws->nsub * ws->ns * ws->ns + 3 * (size_t)ws->nsub;
+        }
+    double *c = malloc(k * sizeof *c);
+    size_t at = 0;
+    for (int m = 0; m < sys->nsensors; m++)
+        if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS) {
+            const wt_sensing *ws = sys->sensors[m].diffr;
+            for (size_t q = 0; q < (size_t)ws->nsub * ws->ns * ws->ns; q++) c[at++] = ws->i0[q];
+            for (size_t q = 0; q < 3 * (size_t)ws->nsub; q++) c[at++] = ws->cov[q];
+        }
+    *n = k;
+    return c;
+}
+
+/* An unchanging sequence: with the static reference the closed loop's slopes and commands are today's, frame by
+ * frame, bit for bit (the truth's tables rebuilt every frame from the same profile are the set-up's). With the
+ * oracle every 2 frames the rebuilt reference and covariance are the set-up's, bit for bit (the loop itself then
+ * differs by the refreshed noise weights' restart of the solve: not compared). A drifting sequence with the oracle
+ * changes the reference, and the loop leaves the system at its set-up reference when freed. */
+START_TEST(test_sodium_sequence_bits)
+{
+    char seq[64], k1[128];
+    write_constant_sequence(seq, sizeof seq);
+    snprintf(k1, sizeof k1, "lgs.sodium_sequence=\"%s\"", seq);
+    const char *set[] = {"loop.frames=6", "evaluation.settle_frames=2", "atmosphere.night.compression=2500.0", k1,
+                         "lgs.wfs.reference=\"oracle\"", "lgs.wfs.reference_update_s=10.0"};
+    enum { F = 6 };
+    double *ref[2] = {NULL, NULL};
+    size_t nref = 0, nc = 0;
+    for (int c = 0; c < 4; c++) {
+        rig r;
+        /* 0: today; 1: the unchanging sequence; 2: and the oracle; 3: the drift and the oracle every frame */
+        const char *drift[] = {"loop.frames=6", "evaluation.settle_frames=2", "atmosphere.night.compression=2500.0",
+                               "lgs.sodium_sequence=\"../sodium/drift-1km-10min.txt\"", "lgs.wfs.reference=\"oracle\"",
+                               "lgs.wfs.reference_update_s=5.0"};
+        rig_open(&r, 2, WT_RECON_PCG3, 1, c == 0 ? 2 : c == 1 ? 4 : 6, c == 3 ? drift : set, NULL);
+        size_t n;
+        double *setup = lgs_reference_copy(r.sys, &n);
+        nref = n, nc = (size_t)r.sys->nact + (size_t)r.sys->nslopes;
+        if (c < 2 && !ref[0]) ref[0] = malloc(F * nc * sizeof(double)), ref[1] = malloc(F * nc * sizeof(double));
+        for (int t = 0; t < F; t++) {
+            ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
+            if (c >= 2) continue;
+            memcpy(ref[c] + t * nc, wt_loop_applied(r.lp), r.sys->nact * sizeof(double));
+            memcpy(ref[c] + t * nc + r.sys->nact, wt_loop_slopes(r.lp), r.sys->nslopes * sizeof(double));
+        }
+        if (c >= 2) {
+            const wt_sodium_drive_stats ds = wt_sodium_drive_get_stats(wt_loop_sodium(r.lp));
+            ck_assert_int_eq(ds.reference_rebuilds, c == 2 ? 3 : 6);
+            ck_assert_int_eq(ds.truth_rebuilds, 6);
+            size_t n2;
+            double *now = lgs_reference_copy(r.sys, &n2);
+            ck_assert_int_eq(n2, n);
+            const int same = !memcmp(now, setup, n * sizeof *now);
+            ck_assert_msg(c == 2 ? same : !same, "case %d: the rebuilt reference %s the set-up's", c,
+                          same ? "is" : "is not");
+            free(now);
+        }
+        wt_loop_free(r.lp);
+        r.lp = NULL;
+        double *after = lgs_reference_copy(r.sys, &n);
+        ck_assert_msg(!memcmp(after, setup, nref * sizeof *after), "case %d: the system not restored", c);
+        free(after), free(setup);
+        rig_close(&r);
+    }
+    ck_assert_int_eq(memcmp(ref[0], ref[1], F * nc * sizeof(double)), 0);
+    free(ref[0]), free(ref[1]);
+    unlink(seq);
+}
+END_TEST
+
+/* Each refusal names the key or the file: a sequence or reference key for geometric LGS, the sequence's cadence
+ * without a sequence, an update interval with a static reference, a cadence shorter than a frame's night time, the
+ * night's clock without a night or a sequence; a sequence that does not cover the run (at the loop's set-up). */
+START_TEST(test_sodium_refusals)
+{
+    const struct { const char *a, *b, *word; } bad[] = {
+        {"lgs.wfs.model=\"geometric\"", "lgs.wfs.reference=\"oracle\"", "lgs.wfs.reference"},
+        {"lgs.wfs.model=\"geometric\"", "lgs.sodium_sequence=\"../sodium/sporadic-2min.txt\"", "lgs.sodium_sequence"},
+        {"lgs.sodium_sequence_update_s=10.0", NULL, "without 'lgs.sodium_sequence'"},
+        {"lgs.wfs.reference_update_s=10.0", NULL, "static"},
+        {"lgs.wfs.reference=\"oracle\"", "lgs.wfs.reference_update_s=0.001", "shorter than one frame"},
+        {"lgs.sodium_sequence=\"../sodium/sporadic-2min.txt\"", "lgs.sodium_sequence_update_s=0.0001",
+         "lgs.sodium_sequence_update_s"},
+        {"atmosphere.night.compression=10.0", NULL, "atmosphere.night.compression"},
+    };
+    wt_context *ctx = tu_context();
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        const char *set[2] = {bad[i].a, bad[i].b};
+        wt_config *cfg = NULL;
+        ck_assert_int_eq(wt_config_read(ctx, DDEMO, bad[i].b ? 2 : 1, set, &cfg), WT_ERR_CONFIG);
+        ck_assert_msg(strstr(wt_error_message(ctx), bad[i].word), "case %zu: %s", i, wt_error_message(ctx));
+    }
+    /* 200 frames of 5 s of night from 1000 s: the sequence ends at 1200 s */
+    const char *set[] = {"lgs.sodium_sequence=\"../sodium/sporadic-2min.txt\"", "atmosphere.night.compression=2500.0",
+                         "atmosphere.night.start_s=1000.0"};
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    wt_loop *lp = NULL;
+    ck_assert_msg(wt_config_read(ctx, DDEMO, 3, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    wt_loop_options o = {.recon = WT_RECON_PCG3, .iterations = -1, .seed = 1, .noise = 1};
+    ck_assert_int_eq(wt_loop_alloc(ctx, sys, &o, &lp), WT_ERR_CONFIG);
+    const char *m = wt_error_message(ctx);
+    ck_assert_msg(strstr(m, "sporadic-2min.txt") && strstr(m, "1995") && strstr(m, "atmosphere.night.start_s"), "%s", m);
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("sensing");
@@ -343,6 +487,8 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_demo_closed_loop);
     tcase_add_test(tc, test_demo_closed_loop_cog);
     tcase_add_test(tc, test_estimate_diffractive);
+    tcase_add_test(tc, test_sodium_sequence_bits);
+    tcase_add_test(tc, test_sodium_refusals);
     suite_add_tcase(s, tc);
     return s;
 }

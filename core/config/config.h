@@ -119,6 +119,7 @@ typedef struct wt_model_atmosphere_config {
     int learn_window;                     /* learned: 0 the frames since the previous estimate, 1 all since the start */
     double learn_memory;                  /* learned, interval: the estimates' memory [updates] (1: none) */
     int learn_grid;                       /* learned: 0 the default grid, 1 it with the variant's layer altitudes */
+    int learn_wind;                       /* learned: 0 the start model's wind, 1 aligned on the layer estimates */
     double mvm_latency_s;                 /* learned, mvm: night time from an estimate to its matrix in the loop [s];
                                              < 0: the build's measured wall time */
     /* a controlled error of the model (recon.atmosphere.error_*, config_atmosphere.c), applied to the fields above
@@ -185,6 +186,11 @@ typedef struct wt_config {
                                         configuration file's directory); "" = Gaussian of sodium_fwhm */
     char sodium_profile_sha256[65];  /* diffractive LGS with a profile: SHA-256 (hex) of the file's bytes, taken at
                                         reading (or as recorded in a stored text); "" when not used or unreadable */
+    char sodium_sequence[1024];      /* diffractive LGS: the truth's profile in time (core/optics/sodium.h), resolved;
+                                        "" = the set-up profile for the whole run */
+    double sodium_sequence_update;   /* night time between two rebuilds of the truth's spot tables [s]; 0: every frame */
+    int lgs_reference;               /* diffractive LGS reference in the loop: 0 static (set-up), 1 oracle */
+    double lgs_reference_update;     /* oracle: night time between two rebuilds [s] */
     wt_sensor_config lgs_wfs;
 
     /* natural guide stars */
@@ -213,7 +219,7 @@ typedef struct wt_config {
     int frames;
     int delay;                       /* frames between measurement and application (2 in the paper) */
     double gain;                     /* integrator gain g */
-    int ngain_levels;                /* 0: the single gain; else L + 1 (core/sim/scale_gain.h) */
+    int ngain_levels;                /* 0: the single gain; else L + 1 (core/op/scale_gain.h) */
     double gain_levels[WT_MAX_GAIN_BANDS]; /* gain per spatial band of the DM commands, coarsest first */
     int gain_basis;                  /* the bands: 0 bilinear multiwavelets, 1 Daubechies DWT */
 

@@ -352,8 +352,8 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     const int explicit_src = ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0;
     static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s",
                                              "recon.atmosphere.learn_window", "recon.atmosphere.learn_memory",
-                                             "recon.atmosphere.learn_grid"};
-    for (int i = 0; i < 5; i++) {
+                                             "recon.atmosphere.learn_grid", "recon.atmosphere.learn_wind"};
+    for (int i = 0; i < 6; i++) {
         const int k = wt_config_priv_find_key(learn_keys[i]);
         /* the oracle in a changing night follows the truth every update_s (an MVM after its latency) */
         const int night_oracle = i < 2 && m->source == WT_MODEL_ORACLE && cfg->night.source != WT_NIGHT_CFG_NONE;
@@ -420,7 +420,10 @@ int wt_config_priv_check_night(wt_config_priv_state *ps, const wt_config *cfg)
         if (i < 0) snprintf(key, sizeof key, "atmosphere.night.%s", i == -3 ? "file" : i == -2 ? "start_s" : "compression");
         else snprintf(key, sizeof key, "atmosphere.night.%s", walk[i]);
         const int k = wt_config_priv_find_key(key);
-        const int ok = i == -3 ? src == WT_NIGHT_CFG_FILE : i < 0 ? src != WT_NIGHT_CFG_NONE : src == WT_NIGHT_CFG_RANDOM;
+        /* the night's clock (start_s, compression) also times a sodium sequence */
+        const int ok = i == -3 ? src == WT_NIGHT_CFG_FILE
+                       : i < 0 ? src != WT_NIGHT_CFG_NONE || cfg->sodium_sequence[0]
+                               : src == WT_NIGHT_CFG_RANDOM;
         if (ps->set[k] && !ok)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, k, ps->set[k], loc, sizeof loc),
                                        "key '%s' is given but 'atmosphere.night.source' is \"%s\" (%s): it %s", key,
@@ -429,6 +432,42 @@ int wt_config_priv_check_night(wt_config_priv_state *ps, const wt_config *cfg)
                                        : i < 0   ? "means nothing without a night (source = \"file\" or \"random\")"
                                                  : "is a key of the stochastic night (source = \"random\")");
     }
+    return WT_OK;
+}
+
+int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
+{
+    char loc[1100], oth[1100];
+    const int kq = wt_config_priv_find_key("lgs.sodium_sequence"), ku = wt_config_priv_find_key("lgs.sodium_sequence_update_s");
+    const int kr = wt_config_priv_find_key("lgs.wfs.reference"), kt = wt_config_priv_find_key("lgs.wfs.reference_update_s");
+    const int diffr = cfg->nlgs > 0 && cfg->lgs_wfs.model == WT_WFS_DIFFRACTIVE;
+    const int keys[3] = {kq, kr, kt};
+    for (int i = 0; i < 3; i++)
+        if (ps->set[keys[i]] && !diffr)
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, keys[i], ps->set[keys[i]], loc, sizeof loc),
+                                       "key '%s' is for diffractive LGS sensors (lgs.wfs.model = \"diffractive\", "
+                                       "lgs.count > 0): the geometric sensors have no spots and no reference",
+                                       wt_config_priv_keys[keys[i]].path);
+    if (ps->set[ku] && !cfg->sodium_sequence[0])
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, ku, ps->set[ku], loc, sizeof loc),
+                                   "key 'lgs.sodium_sequence_update_s' is given without 'lgs.sodium_sequence': there is "
+                                   "no sequence to follow");
+    if (ps->set[kt] && cfg->lgs_reference != 1)
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kt, ps->set[kt], loc, sizeof loc),
+                                   "key 'lgs.wfs.reference_update_s' is given but 'lgs.wfs.reference' is \"static\" "
+                                   "(%s): a static reference is never rebuilt",
+                                   ps->set[kr] ? wt_config_priv_where(ps, kr, ps->set[kr], oth, sizeof oth) : "its default");
+    /* a cadence is counted in frames: one shorter than a frame would be a rebuild per frame under another name */
+    const double frame_night = cfg->night.compression / cfg->rate;
+    const struct { int k; double v; int on; } cad[2] = {{ku, cfg->sodium_sequence_update, cfg->sodium_sequence_update > 0.0},
+                                                        {kt, cfg->lgs_reference_update, cfg->lgs_reference == 1}};
+    for (int i = 0; i < 2; i++)
+        if (cad[i].on && cad[i].v < frame_night * (1.0 - 1e-9))
+            return wt_config_priv_fail(ps, wt_config_priv_where(ps, cad[i].k, ps->set[cad[i].k], loc, sizeof loc),
+                                       "key '%s' = %g s of night is shorter than one frame's night time, 1 / "
+                                       "loop.rate_hz x atmosphere.night.compression = %g s: give at least that%s",
+                                       wt_config_priv_keys[cad[i].k].path, cad[i].v, frame_night,
+                                       i == 0 ? " (or 0: every frame)" : "");
     return WT_OK;
 }
 
@@ -444,6 +483,7 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
         !strcmp(path, "recon.atmosphere.learn_window") || !strcmp(path, "recon.atmosphere.learn_memory") ||
         !strcmp(path, "recon.atmosphere.learn_grid") ||
+        !strcmp(path, "recon.atmosphere.learn_wind") ||
         !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
         !strncmp(path, "atmosphere.wind_", 16))
         return 0;

@@ -42,7 +42,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 161 };
+enum { WT_CONFIG_PRIV_NKEYS = 166 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
@@ -105,6 +105,9 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg);
 /* atmosphere.night.* (SPEC §12 "A changing night"): the keys of the night's source checked against each other
  * (a file for "file", the walk's keys only for "random", none without a night). Runs after every key is loaded. */
 int wt_config_priv_check_night(wt_config_priv_state *ps, const wt_config *cfg);
+/* lgs.sodium_sequence*, lgs.wfs.reference*: a diffractive LGS, the keys that go together, cadences of at least a
+ * frame's night time (the sequence file itself is read by the loop, which knows the run's night times). */
+int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg);
 /* Whether key `path` of the reconstructor's atmosphere enters the matrix identity: 1 / 0, or -1 when the key
  * is not one of the atmosphere's (the caller decides). The matrix is made from the model: the truth's profile
  * counts only through the oracle. */

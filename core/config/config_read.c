@@ -640,7 +640,7 @@ static int resolve_file_sha256(pstate *ps, const char *key, int used, const char
 
 /* loop.gain_levels: L + 1 values need every DM's grid (actuators + 2 guard rings per side), embedded in
  * the smallest power of two n, to hold squares (or a Daubechies scaling block) of 2^(L+1) actuators:
- * L + 1 <= log2 n (core/sim/scale_gain.h). loop.gain_basis means nothing without them. */
+ * L + 1 <= log2 n (core/op/scale_gain.h). loop.gain_basis means nothing without them. */
 static int check_gain_levels(pstate *ps, const wt_config *cfg)
 {
     char loc[512], oth[512];
@@ -679,6 +679,7 @@ static int check_consistency(pstate *ps, wt_config *cfg)
     for (int i = 0; i < cfg->nlayers; i++) cfg->layer_fraction[i] /= sum;
     if ((st = wt_config_priv_resolve_model(ps, cfg)) < 0) return st;
     if ((st = wt_config_priv_check_night(ps, cfg)) < 0) return st;
+    if ((st = wt_config_priv_check_sodium(ps, cfg)) < 0) return st;
 
     k = wt_config_priv_find_key("evaluation.settle_frames");
     if (cfg->settle_frames >= cfg->frames)
@@ -801,6 +802,11 @@ static int affects_matrix(const pstate *ps, const char *path)
     static const char *const diffr[] = {".model", ".centroider", ".apply_gain", ".tcog_threshold", ".window_pixels",
                                         ".background_e", ".pupil_samples", ".fft_size", ".cells_per_pixel",
                                         ".wavelength_nm", ".noise_calibration", ".calibration_"};
+    /* the sodium layer in time and the loop's reference: the truth and the loop only; the set-up reference (the
+     * MVM's noise model) is lgs.sodium_profile's (SPEC §12 "The sodium layer changes too") */
+    if (!strncmp(path, "lgs.sodium_sequence", 19) || !strcmp(path, "lgs.wfs.reference") ||
+        !strcmp(path, "lgs.wfs.reference_update_s"))
+        return 0;
     /* the profile enters by its contents (lgs.sodium_profile_sha256) and by its name only when they could
      * not be hashed: the same bytes under another name give the same matrix, an edited file another */
     if (!strcmp(path, "lgs.sodium_profile")) {

@@ -250,6 +250,32 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "the file's contents (not its name); left out (or \"auto\"): computed when the configuration is read and "
      "written into the canonical text; given (a stored configuration): the file must still hash to it when the "
      "sensors are built"},
+    /* the sodium layer in time (SPEC §12 "The sodium layer changes too"; core/optics/sodium.h): the truth's spots
+     * and the loop's reference only, never in the matrix identity (the set-up reference is lgs.sodium_profile's) */
+    {"lgs.sodium_sequence", K_STR, F_OPT, 0, 0, "", 1, CF(sodium_sequence), NOCOUNT, 0, 0, NULL, 0,
+     "diffractive LGS: the truth's sodium profile in time, a file (relative to the configuration file's directory "
+     "like @include; shipped: data/sodium/drift-1km-10min.txt, sporadic-2min.txt): a line 'altitude_m h1 h2 ...', "
+     "then one line per night time 'time_s d1 d2 ...', interpolated linearly in time (format in "
+     "core/optics/sodium.h). Each frame's night time is atmosphere.night.start_s + frame / loop.rate_hz x "
+     "atmosphere.night.compression (the night's clock, with or without atmosphere.night.source), and the sequence "
+     "must cover the run's. The spots follow it; the set-up reference (and the MVM's noise model) stays that of "
+     "lgs.sodium_profile (or the Gaussian of lgs.sodium_fwhm_m), so start the sequence from that profile for a "
+     "reference right at the start; lgs.wfs.reference = oracle follows the truth (optional, default none)"},
+    {"lgs.sodium_sequence_update_s", K_FLOAT, F_OPT, 0.0, 1e7, "s", 1, CF(sodium_sequence_update), NOCOUNT, 0, 0,
+     NULL, 0.0,
+     "diffractive LGS with lgs.sodium_sequence: night time between two rebuilds of the truth's spot tables from the "
+     "sequence (0: every frame; otherwise at least one frame's night time, 1 / loop.rate_hz x "
+     "atmosphere.night.compression). A rebuild costs ~1.1 s of 2 idle cores for the 6 E-ELT LGS, ~3 times a "
+     "diffractive frame's sensing (make bench): at that size give a cadence of several frames (optional, default 0)"},
+    {"lgs.wfs.reference", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_reference), NOCOUNT, 0, 0, "static|oracle", 0,
+     "diffractive LGS: the centroider's reference I0 and its derivatives in the loop: static = built once at set-up "
+     "from lgs.sodium_profile; oracle = rebuilt from the truth's current sodium profile (lgs.sodium_sequence) every "
+     "lgs.wfs.reference_update_s of night time from the first frame on, with the matched filter, its covariance "
+     "and the pcg3 / cg9 noise weights C_E (an MVM keeps the C_E it was built with) (optional, default static)"},
+    {"lgs.wfs.reference_update_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "s", 1, CF(lgs_reference_update), NOCOUNT,
+     0, 0, NULL, 60.0,
+     "lgs.wfs.reference = oracle: night time between two rebuilds of the reference (at least one frame's night "
+     "time) (optional, default 60)"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
@@ -375,13 +401,19 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "and each variant's own layer altitudes, a default point closer to one of them than half the finest altitude "
      "resolution of the LGS pairs, d / (2 theta_max), dropped (what the fit puts at a variant's altitude then stays on "
      "that layer; but below the pairs' resolution the fit puts the Cn2 of several close layers on the lowest: on "
-     "the E-ELT it cost CG-9 6-12 nm, docs/results.md section 44) (optional, default default, refused with another "
+     "the E-ELT it cost CG-9 6-12 nm, docs/results.md section 46) (optional, default default, refused with another "
      "source)"},
     {"recon.atmosphere.learn_memory", K_FLOAT, F_OPT, 1.0, 1e6, "", 1, CF(model.learn_memory), NOCOUNT, 0, 0, NULL, 1.0,
      "learned, learn_window = interval: the memory of the estimates, in updates: the model's Cn2 per altitude (f r0^-5/3, "
      "what the maps measure linearly) is the exponential average of the estimates with weight 1/learn_memory on the "
      "newest (1: each estimate alone; 3: about the last three intervals, less scatter, more lag in a changing night) "
      "(optional, default 1, refused with another source)"},
+    {"recon.atmosphere.learn_wind", K_ENUM, F_OPT, 0, 0, "", 1, CF(model.learn_wind), NOCOUNT, 0, 0, "start|aligned", 0,
+     "learned: the wind that recon.predict moves each reconstruction layer by: start = the start model's (the given "
+     "wind keys, compressed onto the layers), aligned = measured on the reconstructor's own layer estimates, the shift "
+     "that best aligns each layer at t and t + k frames (SPEC §12; core/model/wind_align.h), taken at every update "
+     "(a layer without a clear estimate keeps its wind); pcg3 and cg9 only (the MVM does not predict) (optional, "
+     "default start, refused with another source)"},
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
          "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "

@@ -240,6 +240,17 @@ hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset)
     return t;
 }
 
+hid_t wt_h5_priv_vlen_string_type(void)
+{
+    hid_t t = H5Tcopy(H5T_C_S1);
+    if (t < 0) return -1;
+    if (H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0) {
+        H5Tclose(t);
+        return -1;
+    }
+    return t;
+}
+
 /* ---- attributes --------------------------------------------------------------------------------- */
 
 /* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt. */
@@ -260,9 +271,9 @@ out:
 
 herr_t wt_h5_priv_put_attr_string(hid_t obj, const char *name, const char *value)
 {
-    hid_t t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8);
+    hid_t t = wt_h5_priv_vlen_string_type();
     if (t < 0) return -1;
-    herr_t r = wt_h5_priv_put_attr(obj, name, t, t, value);
+    herr_t r = wt_h5_priv_put_attr(obj, name, t, t, &value);
     H5Tclose(t);
     return r;
 }

@@ -78,8 +78,13 @@ int wt_h5_priv_path_exists(hid_t file, const char *name);
 /* File access properties of every file we create or open; -1 on failure. */
 hid_t wt_h5_priv_file_access(void);
 
-/* A fixed-length, NUL-terminated string type of `len` characters; -1 on failure. */
+/* A fixed-length, NUL-terminated string type of `len` characters; -1 on failure. The readers' memory type
+ * for a fixed-length string (files written before strings were variable-length, and other writers'). */
 hid_t wt_h5_priv_string_type(size_t len, H5T_cset_t cset);
+/* The type every string is written with: variable-length UTF-8, which h5py hands back as str (attributes;
+ * datasets through .asstr(), docs/python.md) where a fixed-length one comes back as bytes; -1 on failure.
+ * Its memory buffer is a `const char *` per element. */
+hid_t wt_h5_priv_vlen_string_type(void);
 
 #define WT_H5_PRIV_CHUNK_BYTES ((size_t)1 << 20) /* fixed-size datasets: ~1 MiB bands of rows */
 
@@ -90,7 +95,7 @@ hid_t wt_h5_priv_numeric_dcpl(int rank, const hsize_t *cdims, size_t elem, size_
                               hsize_t *chunk);
 
 /* Replace attribute `name` of obj by a scalar of file type ft holding *value of memory type mt; < 0 on
- * failure. The string version stores a fixed-length UTF-8 string. */
+ * failure. The string version stores a variable-length UTF-8 string. */
 herr_t wt_h5_priv_put_attr(hid_t obj, const char *name, hid_t ft, hid_t mt, const void *value);
 herr_t wt_h5_priv_put_attr_string(hid_t obj, const char *name, const char *value);
 

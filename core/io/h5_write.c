@@ -63,17 +63,28 @@ fail:
     return st;
 }
 
-/* 1 when `path` is an HDF5 file whose root attribute "creator" starts with "wavetomo". */
+/* 1 when `path` is an HDF5 file whose root attribute "creator" starts with "wavetomo": a variable-length
+ * string, or a fixed-length one in the files of earlier builds. */
 static int is_ours(const char *path)
 {
     if (H5Fis_hdf5(path) <= 0) return 0;
-    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), a = -1, t = -1, space = -1, mt = -1;
     int ours = 0;
-    char buf[64] = {0};
+    char buf[64] = {0}, *vl = NULL;
     if (f >= 0 && H5Aexists(f, "creator") > 0 && (a = H5Aopen(f, "creator", H5P_DEFAULT)) >= 0 &&
-        (t = H5Aget_type(a)) >= 0 && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) &&
-        H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
-        ours = !strncmp(buf, "wavetomo", 8);
+        (t = H5Aget_type(a)) >= 0 && H5Tget_class(t) == H5T_STRING && (space = H5Aget_space(a)) >= 0 &&
+        H5Sget_simple_extent_npoints(space) == 1) {
+        if (H5Tis_variable_str(t) > 0) {
+            if ((mt = H5Tcopy(H5T_C_S1)) >= 0 && H5Tset_size(mt, H5T_VARIABLE) >= 0 &&
+                H5Tset_cset(mt, H5Tget_cset(t)) >= 0 && H5Aread(a, mt, &vl) >= 0 && vl)
+                ours = !strncmp(vl, "wavetomo", 8);
+            if (vl) H5Dvlen_reclaim(mt, space, H5P_DEFAULT, &vl);
+        } else if (H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0) {
+            ours = !strncmp(buf, "wavetomo", 8);
+        }
+    }
+    wt_h5_priv_drop(mt);
+    wt_h5_priv_drop(space);
     wt_h5_priv_drop(t);
     wt_h5_priv_drop(a);
     wt_h5_priv_drop(f);
@@ -304,12 +315,15 @@ static int scalar_impl(wt_h5_writer *w, const char *name, hid_t ft, hid_t mt, co
     int st = WT_OK;
     hid_t space = -1, d = -1, t = -1;
     int is_string = ft < 0;
+    const char *text = NULL;
     WT_TRY(wt_h5_priv_check_new(w, name, units, desc, !is_string));
     if (is_string) {
         if (!value) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: string dataset '%s' is NULL", w->target, name);
-        if ((t = wt_h5_priv_string_type(strlen(value), H5T_CSET_UTF8)) < 0)
+        if ((t = wt_h5_priv_vlen_string_type()) < 0)
             H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot make a string type for '%s'", w->target, name);
         ft = mt = t;
+        text = value;
+        value = &text; /* a variable-length string's buffer is its pointer */
     }
     if ((space = H5Screate(H5S_SCALAR)) < 0 ||
         (d = H5Dcreate2(w->file, name, ft, space, w->lcpl, H5P_DEFAULT, H5P_DEFAULT)) < 0)

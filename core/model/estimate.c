@@ -95,6 +95,8 @@ static void diffractive_sensors(const wt_config *c, int lgs, double *tables, dou
         const double qmax = ceil((N - 1 - N / 2) * theta_f / cell + half + hf);
         const double M = qmax - qmin + 1, Lp = Ns + floor((M - 1) / k), tab = (double)k * k * Lp * Lp;
         *tables += nsub * (4.0 * tab + 4.0 * np * np + 12.0);
+        /* lgs.wfs.reference = oracle: the reference's five images' rebinned cells kept (spot.h) */
+        if (lgs && c->lgs_reference == 1) *tables += nsub * 5.0 * 4.0 * M * M;
         *rest += nsub * (8.0 * np * np + 8.0 * Ns * Ns + (w->centroider == 2 ? 8.0 * Ns * Ns : 0.0) + 150.0) +
                  8.0 * Ns * Ns * nsub / (lgs ? c->nlgs : 1);
         const double flops = 20.0 * np * np + 5.0 * N * log2(N) * (np + N) + 7.0 * N * N + 4.0 * M * N +
@@ -116,7 +118,7 @@ static double unknowns(const wt_recon_variant_config *v)
 /* The matrix-free reconstructor: its vectors and stencils (wt_tomography_bytes), and its flops per frame
  * (wt_tomography_cost: DWT 16 N per coefficient and level, 16 flops per corner point and layer and sensor
  * both ways, per iteration, plus the fitting's 25-direction projections for cg9). */
-static void tomography(const wt_config *c, const sizes *s, int kind, wt_estimate *e, double *flops)
+static void tomography(const wt_config *c, const sizes *s, int kind, int iterations, wt_estimate *e, double *flops)
 {
     const wt_recon_variant_config *v = kind == WT_RECON_CG9 ? &c->cg9 : &c->pcg3;
     const char *name = kind == WT_RECON_CG9 ? "cg9" : "pcg3";
@@ -126,7 +128,7 @@ static void tomography(const wt_config *c, const sizes *s, int kind, wt_estimate
     /* (the fourier kind solves for the layers' values: no DWT pair, wt_tomography_space) */
     const double dwt = v->preconditioner == WT_PRECOND_FOURIER ? 0.0 : 2.0 * 16.0 * c->wavelet_order * n * 4.0 / 3.0;
     double per_iter = dwt + 32.0 * s->ncorners * L * s->nsensors + 22.0 * s->nslopes;
-    *flops = per_iter * (v->iterations + 1);
+    *flops = per_iter * ((iterations > 0 ? iterations : v->iterations) + 1);
     if (kind == WT_RECON_CG9) {
         double samples = sq(c->lgs_wfs.subapertures * (v->fit_sampling > 0 ? v->fit_sampling : 1) + 1);
         term(e, 8.0 * s->neval * samples * (2.0 + c->ndms), "fitting maps and projections",
@@ -197,15 +199,15 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
             term(e, mvm_bytes, "control matrix R, RÂ (float32)", "lgs.wfs.subapertures, lgs.count, dm.actuators");
             e->seconds += frames * mvm_bytes / STREAM_RATE;
         } else if (req->recon == WT_RECON_PCG3 || req->recon == WT_RECON_CG9) {
-            tomography(c, &s, req->recon, e, &flops);
+            tomography(c, &s, req->recon, req->iterations, e, &flops);
             e->seconds += frames * flops / FLOP_RATE;
         }
     }
     if (req->task == WT_TASK_INFO) {
         wt_estimate a, b;
         memset(&a, 0, sizeof a), memset(&b, 0, sizeof b);
-        tomography(c, &s, WT_RECON_PCG3, &a, &flops);
-        tomography(c, &s, WT_RECON_CG9, &b, &flops);
+        tomography(c, &s, WT_RECON_PCG3, req->iterations, &a, &flops);
+        tomography(c, &s, WT_RECON_CG9, req->iterations, &b, &flops);
         const wt_estimate *big = a.bytes > b.bytes ? &a : &b; /* one variant at a time */
         for (int k = 0; k < big->nterms; k++) term(e, big->term[k].bytes, big->term[k].what, "%s", big->term[k].keys);
         /* the symbolic count of Ã: ~60 J non-zeros per slope and layer, ~0.2 µs each */

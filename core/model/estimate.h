@@ -37,6 +37,8 @@ typedef struct wt_estimate_request {
     int task;        /* WT_TASK_* */
     int recon;       /* WT_RECON_* of core/model/reconstructor.h (sim, run; build: PCG3 or CG9) */
     int64_t frames;  /* frames to run (≤ 0: cfg->frames) */
+    int iterations;  /* pcg3/cg9: (P)CG iterations per frame (≤ 0: recon.<variant>.iterations; a --iters override
+                        counts here: an upper bound, the solver stops earlier at rounding level) */
 } wt_estimate_request;
 
 #define WT_ESTIMATE_TERMS 12

@@ -50,6 +50,8 @@ typedef struct wt_precond_params {
                           fourier only: < 0 = no coarse block (the filter alone) */
     int single;        /* coarse_ngs: its two stored matrices (the coarse block's inverse, the NGS term's Y) in
                           float, applied in double (recon.<variant>.operator_precision = "fp32") */
+    int updatable;     /* keep the parts that wt_precond_update needs (jacobi … coarse_ngs, fourier; set when the
+                          reconstructor's atmosphere model will change: learned, or the oracle of a changing night) */
 } wt_precond_params;
 
 /* "none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"; NULL for an unknown kind. */
@@ -67,6 +69,19 @@ int wt_precond_kind(const char *name);
  * when a block is not positive definite. */
 int wt_precond_alloc(wt_context *ctx, wt_tomography *t, const wt_precond_params *par, wt_precond **out);
 void wt_precond_free(wt_precond *p);
+/* The tomography's atmosphere model changed (wt_tomography_set_profile): P for the new model from the parts kept at
+ * set-up (par->updatable), without applying M again (docs/design.md "A preconditioner for a new model"):
+ *   M̃ = Σ_LGS s_m M̃_m + Σ_l c_l P_l,   s_m = the LGS's short-axis noise precision now / then (exact for the
+ *   isotropic part of its weights: σ²_t = κσ² + σ²_e scales them whole), c_l = the layer's prior Cn² then / now
+ *   (exact: a new model rescales every prior, wt_prior_rescale),
+ * then the kind's own steps on M̃'s entries: J⁻¹, the coarse block's factor or inverse, the Fourier symbol's largest
+ * eigenvalue per frequency, the NGS term's Y and K. A model whose LGS noise weights do not change (no layer-binning
+ * model error) gives the preconditioner a rebuild would, to rounding; one that changes σ²_e keeps the elongation
+ * term's share of set-up. On failure p is unchanged. WT_ERR_INVALID for a kind without parts (none, multilevel) or
+ * one built without them (wt_precond_updatable). */
+int wt_precond_update(wt_precond *p);
+/* 1 when wt_precond_update can run on p */
+int wt_precond_updatable(const wt_precond *p);
 
 /* z = P⁻¹ r (n = wt_tomography_nunknowns values each; z overwritten, r and z distinct). */
 void wt_precond_apply(const wt_precond *p, const double *r, double *z);

@@ -22,8 +22,11 @@ struct wt_reconstructor {
     wt_precond *pre;         /* the tomography's preconditioner */
     wt_fitting *fit;
     double *c;               /* wavelet coefficients (warm start) */
-    double *phi;             /* spatial layers */
+    double *phi;             /* spatial layers (the estimate, never shifted: wt_reconstructor_layers) */
     wt_shift *shift;         /* recon.predict: the layers moved by their wind over the delay (else NULL) */
+    double *pred;            /* recon.predict: the shifted copy of phi that the commands are made from */
+    int layer_wind;          /* 1: the layers' winds are lvx, lvy, set directly (wt_reconstructor_set_layer_wind) */
+    double lvx[WT_MAX_LAYERS], lvy[WT_MAX_LAYERS]; /* [m/s] */
     double *a_fit;           /* fitting warm start */
     wt_sparse *cmap;         /* pcg3: Sᵀ, layer points x actuators (wt_reconstructor_command_map) */
     const wt_mvm *mvm;       /* mvm: the control matrix (not owned) */
@@ -48,6 +51,7 @@ static int make_shift(wt_reconstructor *r, wt_shift **out)
         alt[l] = wt_tomography_layer_altitude(r->tomo, l), g[l] = wt_tomography_layer_grid(r->tomo, l),
         off[l] = wt_tomography_layer_offset(r->tomo, l);
     wt_profile_compress(r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, L, alt, frac, vx, vy);
+    if (r->layer_wind) memcpy(vx, r->lvx, sizeof vx), memcpy(vy, r->lvy, sizeof vy);
     for (int l = 0; l < L; l++) vx[l] *= r->predict_lead, vy[l] *= r->predict_lead;
     return wt_shift_alloc(r->ctx, L, g, off, vx, vy, out);
 }
@@ -196,7 +200,10 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
             r->atm_alt[k] = tp->atm_altitude[k], r->atm_frac[k] = tp->atm_fraction[k], r->atm_vx[k] = par->atm_vx[k],
             r->atm_vy[k] = par->atm_vy[k];
     }
-    if (par->predict_lead > 0.0) WT_TRY(make_shift(r, &r->shift));
+    if (par->predict_lead > 0.0) {
+        WT_TRY(make_shift(r, &r->shift));
+        WT_ALLOC(ctx, r->pred, n, "predicted layers");
+    }
     if (kind == WT_RECON_PCG3) {
         /* the commands are the layer values at the actuators: the same map as the MVM builder's */
         WT_TRY(wt_reconstructor_command_map(ctx, r->tomo, &r->cmap));
@@ -244,6 +251,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
     wt_shift_free(r->shift);
     wt_free(r->ctx, r->c);
     wt_free(r->ctx, r->phi);
+    wt_free(r->ctx, r->pred);
     wt_free(r->ctx, r->a_fit);
     wt_sparse_free(r->cmap);
     wt_free(r->ctx, r);
@@ -288,16 +296,21 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     r->cont = r->warm && st >= 0;
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
-    if (r->shift) wt_shift_apply(r->shift, r->phi);
+    const double *phi = r->phi;
+    if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers) */
+        memcpy(r->pred, r->phi, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->pred);
+        wt_shift_apply(r->shift, r->pred);
+        phi = r->pred;
+    }
     r->t_tomo = wt_time_now() - t0;
     if (r->kind == WT_RECON_PCG3) {
         memset(a, 0, (size_t)na * sizeof *a);
-        wt_sparse_apply_t(r->cmap, 1.0, r->phi, a);
+        wt_sparse_apply_t(r->cmap, 1.0, phi, a);
         return WT_OK;
     }
     t0 = wt_time_now();
-    st = fit_cont ? wt_fitting_solve_continue(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL)
-                  : wt_fitting_solve(r->fit, r->phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL);
+    st = fit_cont ? wt_fitting_solve_continue(r->fit, phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL)
+                  : wt_fitting_solve(r->fit, phi, r->a_fit, r->fit_iterations, 0.0, NULL, NULL);
     r->cont = r->cont && st >= 0;
     r->t_fit = wt_time_now() - t0;
     if (st < 0) return st;
@@ -354,10 +367,14 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     if (!(vx && vy) && r->predict_lead > 0.0 && natm != keep_n)
         st = WT_ERROR(r->ctx, WT_ERR_INVALID, "reconstructor %s: a new model of %d layers (was %d) without its wind: "
                       "prediction needs the wind of every layer", wt_reconstructor_name(r->kind), natm, keep_n);
-    if (st >= 0) st = wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
+    /* the preconditioner: updated in place from its parts (wt_precond_update: no apply of M) when it kept them, else
+     * rebuilt; the shift first, so that a failure of either leaves the old preconditioner untouched */
     if (st >= 0 && r->predict_lead > 0.0) st = make_shift(r, &sh);
+    const int in_place = wt_precond_updatable(r->pre);
+    if (st >= 0) st = in_place ? wt_precond_update(r->pre) : wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
     if (st < 0) { /* back to the old model, whole */
         wt_precond_free(pre);
+        wt_shift_free(sh);
         r->natm = keep_n;
         r->r0 = keep_r0;
         memcpy(r->atm_alt, keep[0], sizeof keep[0]);
@@ -368,8 +385,10 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
         (void)st2; /* (the old model's altitudes are in the model-error cache or need none: it cannot fail) */
         return st;
     }
-    wt_precond_free(r->pre);
-    r->pre = pre;
+    if (!in_place) {
+        wt_precond_free(r->pre);
+        r->pre = pre;
+    }
     if (sh) {
         wt_shift_free(r->shift);
         r->shift = sh;
@@ -377,6 +396,18 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     /* the warm start stays (the layers change slowly with the model); the solve restarts from M c */
     r->t_model = t1 - t0;
     r->t_precond = wt_time_now() - t1;
+    return WT_OK;
+}
+
+int wt_reconstructor_refresh_noise(wt_reconstructor *r)
+{
+    if (r->kind != WT_RECON_PCG3 && r->kind != WT_RECON_CG9) return WT_OK;
+    int st = wt_tomography_refresh_noise(r->tomo);
+    if (st < 0) return st;
+    wt_precond *pre = NULL;
+    if ((st = wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre)) < 0) return st;
+    wt_precond_free(r->pre);
+    r->pre = pre;
     return WT_OK;
 }
 
@@ -389,3 +420,43 @@ void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model
 wt_tomography *wt_reconstructor_tomography(wt_reconstructor *r) { return r->tomo; }
 wt_precond *wt_reconstructor_precond(wt_reconstructor *r) { return r->pre; }
 const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r) { return r->fit; }
+
+const double *wt_reconstructor_layers(const wt_reconstructor *r) { return r->phi; }
+
+void wt_reconstructor_layer_wind(const wt_reconstructor *r, double *vx, double *vy)
+{
+    const int L = wt_tomography_nlayers(r->tomo);
+    if (r->layer_wind) {
+        memcpy(vx, r->lvx, (size_t)L * sizeof *vx);
+        memcpy(vy, r->lvy, (size_t)L * sizeof *vy);
+        return;
+    }
+    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++) alt[l] = wt_tomography_layer_altitude(r->tomo, l);
+    wt_profile_compress(r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, L, alt, frac, vx, vy);
+}
+
+int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const double *vy)
+{
+    if (r->kind != WT_RECON_PCG3 && r->kind != WT_RECON_CG9)
+        return WT_ERROR(r->ctx, WT_ERR_INVALID, "reconstructor %s: the layers' wind is for pcg3 and cg9 (the MVM does not "
+                        "predict)", wt_reconstructor_name(r->kind));
+    const int L = wt_tomography_nlayers(r->tomo), keep = r->layer_wind;
+    double kx[WT_MAX_LAYERS], ky[WT_MAX_LAYERS];
+    memcpy(kx, r->lvx, sizeof kx);
+    memcpy(ky, r->lvy, sizeof ky);
+    r->layer_wind = vx && vy;
+    for (int l = 0; l < L && r->layer_wind; l++) r->lvx[l] = vx[l], r->lvy[l] = vy[l];
+    if (!(r->predict_lead > 0.0)) return WT_OK;
+    wt_shift *sh = NULL;
+    const int st = make_shift(r, &sh);
+    if (st < 0) { /* the old winds, whole */
+        r->layer_wind = keep;
+        memcpy(r->lvx, kx, sizeof kx);
+        memcpy(r->lvy, ky, sizeof ky);
+        return st;
+    }
+    wt_shift_free(r->shift);
+    r->shift = sh;
+    return WT_OK;
+}

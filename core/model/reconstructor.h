@@ -78,8 +78,24 @@ const wt_fitting *wt_reconstructor_fitting(const wt_reconstructor *r);
  * The warm start stays. On error the reconstructor keeps its old model. WT_ERR_INVALID for mvm and none. */
 int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const double *alt, const double *frac,
                                const double *vx, const double *vy);
+/* The noise weights C_E of pcg3 / cg9 rebuilt from the system's sensors as they are now (a diffractive LGS reference
+ * rebuilt in the loop, core/model/sensing.h), the preconditioner with them; the model and the warm start stay.
+ * WT_OK and nothing done for mvm and none (an MVM keeps the C_E it was built with). */
+int wt_reconstructor_refresh_noise(wt_reconstructor *r);
 /* Wall time [s] of the last set_model's parts: the tomography's model, the preconditioner (and the shifts). */
 void wt_reconstructor_last_update_times(const wt_reconstructor *r, double *model, double *precond);
+/* The reconstructed layers of the last apply, φ = W⁻¹ c (wt_tomography_layers: layer by layer on the grids of
+ * wt_tomography_layer_grid, from wt_tomography_layer_offset), before any prediction shift: the pseudo-open-loop
+ * estimate of the layers (read-only; pcg3 and cg9 only, valid until the next apply). */
+const double *wt_reconstructor_layers(const wt_reconstructor *r);
+/* The wind [m/s] of each of the tomography's layers that prediction moves them by: the model's winds compressed onto
+ * the layers (SPEC §12), or those set by wt_reconstructor_set_layer_wind. vx, vy: wt_tomography_nlayers values. */
+void wt_reconstructor_layer_wind(const wt_reconstructor *r, double *vx, double *vy);
+/* The wind of each reconstruction layer directly (vx, vy [m/s], one per layer; NULL: back to the model's compressed
+ * winds), e.g. measured on the layers themselves (core/model/wind_align.h); it stays through later set_model calls.
+ * Prediction's shifts are rebuilt (refused, the old winds kept, when a layer would move by a quarter of its grid).
+ * WT_ERR_INVALID for mvm and none. */
+int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const double *vy);
 /* Forget the warm-start state (the next apply starts from zero). */
 void wt_reconstructor_reset(wt_reconstructor *r);
 

@@ -147,6 +147,9 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     WT_ALLOC(ctx, diy, npix, "reference derivatives");
     WT_ALLOC(ctx, ws->trunc, nsub, "truncations");
     {
+        /* a reference the loop rebuilds from the truth's profile (lgs.wfs.reference = oracle) reuses the
+         * rebinned cells of this one: only the profile's tables change (spot.h) */
+        if (g->lgs && na && cfg->lgs_reference == 1) WT_TRY(wt_spot_keep_reference(ws->spot));
         const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
         WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, ws->i0, dix, diy));
     }
@@ -170,7 +173,7 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
                g->source, g->name, pre, ns, pre, w->pixel / WT_ARCSEC, 100.0 * ws->worst_trunc, ws->worst_sub,
                100.0 * WT_SENSING_TRUNC_WARN, 100.0 * WT_SENSING_TRUNC_REFUSE);
 
-    wt_centroid_params cp = {.method = w->centroider,
+    ws->cpar = (wt_centroid_params){.method = w->centroider,
                              .window = w->window_pixels,
                              .threshold_noise = w->threshold_noise,
                              .threshold_peak = w->threshold_peak,
@@ -181,7 +184,10 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
                              .pixel = w->pixel,
                              .background = w->background_e,
                              .read_noise = w->read_noise_e};
-    if ((st = wt_centroid_alloc(ctx, &cp, nsub, ns, ws->i0, dix, diy, &ws->cen)) < 0) {
+    ws->calibration = w->noise_calibration;
+    ws->calibration_draws = w->calibration_draws;
+    ws->calibration_seed = w->calibration_seed;
+    if ((st = wt_centroid_alloc(ctx, &ws->cpar, nsub, ns, ws->i0, dix, diy, &ws->cen)) < 0) {
         char keys[256];
         snprintf(keys, sizeof keys, "%s.centroider, window_pixels, apply_gain, tcog_threshold_*", pre);
         st = rewrap(ctx, st, g, keys);
@@ -210,6 +216,8 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
     WT_ALLOC(ctx, ws->opd, nsamp, "sample OPD");
     WT_ALLOC(ctx, ws->img, npix, "images");
     ws->setup_seconds = wt_time_now() - t0;
+    ws->sodium0 = na;
+    na = NULL;
     *out = ws;
 fail:
     wt_sodium_free(na);
@@ -235,6 +243,7 @@ void wt_sensing_free(wt_sensing *ws)
     wt_free(ctx, ws->i0);
     wt_free(ctx, ws->opd);
     wt_free(ctx, ws->img);
+    wt_sodium_free(ws->sodium0);
     wt_free(ctx, ws);
 }
 

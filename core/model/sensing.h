@@ -30,9 +30,10 @@
 #include "../base/base.h"
 #include "../config/config.h"
 #include "../op/grid.h"
+#include "../optics/centroid.h"
 
 typedef struct wt_spot wt_spot;
-typedef struct wt_centroid wt_centroid;
+typedef struct wt_sodium wt_sodium;
 
 /* The truncation limits of the detector field (item "bad input" of issue 19): above WARN of a spot's flux
  * outside the field (worst subaperture of the noise-free reference), a warning naming the keys; above
@@ -79,6 +80,13 @@ typedef struct wt_sensing {
     int gain_on;               /* 1 once reset: the frames after it are counted (none before: no cost) */
     float *opd;                /* [nsub n_p²] per-frame OPD on the samples [m] */
     float *img;                /* [nsub Ns²] per-frame images */
+    /* what a reference rebuilt in the loop needs (wt_sensing_set_reference) and what undoes it (restore) */
+    wt_centroid_params cpar;   /* the centroider's parameters */
+    int calibration, calibration_draws; /* noise_calibration (1: Monte Carlo) and its draws */
+    uint64_t calibration_seed;
+    wt_sodium *sodium0;        /* LGS: the set-up profile (owned), which the reference of the set-up is made of */
+    int sodium_changed;        /* the spot tables are another profile's (wt_sensing_set_sodium) */
+    int reference_changed;     /* the reference is not the set-up's (wt_sensing_set_reference) */
 } wt_sensing;
 
 /* Build the sensor of `w` (cfg->lgs_wfs or cfg->ngs_wfs, with model diffractive) for geometry g: sodium
@@ -115,6 +123,26 @@ void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across
  * reconstruction of pure noise: the centroider's noise where the loop holds it (the flat wavefront's spot is
  * narrower than the loop's and its noise smaller). Outside parallel regions only. */
 int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
+
+/* ---- the sodium layer in time and a reference that follows it (SPEC §12 "The sodium layer changes too") ----
+ * The spot model (the truth's images) and the centroider (the real-time computer's reference I0, its derivatives,
+ * the matched filter and its covariance C_E) are separate: the truth's profile may change without the reference. */
+
+/* The truth's sodium profile (an LGS): the spot tables rebuilt (wt_spot_set_sodium), the images from now on of
+ * na; the reference, centroider and covariance stay. Outside parallel regions only. */
+int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na);
+/* A new reference: the centroider rebuilt from i0, dix, diy (nsub Ns² each; copied), with the set-up's parameters
+ * and calibration (analytic or Monte Carlo: the same draws and seed), so the covariance cov (the reconstructor's C_E,
+ * which follows once its noise weights are rebuilt: wt_reconstructor_refresh_noise), nea_median, mean_var, trunc,
+ * worst_* anew. On error the sensor keeps its old reference. The hook of every reference the loop rebuilds. */
+int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, const float *diy);
+/* The oracle's reference: I0 and its derivatives of the spot model's current profile (the truth's, as it renders
+ * it) with the set-up's seeing, through wt_sensing_set_reference. From the set-up profile it gives the set-up's
+ * reference bit for bit. Allocates 3 nsub Ns² floats for its duration. Outside parallel regions only. */
+int wt_sensing_rebuild_reference(wt_sensing *ws);
+/* Back to the set-up's profile and reference (each only when changed; bit for bit): a loop leaves the system as it
+ * found it for the next (compare and budget run several loops on one system). */
+int wt_sensing_restore(wt_sensing *ws);
 
 /* Bytes the sensor holds: spot tables and workspaces, centroider, reference images, per-frame buffers. */
 size_t wt_sensing_memory(const wt_sensing *ws);

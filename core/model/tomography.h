@@ -78,6 +78,9 @@ double wt_tomography_layer_altitude(const wt_tomography *t, int l);
 double wt_tomography_layer_fraction(const wt_tomography *t, int l);
 /* The layer-binning model error added to sensor m's noise variance per axis [rad²] (recon.model_error). */
 double wt_tomography_model_error(const wt_tomography *t, int m);
+/* Sensor m's short-axis noise precision Σ_i 1/λ_min(C̃_i) over its subapertures [rad⁻²], C̃_i its weight's 2x2 block
+ * before the tip-tilt removal: what a new model's σ²_e scales (wt_precond_update). */
+double wt_tomography_lgs_precision(const wt_tomography *t, int m);
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l);
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
 /* The operators the tomography is built from (for the MVM builder, which assembles the same ones):
@@ -176,6 +179,11 @@ int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
  * next solve starts from M c (not the previous residual). A preconditioner built on the old model must be rebuilt
  * (wt_precond_alloc). On error the object is unchanged. Allocates (the noise models; a new altitude's draws). */
 int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const double *alt, const double *frac);
+/* The sensors' noise weights rebuilt from the system's sensors as they are now (a diffractive sensor whose
+ * reference, so its covariance C_E, was rebuilt: core/model/sensing.h), with the model's σ²_e, κ and τ as they are;
+ * core/model/tomography_noise.c. The next solve starts from M c; a preconditioner must be rebuilt. Allocates the
+ * noise models. On error (out of memory, a block not positive definite) some sensors may keep their old weights. */
+int wt_tomography_refresh_noise(wt_tomography *t);
 double wt_tomography_r0(const wt_tomography *t);
 
 /* Bytes the object holds (operators, prior, workspace; the preconditioner's are wt_precond_bytes): for reports. */

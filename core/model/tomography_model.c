@@ -210,6 +210,26 @@ static int sensor_noise(wt_tomography *t, int m, wt_noise **out)
                                  s->kind == WT_SENSOR_LGS, out);
 }
 
+double wt_tomography_lgs_precision(const wt_tomography *t, int m)
+{
+    /* the smaller eigenvalue of each block sensor_noise builds: τ scales only the part beyond it */
+    const wt_sensor *s = &t->sys->sensors[m];
+    const double kappa = t->kappa, e = t->model_var[m];
+    double sum = 0.0;
+    if (s->diffr) {
+        const double *c = s->diffr->cov;
+        const int ns = s->nsub;
+        for (int i = 0; i < ns; i++) {
+            const double a = kappa * c[i], b = kappa * c[ns + i], d = kappa * c[2 * ns + i];
+            sum += 1.0 / (0.5 * (a + d) - sqrt(0.25 * (a - d) * (a - d) + b * b) + e);
+        }
+        return sum;
+    }
+    const double s2t = kappa * s->sigma2 + e;
+    for (int i = 0; i < s->nsub; i++) sum += 1.0 / ((s->noise_scale ? s->noise_scale[i] : 1.0) * s2t);
+    return sum;
+}
+
 int wt_tomography__noise(wt_tomography *t)
 {
     for (int m = 0; m < t->S; m++) {

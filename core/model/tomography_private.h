@@ -1,6 +1,7 @@
 /* core/model/tomography_private.h: the tomography object's layout, shared by tomography.c (the operators and the
- * solve) and tomography_model.c (what the atmosphere model sets: the prior's strengths, the layer-binning model
- * error, the sensors' noise weights); not part of any interface. */
+ * solve), tomography_model.c (what the atmosphere model sets: the prior's strengths, the layer-binning model
+ * error, the sensors' noise weights) and tomography_noise.c (the noise weights of sensors whose reference changed);
+ * not part of any interface. */
 #ifndef WT_TOMOGRAPHY_PRIVATE_H
 #define WT_TOMOGRAPHY_PRIVATE_H
 

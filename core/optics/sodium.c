@@ -61,6 +61,8 @@ fail:
     return st;
 }
 
+int wt_sodium_copy(const wt_sodium *na, wt_sodium **out) { return make(na->ctx, na->n, na->alt, na->dens, out); }
+
 int wt_sodium_from_table(wt_context *ctx, int n, const double *alt, const double *dens, const char *what,
                          wt_sodium **out)
 {

@@ -2,9 +2,7 @@
  * |·|² → overlap rebinning onto cells of p/k → direct sum with the per-subaperture source⊛pixel table;
  * detector noise Poisson(I + B) + N(0, σe²) − B; the exact Poisson sampler. The design and its accuracy
  * are in spot.h. */
-#include "spot.h"
-
-#include "seeing.h"
+#include "spot_private.h"
 
 #include <fftw3.h>
 #include <math.h>
@@ -13,54 +11,6 @@
 #include <omp.h>
 #endif
 
-#define ALIGN 64
-/* What the loop removes from a subaperture's phase in the reference's seeing: piston and tilt, the tilt
- * being the G-tilt (the spot's centroid shift, the slope the reconstructor models and the loop drives to
- * zero), so the reference is the mean spot re-centred on its centroid. With the Z-tilt (least-squares
- * plane) removed instead, the mean spot also holds the G − Z jitter and is wider than the loop's: the
- * matched filter's in-loop gain was 1.04–1.05 on the demo and the E-ELT presets, 0.97–0.99 with the G-tilt;
- * removing the x·y term of a DM at the subaperture's pitch as well moved it by < 1 % (docs/results.md §32). */
-#define LOOP_GTILT 1
-#define RAD2AS (180.0 * 3600.0 / M_PI)
-/* output pixels per block of the direct sum in image_one: one row block is held in registers */
-#define SUM_W 16
-#define SUM_R 4 /* rows per block: 2·SUM_R independent accumulators hide the add latency */
-typedef float v8f __attribute__((vector_size(32)));
-
-typedef struct {
-    void *block;           /* the allocation (workspace arrays are carved from it, aligned) */
-    fftwf_complex *field;  /* N² */
-    float *psf;            /* N², fft-shifted, scaled to photo-electrons */
-    float *tmp;            /* M × N after the x rebinning */
-    float *cells;          /* M² */
-    double *opd;           /* n_p² (the tilted flat OPDs of wt_spot_reference) */
-    float *img2;           /* Ns² (the second image of a central difference) */
-    float *cv;             /* M² the non-zero cells' values, in the order (my, mx) */
-    int *co;               /* M² their table offsets (phase·Lp² + e1x + Lp·e1y) */
-} workspace;
-
-struct wt_spot {
-    wt_context *ctx;
-    wt_spot_params par; /* sodium set to NULL after alloc */
-    int nsub, np, N, Ns, k, M, Lp, R, nthreads;
-    int qmin, omin;      /* first lattice point of the cells; smallest pixel−cell offset kP − q */
-    double theta_f;      /* PSF sample [rad] */
-    double blur;         /* variance per axis the rebinning adds, θ_f²/12 + c²/6 [rad²] */
-    double *flux;        /* [nsub] photons × lit */
-    float *scale;        /* [nsub] flux / (N² Σ A²) */
-    float *amp;          /* [nsub·n_p²] */
-    double *xs;          /* [n_p] sample offsets from the subaperture centre [m] */
-    int *rm;             /* [N·R] first cell of the overlap of PSF sample i, then consecutive cells */
-    float *rw;           /* [N·R] overlap weights (fractions of the sample) */
-    int *rn;             /* [N] cells PSF sample i overlaps */
-    int *gs;             /* [M + 1] the same weights by cell: cell m gathers gi/gw[gs[m] .. gs[m+1]) */
-    int *gi;             /* [N·R] PSF sample of each, ascending per cell */
-    float *gw;           /* [N·R] its weight */
-    float *K;            /* [nsub · k² · Lp²] phase tables of the source ⊛ pixel kernel */
-    fftwf_plan rows, cols;
-    fftwf_plan otf_fwd, otf_bwd; /* N × N complex, for the reference's seeing */
-    workspace *ws;       /* [nthreads] */
-};
 
 static size_t ws_bytes(const wt_spot *s)
 {
@@ -121,6 +71,9 @@ void wt_spot_free(wt_spot *s)
     wt_free(ctx, s->gi);
     wt_free(ctx, s->gw);
     wt_free(ctx, s->K);
+    wt_free(ctx, s->xc);
+    wt_free(ctx, s->yc);
+    wt_free(ctx, s->rcells);
     wt_free(ctx, s);
 }
 
@@ -291,6 +244,51 @@ static void kernel_table(const wt_spot *s, const double *S, int LS, double *B, f
         }
 }
 
+/* K for the source of profile na (NULL: a point, or the NGS's Gaussian), every subaperture; the subapertures are
+ * independent, so the tables are the same for any thread count. */
+static int build_tables(wt_spot *s, const wt_sodium *na)
+{
+    wt_context *ctx = s->ctx;
+    int st = WT_OK;
+    const int k = s->k, Lp = s->Lp, LK = k * Lp, LS = LK + k - 1, nth = s->nthreads;
+    const double c = s->par.pixel / k;
+    double *S = NULL, *B = NULL, *g = NULL;
+    gauss_tab G = {0};
+    /* σ in cells of the Gaussian the table applies: the source's, less the rebinning blur (spot.h) */
+    const double su = s->par.uplink_fwhm / (2.0 * sqrt(2.0 * log(2.0)));
+    G.sg = su * su > s->blur ? sqrt(su * su - s->blur) / c : 0.0;
+    G.reach = G.sg > 0 ? (int)ceil(6.0 * G.sg) + 1 : 0; /* Φ(−6) ≈ 1e-9 of the mass left out */
+    G.nt = 2 * G.reach + 2;
+    WT_ALLOC(ctx, G.tab, (size_t)(NF + 1) * G.nt, "spot Gaussian table");
+    if (G.sg > 0) gauss_tab_fill(&G);
+    WT_ALLOC(ctx, S, (size_t)LS * LS * nth, "spot source cells");
+    WT_ALLOC(ctx, B, (size_t)LK * LS * nth, "spot box sums");
+    WT_ALLOC(ctx, g, 2 * (size_t)G.nt * nth, "spot Gaussian masses");
+    {
+        /* o = kP − q with q = qmin + m: omin = −qmax; S index o − omin + h, i.e. S's first cell at omin − h */
+        const int o_min = s->omin, h = (k - 1) / 2;
+#pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
+        for (int is = 0; is < s->nsub; is++) {
+            const int t = wt_thread_id();
+            double *St = S + (size_t)LS * LS * t, *Bt = B + (size_t)LK * LS * t, *gt = g + 2 * (size_t)G.nt * t;
+            source_cells(s, na, &G, s->xc[is], s->yc[is], o_min - h, LS, St, gt, gt + G.nt);
+            kernel_table(s, St, LS, Bt, s->K + (size_t)is * k * k * Lp * Lp);
+        }
+    }
+fail:
+    wt_free(ctx, S), wt_free(ctx, B), wt_free(ctx, g), wt_free(ctx, G.tab);
+    return st;
+}
+
+int wt_spot_set_sodium(wt_spot *s, const wt_sodium *na)
+{
+    if (!s->lgs) return WT_ERROR(s->ctx, WT_ERR_INVALID, "spot: a sodium profile for a sensor built without one (an NGS)");
+    if (!na) return WT_ERROR(s->ctx, WT_ERR_INVALID, "spot: NULL sodium profile");
+    const int st = wt_sodium_check_covers(s->ctx, na, s->par.lgs_altitude, "spot: the new sodium profile");
+    if (st < 0) return st;
+    return build_tables(s, na);
+}
+
 int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const double *xc, const double *yc,
                   const float *amp, const double *lit, wt_spot **out)
 {
@@ -301,12 +299,11 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
     if (st < 0) return st;
     if (nsub > 0 && (!xc || !yc)) return WT_ERROR(ctx, WT_ERR_INVALID, "spot: NULL subaperture centres");
     wt_spot *s = NULL;
-    double *S = NULL, *B = NULL, *g = NULL;
-    gauss_tab G = {0};
     WT_ALLOC(ctx, s, 1, "spot");
     s->ctx = ctx;
     s->par = *par;
     s->par.sodium = NULL;
+    s->lgs = par->sodium != NULL;
     s->nsub = nsub;
     s->np = par->pupil_samples;
     s->N = par->fft_size;
@@ -394,25 +391,13 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
 
     /* the per-subaperture source ⊛ pixel tables */
     {
-        const int Lp = s->Lp, LK = k * Lp, LS = LK + k - 1;
+        const int Lp = s->Lp;
         /* padding: image_one reads blocks of SUM_R rows of SUM_W, past the last table's end (zeros, unused) */
         WT_ALLOC(ctx, s->K, (size_t)nsub * k * k * Lp * Lp + (size_t)SUM_R * Lp + SUM_W, "spot source/pixel tables");
-        WT_ALLOC(ctx, S, (size_t)LS * LS, "spot source cells");
-        WT_ALLOC(ctx, B, (size_t)LK * LS, "spot box sums");
-        /* σ in cells of the Gaussian the table applies: the source's, less the rebinning blur (spot.h) */
-        const double su = par->uplink_fwhm / (2.0 * sqrt(2.0 * log(2.0)));
-        G.sg = su * su > s->blur ? sqrt(su * su - s->blur) / c : 0.0;
-        G.reach = G.sg > 0 ? (int)ceil(6.0 * G.sg) + 1 : 0; /* Φ(−6) ≈ 1e-9 of the mass left out */
-        G.nt = 2 * G.reach + 2;
-        WT_ALLOC(ctx, G.tab, (size_t)(NF + 1) * G.nt, "spot Gaussian table");
-        if (G.sg > 0) gauss_tab_fill(&G);
-        WT_ALLOC(ctx, g, 2 * (size_t)G.nt, "spot Gaussian masses");
-        /* o = kP − q with q = qmin + m: omin = −qmax; S index o − omin + h, i.e. S's first cell at omin − h */
-        const int o_min = s->omin, h = (k - 1) / 2;
-        for (int is = 0; is < nsub; is++) {
-            source_cells(s, par->sodium, &G, xc[is], yc[is], o_min - h, LS, S, g, g + G.nt);
-            kernel_table(s, S, LS, B, s->K + (size_t)is * k * k * Lp * Lp);
-        }
+        WT_ALLOC(ctx, s->xc, nsub, "spot subaperture centres");
+        WT_ALLOC(ctx, s->yc, nsub, "spot subaperture centres");
+        if (nsub) memcpy(s->xc, xc, (size_t)nsub * sizeof *xc), memcpy(s->yc, yc, (size_t)nsub * sizeof *yc);
+        WT_TRY(build_tables(s, par->sodium));
     }
 
     WT_ALLOC(ctx, s->ws, s->nthreads, "spot workspaces");
@@ -431,86 +416,89 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
             goto fail;
         }
     }
-    wt_free(ctx, S), wt_free(ctx, B), wt_free(ctx, g), wt_free(ctx, G.tab);
     *out = s;
     return WT_OK;
 fail:
-    wt_free(ctx, S), wt_free(ctx, B), wt_free(ctx, g), wt_free(ctx, G.tab);
     wt_spot_free(s);
     return st;
 }
 
 /* One subaperture: OPD (float or double, one of them non-NULL; or the workspace's double array) → image. */
 WT_CPU_CLONES
-static void image_one(const wt_spot *s, int is, const float *opdf, const double *opdd, const float *otf, workspace *w,
-                      float *img)
+void wt_spot__image_one(const wt_spot *s, int is, const float *opdf, const double *opdd, const float *otf, workspace *w,
+                        float *img, const float *cells_in, float *cells_out)
 {
     const int np = s->np, N = s->N, Ns = s->Ns, M = s->M, k = s->k, Lp = s->Lp, R = s->R;
     memset(img, 0, (size_t)Ns * Ns * sizeof *img);
     const float sc = s->scale[is];
     if (sc == 0.0f) return;
-    const float *A = s->amp + (size_t)is * np * np;
-    fftwf_complex *F = w->field;
-    const double kw = 2.0 * M_PI / s->par.wavelength;
-    /* U on the first n_p × n_p corner of the N × N array (the position of the pupil in the padded array
-     * only multiplies the FFT by a phase ramp, which |·|² removes) */
-    memset(F, 0, (size_t)N * N * sizeof *F);
-    for (int j = 0; j < np; j++)
-        for (int i = 0; i < np; i++) {
-            const float a = A[i + np * j];
-            if (a == 0.0f) continue;
-            /* phase reduced to [−π, π] in double, then float sin/cos (float32 is the field's precision) */
-            double ph = kw * (opdf ? (double)opdf[i + np * j] : opdd[i + np * j]);
-            ph -= 2.0 * M_PI * nearbyint(ph * (0.5 / M_PI));
-            const float phf = (float)ph;
-            F[i + N * j][0] = a * cosf(phf);
-            F[i + N * j][1] = a * sinf(phf);
+    const float *C = cells_in;
+    if (!cells_in) {
+        const float *A = s->amp + (size_t)is * np * np;
+        fftwf_complex *F = w->field;
+        const double kw = 2.0 * M_PI / s->par.wavelength;
+        /* U on the first n_p × n_p corner of the N × N array (the position of the pupil in the padded array
+         * only multiplies the FFT by a phase ramp, which |·|² removes) */
+        memset(F, 0, (size_t)N * N * sizeof *F);
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++) {
+                const float a = A[i + np * j];
+                if (a == 0.0f) continue;
+                /* phase reduced to [−π, π] in double, then float sin/cos (float32 is the field's precision) */
+                double ph = kw * (opdf ? (double)opdf[i + np * j] : opdd[i + np * j]);
+                ph -= 2.0 * M_PI * nearbyint(ph * (0.5 / M_PI));
+                const float phf = (float)ph;
+                F[i + N * j][0] = a * cosf(phf);
+                F[i + N * j][1] = a * sinf(phf);
+            }
+        fftwf_execute_dft(s->rows, F, F);
+        fftwf_execute_dft(s->cols, F, F);
+        if (otf) {
+            /* the mean seeing (seeing.h): |F|² is the DFT of the field's autocorrelation; its lag-u term is
+             * multiplied by W(u) (real, even: the result stays real), then transformed back */
+            for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = F[q][0] * F[q][0] + F[q][1] * F[q][1], F[q][1] = 0.0f;
+            fftwf_execute_dft(s->otf_bwd, F, F);
+            const float inv = 1.0f / ((float)N * N);
+            for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] *= otf[q] * inv, F[q][1] *= otf[q] * inv;
+            fftwf_execute_dft(s->otf_fwd, F, F);
+            /* the real part is the PSF; a magnitude with zero phase keeps the |·|² below */
+            for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = sqrtf(fmaxf(F[q][0], 0.0f)), F[q][1] = 0.0f;
         }
-    fftwf_execute_dft(s->rows, F, F);
-    fftwf_execute_dft(s->cols, F, F);
-    if (otf) {
-        /* the mean seeing (seeing.h): |F|² is the DFT of the field's autocorrelation; its lag-u term is
-         * multiplied by W(u) (real, even: the result stays real), then transformed back */
-        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = F[q][0] * F[q][0] + F[q][1] * F[q][1], F[q][1] = 0.0f;
-        fftwf_execute_dft(s->otf_bwd, F, F);
-        const float inv = 1.0f / ((float)N * N);
-        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] *= otf[q] * inv, F[q][1] *= otf[q] * inv;
-        fftwf_execute_dft(s->otf_fwd, F, F);
-        /* the real part is the PSF; a magnitude with zero phase keeps the |·|² below */
-        for (size_t q = 0; q < (size_t)N * N; q++) F[q][0] = sqrtf(fmaxf(F[q][0], 0.0f)), F[q][1] = 0.0f;
+        /* PSF sample (i, j) at angle ((i − N/2)θ_f, (j − N/2)θ_f): frequency (i + N/2) mod N */
+        float *P = w->psf;
+        for (int j = 0; j < N; j++) {
+            const fftwf_complex *Fr = F + (size_t)N * ((j + N / 2) % N);
+            float *Pr = P + (size_t)N * j;
+            for (int i = 0; i < N / 2; i++) {
+                const float *z = Fr[i + N / 2], *z2 = Fr[i];
+                Pr[i] = sc * (z[0] * z[0] + z[1] * z[1]);
+                Pr[i + N / 2] = sc * (z2[0] * z2[0] + z2[1] * z2[1]);
+            }
+        }
+        /* overlap rebinning: x (rows of P → tmp[m + M j]), then y (tmp → cells[mx + M my]). The x pass
+         * gathers per cell (its samples in ascending order: the sums and their order are those of scattering
+         * each sample in turn, with no store-to-load chain between neighbouring samples). */
+        float *T = w->tmp, *Cw = w->cells;
+        memset(Cw, 0, (size_t)M * M * sizeof *Cw);
+        for (int j = 0; j < N; j++) {
+            const float *Pr = P + (size_t)N * j;
+            float *Tr = T + (size_t)M * j;
+            for (int m = 0; m < M; m++) {
+                float a = 0.0f;
+                for (int g = s->gs[m]; g < s->gs[m + 1]; g++) a += s->gw[g] * Pr[s->gi[g]];
+                Tr[m] = a;
+            }
+        }
+        for (int j = 0; j < N; j++)
+            for (int r = 0; r < s->rn[j]; r++) {
+                const float wv = s->rw[j * R + r];
+                float *Cr = Cw + (size_t)M * s->rm[j * R + r];
+                const float *Tr = T + (size_t)M * j;
+                for (int m = 0; m < M; m++) Cr[m] += wv * Tr[m];
+            }
+        if (cells_out) memcpy(cells_out, Cw, (size_t)M * M * sizeof *Cw);
+        C = Cw;
     }
-    /* PSF sample (i, j) at angle ((i − N/2)θ_f, (j − N/2)θ_f): frequency (i + N/2) mod N */
-    float *P = w->psf;
-    for (int j = 0; j < N; j++) {
-        const fftwf_complex *Fr = F + (size_t)N * ((j + N / 2) % N);
-        float *Pr = P + (size_t)N * j;
-        for (int i = 0; i < N / 2; i++) {
-            const float *z = Fr[i + N / 2], *z2 = Fr[i];
-            Pr[i] = sc * (z[0] * z[0] + z[1] * z[1]);
-            Pr[i + N / 2] = sc * (z2[0] * z2[0] + z2[1] * z2[1]);
-        }
-    }
-    /* overlap rebinning: x (rows of P → tmp[m + M j]), then y (tmp → cells[mx + M my]). The x pass
-     * gathers per cell (its samples in ascending order: the sums and their order are those of scattering
-     * each sample in turn, with no store-to-load chain between neighbouring samples). */
-    float *T = w->tmp, *C = w->cells;
-    memset(C, 0, (size_t)M * M * sizeof *C);
-    for (int j = 0; j < N; j++) {
-        const float *Pr = P + (size_t)N * j;
-        float *Tr = T + (size_t)M * j;
-        for (int m = 0; m < M; m++) {
-            float a = 0.0f;
-            for (int g = s->gs[m]; g < s->gs[m + 1]; g++) a += s->gw[g] * Pr[s->gi[g]];
-            Tr[m] = a;
-        }
-    }
-    for (int j = 0; j < N; j++)
-        for (int r = 0; r < s->rn[j]; r++) {
-            const float wv = s->rw[j * R + r];
-            float *Cr = C + (size_t)M * s->rm[j * R + r];
-            const float *Tr = T + (size_t)M * j;
-            for (int m = 0; m < M; m++) Cr[m] += wv * Tr[m];
-        }
     /* image(P) = Σ_q cells_q K(kP − q): cell m ↦ e = M−1−m = k·e1 + e0, table (phase e0) at P + e1. The
      * non-zero cells are listed with their table offsets, then each block of SUM_W pixels of a row sums
      * over the list in registers: per pixel the same additions in the same order (cells by (my, mx)) as
@@ -563,74 +551,13 @@ static int images(const wt_spot *s, const float *opdf, const double *opdd, float
     const size_t n2 = (size_t)s->np * s->np, ns2 = (size_t)s->Ns * s->Ns;
 #pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
     for (int is = 0; is < s->nsub; is++)
-        image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, NULL, &s->ws[wt_thread_id()],
-                  img + is * ns2);
+        wt_spot__image_one(s, is, opdf ? opdf + is * n2 : NULL, opdd ? opdd + is * n2 : NULL, NULL, &s->ws[wt_thread_id()],
+                           img + is * ns2, NULL, NULL);
     return WT_OK;
 }
 
 int wt_spot_image(const wt_spot *s, const float *opd, float *img) { return images(s, opd, NULL, img); }
 int wt_spot_image_d(const wt_spot *s, const double *opd, float *img) { return images(s, NULL, opd, img); }
-
-int wt_spot_reference(const wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx, float *didy)
-{
-    if (!(dtheta > 0)) dtheta = s->par.wavelength / (20.0 * s->par.subap_side);
-    const int nth = s->nthreads, np = s->np, Ns = s->Ns, N = s->N;
-    const size_t ns2 = (size_t)Ns * Ns, n2 = (size_t)np * np, N2 = (size_t)N * N;
-    int st = WT_OK;
-    double *Dl = NULL, *work = NULL;
-    float *W = NULL, *W1 = NULL, *ones = NULL;
-    const size_t wk = wt_seeing_work_size(np);
-    if (see) {
-        /* one lag table for the sensor, W of a fully lit subaperture shared, W of the others per thread */
-        WT_ALLOC(s->ctx, Dl, n2, "seeing lag table");
-        WT_ALLOC(s->ctx, work, wk * nth, "seeing workspace");
-        WT_ALLOC(s->ctx, W, N2 * (nth + 1), "seeing OTFs");
-        WT_TRY(wt_seeing_lag_table(s->ctx, np, s->par.subap_side / np, s->par.wavelength, see->r0, see->L0, see->grid, Dl));
-        W1 = W + N2 * nth;
-        WT_ALLOC(s->ctx, ones, n2, "seeing amplitudes");
-        for (size_t q = 0; q < n2; q++) ones[q] = 1.0f;
-        wt_seeing_otf(np, LOOP_GTILT, Dl, ones, N, W1, work);
-    }
-#pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
-    for (int is = 0; is < s->nsub; is++) {
-        const int t = wt_thread_id();
-        workspace *w = &s->ws[t];
-        const float *otf = NULL;
-        if (see) {
-            const float *A = s->amp + (size_t)is * n2;
-            int full = 1;
-            for (size_t q = 0; q < n2 && full; q++) full = A[q] == 1.0f;
-            if (full) otf = W1;
-            else {
-                wt_seeing_otf(np, LOOP_GTILT, Dl, A, N, W + N2 * t, work + wk * t);
-                otf = W + N2 * t;
-            }
-        }
-        if (i0) {
-            memset(w->opd, 0, n2 * sizeof *w->opd);
-            image_one(s, is, NULL, w->opd, otf, w, i0 + is * ns2);
-        }
-        for (int ax = 0; ax < 2; ax++) {
-            float *D = ax ? didy : didx;
-            if (!D) continue;
-            /* (I(+δ) − I(−δ)) / 2δ, a tilt δ·x (or δ·y) on the OPD: the spot moves by +δ (spot.h) */
-            for (int sgn = -1; sgn <= 1; sgn += 2) {
-                for (int j = 0; j < np; j++)
-                    for (int i = 0; i < np; i++) w->opd[i + np * j] = sgn * dtheta * (ax ? s->xs[j] : s->xs[i]);
-                image_one(s, is, NULL, w->opd, otf, w, sgn < 0 ? w->img2 : D + is * ns2);
-            }
-            float *out = D + is * ns2;
-            const float inv = (float)(0.5 / dtheta);
-            for (size_t p = 0; p < ns2; p++) out[p] = (out[p] - w->img2[p]) * inv;
-        }
-    }
-fail:
-    wt_free(s->ctx, Dl);
-    wt_free(s->ctx, work);
-    wt_free(s->ctx, W);
-    wt_free(s->ctx, ones);
-    return st;
-}
 
 void wt_spot_truncation(const wt_spot *s, const float *img, double *trunc)
 {
@@ -658,6 +585,7 @@ size_t wt_spot_memory(const wt_spot *s)
     b += (size_t)s->nsub * (sizeof(double) + sizeof(float) + (size_t)s->np * s->np * sizeof(float));
     b += (size_t)s->nsub * s->k * s->k * s->Lp * s->Lp * sizeof(float);
     b += (size_t)s->nthreads * ws_bytes(s);
+    if (s->rcells) b += (size_t)s->nsub * 5 * s->M * s->M * sizeof(float);
     return b;
 }
 

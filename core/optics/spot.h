@@ -100,6 +100,13 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
                   const float *amp, const double *lit, wt_spot **out);
 void wt_spot_free(wt_spot *s);
 
+/* A new sodium profile for an LGS spot (one built with a profile): its source ⊛ pixel tables rebuilt, the same
+ * numbers as wt_spot_alloc with that profile (the subapertures in parallel, each alone: any thread count gives the
+ * same tables). Everything else (FFTs, rebinning, amplitudes, fluxes) stays. The images and references made after
+ * it are of the new profile. Refused (WT_ERR_INVALID): an NGS spot, a profile that does not contain the LGS
+ * altitude. Allocates its scratch (threads × ~(3 k Lp)² doubles). Outside parallel regions only. */
+int wt_spot_set_sodium(wt_spot *s, const wt_sodium *na);
+
 /* Noise-free images of every subaperture for the OPD [nsub·n_p²] (m, float or double), into
  * img [nsub·Ns²]. Allocates nothing. */
 int wt_spot_image(const wt_spot *s, const float *opd, float *img);
@@ -122,8 +129,13 @@ typedef struct wt_spot_seeing {
  * flat wavefront (the diffraction-limited spot); otherwise the mean spot under that seeing (each image's
  * autocorrelation multiplied by the subaperture's W(u): exact for the mean of |FFT|², seeing.h). Allocates
  * its seeing tables (~n_p² + threads·(N² + 10 n_p²) numbers) and frees them. */
-int wt_spot_reference(const wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx,
+int wt_spot_reference(wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx,
                       float *didy);
+/* From now on wt_spot_reference keeps the rebinned cells of its five images per subaperture (5 M² floats each: they
+ * do not depend on the sodium profile) and, called again with the same dtheta and seeing, makes the images from
+ * them with the current tables (wt_spot_set_sodium) instead of FFTs: the same bits, ~the cost of five direct sums
+ * per subaperture. (The first call after this one computes everything, as always.) */
+int wt_spot_keep_reference(wt_spot *s);
 
 /* trunc[s] = 1 − Σ_pixels img_s / (photons × lit_s): the fraction of the subaperture's flux outside the
  * detector field, for a noise-free image (0 for a dark subaperture). */

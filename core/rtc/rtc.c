@@ -1,7 +1,8 @@
 /* core/rtc/rtc.c: the per-frame reconstructor API (include/wavetomo/rtc.h): set-up from a configuration
  * or a stored MVM, then frames of pseudo-open-loop control around the reconstructors of core/model and
- * the MVM of core/solve. The numerics are theirs; this file checks the boundary and keeps the loop's
- * state (the command queue of the delay), in the same operations as core/sim/loop.c's POLC step. */
+ * the MVM of core/solve. The numerics are theirs; this file checks the boundary. The control law (the delay's
+ * command queue, the integrator with loop.gain or the scale-dependent loop.gain_levels) is core/model/control.h's,
+ * the one core/sim/loop.c steps. */
 #include "rtc.h"
 
 #include <math.h>
@@ -9,6 +10,7 @@
 #include <string.h>
 
 #include "../io/h5.h"
+#include "../model/control.h"
 #include "../model/interaction.h"
 #include "../model/params.h"
 #include "../model/reconstructor.h"
@@ -24,11 +26,9 @@ struct wt_rtc {
     wt_reconstructor *rec;  /* pcg3 / cg9 / none (r = 0) */
     wt_interaction *ia;     /* Â (s_ol = s + Â a_t; wt_rtc_interaction); NULL for an only-OL instance */
     wt_mvm *mvm;            /* the MVM: R and R Â */
-    int delay;              /* d [frames] */
-    double gain, rate;      /* g [1], frame rate [Hz] */
+    double rate;            /* frame rate [Hz] */
     int64_t ns, na;
-    double **ring;          /* d + 1 command vectors: ring[q mod (d+1)] = a_q, q counting the POLC frames */
-    int64_t q;              /* POLC frames since open or reset (the queue's clock; WT_RTC_RAW frames do not tick) */
+    wt_control *ctl;        /* the control law; its clock counts the POLC frames (WT_RTC_RAW frames do not tick) */
     int64_t frames;         /* all frames since open or reset (named in messages) */
     double *s, *a, *r;      /* the frame in double: slopes (then s_ol), applied a_t, reconstruction r (and the
                              * f32 entry's commands) */
@@ -82,8 +82,6 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
     rtc->ctx = ctx;
     rtc->sys = sys;
     rtc->kind = kind;
-    rtc->delay = cfg->delay;
-    rtc->gain = cfg->gain;
     rtc->rate = cfg->rate;
     rtc->ns = rtc->sys->nslopes;
     rtc->na = rtc->sys->nact;
@@ -99,8 +97,10 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
     }
     /* Â: the POLC term of pcg3 / cg9 frames, and wt_rtc_interaction for every kind (the MVM's frames use R Â) */
     if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, rtc->sys, &rtc->ia));
-    WT_ALLOC(ctx, rtc->ring, rtc->delay + 1, "command queue");
-    for (int k = 0; k <= rtc->delay; k++) WT_ALLOC(ctx, rtc->ring[k], rtc->na, "command queue");
+    {
+        const wt_control_params cp = wt_control_params_from_config(cfg);
+        WT_TRY(wt_control_alloc(ctx, rtc->sys, &cp, &rtc->ctl));
+    }
     WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");
     WT_ALLOC(ctx, rtc->a, rtc->na, "applied commands");
     WT_ALLOC(ctx, rtc->r, rtc->na, "reconstruction");
@@ -202,9 +202,7 @@ void wt_rtc_close(wt_rtc *rtc)
 {
     if (!rtc) return;
     wt_context *ctx = rtc->ctx;
-    if (rtc->ring)
-        for (int k = 0; k <= rtc->delay; k++) wt_free(ctx, rtc->ring[k]);
-    wt_free(ctx, rtc->ring);
+    wt_control_free(rtc->ctl);
     wt_free(ctx, rtc->s);
     wt_free(ctx, rtc->a);
     wt_free(ctx, rtc->r);
@@ -222,9 +220,9 @@ void wt_rtc_close(wt_rtc *rtc)
 void wt_rtc_reset(wt_rtc *rtc)
 {
     if (!rtc) return;
-    for (int k = 0; k <= rtc->delay; k++) memset(rtc->ring[k], 0, (size_t)rtc->na * sizeof *rtc->ring[k]);
+    wt_control_reset(rtc->ctl);
     if (rtc->rec) wt_reconstructor_reset(rtc->rec);
-    rtc->q = rtc->frames = 0;
+    rtc->frames = 0;
     rtc->frame_time = 0.0;
 }
 
@@ -263,17 +261,12 @@ static int check_frame(wt_rtc *rtc, const void *slopes, int64_t nslopes, unsigne
             }                                                                                                 \
     } while (0)
 
-/* After r (double, na) of a frame with a_t: the commands of the frame into rtc->r (RAW: r itself; else
- * the integrator, a_{t+d} = a_{t+d-1} + g (r − a_t), queued) — the loop's operations (core/sim/loop.c). */
+/* After r (double, na) of a frame with a_t: the commands of the frame (RAW: r itself; else the control law's
+ * a_{t+d}, queued) */
 static const double *finish(wt_rtc *rtc, const double *a_t, unsigned flags)
 {
     if (flags & WT_RTC_RAW) return rtc->r;
-    const int D1 = rtc->delay + 1;
-    const double *prev = rtc->ring[(rtc->q + rtc->delay - 1) % D1];
-    double *next = rtc->ring[(rtc->q + rtc->delay) % D1];
-    for (int64_t k = 0; k < rtc->na; k++) next[k] = prev[k] + rtc->gain * (rtc->r[k] - a_t[k]);
-    rtc->q++;
-    return next;
+    return wt_control_step(rtc->ctl, rtc->r, a_t);
 }
 
 /* r = R s_ol in double for the iterative reconstructors; s (the caller's slopes, or rtc->s holding a
@@ -293,7 +286,7 @@ int wt_rtc_frame(wt_rtc *rtc, const double *slopes, int64_t nslopes, const doubl
     const double t0 = wt_time_now();
     CHECK_FINITE(rtc, slopes, rtc->ns, "slope", describe_slope);
     if (applied) CHECK_FINITE(rtc, applied, rtc->na, "applied command", describe_actuator);
-    const double *a_t = applied ? applied : rtc->ring[rtc->q % (rtc->delay + 1)];
+    const double *a_t = applied ? applied : wt_control_applied(rtc->ctl);
     if (rtc->mvm) {
         /* r = R s + (R Â) a_t in float32, the stored POLC form (`wavetomo run`), or R s_ol */
         for (int64_t i = 0; i < rtc->ns; i++) rtc->sf[i] = (float)slopes[i];
@@ -328,7 +321,7 @@ int wt_rtc_frame_f32(wt_rtc *rtc, const float *slopes, int64_t nslopes, const fl
         return WT_OK;
     }
     /* otherwise the double frame on converted copies (the queue holds doubles) */
-    const double *a_t = rtc->ring[rtc->q % (rtc->delay + 1)];
+    const double *a_t = wt_control_applied(rtc->ctl);
     if (applied) {
         for (int64_t k = 0; k < rtc->na; k++) rtc->a[k] = applied[k];
         a_t = rtc->a;
@@ -407,8 +400,8 @@ int64_t wt_rtc_nactuators(const wt_rtc *rtc) { return rtc->na; }
 int wt_rtc_nsensors(const wt_rtc *rtc) { return rtc->sys->nsensors; }
 int wt_rtc_ndms(const wt_rtc *rtc) { return rtc->sys->dm->ndms; }
 const char *wt_rtc_recon(const wt_rtc *rtc) { return rtc->recon; }
-int wt_rtc_delay(const wt_rtc *rtc) { return rtc->delay; }
-double wt_rtc_gain(const wt_rtc *rtc) { return rtc->gain; }
+int wt_rtc_delay(const wt_rtc *rtc) { return wt_control_delay(rtc->ctl); }
+double wt_rtc_gain(const wt_rtc *rtc) { return wt_control_gain(rtc->ctl); }
 double wt_rtc_rate(const wt_rtc *rtc) { return rtc->rate; }
 int64_t wt_rtc_frames(const wt_rtc *rtc) { return rtc->frames; }
 double wt_rtc_frame_time(const wt_rtc *rtc) { return rtc->frame_time; }

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "../io/h5.h"
+#include "../model/wind_align.h"
 #include "../solve/mvm.h"
 
 struct wt_adapt {
@@ -37,6 +38,9 @@ struct wt_adapt {
     int pending_update;
     int waiting;              /* mvm: an estimate waiting for the build machine (−1: none) */
     double tacc, tbuild;
+    wt_wind_align *wind;      /* learn_wind: the layers' wind estimator (wt_adapt_wind_alloc), else NULL */
+    int nwl;                  /* its layers, their altitudes [m] */
+    double wind_alt[WT_MAX_LAYERS];
 };
 
 static int learn_alloc(wt_adapt *a)
@@ -63,6 +67,10 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
     if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM)
         return WT_ERROR(ctx, WT_ERR_CONFIG, "a learned atmosphere is for pcg3, cg9 and mvm, not %s",
                         wt_reconstructor_name(kind));
+    if (par->learn_wind && kind != WT_RECON_PCG3 && kind != WT_RECON_CG9)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.atmosphere.learn_wind' = \"aligned\" measures the wind of the "
+                        "reconstruction layers for prediction: pcg3 and cg9 only, not %s (the MVM does not predict)",
+                        sys->cfg ? sys->cfg->path : "system", wt_reconstructor_name(kind));
     if (kind == WT_RECON_MVM && !rebuild)
         return WT_ERROR(ctx, WT_ERR_INVALID, "a learning MVM loop needs a rebuild callback (the driver's)");
     if (par->nstart < 1 || par->nstart > WT_MAX_LAYERS)
@@ -118,6 +126,7 @@ void wt_adapt_free(wt_adapt *a)
     wt_learn_free(a->L);
     wt_mvm_free(a->owned);
     wt_mvm_free(a->pending);
+    wt_wind_align_free(a->wind);
     wt_free(a->ctx, a->est);
     wt_free(a->ctx, a->up);
     wt_free(a->ctx, a);
@@ -139,12 +148,63 @@ static int start_build(wt_adapt *a, int u, double start)
     return WT_OK;
 }
 
+/* ---- learn_wind: the reconstruction layers' own winds (core/model/wind_align.h) ---- */
+
+int wt_adapt_wind_alloc(wt_adapt *a, wt_reconstructor *rec)
+{
+    if (!a->par.learn_wind || a->par.follow_truth) return WT_OK;
+    wt_tomography *tm = wt_reconstructor_tomography(rec);
+    if (!tm) return WT_ERROR(a->ctx, WT_ERR_INVALID, "adapt: the layers' wind needs a pcg3 or cg9 reconstructor");
+    const wt_system *sys = a->sys;
+    const int L = wt_tomography_nlayers(tm);
+    const wt_grid *g[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS];
+    double rad[WT_MAX_LAYERS], th = 0.0;
+    for (int i = 0; i < sys->nlgs; i++) th = fmax(th, hypot(a->tx[i], a->ty[i]));
+    const double H = sys->sensors[0].altitude, D = sys->diameter;
+    for (int l = 0; l < L; l++) {
+        /* the taper: out to the LGS beams' union at the layer (the pupil shrunk by the cone, moved by the
+         * farthest LGS), within the grid */
+        const double h = wt_tomography_layer_altitude(tm, l);
+        g[l] = wt_tomography_layer_grid(tm, l);
+        off[l] = wt_tomography_layer_offset(tm, l);
+        rad[l] = fmin(0.5 * D * (1.0 - (H > 0.0 ? h / H : 0.0)) + th * h, 0.5 * g[l]->nx * g[l]->dx);
+        a->wind_alt[l] = h;
+    }
+    a->nwl = L;
+    const long span = a->par.cumulative ? a->par.run_frames : a->par.every;
+    wt_wind_align_params p = {.stride = WT_ADAPT_WIND_STRIDE, .nlag = 4, .lag = {1, 2, 4, 8}, .nbatch = WT_ADAPT_BATCHES,
+                              .frame_dt = a->par.frame_dt};
+    p.batch_snapshots = span / WT_ADAPT_WIND_STRIDE / WT_ADAPT_BATCHES;
+    return wt_wind_align_alloc(a->ctx, L, g, off, rad, wt_tomography_fft(tm), &p, &a->wind);
+}
+
+/* The layers' winds after this update into u: the estimate where it is clear, the reconstructor's current wind
+ * elsewhere; the estimator starts again for an interval's estimate */
+static int wind_update(wt_adapt *a, const wt_reconstructor *rec, wt_adapt_update *u)
+{
+    wt_wind_estimate e[WT_MAX_LAYERS];
+    const int st = wt_wind_align_estimate(a->wind, e);
+    if (st < 0) return st;
+    wt_reconstructor_layer_wind(rec, u->wind_vx, u->wind_vy);
+    u->nwind = a->nwl;
+    for (int l = 0; l < a->nwl; l++) {
+        u->wind_valid[l] = e[l].valid;
+        if (!e[l].valid) continue;
+        u->wind_vx[l] = e[l].vx, u->wind_vy[l] = e[l].vy;
+        u->wind_sx[l] = e[l].sigma_x, u->wind_sy[l] = e[l].sigma_y;
+    }
+    if (!a->par.cumulative) wt_wind_align_reset(a->wind);
+    return WT_OK;
+}
+
 int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sample *truth, wt_reconstructor *rec)
 {
     int st = WT_OK;
     if (!a->par.follow_truth) {
         const double t0 = wt_time_now();
         st = wt_learn_add(a->L, s_ol);
+        if (st >= 0 && a->wind) st = wt_wind_align_add(a->wind, t, wt_reconstructor_layers(rec));
         a->tacc += wt_time_now() - t0;
         if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: %s", t, wt_error_message(a->ctx));
     }
@@ -185,11 +245,15 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
         u->nalt = e->nalt;
         for (int k = 0; k < e->nalt; k++)
             u->altitude[k] = e->altitude[k], u->fraction[k] = w == 1.0 ? e->fraction[k] : a->cavg[k] / sum;
+        if (a->wind && (st = wind_update(a, rec, u)) < 0)
+            return WT_ERROR(a->ctx, st, "frame %ld: the layers' wind: %s", t, wt_error_message(a->ctx));
     }
     const int idx = a->nup++;
     if (a->kind != WT_RECON_MVM) {
         if ((st = wt_reconstructor_set_model(rec, u->r0, u->nalt, u->altitude, u->fraction, a->vx, a->vy)) < 0)
             return WT_ERROR(a->ctx, st, "frame %ld: the learned model: %s", t, wt_error_message(a->ctx));
+        if (a->wind && (st = wt_reconstructor_set_layer_wind(rec, u->wind_vx, u->wind_vy)) < 0)
+            return WT_ERROR(a->ctx, st, "frame %ld: the layers' learned wind: %s", t, wt_error_message(a->ctx));
         wt_reconstructor_last_update_times(rec, &u->model_s, &u->precond_s);
         u->applied_frame = t + 1;
         return WT_OK;
@@ -226,8 +290,53 @@ int wt_adapt_nupdates(const wt_adapt *a) { return a->nup; }
 int wt_adapt_follows_truth(const wt_adapt *a) { return a->par.follow_truth; }
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
 double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
+double wt_adapt_wind_seconds(const wt_adapt *a) { return a->wind ? wt_wind_align_seconds(a->wind) : 0.0; }
 double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
 double wt_adapt_model_setup_seconds(const wt_adapt *a) { return a->model_setup; }
+
+/* learn_wind: the layers' winds per update under learned/wind_* */
+static int wind_write(const wt_adapt *a, wt_h5_writer *w, int n, const char *group)
+{
+    int st = WT_OK;
+    char path[256];
+#define NAME(s) (snprintf(path, sizeof path, "%s/%s", group, s), path)
+    const int L = a->nwl;
+    double *v = NULL;
+    int64_t *iv = NULL;
+    WT_ALLOC(a->ctx, v, (size_t)(n > 0 ? n : 1) * L, "wind record");
+    WT_ALLOC(a->ctx, iv, (size_t)(n > 0 ? n : 1) * L, "wind record");
+    const int64_t d2[2] = {n, L}, dl[1] = {L};
+    WT_TRY(wt_h5_write(w, NAME("wind_altitude"), WT_H5_F64, WT_H5_F64, 1, dl, a->wind_alt, "m",
+                       "the reconstruction layers whose wind is measured on their own estimates (learn_wind = aligned)"));
+#define ROWS(name, expr, unit, desc)                                                                                   \
+    do {                                                                                                               \
+        for (int u = 0; u < n; u++)                                                                                    \
+            for (int l = 0; l < L; l++) {                                                                              \
+                const wt_adapt_update *p = &a->up[u];                                                                  \
+                v[(size_t)u * L + l] = (expr);                                                                         \
+            }                                                                                                          \
+        WT_TRY(wt_h5_write(w, NAME(name), WT_H5_F64, WT_H5_F64, 2, d2, v, unit, desc));                           \
+    } while (0)
+    ROWS("wind_vx", p->wind_vx[l], "m/s", "each layer's wind after the update, x [update, layer of wind_altitude] (the "
+         "estimate where wind_valid, else the wind it kept)");
+    ROWS("wind_vy", p->wind_vy[l], "m/s", "the same, y");
+    ROWS("wind_speed", hypot(p->wind_vx[l], p->wind_vy[l]), "m/s", "the same, speed");
+    ROWS("wind_direction", atan2(p->wind_vy[l], p->wind_vx[l]) * 180.0 / M_PI, "deg", "the same, direction of motion "
+         "counter-clockwise from +x");
+    ROWS("wind_sigma_x", p->wind_sx[l], "m/s", "the estimate's uncertainty, x: the spread of its batches' estimates / "
+         "sqrt(batches) (0: not estimated)");
+    ROWS("wind_sigma_y", p->wind_sy[l], "m/s", "the same, y");
+#undef ROWS
+    for (int u = 0; u < n; u++)
+        for (int l = 0; l < L; l++) iv[(size_t)u * L + l] = a->up[u].wind_valid[l];
+    WT_TRY(wt_h5_write(w, NAME("wind_valid"), WT_H5_I64, WT_H5_I64, 2, d2, iv, "", "1: the layer's wind estimated at "
+                       "this update; 0: no clear correlation peak, the wind kept"));
+#undef NAME
+fail:
+    wt_free(a->ctx, v);
+    wt_free(a->ctx, iv);
+    return st;
+}
 
 int wt_adapt_copy_record(const wt_adapt *a, wt_adapt **out)
 {
@@ -236,7 +345,7 @@ int wt_adapt_copy_record(const wt_adapt *a, wt_adapt **out)
     *out = NULL;
     WT_ALLOC(a->ctx, c, 1, "learning record");
     *c = *a;
-    c->L = NULL, c->M = NULL, c->est = NULL, c->owned = NULL, c->pending = NULL, c->up = NULL;
+    c->L = NULL, c->M = NULL, c->est = NULL, c->owned = NULL, c->pending = NULL, c->up = NULL, c->wind = NULL;
     c->maxup = a->nup > 0 ? a->nup : 1;
     WT_ALLOC(a->ctx, c->up, c->maxup, "learning record");
     if (a->nup > 0) memcpy(c->up, a->up, (size_t)a->nup * sizeof *a->up);
@@ -286,6 +395,7 @@ int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w, const char *group)
         for (int k = 0; k < na; k++) v[(size_t)u * na + k] = a->up[u].fraction[k];
     WT_TRY(wt_h5_write(w, NAME("fraction"), WT_H5_F64, WT_H5_F64, 2, d2, v, "", "estimated Cn2 fractions [update, "
                        "altitude of the grid's altitude beside it]"));
+    if (a->nwl > 0) WT_TRY(wind_write(a, w, n, group));
     for (int u = 0; u < n; u++) iv[u] = a->up[u].frame;
     WT_TRY(wt_h5_write(w, NAME("frame"), WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the frame after which each estimate "
                        "was made"));

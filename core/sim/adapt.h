@@ -13,8 +13,13 @@
  *              estimate (< 0: the build's measured wall time on this machine); the old matrix is applied
  *              meanwhile. One build at a time, as on one build machine: an estimate made while a build runs
  *              waits and is built when that one is done (a newer one replaces a waiting one).
- * The wind of the model (prediction) is not learned here (the lagged maps' fit, wt_learn_wind_fit, takes minutes on
- * the demo): each learned altitude takes the wind of the start model's layer nearest in altitude.
+ * The wind of the model (prediction): each learned altitude takes the wind of the start model's layer nearest in
+ * altitude (the lagged maps' fit, wt_learn_wind_fit, takes minutes on the demo); with learn_wind (pcg3, cg9) the
+ * reconstruction layers' own winds are measured on their estimates (core/model/wind_align.h: every
+ * WT_ADAPT_WIND_STRIDE-th frame's layers, before any prediction shift) and set at each update
+ * (wt_reconstructor_set_layer_wind): a layer's estimate holds what the layer absorbs, so its measured wind is already
+ * the mixture that SPEC §12's compression (the Cn²-weighted mean wind) stands for, and no mapping between the learned
+ * altitudes and the layers is needed; a layer without a clear estimate keeps the wind it had.
  * The oracle in a changing night (follow_truth): no estimate; every `every` frames the model becomes the truth's
  * state of that frame (its layers, fractions, r0 and wind, core/sim/night.h), taken as a learned one is (pcg3 and
  * cg9 at the next frame, the MVM after its latency): what a perfect profiler would give.
@@ -53,7 +58,13 @@ typedef struct wt_adapt_params {
     double recon_alt[WT_MAX_LAYERS]; /* [m] */
     int nstart;               /* the start model's layers: their wind goes to the learned altitudes */
     double start_alt[WT_MAX_LAYERS], start_vx[WT_MAX_LAYERS], start_vy[WT_MAX_LAYERS]; /* [m], [m/s] */
+    int learn_wind;           /* 1: the layers' winds aligned on their estimates (pcg3, cg9; wt_adapt_wind_alloc) */
+    double frame_dt;          /* learn_wind: real time of one frame [s] (1 / the loop's rate) */
 } wt_adapt_params;
+
+/* learn_wind: a snapshot of the layers every this many frames, lags of 1, 2, 4, 8 snapshots (the longest 80 ms at
+ * 500 Hz: a layer at 25 m/s moves 2 m, a few points, still well inside its footprint) */
+#define WT_ADAPT_WIND_STRIDE 5
 
 /* An estimate needs this many frames: WT_ADAPT_BATCHES batches (its uncertainty) of at least 25 each. */
 #define WT_ADAPT_BATCHES 4
@@ -71,6 +82,10 @@ typedef struct wt_adapt_update {
     double model_s, precond_s; /* pcg3/cg9: wall time of the new model, of the preconditioner [s] */
     double build_s;           /* mvm: wall time of the matrix's build [s] (0 while waiting) */
     long applied_frame;       /* the first frame that used it (−1: never, e.g. replaced while waiting) */
+    int nwind;                /* learn_wind: the reconstruction layers, and each one's wind after this update: */
+    double wind_vx[WT_MAX_LAYERS], wind_vy[WT_MAX_LAYERS];     /* [m/s] */
+    double wind_sx[WT_MAX_LAYERS], wind_sy[WT_MAX_LAYERS];     /* its uncertainty (0: not estimated) [m/s] */
+    int wind_valid[WT_MAX_LAYERS];                             /* 1: estimated now; 0: kept (no clear peak) */
 } wt_adapt_update;
 
 typedef struct wt_adapt wt_adapt;
@@ -80,6 +95,9 @@ typedef struct wt_adapt wt_adapt;
 int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_adapt_params *par, wt_adapt_rebuild_fn rebuild,
                    void *rebuild_user, long max_updates, wt_adapt **out);
 void wt_adapt_free(wt_adapt *a);
+/* learn_wind: the layers' wind estimator for rec (the loop's pcg3 or cg9 reconstructor, the same object for the run),
+ * after wt_adapt_alloc; a no-op without learn_wind. Allocates. */
+int wt_adapt_wind_alloc(wt_adapt *a, wt_reconstructor *rec);
 
 /* Frame t measured s_ol: accumulate it; after the `every`-th frame since the last estimate, fit (follow_truth: take
  * `truth`, the truth's state of frame t, required then) and update rec (pcg3/cg9) or start/queue an MVM build.
@@ -93,6 +111,7 @@ int wt_adapt_nupdates(const wt_adapt *a);
 int wt_adapt_follows_truth(const wt_adapt *a); /* 1: the oracle following a night (no estimates) */
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
+double wt_adapt_wind_seconds(const wt_adapt *a);       /* learn_wind: the layers' part of it [s] (0 without) */
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
 double wt_adapt_model_setup_seconds(const wt_adapt *a); /* the learning grid's response maps, at alloc [s] */
 /* The updates into w under the group `group` ("learned" in sim's file; one row per update: frame, night time, r0 and its

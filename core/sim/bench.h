@@ -123,4 +123,21 @@ typedef struct wt_bench_sensing {
 
 int wt_bench_sensing_run(wt_context *ctx, const wt_system *sys, int kind, int reps, wt_bench_sensing *out);
 
+/* The sodium layer in time (core/sim/sodium_drive.h) for the diffractive LGS of sys: the truth's spot tables of a
+ * new profile (wt_sensing_set_sodium, every LGS; the set-up profile moved up by 500 m), and the oracle's reference
+ * rebuilt from them (wt_sensing_rebuild_reference: I0 and its derivatives, the centroider and its covariance): the
+ * first rebuild, which makes the FFTs and keeps the profile-independent cells (wt_spot_keep_reference), then reps
+ * rebuilds from the kept cells (what the loop pays every lgs.wfs.reference_update_s). The sensors are restored to
+ * their set-up profile and reference after (wt_sensing_restore). */
+typedef struct wt_bench_sodium {
+    int nsensors;               /* diffractive LGS (0: nothing timed) */
+    int64_t nsub;
+    wt_bench_stats tables;      /* the truth's tables of every LGS [s] */
+    double full;                /* the first reference rebuild of every LGS (FFTs; cells kept) [s] */
+    wt_bench_stats reference;   /* a rebuild from the kept cells, every LGS [s] */
+    double cpu_tables, cpu_reference; /* process CPU time per rebuild of each, all threads [s] */
+} wt_bench_sodium;
+
+int wt_bench_sodium_run(wt_context *ctx, const wt_system *sys, int reps, wt_bench_sodium *out);
+
 #endif

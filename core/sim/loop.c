@@ -1,10 +1,11 @@
 /* core/sim/loop.c: closed-loop MCAO simulation with POLC (SPEC §7, paper Algorithm POLC), with a single
- * integrator gain g or one per wavelet scale of the commands (G, core/sim/scale_gain.h). */
+ * integrator gain g or one per wavelet scale of the commands (G, core/op/scale_gain.h). */
 #include "loop.h"
 
 #include <math.h>
 #include <string.h>
 
+#include "../model/control.h"
 #include "../model/fitting.h"
 #include "../model/interaction.h"
 #include "../model/sensing.h"
@@ -42,11 +43,7 @@ struct wt_loop {
     double *dm_grids;             /* expanded applied commands */
     wt_interaction *ia;
     wt_reconstructor *rec;
-    int delay;
-    double gain;
-    wt_scale_gain *sg;            /* loop.gain_levels: G per wavelet band in place of g (else NULL) */
-    double *gerr, *gwork;         /* sg: R s_ol − a_t (nact) and G's workspace */
-    double **ring;                /* delay + 1 command vectors: a_t at slot t mod (delay + 1) */
+    wt_control *ctl;              /* the control law: the delay's command queue and the integrator (g or G) */
     double *s, *s_ol, *a_rec, *applied;
     double *rms;                  /* ndir */
     double field_strehl;
@@ -58,6 +55,7 @@ struct wt_loop {
     double *dm_opd;               /* true_polc: per sensor, −(the DM shapes along its line of sight) (nsensors x nfine) */
     double *s_dm;                 /* true_polc: the truth sensors' slopes of dm_opd (nslopes) */
     wt_adapt *adapt;              /* the closed loop learns its atmosphere (par.learn.every > 0), else NULL */
+    wt_sodium_drive *sodium;      /* the sodium sequence / the loop's LGS reference (NULL: fixed, static) */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -168,8 +166,6 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     lp->sys = sys;
     lp->par = *par;
     lp->opt = *opt;
-    lp->delay = par->delay;
-    lp->gain = par->gain;
     lp->nlos = sys->nsensors + sys->neval;
 
     /* fine grid: p points per subaperture, subaperture corners on fine points */
@@ -242,13 +238,10 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     } else {
         WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, &par->recon, &lp->rec));
     }
-    if (par->scale_gain.nbands > 0) {
-        WT_TRY(wt_scale_gain_alloc(ctx, sys->dm, &par->scale_gain, &lp->sg));
-        WT_ALLOC(ctx, lp->gerr, sys->nact, "scale-dependent gain");
-        WT_ALLOC(ctx, lp->gwork, wt_scale_gain_work_size(lp->sg) + 1, "scale-dependent gain");
+    {
+        const wt_control_params cp = {.delay = par->delay, .gain = par->gain, .scale_gain = par->scale_gain};
+        WT_TRY(wt_control_alloc(ctx, sys, &cp, &lp->ctl));
     }
-    WT_ALLOC(ctx, lp->ring, lp->delay + 1, "command history");
-    for (int k = 0; k <= lp->delay; k++) WT_ALLOC(ctx, lp->ring[k], sys->nact, "command history");
     WT_ALLOC(ctx, lp->s, sys->nslopes, "slopes");
     WT_ALLOC(ctx, lp->s_ol, sys->nslopes, "pseudo-open-loop slopes");
     WT_ALLOC(ctx, lp->a_rec, sys->nact, "reconstructed commands");
@@ -280,7 +273,13 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
     if (par->learn.every > 0 && opt->open_loop == WT_LOOP_CLOSED)
         WT_TRY(wt_adapt_alloc(ctx, sys, opt->recon, &par->learn, opt->rebuild, opt->rebuild_user, par->learn_max_updates,
                               &lp->adapt));
+    if (lp->adapt) WT_TRY(wt_adapt_wind_alloc(lp->adapt, lp->rec));
     lp->t = opt->first_frame;
+    {
+        wt_sodium_drive_params sp = par->sodium;
+        sp.first_frame = opt->first_frame;
+        WT_TRY(wt_sodium_drive_alloc(ctx, sys, &sp, &lp->sodium));
+    }
     if (opt->perfect_fit > 0) {
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
         WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
@@ -298,6 +297,7 @@ void wt_loop_free(wt_loop *lp)
     wt_context *ctx = lp->ctx;
     wt_atmosphere_free(lp->atm);
     wt_night_free(lp->night);
+    wt_sodium_drive_free(lp->sodium);
     if (lp->wfs)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_wfs_free(lp->wfs[m]);
     if (lp->dmask)
@@ -313,9 +313,7 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->nruns);
     wt_projection_free(lp->dm0);
     wt_free(ctx, lp->t0);
-    if (lp->ring)
-        for (int k = 0; k <= lp->delay; k++) wt_free(ctx, lp->ring[k]);
-    wt_free(ctx, lp->ring);
+    wt_control_free(lp->ctl);
     wt_free(ctx, lp->wfs);
     wt_free(ctx, lp->noise);
     wt_free(ctx, lp->dm);
@@ -335,9 +333,6 @@ void wt_loop_free(wt_loop *lp)
     wt_free(ctx, lp->maps);
     wt_free(ctx, lp->dm_opd);
     wt_free(ctx, lp->s_dm);
-    wt_scale_gain_free(lp->sg);
-    wt_free(ctx, lp->gerr);
-    wt_free(ctx, lp->gwork);
     wt_free(ctx, lp);
 }
 
@@ -548,6 +543,11 @@ int wt_loop_step(wt_loop *lp)
         const int e = wt_night_drive(lp->night, lp->atm, lp->t);
         if (e < 0) return e;
     }
+    /* the sodium layer: the truth's spots of this frame's profile, the reference rebuilt when it is time */
+    if (lp->sodium) {
+        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec);
+        if (e < 0) return e;
+    }
     /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
     if (lp->t == lp->par.settle_frames)
         for (int i = 0; i < lp->sys->nsensors; i++)
@@ -555,7 +555,6 @@ int wt_loop_step(wt_loop *lp)
     if (lp->opt.open_loop == WT_LOOP_OPEN_POLC) return step_polc_instant(lp);
     if (lp->opt.open_loop) return step_open_loop(lp);
     const wt_system *sys = lp->sys;
-    const int D1 = lp->delay + 1;
     const long t = lp->t;
     const double time = (double)t / lp->par.rate;
     const int64_t nf = lp->nfine;
@@ -565,7 +564,7 @@ int wt_loop_step(wt_loop *lp)
     if (lp->adapt && (st = wt_adapt_swap(lp->adapt, t, &lp->rec)) < 0) return st;
 
     /* a_t: the commands applied during this frame */
-    memcpy(lp->applied, lp->ring[t % D1], (size_t)sys->nact * sizeof *lp->applied);
+    memcpy(lp->applied, wt_control_applied(lp->ctl), (size_t)sys->nact * sizeof *lp->applied);
     wt_dm_expand(sys->dm, lp->applied, lp->dm_grids);
 
     /* 1. the turbulence along every line of sight (project_all) */
@@ -647,18 +646,7 @@ int wt_loop_step(wt_loop *lp)
         lp->times.learning += t5 - t4 - (wt_adapt_build_seconds(lp->adapt) - b0); /* (a build: latency, simulated) */
         t4 = t5; /* (the control's time below leaves it out) */
     }
-    const double *prev = lp->ring[(t + lp->delay - 1) % D1];
-    double *next = lp->ring[(t + lp->delay) % D1];
-    if (lp->opt.recon == WT_RECON_NONE) {
-        memset(next, 0, (size_t)sys->nact * sizeof *next);
-    } else if (lp->sg) {
-        /* G = g I (all gains equal) adds (1 g) e_k to prev_k: the single gain's bits */
-        for (int64_t k = 0; k < sys->nact; k++) lp->gerr[k] = lp->a_rec[k] - lp->applied[k];
-        memcpy(next, prev, (size_t)sys->nact * sizeof *next);
-        wt_scale_gain_apply(lp->sg, 1.0, lp->gerr, next, lp->gwork);
-    } else {
-        for (int64_t k = 0; k < sys->nact; k++) next[k] = prev[k] + lp->gain * (lp->a_rec[k] - lp->applied[k]);
-    }
+    const double *next = wt_control_step(lp->ctl, lp->opt.recon == WT_RECON_NONE ? NULL : lp->a_rec, lp->applied);
     lp->times.control += wt_time_now() - t4;
     for (int64_t k = 0; k < sys->nact; k++)
         if (!isfinite(next[k]))
@@ -683,6 +671,8 @@ const double *wt_loop_residual(const wt_loop *lp, int j)
     return lp->opd + (size_t)(lp->sys->nsensors + j) * lp->nfine;
 }
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp) { return lp->atm; }
+const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp) { return lp->sodium; }
+
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out)
 {
     if (!lp->night) return 0;

@@ -7,7 +7,7 @@
  * 2x2 covariance with τ = 1) and a random tip-tilt per LGS. The evaluation directions give the residual
  * OPD and its Strehl (SPEC §8). Pseudo-open-loop control with a delay of d frames (d = 2 in the paper):
  *   s_ol = s_t + Â a_t,   a_{t+d} = a_{t+d−1} + g (R s_ol − a_t),
- * or, with a gain per spatial scale, G = Σ_j g_j Π_j in place of g (core/sim/scale_gain.h).
+ * or, with a gain per spatial scale, G = Σ_j g_j Π_j in place of g (core/op/scale_gain.h).
  *
  * Budget modes (wt_loop_options.open_loop …): the instantaneous open loop evaluates a_t = R s_t (or the
  * best fit to the true turbulence) in the frame it was measured, with the DMs flat in the sensors or (the
@@ -25,7 +25,8 @@
 #include "adapt.h"
 #include "atmosphere.h"
 #include "night.h"
-#include "scale_gain.h"
+#include "../op/scale_gain.h"
+#include "sodium_drive.h"
 #include "strehl.h"
 
 typedef struct wt_loop wt_loop;
@@ -78,7 +79,7 @@ typedef struct wt_loop_params {
     int delay;                       /* frames between measurement and application */
     double gain;                     /* integrator gain g [1] */
     wt_scale_gain_params scale_gain; /* nbands > 0: G = Σ_j g_j Π_j per wavelet band of the commands
-                                      * (core/sim/scale_gain.h) in place of g; 0: the single gain */
+                                      * (core/op/scale_gain.h) in place of g; 0: the single gain */
     int points_per_subaperture;      /* simulation grid points per LGS subaperture side */
     double diameter;                 /* pupil diameter D [m] */
     double obstruction;              /* central obstruction, fraction of D */
@@ -94,6 +95,8 @@ typedef struct wt_loop_params {
     wt_night_params night;           /* source WT_NIGHT_NONE: the atmosphere fixed; else the truth's changing night
                                       * (core/sim/night.h), whose reference state must be `atmosphere`'s and
                                       * frame_time 1 / rate */
+    wt_sodium_drive_params sodium;   /* the truth's sodium sequence and the LGS reference in the loop
+                                      * (core/sim/sodium_drive.h); none and static: nothing runs */
 } wt_loop_params;
 
 /* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
@@ -129,6 +132,8 @@ const double *wt_loop_residual(const wt_loop *lp, int j);
  * 1 and *out (its arrays the loop's, valid until the next step); 0 without a night (the truth is then
  * params.atmosphere, fixed). */
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out);
+/* The sodium layer's drive (NULL when the profile is fixed and the reference static). */
+const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);

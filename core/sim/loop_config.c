@@ -6,21 +6,19 @@
 #include <math.h>
 #include <string.h>
 
+#include "../model/control.h"
 #include "../model/params.h"
 
-_Static_assert(WT_MAX_GAIN_BANDS == WT_SCALE_GAIN_MAX_BANDS, "loop.gain_levels must fit wt_scale_gain_params");
 
 void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par)
 {
     memset(par, 0, sizeof *par);
     par->rate = cfg->rate;
-    par->delay = cfg->delay;
-    par->gain = cfg->gain;
-    if (cfg->ngain_levels > 0) {
-        par->scale_gain.nbands = cfg->ngain_levels;
-        memcpy(par->scale_gain.gain, cfg->gain_levels, (size_t)cfg->ngain_levels * sizeof *cfg->gain_levels);
-        par->scale_gain.basis = cfg->gain_basis ? WT_SCALE_GAIN_DAUBECHIES : WT_SCALE_GAIN_BILINEAR;
-        par->scale_gain.wavelet_order = cfg->wavelet_order;
+    {
+        const wt_control_params cp = wt_control_params_from_config(cfg); /* the law every loop and frame API uses */
+        par->delay = cp.delay;
+        par->gain = cp.gain;
+        par->scale_gain = cp.scale_gain;
     }
     par->points_per_subaperture = cfg->points_per_subaperture;
     par->diameter = cfg->diameter;
@@ -44,6 +42,14 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                    .file = nc->file, .seed = nc->seed, .correlation_time = nc->correlation_time,
                                    .step = nc->step, .r0_rms = nc->r0_rms, .fraction_rms = nc->fraction_rms,
                                    .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
+    par->sodium = (wt_sodium_drive_params){.sequence = cfg->sodium_sequence,
+                                           .sequence_update = cfg->sodium_sequence_update,
+                                           .reference = cfg->lgs_reference == 1 ? WT_REFERENCE_ORACLE : WT_REFERENCE_STATIC,
+                                           .reference_update = cfg->lgs_reference_update,
+                                           .start = nc->start, .frame_time = 1.0 / cfg->rate,
+                                           .compression = nc->compression, .frames = cfg->frames,
+                                           .origin = "keys atmosphere.night.start_s, atmosphere.night.compression, "
+                                                     "loop.frames and loop.rate_hz"};
     par->lgs_tt_jitter = cfg->lgs_tt_jitter;
     par->eval_wavelength = cfg->eval_wavelength;
     par->settle_frames = cfg->settle_frames;
@@ -63,12 +69,15 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .nstart = m->nlayers,
                                        .grid_layers = m->learn_grid == 1,
                                        .follow_truth = follow,
-                                       .ntruth = cfg->nlayers};
+                                       .ntruth = cfg->nlayers,
+                                       .learn_wind = m->source == WT_MODEL_LEARNED && m->learn_wind == 1,
+                                       .frame_dt = 1.0 / cfg->rate};
         for (int k = 0; k < cfg->nlayers; k++) par->learn.truth_alt[k] = cfg->layer_altitude[k];
         /* the layers the estimate is compressed onto: the variant's (an MVM's are pcg3's, what it is built from) */
         const wt_recon_variant_config *v = opt->recon == WT_RECON_CG9 ? &cfg->cg9 : &cfg->pcg3;
         par->learn.nrecon = v->nlayers;
         for (int k = 0; k < v->nlayers; k++) par->learn.recon_alt[k] = v->altitudes[k];
+        par->recon.precond.updatable = 1; /* the model changes: its preconditioner is updated, not rebuilt */
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
         for (int k = 0; k < m->nlayers; k++) {
             par->learn.start_alt[k] = m->altitude[k];

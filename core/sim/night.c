@@ -404,7 +404,11 @@ fail:
 /* The drive */
 
 int wt_night_nlayers(const wt_night *n) { return n->nl; }
-double wt_night_time(const wt_night *n, long frame) { return n->start + (double)frame * n->dt * n->compression; }
+double wt_night_clock(double start, double frame_time, double compression, long frame)
+{
+    return start + (double)frame * frame_time * compression;
+}
+double wt_night_time(const wt_night *n, long frame) { return wt_night_clock(n->start, n->dt, n->compression, frame); }
 
 wt_night_sample wt_night_current(const wt_night *n)
 {

@@ -107,6 +107,8 @@ void wt_night_free(wt_night *night);
 int wt_night_nlayers(const wt_night *night);
 /* Night time of frame j: start + j Δt c [s]. */
 double wt_night_time(const wt_night *night, long frame);
+/* The same clock without a night (the sodium layer's sequence reads it too): start + j Δt c [s]. */
+double wt_night_clock(double start, double frame_time, double compression, long frame);
 
 /* The state at night time t [s] (the interpolation above): r0 [m] into *r0, and per layer fraction (sum 1),
  * wind speed [m/s] and direction [rad] into the caller's arrays of nlayers values (any may be NULL). Allocates

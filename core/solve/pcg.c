@@ -4,13 +4,19 @@
  * point, with rtol = 0 and many iterations, the residual reaches rounding level and rᵀz underflows to 0
  * (then β = 0/0 = NaN poisons p) or pᵀAp rounds to ≤ 0. That is convergence, not a fault: the iteration
  * stops there with WT_WARN_BREAKDOWN, keeps the last iterate and reports the residual reached. Only a
- * pᵀAp ≤ 0 at the first iteration (A not positive definite) or a non-finite value is an error. */
+ * pᵀAp ≤ 0 at the first iteration (A not positive definite) or a non-finite value is an error.
+ * The recursive residual can also stall far below anything x can show without either going to 0: in the demo's
+ * closed loop, frames whose ‖r‖/‖b‖ hovered at 1e-163 (rᵀz subnormal, each iteration slow) ran to any cap. The
+ * true residual of an iterate is floored at ~ε (‖b‖ + ‖A‖ ‖x‖) ≥ ε ‖b‖, and a step of relative size ε² changes
+ * no digit of x: so ‖r‖ ≤ ε² ‖b‖ (WT_PCG_ROUNDING) is rounding level reached too, with the same warning. */
 #include "pcg.h"
 
 #include <math.h>
 #include <string.h>
 
 #include "../la/vec.h"
+
+#define WT_PCG_ROUNDING 0x1p-104 /* ε² of double: below it the recursive residual says nothing about x (above) */
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -361,6 +367,11 @@ static int solve_body(wt_pcg *w, wt_linop_fn A, void *user, const double *inv_di
         if (!isfinite(rnorm)) {
             update_p(w, a, 0.0, NULL, x, p);
             return WT_ERROR(w->ctx, WT_ERR_NUMERIC, "pcg: residual became non-finite at iteration %d", k + 1);
+        }
+        if (rnorm <= WT_PCG_ROUNDING * bnorm && !(rtol > 0.0 && rnorm <= rtol * bnorm) && rnorm != 0.0) {
+            update_p(w, a, 0.0, NULL, x, p);
+            return WT_ERROR(w->ctx, WT_WARN_BREAKDOWN, "pcg: stopped after %d iterations: relative residual %.3g, "
+                            "below ε² (rounding level reached)", k + 1, res->rel_resid);
         }
         if ((rtol > 0.0 && rnorm <= rtol * bnorm) || rnorm == 0.0 || k + 1 == max_iter) {
             update_p(w, a, 0.0, NULL, x, p); /* (rnorm = 0: exact solution, nothing left to do, rtol = 0 included) */

@@ -9,7 +9,8 @@
  *
  * What a frame computes (pseudo-open-loop control, POLC, paper Algorithm POLC, SPEC §7), with s the
  * frame's slopes, a_t the commands applied while they were measured, R the reconstructor, Â the
- * DM-to-slope interaction, g the integrator gain (loop.gain) and d the delay (loop.delay_frames):
+ * DM-to-slope interaction, g the integrator gain (loop.gain; with loop.gain_levels the gain per spatial scale G
+ * of the commands, the same law as `wavetomo sim`) and d the delay (loop.delay_frames):
  *
  *   s_ol    = s + Â a_t                     (flag WT_RTC_SLOPES_OL: s_ol = s, the slopes are already
  *                                            pseudo-open-loop)

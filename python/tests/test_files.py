@@ -59,6 +59,30 @@ def test_matrix_half(files, tmp_path):
     assert np.linalg.norm(r - h.R @ s) <= 1e-5 * np.linalg.norm(r)
 
 
+def test_strings_for_plain_h5py(files, tmp_path):
+    """Strings are variable-length UTF-8: h5py alone gives attributes as str and string datasets through
+    .asstr() (docs/python.md). A file of an earlier wavetomo (fixed-length strings, which h5py gives as bytes)
+    still reads with str values through the package."""
+    with h5py.File(files["run"], "r") as f:
+        assert f.attrs["recon"] == "pcg3" and isinstance(f.attrs["wavetomo_version"], str)
+        assert f["eval/wfe_le"].attrs["units"] == "nm" and isinstance(f["eval/wfe_le"].attrs["description"], str)
+        assert h5py.check_string_dtype(f["config"].dtype).encoding == "utf-8"
+        assert f["config"].asstr()[()].startswith("telescope")
+    with h5py.File(files["matrix"], "r") as f:
+        assert f.attrs["precision"] == "fp32" and f.attrs["variant"] == "pcg3"
+    old = tmp_path / "old.h5"
+    shutil.copy(files["run"], old)
+    with h5py.File(old, "r+") as f:
+        text = f["config"].asstr()[()]
+        del f["config"]
+        f["config"] = np.bytes_(text.encode())
+        f.attrs["recon"] = np.bytes_(b"pcg3")
+        f["eval/wfe_le"].attrs["units"] = np.bytes_(b"nm")
+    with h5py.File(old, "r") as f:
+        assert f.attrs["recon"] == b"pcg3" and f["config"].dtype.kind == "S"
+    r = wavetomo.read_run(old)
+    assert r.attrs["recon"] == "pcg3" and r.units("eval/wfe_le") == "nm" and r.config == text
+
 def test_refusals(files, tmp_path):
     """Missing, not HDF5, incomplete (an interrupted run's), and of another kind: each named."""
     with pytest.raises(wavetomo.FileError):

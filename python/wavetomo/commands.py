@@ -4,7 +4,7 @@ Each function runs the `wavetomo` executable with the same options as the comman
 files it writes (wavetomo.files), so its numbers are the command line's bit for bit: it is the command
 line. Why a subprocess and not more C API: the runs take seconds to hours, beside which starting a
 process is nothing; the closed loop, the report and the output writers live in the drivers, above the
-library (issue 21 §6: one code path, no second entry to keep identical); and a separate process keeps
+library (one code path, no second entry to keep identical); and a separate process keeps
 OpenMP and OpenBLAS thread pools, MPI, signals (Ctrl-C makes compare write what it has) and memory out
 of the interpreter. A failed run raises CommandError with the command's own error message.
 

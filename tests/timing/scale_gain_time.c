@@ -1,5 +1,5 @@
 /* tests/timing/scale_gain_time.c: per-frame time of the loop's integrator update with a scale-dependent gain
- * (core/sim/scale_gain.h) on the DMs of a configuration (default: the E-ELT preset, 3 DMs, 10027 actuators),
+ * (core/op/scale_gain.h) on the DMs of a configuration (default: the E-ELT preset, 3 DMs, 10027 actuators),
  * both bases and 2 … 5 bands, against the single gain's update; and the set-up time. Not a test (no timing in
  * the suites); build and run by hand:
  *   make build/libwavetomo.a && gcc -std=c11 -D_DEFAULT_SOURCE -O3 -fopenmp -I. tests/timing/scale_gain_time.c \
@@ -13,7 +13,7 @@
 #include "core/base/base.h"
 #include "core/config/config.h"
 #include "core/op/dm.h"
-#include "core/sim/scale_gain.h"
+#include "core/op/scale_gain.h"
 
 #define REPS 2000
 

@@ -1,4 +1,4 @@
-/* core/sim/scale_gain.c: the scale-dependent integrator gain G = Σ_j g_j Π_j of the POLC loop (see
+/* core/op/scale_gain.c: the scale-dependent integrator gain G = Σ_j g_j Π_j of the POLC loop (see
  * scale_gain.h).
  *
  * Bilinear basis: G = g_L I + Σ_{j<L} (g_j − g_{j+1}) P_j, P_j x = Σ_squares Q_s Q_sᵀ x_s, with Q_s an
@@ -9,7 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "../op/wavelet.h"
+#include "wavelet.h"
 
 /* A column whose norm falls below this fraction of its own after Gram–Schmidt is in the span of the
  * previous ones: actuators sit on integer grid points (coordinates in units of the square, spacing 1/b),

@@ -1,4 +1,4 @@
-/* core/sim/scale_gain.h: the integrator gain of the POLC loop per spatial scale of the DM commands
+/* core/op/scale_gain.h: the integrator gain of the POLC loop per spatial scale of the DM commands
  * (issue 20 §4; the paper's closing remark "the gain in the temporal control can be applied
  * scale-dependently").
  *
@@ -38,7 +38,7 @@
 #define WT_SCALE_GAIN_H
 
 #include "../base/base.h"
-#include "../op/dm.h"
+#include "dm.h"
 
 #define WT_SCALE_GAIN_MAX_BANDS 16 /* L + 1 <= 16: L = 15 levels need a 65536-point DM grid */
 

@@ -1,0 +1,93 @@
+/* core/optics/spot_reference.c: the noise-free reference I0 and its derivatives (spot.h), with or without the mean
+ * seeing, and the rebinned cells that a reference of another sodium profile can reuse (wt_spot_keep_reference). */
+#include "seeing.h"
+#include "spot_private.h"
+
+int wt_spot_keep_reference(wt_spot *s)
+{
+    if (s->rcells) return WT_OK;
+    const size_t n = (size_t)s->nsub * 5 * s->M * s->M;
+    s->rcells = wt_malloc(s->ctx, n ? n : 1, sizeof *s->rcells);
+    if (!s->rcells)
+        return WT_ERROR(s->ctx, WT_ERR_NOMEM, "spot: out of memory for the reference's kept cells (%zu floats)", n);
+    s->rc_valid = 0;
+    return WT_OK;
+}
+
+int wt_spot_reference(wt_spot *s, double dtheta, const wt_spot_seeing *see, float *i0, float *didx, float *didy)
+{
+    if (!(dtheta > 0)) dtheta = s->par.wavelength / (20.0 * s->par.subap_side);
+    /* kept cells of the same dtheta and seeing: the five images are their direct sums (the current tables) */
+    const int reuse = s->rcells && s->rc_valid && s->rc_dtheta == dtheta && s->rc_see == (see != NULL) &&
+                      (!see || (s->rc_seeing.r0 == see->r0 && s->rc_seeing.L0 == see->L0 &&
+                                s->rc_seeing.grid == see->grid));
+    /* keep them now: every image is made (a NULL output to a scratch image) */
+    const int keep = s->rcells && !reuse;
+    const size_t M2 = (size_t)s->M * s->M;
+    const int nth = s->nthreads, np = s->np, Ns = s->Ns, N = s->N;
+    const size_t ns2 = (size_t)Ns * Ns, n2 = (size_t)np * np, N2 = (size_t)N * N;
+    int st = WT_OK;
+    double *Dl = NULL, *work = NULL;
+    float *W = NULL, *W1 = NULL, *ones = NULL;
+    const size_t wk = wt_seeing_work_size(np);
+    if (see && !reuse) {
+        /* one lag table for the sensor, W of a fully lit subaperture shared, W of the others per thread */
+        WT_ALLOC(s->ctx, Dl, n2, "seeing lag table");
+        WT_ALLOC(s->ctx, work, wk * nth, "seeing workspace");
+        WT_ALLOC(s->ctx, W, N2 * (nth + 1), "seeing OTFs");
+        WT_TRY(wt_seeing_lag_table(s->ctx, np, s->par.subap_side / np, s->par.wavelength, see->r0, see->L0, see->grid, Dl));
+        W1 = W + N2 * nth;
+        WT_ALLOC(s->ctx, ones, n2, "seeing amplitudes");
+        for (size_t q = 0; q < n2; q++) ones[q] = 1.0f;
+        wt_seeing_otf(np, LOOP_GTILT, Dl, ones, N, W1, work);
+    }
+#pragma omp parallel for schedule(dynamic, 16) num_threads(nth) if (nth > 1 && s->nsub > 1 && !omp_in_parallel())
+    for (int is = 0; is < s->nsub; is++) {
+        const int t = wt_thread_id();
+        workspace *w = &s->ws[t];
+        const float *otf = NULL;
+        float *rc = s->rcells ? s->rcells + (size_t)is * 5 * M2 : NULL;
+        if (see && !reuse) {
+            const float *A = s->amp + (size_t)is * n2;
+            int full = 1;
+            for (size_t q = 0; q < n2 && full; q++) full = A[q] == 1.0f;
+            if (full) otf = W1;
+            else {
+                wt_seeing_otf(np, LOOP_GTILT, Dl, A, N, W + N2 * t, work + wk * t);
+                otf = W + N2 * t;
+            }
+        }
+        if (i0 || keep) {
+            memset(w->opd, 0, n2 * sizeof *w->opd);
+            wt_spot__image_one(s, is, NULL, w->opd, otf, w, i0 ? i0 + is * ns2 : w->img2, reuse ? rc : NULL,
+                               keep ? rc : NULL);
+        }
+        for (int ax = 0; ax < 2; ax++) {
+            float *D = ax ? didy : didx;
+            if (!D && !keep) continue;
+            /* (I(+δ) − I(−δ)) / 2δ, a tilt δ·x (or δ·y) on the OPD: the spot moves by +δ (spot.h) */
+            for (int sgn = -1; sgn <= 1; sgn += 2) {
+                for (int j = 0; j < np; j++)
+                    for (int i = 0; i < np; i++) w->opd[i + np * j] = sgn * dtheta * (ax ? s->xs[j] : s->xs[i]);
+                float *cell = rc ? rc + M2 * (size_t)(1 + 2 * ax + (sgn > 0)) : NULL;
+                wt_spot__image_one(s, is, NULL, w->opd, otf, w, sgn < 0 || !D ? w->img2 : D + is * ns2,
+                                   reuse ? cell : NULL, keep ? cell : NULL);
+            }
+            if (!D) continue;
+            float *out = D + is * ns2;
+            const float inv = (float)(0.5 / dtheta);
+            for (size_t p = 0; p < ns2; p++) out[p] = (out[p] - w->img2[p]) * inv;
+        }
+    }
+    if (keep) {
+        s->rc_valid = 1, s->rc_dtheta = dtheta, s->rc_see = see != NULL;
+        if (see) s->rc_seeing = *see;
+    }
+fail:
+    wt_free(s->ctx, Dl);
+    wt_free(s->ctx, work);
+    wt_free(s->ctx, W);
+    wt_free(s->ctx, ones);
+    return st;
+}
+
