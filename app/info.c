@@ -85,7 +85,8 @@ static void print_atmospheres(const wt_config *cfg)
                    m->error_high_shift, m->error_wind_speed_scale, m->error_wind_direction / WT_DEG);
         if (m->source == WT_MODEL_LEARNED)
             printf("reconstructors' atmosphere: learned (recon.atmosphere.source): an estimate from the loop's own LGS "
-                   "slopes every %g s of night (r0 and the Cn2 on 22 altitudes to 20 km; L0 stays the start's, the wind "
+                   "slopes every %g s of night (r0 and the Cn2 on the learning grid, "
+                   "recon.atmosphere.learn_grid; L0 stays the start's, the wind "
                    "%s); the MVM's in the loop %s after it; it starts from:\n", m->update_s,
                    m->learn_wind ? "of each pcg3/cg9 layer aligned on its own estimates (learn_wind)" : "too",
                    m->mvm_latency_s >= 0.0 ? "mvm_latency_s" : "its measured build time");

@@ -266,7 +266,8 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
         p.pr.enabled &= !cli->quiet;
         wt_compare_result *res = &R[c];
         wt_free(cli->ctx, X->wfe[c]), wt_free(cli->ctx, X->psf[c]);
-        X->wfe[c] = NULL, X->psf[c] = NULL;
+        wt_adapt_free(X->learned[c]);
+        X->wfe[c] = NULL, X->psf[c] = NULL, X->learned[c] = NULL;
         if (!(X->wfe[c] = wt_malloc(cli->ctx, (size_t)cfg->frames, sizeof(double)))) {
             st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the per-frame residuals");
             break;
@@ -277,6 +278,7 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
         st = wt_compare_run_rebuild(cli->ctx, sys, kind, mvm, build, a->seeds[s], learn ? wt_mvm_rebuild_model : NULL,
                                     learn ? &rb : NULL, on_frame, &p, res, &ser);
         X->psf[c] = ser.psf;
+        X->learned[c] = ser.learned;
         build = 0.0; /* the build counts in the set-up of the first seed that used it */
         wt_progress_end(&p.pr);
         if (st >= 0 && !cli->quiet)
@@ -386,7 +388,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     int nv = a.nv ? a.nv : 1, st = WT_OK, base_nset = cli.nset, ndone = 0, nc = 0, bad = 0, others = 0;
     char sweep_set[1200], cache[2100];
     wt_compare_result *R = NULL;
-    wt_cmp_extra X = {NULL, NULL};
+    wt_cmp_extra X = {NULL, NULL, NULL};
     int *owner = NULL;
     case_costs *cc = calloc(1, sizeof *cc);
     wt_config *cfg = NULL, *first = NULL;
@@ -410,7 +412,8 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
     owner = calloc((size_t)nc, sizeof *owner);
     X.wfe = calloc((size_t)nc, sizeof *X.wfe);
     X.psf = calloc((size_t)nc, sizeof *X.psf);
-    if (!R || !owner || !X.wfe || !X.psf) {
+    X.learned = calloc((size_t)nc, sizeof *X.learned);
+    if (!R || !owner || !X.wfe || !X.psf || !X.learned) {
         st = WT_ERROR(cli.ctx, WT_ERR_NOMEM, "out of memory");
         goto fail;
     }
@@ -498,7 +501,8 @@ cleanup:
     wt_system_free(first_sys), wt_config_free(cli.ctx, first);
     for (int c = 0; c < nc && X.wfe; c++) wt_free(cli.ctx, X.wfe[c]);
     for (int c = 0; c < nc && X.psf; c++) wt_free(cli.ctx, X.psf[c]);
-    free(X.wfe), free(X.psf);
+    for (int c = 0; c < nc && X.learned; c++) wt_adapt_free(X.learned[c]);
+    free(X.wfe), free(X.psf), free(X.learned);
     free(R);
     free(owner);
     free(cc);

@@ -9,6 +9,7 @@
 
 #include "compare/plot.h"
 #include "core/io/h5.h"
+#include "core/sim/adapt.h"
 #include "core/sim/psf.h"
 
 #define NP WT_COMPARE_NPART
@@ -176,6 +177,13 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
         if (st >= 0) st = wt_h5_attr_write_int64(w, "series/wfe_field", "settle_frames", cfg->settle_frames);
         free(buf);
     }
+    for (int c = 0; c < nc && st >= 0; c++) /* each case's learned record, as sim writes it (cases of this rank) */
+        if (R[c].done && X->learned[c]) {
+            char group[256];
+            const int m = c / (nv * ns), v = c / ns % nv;
+            snprintf(group, sizeof group, "learned/%s_%d/seed%d", a->methods[m], v, c % ns);
+            st = wt_adapt_write(X->learned[c], w, group);
+        }
     for (int m = 0; m < nm && st >= 0; m++)
         for (int v = 0; v < nv && st >= 0; v++) {
             int first = -1;

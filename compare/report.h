@@ -22,11 +22,13 @@ typedef struct wt_cmp_cases {
 } wt_cmp_cases;
 
 /* What the cases keep for the figures beside their numbers, per case (wt_cmp_case index; NULL: none), all
- * allocated in the command's context: the field-rms residual of every frame [nm] (R[c].frames values) and the
- * long-exposure PSFs [neval n n] (n = R[c].psf_pixels; core/sim/psf.h). */
+ * allocated in the command's context: the field-rms residual of every frame [nm] (R[c].frames values), the
+ * long-exposure PSFs [neval n n] (n = R[c].psf_pixels; core/sim/psf.h) and the learning loop's record of updates
+ * (core/sim/adapt.h; kept by the rank that ran the case, not gathered over MPI nor read back by --resume). */
 typedef struct wt_cmp_extra {
     double **wfe;
     float **psf;
+    struct wt_adapt **learned; /* the record of a loop that learned its atmosphere (sim's learned/; wt_adapt_free) */
 } wt_cmp_extra;
 
 /* Index of the case (method m, sweep value v, seed s) in the per-seed result arrays. */

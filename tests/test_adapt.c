@@ -5,7 +5,11 @@
  * that cannot learn and an MVM without its rebuild are refused. */
 #include "core/build/mvm_build.h"
 #include "core/model/system.h"
+#include "core/io/h5.h"
+#include "core/sim/compare.h"
 #include "core/sim/loop.h"
+
+#include <unistd.h>
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -182,6 +186,56 @@ START_TEST(t_oracle_follows_night)
 }
 END_TEST
 
+/* compare's case keeps the loop's record of updates (wt_compare_series.learned): the sim loop's own, bit for bit, and
+ * written under a case's group as sim writes it; with learn_grid = layers the learning grid holds pcg3's layer at
+ * 12.7 km */
+START_TEST(t_compare_keeps_record)
+{
+    const char *set[] = {"loop.frames=110", "recon.atmosphere.source=\"learned\"", "recon.atmosphere.update_s=0.2",
+                         "recon.atmosphere.learn_grid=\"layers\"", START_WRONG};
+    run r;
+    ck_assert_msg(open_run(&r, WT_RECON_PCG3, N(set), set, 0) == WT_OK, "%s", wt_error_message(r.ctx));
+    for (int t = 0; t < 110; t++) ck_assert_msg(wt_loop_step(r.lp) == WT_OK, "%s", wt_error_message(r.ctx));
+    const wt_adapt_update *u = wt_adapt_updates(wt_loop_adapt(r.lp));
+    ck_assert_int_eq(wt_adapt_nupdates(wt_loop_adapt(r.lp)), 1);
+    int has = 0;
+    for (int k = 0; k < u[0].nalt; k++) has += u[0].altitude[k] == 12700.0;
+    ck_assert_int_eq(has, 1);
+    double *wfe = malloc(110 * sizeof *wfe);
+    wt_compare_series ser = {.wfe = wfe};
+    wt_compare_result res;
+    ck_assert_msg(wt_compare_run(r.ctx, r.sys, WT_RECON_PCG3, NULL, 0.0, r.cfg->seed, NULL, NULL, &res, &ser) == WT_OK,
+                  "%s", wt_error_message(r.ctx));
+    ck_assert_ptr_nonnull(ser.learned);
+    ck_assert_int_eq(wt_adapt_nupdates(ser.learned), 1);
+    const wt_adapt_update *c = wt_adapt_updates(ser.learned);
+    ck_assert_int_eq(c[0].frame, u[0].frame);
+    ck_assert_int_eq(c[0].nalt, u[0].nalt);
+    ck_assert_double_eq(c[0].r0, u[0].r0);
+    ck_assert_int_eq(memcmp(c[0].fraction, u[0].fraction, (size_t)u[0].nalt * sizeof *u[0].fraction), 0);
+    char path[] = "/tmp/wt-test-adapt-XXXXXX";
+    const int fd = mkstemp(path);
+    ck_assert_int_ge(fd, 0);
+    close(fd);
+    wt_h5_writer *w = NULL;
+    ck_assert_int_eq(wt_h5_create(r.ctx, path, &w), WT_OK);
+    ck_assert_msg(wt_adapt_write(ser.learned, w, "learned/pcg3_0/seed0") == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_int_eq(wt_h5_commit(w), WT_OK);
+    wt_h5_reader *h = NULL;
+    ck_assert_int_eq(wt_h5_open(r.ctx, path, &h), WT_OK);
+    double r0 = 0.0;
+    const int64_t one[1] = {1};
+    ck_assert_msg(wt_h5_read(h, "learned/pcg3_0/seed0/r0", WT_H5_F64, 1, one, NULL, &r0, 1) == WT_OK, "%s",
+                  wt_error_message(r.ctx));
+    ck_assert_double_eq(r0, u[0].r0);
+    wt_h5_close(h);
+    remove(path);
+    wt_adapt_free(ser.learned);
+    free(wfe);
+    close_run(&r);
+}
+END_TEST
+
 /* learn_wind = aligned: each of PCG-3's layers gets a wind estimated on its own estimates at every update (recorded
  * with its uncertainty), the reconstructor predicts with exactly that wind, and its ground layer (what it absorbs
  * moves at 6.3 m/s towards 16°, the Cn²-weighted mean) moves the right way: within 45° of 0° (a loose bound: 100
@@ -262,6 +316,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, t_learned_memory);
     tcase_add_test(tc, t_learned_wind);
     tcase_add_test(tc, t_refusals);
+    tcase_add_test(tc, t_compare_keeps_record);
     suite_add_tcase(s, tc);
     return s;
 }

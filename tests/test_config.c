@@ -879,11 +879,11 @@ START_TEST(test_reference)
     /* one line per key, no more; the two layer_oversampling keys never reach the canonical text (the grid
      * they chose does), nor do lgs.sodium_profile, recon.fft_wisdom and their hashes, loop.gain_levels and
      * loop.gain_basis when left out (the demo), nor the profile files (their lists do) and the given model's seven
-     * keys under the oracle (the demo's: its source is there), nor the learned model's five, nor
+     * keys under the oracle (the demo's: its source is there), nor the learned model's six, nor
      * atmosphere.night.file for a stochastic night, nor the seven keys of a model error (recon.atmosphere.error_*)
      * without one, nor the four of the sodium layer in time (lgs.sodium_sequence*, lgs.wfs.reference*: diffractive
      * LGS only) */
-    ck_assert_int_eq(nkeys + 33, nlines);
+    ck_assert_int_eq(nkeys + 34, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.error_high_shift_m "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));

@@ -340,6 +340,25 @@ START_TEST(test_single_layer)
 END_TEST
 
 
+/* The grid with a reconstructor's layers: every layer below H kept once, the default points closer than d / (2 θ_max)
+ * to one of them dropped, ascending; too many points refused. 4 LGS on a 45" ring: θ_max = 90", s = 573 m. */
+START_TEST(test_grid_layers)
+{
+    geom G;
+    geom_make(&G, 16, 4, 45.0);
+    const double layer[] = {4500.0, 47.0, 140.0, 9000.0, 95e3, 140.0}, want_s = 0.5 * 0.5 / (90.0 * ARCSEC);
+    double alt[WT_LEARN_MAX_ALT], s = 0.0;
+    const int na = wt_learn_grid_with_layers(&G.g, 6, layer, WT_LEARN_MAX_ALT, alt, &s);
+    ck_assert_double_eq_tol(s, want_s, 1e-9 * want_s);
+    /* 22 default points less 0, 0.5, 4, 5 and 9 km (9 km is a layer itself), plus the 4 layers below H */
+    ck_assert_int_eq(na, 22 - 5 + 4);
+    const double head[] = {47.0, 140.0, 1000.0, 2000.0, 3000.0, 4500.0, 6000.0, 7000.0, 8000.0, 9000.0, 10000.0};
+    for (int k = 0; k < 11; k++) ck_assert_double_eq(alt[k], head[k]);
+    for (int k = 1; k < na; k++) ck_assert(alt[k] > alt[k - 1]);
+    ck_assert_int_eq(wt_learn_grid_with_layers(&G.g, 6, layer, 12, alt, NULL), WT_ERR_INVALID);
+}
+END_TEST
+
 /* ---------------------------------------------------------------- reset, and one model for many fits */
 
 /* After wt_learn_reset and the same frames again, every map (lag 0 and lagged) is bit-identical to a fresh object's
@@ -687,6 +706,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_nnls);
     tcase_add_test(tc, test_response_screens);
     tcase_add_test(tc, test_single_layer);
+    tcase_add_test(tc, test_grid_layers);
     tcase_add_test(tc, test_reset_model);
     tcase_add_test(tc, test_refusals);
     tcase_add_test(tc, test_command);

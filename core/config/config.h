@@ -118,6 +118,7 @@ typedef struct wt_model_atmosphere_config {
     double update_s;                      /* learned: night time between two estimates [s] */
     int learn_window;                     /* learned: 0 the frames since the previous estimate, 1 all since the start */
     double learn_memory;                  /* learned, interval: the estimates' memory [updates] (1: none) */
+    int learn_grid;                       /* learned: 0 the default grid, 1 it with the variant's layer altitudes */
     int learn_wind;                       /* learned: 0 the start model's wind, 1 aligned on the layer estimates */
     double mvm_latency_s;                 /* learned, mvm: night time from an estimate to its matrix in the loop [s];
                                              < 0: the build's measured wall time */

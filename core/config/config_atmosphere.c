@@ -352,8 +352,8 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
     const int explicit_src = ps->ovidx[ks] >= 0 || config_setting_source_line(ps->set[ks]) > 0;
     static const char *const learn_keys[] = {"recon.atmosphere.update_s", "recon.atmosphere.mvm_latency_s",
                                              "recon.atmosphere.learn_window", "recon.atmosphere.learn_memory",
-                                             "recon.atmosphere.learn_wind"};
-    for (int i = 0; i < 5; i++) {
+                                             "recon.atmosphere.learn_grid", "recon.atmosphere.learn_wind"};
+    for (int i = 0; i < 6; i++) {
         const int k = wt_config_priv_find_key(learn_keys[i]);
         /* the oracle in a changing night follows the truth every update_s (an MVM after its latency) */
         const int night_oracle = i < 2 && m->source == WT_MODEL_ORACLE && cfg->night.source != WT_NIGHT_CFG_NONE;
@@ -482,6 +482,7 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
         !strncmp(path, "recon.atmosphere.error_wind_", 28) ||
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
         !strcmp(path, "recon.atmosphere.learn_window") || !strcmp(path, "recon.atmosphere.learn_memory") ||
+        !strcmp(path, "recon.atmosphere.learn_grid") ||
         !strcmp(path, "recon.atmosphere.learn_wind") ||
         !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
         !strncmp(path, "atmosphere.wind_", 16))

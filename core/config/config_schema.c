@@ -383,7 +383,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "and L0, compressed onto each variant's layer altitudes; given = the profile of the recon.atmosphere keys below "
      "(or its profile file), compressed the same way; learned = starts from the given profile (the same keys) and "
      "replaces it every update_s of night time by the loop's own estimate from its pseudo-open-loop LGS slopes "
-     "(r0 and the Cn2 profile on 22 altitudes to 20 km; L0 and the wind stay the given ones): pcg3 and cg9 take it at "
+     "(r0 and the Cn2 profile on 22 altitudes to 20 km, or with the variant's own, learn_grid; L0 and the wind stay the given ones): pcg3 and cg9 take it at "
      "the next frame, the MVM is rebuilt from it and swapped in after mvm_latency_s. Compression: each profile "
      "layer's Cn2 split linearly in altitude between the two nearest reconstruction altitudes (all of it to the end "
      "layer outside their range), the wind of a layer the Cn2-weighted mean of the wind vectors it absorbs "
@@ -396,6 +396,13 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      0, "learned: the frames of an estimate: interval = those since the previous estimate (a night that changes: the "
      "estimate follows it), all = every frame since the start (a static night: the estimate converges; its "
      "uncertainty needs frames in two quarters of the run) (optional, default interval, refused with another source)"},
+    {"recon.atmosphere.learn_grid", K_ENUM, F_OPT, 0, 0, "", 1, CF(model.learn_grid), NOCOUNT, 0, 0, "default|layers",
+     0, "learned: the altitudes the profile is fitted on: default = 0, 0.5 km and every 1 km to 20 km; layers = those "
+     "and each variant's own layer altitudes, a default point closer to one of them than half the finest altitude "
+     "resolution of the LGS pairs, d / (2 theta_max), dropped (what the fit puts at a variant's altitude then stays on "
+     "that layer; but below the pairs' resolution the fit puts the Cn2 of several close layers on the lowest: on "
+     "the E-ELT it cost CG-9 6-12 nm, docs/results.md section 46) (optional, default default, refused with another "
+     "source)"},
     {"recon.atmosphere.learn_memory", K_FLOAT, F_OPT, 1.0, 1e6, "", 1, CF(model.learn_memory), NOCOUNT, 0, 0, NULL, 1.0,
      "learned, learn_window = interval: the memory of the estimates, in updates: the model's Cn2 per altitude (f r0^-5/3, "
      "what the maps measure linearly) is the exponential average of the estimates with weight 1/learn_memory on the "

@@ -34,6 +34,46 @@ int wt_learn_default_grid(double H, int max, double *alt)
     return k;
 }
 
+static double merge_separation(const wt_learn_geometry *g)
+{
+    double tmax = 0.0;
+    for (int i = 0; i < g->nlgs; i++)
+        for (int j = i + 1; j < g->nlgs; j++)
+            tmax = fmax(tmax, hypot(g->theta_x[i] - g->theta_x[j], g->theta_y[i] - g->theta_y[j]));
+    return tmax > 0.0 ? 0.5 * g->d / tmax : 0.0;
+}
+
+int wt_learn_grid_with_layers(const wt_learn_geometry *g, int nlayer, const double *layer, int max, double *alt,
+                              double *sep)
+{
+    double def[WT_LEARN_MAX_ALT];
+    const int nd = wt_learn_default_grid(g->H, WT_LEARN_MAX_ALT, def);
+    const double s = merge_separation(g);
+    if (sep) *sep = s;
+    int k = 0;
+    for (int i = 0; i < nlayer; i++) {
+        int dup = !(layer[i] >= 0.0 && layer[i] < g->H);
+        for (int j = 0; j < k && !dup; j++) dup = alt[j] == layer[i];
+        if (dup) continue;
+        if (k == max) return WT_ERR_INVALID;
+        alt[k++] = layer[i];
+    }
+    const int nl = k;
+    for (int i = 0; i < nd; i++) {
+        int near = 0;
+        for (int j = 0; j < nl && !near; j++) near = fabs(def[i] - alt[j]) < s;
+        if (near) continue;
+        if (k == max) return WT_ERR_INVALID;
+        alt[k++] = def[i];
+    }
+    for (int i = 1; i < k; i++) /* ascending (insertion: a few dozen points) */
+        for (int j = i; j > 0 && alt[j] < alt[j - 1]; j--) {
+            const double t = alt[j];
+            alt[j] = alt[j - 1], alt[j - 1] = t;
+        }
+    return k;
+}
+
 void wt_learn_free(wt_learn *L)
 {
     if (!L) return;

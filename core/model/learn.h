@@ -120,6 +120,14 @@ int wt_learn_response(const wt_learn *L, int p, int nalt, const double *alt, dou
 
 /* A default altitude grid below H: 0, 0.5 km, then every 1 km to 20 km. Returns the count (≤ max). */
 int wt_learn_default_grid(double H, int max, double *alt);
+/* The default grid with the nlayer altitudes layer [m] (a reconstructor's, any order) added, ascending: every layer
+ * altitude below g->H is kept (the compression onto those layers is then the identity for what the fit puts there),
+ * and a default point is dropped when it is closer than the merge separation to one of them: half the finest
+ * altitude resolution of the LGS pairs, d / (2 θ_max) with θ_max the widest pair's separation (two points closer than
+ * that are the same bin for every pair; one of them only makes the fit's split between them noise). *sep (may be
+ * NULL): that separation [m]. Returns the count (≤ max), or WT_ERR_INVALID when they do not fit in max. */
+int wt_learn_grid_with_layers(const wt_learn_geometry *g, int nlayer, const double *layer, int max, double *alt,
+                              double *sep);
 
 /* The estimate (plain data). */
 typedef struct wt_learn_estimate {

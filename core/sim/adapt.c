@@ -3,6 +3,7 @@
 #include "adapt.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -20,6 +21,7 @@ struct wt_adapt {
     wt_learn *L;
     wt_learn_model *M;        /* the response maps and normal matrix of the learning grid: computed once */
     double model_setup;       /* its wall time [s] */
+    double merge;             /* grid_layers: the merge separation of the grid [m] (0: the default grid) */
     long since;               /* frames accumulated since the last estimate */
     int na;
     double alt[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];      /* the learning grid, or (follow_truth) the truth's layers */
@@ -85,7 +87,15 @@ int wt_adapt_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_ada
         for (int k = 0; k < a->na; k++) a->alt[k] = par->truth_alt[k];
     } else {
         WT_TRY(learn_alloc(a));
-        a->na = wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+        a->na = par->grid_layers ? wt_learn_grid_with_layers(&a->g, par->nrecon, par->recon_alt, WT_LEARN_MAX_ALT, a->alt,
+                                                             &a->merge)
+                                 : wt_learn_default_grid(a->g.H, WT_LEARN_MAX_ALT, a->alt);
+        if (a->na < 1) {
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.atmosphere.learn_grid': the default grid and the "
+                          "reconstructor's %d layers do not fit in %d altitudes", sys->cfg ? sys->cfg->path : "system",
+                          par->nrecon, WT_LEARN_MAX_ALT);
+            goto fail;
+        }
         const double t0 = wt_time_now();
         WT_TRY(wt_learn_model_alloc(a->L, a->na, a->alt, par->L0, &a->M));
         a->model_setup = wt_time_now() - t0;
@@ -285,16 +295,18 @@ double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
 double wt_adapt_model_setup_seconds(const wt_adapt *a) { return a->model_setup; }
 
 /* learn_wind: the layers' winds per update under learned/wind_* */
-static int wind_write(const wt_adapt *a, wt_h5_writer *w, int n)
+static int wind_write(const wt_adapt *a, wt_h5_writer *w, int n, const char *group)
 {
     int st = WT_OK;
+    char path[256];
+#define NAME(s) (snprintf(path, sizeof path, "%s/%s", group, s), path)
     const int L = a->nwl;
     double *v = NULL;
     int64_t *iv = NULL;
     WT_ALLOC(a->ctx, v, (size_t)(n > 0 ? n : 1) * L, "wind record");
     WT_ALLOC(a->ctx, iv, (size_t)(n > 0 ? n : 1) * L, "wind record");
     const int64_t d2[2] = {n, L}, dl[1] = {L};
-    WT_TRY(wt_h5_write(w, "learned/wind_altitude", WT_H5_F64, WT_H5_F64, 1, dl, a->wind_alt, "m",
+    WT_TRY(wt_h5_write(w, NAME("wind_altitude"), WT_H5_F64, WT_H5_F64, 1, dl, a->wind_alt, "m",
                        "the reconstruction layers whose wind is measured on their own estimates (learn_wind = aligned)"));
 #define ROWS(name, expr, unit, desc)                                                                                   \
     do {                                                                                                               \
@@ -303,7 +315,7 @@ static int wind_write(const wt_adapt *a, wt_h5_writer *w, int n)
                 const wt_adapt_update *p = &a->up[u];                                                                  \
                 v[(size_t)u * L + l] = (expr);                                                                         \
             }                                                                                                          \
-        WT_TRY(wt_h5_write(w, "learned/" name, WT_H5_F64, WT_H5_F64, 2, d2, v, unit, desc));                           \
+        WT_TRY(wt_h5_write(w, NAME(name), WT_H5_F64, WT_H5_F64, 2, d2, v, unit, desc));                           \
     } while (0)
     ROWS("wind_vx", p->wind_vx[l], "m/s", "each layer's wind after the update, x [update, layer of wind_altitude] (the "
          "estimate where wind_valid, else the wind it kept)");
@@ -317,32 +329,58 @@ static int wind_write(const wt_adapt *a, wt_h5_writer *w, int n)
 #undef ROWS
     for (int u = 0; u < n; u++)
         for (int l = 0; l < L; l++) iv[(size_t)u * L + l] = a->up[u].wind_valid[l];
-    WT_TRY(wt_h5_write(w, "learned/wind_valid", WT_H5_I64, WT_H5_I64, 2, d2, iv, "", "1: the layer's wind estimated at "
+    WT_TRY(wt_h5_write(w, NAME("wind_valid"), WT_H5_I64, WT_H5_I64, 2, d2, iv, "", "1: the layer's wind estimated at "
                        "this update; 0: no clear correlation peak, the wind kept"));
+#undef NAME
 fail:
     wt_free(a->ctx, v);
     wt_free(a->ctx, iv);
     return st;
 }
 
-int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
+int wt_adapt_copy_record(const wt_adapt *a, wt_adapt **out)
 {
     int st = WT_OK;
+    wt_adapt *c = NULL;
+    *out = NULL;
+    WT_ALLOC(a->ctx, c, 1, "learning record");
+    *c = *a;
+    c->L = NULL, c->M = NULL, c->est = NULL, c->owned = NULL, c->pending = NULL, c->up = NULL, c->wind = NULL;
+    c->maxup = a->nup > 0 ? a->nup : 1;
+    WT_ALLOC(a->ctx, c->up, c->maxup, "learning record");
+    if (a->nup > 0) memcpy(c->up, a->up, (size_t)a->nup * sizeof *a->up);
+    *out = c;
+    return WT_OK;
+fail:
+    wt_adapt_free(c);
+    return st;
+}
+
+int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w, const char *group)
+{
+    int st = WT_OK;
+    char path[256];
+#define NAME(s) (snprintf(path, sizeof path, "%s/%s", group, s), path)
     const int n = a->nup, na = a->na;
     double *v = NULL;
     int64_t *iv = NULL;
     WT_ALLOC(a->ctx, v, (size_t)(n > 0 ? n : 1) * (na > 0 ? na : 1), "update record");
     WT_ALLOC(a->ctx, iv, n > 0 ? n : 1, "update record");
     const int64_t d1[1] = {n}, d2[2] = {n, na}, dg[1] = {na};
-    WT_TRY(wt_h5_write_int64(w, "learned/every_frames", a->par.every, "frames", a->par.follow_truth
+    WT_TRY(wt_h5_write_int64(w, NAME("every_frames"), a->par.every, "frames", a->par.follow_truth
                              ? "frames between two updates of the oracle's model to the truth's state (a changing night; "
                                "recon.atmosphere.update_s)"
                              : "frames between two estimates (recon.atmosphere.update_s)"));
-    WT_TRY(wt_h5_write(w, "learned/altitude", WT_H5_F64, WT_H5_F64, 1, dg, a->alt, "m", "the learning grid's altitudes"));
+    WT_TRY(wt_h5_write(w, NAME("altitude"), WT_H5_F64, WT_H5_F64, 1, dg, a->alt, "m", "the learning grid's altitudes"));
+    if (a->par.grid_layers && !a->par.follow_truth)
+        WT_TRY(wt_h5_write_double(w, NAME("grid_merge_m"), a->merge, "m", "a default grid point closer than this to "
+                                  "a reconstructor altitude was dropped (recon.atmosphere.learn_grid = \"layers\")"));
+    WT_TRY(wt_h5_write_double(w, NAME("model_setup_s"), a->model_setup, "s", "wall time of the learning grid's "
+                              "response maps and normal matrix (once, at the start)"));
 #define COL(name, field, unit, desc)                                                                                    \
     do {                                                                                                               \
         for (int u = 0; u < n; u++) v[u] = a->up[u].field;                                                           \
-        WT_TRY(wt_h5_write(w, "learned/" name, WT_H5_F64, WT_H5_F64, 1, d1, v, unit, desc));                          \
+        WT_TRY(wt_h5_write(w, NAME(name), WT_H5_F64, WT_H5_F64, 1, d1, v, unit, desc));                          \
     } while (0)
     COL("night_s", night, "s", "night time of each estimate (after its last frame)");
     COL("r0", r0, "m", "estimated r0 at 500 nm");
@@ -355,15 +393,16 @@ int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w)
 #undef COL
     for (int u = 0; u < n; u++)
         for (int k = 0; k < na; k++) v[(size_t)u * na + k] = a->up[u].fraction[k];
-    WT_TRY(wt_h5_write(w, "learned/fraction", WT_H5_F64, WT_H5_F64, 2, d2, v, "", "estimated Cn2 fractions [update, "
-                       "altitude of learned/altitude]"));
-    if (a->wind) WT_TRY(wind_write(a, w, n));
+    WT_TRY(wt_h5_write(w, NAME("fraction"), WT_H5_F64, WT_H5_F64, 2, d2, v, "", "estimated Cn2 fractions [update, "
+                       "altitude of the grid's altitude beside it]"));
+    if (a->nwl > 0) WT_TRY(wind_write(a, w, n, group));
     for (int u = 0; u < n; u++) iv[u] = a->up[u].frame;
-    WT_TRY(wt_h5_write(w, "learned/frame", WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the frame after which each estimate "
+    WT_TRY(wt_h5_write(w, NAME("frame"), WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the frame after which each estimate "
                        "was made"));
     for (int u = 0; u < n; u++) iv[u] = a->up[u].applied_frame;
-    WT_TRY(wt_h5_write(w, "learned/applied_frame", WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the first frame that used it "
+    WT_TRY(wt_h5_write(w, NAME("applied_frame"), WT_H5_I64, WT_H5_I64, 1, d1, iv, "", "the first frame that used it "
                        "(pcg3/cg9: the next; mvm: when its build was finished; -1: never, replaced while waiting)"));
+#undef NAME
 fail:
     wt_free(a->ctx, v);
     wt_free(a->ctx, iv);

@@ -52,6 +52,10 @@ typedef struct wt_adapt_params {
     int follow_truth;         /* 1: the oracle following a changing night (no estimate; the truth's state) */
     int ntruth;               /* follow_truth: the truth's layers and their altitudes [m] */
     double truth_alt[WT_MAX_LAYERS];
+    int grid_layers;          /* 1: the learning grid holds the reconstructor's altitudes recon_alt too
+                                 (wt_learn_grid_with_layers); 0: the default grid alone */
+    int nrecon;               /* the reconstructor's layers (grid_layers) */
+    double recon_alt[WT_MAX_LAYERS]; /* [m] */
     int nstart;               /* the start model's layers: their wind goes to the learned altitudes */
     double start_alt[WT_MAX_LAYERS], start_vx[WT_MAX_LAYERS], start_vy[WT_MAX_LAYERS]; /* [m], [m/s] */
     int learn_wind;           /* 1: the layers' winds aligned on their estimates (pcg3, cg9; wt_adapt_wind_alloc) */
@@ -110,9 +114,12 @@ double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of th
 double wt_adapt_wind_seconds(const wt_adapt *a);       /* learn_wind: the layers' part of it [s] (0 without) */
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
 double wt_adapt_model_setup_seconds(const wt_adapt *a); /* the learning grid's response maps, at alloc [s] */
-/* The updates into w under learned/ (one row per update: frame, night time, r0 and its uncertainty, the profile on the
- * learning grid, the wall times, the frame that first used it), self-documenting. */
+/* The updates into w under the group `group` ("learned" in sim's file; one row per update: frame, night time, r0 and its
+ * uncertainty, the profile on the learning grid, the wall times, the frame that first used it), self-documenting. */
 struct wt_h5_writer;
-int wt_adapt_write(const wt_adapt *a, struct wt_h5_writer *w);
+int wt_adapt_write(const wt_adapt *a, struct wt_h5_writer *w, const char *group);
+/* A copy of a's record only (what wt_adapt_write writes; the accumulator, its model and any matrix left behind), to
+ * outlive the loop that owns a (compare keeps one per case); wt_adapt_free frees it. */
+int wt_adapt_copy_record(const wt_adapt *a, wt_adapt **out);
 
 #endif

@@ -40,7 +40,7 @@ int wt_compare_run_rebuild(wt_context *ctx, const wt_system *sys, int kind, cons
     wt_loop *lp = NULL;
     wt_psf *psf = NULL;
     memset(res, 0, sizeof *res);
-    if (ser) ser->psf = NULL;
+    if (ser) ser->psf = NULL, ser->learned = NULL;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = -1, .seed = seed, .noise = cfg->noise,
                          .rebuild = rebuild, .rebuild_user = rebuild_user};
     double t0 = wt_time_now();
@@ -125,6 +125,7 @@ int wt_compare_run_rebuild(wt_context *ctx, const wt_system *sys, int kind, cons
         wt_reconstructor *r = wt_loop_reconstructor(lp);
         res->memory = wt_tomography_bytes(wt_reconstructor_tomography(r)) + wt_precond_bytes(wt_reconstructor_precond(r));
     }
+    if (ser && wt_loop_adapt(lp) && (st = wt_adapt_copy_record(wt_loop_adapt(lp), &ser->learned)) < 0) goto out;
     res->done = 1;
 out:
 fail:

@@ -47,6 +47,8 @@ typedef struct wt_compare_series {
     double *wfe;  /* [loop.frames], caller's: the field-rms residual of each frame, sqrt(mean_j σ_j²) [nm] */
     float *psf;   /* set by wt_compare_run when sim.psf_interval_frames > 0: the LE PSFs [neval n n] (psf.h's layout),
                    * allocated in ctx (wt_free(ctx, ·) by the caller); NULL otherwise */
+    struct wt_adapt *learned; /* set when the loop learned its atmosphere (or followed a night's truth): the record of
+                               * its updates (core/sim/adapt.h, wt_adapt_free by the caller); NULL otherwise */
 } wt_compare_series;
 
 /* Run one case: the closed loop of reconstructor `kind` (mvm: the matrix `mvm`, built in build_s seconds)

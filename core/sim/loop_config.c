@@ -67,11 +67,16 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                        .run_frames = cfg->frames,
                                        .memory = m->learn_memory,
                                        .nstart = m->nlayers,
+                                       .grid_layers = m->learn_grid == 1,
                                        .follow_truth = follow,
                                        .ntruth = cfg->nlayers,
                                        .learn_wind = m->source == WT_MODEL_LEARNED && m->learn_wind == 1,
                                        .frame_dt = 1.0 / cfg->rate};
         for (int k = 0; k < cfg->nlayers; k++) par->learn.truth_alt[k] = cfg->layer_altitude[k];
+        /* the layers the estimate is compressed onto: the variant's (an MVM's are pcg3's, what it is built from) */
+        const wt_recon_variant_config *v = opt->recon == WT_RECON_CG9 ? &cfg->cg9 : &cfg->pcg3;
+        par->learn.nrecon = v->nlayers;
+        for (int k = 0; k < v->nlayers; k++) par->learn.recon_alt[k] = v->altitudes[k];
         par->recon.precond.updatable = 1; /* the model changes: its preconditioner is updated, not rebuilt */
         /* its wind: the start model's, as vectors (the learned profile takes it at the nearest altitude) */
         for (int k = 0; k < m->nlayers; k++) {

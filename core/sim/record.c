@@ -219,7 +219,7 @@ int wt_sim_record_write(const wt_sim_record *r, wt_h5_writer *w, const wt_loop *
     if (ad && ((st = wt_h5_write_double(w, "timing/learning", frames ? tm.learning / frames * 1e3 : 0.0, "ms",
                                         "mean wall time per frame of the learning of the atmosphere: the accumulation, "
                                         "the estimates and the reconstructor's new models (in the total)")) < 0 ||
-               (st = wt_adapt_write(ad, w)) < 0))
+               (st = wt_adapt_write(ad, w, "learned")) < 0))
         return st;
     return WT_OK;
 }
