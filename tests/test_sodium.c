@@ -97,15 +97,10 @@ START_TEST(t_read_comments)
 }
 END_TEST
 
-/* each defect: the status, and the message names the file and (where there is one) the line */
-static void refused(const char *text, int status, const char *line_tag, const char *word)
+/* a refusal's message names the file, (where there is one) the line, and the defect's word; then the file and the
+ * context go */
+static void refusal_message(wt_context *ctx, const char *path, const char *line_tag, const char *word)
 {
-    wt_context *ctx = tu_context();
-    char path[64];
-    write_tmp(path, sizeof path, text);
-    wt_sodium *na = NULL;
-    ck_assert_int_eq(wt_sodium_read(ctx, path, &na), status);
-    ck_assert_ptr_null(na);
     const char *m = wt_error_message(ctx);
     ck_assert_msg(strstr(m, path), "message does not name the file: %s", m);
     if (line_tag) {
@@ -116,6 +111,18 @@ static void refused(const char *text, int status, const char *line_tag, const ch
     if (word) ck_assert_msg(strstr(m, word), "message lacks '%s': %s", word, m);
     unlink(path);
     wt_context_free(ctx);
+}
+
+/* each defect: the status, and the message names the file and (where there is one) the line */
+static void refused(const char *text, int status, const char *line_tag, const char *word)
+{
+    wt_context *ctx = tu_context();
+    char path[64];
+    write_tmp(path, sizeof path, text);
+    wt_sodium *na = NULL;
+    ck_assert_int_eq(wt_sodium_read(ctx, path, &na), status);
+    ck_assert_ptr_null(na);
+    refusal_message(ctx, path, line_tag, word);
 }
 
 START_TEST(t_defects)
@@ -248,16 +255,7 @@ static void seq_refused(const char *text, int status, const char *line_tag, cons
     wt_sodium_seq *q = NULL;
     ck_assert_int_eq(wt_sodium_seq_read(ctx, path, &q), status);
     ck_assert_ptr_null(q);
-    const char *m = wt_error_message(ctx);
-    ck_assert_msg(strstr(m, path), "message does not name the file: %s", m);
-    if (line_tag) {
-        char tag[96];
-        snprintf(tag, sizeof tag, "%s%s", path, line_tag);
-        ck_assert_msg(strstr(m, tag), "message does not name %s: %s", tag, m);
-    }
-    if (word) ck_assert_msg(strstr(m, word), "message lacks '%s': %s", word, m);
-    unlink(path);
-    wt_context_free(ctx);
+    refusal_message(ctx, path, line_tag, word);
 }
 
 START_TEST(t_sequence_defects)
