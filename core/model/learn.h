@@ -18,7 +18,10 @@
  * model as to the data. D scales as r0^(−5/3), so the data are Σ_h c_h R(δ; h) with c_h = f_h r0^(−5/3) (f_h the Cn²
  * fractions) plus noise on the autos' δ = 0, which the fit leaves out.
  *
- * Fit (core/model/learn_fit.c). c_h ≥ 0 on an altitude grid by non-negative least squares over the offsets where
+ * Fit (core/model/learn_fit.c). The statistic is differential: each cross pair's map less the mean of its two
+ * autos, D_ij = C_ij − ½ (C_ii + C_jj) (a ground layer adds the same map to all three in every realisation, so the
+ * differences carry no sampling error of it), with the autos themselves, δ = 0 (the noise) left out of every term.
+ * c_h ≥ 0 on an altitude grid by non-negative least squares over the offsets where
  * P(δ) ≥ WT_LEARN_MIN_PAIRS · P(0), each weighted by P(δ) (the inverse variance of a mean over P(δ) products);
  * r0 = (Σ c_h)^(−3/5), f_h = c_h / Σ c_h. Frames are kept in B consecutive batches; the uncertainty of each output is
  * the spread of the B batch estimates / √B.
@@ -141,7 +144,7 @@ typedef struct wt_learn_estimate {
     int64_t frames;                      /* frames used */
     int nbatch;                          /* batches with frames */
     int64_t rows;                        /* (pair, component, offset) terms in the fit */
-    double residual;                     /* weighted rms misfit / weighted rms data, all frames [-] */
+    double residual;                     /* weighted rms misfit / weighted rms of the statistic (autos and differences), all frames [-] */
     double batch_fraction[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* each batch's f_h (nbatch ≥ 2) [-] */
     double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
 } wt_learn_estimate;

@@ -1,9 +1,21 @@
 /* core/model/learn_fit.c: the non-negative fit of the Cn² profile to the LGS cross-covariance maps, r0 from its
  * total, the batches' spread as the uncertainty (SPEC §12, "Identification from the loop's own data").
  *
- * The fit minimises Σ_{p,c,δ∈U} w(δ) (C_p^c(δ) − Σ_h c_h R_p^c(δ; h))² over c ≥ 0, U the offsets with
- * P(δ) ≥ WT_LEARN_MIN_PAIRS P(0) (less the autos' variances), w = P(δ)/P(0): normal equations G c = q with
- * G_ab = Σ w R_a R_b (fixed by the geometry: the model object) and q_a = Σ w R_a C (the frames). */
+ * The statistic is differential: every cross pair (i, j) enters as its map less the mean of the two autos,
+ *
+ *   D_ij^c(δ) = C_ij^c(δ) − ½ (C_ii^c(δ) + C_jj^c(δ)),   modelled by R_ij^c(δ; h) − R_auto^c(δ; h),
+ *
+ * and the autos as they are. A layer at the ground is the same phase in every beam, so it adds the same map to
+ * C_ij and to C_ii, C_jj realisation by realisation, not only on average: the differences are free of the ground
+ * layer's sampling error, which over a few seconds of frozen flow (a few pupils of screen) is most of the maps'
+ * error, and which the plain fit of C_ij explained with Cn² at altitude (docs/results.md §47). The ground's share
+ * then comes from the autos. The autos' δ = 0 (every component: the elongated spots' noise correlates x and y
+ * within a subaperture) carries the measurement noise and is left out, from the autos and from the differences
+ * that contain it.
+ *
+ * The fit minimises Σ_{p,c,δ∈U} w(δ) (d_p^c(δ) − Σ_h c_h r_p^c(δ; h))² over c ≥ 0 (d, r the statistic above and
+ * its model), U the offsets with P(δ) ≥ WT_LEARN_MIN_PAIRS P(0), w = P(δ)/P(0): normal equations G c = q with
+ * G_ab = Σ w r_a r_b (fixed by the geometry: the model object) and q_a = Σ w r_a d (the frames). */
 #include "learn_private.h"
 
 #include <fftw3.h>
@@ -118,11 +130,12 @@ void wt_learn_model_free(wt_learn_model *M)
     wt_free(ctx, M);
 }
 
-/* whether term (pair p = (i, j), component c, used offset u) enters the fit: the autos' variances carry the noise
- * (SPEC §12: noise at δ = 0 only) and are left out */
-static int term_used(const wt_learn_model *M, int auto_pair, int c, int u)
+/* whether term (component c, used offset u) enters the fit: δ = 0 holds the autos' noise (SPEC §12: white, at
+ * δ = 0 only; x and y correlated there by the elongation), and every term of the statistic holds an auto's δ = 0 */
+static int term_used(const wt_learn_model *M, int c, int u)
 {
-    return !(auto_pair && u == M->u0 && c != WT_LEARN_XY);
+    (void)c;
+    return u != M->u0;
 }
 
 int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_model **out)
@@ -200,6 +213,10 @@ int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double 
             R[(size_t)u * m + a] = r[(dx + n - 1) + S * (dy + n - 1)];
         }
     }
+    /* the cross slots' model of the differential statistic: R_ij − R_auto (every LGS has the same mask, so the
+     * autos share one response and ½ (R_ii + R_jj) = R_auto) */
+    for (int sl = 1; sl < M->nslot; sl++)
+        for (size_t k = 0; k < (size_t)WT_LEARN_NCOMP * nu * m; k++) M->R[(size_t)sl * WT_LEARN_NCOMP * nu * m + k] -= M->R[k];
     /* G = Σ_p Σ_c Σ_u w R Rᵀ, in pair order (every auto pair adds slot 0's terms) */
     for (int p = 0; p < L->npairs; p++) {
         int i, j;
@@ -207,7 +224,7 @@ int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double 
         for (int c = 0; c < WT_LEARN_NCOMP; c++) {
             const double *R = M->R + ((size_t)M->slot[p] * WT_LEARN_NCOMP + c) * nu * m;
             for (int u = 0; u < nu; u++) {
-                if (!term_used(M, i == j, c, u)) continue;
+                if (!term_used(M, c, u)) continue;
                 const double w = M->uw[u], *Ru = R + (size_t)u * m;
                 for (int b = 0; b < m; b++)
                     for (int a = b; a < m; a++) M->G[a + (size_t)m * b] += w * Ru[a] * Ru[b];
@@ -247,6 +264,12 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
         if (L->bframes[b] >= 2) used[nb++] = b;
     if (nb < 2) nb = 0; /* one batch: no spread */
     const int nrhs = 1 + nb, ntask = L->npairs * WT_LEARN_NCOMP;
+    int autop[64]; /* the auto pair (i, i) of each LGS */
+    for (int p = 0; p < L->npairs; p++) {
+        int i, j;
+        wt_learn_pair(L, p, &i, &j);
+        if (i == j) autop[i] = p;
+    }
     int nth = team();
     if (nth > ntask) nth = ntask;
     double *G = NULL, *q = NULL, *qt = NULL, *work = NULL, *x = NULL, *dn = NULL, *buf = NULL;
@@ -276,12 +299,17 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
             for (int b = b0; b <= b1; b++) {
                 const double *s = L->spec + (((size_t)b * L->npairs + p) * WT_LEARN_NCOMP + c) * nf * 2;
                 for (int k = 0; k < 2 * nf; k++) sp[k] += s[k];
+                if (i == j) continue;
+                /* the differential statistic: less the mean of the two autos (the maps are linear in the spectra) */
+                const double *si = L->spec + (((size_t)b * L->npairs + autop[i]) * WT_LEARN_NCOMP + c) * nf * 2;
+                const double *sj = L->spec + (((size_t)b * L->npairs + autop[j]) * WT_LEARN_NCOMP + c) * nf * 2;
+                for (int k = 0; k < 2 * nf; k++) sp[k] -= 0.5 * (si[k] + sj[k]);
             }
             fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
             double *qr = qt + ((size_t)t * nrhs + r) * (m + 1); /* q_a then the data norm */
             const double sc = 1.0 / ((double)NN * (double)K * L->pairs[0]);
             for (int u = 0; u < nu; u++) {
-                if (!term_used(M, i == j, c, u)) continue;
+                if (!term_used(M, c, u)) continue;
                 /* w C = (P/P0) corr/(N² K P) */
                 const double wv = corr[M->uoff[u]] * sc, v = wv / M->uw[u], *Ru = R + (size_t)u * m;
                 qr[m] += wv * v;
