@@ -623,6 +623,25 @@ START_TEST(test_focus_refused_without_ngs_focus)
 }
 END_TEST
 
+/* The layer-binning model error with the focus removal: the same draws' slopes, less their focus, so each LGS's
+ * σ²_e is smaller by Σ (fᵀs)² / (2 nsub · draws) — positive for these random screens — and still > 0. */
+START_TEST(test_focus_model_error)
+{
+    static const char *const me[] = {"recon.model_error=true", "recon.lgs_focus_removal=true"};
+    fixture off, on;
+    setup(&off, 0, 1, me);
+    setup(&on, 0, 2, me);
+    for (int m = 0; m < off.sys->nlgs; m++) {
+        const double a = wt_tomography_model_error(off.t, m), b = wt_tomography_model_error(on.t, m);
+        ck_assert_double_gt(a, 0.0);
+        ck_assert_double_gt(b, 0.0);
+        ck_assert_msg(b < a, "LGS %d: %g with the focus removed, %g without", m, b, a);
+    }
+    teardown(&off);
+    teardown(&on);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("mvm");
@@ -644,6 +663,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_r_matches_pcg3_focus);
     tcase_add_test(tc, test_focus_slopes_ignored);
     tcase_add_test(tc, test_focus_refused_without_ngs_focus);
+    tcase_add_test(tc, test_focus_model_error);
     suite_add_tcase(s, tc);
     return s;
 }
