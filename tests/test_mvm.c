@@ -517,6 +517,131 @@ START_TEST(test_chol_errors_and_solve)
 }
 END_TEST
 
+/* ---- LGS focus removal (recon.lgs_focus_removal) ----------------------------------------------------- */
+static const char *const focus_on[] = {"recon.lgs_focus_removal=true"};
+
+/* The factorised M with the focus in the low rank (6 per LGS) is the matrix-free M (1e-12, as above), and its
+ * solve is PCG's converged one (1e-9, as above). */
+START_TEST(test_focus_normal_matches)
+{
+    fixture f;
+    setup(&f, 0, 1, focus_on);
+    wt_mvm_normal *nm = normal(&f);
+    int rank = 6 * f.sys->nlgs;
+    for (int m = f.sys->nlgs; m < f.sys->nsensors; m++) rank += f.sys->sensors[m].nslopes;
+    ck_assert_int_eq(wt_mvm_normal_rank(nm), rank);
+    double *x = malloc(f.n * sizeof *x), *y1 = malloc(f.n * sizeof *y1), *y2 = malloc(f.n * sizeof *y2),
+           *s = malloc(f.ns * sizeof *s), *xp = calloc(f.n, sizeof *xp);
+    tu_randn(x, f.n, 71);
+    ck_assert_int_eq(wt_mvm_normal_apply(nm, x, y1), WT_OK);
+    tu_tomo_apply(f.t, x, y2);
+    ck_assert_double_le(tu_rel_diff(y1, y2, f.n), 1e-12);
+    test_slopes(&f, s, 72);
+    tu_tomo_rhs(f.t, s, y1);
+    ck_assert_int_eq(wt_mvm_normal_solve(nm, 1, y1, x), WT_OK);
+    wt_pcg_result res;
+    ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, xp, 20000, 1e-12, NULL, &res), WT_OK);
+    ck_assert_double_le(tu_rel_diff(x, xp, f.n), 1e-9);
+    free(x), free(y1), free(y2), free(s), free(xp);
+    wt_mvm_normal_free(nm);
+    teardown(&f);
+}
+END_TEST
+
+/* R s = the converged pcg3 with the focus removal (the bound of check_r_matches) */
+START_TEST(test_r_matches_pcg3_focus) { check_r_matches(0, 1, focus_on); }
+END_TEST
+
+/* The LGS slopes of a pure focus phase φ = a r² (on the sensors' sample grid, through each LGS's own Γ: what a
+ * sodium altitude change puts on every LGS) added to the slopes: with the focus removal the right-hand side
+ * changes by rounding only (Ĉ⁻¹ Γ φ = 0: the Fried slopes of a quadratic are exactly ∝ the subaperture centres),
+ * so the converged reconstruction by rounding times M's conditioning (1e-9); without it the reconstruction moves
+ * by O(1) of its size (the focus is 10 times the slopes' rms). */
+START_TEST(test_focus_slopes_ignored)
+{
+    for (int on = 0; on < 2; on++) {
+        fixture f;
+        setup(&f, 0, on, focus_on);
+        const wt_grid *g = &f.sys->sense_grid;
+        double *ph = malloc(wt_grid_size(g) * sizeof *ph), *s = malloc(f.ns * sizeof *s),
+               *s2 = malloc(f.ns * sizeof *s2), *b1 = calloc(f.n, sizeof *b1), *b2 = calloc(f.n, sizeof *b2),
+               *c1 = calloc(f.n, sizeof *c1), *c2 = calloc(f.n, sizeof *c2);
+        test_slopes(&f, s, 81);
+        memcpy(s2, s, f.ns * sizeof *s);
+        const double rms = tu_norm(s, f.ns) / sqrt((double)f.ns);
+        for (int iy = 0; iy < g->ny; iy++)
+            for (int ix = 0; ix < g->nx; ix++) {
+                const double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
+                ph[ix + (int64_t)g->nx * iy] = x * x + y * y;
+            }
+        const wt_sensor *l1 = &f.sys->sensors[0];
+        double *fs = calloc(l1->nslopes, sizeof *fs);
+        wt_shack_hartmann_apply(l1->sh, 1.0, ph, fs);
+        const double a = 10.0 * rms / (tu_norm(fs, l1->nslopes) / sqrt((double)l1->nslopes));
+        free(fs);
+        for (int m = 0; m < f.sys->nlgs; m++) {
+            const wt_sensor *l = &f.sys->sensors[m];
+            wt_shack_hartmann_apply(l->sh, a, ph, s2 + l->offset);
+        }
+        tu_tomo_rhs(f.t, s, b1);
+        tu_tomo_rhs(f.t, s2, b2);
+        wt_pcg_result res;
+        ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, c1, 20000, 1e-12, NULL, &res), WT_OK);
+        ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s2, c2, 20000, 1e-12, NULL, &res), WT_OK);
+        if (on) {
+            /* the rhs sums ~ns terms of the 10× larger slopes: rounding ~ns ε × 10 of b */
+            ck_assert_double_le(tu_rel_diff(b2, b1, f.n), 1e-11);
+            ck_assert_double_le(tu_rel_diff(c2, c1, f.n), 1e-9);
+        } else {
+            ck_assert_double_gt(tu_rel_diff(c2, c1, f.n), 0.1);
+        }
+        free(ph), free(s), free(s2), free(b1), free(b2), free(c1), free(c2);
+        teardown(&f);
+    }
+}
+END_TEST
+
+/* Without an NGS that measures focus (three 1x1 tip-tilt sensors) the key is refused, naming it. */
+START_TEST(test_focus_refused_without_ngs_focus)
+{
+    wt_context *ctx = tu_context();
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    wt_tomography *t = NULL;
+    const char *set[] = {"recon.prior=\"paper\"", "recon.lgs_focus_removal=true", "ngs.subapertures=[1, 1, 1]"};
+    ck_assert_msg(wt_config_read(ctx, DEMO, 3, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(cfg, &tp);
+    ck_assert_int_eq(wt_tomography_alloc(ctx, sys, &cfg->pcg3, "pcg3", &tp, &t), WT_ERR_CONFIG);
+    ck_assert_ptr_null(t);
+    ck_assert_msg(strstr(wt_error_message(ctx), "recon.lgs_focus_removal") != NULL, "%s", wt_error_message(ctx));
+    ck_assert_msg(strstr(wt_error_message(ctx), "2x2") != NULL, "%s", wt_error_message(ctx));
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
+/* The layer-binning model error with the focus removal: the same draws' slopes, less their focus, so each LGS's
+ * σ²_e is smaller by Σ (fᵀs)² / (2 nsub · draws) — positive for these random screens — and still > 0. */
+START_TEST(test_focus_model_error)
+{
+    static const char *const me[] = {"recon.model_error=true", "recon.lgs_focus_removal=true"};
+    fixture off, on;
+    setup(&off, 0, 1, me);
+    setup(&on, 0, 2, me);
+    for (int m = 0; m < off.sys->nlgs; m++) {
+        const double a = wt_tomography_model_error(off.t, m), b = wt_tomography_model_error(on.t, m);
+        ck_assert_double_gt(a, 0.0);
+        ck_assert_double_gt(b, 0.0);
+        ck_assert_msg(b < a, "LGS %d: %g with the focus removed, %g without", m, b, a);
+    }
+    teardown(&off);
+    teardown(&on);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("mvm");
@@ -534,6 +659,11 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_orderings);
     tcase_add_test(tc, test_budget_refuses);
     tcase_add_test(tc, test_pcg3_layer_mismatch_refused);
+    tcase_add_test(tc, test_focus_normal_matches);
+    tcase_add_test(tc, test_r_matches_pcg3_focus);
+    tcase_add_test(tc, test_focus_slopes_ignored);
+    tcase_add_test(tc, test_focus_refused_without_ngs_focus);
+    tcase_add_test(tc, test_focus_model_error);
     suite_add_tcase(s, tc);
     return s;
 }

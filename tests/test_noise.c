@@ -786,6 +786,110 @@ START_TEST(test_alloc_failure)
 }
 END_TEST
 
+/* The LGS focus removal (recon.lgs_focus_removal): T = T_tt + f fᵀ on the centres of a 2-D set of subapertures.
+ * (I − T) annihilates tip, tilt and the focus slope pattern (x_i, y_i) of any offset and scale, is idempotent and
+ * symmetric; the weight Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T) against the assembled C̃⁻¹ sandwiched by (I − T) (1e-12: n ε
+ * of sums over n terms); set_weight_many gives apply_weight's bits, the float weight agrees to float rounding; a
+ * sensor with one subaperture, or without the tip-tilt removal, is refused. Each bound is O(ε) relative to the
+ * vectors involved; any missing projection term errs at O(1). */
+START_TEST(test_focus_projection)
+{
+    wt_context *ctx = tu_context();
+    const int side = 24;
+    int nsub = 0;
+    double *cx = malloc(side * side * sizeof *cx), *cy = malloc(side * side * sizeof *cy);
+    for (int j = 0; j < side; j++)
+        for (int i = 0; i < side; i++) {
+            const double x = (i - 11.3) * 0.5, y = (j - 12.1) * 0.5, r = hypot(x, y); /* an annulus, off-centre */
+            if (r < 5.5 && r > 1.2) cx[nsub] = x, cy[nsub] = y, nsub++;
+        }
+    const int ns = 2 * nsub;
+    wt_noise *n = make_noise(ctx, nsub, 0.8, 1);
+    ck_assert_ptr_null(wt_noise_focus(n));
+    ck_assert_int_eq(wt_noise_set_focus(n, cx, cy), WT_OK);
+    const double *f = wt_noise_focus(n);
+    ck_assert_ptr_nonnull(f);
+    ck_assert_rel(tu_norm(f, ns), 1.0, 1e-14, 0);
+    double *x = malloc(ns * sizeof *x), *y = malloc(ns * sizeof *y), *z = malloc(ns * sizeof *z),
+           *u = malloc(ns * sizeof *u), *v = calloc(ns, sizeof *v), *ref = malloc(ns * sizeof *ref);
+    /* tip a, tilt b, focus c (s = c (x_i, y_i)): all removed, relative to their size */
+    const double a = 3.7e-6, b = -1.3e-6, c = 2.2e-6;
+    for (int i = 0; i < nsub; i++) x[i] = a + c * cx[i], x[nsub + i] = b + c * cy[i];
+    const double sz = tu_norm(x, ns);
+    wt_noise_remove_tt(n, x);
+    ck_assert_double_le(tu_norm(x, ns), 1e-14 * sz);
+    /* idempotent and symmetric on random vectors with large tip, tilt and focus parts */
+    tu_randn(x, ns, 61);
+    tu_randn(z, ns, 62);
+    for (int i = 0; i < nsub; i++) x[i] += 5.0 + 3.0 * cx[i], x[nsub + i] -= 2.0 - 3.0 * cy[i];
+    memcpy(y, x, ns * sizeof *y);
+    wt_noise_remove_tt(n, y);
+    memcpy(u, y, ns * sizeof *u);
+    wt_noise_remove_tt(n, u);
+    for (int i = 0; i < ns; i++) u[i] -= y[i];
+    ck_assert_double_le(tu_norm(u, ns), 1e-13 * tu_norm(x, ns)); /* rounding of the first pass's sums, n ε of x */
+    double sxx = 0.0, sxy = 0.0, sfx = 0.0;
+    for (int i = 0; i < nsub; i++) sxx += y[i], sxy += y[nsub + i], sfx += f[i] * y[i] + f[nsub + i] * y[nsub + i];
+    ck_assert_double_le(fabs(sxx) + fabs(sxy) + fabs(sfx), 1e-13 * tu_norm(x, ns) * sqrt(nsub));
+    memcpy(u, z, ns * sizeof *u);
+    wt_noise_remove_tt(n, u);
+    ck_assert_rel(tu_dot(y, z, ns), tu_dot(x, u, ns), 1e-12, 1e-12 * tu_norm(x, ns) * tu_norm(z, ns));
+    /* the weight: (I − T) C̃⁻¹ (I − T) against the assembled C̃⁻¹ */
+    wt_sparse *A = NULL;
+    ck_assert_int_eq(wt_noise_assemble_inv(n, &A), WT_OK);
+    const double alpha = -0.7;
+    tu_randn(z, ns, 63);
+    memcpy(ref, z, ns * sizeof *ref);
+    memcpy(y, z, ns * sizeof *y);
+    wt_noise_apply_weight(n, alpha, x, y);
+    memcpy(u, x, ns * sizeof *u);
+    wt_noise_remove_tt(n, u);
+    wt_sparse_apply(A, 1.0, u, v);
+    wt_noise_remove_tt(n, v);
+    for (int i = 0; i < ns; i++) ref[i] += alpha * v[i];
+    ck_assert_double_le(tu_rel_diff(y, ref, ns), 1e-12);
+    /* the weight of a pure tip + tilt + focus is zero to rounding */
+    for (int i = 0; i < nsub; i++) u[i] = a + c * cx[i], u[nsub + i] = b + c * cy[i];
+    memset(y, 0, ns * sizeof *y);
+    wt_noise_apply_weight(n, 1.0, u, y);
+    memset(v, 0, ns * sizeof *v);
+    wt_noise_apply_inv(n, 1.0, u, v);
+    ck_assert_double_le(tu_norm(y, ns), 1e-13 * tu_norm(v, ns));
+    /* set_weight_many: apply_weight's bits (on y cleared to +0) */
+    double *w1 = calloc(ns, sizeof *w1), *w2 = malloc(ns * sizeof *w2);
+    wt_noise_apply_weight(n, 1.0, x, w1);
+    const wt_noise *nn[1] = {n};
+    const double *xs[1] = {x};
+    double *ws[1] = {w2};
+    wt_noise_set_weight_many(nn, 1, xs, ws);
+    ck_assert_mem_eq(w1, w2, ns * sizeof *w1);
+    /* the float weight: within float rounding of the double one (sums of n terms ~ n 2⁻²⁴ of their sizes) */
+    float *xf = malloc(ns * sizeof *xf), *yf = malloc(ns * sizeof *yf);
+    for (int i = 0; i < ns; i++) xf[i] = (float)x[i];
+    const float *xfs[1] = {xf};
+    float *yfs[1] = {yf};
+    wt_noise_set_weight_many_f32(nn, 1, xfs, yfs);
+    double err = 0.0, scale = 0.0;
+    for (int i = 0; i < ns; i++) err = fmax(err, fabs((double)yf[i] - w1[i])), scale = fmax(scale, fabs(w1[i]));
+    memset(v, 0, ns * sizeof *v);
+    wt_noise_apply_inv(n, 1.0, x, v);
+    for (int i = 0; i < ns; i++) scale = fmax(scale, fabs(v[i]));
+    ck_assert_double_le(err, 1e-5 * scale);
+    /* refused: one subaperture (a tip-tilt sensor), and a weight without the tip-tilt removal */
+    wt_noise *one = make_noise(ctx, 1, 0.8, 1), *plain = make_noise(ctx, nsub, 0.8, 0);
+    ck_assert_int_eq(wt_noise_set_focus(one, cx, cy), WT_ERR_INVALID);
+    ck_assert_ptr_null(wt_noise_focus(one));
+    ck_assert_int_eq(wt_noise_set_focus(plain, cx, cy), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_noise_focus_pattern(1, cx, cy, u), 0);
+    wt_noise_free(one);
+    wt_noise_free(plain);
+    wt_sparse_free(A);
+    free(x), free(y), free(z), free(u), free(v), free(ref), free(w1), free(w2), free(xf), free(yf), free(cx), free(cy);
+    wt_noise_free(n);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("noise");
@@ -795,6 +899,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_inv_block_hand);
     tcase_add_test(tc, test_tt_projection);
     tcase_add_test(tc, test_weight);
+    tcase_add_test(tc, test_focus_projection);
     tcase_add_test(tc, test_weight_many);
     tcase_add_test(tc, test_set_weight_many);
     tcase_add_test(tc, test_set_weight_many_f32);

@@ -18,7 +18,8 @@
  *       assembled as GᵀG + αD with G = Lᵀ Ã_LGS (C̃⁻¹ = L Lᵀ per 2x2 subaperture block), factorised
  *       by CHOLMOD (supernodal, core/la/chol.h);
  *   LGS tip-tilt removal: Ĉ⁻¹ − C̃⁻¹ = −U Vᵀ − V Uᵀ + U (UᵀV) Uᵀ with U the two normalised tip/tilt
- *       columns of the sensor and V = C̃⁻¹ U, i.e. [U V] [[UᵀV, −I], [−I, 0]] [U V]ᵀ: rank 4 per LGS,
+ *       columns of the sensor (and its unit focus pattern with recon.lgs_focus_removal: U orthonormal, three
+ *       columns) and V = C̃⁻¹ U, i.e. [U V] [[UᵀV, −I], [−I, 0]] [U V]ᵀ: rank 4 per LGS (6 with the focus),
  *       indefinite, never densified;
  *   NGS: their slopes average the pupil (a 1x1 sensor's row touches every coefficient), so
  *       Ã_ngsᵀ C̃⁻¹ Ã_ngs would make N dense; they go into the correction too (rank = their slopes).

@@ -253,6 +253,16 @@ fail:
     return st;
 }
 
+/* The rank of B Q Bᵀ: 2k per LGS (k = 2 tip and tilt, 3 with the focus removal), one per NGS slope */
+static int lowrank_rank(const wt_tomography *t)
+{
+    const wt_system *sys = wt_tomography_system(t);
+    int r = 0;
+    for (int m = 0; m < sys->nlgs; m++) r += wt_noise_focus(wt_tomography_noise(t, m)) ? 6 : 4;
+    for (int m = sys->nlgs; m < sys->nsensors; m++) r += sys->sensors[m].nslopes;
+    return r;
+}
+
 /* B = [Ãᵀ U_m, Ãᵀ V_m per LGS, Ã_ngsᵀ], Q block-diagonal (see mvm_build.h). */
 static int build_lowrank(wt_mvm_normal *nm)
 {
@@ -261,8 +271,7 @@ static int build_lowrank(wt_mvm_normal *nm)
     const wt_system *sys = nm->sys;
     const int64_t ns = nm->ns, n = nm->n;
     double *zs = NULL, *work = NULL;
-    int r = 4 * sys->nlgs;
-    for (int m = sys->nlgs; m < sys->nsensors; m++) r += sys->sensors[m].nslopes;
+    int r = lowrank_rank(nm->t);
     nm->r = r;
     WT_ALLOC(ctx, nm->B, (size_t)n * r, "low-rank columns B");
     WT_ALLOC(ctx, nm->Z, (size_t)n * r, "low-rank solves N⁻¹ B");
@@ -277,29 +286,33 @@ static int build_lowrank(wt_mvm_normal *nm)
         const wt_noise *no = wt_tomography_noise(nm->t, m);
         const int ms = s->nsub;
         if (s->kind == WT_SENSOR_LGS) {
-            /* columns c..c+3: U = [u_x, u_y] normalised tip and tilt, V = C̃⁻¹ U */
+            /* columns c..c+2k−1: U = [u_x, u_y(, f)] the normalised tip and tilt (and the unit focus pattern when
+             * it is removed too: k = 3), V = C̃⁻¹ U */
+            const double *f = wt_noise_focus(no);
+            const int k = f ? 3 : 2;
             double u = 1.0 / sqrt((double)ms);
-            double *ux = zs + (size_t)c * ns + s->offset, *uy = ux + ns, *vx = uy + ns, *vy = vx + ns;
+            double *U[3], *V[3];
+            for (int a = 0; a < k; a++) {
+                U[a] = zs + (size_t)(c + a) * ns + s->offset;
+                V[a] = zs + (size_t)(c + k + a) * ns + s->offset;
+            }
             for (int i = 0; i < ms; i++) {
-                ux[i] = u;
-                uy[ms + i] = u;
+                U[0][i] = u;
+                U[1][ms + i] = u;
             }
-            wt_noise_apply_inv(no, 1.0, ux, vx);
-            wt_noise_apply_inv(no, 1.0, uy, vy);
-            double g[2][2] = {{0, 0}, {0, 0}};
-            for (int i = 0; i < 2 * ms; i++) {
-                g[0][0] += ux[i] * vx[i];
-                g[0][1] += ux[i] * vy[i];
-                g[1][0] += uy[i] * vx[i];
-                g[1][1] += uy[i] * vy[i];
-            }
+            if (f) memcpy(U[2], f, 2 * (size_t)ms * sizeof *f);
+            for (int a = 0; a < k; a++) wt_noise_apply_inv(no, 1.0, U[a], V[a]);
+            double g[3][3] = {{0}};
+            for (int a = 0; a < k; a++)
+                for (int b = 0; b < k; b++)
+                    for (int i = 0; i < 2 * ms; i++) g[a][b] += U[a][i] * V[b][i];
             /* Q_m = [[UᵀV, −I], [−I, 0]] (UᵀV symmetric as C̃⁻¹ is) */
-            for (int a = 0; a < 2; a++) {
-                for (int b = 0; b < 2; b++) Q[(c + a) + (size_t)r * (c + b)] = 0.5 * (g[a][b] + g[b][a]);
-                Q[(c + a) + (size_t)r * (c + 2 + a)] = -1.0;
-                Q[(c + 2 + a) + (size_t)r * (c + a)] = -1.0;
+            for (int a = 0; a < k; a++) {
+                for (int b = 0; b < k; b++) Q[(c + a) + (size_t)r * (c + b)] = 0.5 * (g[a][b] + g[b][a]);
+                Q[(c + a) + (size_t)r * (c + k + a)] = -1.0;
+                Q[(c + k + a) + (size_t)r * (c + a)] = -1.0;
             }
-            c += 4;
+            c += 2 * k;
         } else {
             /* one column per NGS slope, Q_m = C̃_m⁻¹ (2x2 blocks) */
             for (int k = 0; k < 2 * ms; k++) zs[(size_t)(c + k) * ns + s->offset + k] = 1.0;
@@ -374,8 +387,7 @@ int wt_mvm_normal_alloc(wt_context *ctx, wt_tomography *t, const wt_mvm_options 
     S->nunknowns = n;
     S->nslopes = nm->ns;
     S->nact = sys->nact;
-    int rank = 4 * sys->nlgs;
-    for (int m = sys->nlgs; m < sys->nsensors; m++) rank += sys->sensors[m].nslopes;
+    const int rank = lowrank_rank(t);
     const double lowrank_bytes = 16.0 * (double)n * rank;
     /* The full prior couples every pair of a layer's coefficients: N is dense (n² doubles, a copy with
      * keep_matrix), refused here, before any assembly, when that cannot fit. */

@@ -351,6 +351,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.model_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(model_error), NOCOUNT, 0, 0, NULL, 0,
      "LGS noise variance plus the slope variance of the layer-binning model error (true layers between "
      "the reconstruction altitudes; zero for cg9's layers) (optional, default false)"},
+    {"recon.lgs_focus_removal", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(lgs_focus_removal), NOCOUNT, 0, 0, NULL, 0,
+     "pcg3, cg9 and mvm: the LGS noise weights project out each LGS's global focus as they do its tip-tilt "
+     "(Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T onto tip, tilt and the focus slope pattern): a change of the sodium "
+     "centroid's altitude, which every LGS reads as focus, no longer reaches the tomography, and the focus comes "
+     "from the NGS; needs an NGS that measures focus (ngs.subapertures 2) (optional, default false)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
     {"recon.predict", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(predict), NOCOUNT, 0, 0, NULL, 0,
      "pcg3 and cg9: move each reconstructed layer by its wind (the reconstructor's atmosphere, recon.atmosphere, "

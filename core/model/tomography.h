@@ -55,6 +55,8 @@ typedef struct wt_tomography_params {
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
     int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
+    int lgs_focus_removal; /* 1: the LGS weights remove focus as well as tip-tilt (recon.lgs_focus_removal): the
+                              focus then comes from the NGS, of which one at least must measure it (2x2) */
     double loop_noise_gain; /* κ = Σh², the integrator's noise gain (wt_noise_loop_gain): with the variant's
                                loop_noise_average the sensors' σ² is multiplied by it, the model error not */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */

@@ -36,7 +36,7 @@ void wt_tomography__bin_profile(int L, const double *alt, int natm, const double
  * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
  * structure on the other layers. So it is treated as noise ("tomographic error as noise"): its variance
  * per slope, averaged over the sensor's slopes with their global tip-tilt removed (the weight removes
- * it), is added to σ²:
+ * it; and their focus with recon.lgs_focus_removal), is added to σ²:
  *   σ²_e,m = Σ_k E|(I − T) Γ_m [P_m(h_k) − (1 − w_k) P_m(h_l) − w_k P_m(h_{l+1})] φ_k|² / (2 nsub),
  * φ_k drawn from the layer's exact wavelet prior (Cn² fraction f_k) on the finest reconstruction
  * spacing, WT_MODEL_ERROR_DRAWS draws per layer with a fixed seed (the reconstructor stays a
@@ -71,7 +71,7 @@ static int model_error_add(wt_tomography *t, double r0, int natm, const double *
     wt_wavelet *wav = NULL;
     wt_prior *prior = NULL;
     wt_projection *proj[3] = {NULL, NULL, NULL};
-    double *c = NULL, *phi = NULL, *work = NULL, *ph = NULL, *sl = NULL;
+    double *c = NULL, *phi = NULL, *work = NULL, *ph = NULL, *sl = NULL, *fp = NULL;
     const double dx = t->me_dx;
     const int n = t->me_n;
     const wt_grid g = wt_grid_layer(n, dx);
@@ -85,6 +85,7 @@ static int model_error_add(wt_tomography *t, double r0, int natm, const double *
     WT_ALLOC(ctx, work, wt_wavelet_work_size(wav), "model-error wavelet workspace");
     WT_ALLOC(ctx, ph, t->ncg, "model-error phase");
     WT_ALLOC(ctx, sl, nslopes_max, "model-error slopes");
+    if (t->lgs_focus) WT_ALLOC(ctx, fp, nslopes_max, "model-error focus pattern");
     for (int k = 0; k < natm; k++) {
         const double h = atm_alt[k], f = atm_frac[k];
         int l;
@@ -110,12 +111,22 @@ static int model_error_add(wt_tomography *t, double r0, int natm, const double *
                 WT_TRY(wt_projection_alloc(ctx, 1, &g, &alt3[q], s->altitude, s->theta_x, s->theta_y, &sys->sense_grid,
                                            wt_shack_hartmann_corner_mask(s->sh), 0, &proj[q]));
             double sum = 0.0;
+            if (fp) {
+                st = wt_tomography__focus_pattern(ctx, s, fp);
+                if (st < 0) goto fail;
+                st = WT_OK; /* an LGS of the focus check's system has its pattern */
+            }
             for (int r = 0; r < WT_MODEL_ERROR_DRAWS; r++) {
                 memset(ph, 0, (size_t)t->ncg * sizeof *ph);
                 for (int q = 0; q < 3; q++)
                     if (wt3[q] != 0.0) wt_projection_apply(proj[q], wt3[q], phi + (size_t)r * np, ph);
                 memset(sl, 0, (size_t)s->nslopes * sizeof *sl);
                 wt_shack_hartmann_apply(s->sh, 1.0, ph, sl);
+                if (fp) { /* (I − T) with the focus: ‖(I − T_tt) v‖² − (fᵀv)², f ⟂ tip and tilt */
+                    double a = 0.0;
+                    for (int i = 0; i < s->nslopes; i++) a += fp[i] * sl[i];
+                    sum -= a * a;
+                }
                 for (int axis = 0; axis < 2; axis++) { /* (I − T): the global tip and tilt removed */
                     double *v = sl + (size_t)axis * s->nsub, mean = 0.0;
                     for (int i = 0; i < s->nsub; i++) mean += v[i];
@@ -139,6 +150,7 @@ fail:
     wt_free(ctx, work);
     wt_free(ctx, ph);
     wt_free(ctx, sl);
+    wt_free(ctx, fp);
     return st;
 }
 
@@ -184,6 +196,65 @@ static int model_error_cached(wt_tomography *t, double r0, int natm, const doubl
  * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
  * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
  * proportion: both options are off by default). */
+/* ---- LGS focus removal (recon.lgs_focus_removal) -----------------------------------------------------
+ * A change of the sodium centroid's altitude Δh moves every LGS spot by (r − l) Δh / H²: a tilt (the launch
+ * offset l) plus a focus. T then projects each LGS's slopes onto span{tip, tilt, f} with f the focus slope
+ * pattern (core/op/noise.h), and the tomography's focus comes from the NGS; one of them must measure it. */
+int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f)
+{
+    int st = WT_OK;
+    double *cx = NULL;
+    WT_ALLOC(ctx, cx, 2 * (size_t)s->nsub, "subaperture centres");
+    for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cx[s->nsub + k]);
+    st = wt_noise_focus_pattern(s->nsub, cx, cx + s->nsub, f);
+fail:
+    wt_free(ctx, cx);
+    return st;
+}
+
+int wt_tomography__focus_check(const wt_tomography *t, const char *source)
+{
+    const wt_system *sys = t->sys;
+    int st = WT_OK, ok = 0;
+    double *f = NULL;
+    for (int m = 0; m < sys->nsensors && !ok; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        if (s->kind != WT_SENSOR_NGS || s->nsub < 2) continue;
+        WT_ALLOC(t->ctx, f, 2 * (size_t)s->nsub, "focus pattern");
+        st = wt_tomography__focus_pattern(t->ctx, s, f);
+        if (st < 0) goto fail;
+        ok = st;
+        st = WT_OK;
+        wt_free(t->ctx, f);
+        f = NULL;
+    }
+    if (!ok)
+        st = WT_ERROR(t->ctx, WT_ERR_CONFIG,
+                      "%s: recon.lgs_focus_removal = true removes the LGS focus, and no NGS measures it (%d NGS, none "
+                      "with 2x2 subapertures: ngs.subapertures needs a 2)", source ? source : "tomography", sys->nngs);
+fail:
+    wt_free(t->ctx, f);
+    return st;
+}
+
+/* *out (an LGS's weight) gets the focus removal too when it is on; *out is freed on failure */
+static int sensor_focus(wt_tomography *t, const wt_sensor *s, wt_noise **out)
+{
+    if (!t->lgs_focus || s->kind != WT_SENSOR_LGS) return WT_OK;
+    int st = WT_OK;
+    double *cx = NULL;
+    WT_ALLOC(t->ctx, cx, 2 * (size_t)s->nsub, "subaperture centres");
+    for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cx[s->nsub + k]);
+    st = wt_noise_set_focus(*out, cx, cx + s->nsub);
+fail:
+    wt_free(t->ctx, cx);
+    if (st < 0) {
+        wt_noise_free(*out);
+        *out = NULL;
+    }
+    return st;
+}
+
 static int sensor_noise(wt_tomography *t, int m, wt_noise **out)
 {
     wt_context *ctx = t->ctx;
@@ -203,11 +274,12 @@ static int sensor_noise(wt_tomography *t, int m, wt_noise **out)
         }
         const int st = wt_noise_alloc_blocks(ctx, ns, cov, t->tau, s->kind == WT_SENSOR_LGS, out);
         wt_free(ctx, cov);
-        return st;
+        return st < 0 ? st : sensor_focus(t, s, out);
     }
     const double s2n = kappa * s->sigma2, s2t = s2n + t->model_var[m];
-    return wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta, t->tau * (s2n / s2t),
-                                 s->kind == WT_SENSOR_LGS, out);
+    const int st = wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
+                                         t->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, out);
+    return st < 0 ? st : sensor_focus(t, s, out);
 }
 
 double wt_tomography_lgs_precision(const wt_tomography *t, int m)

@@ -65,6 +65,7 @@ struct wt_tomography {
     int wavelet_order, wavelet_levels;
     double kappa, tau;        /* the measurement noise's loop factor κ and the elongation weight τ of C̃ */
     int model_error;          /* recon.model_error */
+    int lgs_focus;            /* recon.lgs_focus_removal: the LGS weights project out focus as well as tip-tilt */
     double me_dx;             /* the model error's sample grid: spacing [m] and side */
     int me_n;
     int me_ncache;            /* unit layers' model error kept per altitude (wt_tomography_set_profile) */
@@ -102,6 +103,11 @@ struct wt_tomography_work {
  * t->model_var, κ and τ (replacing t->noise). */
 void wt_tomography__bin_profile(int L, const double *alt, int natm, const double *atm_alt, const double *atm_frac,
                                 double *frac);
+/* recon.lgs_focus_removal: a WT_ERR_CONFIG naming the key unless some NGS measures focus (2x2) */
+int wt_tomography__focus_check(const wt_tomography *t, const char *source);
+/* f (2 nsub) = the unit focus slope pattern of sensor s (wt_noise_focus_pattern on its subaperture centres);
+ * returns 1, or 0 when it has none (a 1x1 sensor), or an error status when out of memory */
+int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f);
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
 int wt_tomography__noise(wt_tomography *t);

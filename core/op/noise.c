@@ -2,7 +2,9 @@
  *
  * Implements SPEC §4 and the paper's eq. elongation_matrix (C̃_i = σ²(I + (τ/θf²) β_i β_iᵀ), one 2x2
  * block per subaperture) and eq. widehatc (Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T the orthogonal projection onto
- * the sensor's global tip and tilt). Everything block-wise is precomputed at alloc: the inverse blocks
+ * the sensor's global tip and tilt). With the LGS focus removal T also projects onto the focus slope pattern f
+ * (f ∝ (x_i − x̄, y_i − ȳ) over the valid subapertures, unit norm: orthogonal to tip and tilt because its halves
+ * have zero mean), T = T_tt + f fᵀ, which is again an orthogonal projector. Everything block-wise is precomputed at alloc: the inverse blocks
  * (Sherman–Morrison), the covariance blocks and their Cholesky factors (for sampling), and the inverse blocks
  * rounded to float (for the fp32 weight).
  */
@@ -23,6 +25,7 @@ struct wt_noise {
     double *l11, *l21, *l22; /* C̃_i = L Lᵀ, L = [[l11, 0], [l21, l22]] [rad] */
     float *fa, *fb, *fc;     /* ia, ib, ic rounded to float, for wt_noise_set_weight_many_f32 */
     double *store;           /* the one allocation the twelve arrays live in */
+    double *focus;           /* NULL, or the unit focus pattern f (2 nsub) that T projects out as well */
 };
 
 double wt_noise_variance(double photons, double read_noise_e, double spot_fwhm, double pixel, int pixels,
@@ -67,6 +70,7 @@ void wt_noise_free(wt_noise *n)
     if (!n) return;
     wt_context *ctx = n->ctx;
     wt_free(ctx, n->store);
+    wt_free(ctx, n->focus);
     wt_free(ctx, n);
 }
 
@@ -283,8 +287,9 @@ enum { MANY = 4 };
 static int batch_size(const wt_noise *const *ns, int k, int j)
 {
     int b = 1;
-    if (ns[j]->remove_tt)
-        while (b < MANY && j + b < k && ns[j + b]->remove_tt && ns[j + b]->nsub == ns[j]->nsub) b++;
+    if (ns[j]->remove_tt && !ns[j]->focus)
+        while (b < MANY && j + b < k && ns[j + b]->remove_tt && !ns[j + b]->focus && ns[j + b]->nsub == ns[j]->nsub)
+            b++;
     return b;
 }
 
@@ -344,10 +349,39 @@ static inline __attribute__((always_inline)) void weight_batch(const int B, cons
     take_means(B, m, alpha, svx, svy, y);
 }
 
+/* y += α (I − T) C̃⁻¹ (I − T) x with T = T_tt + f fᵀ: the means and fᵀx, v = C̃⁻¹ (x − T x) added to y while its
+ * means and fᵀv are summed, then α T v taken off (one sensor at a time: the focus removal is an option) */
+static void weight_focus(const wt_noise *n, double alpha, const double *x, double *y)
+{
+    const int m = n->nsub;
+    const double *f = n->focus;
+    double mx, my, a = 0.0, svx = 0.0, svy = 0.0, b = 0.0;
+    means(m, x, &mx, &my);
+    for (int i = 0; i < 2 * m; i++) a += f[i] * x[i];
+    for (int i = 0; i < m; i++) {
+        const double u = x[i] - mx - a * f[i], v = x[m + i] - my - a * f[m + i];
+        const double vx = n->ia[i] * u + n->ib[i] * v, vy = n->ib[i] * u + n->ic[i] * v;
+        svx += vx;
+        svy += vy;
+        b += f[i] * vx + f[m + i] * vy;
+        y[i] += alpha * vx;
+        y[m + i] += alpha * vy;
+    }
+    const double dx = alpha * svx / m, dy = alpha * svy / m, db = alpha * b;
+    for (int i = 0; i < m; i++) {
+        y[i] -= dx + db * f[i];
+        y[m + i] -= dy + db * f[m + i];
+    }
+}
+
 void wt_noise_apply_weight(const wt_noise *n, double alpha, const double *x, double *y)
 {
     if (!n->remove_tt) {
         wt_noise_apply_inv(n, alpha, x, y);
+        return;
+    }
+    if (n->focus) {
+        weight_focus(n, alpha, x, y);
         return;
     }
     weight_batch(1, &n, alpha, &x, &y);
@@ -416,7 +450,10 @@ WT_CPU_CLONES void wt_noise_set_weight_many(const wt_noise *const *ns, int k, co
         case 3: set_batch(3, ns + j, x + j, y + j); break;
         case 2: set_batch(2, ns + j, x + j, y + j); break;
         default:
-            if (ns[j]->remove_tt) set_batch(1, ns + j, x + j, y + j);
+            if (ns[j]->focus) {
+                for (int i = 0; i < 2 * ns[j]->nsub; i++) y[j][i] = 0.0;
+                weight_focus(ns[j], 1.0, x[j], y[j]);
+            } else if (ns[j]->remove_tt) set_batch(1, ns + j, x + j, y + j);
             else {
                 for (int i = 0; i < 2 * ns[j]->nsub; i++) y[j][i] = 0.0;
                 wt_noise_apply_inv(ns[j], 1.0, x[j], y[j]);
@@ -506,6 +543,35 @@ static inline __attribute__((always_inline)) void shift_f32(int m, float dx, flo
     }
 }
 
+/* Ĉ⁻¹ x with the focus removal in float, the sums (means, fᵀx, fᵀv) in double */
+static void focus_f32(const wt_noise *n, const float *xx, const float *xy, float *yx, float *yy)
+{
+    const int m = n->nsub;
+    const double *fx = n->focus, *fy = n->focus + m;
+    double sx = 0.0, sy = 0.0, a = 0.0;
+    for (int i = 0; i < m; i++) {
+        sx += (double)xx[i];
+        sy += (double)xy[i];
+        a += fx[i] * (double)xx[i] + fy[i] * (double)xy[i];
+    }
+    const float mx = (float)(sx / m), my = (float)(sy / m), af = (float)a;
+    double vsx = 0.0, vsy = 0.0, b = 0.0;
+    for (int i = 0; i < m; i++) {
+        const float u = xx[i] - mx - af * (float)fx[i], v = xy[i] - my - af * (float)fy[i];
+        const float vx = n->fa[i] * u + n->fb[i] * v, vy = n->fb[i] * u + n->fc[i] * v;
+        yx[i] = vx;
+        yy[i] = vy;
+        vsx += (double)vx;
+        vsy += (double)vy;
+        b += fx[i] * (double)vx + fy[i] * (double)vy;
+    }
+    const float dx = (float)(vsx / m), dy = (float)(vsy / m), bf = (float)b;
+    for (int i = 0; i < m; i++) {
+        yx[i] -= dx + bf * (float)fx[i];
+        yy[i] -= dy + bf * (float)fy[i];
+    }
+}
+
 /* Ĉ⁻¹ x in the double set_batch's order (means of x, v = C̃⁻¹ (x − T x) with its sums, y = v − T v), in float with
  * the sums in double and the means rounded to float where they meet the slopes. One sensor at a time: the lanes
  * leave no adder latency for a batch to share, and three passes over x, the blocks and y run at about the L2's
@@ -522,6 +588,10 @@ WT_CPU_CLONES void wt_noise_set_weight_many_f32(const wt_noise *const *ns, int k
             inv_f32(m, xx, xy, n->fa, n->fb, n->fc, yx, yy);
             continue;
         }
+        if (n->focus) {
+            focus_f32(n, xx, xy, yx, yy);
+            continue;
+        }
         const double mx = sum_f32(m, xx) / m, my = sum_f32(m, xy) / m;
         double sx, sy;
         products_f32(m, xx, xy, n->fa, n->fb, n->fc, (float)mx, (float)my, yx, yy, &sx, &sy);
@@ -532,13 +602,61 @@ WT_CPU_CLONES void wt_noise_set_weight_many_f32(const wt_noise *const *ns, int k
 void wt_noise_remove_tt(const wt_noise *n, double *x)
 {
     const int m = n->nsub;
-    double mx, my;
+    double mx, my, a = 0.0;
     means(m, x, &mx, &my);
+    if (n->focus)
+        for (int i = 0; i < 2 * m; i++) a += n->focus[i] * x[i];
     for (int i = 0; i < m; i++) {
         x[i] -= mx;
         x[m + i] -= my;
     }
+    if (n->focus)
+        for (int i = 0; i < 2 * m; i++) x[i] -= a * n->focus[i];
 }
+
+int wt_noise_focus_pattern(int nsub, const double *cx, const double *cy, double *f)
+{
+    double mx = 0.0, my = 0.0, span = 0.0;
+    for (int i = 0; i < nsub; i++) {
+        mx += cx[i];
+        my += cy[i];
+        span = fmax(span, fmax(fabs(cx[i]), fabs(cy[i])));
+    }
+    mx /= nsub;
+    my /= nsub;
+    double q = 0.0;
+    for (int i = 0; i < nsub; i++) {
+        f[i] = cx[i] - mx;
+        f[nsub + i] = cy[i] - my;
+        q += f[i] * f[i] + f[nsub + i] * f[nsub + i];
+    }
+    /* one subaperture (a tip-tilt sensor), or every centre at one point: no focus beyond the tip and tilt */
+    if (!(q > 1e-24 * span * span * nsub) || !(span > 0.0)) return 0;
+    const double r = 1.0 / sqrt(q);
+    for (int i = 0; i < 2 * nsub; i++) f[i] *= r;
+    return 1;
+}
+
+int wt_noise_set_focus(wt_noise *n, const double *cx, const double *cy)
+{
+    wt_context *ctx = n->ctx;
+    int st = WT_OK;
+    if (!n->remove_tt)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "noise: the focus removal needs the tip-tilt removal (an LGS weight)");
+    double *f = NULL;
+    WT_ALLOC(ctx, f, 2 * (size_t)n->nsub, "focus pattern");
+    if (!wt_noise_focus_pattern(n->nsub, cx, cy, f)) {
+        wt_free(ctx, f);
+        return WT_ERROR(ctx, WT_ERR_INVALID, "noise: %d subaperture(s) with no focus pattern beyond tip and tilt",
+                        n->nsub);
+    }
+    wt_free(ctx, n->focus);
+    n->focus = f;
+fail:
+    return st;
+}
+
+const double *wt_noise_focus(const wt_noise *n) { return n->focus; }
 
 void wt_noise_inv_block(const wt_noise *n, int i, double *a, double *b, double *c)
 {

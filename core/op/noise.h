@@ -9,6 +9,8 @@
  * elongation the variance is σ_i² (1 + τ|β_i|²/θf²).
  * LGS tip-tilt removal:  Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T),  T the orthogonal projection onto the sensor's
  * global tip and tilt, i.e. onto span{(1…1, 0…0), (0…0, 1…1)} in the [s_x…, s_y…] layout.
+ * LGS focus removal (optional, wt_noise_set_focus): T = T_tt + f fᵀ, f the unit focus slope pattern
+ * (x_i − x̄, y_i − ȳ)/‖·‖ over the valid subaperture centres, orthogonal to tip and tilt by construction.
  * Slope layout as core/op/shack_hartmann.h: block i couples s_x[i] and s_y[i] = slope[nsub + i].
  */
 #ifndef WT_NOISE_H
@@ -81,8 +83,17 @@ void wt_noise_set_weight_many(const wt_noise *const *ns, int k, const double *co
  * tests/test_noise.c derives). Sensors of any sizes, with or without the tip-tilt removal; x[j] and y[j] must not
  * alias. */
 void wt_noise_set_weight_many_f32(const wt_noise *const *ns, int k, const float *const *x, float *const *y);
-/* x <- (I − T) x: remove the global tip and tilt in place. */
+/* x <- (I − T) x: remove the global tip and tilt (and the focus, when set) in place. */
 void wt_noise_remove_tt(const wt_noise *n, double *x);
+/* f (2 nsub) = the unit focus slope pattern (cx_i − c̄x, cy_i − c̄y)/‖·‖ of the subapertures centred at (cx, cy):
+ * a quadratic phase's Fried slopes are ∝ the centres, and the means removed make it orthogonal to tip and tilt.
+ * Returns 1, or 0 (f undefined) when there is no such pattern (one subaperture: a tip-tilt sensor). */
+int wt_noise_focus_pattern(int nsub, const double *cx, const double *cy, double *f);
+/* Adds the focus of the subapertures centred at (cx, cy) (nsub each, the sensor's order) to T (LGS focus removal,
+ * recon.lgs_focus_removal): n must have the tip-tilt removal, and the centres a focus pattern. */
+int wt_noise_set_focus(wt_noise *n, const double *cx, const double *cy);
+/* The unit focus pattern T removes (2 nsub), or NULL when the focus is not removed. */
+const double *wt_noise_focus(const wt_noise *n);
 /* The inverse 2x2 block of subaperture i: {a, b, c} with C̃_i⁻¹ = [[a, b], [b, c]]. */
 void wt_noise_inv_block(const wt_noise *n, int i, double *a, double *b, double *c);
 /* x <- x + a draw of N(0, C̃) (2x2 Cholesky per block). */
