@@ -159,7 +159,11 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
  * is 35–50 % off the spot model's on the demo's set-up reference (tests/test_pixels.c) and the loop's matched filter
  * then reads 0.79 / 0.83 of the true slopes (docs/results.md); anchored, S errs only on the change of the mean image
  * from the set-up's, the same image gives the set-up's derivatives bit for bit, and the spot model's correction for
- * the pixels is the one a real system's model of its spot would supply. Then they are handed to wt_sensing_set_reference (centroider, covariance,
+ * the pixels is the one a real system's model of its spot would supply. (Each frame is re-centred on its own noisy
+ * slope, so aligned on its own noise too: a sharper mean, to second order in the noise. Its first-order term,
+ * (1/p) Σ_axes S_a(R_a ⊙ V), was tried and taken out again: at the demo's flux the bias is below the reference's own
+ * noise after 256 frames — tests/test_pixels.c — and the term made that error larger.)
+ * Then they are handed to wt_sensing_set_reference (centroider, covariance,
  * NEA, truncation: the same path as the oracle's); the accumulator restarts. Refused (WT_ERR_INVALID, the old
  * reference kept) with fewer than WT_SENSING_PIXELS_MIN_FRAMES frames. The mean of n noisy frames leaves in I0 a
  * noise whose matched-filter slope is ~NEA/√n per subaperture, held until the next rebuild (a static error the
