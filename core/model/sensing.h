@@ -156,8 +156,8 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
  *   ∂I0/∂θ = [S(I0) + ∂I0_set-up/∂θ − S(I0_set-up)],  S(I) = the derivative images of I's spline (shift.h) / p:
  * the derivatives of the mean image, anchored on the set-up reference's. Why anchored: the LGS spots are undersampled
  * (~1.2″ on 1.1″ pixels), and no interpolation of pixel values gives the pixel-integrated spot's derivative — S alone
- * is 35–50 % off the spot model's on the demo's set-up reference (tests/test_pixels.c) and the loop's matched filter
- * then reads 0.79 / 0.83 of the true slopes (docs/results.md); anchored, S errs only on the change of the mean image
+ * is 35–50 % off the spot model's on the demo's set-up reference and the loop's matched filter then reads 0.79 / 0.83
+ * of the true slopes (0.86 / 0.88 anchored; docs/results.md); anchored, S errs only on the change of the mean image
  * from the set-up's, the same image gives the set-up's derivatives bit for bit, and the spot model's correction for
  * the pixels is the one a real system's model of its spot would supply. (Each frame is re-centred on its own noisy
  * slope, so aligned on its own noise too: a sharper mean, to second order in the noise. Its first-order term,

@@ -15,14 +15,15 @@
  * model forms the set-up reference's derivatives (spot.h), here exact.
  *
  * Why the cubic spline: it reproduces polynomials to degree 3, so a shift u moves an image's centroid by exactly u
- * (the Lanczos-3 kernel, tried first, moves it by 0.84 u at small u and its derivative images are 17 % low on a
- * smooth spot); it is the Fourier shift's kernel to within a few % of the band (β3's response at the Nyquist frequency
- * after P is exact for the samples), has no wrap-around (a periodic Fourier shift would wrap a truncated spot round
- * the field), and the identity at u = 0 (noise-free test: rounding). Its error is that of interpolating an
- * undersampled image: an LGS spot of ~1.2″ on 1.1″ pixels (the demo and E-ELT presets) is not band-limited to the
- * pixel's Nyquist frequency, and no interpolation of its pixels gives the pixel-integrated spot's exact derivative
- * (measured in tests/test_pixels.c against the spot model's). Cost per frame: 2 · 4 · Ns (Ns + 2 MARGIN)
- * multiply-adds (~3 k at Ns = 16).
+ * (the Lanczos-3 kernel, tried first, moves it by 0.84 u at small u and its derivative at zero shift is 0.83 of a
+ * linear ramp's slope); it interpolates (the identity at u = 0: the noise-free test is exact to rounding); it does not
+ * wrap a truncated spot round the field as a periodic Fourier shift would; and its taps commute with its prefilter,
+ * so a frame costs four taps per axis. Its error is that of interpolating an undersampled image: an LGS spot of ~1.2″
+ * on 1.1″ pixels (the demo and E-ELT presets) is not band-limited to the pixels' Nyquist frequency, so no
+ * interpolation of its pixels gives the pixel-integrated spot's exact shift or derivative (the derivative of the
+ * demo's set-up reference is 35–50 % off the spot model's: docs/results.md §47; a well-sampled spot, σ = 2 pixels,
+ * within 1e-3 of the peak shifted and 1e-2 differentiated: tests/test_pixels.c). Cost per frame:
+ * 2 · 4 · Ns (Ns + 2 MARGIN) multiply-adds at most (~3 k at Ns = 16).
  */
 #ifndef WT_SHIFT_H
 #define WT_SHIFT_H
