@@ -388,7 +388,7 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;
     size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
     b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
-    if (ws->pix_acc) b += nsub * (s2 + 16 * (size_t)ws->ns + 64) * sizeof(float); /* E² = (Ns + 8)² */
+    if (ws->pix_acc) b += nsub * (3 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float); /* E² = (Ns + 8)², the anchor */
     return b;
 }
 
