@@ -113,7 +113,6 @@ int wt_sensing_pixels_start(wt_sensing *ws)
     int st = WT_OK;
     wt_sensing_pixels_stop(ws);
     const size_t E2 = (size_t)wt_shift_side(ws->ns) * wt_shift_side(ws->ns);
-    (void)n2;
     WT_ALLOC(ctx, ws->pix_acc, (size_t)ws->nsub * E2, "pixel reference accumulator");
     WT_ALLOC(ctx, ws->pix_tmp, ((size_t)wt_shift_work(ws->ns) + n2) * (nth > 0 ? nth : 1), "pixel reference scratch");
     memset(ws->pix_acc, 0, (size_t)ws->nsub * E2 * sizeof *ws->pix_acc);
