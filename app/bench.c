@@ -285,6 +285,15 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
                na.nsensors, (long long)na.nsub, na.tables.med, na.tables.p10, na.tables.p90, na.cpu_tables,
                na.cpu_tables / threads, threads, na.reference.med, na.reference.p10, na.reference.p90, na.cpu_reference,
                na.cpu_reference / threads, threads, na.full);
+    if (na.nsensors)
+        printf("  the reference from the loop's pixels (lgs.wfs.reference = pixels), %d LGS: a frame's re-centred images "
+               "accumulated %.1f ms [%.1f, %.1f] (CPU %.1f ms: %.1f ms on %d idle cores; target <= 10 %% of a "
+               "diffractive frame, above); a rebuild from their mean (I0, derivatives, matched filter, covariance) "
+               "%.3f s [%.3f, %.3f] (CPU %.3f s: %.3f s on %d idle cores; target <= 2 s for the 6 E-ELT LGS on 2 "
+               "threads); the start (the set-up derivatives of the anchor) %.2f s\n",
+               na.nsensors, na.accumulate.med * 1e3, na.accumulate.p10 * 1e3, na.accumulate.p90 * 1e3,
+               na.cpu_accumulate * 1e3, na.cpu_accumulate / threads * 1e3, threads, na.pixels.med, na.pixels.p10,
+               na.pixels.p90, na.cpu_pixels, na.cpu_pixels / threads, threads, na.pixels_start);
     if (!any) printf("  (no diffractive sensor in %s)\n", sys->cfg->path);
     if (geometric >= 0)
         printf("  geometric sensors of the closed loop above (all sensors, slopes + noise): %.1f ms per frame\n",

@@ -294,9 +294,12 @@ int wt_cmd_sim(int argc, char **argv)
         printf("  sodium: truth's LGS spot tables rebuilt %ld times (%.3f s each); LGS reference %s, rebuilt %ld times "
                "(%.3f s each, of which C_E and preconditioner %.3f s)\n",
                ds.truth_rebuilds, ds.truth_rebuilds ? ds.truth_seconds / ds.truth_rebuilds : 0.0,
-               cfg->lgs_reference == 1 ? "oracle" : "static", ds.reference_rebuilds,
+               cfg->lgs_reference == 2 ? "pixels" : cfg->lgs_reference == 1 ? "oracle" : "static", ds.reference_rebuilds,
                ds.reference_rebuilds ? ds.reference_seconds / ds.reference_rebuilds : 0.0,
                ds.reference_rebuilds ? ds.c_e_seconds / ds.reference_rebuilds : 0.0);
+        if (cfg->lgs_reference == 2)
+            printf("  pixels: re-centred images accumulated %.2f ms per frame (sensors above: %.2f ms per frame, "
+                   "accumulation included)\n", ds.accumulate_seconds / frames * 1e3, tm.sensors / frames * 1e3);
     }
     print_learned(wt_loop_adapt(lp), frames, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);

@@ -189,8 +189,8 @@ typedef struct wt_config {
     char sodium_sequence[1024];      /* diffractive LGS: the truth's profile in time (core/optics/sodium.h), resolved;
                                         "" = the set-up profile for the whole run */
     double sodium_sequence_update;   /* night time between two rebuilds of the truth's spot tables [s]; 0: every frame */
-    int lgs_reference;               /* diffractive LGS reference in the loop: 0 static (set-up), 1 oracle */
-    double lgs_reference_update;     /* oracle: night time between two rebuilds [s] */
+    int lgs_reference;               /* diffractive LGS reference in the loop: 0 static (set-up), 1 oracle, 2 pixels */
+    double lgs_reference_update;     /* oracle, pixels: night time between two rebuilds [s] */
     wt_sensor_config lgs_wfs;
 
     /* natural guide stars */

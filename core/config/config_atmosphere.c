@@ -452,7 +452,7 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, ku, ps->set[ku], loc, sizeof loc),
                                    "key 'lgs.sodium_sequence_update_s' is given without 'lgs.sodium_sequence': there is "
                                    "no sequence to follow");
-    if (ps->set[kt] && cfg->lgs_reference != 1)
+    if (ps->set[kt] && cfg->lgs_reference == 0)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, kt, ps->set[kt], loc, sizeof loc),
                                    "key 'lgs.wfs.reference_update_s' is given but 'lgs.wfs.reference' is \"static\" "
                                    "(%s): a static reference is never rebuilt",
@@ -460,7 +460,7 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
     /* a cadence is counted in frames: one shorter than a frame would be a rebuild per frame under another name */
     const double frame_night = cfg->night.compression / cfg->rate;
     const struct { int k; double v; int on; } cad[2] = {{ku, cfg->sodium_sequence_update, cfg->sodium_sequence_update > 0.0},
-                                                        {kt, cfg->lgs_reference_update, cfg->lgs_reference == 1}};
+                                                        {kt, cfg->lgs_reference_update, cfg->lgs_reference != 0}};
     for (int i = 0; i < 2; i++)
         if (cad[i].on && cad[i].v < frame_night * (1.0 - 1e-9))
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, cad[i].k, ps->set[cad[i].k], loc, sizeof loc),
@@ -468,6 +468,15 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
                                        "loop.rate_hz x atmosphere.night.compression = %g s: give at least that%s",
                                        wt_config_priv_keys[cad[i].k].path, cad[i].v, frame_night,
                                        i == 0 ? " (or 0: every frame)" : "");
+    /* pixels: the mean of the frames of one period (WT_SENSING_PIXELS_MIN_FRAMES of core/model/sensing.h, 2) */
+    if (cfg->lgs_reference == 2 && lround(cfg->lgs_reference_update / frame_night) < 2)
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kt, ps->set[kt], loc, sizeof loc),
+                                   "key 'lgs.wfs.reference_update_s' = %g s of night is %ld frame(s) of %g s (1 / "
+                                   "loop.rate_hz x atmosphere.night.compression): the reference from the loop's pixels "
+                                   "(lgs.wfs.reference = \"pixels\") is the mean image of one period's frames and needs "
+                                   "at least 2; give at least %g s",
+                                   cfg->lgs_reference_update, lround(cfg->lgs_reference_update / frame_night),
+                                   frame_night, 2.0 * frame_night);
     return WT_OK;
 }
 

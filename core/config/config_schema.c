@@ -267,15 +267,18 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "sequence (0: every frame; otherwise at least one frame's night time, 1 / loop.rate_hz x "
      "atmosphere.night.compression). A rebuild costs ~1.1 s of 2 idle cores for the 6 E-ELT LGS, ~3 times a "
      "diffractive frame's sensing (make bench): at that size give a cadence of several frames (optional, default 0)"},
-    {"lgs.wfs.reference", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_reference), NOCOUNT, 0, 0, "static|oracle", 0,
+    {"lgs.wfs.reference", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_reference), NOCOUNT, 0, 0, "static|oracle|pixels", 0,
      "diffractive LGS: the centroider's reference I0 and its derivatives in the loop: static = built once at set-up "
      "from lgs.sodium_profile; oracle = rebuilt from the truth's current sodium profile (lgs.sodium_sequence) every "
-     "lgs.wfs.reference_update_s of night time from the first frame on, with the matched filter, its covariance "
+     "lgs.wfs.reference_update_s of night time from the first frame on; pixels = rebuilt every "
+     "lgs.wfs.reference_update_s from each subaperture's mean image over that period, every frame's image re-centred "
+     "by its measured slopes (cubic B-spline), its derivatives those of the mean image (needs at least 2 frames per "
+     "period; the set-up's reference until the first period is full); both with the matched filter, its covariance "
      "and the pcg3 / cg9 noise weights C_E (an MVM keeps the C_E it was built with) (optional, default static)"},
     {"lgs.wfs.reference_update_s", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "s", 1, CF(lgs_reference_update), NOCOUNT,
      0, 0, NULL, 60.0,
-     "lgs.wfs.reference = oracle: night time between two rebuilds of the reference (at least one frame's night "
-     "time) (optional, default 60)"},
+     "lgs.wfs.reference = oracle or pixels: night time between two rebuilds of the reference (oracle: at least one "
+     "frame's night time, pixels: at least two) (optional, default 60)"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),

@@ -97,6 +97,8 @@ static void diffractive_sensors(const wt_config *c, int lgs, double *tables, dou
         *tables += nsub * (4.0 * tab + 4.0 * np * np + 12.0);
         /* lgs.wfs.reference = oracle: the reference's five images' rebinned cells kept (spot.h) */
         if (lgs && c->lgs_reference == 1) *tables += nsub * 5.0 * 4.0 * M * M;
+        /* = pixels: the accumulator ((Ns + 8)² floats) and the anchor (2 Ns² floats) per subaperture */
+        if (lgs && c->lgs_reference == 2) *tables += nsub * 4.0 * ((Ns + 8.0) * (Ns + 8.0) + 2.0 * Ns * Ns);
         *rest += nsub * (8.0 * np * np + 8.0 * Ns * Ns + (w->centroider == 2 ? 8.0 * Ns * Ns : 0.0) + 150.0) +
                  8.0 * Ns * Ns * nsub / (lgs ? c->nlgs : 1);
         const double flops = 20.0 * np * np + 5.0 * N * log2(N) * (np + N) + 7.0 * N * N + 4.0 * M * N +

@@ -243,6 +243,7 @@ void wt_sensing_free(wt_sensing *ws)
     wt_free(ctx, ws->i0);
     wt_free(ctx, ws->opd);
     wt_free(ctx, ws->img);
+    wt_sensing_pixels_stop(ws);
     wt_sodium_free(ws->sodium0);
     wt_free(ctx, ws);
 }
@@ -369,6 +370,7 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
     if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
     if (ws->gain_on) gain_accumulate(ws, slopes);
+    if (ws->pix_acc) wt_sensing_pixels_add(ws, ws->img, slopes);
     return WT_OK;
 }
 
@@ -386,6 +388,7 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;
     size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
     b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
+    if (ws->pix_acc) b += nsub * (3 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float); /* E² = (Ns + 8)², the anchor */
     return b;
 }
 

@@ -87,6 +87,13 @@ typedef struct wt_sensing {
     wt_sodium *sodium0;        /* LGS: the set-up profile (owned), which the reference of the set-up is made of */
     int sodium_changed;        /* the spot tables are another profile's (wt_sensing_set_sodium) */
     int reference_changed;     /* the reference is not the set-up's (wt_sensing_set_reference) */
+    /* the reference from the loop's own pixels (wt_sensing_pixels_*); pix_acc NULL: not accumulating */
+    float *pix_acc;            /* [nsub E²] Σ of every frame's image since the last rebuild, re-centred by its slopes
+                                  before interpolation (core/optics/shift.h: T_u I on E = Ns + 2 margins) */
+    double *pix_tmp;           /* [threads (wt_shift_work(Ns) + Ns²)] scratch of the shifts */
+    float *pix_anchor;         /* [2 nsub Ns²] the set-up reference's derivatives less those of its pixels' spline */
+    long pix_frames;           /* frames in pix_acc */
+    double pix_seconds;        /* wall time of the accumulation since wt_sensing_pixels_start */
 } wt_sensing;
 
 /* Build the sensor of `w` (cfg->lgs_wfs or cfg->ngs_wfs, with model diffractive) for geometry g: sodium
@@ -140,6 +147,36 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
  * it) with the set-up's seeing, through wt_sensing_set_reference. From the set-up profile it gives the set-up's
  * reference bit for bit. Allocates 3 nsub Ns² floats for its duration. Outside parallel regions only. */
 int wt_sensing_rebuild_reference(wt_sensing *ws);
+/* The reference from the loop's own pixels (lgs.wfs.reference = pixels; docs/design.md "The reference from the loop's
+ * own pixels"). After wt_sensing_pixels_start every wt_sensing_detect adds each subaperture's image (noisy, as the
+ * detector reads it) re-centred by the slope it measured — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
+ * (core/optics/shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
+ * n frames accumulated: I0 = max(mean, 0) per pixel (the expected image is ≥ 0, and the matched filter's variance
+ * I0 + B + σe² must stay positive with neither background nor read noise), and its derivatives
+ *   ∂I0/∂θ = [S(I0) + ∂I0_set-up/∂θ − S(I0_set-up)],  S(I) = the derivative images of I's spline (shift.h) / p:
+ * the derivatives of the mean image, anchored on the set-up reference's. Why anchored: the LGS spots are undersampled
+ * (~1.2″ on 1.1″ pixels), and no interpolation of pixel values gives the pixel-integrated spot's derivative — S alone
+ * is 35–50 % off the spot model's on the demo's set-up reference and the loop's matched filter then reads 0.79 / 0.83
+ * of the true slopes (0.86 / 0.88 anchored; docs/results.md); anchored, S errs only on the change of the mean image
+ * from the set-up's, the same image gives the set-up's derivatives bit for bit, and the spot model's correction for
+ * the pixels is the one a real system's model of its spot would supply. (Each frame is re-centred on its own noisy
+ * slope, so aligned on its own noise too: a sharper mean, to second order in the noise. Its first-order term,
+ * (1/p) Σ_axes S_a(R_a ⊙ V), was tried and taken out again: at the demo's flux the bias is below the reference's own
+ * noise after 256 frames — tests/test_pixels.c — and the term made that error larger.)
+ * Then they are handed to wt_sensing_set_reference (centroider, covariance,
+ * NEA, truncation: the same path as the oracle's); the accumulator restarts. Refused (WT_ERR_INVALID, the old
+ * reference kept) with fewer than WT_SENSING_PIXELS_MIN_FRAMES frames. The mean of n noisy frames leaves in I0 a
+ * noise whose matched-filter slope is ~NEA/√n per subaperture, held until the next rebuild (a static error the
+ * loop does not average): one frame would put a whole frame's noise there; two is the least that halves it. */
+#define WT_SENSING_PIXELS_MIN_FRAMES 2
+int wt_sensing_pixels_start(wt_sensing *ws);
+int wt_sensing_pixels_reference(wt_sensing *ws);
+/* Stops the accumulation and frees it (restore does it too). */
+void wt_sensing_pixels_stop(wt_sensing *ws);
+/* Adds images (nsub Ns², e.g. ws->img) re-centred by slopes [rad] ([s_x…, s_y…]) to the accumulator, one frame
+ * (wt_sensing_detect's step; for the tests). Outside parallel regions only. */
+void wt_sensing_pixels_add(wt_sensing *ws, const float *images, const double *slopes);
+
 /* Back to the set-up's profile and reference (each only when changed; bit for bit): a loop leaves the system as it
  * found it for the next (compare and budget run several loops on one system). */
 int wt_sensing_restore(wt_sensing *ws);

@@ -1,14 +1,23 @@
 /* core/model/sensing_reference.c: the diffractive sensor when the sodium layer changes (sensing.h, SPEC §12 "The
  * sodium layer changes too"): the truth's spot tables of a new profile, a reference rebuilt in the loop (the
- * oracle's from the spot model; any other from given images), and the way back to the set-up's state. */
+ * oracle's from the spot model, the one of the loop's own pixels, any other from given images), and the way back to
+ * the set-up's state. The pixels' reference: I0 = max(Σ_f J_f / n, 0), J_f frame f's image shifted by −s_f / p
+ * (shift.h: cubic B-spline, accumulated as T_u I_f and interpolated once), ∂I0/∂θ = ∂I0/∂u / p. */
 #include "sensing.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "../optics/shift.h"
 #include "../optics/sodium.h"
 #include "../optics/spot.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#else
+#define omp_in_parallel() 1
+#endif
 
 static int cmp_double(const void *a, const void *b)
 {
@@ -96,9 +105,119 @@ fail:
     return st;
 }
 
+int wt_sensing_pixels_start(wt_sensing *ws)
+{
+    wt_context *ctx = ws->ctx;
+    const size_t n2 = (size_t)ws->ns * ws->ns;
+    const int nth = wt_context_threads(ctx);
+    int st = WT_OK;
+    wt_sensing_pixels_stop(ws);
+    const size_t E2 = (size_t)wt_shift_side(ws->ns) * wt_shift_side(ws->ns);
+    WT_ALLOC(ctx, ws->pix_acc, (size_t)ws->nsub * E2, "pixel reference accumulator");
+    WT_ALLOC(ctx, ws->pix_tmp, ((size_t)wt_shift_work(ws->ns) + n2) * (nth > 0 ? nth : 1), "pixel reference scratch");
+    memset(ws->pix_acc, 0, (size_t)ws->nsub * E2 * sizeof *ws->pix_acc);
+    ws->pix_frames = 0;
+    ws->pix_seconds = 0.0;
+    /* the anchor: the set-up reference's derivatives (the spot model's, of the set-up profile) less its spline's */
+    {
+        const size_t npix = (size_t)ws->nsub * n2, wk = (size_t)wt_shift_work(ws->ns) + n2;
+        float *i0 = NULL, *dx = NULL, *dy = NULL;
+        WT_ALLOC(ctx, ws->pix_anchor, 2 * npix, "pixel reference anchor");
+        dx = ws->pix_anchor, dy = ws->pix_anchor + npix;
+        WT_ALLOC(ctx, i0, npix, "set-up reference");
+        const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
+        if ((st = ws->sodium_changed ? wt_spot_set_sodium(ws->spot, ws->sodium0) : WT_OK) < 0 ||
+            (st = wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, i0, dx, dy)) < 0) {
+            wt_free(ctx, i0);
+            goto fail;
+        }
+        ws->sodium_changed = 0;
+        const int nsub = ws->nsub, ns = ws->ns;
+        const double p = ws->pixel;
+#pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
+        for (int k = 0; k < nsub; k++) {
+            double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
+            float *sx = (float *)(w + (size_t)wt_shift_work(ns)), *sy = sx + n2; /* the scratch's last n2 doubles */
+            wt_shift_derivative(ns, i0 + n2 * k, sx, sy, w);
+            for (size_t q = 0; q < n2; q++)
+                dx[n2 * k + q] = (float)(dx[n2 * k + q] - sx[q] / p), dy[n2 * k + q] = (float)(dy[n2 * k + q] - sy[q] / p);
+        }
+        wt_free(ctx, i0);
+    }
+    return WT_OK;
+fail:
+    wt_sensing_pixels_stop(ws);
+    return st;
+}
+
+void wt_sensing_pixels_stop(wt_sensing *ws)
+{
+    wt_free(ws->ctx, ws->pix_acc);
+    wt_free(ws->ctx, ws->pix_tmp);
+    wt_free(ws->ctx, ws->pix_anchor);
+    ws->pix_acc = NULL, ws->pix_tmp = NULL, ws->pix_anchor = NULL;
+    ws->pix_frames = 0;
+}
+
+void wt_sensing_pixels_add(wt_sensing *ws, const float *images, const double *slopes)
+{
+    const double t0 = wt_time_now();
+    const int nsub = ws->nsub, ns = ws->ns, nth = wt_context_threads(ws->ctx);
+    const size_t n2 = (size_t)ns * ns, E2 = (size_t)wt_shift_side(ns) * wt_shift_side(ns);
+    const size_t wk = (size_t)wt_shift_work(ns) + n2;
+    const double inv_p = 1.0 / ws->pixel;
+    /* the spot of slope s sits at +s: moved back by −s / p pixels */
+#pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
+    for (int k = 0; k < nsub; k++)
+        wt_shift_accumulate(ns, images + n2 * k, -slopes[k] * inv_p, -slopes[nsub + k] * inv_p, ws->pix_acc + E2 * k,
+                            (float *)(ws->pix_tmp + wk * (size_t)wt_thread_id()));
+    ws->pix_frames++;
+    ws->pix_seconds += wt_time_now() - t0;
+}
+
+int wt_sensing_pixels_reference(wt_sensing *ws)
+{
+    wt_context *ctx = ws->ctx;
+    if (!ws->pix_acc) return WT_ERROR(ctx, WT_ERR_INVALID, "diffractive sensor: no pixels accumulated for a reference");
+    if (ws->pix_frames < WT_SENSING_PIXELS_MIN_FRAMES)
+        return WT_ERROR(ctx, WT_ERR_INVALID,
+                        "diffractive sensor: a reference from the loop's pixels needs at least %d frames, %ld were "
+                        "accumulated; the old reference is kept",
+                        WT_SENSING_PIXELS_MIN_FRAMES, ws->pix_frames);
+    const int nsub = ws->nsub, ns = ws->ns, nth = wt_context_threads(ctx);
+    const size_t n2 = (size_t)ns * ns, npix = (size_t)nsub * n2, E2 = (size_t)wt_shift_side(ns) * wt_shift_side(ns);
+    const size_t wk = (size_t)wt_shift_work(ns) + n2;
+    const double inv_n = 1.0 / (double)ws->pix_frames, inv_p = 1.0 / ws->pixel;
+    int st = WT_OK;
+    float *i0 = NULL, *dix = NULL, *diy = NULL;
+    WT_ALLOC(ctx, i0, npix, "reference images");
+    WT_ALLOC(ctx, dix, npix, "reference derivatives");
+    WT_ALLOC(ctx, diy, npix, "reference derivatives");
+#pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
+    for (int k = 0; k < nsub; k++) {
+        float *a = i0 + n2 * k, *dx = dix + n2 * k, *dy = diy + n2 * k;
+        double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
+        /* the mean, ≥ 0, then the derivatives of that */
+        wt_shift_mean(ns, ws->pix_acc + E2 * k, inv_n, a, w);
+        for (size_t q = 0; q < n2; q++) a[q] = a[q] > 0.0f ? a[q] : 0.0f;
+        wt_shift_derivative(ns, a, dx, dy, w);
+        const float *ax = ws->pix_anchor + n2 * k, *ay = ws->pix_anchor + npix + n2 * k;
+        for (size_t q = 0; q < n2; q++) dx[q] = (float)(dx[q] * inv_p + ax[q]), dy[q] = (float)(dy[q] * inv_p + ay[q]);
+    }
+    WT_TRY(wt_sensing_set_reference(ws, i0, dix, diy));
+    memset(ws->pix_acc, 0, (size_t)nsub * E2 * sizeof *ws->pix_acc);
+    ws->pix_frames = 0;
+fail:
+    wt_free(ctx, i0);
+    wt_free(ctx, dix);
+    wt_free(ctx, diy);
+    return st;
+}
+
 int wt_sensing_restore(wt_sensing *ws)
 {
     int st = WT_OK;
+    wt_sensing_pixels_stop(ws);
     if (ws->sodium_changed) {
         if ((st = wt_spot_set_sodium(ws->spot, ws->sodium0)) < 0) return st;
         ws->sodium_changed = 0;

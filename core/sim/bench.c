@@ -496,6 +496,48 @@ int wt_bench_sodium_run(wt_context *ctx, const wt_system *sys, int reps, wt_benc
     out->cpu_reference = (cpu_now() - c0) / reps;
     out->tables = wt_bench_summarise(tt, reps);
     out->reference = wt_bench_summarise(tr, reps);
+    /* the pixels' reference: frames of the set-up reference images with slopes of a fraction of a pixel */
+    {
+        double *ta = NULL, *tp = NULL, *sl = NULL;
+        int64_t nmax = 0;
+        for (int i = 0; i < sys->nsensors; i++)
+            if (sys->sensors[i].diffr && sys->sensors[i].kind == WT_SENSOR_LGS && sys->sensors[i].diffr->nsub > nmax)
+                nmax = sys->sensors[i].diffr->nsub;
+        WT_ALLOC(ctx, ta, reps, "bench timings");
+        WT_ALLOC(ctx, tp, reps, "bench timings");
+        WT_ALLOC(ctx, sl, 2 * (size_t)nmax, "bench slopes");
+        const double t0 = wt_time_now();
+        for (int i = 0; i < sys->nsensors && st >= 0; i++) {
+            wt_sensing *ws = sys->sensors[i].diffr;
+            if (ws && sys->sensors[i].kind == WT_SENSOR_LGS && ws->sodium0) st = wt_sensing_pixels_start(ws);
+        }
+        out->pixels_start = wt_time_now() - t0;
+        double ca = 0.0, cp = 0.0;
+        for (int f = 0; f < reps && st >= 0; f++) {
+            for (int rep = 0; rep < 2 && st >= 0; rep++) {
+                const double a0 = wt_time_now(), c1 = cpu_now();
+                for (int i = 0; i < sys->nsensors; i++) {
+                    wt_sensing *ws = sys->sensors[i].diffr;
+                    if (!ws || sys->sensors[i].kind != WT_SENSOR_LGS || !ws->sodium0) continue;
+                    for (int k = 0; k < 2 * ws->nsub; k++) sl[k] = ws->pixel * (0.3 * ((k * 7 + f + rep) % 11) / 10.0 - 0.15);
+                    wt_sensing_pixels_add(ws, ws->i0, sl);
+                }
+                if (rep == 0) ta[f] = wt_time_now() - a0, ca += cpu_now() - c1;
+            }
+            const double p0 = wt_time_now(), c1 = cpu_now();
+            for (int i = 0; i < sys->nsensors && st >= 0; i++) {
+                wt_sensing *ws = sys->sensors[i].diffr;
+                if (ws && sys->sensors[i].kind == WT_SENSOR_LGS && ws->sodium0) st = wt_sensing_pixels_reference(ws);
+            }
+            tp[f] = wt_time_now() - p0, cp += cpu_now() - c1;
+        }
+        if (st >= 0) {
+            out->accumulate = wt_bench_summarise(ta, reps);
+            out->pixels = wt_bench_summarise(tp, reps);
+            out->cpu_accumulate = ca / reps, out->cpu_pixels = cp / reps;
+        }
+        wt_free(ctx, ta), wt_free(ctx, tp), wt_free(ctx, sl);
+    }
 fail:
     for (int i = 0; i < sys->nsensors; i++) {
         wt_sensing *ws = sys->sensors[i].diffr;

@@ -127,7 +127,8 @@ int wt_bench_sensing_run(wt_context *ctx, const wt_system *sys, int kind, int re
  * new profile (wt_sensing_set_sodium, every LGS; the set-up profile moved up by 500 m), and the oracle's reference
  * rebuilt from them (wt_sensing_rebuild_reference: I0 and its derivatives, the centroider and its covariance): the
  * first rebuild, which makes the FFTs and keeps the profile-independent cells (wt_spot_keep_reference), then reps
- * rebuilds from the kept cells (what the loop pays every lgs.wfs.reference_update_s). The sensors are restored to
+ * rebuilds from the kept cells (what the loop pays every lgs.wfs.reference_update_s); the pixels' reference's per-frame
+ * accumulation and rebuild (reps of each). The sensors are restored to
  * their set-up profile and reference after (wt_sensing_restore). */
 typedef struct wt_bench_sodium {
     int nsensors;               /* diffractive LGS (0: nothing timed) */
@@ -136,6 +137,11 @@ typedef struct wt_bench_sodium {
     double full;                /* the first reference rebuild of every LGS (FFTs; cells kept) [s] */
     wt_bench_stats reference;   /* a rebuild from the kept cells, every LGS [s] */
     double cpu_tables, cpu_reference; /* process CPU time per rebuild of each, all threads [s] */
+    /* lgs.wfs.reference = pixels (sensing.h "wt_sensing_pixels_*"), every LGS: a frame's accumulation of the
+     * re-centred images (the reference images with sub-pixel slopes), and a rebuild from the mean of 2 frames (mean,
+     * derivatives, matched filter, covariance); the start (the set-up reference's derivatives for the anchor) once */
+    wt_bench_stats accumulate, pixels;
+    double pixels_start, cpu_accumulate, cpu_pixels;
 } wt_bench_sodium;
 
 int wt_bench_sodium_run(wt_context *ctx, const wt_system *sys, int reps, wt_bench_sodium *out);

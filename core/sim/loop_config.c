@@ -44,7 +44,9 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                    .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
     par->sodium = (wt_sodium_drive_params){.sequence = cfg->sodium_sequence,
                                            .sequence_update = cfg->sodium_sequence_update,
-                                           .reference = cfg->lgs_reference == 1 ? WT_REFERENCE_ORACLE : WT_REFERENCE_STATIC,
+                                           .reference = cfg->lgs_reference == 2   ? WT_REFERENCE_PIXELS
+                                                      : cfg->lgs_reference == 1 ? WT_REFERENCE_ORACLE
+                                                                                : WT_REFERENCE_STATIC,
                                            .reference_update = cfg->lgs_reference_update,
                                            .start = nc->start, .frame_time = 1.0 / cfg->rate,
                                            .compression = nc->compression, .frames = cfg->frames,

@@ -32,11 +32,12 @@ int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium
     const int has_seq = par->sequence && par->sequence[0];
     for (int m = 0; m < sys->nsensors; m++) nlgs += sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS;
     if (nlgs == 0 || (!has_seq && par->reference == WT_REFERENCE_STATIC)) return WT_OK;
-    if (par->reference != WT_REFERENCE_STATIC && par->reference != WT_REFERENCE_ORACLE)
+    if (par->reference != WT_REFERENCE_STATIC && par->reference != WT_REFERENCE_ORACLE &&
+        par->reference != WT_REFERENCE_PIXELS)
         return WT_ERROR(ctx, WT_ERR_INVALID, "sodium drive: reference kind %d unknown", par->reference);
     const double frame_night = par->frame_time * par->compression;
     if (!(frame_night > 0.0) || par->frames <= par->first_frame ||
-        (par->reference == WT_REFERENCE_ORACLE && par->reference_update < frame_night * (1.0 - 1e-9)) ||
+        (par->reference != WT_REFERENCE_STATIC && par->reference_update < frame_night * (1.0 - 1e-9)) ||
         par->sequence_update < 0.0 || (par->sequence_update > 0.0 && par->sequence_update < frame_night * (1.0 - 1e-9)))
         return WT_ERROR(ctx, WT_ERR_INVALID,
                         "sodium drive: a frame of %g s of night, frames %ld to %ld, cadences %g s (sequence) and %g s "
@@ -51,6 +52,20 @@ int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium
     d->par.sequence = NULL; /* (not kept) */
     d->seq_every = par->sequence_update > 0.0 ? frames_of(par->sequence_update, frame_night) : 1;
     d->ref_every = frames_of(par->reference_update, frame_night);
+    if (par->reference == WT_REFERENCE_PIXELS && d->ref_every < WT_SENSING_PIXELS_MIN_FRAMES) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                      "key 'lgs.wfs.reference_update_s' = %g s of night is %ld frame(s) of %g s: the reference from the "
+                      "loop's pixels (lgs.wfs.reference = \"pixels\") is the mean of the frames of one period and needs "
+                      "at least %d; give at least %g s (%s)",
+                      par->reference_update, d->ref_every, frame_night, WT_SENSING_PIXELS_MIN_FRAMES,
+                      WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
+        goto fail;
+    }
+    if (par->reference == WT_REFERENCE_PIXELS)
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
+                (st = wt_sensing_pixels_start(sys->sensors[m].diffr)) < 0)
+                goto fail;
     if (has_seq) {
         WT_TRY(wt_sodium_seq_read(ctx, par->sequence, &d->seq));
         const double t0 = wt_night_clock(par->start, par->frame_time, par->compression, par->first_frame);
@@ -90,11 +105,13 @@ int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec)
         d->stats.truth_rebuilds++;
         d->stats.truth_seconds += wt_time_now() - t0;
     }
-    if (d->par.reference == WT_REFERENCE_ORACLE && j % d->ref_every == 0) {
+    const int pixels = d->par.reference == WT_REFERENCE_PIXELS;
+    if ((d->par.reference == WT_REFERENCE_ORACLE || (pixels && j > 0)) && j % d->ref_every == 0) {
         const double t0 = wt_time_now();
         for (int m = 0; m < sys->nsensors; m++)
             if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
-                (st = wt_sensing_rebuild_reference(sys->sensors[m].diffr)) < 0)
+                (st = pixels ? wt_sensing_pixels_reference(sys->sensors[m].diffr)
+                             : wt_sensing_rebuild_reference(sys->sensors[m].diffr)) < 0)
                 return st;
         const double t1 = wt_time_now();
         if (rec && (st = wt_reconstructor_refresh_noise(rec)) < 0) return st;
@@ -105,7 +122,13 @@ int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec)
     return WT_OK;
 }
 
-wt_sodium_drive_stats wt_sodium_drive_get_stats(const wt_sodium_drive *d) { return d->stats; }
+wt_sodium_drive_stats wt_sodium_drive_get_stats(const wt_sodium_drive *d)
+{
+    wt_sodium_drive_stats s = d->stats;
+    for (int m = 0; m < d->sys->nsensors; m++)
+        if (d->par.reference == WT_REFERENCE_PIXELS && d->sys->sensors[m].diffr) s.accumulate_seconds += d->sys->sensors[m].diffr->pix_seconds;
+    return s;
+}
 
 void wt_sodium_drive_free(wt_sodium_drive *d)
 {

@@ -11,8 +11,11 @@
  *    frame), I0 and its derivatives of the spot model's current profile — what the truth renders — with the
  *    set-up's seeing, the centroider and its covariance with them (wt_sensing_rebuild_reference), then the pcg3 /
  *    cg9 noise weights C_E and preconditioner (wt_reconstructor_refresh_noise; an MVM keeps its C_E).
- * A reference from the loop's own pixels would be a third kind: its images accumulated each frame, handed to
- * wt_sensing_set_reference at its cadence, and the same C_E refresh.
+ *    `pixels`: every LGS subaperture's images, re-centred by their slopes, accumulated each frame from the first on
+ *    (wt_sensing_pixels_start: the sensors' detect adds them); every `reference_update` of night time, from the
+ *    first full period on (frame j = k·n, n = the cadence in frames ≥ WT_SENSING_PIXELS_MIN_FRAMES), the reference
+ *    of the mean of the n frames before (wt_sensing_pixels_reference), then the same C_E refresh. Until the first
+ *    rebuild the set-up's reference runs.
  * The sensors are the system's: the drive leaves them at the set-up's profile and reference when freed
  * (wt_sensing_restore), so several loops may run on one system (compare, budget).
  */
@@ -22,15 +25,16 @@
 #include "../model/reconstructor.h"
 #include "../model/system.h"
 
-enum { WT_REFERENCE_STATIC = 0, WT_REFERENCE_ORACLE = 1 };
+enum { WT_REFERENCE_STATIC = 0, WT_REFERENCE_ORACLE = 1, WT_REFERENCE_PIXELS = 2 };
 
 typedef struct wt_sodium_drive wt_sodium_drive;
 
 typedef struct wt_sodium_drive_params {
     const char *sequence;    /* the truth's profile in time (a file, sodium.h); NULL or "": the set-up's, fixed */
     double sequence_update;  /* night time between two rebuilds of the truth's spot tables [s]; 0: every frame */
-    int reference;           /* WT_REFERENCE_STATIC or _ORACLE */
-    double reference_update; /* oracle: night time between two rebuilds [s] (≥ one frame's) */
+    int reference;           /* WT_REFERENCE_STATIC, _ORACLE or _PIXELS */
+    double reference_update; /* oracle, pixels: night time between two rebuilds [s] (≥ one frame's; pixels: ≥
+                                WT_SENSING_PIXELS_MIN_FRAMES frames') */
     double start;            /* night time of frame 0 [s] */
     double frame_time;       /* Δt [s] */
     double compression;      /* c: night seconds per simulated second */
@@ -39,10 +43,10 @@ typedef struct wt_sodium_drive_params {
 } wt_sodium_drive_params;
 
 /* What it did: rebuilds of the truth's tables and of the reference, their wall times [s] (the reference's with its
- * C_E refresh, which is c_e_seconds of it). */
+ * C_E refresh, which is c_e_seconds of it); pixels: the frames' accumulation, accumulate_seconds over the LGS. */
 typedef struct wt_sodium_drive_stats {
     long truth_rebuilds, reference_rebuilds;
-    double truth_seconds, reference_seconds, c_e_seconds;
+    double truth_seconds, reference_seconds, c_e_seconds, accumulate_seconds;
 } wt_sodium_drive_stats;
 
 /* Reads the sequence and checks it: it covers the run's night times and every LGS altitude (WT_ERR_CONFIG naming
