@@ -79,6 +79,9 @@ struct wt_precond {
     double complex *pp;       /* fourier: nk x L, the prior's symbol per layer (no layer couples another there) */
     double *lr_R, *lr_cinv;   /* the NGS term's R (n x nlr) and Ĉ⁻¹_NGS (nlr x nlr) */
     double *part_sl;          /* 2 nslopes: the parts' probe slopes, all sensors' and one LGS's */
+    double complex *fd_rhat;  /* fourier with the NGS term: nlr x L x nk, the spectra F Π_d R of R's columns per
+                                 layer as the apply's forward FFT gives them (the update's Y = B⁻¹ R filters them:
+                                 no forward FFT, the same bits) */
 };
 
 extern const char *const wt_precond__kind_names[WT_PRECOND_NKINDS];
@@ -149,5 +152,8 @@ void wt_precond__yb_update(const wt_precond *p, const double *w, double *z, int6
 int wt_precond__fourier(wt_precond *p, wt_tomography *t, int coarse_levels);
 void wt_precond__fourier_apply(const wt_precond *p, const double *r, double *z, int ngs);
 int wt_precond__fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const double *R);
+/* fourier with fd_rhat: Y = B⁻¹ R (n x nlr, 64-byte aligned), the bits of nlr applies of B⁻¹ to R's columns, the
+ * nlr L layers side by side on the threads */
+int wt_precond__fourier_lowrank_Y(const wt_precond *p, double *Y);
 
 #endif
