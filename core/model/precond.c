@@ -510,18 +510,12 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
     const int64_t n = p->n;
     const int q = p->nlr, single = p->single;
     const int blocked = p->kind == WT_PRECOND_COARSE_NGS || p->fd_n > 0;
-    double *Y = NULL, *Y_raw = NULL; /* Y_raw: fourier's update, Y 64-byte aligned in it (FFTW writes there) */
+    double *Y = NULL;
     char *nz = NULL;
     WT_ALLOC(ctx, p->lr_K, (size_t)q * q, "NGS preconditioner K");
     if (!blocked) WT_ALLOC(ctx, p->lr_runs, n + 1, "NGS preconditioner runs");
-    if (p->fd_rhat) { /* every entry written by the filter's inverse FFTs: no clearing */
-        Y_raw = wt_malloc(ctx, (size_t)n * q + 8, sizeof *Y_raw);
-        if (!Y_raw) {
-            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating NGS preconditioner Y (%zu bytes)",
-                          ((size_t)n * q + 8) * sizeof *Y_raw);
-            goto fail;
-        }
-        Y = wt_align64(Y_raw);
+    if (p->fd_rhat) { /* fourier's update: Y in the room kept for it (every entry written by the inverse FFTs) */
+        Y = wt_align64(p->pu_Y_raw);
         WT_TRY(wt_precond__fourier_lowrank_Y(p, Y));
     } else {
         WT_ALLOC(ctx, p->lr_Y, (size_t)n * q, "NGS preconditioner Y");
@@ -550,15 +544,20 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
         p->lr_nblk = 0;
         for (int64_t b = 0; b < nb8; b++)
             if (nz[b]) p->lr_blk[p->lr_nblk++] = b;
-        /* (every entry written below: malloc, not calloc; 64-byte aligned: 16 floats or 8 doubles of slack) */
-        const size_t nv = (size_t)p->lr_nblk * q * 8 + 16;
-        if (single) p->lr_Yb32_raw = wt_malloc(ctx, nv, sizeof(float));
-        else p->lr_Yb_raw = wt_malloc(ctx, nv, sizeof(double));
-        if (single ? !p->lr_Yb32_raw : !p->lr_Yb_raw) {
-            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating NGS preconditioner Y (blocks) (%zu bytes)",
-                          nv * (single ? sizeof(float) : sizeof(double)));
+        /* (every entry written below: malloc, not calloc; 64-byte aligned: 16 floats or 8 doubles of slack; an
+         * update takes the blocks the last one replaced when they are large enough) */
+        const size_t bytes = ((size_t)p->lr_nblk * q * 8 + 16) * (single ? sizeof(float) : sizeof(double));
+        void *mem = NULL;
+        if (p->pu_spare && p->pu_spare_bytes >= bytes) {
+            mem = p->pu_spare, p->lr_Yb_bytes = p->pu_spare_bytes;
+            p->pu_spare = NULL, p->pu_spare_bytes = 0;
+        } else if ((mem = wt_malloc(ctx, bytes, 1))) p->lr_Yb_bytes = bytes;
+        if (!mem) {
+            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating NGS preconditioner Y (blocks) (%zu bytes)", bytes);
             goto fail;
         }
+        if (single) p->lr_Yb32_raw = mem;
+        else p->lr_Yb_raw = mem;
         if (single) p->lr_Yb32 = p->lr_Yb32_raw + ((64 - (uintptr_t)p->lr_Yb32_raw % 64) % 64) / sizeof(float);
         else p->lr_Yb = wt_align64(p->lr_Yb_raw);
 #pragma omp parallel for schedule(static) num_threads(p->nthreads)
@@ -575,7 +574,6 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
         p->lr_Y = NULL;
     }
 fail:
-    wt_free(ctx, Y_raw);
     wt_free(ctx, nz);
     return st;
 }
@@ -717,6 +715,8 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->lr_cinv);
     wt_free(ctx, p->part_sl);
     wt_free(ctx, p->fd_rhat);
+    wt_free(ctx, p->pu_Y_raw);
+    wt_free(ctx, p->pu_spare);
     if (p->fd_r2c) fftw_destroy_plan(p->fd_r2c);
     if (p->fd_c2r) fftw_destroy_plan(p->fd_c2r);
     wt_free(ctx, p);
@@ -776,7 +776,8 @@ double wt_precond_bytes(const wt_precond *p)
                                          8.0 * (p->pc ? (double)(p->nlgs + 1) * p->nc * p->nc : 0.0) +
                                          16.0 * (p->pa ? (double)p->fd_nk * (p->nlgs * L * (L + 1) / 2 + L) : 0.0) +
                                          8.0 * (p->lr_R ? (double)p->nlr * (p->n + p->nlr) : 0.0) +
-                                         16.0 * (p->fd_rhat ? (double)p->nlr * L * p->fd_nk : 0.0);
+                                         16.0 * (p->fd_rhat ? (double)p->nlr * L * p->fd_nk : 0.0) +
+                                         8.0 * (p->pu_Y_raw ? (double)p->nlr * p->n : 0.0) + (double)p->pu_spare_bytes;
     return parts + 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + (double)p->lr_nblk * ((p->lr_Yb32 ? 32.0 : 64.0) * p->nlr + 8.0) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + (double)p->nc * ((p->c_inv32 ? 4.0 : 8.0) * p->nc + 16.0) +

@@ -484,6 +484,7 @@ int wt_precond__fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const
                        plans' alignment: the same codelets, the same bits as fourier_apply) */
         const int64_t nk = p->fd_nk;
         WT_ALLOC(ctx, p->fd_rhat, (size_t)q * L * nk, "fourier NGS spectra (update)");
+        WT_ALLOC(ctx, p->pu_Y_raw, (size_t)p->n * q + 8, "fourier NGS Y (update)");
         double *phi = fourier_phi(p, 0), *uu = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n;
         fftw_complex *hat = fourier_hat(p, 0);
         for (int k = 0; k < q; k++)

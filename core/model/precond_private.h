@@ -82,6 +82,11 @@ struct wt_precond {
     double complex *fd_rhat;  /* fourier with the NGS term: nlr x L x nk, the spectra F Π_d R of R's columns per
                                  layer as the apply's forward FFT gives them (the update's Y = B⁻¹ R filters them:
                                  no forward FFT, the same bits) */
+    double *pu_Y_raw;         /* fourier's update: room for Y = B⁻¹ R (n x nlr, 64-byte aligned), kept from set-up */
+    size_t lr_Yb_bytes;       /* the allocation lr_Yb_raw or lr_Yb32_raw holds */
+    void *pu_spare;           /* the Y blocks an update replaced, for the next one (an update writes 14 MB at E-ELT
+                                 size: memory kept, not returned and faulted in again) */
+    size_t pu_spare_bytes;
 };
 
 extern const char *const wt_precond__kind_names[WT_PRECOND_NKINDS];

@@ -176,10 +176,19 @@ int wt_precond_update(wt_precond *p)
     if (p->fd_n > 0) WT_TRY(update_fourier(&q, t, s, c));
     else if (p->pc) WT_TRY(update_coarse(&q, t, s, c));
     if (p->nlr > 0) WT_TRY(wt_precond__lowrank_factor(&q, p->lr_R, p->lr_cinv));
+    /* the blocks replaced become the next update's room (the spare not taken, if any, is returned) */
+    void *old = p->lr_Yb_raw ? (void *)p->lr_Yb_raw : (void *)p->lr_Yb32_raw;
+    if (old) {
+        wt_free(p->ctx, q.pu_spare);
+        q.pu_spare = old, q.pu_spare_bytes = p->lr_Yb_bytes;
+        p->lr_Yb_raw = NULL, p->lr_Yb32_raw = NULL;
+    }
     drop_replaced(p);
     *p = q;
     return WT_OK;
 fail:
+    if (p->pu_spare && ((void *)q.lr_Yb_raw == p->pu_spare || (void *)q.lr_Yb32_raw == p->pu_spare))
+        q.lr_Yb_raw = NULL, q.lr_Yb32_raw = NULL; /* taken from p's spare, which p keeps */
     drop_replaced(&q);
     return st;
 }
