@@ -14,8 +14,9 @@
  *   M̃_new = Σ_m s_m M̃_m + Σ_l c_l P_l
  * feeds the kind's own steps: J⁻¹ = 1/diag, the coarse block's Cholesky factor (and inverse), the symbol's largest
  * eigenvalue per frequency, then the NGS term's Y = B⁻¹ R and K = Ĉ⁻¹_NGS + Rᵀ Y (R and Ĉ_NGS do not depend on the
- * model). Cost: O(nlgs n) for J, O(nc³) for the block, nk eigenvalue problems of order L for the symbol, r applies
- * of B⁻¹ — no apply of M, no FFT of a probe. */
+ * model). Cost: O(nlgs n) for J, O(nc³) for the block, nk λ_max of order L for the symbol (core/la/heig.h: only the
+ * largest eigenvalue is used, not zheev's all), Y = B⁻¹ R from the spectra of R kept at set-up (fourier: one
+ * inverse FFT per NGS column and layer, precond_fourier.c) or r applies of B⁻¹ — no apply of M, no FFT of a probe. */
 #include "precond_private.h"
 
 #include <lapacke.h>
