@@ -4,9 +4,9 @@
  *
  * The matrix A is scaled by a power of two (exact) to max |a_ij| in [1/2, 1), reduced to a real symmetric
  * tridiagonal T = Hᴴ A H by n − 2 Householder reflections (LAPACK zhetd2's lower variant: d, e real), and T's
- * largest eigenvalue is bisected with Sturm counts (the LDLᵀ pivots of T − x I, Kahan's; LAPACK dstebz's
- * pivmin guard) from the Gershgorin bracket [max d_i, max (d_i + |e_i−1| + |e_i|)] until the bracket is below
- * 2 ε its bound. Both steps are backward stable: the result is an eigenvalue of A + E with ‖E‖ ≤ c n ε ‖A‖, so
+ * largest eigenvalue is found by Laguerre's iteration from the Gershgorin bound (monotone from above, cubic), its
+ * last bracket confirmed and bisected with Sturm counts (the LDLᵀ pivots of T − x I, Kahan's; LAPACK dstebz's
+ * pivmin guard) until it is below 2 ε its bound. Both steps are backward stable: the result is an eigenvalue of A + E with ‖E‖ ≤ c n ε ‖A‖, so
  * |λ − λ_max(A)| ≤ c n ε ‖A‖ (Weyl), as zheev's; for A positive definite ‖A‖ = λ_max, a relative error of
  * ~n ε (tests/test_heig.c: within 64 n ε of zheev's on random and graded matrices).
  */
