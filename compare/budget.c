@@ -28,6 +28,9 @@ static void help(void)
            "pupil rim (outer 1 m) of the closed loop, and the total (closed loop with noise),\n"
            "with the analytic estimates and a quadrature closure check. Writes DIR/results.h5,\n"
            "DIR/report.md and DIR/budget.png. Per method: 6 runs (3 without noise), plus one fitting run.\n"
+           "With recon.predict = true the instantaneous runs do not predict, and one more closed loop (exact\n"
+           "POLC, no prediction) splits the servo lag: servo_no_predict, servo_predicted (the lag prediction\n"
+           "removed) and servo (what it leaves).\n"
            "\n"
            "  --recon LIST   comma-separated, from cg9, pcg3, mvm (default cg9); mvm is built or read from\n"
            "                 DIR/cache/ as `wavetomo compare` does\n"
@@ -170,11 +173,17 @@ int wt_cmd_budget(int argc, char **argv)
     snprintf(path, sizeof path, "%s/report.md", a.out);
     if ((st = wt_budget_write_report(cli.ctx, path, cfg, a.nm, (const char *const *)a.methods, R, argc, argv)) < 0) goto fail;
     double val[WT_BUDGET_NTERMS * MAXM], mark[WT_BUDGET_NTERMS * MAXM];
-    for (int k = 0; k < WT_BUDGET_NTERMS; k++)
-        for (int m = 0; m < a.nm; m++) val[k * a.nm + m] = R[m].term[k], mark[k * a.nm + m] = R[m].analytic[k];
+    const char *names[WT_BUDGET_NTERMS];
+    int nt = 0; /* the terms measured under this configuration */
+    for (int k = 0; k < WT_BUDGET_NTERMS; k++) {
+        if (!wt_budget_term_used(cfg, k)) continue;
+        names[nt] = wt_budget_term_names[k];
+        for (int m = 0; m < a.nm; m++) val[nt * a.nm + m] = R[m].term[k], mark[nt * a.nm + m] = R[m].analytic[k];
+        nt++;
+    }
     snprintf(path, sizeof path, "%s/budget.png", a.out);
-    if ((st = wt_plot_grouped_bars(cli.ctx, path, "error budget over the field", "WFE [nm]", WT_BUDGET_NTERMS,
-                                   wt_budget_term_names, a.nm, (const char *const *)a.methods, val, mark)) < 0)
+    if ((st = wt_plot_grouped_bars(cli.ctx, path, "error budget over the field", "WFE [nm]", nt, names, a.nm,
+                                   (const char *const *)a.methods, val, mark)) < 0)
         goto fail;
     printf("report: %s/report.md (results.h5, budget.png)\n", a.out);
     rc = 0;

@@ -12,6 +12,7 @@
 
 #include "core/model/params.h"
 #include "core/model/precond.h"
+#include "core/model/precond_private.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 
@@ -182,6 +183,46 @@ START_TEST(t_update_refused)
 }
 END_TEST
 
+/* fourier's NGS term in the update: Y = B⁻¹ R from the spectra kept at set-up and K's dots over R's non-zeros are
+ * the bits of the plain path (nlr applies of B⁻¹, dense dots), which the same update takes when the spectra and the
+ * sparse columns are hidden; with and without the coarse block, twice (the second update reuses the blocks) */
+START_TEST(t_fourier_ngs_same_bits)
+{
+    const char *set[3] = {"recon.cg9.preconditioner=\"fourier\"", "recon.cg9.coarse_levels=0",
+                          "recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]"};
+    fix f;
+    open_fix(&f, 1, 3, set);
+    f.no_coarse = _i;
+    const int64_t n = wt_tomography_nunknowns(f.t);
+    wt_precond *pa = precond(&f, 1, 1), *pb = precond(&f, 1, 1);
+    ck_assert_ptr_nonnull(pa->fd_rhat);
+    ck_assert_int_gt(pa->nlr, 0);
+    ck_assert_int_eq(pa->nc > 0, !_i);
+    double *r = malloc(n * sizeof *r), *za = aligned_alloc(64, n * sizeof *za), *zb = aligned_alloc(64, n * sizeof *zb);
+    tu_randn(r, n, 11);
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass) ck_assert_int_eq(wt_tomography_set_profile(f.t, f.cfg->r0, f.cfg->nlayers, f.cfg->layer_altitude,
+                                                             f.cfg->layer_fraction), WT_OK);
+        else ck_assert_int_eq(wt_tomography_set_profile(f.t, B_R0, 4, B_ALT, B_FRAC), WT_OK);
+        ck_assert_int_eq(wt_precond_update(pa), WT_OK);
+        double complex *rhat = pb->fd_rhat;
+        int64_t *ptr = pb->fd_rs_ptr;
+        pb->fd_rhat = NULL, pb->fd_rs_ptr = NULL;
+        const int ok = wt_precond_update(pb);
+        pb->fd_rhat = rhat, pb->fd_rs_ptr = ptr;
+        ck_assert_int_eq(ok, WT_OK);
+        wt_precond_apply(pa, r, za);
+        wt_precond_apply(pb, r, zb);
+        ck_assert_msg(memcmp(za, zb, n * sizeof *za) == 0, "pass %d: %g", pass, tu_rel_diff(za, zb, n));
+        ck_assert_mem_eq(pa->lr_K, pb->lr_K, (size_t)pa->nlr * pa->nlr * sizeof *pa->lr_K);
+    }
+    free(r), free(za), free(zb);
+    wt_precond_free(pa);
+    wt_precond_free(pb);
+    close_fix(&f);
+}
+END_TEST
+
 /* a reconstructor that updates its preconditioner reconstructs as one built with the new model (no model error:
  * the same preconditioner to rounding, the same few iterations) */
 START_TEST(t_reconstructor_update)
@@ -223,6 +264,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 120);
     tcase_add_loop_test(tc, t_update_equals_rebuild, 0, (int)(sizeof CASES / sizeof CASES[0]));
     tcase_add_test(tc, t_update_with_model_error);
+    tcase_add_loop_test(tc, t_fourier_ngs_same_bits, 0, 2);
     tcase_add_test(tc, t_update_refused);
     tcase_add_test(tc, t_reconstructor_update);
     suite_add_tcase(s, tc);

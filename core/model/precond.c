@@ -484,6 +484,25 @@ static void lowrank_apply(const wt_precond *p, const double *r, double *z)
 /* Y = B⁻¹ R (B the kind's part before the NGS term, as it stands), K = Ĉ⁻¹_NGS + Rᵀ Y by Cholesky, and Y laid out
  * as the apply reads it: coarse_ngs and fourier by blocks of 8 rows, the blocks with a non-zero (in float when
  * single); the others column-major, with its zero runs. At set-up and at each update (p->nlr set). */
+/* Rᵀ_j Y_k as wt_vec_dot(R_j, Y_k, n) sums it, from R_j's non-zeros on the layers (fourier's fd_rs): each of
+ * WT_VEC_CHUNKS chunk sums is one chain in index order from 0, and a zero product leaves a chain's value as it is
+ * (x + ±0 = x, +0 + −0 = +0), so the chains of the non-zeros alone are the same bits; then the ordered total. */
+static double sparse_dot(const wt_precond *p, int j, const double *Yk)
+{
+    const wt_tomography *t = p->tomo;
+    const int L = wt_tomography_nlayers(t), q = p->nlr;
+    const int64_t len = wt_vec_chunk_len(p->n);
+    double part[WT_VEC_CHUNKS] = {0.0};
+    for (int l = 0; l < L; l++) {
+        const int64_t o = wt_tomography_layer_offset(t, l);
+        for (int64_t e = p->fd_rs_ptr[l * q + j]; e < p->fd_rs_ptr[l * q + j + 1]; e++) {
+            const int64_t i = o + p->fd_rs_idx[e];
+            part[i / len] += p->fd_rs_val[e] * Yk[i];
+        }
+    }
+    return wt_vec_dot_finish(part);
+}
+
 int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cinv)
 {
     int st = WT_OK;
@@ -491,41 +510,63 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
     const int64_t n = p->n;
     const int q = p->nlr, single = p->single;
     const int blocked = p->kind == WT_PRECOND_COARSE_NGS || p->fd_n > 0;
-    WT_ALLOC(ctx, p->lr_Y, (size_t)n * q, "NGS preconditioner Y");
+    double *Y = NULL;
+    char *nz = NULL;
     WT_ALLOC(ctx, p->lr_K, (size_t)q * q, "NGS preconditioner K");
     if (!blocked) WT_ALLOC(ctx, p->lr_runs, n + 1, "NGS preconditioner runs");
-    for (int k = 0; k < q; k++) wt_precond__base_apply(p, R + (size_t)n * k, p->lr_Y + (size_t)n * k);
-    if (!blocked) p->lr_nruns = wt_vec_runs(p->lr_Y, n, q, n, p->lr_runs);
+    if (p->fd_rhat) { /* fourier's update: Y in the room kept for it (every entry written by the inverse FFTs) */
+        Y = wt_align64(p->pu_Y_raw);
+        WT_TRY(wt_precond__fourier_lowrank_Y(p, Y));
+    } else {
+        WT_ALLOC(ctx, p->lr_Y, (size_t)n * q, "NGS preconditioner Y");
+        Y = p->lr_Y;
+        for (int k = 0; k < q; k++) wt_precond__base_apply(p, R + (size_t)n * k, Y + (size_t)n * k);
+    }
+    if (!blocked) p->lr_nruns = wt_vec_runs(Y, n, q, n, p->lr_runs);
     for (int k = 0; k < q; k++)
         for (int j = 0; j <= k; j++) {
-            double v = cinv[j + (size_t)q * k] + wt_vec_dot(R + (size_t)j * n, p->lr_Y + (size_t)k * n, n);
-            p->lr_K[j + (size_t)q * k] = p->lr_K[k + (size_t)q * j] = v;
+            const double d = p->fd_rs_ptr ? sparse_dot(p, j, Y + (size_t)k * n) : wt_vec_dot(R + (size_t)j * n, Y + (size_t)k * n, n);
+            p->lr_K[j + (size_t)q * k] = p->lr_K[k + (size_t)q * j] = cinv[j + (size_t)q * k] + d;
         }
     /* in-place Cholesky, lower triangle (K is SPD: Ĉ⁻¹_NGS SPD, RᵀB⁻¹R semi-definite) */
     WT_TRY(wt_precond__cholesky(ctx, q, p->lr_K, "NGS preconditioner"));
-    if (blocked) { /* Y by blocks of 8 rows, the blocks with a non-zero */
+    if (blocked) { /* Y by blocks of 8 rows, the blocks with a non-zero; each block's rows on one thread */
         const int64_t nb8 = (n + 7) / 8;
         WT_ALLOC(ctx, p->lr_blk, nb8, "NGS preconditioner blocks");
-        p->lr_nblk = 0;
+        WT_ALLOC(ctx, nz, nb8, "NGS preconditioner block flags");
+#pragma omp parallel for schedule(static) num_threads(p->nthreads)
         for (int64_t b = 0; b < nb8; b++) {
-            int nz = 0;
-            for (int64_t i = 8 * b; i < 8 * b + 8 && i < n && !nz; i++)
-                for (int k = 0; k < q && !nz; k++) nz = p->lr_Y[(size_t)k * n + i] != 0.0;
-            if (nz) p->lr_blk[p->lr_nblk++] = b;
+            int z = 0;
+            for (int64_t i = 8 * b; i < 8 * b + 8 && i < n && !z; i++)
+                for (int k = 0; k < q && !z; k++) z = Y[(size_t)k * n + i] != 0.0;
+            nz[b] = (char)z;
         }
-        if (single) { /* the blocks in float, each value rounded once (64-byte aligned: 16 floats) */
-            WT_ALLOC(ctx, p->lr_Yb32_raw, (size_t)p->lr_nblk * q * 8 + 16, "NGS preconditioner Y (blocks, float)");
-            p->lr_Yb32 = p->lr_Yb32_raw + ((64 - (uintptr_t)p->lr_Yb32_raw % 64) % 64) / sizeof(float);
-        } else {
-            WT_ALLOC(ctx, p->lr_Yb_raw, (size_t)p->lr_nblk * q * 8 + 8, "NGS preconditioner Y (blocks)");
-            p->lr_Yb = wt_align64(p->lr_Yb_raw);
+        p->lr_nblk = 0;
+        for (int64_t b = 0; b < nb8; b++)
+            if (nz[b]) p->lr_blk[p->lr_nblk++] = b;
+        /* (every entry written below: malloc, not calloc; 64-byte aligned: 16 floats or 8 doubles of slack; an
+         * update takes the blocks the last one replaced when they are large enough) */
+        const size_t bytes = ((size_t)p->lr_nblk * q * 8 + 16) * (single ? sizeof(float) : sizeof(double));
+        void *mem = NULL;
+        if (p->pu_spare && p->pu_spare_bytes >= bytes) {
+            mem = p->pu_spare, p->lr_Yb_bytes = p->pu_spare_bytes;
+            p->pu_spare = NULL, p->pu_spare_bytes = 0;
+        } else if ((mem = wt_malloc(ctx, bytes, 1))) p->lr_Yb_bytes = bytes;
+        if (!mem) {
+            st = WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory allocating NGS preconditioner Y (blocks) (%zu bytes)", bytes);
+            goto fail;
         }
+        if (single) p->lr_Yb32_raw = mem;
+        else p->lr_Yb_raw = mem;
+        if (single) p->lr_Yb32 = p->lr_Yb32_raw + ((64 - (uintptr_t)p->lr_Yb32_raw % 64) % 64) / sizeof(float);
+        else p->lr_Yb = wt_align64(p->lr_Yb_raw);
+#pragma omp parallel for schedule(static) num_threads(p->nthreads)
         for (int64_t b = 0; b < p->lr_nblk; b++)
             for (int k = 0; k < q; k++)
                 for (int a = 0; a < 8; a++) {
                     const size_t at = ((size_t)b * q + k) * 8 + a;
                     const int64_t i = 8 * p->lr_blk[b] + a;
-                    const double v = i < n ? p->lr_Y[(size_t)k * n + i] : 0.0; /* (rows past n: 0) */
+                    const double v = i < n ? Y[(size_t)k * n + i] : 0.0; /* (rows past n: 0) */
                     if (single) p->lr_Yb32[at] = (float)v;
                     else p->lr_Yb[at] = v;
                 }
@@ -533,6 +574,7 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
         p->lr_Y = NULL;
     }
 fail:
+    wt_free(ctx, nz);
     return st;
 }
 
@@ -672,6 +714,9 @@ void wt_precond_free(wt_precond *p)
     wt_free(ctx, p->lr_R);
     wt_free(ctx, p->lr_cinv);
     wt_free(ctx, p->part_sl);
+    wt_free(ctx, p->fd_rhat);
+    wt_free(ctx, p->pu_Y_raw);
+    wt_free(ctx, p->pu_spare);
     if (p->fd_r2c) fftw_destroy_plan(p->fd_r2c);
     if (p->fd_c2r) fftw_destroy_plan(p->fd_c2r);
     wt_free(ctx, p);
@@ -730,7 +775,9 @@ double wt_precond_bytes(const wt_precond *p)
                                    : 8.0 * (double)p->nlgs * (p->pj ? (double)p->n : 0.0) +
                                          8.0 * (p->pc ? (double)(p->nlgs + 1) * p->nc * p->nc : 0.0) +
                                          16.0 * (p->pa ? (double)p->fd_nk * (p->nlgs * L * (L + 1) / 2 + L) : 0.0) +
-                                         8.0 * (p->lr_R ? (double)p->nlr * (p->n + p->nlr) : 0.0);
+                                         8.0 * (p->lr_R ? (double)p->nlr * (p->n + p->nlr) : 0.0) +
+                                         16.0 * (p->fd_rhat ? (double)p->nlr * L * p->fd_nk : 0.0) +
+                                         8.0 * (p->pu_Y_raw ? (double)p->nlr * p->n : 0.0) + (double)p->pu_spare_bytes;
     return parts + 8.0 * (double)p->n * ((p->jinv ? 1.0 : 0.0) + (p->lr_Y ? p->nlr : 0)) + (double)p->lr_nblk * ((p->lr_Yb32 ? 32.0 : 64.0) * p->nlr + 8.0) +
            8.0 * (double)p->nlr * (p->nlr + WT_VEC_CHUNKS + 1) + 16.0 * (double)p->c_nfree +
            16.0 * (double)p->lr_nruns + (double)p->nc * ((p->c_inv32 ? 4.0 : 8.0) * p->nc + 16.0) +

@@ -480,9 +480,79 @@ int wt_precond__fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const
                 for (int i = 0; i < sc2; i++) p->fd_rc[l * sc2 + i + (size_t)p->nc * k] = c[i];
             }
     }
+    if (p->parts) { /* the update's spectra: the apply's first steps on R's columns, on thread 0's buffers (the
+                       plans' alignment: the same codelets, the same bits as fourier_apply) */
+        const int64_t nk = p->fd_nk;
+        WT_ALLOC(ctx, p->fd_rhat, (size_t)q * L * nk, "fourier NGS spectra (update)");
+        WT_ALLOC(ctx, p->pu_Y_raw, (size_t)p->n * q + 8, "fourier NGS Y (update)");
+        double *phi = fourier_phi(p, 0), *uu = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n;
+        fftw_complex *hat = fourier_hat(p, 0);
+        for (int k = 0; k < q; k++)
+            for (int l = 0; l < L; l++) {
+                const double *r = R + (size_t)p->n * k + wt_tomography_layer_offset(t, l);
+                if (p->nc > 0) {
+                    double cc[WT_FOURIER_MAX_SC * WT_FOURIER_MAX_SC], mc[WT_FOURIER_MAX_SC * WT_FOURIER_MAX_SC];
+                    wt_precond__coarse_coef(p, r, cc, uu);
+                    for (int i = 0; i < sc2; i++) mc[i] = -cc[i];
+                    coarse_add_to(p, mc, r, phi);
+                } else memcpy(phi, r, (size_t)m2 * sizeof *phi);
+                fftw_execute_dft_r2c(p->fd_r2c, phi, hat);
+                memcpy(p->fd_rhat + ((size_t)k * L + l) * nk, hat, (size_t)nk * sizeof *hat);
+            }
+    }
 fail:
     wt_free(ctx, c);
     wt_free(ctx, u);
     return st;
 }
 
+/* Y = B⁻¹ R from the kept spectra: per column k and layer l (the nlr L of them side by side) the filter on F Π_d R
+ * and the inverse FFT, Qᵀ of the result; per column the coarse solve; per column and layer the coarse correction.
+ * fourier_apply's operations on each value in its order (the forward FFT's output read back): the same bits as
+ * nlr applies, with half their FFTs, and whole layers on every thread instead of L per apply. */
+int wt_precond__fourier_lowrank_Y(const wt_precond *p, double *Y)
+{
+    int st = WT_OK;
+    wt_context *ctx = p->ctx;
+    const wt_tomography *t = p->tomo;
+    const int L = wt_tomography_nlayers(t), q = p->nlr, sc2 = p->fd_sc * p->fd_sc, nc = p->nc;
+    const int64_t nk = p->fd_nk, m2 = (int64_t)p->fd_n * p->fd_n, n = p->n;
+    double *cw = NULL; /* nc x q: Qᵀ of the filtered layers, then the coarse corrections; nc x q of solves' work */
+    if (nc > 0) WT_ALLOC(ctx, cw, (size_t)2 * nc * q, "fourier NGS coarse corrections (update)");
+#pragma omp parallel num_threads(p->nthreads)
+    {
+#pragma omp for schedule(dynamic, 1)
+        for (int task = 0; task < q * L; task++) {
+            const int k = task / L, l = task % L, id = wt_thread_id();
+            double *phi = fourier_phi(p, id), *hat = (double *)fourier_hat(p, id);
+            double *u = phi + p->fd_slice - (size_t)WT_FOURIER_MAX_SC * p->fd_n;
+            const double *src = (const double *)(p->fd_rhat + ((size_t)k * L + l) * nk);
+            for (int64_t f = 0; f < nk; f++) {
+                hat[2 * f] = src[2 * f] * p->fd_s[f];
+                hat[2 * f + 1] = src[2 * f + 1] * p->fd_s[f];
+            }
+            double *z = Y + (size_t)n * k + wt_tomography_layer_offset(t, l);
+            double *zl = ((uintptr_t)z & 63) == 0 ? z : phi;
+            fftw_execute_dft_c2r(p->fd_c2r, (fftw_complex *)hat, zl);
+            if (nc > 0) wt_precond__coarse_coef(p, zl, cw + (size_t)nc * k + (size_t)l * sc2, u);
+            if (zl != z) memcpy(z, phi, (size_t)m2 * sizeof *z);
+        }
+        if (nc > 0) {
+#pragma omp for schedule(dynamic, 1)
+            for (int k = 0; k < q; k++) { /* (Qᵀ M̃ Q)⁻¹ Qᵀ R_k − Qᵀ φ */
+                double *c = cw + (size_t)nc * k, *w = cw + (size_t)nc * (q + k);
+                memcpy(w, p->fd_rc + (size_t)nc * k, (size_t)nc * sizeof *w);
+                wt_precond__chol_solves(p->c_L, nc, w);
+                for (int i = 0; i < nc; i++) c[i] = w[i] - c[i];
+            }
+#pragma omp for schedule(dynamic, 1)
+            for (int task = 0; task < q * L; task++) {
+                const int k = task / L, l = task % L;
+                coarse_add(p, cw + (size_t)nc * k + (size_t)l * sc2, Y + (size_t)n * k + wt_tomography_layer_offset(t, l));
+            }
+        }
+    }
+fail:
+    wt_free(ctx, cw);
+    return st;
+}

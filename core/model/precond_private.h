@@ -79,6 +79,14 @@ struct wt_precond {
     double complex *pp;       /* fourier: nk x L, the prior's symbol per layer (no layer couples another there) */
     double *lr_R, *lr_cinv;   /* the NGS term's R (n x nlr) and Ĉ⁻¹_NGS (nlr x nlr) */
     double *part_sl;          /* 2 nslopes: the parts' probe slopes, all sensors' and one LGS's */
+    double complex *fd_rhat;  /* fourier with the NGS term: nlr x L x nk, the spectra F Π_d R of R's columns per
+                                 layer as the apply's forward FFT gives them (the update's Y = B⁻¹ R filters them:
+                                 no forward FFT, the same bits) */
+    double *pu_Y_raw;         /* fourier's update: room for Y = B⁻¹ R (n x nlr, 64-byte aligned), kept from set-up */
+    size_t lr_Yb_bytes;       /* the allocation lr_Yb_raw or lr_Yb32_raw holds */
+    void *pu_spare;           /* the Y blocks an update replaced, for the next one (an update writes 14 MB at E-ELT
+                                 size: memory kept, not returned and faulted in again) */
+    size_t pu_spare_bytes;
 };
 
 extern const char *const wt_precond__kind_names[WT_PRECOND_NKINDS];
@@ -149,5 +157,8 @@ void wt_precond__yb_update(const wt_precond *p, const double *w, double *z, int6
 int wt_precond__fourier(wt_precond *p, wt_tomography *t, int coarse_levels);
 void wt_precond__fourier_apply(const wt_precond *p, const double *r, double *z, int ngs);
 int wt_precond__fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const double *R);
+/* fourier with fd_rhat: Y = B⁻¹ R (n x nlr, 64-byte aligned), the bits of nlr applies of B⁻¹ to R's columns, the
+ * nlr L layers side by side on the threads */
+int wt_precond__fourier_lowrank_Y(const wt_precond *p, double *Y);
 
 #endif

@@ -14,14 +14,16 @@
  *   M̃_new = Σ_m s_m M̃_m + Σ_l c_l P_l
  * feeds the kind's own steps: J⁻¹ = 1/diag, the coarse block's Cholesky factor (and inverse), the symbol's largest
  * eigenvalue per frequency, then the NGS term's Y = B⁻¹ R and K = Ĉ⁻¹_NGS + Rᵀ Y (R and Ĉ_NGS do not depend on the
- * model). Cost: O(nlgs n) for J, O(nc³) for the block, nk eigenvalue problems of order L for the symbol, r applies
- * of B⁻¹ — no apply of M, no FFT of a probe. */
+ * model). Cost: O(nlgs n) for J, O(nc³) for the block, nk λ_max of order L for the symbol (core/la/heig.h: only the
+ * largest eigenvalue is used, not zheev's all), Y = B⁻¹ R from the spectra of R kept at set-up (fourier: one
+ * inverse FFT per NGS column and layer, precond_fourier.c) or r applies of B⁻¹ — no apply of M, no FFT of a probe. */
 #include "precond_private.h"
 
 #include <lapacke.h>
 #include <math.h>
 #include <string.h>
 
+#include "../la/heig.h"
 #include "../op/noise.h"
 
 int wt_precond_updatable(const wt_precond *p) { return p && (p->kind == WT_PRECOND_NONE || p->parts); }
@@ -101,7 +103,7 @@ static int update_fourier(wt_precond *q, const wt_tomography *t, const double *s
     WT_ALLOC(q->ctx, q->fd_s, nk, "fourier preconditioner filter");
     WT_ALLOC(q->ctx, work, (size_t)q->nthreads * L * L, "fourier symbol (update)");
     int64_t bad = -1; /* the first frequency whose symbol is not positive definite */
-    lapack_int bad_info = 0;
+    double bad_lmax = 0.0;
 #pragma omp parallel for schedule(static) num_threads(q->nthreads)
     for (int64_t k = 0; k < nk; k++) {
         double complex *a = work + (size_t)wt_thread_id() * L * L; /* column-major, the lower triangle */
@@ -112,19 +114,18 @@ static int update_fourier(wt_precond *q, const wt_tomography *t, const double *s
                 for (int m = 0; m < q->nlgs; m++) v += s[m] * q->pa[((size_t)m * nk + k) * T + tri];
                 a[i + L * j] = v;
             }
-        double ev[WT_MAX_LAYERS];
-        const lapack_int info = LAPACKE_zheev(LAPACK_COL_MAJOR, 'N', 'L', L, (lapack_complex_double *)a, L, ev);
-        if (info != 0 || !(ev[L - 1] > 0.0) || !isfinite(ev[L - 1])) {
+        const double lmax = wt_heig_max(L, a, L); /* zheev's to ~L ε λ_max (core/la/heig.h), at ~1/3 its cost */
+        if (!(lmax > 0.0) || !isfinite(lmax)) {
 #pragma omp critical(wt_precond_update_bad)
-            if (bad < 0 || k < bad) bad = k, bad_info = info;
+            if (bad < 0 || k < bad) bad = k, bad_lmax = lmax;
             continue;
         }
-        q->fd_s[k] = 1.0 / (n2 * ev[L - 1]);
+        q->fd_s[k] = 1.0 / (n2 * lmax);
     }
     if (bad >= 0) {
         st = WT_ERROR(q->ctx, WT_ERR_NUMERIC, "fourier preconditioner (update): the %d x %d symbol at frequency (%lld, "
-                      "%lld) has no positive largest eigenvalue (LAPACK zheev info %d)", L, L, (long long)(bad % nh),
-                      (long long)(bad / nh), (int)bad_info);
+                      "%lld) has the largest eigenvalue %g; expected positive", L, L, (long long)(bad % nh),
+                      (long long)(bad / nh), bad_lmax);
         goto fail;
     }
     if (q->nc > 0) WT_TRY(update_coarse(q, t, s, c));
@@ -176,10 +177,19 @@ int wt_precond_update(wt_precond *p)
     if (p->fd_n > 0) WT_TRY(update_fourier(&q, t, s, c));
     else if (p->pc) WT_TRY(update_coarse(&q, t, s, c));
     if (p->nlr > 0) WT_TRY(wt_precond__lowrank_factor(&q, p->lr_R, p->lr_cinv));
+    /* the blocks replaced become the next update's room (the spare not taken, if any, is returned) */
+    void *old = p->lr_Yb_raw ? (void *)p->lr_Yb_raw : (void *)p->lr_Yb32_raw;
+    if (old) {
+        wt_free(p->ctx, q.pu_spare);
+        q.pu_spare = old, q.pu_spare_bytes = p->lr_Yb_bytes;
+        p->lr_Yb_raw = NULL, p->lr_Yb32_raw = NULL;
+    }
     drop_replaced(p);
     *p = q;
     return WT_OK;
 fail:
+    if (p->pu_spare && ((void *)q.lr_Yb_raw == p->pu_spare || (void *)q.lr_Yb32_raw == p->pu_spare))
+        q.lr_Yb_raw = NULL, q.lr_Yb32_raw = NULL; /* taken from p's spare, which p keeps */
     drop_replaced(&q);
     return st;
 }

@@ -14,13 +14,16 @@
 #include "loop.h"
 
 const char *const wt_budget_term_names[WT_BUDGET_NTERMS] = {
-    "fitting", "tomography", "noise_ol", "noise_cl", "servo", "polc", "tiptilt", "rim", "interior", "total"};
+    "fitting", "tomography", "noise_ol", "noise_cl", "servo", "servo_no_predict", "servo_predicted", "polc", "tiptilt",
+    "rim", "interior", "total"};
 const char *const wt_budget_term_desc[WT_BUDGET_NTERMS] = {
     "fitting: DMs fitted to the true turbulence over the evaluation directions (no sensors)",
     "tomography + aliasing + model error: open loop on noise-free slopes, minus fitting in quadrature",
     "noise propagation, open loop: open loop with noise minus without, in quadrature",
     "noise propagation, closed loop: closed loop with noise minus without, in quadrature",
-    "servo lag: closed loop with exact POLC (the truth sensors' slopes of the DM shapes) minus instantaneous open loop (noise-free), in quadrature",
+    "servo lag: closed loop with exact POLC (the truth sensors' slopes of the DM shapes) minus instantaneous open loop (noise-free), in quadrature; with recon.predict the closed loop predicts (the open loop does not): the lag prediction leaves",
+    "servo lag without prediction (recon.predict only): the same exact-POLC closed loop without the wind shift minus the instantaneous open loop, in quadrature",
+    "lag removed by prediction (recon.predict only): servo_no_predict minus servo, in quadrature",
     "POLC model error: closed loop with the model's interaction Â minus with exact POLC (noise-free), in quadrature",
     "tip-tilt part of the closed-loop residual (with noise)",
     "closed-loop residual in the outer annulus of the pupil (its part of total^2)",
@@ -29,7 +32,8 @@ const char *const wt_budget_term_desc[WT_BUDGET_NTERMS] = {
 const char *const wt_budget_run_names[WT_BUDGET_NRUNS] = {"fitting",          "open_loop_noise_free",
                                                           "open_loop",        "closed_loop_noise_free",
                                                           "closed_loop",      "noise_only",
-                                                          "closed_loop_noise_free_exact_polc"};
+                                                          "closed_loop_noise_free_exact_polc",
+                                                          "closed_loop_noise_free_exact_polc_no_predict"};
 
 void wt_budget_options_default(wt_budget_options *o, uint64_t seed)
 {
@@ -261,7 +265,7 @@ static int exact_polc(const wt_system *sys)
 
 int wt_budget_nruns(const wt_system *sys, int nmethods)
 {
-    return 1 + nmethods * ((sys->cfg->noise ? 5 : 2) + exact_polc(sys));
+    return 1 + nmethods * ((sys->cfg->noise ? 5 : 2) + exact_polc(sys) * (sys->cfg->predict ? 2 : 1));
 }
 
 /* sign(a − b) √|a − b| of two rms values [m] → nm */
@@ -309,17 +313,22 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->run[WT_BUDGET_RUN_FIT] = fit;
         const char *name = wt_reconstructor_name(recon[m]);
         wt_loop_options base = {.recon = recon[m], .mvm = mvm ? mvm[m] : NULL, .iterations = -1, .seed = opt->seed};
-        struct { int run, open, noise, turb, polc; const char *what; } plan[] = {
-            {WT_BUDGET_RUN_OL_NF, 1, 0, 1, 0, "open loop, noise-free"},
-            {WT_BUDGET_RUN_OL, 1, 1, 1, 0, "open loop, noise"},
-            {WT_BUDGET_RUN_NOISE, 1, 1, 0, 0, "pure noise"},
-            {WT_BUDGET_RUN_CL_NF, 0, 0, 1, 0, "closed loop, noise-free"},
-            {WT_BUDGET_RUN_CL_NF_POLC, 0, 0, 1, 1, "closed loop, noise-free, exact POLC"},
-            {WT_BUDGET_RUN_CL, 0, 1, 1, 0, "closed loop, noise"}};
+        struct { int run, open, noise, turb, polc, no_predict; const char *what; } plan[] = {
+            {WT_BUDGET_RUN_OL_NF, 1, 0, 1, 0, 1, "open loop, noise-free"},
+            {WT_BUDGET_RUN_OL, 1, 1, 1, 0, 1, "open loop, noise"},
+            {WT_BUDGET_RUN_NOISE, 1, 1, 0, 0, 1, "pure noise"},
+            {WT_BUDGET_RUN_CL_NF, 0, 0, 1, 0, 0, "closed loop, noise-free"},
+            {WT_BUDGET_RUN_CL_NF_POLC, 0, 0, 1, 1, 0, "closed loop, noise-free, exact POLC"},
+            {WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT, 0, 0, 1, 1, 1, "closed loop, noise-free, exact POLC, no prediction"},
+            {WT_BUDGET_RUN_CL, 0, 1, 1, 0, 0, "closed loop, noise"}};
         for (size_t k = 0; k < sizeof plan / sizeof plan[0]; k++) {
             if (plan[k].noise && !cfg->noise) continue; /* filled from the noise-free runs below */
             if (plan[k].polc && !exact_polc(sys)) continue;
+            if (plan[k].run == WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT && !cfg->predict) continue;
             wt_loop_options lo = base;
+            /* the instantaneous runs apply the frame's own reconstruction: nothing to predict (a shift there
+             * would be an error of its own); the closed loops predict as configured, one exact-POLC run not */
+            lo.no_predict = plan[k].no_predict;
             /* the pure-noise run keeps the flat open loop: without turbulence the sensors see a flat
              * wavefront either way. The pseudo-open loop carries its state from frame 0. */
             const int pseudo = plan[k].open && plan[k].turb && olmode == WT_LOOP_OPEN_POLC;
@@ -341,8 +350,15 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->term[WT_BUDGET_TOMOGRAPHY] = quad_diff(R[WT_BUDGET_RUN_OL_NF].wfe, R[WT_BUDGET_RUN_FIT].wfe);
         r->term[WT_BUDGET_NOISE_OL] = quad_diff(R[WT_BUDGET_RUN_OL].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
         r->term[WT_BUDGET_NOISE_CL] = quad_diff(R[WT_BUDGET_RUN_CL].wfe, R[WT_BUDGET_RUN_CL_NF].wfe);
+        r->term[WT_BUDGET_SERVO_NO_PREDICT] = r->term[WT_BUDGET_SERVO_PREDICTED] = NAN;
         if (exact_polc(sys)) {
             r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+            if (cfg->predict) {
+                r->term[WT_BUDGET_SERVO_NO_PREDICT] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].wfe,
+                                                                R[WT_BUDGET_RUN_OL_NF].wfe);
+                r->term[WT_BUDGET_SERVO_PREDICTED] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].wfe,
+                                                               R[WT_BUDGET_RUN_CL_NF_POLC].wfe);
+            }
             r->term[WT_BUDGET_POLC] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_CL_NF_POLC].wfe);
         } else {
             r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
@@ -373,6 +389,11 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
 
 /* ---------------------------------------------------------------- report */
 
+int wt_budget_term_used(const wt_config *cfg, int k)
+{
+    return (k != WT_BUDGET_SERVO_NO_PREDICT && k != WT_BUDGET_SERVO_PREDICTED) || cfg->predict;
+}
+
 static void cell(FILE *f, double v) { isfinite(v) ? fprintf(f, " %.1f |", v) : fprintf(f, " – |"); }
 
 int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *cfg, int nmethods,
@@ -400,6 +421,7 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     for (int m = 0; m < nmethods; m++) fprintf(f, "---|---|");
     fprintf(f, "\n");
     for (int k = 0; k < WT_BUDGET_NTERMS; k++) {
+        if (!wt_budget_term_used(cfg, k)) continue;
         fprintf(f, "| %s |", wt_budget_term_names[k]);
         for (int m = 0; m < nmethods; m++) {
             cell(f, res[m].term[k]);
@@ -413,7 +435,8 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     fprintf(f, "| quadrature sum |");
     for (int m = 0; m < nmethods; m++) fprintf(f, " %.1f | (%+.1f %% of total) |", res[m].sum, 100.0 * res[m].closure);
     fprintf(f, "\n\nTerms:\n\n");
-    for (int k = 0; k < WT_BUDGET_NTERMS; k++) fprintf(f, "- **%s**: %s.\n", wt_budget_term_names[k], wt_budget_term_desc[k]);
+    for (int k = 0; k < WT_BUDGET_NTERMS; k++)
+        if (wt_budget_term_used(cfg, k)) fprintf(f, "- **%s**: %s.\n", wt_budget_term_names[k], wt_budget_term_desc[k]);
     const double gn = wt_budget_noise_gain(cfg->gain, cfg->delay);
     fprintf(f, "\nA negative quadrature difference means the removed cause helped (the run without it is worse).\n\n"
                "**Closure**: fitting² + tomography² + servo² + polc² + noise_OL² × Σh² (the integrator's noise gain, %.3f here; "
@@ -449,6 +472,7 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
     fprintf(f, "\n");
     for (int k = 0; k < WT_BUDGET_NRUNS; k++) {
         if (k == WT_BUDGET_RUN_CL_NF_POLC && !isfinite(r0->term[WT_BUDGET_POLC])) continue; /* not run */
+        if (k == WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT && !isfinite(r0->term[WT_BUDGET_SERVO_NO_PREDICT])) continue;
         fprintf(f, "| %s |", wt_budget_run_names[k]);
         for (int m = 0; m < nmethods; m++) {
             const wt_budget_run *u = &res[m].run[k];
@@ -475,6 +499,7 @@ int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *
     for (int m = 0; m < nmethods && st >= 0; m++) {
         const wt_budget_result *r = &res[m];
         for (int k = 0; k < WT_BUDGET_NTERMS && st >= 0; k++) {
+            if ((k == WT_BUDGET_SERVO_NO_PREDICT || k == WT_BUDGET_SERVO_PREDICTED) && !isfinite(r->term[k])) continue;
             snprintf(name, sizeof name, "%s/%s", methods[m], wt_budget_term_names[k]);
             st = wt_h5_write_double(w, name, r->term[k], "nm", wt_budget_term_desc[k]);
             if (st >= 0 && isfinite(r->analytic[k])) st = wt_h5_attr_write_double(w, name, "analytic_nm", r->analytic[k]);
@@ -485,6 +510,7 @@ int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *
         if (st >= 0) st = wt_h5_attr_write_double(w, name, "analytic_band_limited_nm", r->servo_band);
         for (int k = 0; k < WT_BUDGET_NRUNS && st >= 0; k++) {
             const wt_budget_run *u = &r->run[k];
+            if (k == WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT && !isfinite(r->term[WT_BUDGET_SERVO_NO_PREDICT])) continue;
             snprintf(name, sizeof name, "%s/runs/%s", methods[m], wt_budget_run_names[k]);
             snprintf(desc, sizeof desc, "field WFE of the run '%s' (attributes: its tip-tilt and rim parts [nm], frames, s)",
                      wt_budget_run_names[k]);

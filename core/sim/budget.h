@@ -16,6 +16,15 @@
  *   polc         σ²_CL,nf − σ²_CL,nf,S: the POLC model error, the model's Â a in place of the truth sensors'
  *                slopes of the DM shapes (servo² + polc² = σ²_CL,nf − σ²_OL,nf). Diffractive sensors have
  *                no exact POLC run: their servo is σ²_CL,nf − σ²_OL,nf and polc is NaN
+ *   with recon.predict (the reconstructed layers moved by their wind over the delay), the instantaneous runs
+ *   without it (no delay to predict over: an open loop that predicted would add the shift as an error), and
+ *   servo        as above, the closed loop with prediction: the lag that prediction leaves (the integrator's
+ *                averaging, the wind of the compressed layers that is not each atmospheric layer's, and any
+ *                evolution that is not frozen flow — none in this simulator's atmosphere)
+ *   servo_no_predict  σ²_CL,nf,S,np − σ²_OL,nf: the same exact-POLC closed loop without prediction (the servo
+ *                term of the budget without recon.predict, to the bit)
+ *   servo_predicted   servo_no_predict² − servo²: the lag prediction removed (NaN both without recon.predict
+ *                or an exact-POLC run)
  *   tip-tilt     the tip/tilt part of the closed loop's residual (least-squares plane per direction)
  *   rim/interior the residual variance in the outer annulus of width w (1 m) / inside it; they add to σ²_CL
  *   total        σ²_CL: the closed loop with noise (what `wavetomo sim` gives)
@@ -50,6 +59,8 @@ enum {
     WT_BUDGET_NOISE_OL,
     WT_BUDGET_NOISE_CL,
     WT_BUDGET_SERVO,
+    WT_BUDGET_SERVO_NO_PREDICT, /* recon.predict only (else NaN): the servo term of the same loop without prediction */
+    WT_BUDGET_SERVO_PREDICTED,  /* recon.predict only: the lag prediction removed, √(servo_no_predict² − servo²) */
     WT_BUDGET_POLC,
     WT_BUDGET_TIPTILT,
     WT_BUDGET_RIM,
@@ -60,10 +71,13 @@ enum {
 /* Short names ("fitting", "tomography", …) and one-line descriptions of the terms. */
 extern const char *const wt_budget_term_names[WT_BUDGET_NTERMS];
 extern const char *const wt_budget_term_desc[WT_BUDGET_NTERMS];
+/* 1 when term k is measured under cfg (servo_no_predict and servo_predicted: recon.predict only); the report, the
+ * HDF5 and the plot leave the others out */
+int wt_budget_term_used(const wt_config *cfg, int k);
 
 /* The runs of one method (and the shared fitting run), field values of frames ≥ settle [m]. */
 enum { WT_BUDGET_RUN_FIT, WT_BUDGET_RUN_OL_NF, WT_BUDGET_RUN_OL, WT_BUDGET_RUN_CL_NF, WT_BUDGET_RUN_CL,
-       WT_BUDGET_RUN_NOISE, WT_BUDGET_RUN_CL_NF_POLC, WT_BUDGET_NRUNS };
+       WT_BUDGET_RUN_NOISE, WT_BUDGET_RUN_CL_NF_POLC, WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT, WT_BUDGET_NRUNS };
 extern const char *const wt_budget_run_names[WT_BUDGET_NRUNS];
 
 typedef struct wt_budget_run {

@@ -60,6 +60,8 @@ typedef struct wt_loop_options {
                          * applied DM shapes, s_ol = s − S(−H a), in place of the model's Â a: the pseudo-open-
                          * loop slopes are then exactly those of the turbulence, so the closed loop differs
                          * from the open loop by the delay and the integrator only (budget: servo vs POLC) */
+    int no_predict;     /* 1: the reconstructor without recon.predict's shift (the budget's instantaneous runs, which
+                         * have no delay to predict over, and its closed loop without prediction) */
     wt_adapt_rebuild_fn rebuild; /* a learning MVM loop (recon.atmosphere.source = "learned"): builds the matrix of
                                   * an estimate (the driver's: core/build is above this module); else NULL */
     void *rebuild_user;
