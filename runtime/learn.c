@@ -229,14 +229,14 @@ static int write_profile(wt_h5_writer *w, const char *grp, int n, const double *
     return wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 1, d1, sig, "", desc);
 }
 
-/* The estimate compressed onto L layers at ralt (core/model/profile.h), its uncertainty from the batches compressed
- * the same way */
+/* The estimate compressed onto L layers at ralt as the learning loop hands it over (its grid's hats,
+ * core/model/profile.h), its uncertainty from the batches compressed the same way */
 static void compress_estimate(const wt_learn_estimate *e, int L, const double *ralt, double *f, double *sig)
 {
-    wt_profile_compress(e->nalt, e->altitude, e->fraction, NULL, NULL, L, ralt, f, NULL, NULL);
+    wt_profile_compress_hats(e->nalt, e->altitude, e->fraction, NULL, NULL, L, ralt, f, NULL, NULL);
     double s1[WT_MAX_LAYERS] = {0}, s2[WT_MAX_LAYERS] = {0}, fb[WT_MAX_LAYERS];
     for (int b = 0; b < (e->nbatch >= 2 ? e->nbatch : 0); b++) {
-        wt_profile_compress(e->nalt, e->altitude, e->batch_fraction[b], NULL, NULL, L, ralt, fb, NULL, NULL);
+        wt_profile_compress_hats(e->nalt, e->altitude, e->batch_fraction[b], NULL, NULL, L, ralt, fb, NULL, NULL);
         for (int l = 0; l < L; l++) s1[l] += fb[l], s2[l] += fb[l] * fb[l];
     }
     for (int l = 0; l < L; l++)

@@ -80,6 +80,41 @@ START_TEST(test_compress_moments)
 END_TEST
 
 /* The wind of a reconstruction layer is the Cn²-weighted mean of the wind VECTORS it absorbs. */
+/* A grid's hats compressed onto layers (wt_profile_compress_hats), against the integrals done by hand: the bottom
+ * half-hat of 0 km (next point 0.5 km) onto layers at 0 and 1 km gives ∫₀⁵⁰⁰ (1 − h/500)(1 − h/1000) dh / 250 = 5/6
+ * and 1/6 (first moment 500/3 m: the half-hat's centre); an interior hat keeps its total and first moment on any
+ * layers that span it, and on layers at an even grid's own points ∫ φ_k b_l = ∫ φ_k φ_l: 2/3 stays at its peak, 1/6 to
+ * each neighbour. The winds are the Cn²-weighted ones. */
+START_TEST(test_compress_hats)
+{
+    const double g[3] = {0.0, 500.0, 1500.0}, f1[3] = {1.0, 0.0, 0.0};
+    const double r2[2] = {0.0, 1000.0};
+    double rf[4], vx[4], vy[4];
+    wt_profile_compress_hats(3, g, f1, NULL, NULL, 2, r2, rf, NULL, NULL);
+    ck_assert_double_eq_tol(rf[0], 5.0 / 6.0, 1e-14);
+    ck_assert_double_eq_tol(rf[1], 1.0 / 6.0, 1e-14);
+    /* the middle hat (500 m; 0 and 1500 m on either side): total 1, first moment ∫ h φ / ∫ φ = (0 + 500 + 1500)/3 */
+    const double f2[3] = {0.0, 1.0, 0.0}, r4[4] = {0.0, 300.0, 800.0, 2000.0};
+    wt_profile_compress_hats(3, g, f2, NULL, NULL, 4, r4, rf, NULL, NULL);
+    double tot = 0, mom = 0;
+    for (int l = 0; l < 4; l++) tot += rf[l], mom += rf[l] * r4[l];
+    ck_assert_double_eq_tol(tot, 1.0, 1e-14);
+    ck_assert_double_eq_tol(mom, 2000.0 / 3.0, 1e-10);
+    /* layers at an even grid itself: ∫ φ_1 φ_l / ∫ φ_1 = 2/3 at its peak, 1/6 to each neighbour */
+    const double ge[3] = {0.0, 500.0, 1000.0};
+    wt_profile_compress_hats(3, ge, f2, NULL, NULL, 3, ge, rf, NULL, NULL);
+    ck_assert_double_eq_tol(rf[0], 1.0 / 6.0, 1e-14);
+    ck_assert_double_eq_tol(rf[1], 2.0 / 3.0, 1e-14);
+    ck_assert_double_eq_tol(rf[2], 1.0 / 6.0, 1e-14);
+    /* wind: two points, each its own wind; the layer between them gets the Cn²-weighted mean */
+    const double f3[3] = {0.5, 0.5, 0.0}, wx[3] = {10.0, 20.0, 0.0}, wy[3] = {0.0, 0.0, 5.0}, r1[1] = {400.0};
+    wt_profile_compress_hats(3, g, f3, wx, wy, 1, r1, rf, vx, vy);
+    ck_assert_double_eq_tol(rf[0], 1.0, 1e-14);
+    ck_assert_double_eq_tol(vx[0], 15.0, 1e-12);
+    ck_assert_double_eq_tol(vy[0], 0.0, 1e-14);
+}
+END_TEST
+
 START_TEST(test_compress_wind)
 {
     const double ralt[2] = {0.0, 1000.0}, alt[2] = {250.0, 750.0}, f[2] = {0.4, 0.6};
@@ -753,6 +788,7 @@ Suite *make_suite(void)
     tcase_add_checked_fixture(tc, setup, teardown);
     tcase_set_timeout(tc, 120);
     tcase_add_test(tc, test_compress_moments);
+    tcase_add_test(tc, test_compress_hats);
     tcase_add_test(tc, test_compress_wind);
     tcase_add_test(tc, test_oracle_bit_identical);
     tcase_add_test(tc, test_given_as_oracle);

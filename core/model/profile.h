@@ -30,4 +30,20 @@ void wt_profile_bin_altitude(int L, const double *alt, double h, int *l, double 
 void wt_profile_compress(int n, const double *alt, const double *frac, const double *vx, const double *vy, int L,
                          const double *ralt, double *rfrac, double *rvx, double *rvy);
 
+/* The same for a profile that samples a continuous one on a grid (an identification's estimate: each c_k stands for the
+ * Cn² around its grid point, not for a layer at it): the continuous profile Σ_k f_k φ_k(h) / ∫φ_k, φ_k the hat of
+ * grid point k (1 at alt[k], linear to 0 at its neighbours; the end points' hats have one side), compressed as
+ * above, exactly (Simpson's rule between the knots of φ_k and of the split):
+ *
+ *   rfrac[l] = Σ_k f_k ∫ φ_k(h) b_l(h) dh / ∫ φ_k(h) dh,   b_l the linear split of wt_profile_bin_altitude.
+ *
+ * Totals and, inside [ralt_0, ralt_{L−1}], first moments are kept as the hats have them (the bottom half-hat's
+ * centre is a third of the way up: 0 km with the next point at 0.5 km stands for Cn² around 167 m). Why: below the
+ * LGS pairs' altitude resolution a fit puts a spread profile's Cn² on its end points (0 km, 1 km), and the point
+ * compression sends all of 0 km's to the lowest layer (docs/results.md §47). n < 2: wt_profile_compress. L ≤
+ * WT_PROFILE_MAX_KNOTS − 3 (more layers inside one hat than that are dropped from its knots: then not exact). */
+#define WT_PROFILE_MAX_KNOTS 72
+void wt_profile_compress_hats(int n, const double *alt, const double *frac, const double *vx, const double *vy, int L,
+                              const double *ralt, double *rfrac, double *rvx, double *rvy);
+
 #endif

@@ -1,6 +1,7 @@
 /* core/sim/adapt.c: the loop that learns its atmosphere (see adapt.h; SPEC §12 "Identification from the loop's own
  * data" and "Updates"). */
 #include "adapt.h"
+#include "../model/profile.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -250,7 +251,18 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
     }
     const int idx = a->nup++;
     if (a->kind != WT_RECON_MVM) {
-        if ((st = wt_reconstructor_set_model(rec, u->r0, u->nalt, u->altitude, u->fraction, a->vx, a->vy)) < 0)
+        /* an estimate samples a continuous profile on its grid: its hats compressed onto the layers
+         * (core/model/profile.h), handed over as a profile at the layers' own altitudes; the oracle's truth is layers */
+        const wt_tomography *tm = wt_reconstructor_tomography(rec);
+        const int L = wt_tomography_nlayers(tm);
+        double ralt[WT_MAX_LAYERS], rf[WT_MAX_LAYERS], rvx[WT_MAX_LAYERS], rvy[WT_MAX_LAYERS];
+        for (int l = 0; l < L; l++) ralt[l] = wt_tomography_layer_altitude(tm, l);
+        if (a->par.follow_truth) st = wt_reconstructor_set_model(rec, u->r0, u->nalt, u->altitude, u->fraction, a->vx, a->vy);
+        else {
+            wt_profile_compress_hats(u->nalt, u->altitude, u->fraction, a->vx, a->vy, L, ralt, rf, rvx, rvy);
+            st = wt_reconstructor_set_model(rec, u->r0, L, ralt, rf, rvx, rvy);
+        }
+        if (st < 0)
             return WT_ERROR(a->ctx, st, "frame %ld: the learned model: %s", t, wt_error_message(a->ctx));
         if (a->wind && (st = wt_reconstructor_set_layer_wind(rec, u->wind_vx, u->wind_vy)) < 0)
             return WT_ERROR(a->ctx, st, "frame %ld: the layers' learned wind: %s", t, wt_error_message(a->ctx));
