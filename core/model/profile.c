@@ -14,6 +14,15 @@ void wt_profile_bin_altitude(int L, const double *alt, double h, int *l, double 
     *w = (h - alt[*l]) / (alt[*l + 1] - alt[*l]);
 }
 
+/* v_l = Σ c v / Σ c from the sums Σ c v in rvx, rvy; a layer that absorbed nothing has no wind */
+static void wind_mean(int L, const double *rfrac, double *rvx, double *rvy)
+{
+    for (int l = 0; l < L; l++) {
+        rvx[l] = rfrac[l] > 0.0 ? rvx[l] / rfrac[l] : 0.0;
+        rvy[l] = rfrac[l] > 0.0 ? rvy[l] / rfrac[l] : 0.0;
+    }
+}
+
 void wt_profile_compress(int n, const double *alt, const double *frac, const double *vx, const double *vy, int L,
                          const double *ralt, double *rfrac, double *rvx, double *rvy)
 {
@@ -38,11 +47,7 @@ void wt_profile_compress(int n, const double *alt, const double *frac, const dou
             rvy[l + 1] += w * frac[k] * vy[k];
         }
     }
-    if (!wind) return;
-    for (int l = 0; l < L; l++) { /* v_l = Σ c v / Σ c; nothing absorbed: no wind */
-        rvx[l] = rfrac[l] > 0.0 ? rvx[l] / rfrac[l] : 0.0;
-        rvy[l] = rfrac[l] > 0.0 ? rvy[l] / rfrac[l] : 0.0;
-    }
+    if (wind) wind_mean(L, rfrac, rvx, rvy);
 }
 
 /* φ_k(h): the hat of grid point k (1 at alt[k], 0 at its neighbours and beyond; no side past an end point) */
@@ -102,9 +107,5 @@ void wt_profile_compress_hats(int n, const double *alt, const double *frac, cons
             if (wind) rvx[l] += acc[l] * vx[k], rvy[l] += acc[l] * vy[k];
         }
     }
-    if (!wind) return;
-    for (int l = 0; l < L; l++) {
-        rvx[l] = rfrac[l] > 0.0 ? rvx[l] / rfrac[l] : 0.0;
-        rvy[l] = rfrac[l] > 0.0 ? rvy[l] / rfrac[l] : 0.0;
-    }
+    if (wind) wind_mean(L, rfrac, rvx, rvy);
 }

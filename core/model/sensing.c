@@ -19,12 +19,6 @@
 #define omp_in_parallel() 1
 #endif
 
-static int cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* the message of the optics module, prefixed with the sensor and the keys */
 static int rewrap(wt_context *ctx, int st, const wt_sensing_geometry *g, const char *keys)
 {
@@ -198,20 +192,14 @@ int wt_sensing_alloc(wt_context *ctx, const wt_config *cfg, const wt_sensor_conf
                                                                w->calibration_seed, ws->cov, NULL));
     else wt_centroid_noise_cov(ws->cen, ws->cov);
     WT_ALLOC(ctx, tmp, nsub, "NEA");
-    for (int k = 0; k < nsub; k++) {
-        const double a = ws->cov[k], b = ws->cov[nsub + k], c = ws->cov[2 * nsub + k];
-        if (!(isfinite(a) && isfinite(b) && isfinite(c) && a > 0.0 && c > 0.0 && a * c - b * b > 0.0)) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG,
-                          "%s: %s: subaperture %d's centroid noise covariance {%g, %g, %g} rad^2 is not positive "
-                          "definite (%s.centroider, photons, read_noise_e, background_e)",
-                          g->source, g->name, k, a, b, c, pre);
-            goto fail;
-        }
-        tmp[k] = sqrt(0.5 * (a + c));
-        ws->mean_var += 0.5 * (a + c) / nsub;
+    const int bad = wt_sensing__nea_stats(nsub, ws->cov, tmp, &ws->nea_median, &ws->mean_var);
+    if (bad >= 0) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                      "%s: %s: subaperture %d's centroid noise covariance {%g, %g, %g} rad^2 is not positive "
+                      "definite (%s.centroider, photons, read_noise_e, background_e)",
+                      g->source, g->name, bad, ws->cov[bad], ws->cov[nsub + bad], ws->cov[2 * nsub + bad], pre);
+        goto fail;
     }
-    qsort(tmp, (size_t)nsub, sizeof *tmp, cmp_double);
-    ws->nea_median = nsub % 2 ? tmp[nsub / 2] : 0.5 * (tmp[nsub / 2 - 1] + tmp[nsub / 2]);
 
     WT_ALLOC(ctx, ws->opd, nsamp, "sample OPD");
     WT_ALLOC(ctx, ws->img, npix, "images");

@@ -143,6 +143,11 @@ int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na);
  * which follows once its noise weights are rebuilt: wt_reconstructor_refresh_noise), nea_median, mean_var, trunc,
  * worst_* anew. On error the sensor keeps its old reference. The hook of every reference the loop rebuilds. */
 int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, const float *diy);
+/* (sensing_reference.c, for the set-up and every rebuilt reference) the NEA statistics of the nsub 2×2 centroid noise
+ * covariances cov ([xx | xy | yy], rad²): nea[k] = √(½ tr C_k) sorted (nea: nsub doubles of work), their median and
+ * the mean per-axis variance ½ tr C_k. Returns −1, or the first subaperture whose C_k is not finite positive
+ * definite (nothing written to median and mean_var then). */
+int wt_sensing__nea_stats(int nsub, const double *cov, double *nea, double *median, double *mean_var);
 /* The oracle's reference: I0 and its derivatives of the spot model's current profile (the truth's, as it renders
  * it) with the set-up's seeing, through wt_sensing_set_reference. From the set-up profile it gives the set-up's
  * reference bit for bit. Allocates 3 nsub Ns² floats for its duration. Outside parallel regions only. */

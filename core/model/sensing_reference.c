@@ -25,6 +25,21 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+int wt_sensing__nea_stats(int nsub, const double *cov, double *nea, double *median, double *mean_var)
+{
+    double mv = 0.0;
+    for (int k = 0; k < nsub; k++) {
+        const double a = cov[k], b = cov[nsub + k], c = cov[2 * nsub + k];
+        if (!(isfinite(a) && isfinite(b) && isfinite(c) && a > 0.0 && c > 0.0 && a * c - b * b > 0.0)) return k;
+        nea[k] = sqrt(0.5 * (a + c));
+        mv += 0.5 * (a + c) / nsub;
+    }
+    qsort(nea, (size_t)nsub, sizeof *nea, cmp_double);
+    *median = nsub % 2 ? nea[nsub / 2] : 0.5 * (nea[nsub / 2 - 1] + nea[nsub / 2]);
+    *mean_var = mv;
+    return -1;
+}
+
 int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na)
 {
     if (!ws->lgs) return WT_ERROR(ws->ctx, WT_ERR_INVALID, "diffractive sensor: a sodium profile for an NGS");
@@ -47,20 +62,15 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
     WT_ALLOC(ctx, nea, nsub, "NEA");
     if (ws->calibration == 1) WT_TRY(wt_centroid_noise_mc(cen, i0, ws->calibration_draws, ws->calibration_seed, cov, NULL));
     else wt_centroid_noise_cov(cen, cov);
-    double mean_var = 0.0;
-    for (int k = 0; k < nsub; k++) {
-        const double a = cov[k], b = cov[nsub + k], c = cov[2 * nsub + k];
-        if (!(isfinite(a) && isfinite(b) && isfinite(c) && a > 0.0 && c > 0.0 && a * c - b * b > 0.0)) {
-            st = WT_ERROR(ctx, WT_ERR_INVALID,
-                          "diffractive sensor: the rebuilt reference gives subaperture %d a centroid noise covariance "
-                          "{%g, %g, %g} rad^2 that is not positive definite; the old reference is kept",
-                          k, a, b, c);
-            goto fail;
-        }
-        nea[k] = sqrt(0.5 * (a + c));
-        mean_var += 0.5 * (a + c) / nsub;
+    double mean_var = 0.0, median = 0.0;
+    const int bad = wt_sensing__nea_stats(nsub, cov, nea, &median, &mean_var);
+    if (bad >= 0) {
+        st = WT_ERROR(ctx, WT_ERR_INVALID,
+                      "diffractive sensor: the rebuilt reference gives subaperture %d a centroid noise covariance "
+                      "{%g, %g, %g} rad^2 that is not positive definite; the old reference is kept",
+                      bad, cov[bad], cov[nsub + bad], cov[2 * nsub + bad]);
+        goto fail;
     }
-    qsort(nea, (size_t)nsub, sizeof *nea, cmp_double);
     /* everything computed: the new reference replaces the old one whole */
     wt_spot_truncation(ws->spot, i0, trunc);
     ws->worst_trunc = 0.0, ws->worst_sub = 0;
@@ -73,7 +83,7 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
     ws->cov = cov, cov = NULL;
     wt_free(ctx, ws->trunc);
     ws->trunc = trunc, trunc = NULL;
-    ws->nea_median = nsub % 2 ? nea[nsub / 2] : 0.5 * (nea[nsub / 2 - 1] + nea[nsub / 2]);
+    ws->nea_median = median;
     ws->mean_var = mean_var;
     ws->reference_changed = 1;
 fail:
