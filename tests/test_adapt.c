@@ -4,6 +4,7 @@
  * (bit for bit the never-rebuilt loop's frames), then the new one; too few frames per estimate, a reconstructor
  * that cannot learn and an MVM without its rebuild are refused. */
 #include "core/build/mvm_build.h"
+#include "core/model/profile.h"
 #include "core/model/system.h"
 #include "core/io/h5.h"
 #include "core/sim/compare.h"
@@ -150,6 +151,41 @@ START_TEST(t_mvm_swap_after_latency)
     ck_assert_double_gt(u[0].build_s, 0.0);
     close_run(&g);
     close_run(&l);
+}
+END_TEST
+
+/* A learning MVM takes an estimate as PCG-3 does (core/model/profile.h): the grid's hats compressed onto its layers.
+ * The matrix rebuilt from a sampled grid profile is, bit for bit, the one built from that profile's hat compression
+ * at the layers' altitudes, and not the one of the grid's points (which send all of 0 km's Cn² to the 0 km layer). */
+START_TEST(t_mvm_rebuild_hats)
+{
+    run r;
+    const char *none[] = {"loop.frames=30"};
+    ck_assert_msg(open_run(&r, WT_RECON_MVM, N(none), none, 1) == WT_OK, "%s", wt_error_message(r.ctx));
+    const double grid[] = {0.0, 1000.0, 2000.0, 3000.0, 5000.0, 8000.0, 12000.0, 16000.0};
+    const double frac[] = {0.40, 0.20, 0.05, 0.05, 0.10, 0.05, 0.10, 0.05};
+    const int n = N(grid), L = r.cfg->pcg3.nlayers;
+    double hats[WT_MAX_LAYERS];
+    wt_profile_compress_hats(n, grid, frac, NULL, NULL, L, r.cfg->pcg3.altitudes, hats, NULL, NULL);
+    wt_mvm *m[3] = {NULL, NULL, NULL};
+    ck_assert_msg(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, 1, &m[0]) == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, L, r.cfg->pcg3.altitudes, hats, 0, &m[1]), WT_OK);
+    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, 0, &m[2]), WT_OK);
+    const int64_t ns = m[0]->nslopes, na = m[0]->nact;
+    float *s = malloc((size_t)ns * sizeof *s), *y[3];
+    for (int64_t j = 0; j < ns; j++) s[j] = (float)sin(0.37 * (double)j + 0.1);
+    for (int k = 0; k < 3; k++) {
+        y[k] = malloc((size_t)na * sizeof *y[k]);
+        wt_mvm_apply(m[k], s, NULL, y[k]);
+    }
+    ck_assert_msg(!memcmp(y[0], y[1], (size_t)na * sizeof(float)), "sampled rebuild != rebuild from its hats");
+    double d = 0.0, n1 = 0.0;
+    for (int64_t i = 0; i < na; i++) d += pow(y[0][i] - y[2][i], 2), n1 += pow(y[1][i], 2);
+    /* the hats move 1/6 of the 1 km point's Cn² below 0.5 km, a visible change of the ground/4 km split */
+    ck_assert_msg(d > 1e-6 * n1, "hats and points gave the same matrix (rel. diff %g)", sqrt(d / n1));
+    for (int k = 0; k < 3; k++) free(y[k]), wt_mvm_free(m[k]);
+    free(s);
+    close_run(&r);
 }
 END_TEST
 
@@ -312,6 +348,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, t_learned_start_equals_oracle);
     tcase_add_test(tc, t_mvm_swap_after_latency);
+    tcase_add_test(tc, t_mvm_rebuild_hats);
     tcase_add_test(tc, t_oracle_follows_night);
     tcase_add_test(tc, t_learned_memory);
     tcase_add_test(tc, t_learned_wind);

@@ -13,6 +13,7 @@
 #include "../model/fitting.h"
 #include "../model/interaction.h"
 #include "../model/params.h"
+#include "../model/profile.h"
 #include "../model/reconstructor.h"
 
 /* ---- command maps E ------------------------------------------------------------------------------ */
@@ -299,10 +300,11 @@ fail:
     return st;
 }
 
-/* The matrix of variant `name` of cfg, with the model's r0 and profile replaced when natm > 0. */
+/* The matrix of variant `name` of cfg, with the model's r0 and profile replaced when natm > 0 (a sampled one
+ * compressed as hats onto the variant's layers first). */
 static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                        const wt_mvm_options *opt_in, double r0, int natm, const double *alt, const double *frac,
-                       wt_mvm **out)
+                       int sampled, wt_mvm **out)
 {
     const double t0 = wt_time_now();
     const int cg9 = !strcmp(name, "cg9");
@@ -319,8 +321,15 @@ static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *c
         if (natm > WT_MAX_LAYERS)
             return WT_ERROR(ctx, WT_ERR_INVALID, "MVM build: a model of %d layers (at most %d)", natm, WT_MAX_LAYERS);
         tp.r0 = r0;
-        tp.natm = natm;
-        for (int k = 0; k < natm; k++) tp.atm_altitude[k] = alt[k], tp.atm_fraction[k] = frac[k];
+        if (sampled) { /* the profile at the layers' own altitudes: the tomography's point compression keeps it */
+            tp.natm = var.nlayers;
+            for (int l = 0; l < var.nlayers; l++) tp.atm_altitude[l] = var.altitudes[l];
+            wt_profile_compress_hats(natm, alt, frac, NULL, NULL, var.nlayers, var.altitudes, tp.atm_fraction, NULL,
+                                     NULL);
+        } else {
+            tp.natm = natm;
+            for (int k = 0; k < natm; k++) tp.atm_altitude[k] = alt[k], tp.atm_fraction[k] = frac[k];
+        }
     }
     wt_tomography *t = NULL;
     *out = NULL;
@@ -340,12 +349,13 @@ static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *c
 int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt_in, wt_mvm **out)
 {
-    return build_model(ctx, sys, cfg, name, opt_in, 0.0, 0, NULL, NULL, out);
+    return build_model(ctx, sys, cfg, name, opt_in, 0.0, 0, NULL, NULL, 0, out);
 }
 
-int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, wt_mvm **out)
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
+                         wt_mvm **out)
 {
     const wt_mvm_rebuilder *rb = user;
     if (natm < 1) return WT_ERROR(rb->ctx, WT_ERR_INVALID, "MVM rebuild: a model without layers");
-    return build_model(rb->ctx, rb->sys, rb->sys->cfg, rb->variant, rb->opt, r0, natm, alt, frac, out);
+    return build_model(rb->ctx, rb->sys, rb->sys->cfg, rb->variant, rb->opt, r0, natm, alt, frac, sampled, out);
 }

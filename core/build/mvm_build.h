@@ -116,14 +116,16 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
 
 /* The same for a learned atmosphere model (core/sim/adapt.h's rebuild callback, which the drivers pass to a learning
  * MVM loop: core/sim cannot call this module): the variant's tomography with the model's r0 and natm-layer profile
- * (alt [m], frac) in place of the configuration's, the rest as wt_mvm_build_variant with sys->cfg. user: a
- * wt_mvm_rebuilder. */
+ * (alt [m], frac) in place of the configuration's — when `sampled` (an estimate on a grid), its hats compressed onto
+ * the variant's layers as PCG-3 and CG-9 take it (wt_profile_compress_hats) — the rest as wt_mvm_build_variant with
+ * sys->cfg. user: a wt_mvm_rebuilder. */
 typedef struct wt_mvm_rebuilder {
     wt_context *ctx;
     const wt_system *sys;          /* its configuration is the rest of the model */
     const char *variant;           /* "pcg3" or "cg9": the variant of the matrix the loop starts with */
     const wt_mvm_options *opt;     /* NULL: defaults */
 } wt_mvm_rebuilder;
-int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, wt_mvm **out);
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
+                         wt_mvm **out);
 
 #endif

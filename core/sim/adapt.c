@@ -139,7 +139,8 @@ static int start_build(wt_adapt *a, int u, double start)
     wt_adapt_update *p = &a->up[u];
     const double t0 = wt_time_now();
     struct wt_mvm *m = NULL;
-    const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction, &m);
+    const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction,
+                                  !a->par.follow_truth, &m);
     if (st < 0) return st;
     p->build_s = wt_time_now() - t0;
     a->tbuild += p->build_s;

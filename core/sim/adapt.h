@@ -35,8 +35,9 @@
 struct wt_mvm;
 
 /* Build a control matrix for the model (r0 [m], natm layers at alt [m] with fractions frac): *out owned by the
- * caller of the callback afterwards (wt_mvm_free). */
-typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double *alt, const double *frac,
+ * caller of the callback afterwards (wt_mvm_free). sampled: the profile is an estimate that samples a continuous
+ * one on a grid (compressed as hats onto the matrix's layers, core/model/profile.h), not layers (the oracle's). */
+typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
                                    struct wt_mvm **out);
 
 typedef struct wt_adapt_params {
