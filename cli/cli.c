@@ -484,7 +484,9 @@ int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg)
 
 void wt_progress_start(wt_progress *p, const char *label, const char *unit, long total)
 {
-    p->enabled = isatty(STDERR_FILENO);
+    /* a terminal gets one line rewritten in place; a log (nohup, a batch queue) a line a minute, so that a long
+     * run's rate and ETA are there too without filling the log */
+    p->enabled = isatty(STDERR_FILENO) ? 1 : 2;
     p->label = label;
     p->unit = unit;
     p->total = total;
@@ -495,19 +497,20 @@ void wt_progress_update(wt_progress *p, long done, const char *extra)
 {
     if (!p->enabled) return;
     double now = wt_time_now();
-    if (done < p->total && now - p->last < 0.2) return;
+    if (p->enabled == 2 ? now - p->last < WT_PROGRESS_LOG_S : done < p->total && now - p->last < 0.2) return;
     p->last = now;
     double el = now - p->start, rate = el > 0 ? done / el : 0.0;
     double eta = rate > 0 ? (p->total - done) / rate : 0.0;
     /* "frames 34/200", or "pcg3: open loop 34/200 frames" when the label is not the unit */
     const int same = !strcmp(p->label, p->unit);
-    fprintf(stderr, "\r%s %ld/%ld%s%s  %.2f %s/s  ETA %02d:%02d%s%s\033[K", p->label, done, p->total, same ? "" : " ",
-            same ? "" : p->unit, rate, p->unit, (int)(eta / 60), (int)eta % 60, extra ? "  " : "", extra ? extra : "");
+    fprintf(stderr, "%s%s %ld/%ld%s%s  %.2f %s/s  ETA %02d:%02d%s%s%s", p->enabled == 1 ? "\r" : "", p->label, done,
+            p->total, same ? "" : " ", same ? "" : p->unit, rate, p->unit, (int)(eta / 60), (int)eta % 60,
+            extra ? "  " : "", extra ? extra : "", p->enabled == 1 ? "\033[K" : "\n");
     fflush(stderr);
 }
 
 void wt_progress_end(wt_progress *p)
 {
-    if (!p->enabled) return;
+    if (p->enabled != 1) return;
     fprintf(stderr, "\n");
 }

@@ -86,7 +86,9 @@ int wt_cli_run_overrides(wt_cli *cli, long frames, const char *seed);
  * the run too short for evaluation.settle_frames, the settle period becomes frames/2 (with a note). */
 int wt_cli_read_config(wt_cli *cli, const char *path, wt_config **cfg);
 
-/* Terminal progress line on stderr (only when stderr is a terminal): "label  done/total  rate/s  ETA". */
+/* Progress on stderr, "label  done/total  rate/s  ETA": a line rewritten in place on a terminal, else (a log) a
+ * line every WT_PROGRESS_LOG_S seconds of the run. enabled: 1 terminal, 2 log. */
+#define WT_PROGRESS_LOG_S 60.0
 typedef struct wt_progress {
     int enabled;
     const char *label;

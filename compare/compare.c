@@ -263,7 +263,7 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
         if (a->ns > 1)
             snprintf(p.label + strlen(p.label), sizeof p.label - strlen(p.label), " seed %llu", (unsigned long long)a->seeds[s]);
         wt_progress_start(&p.pr, p.label, "frames", cfg->frames);
-        p.pr.enabled &= !cli->quiet;
+        if (cli->quiet) p.pr.enabled = 0;
         wt_compare_result *res = &R[c];
         wt_free(cli->ctx, X->wfe[c]), wt_free(cli->ctx, X->psf[c]);
         wt_adapt_free(X->learned[c]);

@@ -349,6 +349,7 @@ int wt_cmd_learn(int argc, char **argv)
     wt_progress pr;
     double tadd = 0;
     wt_progress_start(&pr, "frames", "frames", (long)F);
+    if (cli.quiet) pr.enabled = 0;
     for (int64_t t = 0; t < F; t++) {
         if ((st = wt_h5_read_rows(tr, "slopes_ol", WT_H5_F32, t, 1, sf)) < 0) goto fail;
         for (int64_t k = 0; k < nl; k++) sd[k] = sf[k];

@@ -150,6 +150,7 @@ int wt_cmd_run(int argc, char **argv)
         goto fail;
     wt_progress pr;
     wt_progress_start(&pr, "frames", "frames", (long)F);
+    if (cli.quiet) pr.enabled = 0;
     for (int64_t t = 0; t < F; t++) {
         /* the reader refuses NaN/Inf, naming the dataset, frame and column (issue 10, H) */
         if ((st = wt_h5_read_rows(tr, sname, WT_H5_F32, t, 1, sf)) < 0) goto fail;

@@ -220,6 +220,7 @@ int wt_cmd_sim(int argc, char **argv)
                 (long long)sys->nact, setup);
     wt_progress pr;
     wt_progress_start(&pr, "frames", "frames", frames);
+    if (cli.quiet) pr.enabled = 0;
     double run0 = wt_time_now(), sum_field = 0.0;
     for (long t = 0; t < frames; t++) {
         const double f0 = wt_time_now();
