@@ -232,6 +232,19 @@ START_TEST(test_predict)
         commands(moving, 2, kind, a2, &na);
         ck_assert_msg(tu_rel_diff(a2, a0, na) > 1e-3, "%s: the wind moved nothing (%g)", wt_reconstructor_name(kind),
                       tu_rel_diff(a2, a0, na));
+        /* recon.predict_lead_frames: the loop's delay (2 frames) given explicitly keeps the bits; a lead of 4 frames
+         * moves each layer as the delay does at twice the wind (v τ: the products differ by powers of two only) */
+        const char *lead2[] = {"recon.warm_start=false", "recon.predict=true", "recon.predict_lead_frames=2.0"};
+        commands(lead2, 3, kind, a1, &na);
+        ck_assert_msg(!memcmp(a1, a2, na * sizeof *a1), "%s: lead = delay changed the bits", wt_reconstructor_name(kind));
+        const char *lead4[] = {"recon.warm_start=false", "recon.predict=true", "recon.predict_lead_frames=4.0"};
+        const char *fast[] = {"recon.warm_start=false", "recon.predict=true",
+                              "atmosphere.wind_speed_mps=[16.0, 20.0, 24.0, 36.0, 50.0]"};
+        commands(lead4, 3, kind, a1, &na);
+        commands(fast, 3, kind, a0, &na);
+        ck_assert_msg(!memcmp(a0, a1, na * sizeof *a0), "%s: a lead of 4 frames is not twice the wind over 2",
+                      wt_reconstructor_name(kind));
+        ck_assert_double_gt(tu_rel_diff(a1, a2, na), 1e-3);
         free(a0), free(a1), free(a2);
     }
 }

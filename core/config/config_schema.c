@@ -365,6 +365,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "compressed onto the variant's layers) over the loop's delay, loop.delay_frames / loop.rate_hz, before the "
      "fitting (cg9) or the commands (pcg3): frozen flow predicted over the delay (SPEC §12); refused for the MVM "
      "(optional, default false)"},
+    {"recon.predict_lead_frames", K_FLOAT, F_DEFAULT, 0.0, 100.0, "frames", 1, CF(predict_lead_frames), NOCOUNT, 0, 0,
+     NULL, 0.0,
+     "recon.predict: the time the layers are moved over, in frames; 0 (the default) = loop.delay_frames, the "
+     "delay from the measurement to the commands' application. The integrator's memory adds a lag of about "
+     "(1 - g) / g frames at gain g (the mean age of its average of the reconstructions), which a longer lead can "
+     "predict too (SPEC §12)"},
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
      "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},

@@ -64,7 +64,7 @@ void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int ite
     par->tomography.space = v->preconditioner == WT_PRECOND_FOURIER; /* fourier filters the layers' values */
     par->fitting = wt_fitting_params_from_variant(v);
     if (cfg->predict) {
-        par->predict_lead = cfg->delay / cfg->rate;
+        par->predict_lead = (cfg->predict_lead_frames > 0.0 ? cfg->predict_lead_frames : (double)cfg->delay) / cfg->rate;
         for (int k = 0; k < cfg->model.nlayers; k++) {
             par->atm_vx[k] = cfg->model.wind_speed[k] * cos(cfg->model.wind_direction[k]);
             par->atm_vy[k] = cfg->model.wind_speed[k] * sin(cfg->model.wind_direction[k]);
