@@ -78,6 +78,21 @@ static int resolve_grid(pstate *ps, wt_config *cfg, const char *name, wt_recon_v
     return st;
 }
 
+/* The value chosen for key k (left out, or "auto") written into the tree in place of the word "auto", so that the
+ * canonical text gives it as if the file had: the integer iv, or the string str when it is not NULL. */
+static int write_chosen(pstate *ps, int k, int iv, const char *str)
+{
+    const char *leaf;
+    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
+    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
+    if (g) s = config_setting_add(g, leaf, str ? CONFIG_TYPE_STRING : CONFIG_TYPE_INT);
+    if (!s || !(str ? config_setting_set_string(s, str) : config_setting_set_int(s, iv)))
+        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
+                        wt_config_priv_keys[k].path);
+    ps->set[k] = s;
+    return WT_OK;
+}
+
 /* recon.sensor_points_per_subaperture left out (or "auto"): the smallest q with d/q ≤ the finest layer
  * spacing of both variants (within the 15 digits of the canonical text), at most the schema's 16; written
  * into the canonical text like the automatic grids. */
@@ -91,15 +106,7 @@ static int resolve_sensor_points(pstate *ps, wt_config *cfg)
     const double d = cfg->diameter / cfg->lgs_wfs.subapertures;
     int q = (int)ceil(d / dmin * (1.0 - 1e-12));
     cfg->sensor_points = q < 1 ? 1 : q > 16 ? 16 : q;
-    const char *leaf;
-    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
-    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
-    if (!s || !config_setting_set_int(s, cfg->sensor_points))
-        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                        wt_config_priv_keys[k].path);
-    ps->set[k] = s;
-    return WT_OK;
+    return write_chosen(ps, k, cfg->sensor_points, NULL);
 }
 
 /* recon.cg9.fit_points_per_subaperture left out (or "auto"): the smallest q with d/q ≤ half the finer of the
@@ -117,15 +124,7 @@ static int resolve_fit_points(pstate *ps, wt_config *cfg)
     const double d = cfg->diameter / cfg->lgs_wfs.subapertures;
     int q = isfinite(fine) ? (int)ceil(d / (0.5 * fine) * (1.0 - 1e-12)) : 2;
     cfg->cg9.fit_sampling = q < 1 ? 1 : q > 16 ? 16 : q;
-    const char *leaf;
-    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
-    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_INT);
-    if (!s || !config_setting_set_int(s, cfg->cg9.fit_sampling))
-        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                        wt_config_priv_keys[k].path);
-    ps->set[k] = s;
-    return WT_OK;
+    return write_chosen(ps, k, cfg->cg9.fit_sampling, NULL);
 }
 
 /* recon.<variant>.prior left out (or "auto"): recon.prior when given, else the variant's default
@@ -141,14 +140,8 @@ static int resolve_priors(pstate *ps, wt_config *cfg)
         wt_recon_variant_config *var = v ? &cfg->cg9 : &cfg->pcg3;
         if (ps->set[k]) continue;
         var->prior = ps->set[kg] ? cfg->exact_prior : v ? WT_PRIOR_DEFAULT_CG9 : WT_PRIOR_DEFAULT_PCG3;
-        const char *leaf;
-        config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
-        if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-        if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
-        if (!s || !config_setting_set_string(s, words[var->prior]))
-            return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                            wt_config_priv_keys[k].path);
-        ps->set[k] = s;
+        const int st = write_chosen(ps, k, 0, words[var->prior]);
+        if (st < 0) return st;
     }
     return WT_OK;
 }
@@ -169,15 +162,7 @@ static int resolve_file_sha256(pstate *ps, const char *key, int used, const char
         hex[0] = '\0';
         return WT_OK;
     }
-    const char *leaf;
-    config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, wt_config_priv_keys[k].path, &leaf), *s = NULL;
-    if (g && config_setting_get_member(g, leaf)) config_setting_remove(g, leaf); /* the word "auto" */
-    if (g) s = config_setting_add(g, leaf, CONFIG_TYPE_STRING);
-    if (!s || !config_setting_set_string(s, hex))
-        return WT_ERROR(ps->ctx, WT_ERR_NOMEM, "%s: libconfig could not add the chosen '%s'", ps->name,
-                        wt_config_priv_keys[k].path);
-    ps->set[k] = s;
-    return WT_OK;
+    return write_chosen(ps, k, 0, hex);
 }
 
 /* loop.gain_levels: L + 1 values need every DM's grid (actuators + 2 guard rings per side), embedded in

@@ -156,12 +156,7 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
             wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
         }
         wt_tomography__prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
-#pragma omp barrier
-#pragma omp master
-        t1 = wt_tomography__prof_t0(w);
-        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
-#pragma omp barrier
-        }
+        wt_tomography__prof_handover(w, &t1);
         b0 = wt_tomography__prof_t0(w);
 #pragma omp for schedule(dynamic, 1) nowait
         for (int k = 0; k < t->L; k++) {
@@ -272,12 +267,7 @@ static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const dou
             else adjoint_group(t, w, g, slopes);
             wt_tomography__prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
         }
-#pragma omp barrier
-#pragma omp master
-        t1 = wt_tomography__prof_t0(w);
-        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
-#pragma omp barrier
-        }
+        wt_tomography__prof_handover(w, &t1);
         adjoint_layers_team(t, w, cx, c, f32, id, nt);
     }
     wt_tomography__prof_wall_to(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, t0, t1);
@@ -331,12 +321,7 @@ static void dwt_forward_f32(const wt_tomography *t, wt_tomography_work *w, const
         int id, nt;
         wt_thread_team(&id, &nt);
         layers_dwt_team(t, w, c, phi, w->phi32, id, nt);
-#pragma omp barrier
-#pragma omp master
-        t1 = wt_tomography__prof_t0(w);
-        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
-#pragma omp barrier
-        }
+        wt_tomography__prof_handover(w, &t1);
         wt_tomography__forward_f32_team(t, w, phi, pphi, id, nt);
     }
     wt_tomography__prof_wall_to(t, w, WT_TOMO_STAGE_INVERSE_DWT, t0, t1);

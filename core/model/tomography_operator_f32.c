@@ -121,12 +121,7 @@ void wt_tomography__adjoint_space_f32(const wt_tomography *t, wt_tomography_work
             }
         }
         wt_tomography__prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
-#pragma omp barrier
-#pragma omp master
-        t1 = wt_tomography__prof_t0(w);
-        if (w->prof_on) { /* every thread's stage starts after t1: a busy time within the stage's wall */
-#pragma omp barrier
-        }
+        wt_tomography__prof_handover(w, &t1);
         b0 = wt_tomography__prof_t0(w);
         float *sum = w->lay32 + (size_t)id * nl32;
 #pragma omp for schedule(dynamic, 1) nowait

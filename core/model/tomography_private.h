@@ -141,6 +141,19 @@ static inline void wt_tomography__prof_busy(const wt_tomography *t, wt_tomograph
     if (w->prof_on && id < t->nthreads) w->prof[k * wt_tomography__prof_stride(t) + 8 * (1 + id)] += wt_time_now() - t0;
 }
 
+/* Inside a parallel region, from one stage to the next: every thread done with the first (a barrier), the master's
+ * clock read into *t1 as the second's start, and with the profile on a second barrier, so that every thread's busy
+ * time of the second stage lies within its wall from *t1 */
+static inline void wt_tomography__prof_handover(const wt_tomography_work *w, double *t1)
+{
+#pragma omp barrier
+#pragma omp master
+    *t1 = wt_tomography__prof_t0(w);
+    if (w->prof_on) {
+#pragma omp barrier
+    }
+}
+
 /* The thread that handles layer l in a team of nt: its fixed owner (the same thread every apply, so that a
  * layer's coefficients, values and FFT stay in one core's cache; any thread gives the same bits), folded onto a
  * smaller team (a nested or reduced one) */
