@@ -9,6 +9,8 @@
 #include <math.h>
 #include <string.h>
 
+const char *const wt_precond__kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"};
+
 /* Centre (in grid points, unwrapped) of the support of a periodic 1-D profile: the middle of the
  * complement of its largest circular run of zeros. */
 double wt_precond__support_centre(const double *mag, int n)
