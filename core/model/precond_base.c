@@ -69,6 +69,21 @@ int wt_precond__cholesky(wt_context *ctx, int q, double *A, const char *what)
     return WT_OK;
 }
 
+int wt_precond__coarse_factor(wt_precond *p, int q, const char *what)
+{
+    /* symmetrise the rounding of the two triangles before the factorisation */
+    for (int j = 0; j < q; j++)
+        for (int i = j + 1; i < q; i++)
+            p->c_L[i + (size_t)q * j] = 0.5 * (p->c_L[i + (size_t)q * j] + p->c_L[j + (size_t)q * i]);
+    const int st = wt_precond__cholesky(p->ctx, q, p->c_L, what);
+    if (st < 0) return st;
+    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L */
+    for (int i = 0; i < q; i++)
+        for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
+    p->nc = q;
+    return WT_OK;
+}
+
 /* col = M̃ e for an e that is non-zero on layer l only: Σ_LGS Ãᵀ C̃⁻¹ Ã e (the NGS slopes of Γ P W⁻¹ e set to
  * zero before the adjoint: the weight is block-diagonal per sensor, so this drops exactly their term) plus the
  * prior's column on layer l (α D, or the full prior's coupling of the layer's coefficients). sl: nslopes of

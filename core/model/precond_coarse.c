@@ -122,16 +122,7 @@ int wt_precond__coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
         }
         e[p->c_idx[j]] = 0.0;
     }
-    /* symmetrise the rounding of the two triangles before the factorisation */
-    for (int j = 0; j < q; j++)
-        for (int i = j + 1; i < q; i++)
-            p->c_L[i + (size_t)q * j] = 0.5 * (p->c_L[i + (size_t)q * j] + p->c_L[j + (size_t)q * i]);
-    WT_TRY(wt_precond__cholesky(ctx, q, p->c_L, "coarse preconditioner"));
-    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L, so that the backward
-     * solve runs by contiguous columns too */
-    for (int i = 0; i < q; i++)
-        for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
-    p->nc = q;
+    WT_TRY(wt_precond__coarse_factor(p, q, "coarse preconditioner"));
     /* the runs of unknowns outside the block (J⁻¹ r there, beside the coarse solve on another thread) */
     for (int64_t i = 0; i < n; i++) e[i] = 0.0;
     for (int j = 0; j < q; j++) e[p->c_idx[j]] = 1.0;

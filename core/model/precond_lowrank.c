@@ -8,9 +8,6 @@
 
 #include <stdint.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "../la/vec.h"
 #include "../op/noise.h"
@@ -117,11 +114,8 @@ void wt_precond__lowrank_apply(const wt_precond *p, const double *r, double *z)
     }
 #pragma omp parallel num_threads(p->nthreads)
     {
-#ifdef _OPENMP
-        const int nt = omp_get_num_threads(), id = omp_get_thread_num();
-#else
-        const int nt = 1, id = 0;
-#endif
+        int id, nt;
+        wt_thread_team(&id, &nt);
         if (p->nb > 0) {
             /* multilevel: the blocks in fixed chunks over the threads, the coarse solve on one of them (each
              * block's solve does not depend on the thread that runs it: the same bits on any thread count) */

@@ -110,6 +110,10 @@ void wt_precond__lowrank_apply(const wt_precond *p, const double *r, double *z);
 /* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten); WT_ERR_NUMERIC
  * naming `what` when it is not positive definite */
 int wt_precond__cholesky(wt_context *ctx, int q, double *A, const char *what);
+/* The coarse block p->c_L (q x q, both triangles as computed) symmetrised, factored (wt_precond__cholesky, `what`
+ * naming it) and Lᵀ copied into its upper triangle, so that the backward solve runs by contiguous columns too;
+ * p->nc = q */
+int wt_precond__coarse_factor(wt_precond *p, int q, const char *what);
 /* coarse_ngs: c_L's factor replaced by the block's inverse c_inv (or c_inv32 when single) */
 int wt_precond__coarse_invert(wt_precond *p, int single);
 /* z = B⁻¹ r: the kind's part before the NGS term */
