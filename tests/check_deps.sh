@@ -79,10 +79,11 @@ if [ -n "$medges" ] && ! echo "$medges" | tsort >/dev/null 2>/tmp/check_deps.$$;
   echo "check-deps: circle between modules:"; cat /tmp/check_deps.$$; bad=1
 fi
 # calls between the object files of the library (nm): a function of one file calling into another and
-# back is one module in two files (STYLE.md); the file-level call graph must go through tsort too.
+# back is one module in two files (STYLE.md); the file-level call graph must go through tsort too. A
+# function cloned per CPU (WT_CPU_CLONES) is defined as an indirect function (nm's "i"): it counts too.
 OBJ=$(for c in core/*/*.c; do o=${BUILD:-build}/${c%.c}.o; [ -f "$o" ] && echo "$o"; done)
 if [ -n "$OBJ" ]; then
-  defs=$(nm -A --defined-only $OBJ 2>/dev/null | awk '$2 ~ /^[TDRB]$/ {split($1, a, ":"); print a[1], $3}')
+  defs=$(nm -A --defined-only $OBJ 2>/dev/null | awk '$2 ~ /^[TDRBi]$/ {split($1, a, ":"); print a[1], $3}')
   cedges=$(nm -A -u $OBJ 2>/dev/null | awk '{split($1, a, ":"); print a[1], $NF}' |
     awk 'NR == FNR {def[$2] = $1; next} ($2 in def) && def[$2] != $1 {print $1, def[$2]}' <(echo "$defs") - | sort -u)
   if [ -n "$cedges" ] && ! echo "$cedges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
@@ -95,7 +96,7 @@ fi
 # table allows (the dispatcher above the commands, the plumbing below them: no call runs back up)
 DOBJ=$(for c in cli/*.c builder/*.c runtime/*.c compare/*.c app/*.c; do o=${BUILD:-build}/${c%.c}.o; [ -f "$o" ] && echo "$o"; done)
 if [ -n "$DOBJ" ]; then
-  ddefs=$(nm -A --defined-only $DOBJ 2>/dev/null | awk '$2 ~ /^[TDRB]$/ {split($1, a, ":"); print a[1], $3}')
+  ddefs=$(nm -A --defined-only $DOBJ 2>/dev/null | awk '$2 ~ /^[TDRBi]$/ {split($1, a, ":"); print a[1], $3}')
   dedges=$(nm -A -u $DOBJ 2>/dev/null | awk '{split($1, a, ":"); print a[1], $NF}' |
     awk 'NR == FNR {def[$2] = $1; next} ($2 in def) && def[$2] != $1 {print $1, def[$2], $2}' <(echo "$ddefs") - | sort -u)
   while read -r a b name; do

@@ -465,6 +465,28 @@ START_TEST(test_jacobi_beats_cg)
 }
 END_TEST
 
+/* The exact diagonal of Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m by brute force, one column Ã e_i per unknown: the probing's oracle */
+static void diag_bruteforce(const fixture *f, double *diag)
+{
+    const int64_t n = wt_tomography_nunknowns(f->t), ns = f->sys->nslopes;
+    double *e = calloc(n, sizeof *e), *s = malloc(ns * sizeof *s), *z = malloc(ns * sizeof *z);
+    for (int64_t i = 0; i < n; i++) {
+        e[i] = 1.0;
+        memset(s, 0, ns * sizeof *s);
+        wt_tomography_slopes(f->t, 1.0, e, s);
+        e[i] = 0.0;
+        double q = 0.0;
+        for (int m = 0; m < f->sys->nlgs; m++) {
+            const wt_sensor *sm = &f->sys->sensors[m];
+            memset(z + sm->offset, 0, (size_t)sm->nslopes * sizeof *z);
+            wt_noise_apply_inv(wt_tomography_noise(f->t, m), 1.0, s + sm->offset, z + sm->offset);
+            for (int k = 0; k < sm->nslopes; k++) q += s[sm->offset + k] * z[sm->offset + k];
+        }
+        diag[i] = q;
+    }
+    free(e), free(s), free(z);
+}
+
 START_TEST(test_jacobi_probing_is_exact)
 {
     /* the coloured probing must equal the brute-force diagonal (one apply per unknown) to rounding */
@@ -474,7 +496,7 @@ START_TEST(test_jacobi_probing_is_exact)
         setup(&f, DEMO, v, 1, set);
         int64_t n = wt_tomography_nunknowns(f.t);
         double *d = malloc(n * sizeof *d);
-        ck_assert_int_eq(wt_tomography_diag_bruteforce(f.t, d), WT_OK);
+        diag_bruteforce(&f, d);
         const double *jinv = wt_precond_jacobi_inverse(f.p), *ad = wt_tomography_alpha_prior(f.t);
         double worst = 0.0;
         for (int64_t i = 0; i < n; i++) {

@@ -40,7 +40,7 @@ typedef struct profile {
     double v[NCOL][WT_MAX_LAYERS];   /* the columns in the file's units */
 } profile;
 
-/* The value rounded to the 15 significant digits the canonical text keeps (config_read.c's build_text). */
+/* The value rounded to the 15 significant digits the canonical text keeps (config_canonical.c's build_text). */
 static double round15(double x)
 {
     char b[40];
@@ -393,7 +393,7 @@ int wt_config_priv_resolve_model(wt_config_priv_state *ps, wt_config *cfg)
         }
         return apply_errors(ps, cfg);
     }
-    double sum = 0.0; /* the same rule as the truth's lists (config_read.c) */
+    double sum = 0.0; /* the same rule as the truth's lists (config_check.c) */
     for (int l = 0; l < m->nlayers; l++) sum += m->fraction[l];
     const int kf = wt_config_priv_find_key("recon.atmosphere.cn2_fractions");
     if (!(fabs(sum - 1.0) <= 0.01))

@@ -1,8 +1,10 @@
 /* core/config/config_private.h: what the two files of the configuration reader share (SPEC §1, §9; see
  * config.h).
  *
- * Private to core/config/config_schema.c (the key table and the printed reference) and core/config/config_read.c
- * (reading, --set overrides, validation, the canonical text); included by nothing else.
+ * Private to the files of core/config: config_schema.c (the key table and the printed reference), config_read.c
+ * (reading, --set overrides, the typed keys), config_check.c (the cross-key checks and the values chosen from
+ * several keys), config_canonical.c (the canonical text and the matrix identity), config_state.c (the parse
+ * state's helpers), config_atmosphere.c, config_derived.c, config_grid.c and config_text.c; included by nothing else.
  */
 #ifndef WT_CONFIG_PRIVATE_H
 #define WT_CONFIG_PRIVATE_H
@@ -47,6 +49,14 @@ extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }
 static inline int wt_config_priv_is_int(int t) { return t == K_INT || t == K_INT64 || t == K_INTS; }
+/* A number setting's value as a double (an int64 rounded to the nearest double) */
+static inline double wt_config_priv_num(const config_setting_t *s)
+{
+    int t = config_setting_type(s);
+    return t == CONFIG_TYPE_FLOAT   ? config_setting_get_float(s)
+           : t == CONFIG_TYPE_INT64 ? (double)config_setting_get_int64(s)
+                                    : (double)config_setting_get_int(s);
+}
 
 /* Shortest %g text that reads back as the same double; returns buf. */
 const char *wt_config_priv_fmt_num(double v, char *buf, size_t n);
@@ -86,6 +96,14 @@ config_setting_t *wt_config_priv_ensure_parent(config_t *cf, const char *path, c
 /* A list written into the tree as if the file had given it (f: floats, else iv: integers), replacing what was
  * there; ps->set[k] points at it, so it is in the canonical text and the matrix hash like any key. */
 int wt_config_priv_write_list(wt_config_priv_state *ps, int k, const double *f, const int *iv, int n);
+
+/* ---------------------------------------------------------------- config_check.c, config_canonical.c */
+
+/* The cross-key checks, and the values chosen from several keys (layer grids, sensor and fit points, priors, the
+ * files' SHA-256) written into the tree; after every key is loaded. WT_ERR_CONFIG naming the keys and their lines. */
+int wt_config_priv_check_consistency(wt_config_priv_state *ps, wt_config *cfg);
+/* cfg->canonical, cfg->matrix_text and cfg->matrix_sha256 from the keys set (ps->set); last. Allocates the texts. */
+int wt_config_priv_build_canonical(wt_config_priv_state *ps, wt_config *cfg);
 
 /* ---------------------------------------------------------------- config_atmosphere.c */
 

@@ -1,8 +1,8 @@
 /* core/config/config_schema.c: the configuration schema (SPEC §1): every key of the presets with its type,
  * range, unit, scale to internal units, description and destination in wt_config, in the order of the
  * canonical text (SPEC §9), and the reference `wavetomo info --keys` prints from it. config_read.c reads,
- * overrides, validates and canonicalises by walking the same table, so a key cannot be documented one
- * way and read another. */
+ * overrides and validates, config_check.c checks across keys and config_canonical.c canonicalises by walking
+ * the same table, so a key cannot be documented one way and read another. */
 #include "config_private.h"
 
 #include <math.h>
@@ -514,7 +514,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
 _Static_assert(sizeof wt_config_priv_keys / sizeof wt_config_priv_keys[0] == WT_CONFIG_PRIV_NKEYS,
                "WT_CONFIG_PRIV_NKEYS (config_private.h) must be the number of keys of the table");
 
-/* ---------------------------------------------------------------- text shared with config_read.c */
+/* ---------------------------------------------------------------- text shared with the other files */
 
 const char *wt_config_priv_fmt_num(double v, char *buf, size_t n)
 {

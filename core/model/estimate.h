@@ -13,7 +13,7 @@
  *
  * Time: counted work per frame divided by a calibrated rate. The atmosphere and the evaluation: one
  * bilinear read per fine point, layer and line of sight (sensors and evaluation directions); the
- * reconstructor: the flops of its iterations (the stencils of core/model/tomography.c's cost); the MVM: its
+ * reconstructor: the flops of its iterations (the stencils of core/model/tomography_cost.c); the MVM: its
  * bytes streamed. The rates are the ones measured on this 2-core machine when quiet (docs/results.md §7b:
  * single thread, the GEMV at §2's 28 GB/s; 2026-11-24): the time is an order of magnitude, not a promise.
  *

@@ -9,6 +9,8 @@
 #include <math.h>
 #include <string.h>
 
+const char *const wt_precond__kind_names[WT_PRECOND_NKINDS] = {"none", "jacobi", "jacobi_ngs", "coarse_ngs", "multilevel", "fourier"};
+
 /* Centre (in grid points, unwrapped) of the support of a periodic 1-D profile: the middle of the
  * complement of its largest circular run of zeros. */
 double wt_precond__support_centre(const double *mag, int n)
@@ -64,6 +66,21 @@ int wt_precond__cholesky(wt_context *ctx, int q, double *A, const char *what)
             A[i + (size_t)q * j] = s / A[j + (size_t)q * j];
         }
     }
+    return WT_OK;
+}
+
+int wt_precond__coarse_factor(wt_precond *p, int q, const char *what)
+{
+    /* symmetrise the rounding of the two triangles before the factorisation */
+    for (int j = 0; j < q; j++)
+        for (int i = j + 1; i < q; i++)
+            p->c_L[i + (size_t)q * j] = 0.5 * (p->c_L[i + (size_t)q * j] + p->c_L[j + (size_t)q * i]);
+    const int st = wt_precond__cholesky(p->ctx, q, p->c_L, what);
+    if (st < 0) return st;
+    /* Lᵀ into the (unused) upper triangle: column i above the diagonal = row i of L */
+    for (int i = 0; i < q; i++)
+        for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
+    p->nc = q;
     return WT_OK;
 }
 

@@ -225,13 +225,7 @@ static int fourier_coarse_block(wt_precond *p, wt_tomography *t)
         }
         memset(e + o, 0, (size_t)m2 * sizeof *e);
     }
-    for (int j = 0; j < q; j++) /* symmetrise the rounding of the two triangles before the factorisation */
-        for (int i = j + 1; i < q; i++)
-            p->c_L[i + (size_t)q * j] = 0.5 * (p->c_L[i + (size_t)q * j] + p->c_L[j + (size_t)q * i]);
-    WT_TRY(wt_precond__cholesky(ctx, q, p->c_L, "fourier coarse block"));
-    for (int i = 0; i < q; i++)
-        for (int k = 0; k < i; k++) p->c_L[k + (size_t)q * i] = p->c_L[i + (size_t)q * k];
-    p->nc = q;
+    WT_TRY(wt_precond__coarse_factor(p, q, "fourier coarse block"));
     WT_ALLOC(ctx, p->fd_cr, q, "fourier coarse coefficients");
     WT_ALLOC(ctx, p->fd_cphi, q, "fourier coarse coefficients of the filtered layers");
 fail:

@@ -3,7 +3,7 @@
  *   B_ml = the coarse block, and below it, per detail level, orientation and position, the exact L x L block of
  *          M̃ = Σ_LGS Ãᵀ C̃⁻¹ Ã + α D on the layers' coefficients there (a block Jacobi over a partition: SPD),
  *
- * their entries by J's coloured probing (precond.c), each block Cholesky-factored. */
+ * their entries by J's coloured probing (precond_jacobi.c), each block Cholesky-factored. */
 #include "precond_private.h"
 
 #include <math.h>

@@ -1,6 +1,8 @@
-/* core/model/precond_private.h: the preconditioner object's layout, shared by precond.c (the kinds' set-up and
- * applies) and precond_update.c (the parts kept at set-up and the update for a new atmosphere model); not part of
- * any interface. */
+/* core/model/precond_private.h: the preconditioner object's layout, shared by precond.c (the interface and the
+ * dispatch to the kinds), precond_jacobi.c (J), precond_coarse.c (the coarse block and B⁻¹), precond_lowrank.c
+ * (the NGS term), precond_multilevel.c, precond_fourier.c, precond_base.c (what they are built from) and
+ * precond_update.c (the parts kept at set-up and the update for a new atmosphere model); not part of any
+ * interface. */
 #ifndef WT_PRECOND_PRIVATE_H
 #define WT_PRECOND_PRIVATE_H
 
@@ -89,11 +91,29 @@ struct wt_precond {
     size_t pu_spare_bytes;
 };
 
+/* The kinds' names, by WT_PRECOND_* (precond_base.c) */
 extern const char *const wt_precond__kind_names[WT_PRECOND_NKINDS];
+
+/* The kinds' parts, each file calling only those below it (precond.c dispatches):
+ * J⁻¹ into p->jinv by coloured probing (precond_jacobi.c) */
+int wt_precond__jacobi(wt_precond *p, const wt_tomography *t);
+/* The coarse block (precond_coarse.c): layer l's coarse square's side; the block's Cholesky factor into p->c_L;
+ * z = B_c⁻¹ r on the block by the factor's two solves, or by the inverse's rows [i0, i1) */
+int wt_precond__coarse_side(const wt_tomography *t, int l, int coarse_levels);
+int wt_precond__coarse(wt_precond *p, wt_tomography *t, int coarse_levels);
+void wt_precond__coarse_solve(const wt_precond *p, const double *r, double *z);
+void wt_precond__coarse_inv_rows(const wt_precond *p, const double *r, double *z, int i0, int i1);
+/* The NGS term (precond_lowrank.c): R, K and Y at set-up (nothing without NGS); z = P⁻¹ r */
+int wt_precond__lowrank(wt_precond *p, wt_tomography *t);
+void wt_precond__lowrank_apply(const wt_precond *p, const double *r, double *z);
 
 /* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten); WT_ERR_NUMERIC
  * naming `what` when it is not positive definite */
 int wt_precond__cholesky(wt_context *ctx, int q, double *A, const char *what);
+/* The coarse block p->c_L (q x q, both triangles as computed) symmetrised, factored (wt_precond__cholesky, `what`
+ * naming it) and Lᵀ copied into its upper triangle, so that the backward solve runs by contiguous columns too;
+ * p->nc = q */
+int wt_precond__coarse_factor(wt_precond *p, int q, const char *what);
 /* coarse_ngs: c_L's factor replaced by the block's inverse c_inv (or c_inv32 when single) */
 int wt_precond__coarse_invert(wt_precond *p, int single);
 /* z = B⁻¹ r: the kind's part before the NGS term */
@@ -104,7 +124,7 @@ int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cin
 void wt_precond__coarse_coef(const wt_precond *p, const double *X, double *C, double *u);
 
 /* Centre (in grid points) of the support of a periodic 1-D profile; the colouring's period and the per-thread buffer
- * sizes of the coloured probing (precond.c) */
+ * sizes of the coloured probing (precond_jacobi.c) */
 double wt_precond__support_centre(const double *mag, int n);
 void wt_precond__probe_sizes(const wt_tomography *t, int *s, int64_t *maxn2, int64_t *maxsl, int64_t *wsize);
 /* multilevel (precond_multilevel.c): the layer blocks below coarse squares of sides sc[l]; z = B_b⁻¹ r on the
@@ -120,7 +140,7 @@ double wt_precond__layer_cn2(const wt_tomography *t, int l);
  * Ãᵀ_m C̃_m⁻¹ Ã_m e (m < nlgs), then the prior's (layer l's) */
 void wt_precond__part_columns(const wt_precond *p, wt_tomography *t, int l, const double *e, double *cols);
 
-/* The NGS term's Y by blocks of 8 rows (precond.c: the layout) */
+/* The NGS term's Y by blocks of 8 rows (precond_lowrank.c: the layout) */
 typedef double yb_vec __attribute__((vector_size(64), aligned(8))); /* 8 rows (GCC/clang vectors: plain
                                                                      per-lane IEEE operations, any ISA) */
 typedef float yb_vec32 __attribute__((vector_size(32), aligned(4))); /* 8 rows of the float copy (single) */

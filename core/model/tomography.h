@@ -169,9 +169,6 @@ int wt_tomography_solve_continue(wt_tomography *t, wt_pcg_precond P, const doubl
                                  double rtol, double *history, wt_pcg_result *res);
 /* Spatial layers φ = W⁻¹ c (same length as c, layer by layer on their grids). */
 void wt_tomography_layers(wt_tomography *t, const double *c, double *phi);
-/* Compute the exact diagonal of Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m by brute force (one apply per unknown):
- * for tests of the probing. diag: ncoef values. */
-int wt_tomography_diag_bruteforce(wt_tomography *t, double *diag);
 
 /* A new atmosphere model (SPEC §12 "Updates": the loop that learns its atmosphere): r0 [m] and the natm-layer Cn²
  * profile (altitudes [m] increasing, fractions ≥ 0, normalised here), compressed onto the layers as at set-up; the

@@ -1,7 +1,10 @@
-/* core/model/tomography_private.h: the tomography object's layout, shared by tomography.c (the operators and the
- * solve), tomography_model.c (what the atmosphere model sets: the prior's strengths, the layer-binning model
- * error, the sensors' noise weights) and tomography_noise.c (the noise weights of sensors whose reference changed);
- * not part of any interface. */
+/* core/model/tomography_private.h: the tomography object's layout, shared by tomography.c (the object: set-up,
+ * workspaces, profile), tomography_operator.c (the operator, right-hand side and solve), tomography_operator_f32.c
+ * (the single-precision operator's float stages), tomography_ngs.c (its explicit NGS term), tomography_cost.c
+ * (bytes, flops, non-zeros), tomography_model.c (what the atmosphere model sets: the prior's strengths, the
+ * layer-binning model error, the sensors' noise weights) and tomography_noise.c (the noise weights of sensors whose
+ * reference changed); not part of any interface. Calls between them go one way: the object calls the model's and
+ * the NGS term's set-up; the operator calls its float stages, which call the NGS term. */
 #ifndef WT_TOMOGRAPHY_PRIVATE_H
 #define WT_TOMOGRAPHY_PRIVATE_H
 
@@ -35,7 +38,7 @@ struct wt_tomography {
     int any64;                /* fp32: some sensor's part is double (an NGS): the explicit term below */
     /* fp32 with NGS: their part of the operator through the explicit matrix G = [Pᵀ Γᵀ e_k] over the NGS slopes k
      * (layers' values x NGS slopes; CSR by layer point, made at set-up): forward Gᵀ φ, adjoint G (Ĉ⁻¹ s), in double
-     * (ngs_explicit) */
+     * (tomography_ngs.c) */
     int64_t ngs_nrow;         /* layer points where G has a non-zero */
     int64_t *ngs_row;         /* [ngs_nrow] those points, ascending */
     int64_t *ngs_ptr;         /* [ngs_nrow + 1] row i's entries [ngs_ptr[i], ngs_ptr[i + 1]) */
@@ -111,5 +114,84 @@ int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f)
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
 int wt_tomography__noise(wt_tomography *t);
+
+/* ---- the stages' profile clock (wt_tomography_profile_start), the layer owners and sizes: shared by the object
+ * (tomography.c), the operator (tomography_operator.c), its single-precision stages (tomography_operator_f32.c)
+ * and the cost model (tomography_cost.c) */
+
+/* A stage's slots in w->prof: calls and wall, then nthreads busy times 8 doubles apart (no two threads write
+ * one cache line) */
+static inline int64_t wt_tomography__prof_stride(const wt_tomography *t) { return 8 * (1 + (int64_t)t->nthreads); }
+static inline double wt_tomography__prof_t0(const wt_tomography_work *w) { return w->prof_on ? wt_time_now() : 0.0; }
+/* one call of stage k that ran from t0 to t1 (t1 < 0: now) */
+static inline void wt_tomography__prof_wall_to(const wt_tomography *t, wt_tomography_work *w, int k, double t0,
+                                               double t1)
+{
+    if (!w->prof_on) return;
+    double *s = w->prof + k * wt_tomography__prof_stride(t);
+    s[0] += 1.0;
+    s[1] += (t1 < 0.0 ? wt_time_now() : t1) - t0;
+}
+static inline void wt_tomography__prof_wall(const wt_tomography *t, wt_tomography_work *w, int k, double t0)
+{
+    wt_tomography__prof_wall_to(t, w, k, t0, -1.0);
+}
+static inline void wt_tomography__prof_busy(const wt_tomography *t, wt_tomography_work *w, int k, int id, double t0)
+{
+    if (w->prof_on && id < t->nthreads) w->prof[k * wt_tomography__prof_stride(t) + 8 * (1 + id)] += wt_time_now() - t0;
+}
+
+/* Inside a parallel region, from one stage to the next: every thread done with the first (a barrier), the master's
+ * clock read into *t1 as the second's start, and with the profile on a second barrier, so that every thread's busy
+ * time of the second stage lies within its wall from *t1 */
+static inline void wt_tomography__prof_handover(const wt_tomography_work *w, double *t1)
+{
+#pragma omp barrier
+#pragma omp master
+    *t1 = wt_tomography__prof_t0(w);
+    if (w->prof_on) {
+#pragma omp barrier
+    }
+}
+
+/* The thread that handles layer l in a team of nt: its fixed owner (the same thread every apply, so that a
+ * layer's coefficients, values and FFT stay in one core's cache; any thread gives the same bits), folded onto a
+ * smaller team (a nested or reduced one) */
+static inline int wt_tomography__owner_of(const wt_tomography *t, int l, int nt) { return t->owner[l] % nt; }
+
+/* the largest layer's points */
+static inline size_t wt_tomography__max_layer(const wt_tomography *t)
+{
+    int64_t nmax = 0;
+    for (int l = 0; l < t->L; l++)
+        if (t->off[l + 1] - t->off[l] > nmax) nmax = t->off[l + 1] - t->off[l];
+    return (size_t)nmax;
+}
+
+/* floats per thread in w->lay32 (a layer's float sum, by layers): the largest layer,
+ * rounded to 64 bytes */
+static inline size_t wt_tomography__lay32_size(const wt_tomography *t)
+{
+    return (wt_tomography__max_layer(t) + 15) / 16 * 16;
+}
+
+/* ---- core/model/tomography_ngs.c: the fp32 operator's NGS term, the explicit G = [Pᵀ Γᵀ e_k] (its comment says
+ * why). Set-up: G from the double adjoint, into t->ngs_* (WT_ERR_NOMEM). Applies: */
+int wt_tomography__ngs_explicit(wt_tomography *t);
+/* sum[i − i0] += Σ_k G_ik wv_k for the layer points [i0, i1) (wv: the weighted slopes, indexed as the slopes) */
+void wt_tomography__ngs_adjoint(const wt_tomography *t, const double *wv, int64_t i0, int64_t i1, double *sum);
+/* The NGS's slopes Gᵀ φ (φ: the float layers) into slopes (at their indices; the others untouched) */
+void wt_tomography__ngs_forward(const wt_tomography *t, const float *phi32, double *slopes);
+
+/* ---- core/model/tomography_operator_f32.c: the fp32 operator's float stages, called by tomography_operator.c's
+ * stage sequence (its parallel regions: the _team forms and adjoint_group_f32 run inside one) */
+/* slopes32 = Γ P phi32 for every LGS, the NGS's slopes into w->slopes; with pphi also pphi = α C_φ⁻¹ φ */
+void wt_tomography__forward_f32_team(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *pphi,
+                                     int id, int nt);
+/* One accumulator group's share of the fp32 adjoint (s: the slopes to round first, or NULL: the forward's) */
+void wt_tomography__adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int g, const double *s);
+/* The fp32 adjoint by layers (in space), a parallel region of its own */
+void wt_tomography__adjoint_space_f32(const wt_tomography *t, wt_tomography_work *w, const double *s,
+                                      const double *cx, double *c);
 
 #endif
