@@ -288,8 +288,9 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
     t->tau = par->tau;
     t->model_error = par->model_error != 0;
-    t->lgs_focus = par->lgs_focus_removal != 0;
+    t->lgs_focus = par->lgs_focus_removal;
     if (t->lgs_focus) WT_TRY(wt_tomography__focus_check(t, par->source));
+    WT_TRY(wt_tomography__common_alloc(t));
     wt_tomography__model_error_grid(t, var, par->wavelet_levels);
     if (par->model_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
     for (int m = 0; m < t->S; m++) {
@@ -372,6 +373,7 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->proj);
     wt_free(ctx, t->projs);
     wt_free(ctx, t->noise);
+    wt_tomography__common_free(t);
     wt_free(ctx, t->alpha_d);
     wt_free(ctx, t->ngs_row);
     wt_free(ctx, t->ngs_ptr);
@@ -590,6 +592,7 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
             const double *x = slopes + s->offset;
             double *ws = w->weighted + s->offset;
             wt_noise_set_weight_many(&nz, 1, &x, &ws);
+            wt_tomography__common_add(t, w, m, ws);
             wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
         }
         prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
@@ -637,6 +640,8 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
         k++;
     }
     wt_noise_set_weight_many(nz, k, x, ws);
+    for (int m = 0; m < t->S; m++)
+        if (t->group[m] == g) wt_tomography__common_add(t, w, m, w->weighted + sys->sensors[m].offset);
     for (int m = 0; m < t->S; m++)
         if (t->group[m] == g)
             wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
@@ -692,6 +697,9 @@ static void adjoint_group_f32(const wt_tomography *t, wt_tomography_work *w, int
 static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                         double *c, int f32)
 {
+    /* the LGS's common focus term needs two sums over all LGS slopes before any sensor's weight (the operator's
+     * fp32 slopes are the float ones its forward wrote; the right-hand side's the double measurements) */
+    if (t->fc_e) wt_tomography__common_coef(t, w, slopes, f32 && !slopes ? w->slopes32 : NULL);
     if (by_layers(t)) {
         if (f32) adjoint_space_f32(t, w, slopes, cx, c);
         else adjoint_space(t, w, slopes, cx, c);
@@ -821,6 +829,7 @@ static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, cons
         ws[q] = w->weighted32 + off;
     }
     wt_noise_set_weight_many_f32(nz, k, x, ws);
+    for (int q = 0; q < k; q++) wt_tomography__common_add_f32(t, w, ms[q], ws[q]);
 }
 
 /* Sensor m's slopes s (double: the right-hand side's measurements) rounded into w->slopes32 */
