@@ -94,7 +94,7 @@ const struct wt_projection *wt_tomography_projection(const wt_tomography *t, int
 const struct wt_noise *wt_tomography_noise(const wt_tomography *t, int m);
 const wt_system *wt_tomography_system(const wt_tomography *t);
 /* recon.lgs_focus_mode = "common": the LGS weight is the sensors' own (wt_tomography_noise) plus a term coupling
- * the LGS (core/model/tomography_noise.c). weight_common adds that term of Ĉ⁻¹ x to y (x, y: every sensor's slopes;
+ * the LGS (core/model/tomography_focus.c). weight_common adds that term of Ĉ⁻¹ x to y (x, y: every sensor's slopes;
  * nothing without the mode); common_focus is the stacked unit focus patterns (e_1, …, e_n) over the LGS's slopes
  * (the first of the slope vector; f_c = that / √n), or NULL without the mode. */
 void wt_tomography_weight_common(const wt_tomography *t, const double *x, double *y);

@@ -197,49 +197,6 @@ static int model_error_cached(wt_tomography *t, double r0, int natm, const doubl
  * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
  * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
  * proportion: both options are off by default). */
-/* ---- LGS focus removal (recon.lgs_focus_removal) -----------------------------------------------------
- * A change of the sodium centroid's altitude Δh moves every LGS spot by (r − l) Δh / H²: a tilt (the launch
- * offset l) plus a focus. T then projects each LGS's slopes onto span{tip, tilt, f} with f the focus slope
- * pattern (core/op/noise.h), and the tomography's focus comes from the NGS; one of them must measure it. */
-int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f)
-{
-    int st = WT_OK;
-    double *cx = NULL;
-    WT_ALLOC(ctx, cx, 2 * (size_t)s->nsub, "subaperture centres");
-    for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cx[s->nsub + k]);
-    st = wt_noise_focus_pattern(s->nsub, cx, cx + s->nsub, f);
-fail:
-    wt_free(ctx, cx);
-    return st;
-}
-
-int wt_tomography__focus_check(const wt_tomography *t, const char *source)
-{
-    const wt_system *sys = t->sys;
-    int st = WT_OK, ok = 0;
-    double *f = NULL;
-    for (int m = 0; m < sys->nsensors && !ok; m++) {
-        const wt_sensor *s = &sys->sensors[m];
-        if (s->kind != WT_SENSOR_NGS || s->nsub < 2) continue;
-        WT_ALLOC(t->ctx, f, 2 * (size_t)s->nsub, "focus pattern");
-        st = wt_tomography__focus_pattern(t->ctx, s, f);
-        if (st < 0) goto fail;
-        ok = st;
-        st = WT_OK;
-        wt_free(t->ctx, f);
-        f = NULL;
-    }
-    if (!ok)
-        st = WT_ERROR(t->ctx, WT_ERR_CONFIG,
-                      "%s: recon.lgs_focus_removal = true removes the LGS focus (%s), and no NGS measures it (%d NGS, none "
-                      "with 2x2 subapertures: ngs.subapertures needs a 2)", source ? source : "tomography",
-                      t->lgs_focus == 2 ? "their common focus, recon.lgs_focus_mode = \"common\"" : "each LGS's focus",
-                      sys->nngs);
-fail:
-    wt_free(t->ctx, f);
-    return st;
-}
-
 /* *out (an LGS's weight) gets the focus removal too when it is on; *out is freed on failure */
 static int sensor_focus(wt_tomography *t, const wt_sensor *s, wt_noise **out)
 {
