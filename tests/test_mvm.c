@@ -839,6 +839,47 @@ START_TEST(test_common_slopes_ignored)
 }
 END_TEST
 
+
+/* The same in space (cg9 with the fourier preconditioner: the adjoint by layers, adjoint_space): the right-hand side
+ * ignores the same focus on every LGS (1e-11) and not a differential one (> 10 % of b) */
+START_TEST(test_common_slopes_ignored_space)
+{
+    const char *const set[] = {common_on[0], common_on[1], "recon.cg9.preconditioner=\"fourier\"",
+                               "recon.cg9.coarse_levels=0", "recon.cg9.layer_spacing_m=[1.0, 1.0, 1.0, 1.0, 1.0]"};
+    fixture f;
+    setup(&f, 1, 5, set);
+    const wt_grid *g = &f.sys->sense_grid;
+    double *ph = malloc(wt_grid_size(g) * sizeof *ph), *s = malloc(f.ns * sizeof *s), *s2 = malloc(f.ns * sizeof *s2),
+           *b1 = calloc(f.n, sizeof *b1), *b2 = calloc(f.n, sizeof *b2);
+    test_slopes(&f, s, 331);
+    const double rms = tu_norm(s, f.ns) / sqrt((double)f.ns);
+    for (int iy = 0; iy < g->ny; iy++)
+        for (int ix = 0; ix < g->nx; ix++) {
+            const double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
+            ph[ix + (int64_t)g->nx * iy] = x * x + y * y;
+        }
+    const wt_sensor *l1 = &f.sys->sensors[0];
+    double *fs = calloc(l1->nslopes, sizeof *fs);
+    wt_shack_hartmann_apply(l1->sh, 1.0, ph, fs);
+    const double a = 10.0 * rms / (tu_norm(fs, l1->nslopes) / sqrt((double)l1->nslopes));
+    free(fs);
+    tu_tomo_rhs(f.t, s, b1);
+    for (int diff = 0; diff < 2; diff++) {
+        memcpy(s2, s, f.ns * sizeof *s);
+        for (int m = 0; m < f.sys->nlgs; m++) {
+            const wt_sensor *l = &f.sys->sensors[m];
+            wt_shack_hartmann_apply(l->sh, (diff && (m & 1) ? -a : a), ph, s2 + l->offset);
+        }
+        memset(b2, 0, f.n * sizeof *b2);
+        tu_tomo_rhs(f.t, s2, b2);
+        if (diff) ck_assert_double_gt(tu_rel_diff(b2, b1, f.n), 0.1);
+        else ck_assert_double_le(tu_rel_diff(b2, b1, f.n), 1e-11);
+    }
+    free(ph), free(s), free(s2), free(b1), free(b2);
+    teardown(&f);
+}
+END_TEST
+
 /* recon.lgs_focus_mode without the removal is refused naming both keys; an unknown mode naming the choices */
 START_TEST(test_common_mode_refused)
 {
@@ -881,6 +922,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_common_normal_matches);
     tcase_add_test(tc, test_r_matches_pcg3_common);
     tcase_add_test(tc, test_common_slopes_ignored);
+    tcase_add_test(tc, test_common_slopes_ignored_space);
     tcase_add_test(tc, test_common_mode_refused);
     suite_add_tcase(s, tc);
     return s;
