@@ -267,6 +267,7 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
                 const wt_sensor *s = &sys->sensors[m];
                 wt_noise_apply_weight(wt_tomography_noise(t, m), 1.0, z + s->offset, w + s->offset);
             }
+            wt_tomography_weight_common(t, z, w); /* (recon.lgs_focus_mode = "common": the LGS's coupling term) */
             float *rrow = mv->R + (size_t)(i0 + c) * ns;
             for (int64_t k = 0; k < ns; k++) rrow[k] = (float)w[k];
             float *arow = mv->RA + (size_t)(i0 + c) * nact;

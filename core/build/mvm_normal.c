@@ -253,13 +253,15 @@ fail:
     return st;
 }
 
-/* The rank of B Q Bᵀ: 2k per LGS (k = 2 tip and tilt, 3 with the focus removal), one per NGS slope */
+/* The rank of B Q Bᵀ: 2k per LGS (k = 2 tip and tilt, 3 with each LGS's focus removed), one per NGS slope, and 2
+ * for the LGS's common focus (u_c, v_c) */
 static int lowrank_rank(const wt_tomography *t)
 {
     const wt_system *sys = wt_tomography_system(t);
     int r = 0;
     for (int m = 0; m < sys->nlgs; m++) r += wt_noise_focus(wt_tomography_noise(t, m)) ? 6 : 4;
     for (int m = sys->nlgs; m < sys->nsensors; m++) r += sys->sensors[m].nslopes;
+    if (wt_tomography_common_focus(t)) r += 2;
     return r;
 }
 
@@ -280,7 +282,7 @@ static int build_lowrank(wt_mvm_normal *nm)
     WT_ALLOC(ctx, nm->ipiv, r, "Woodbury pivots");
     WT_ALLOC(ctx, zs, (size_t)ns * r, "low-rank slope vectors");
     double *Q = nm->Q;
-    int c = 0;
+    int c = 0, ctt[2 * WT_MAX_GS]; /* LGS m's tip column (tilt: the next) */
     for (int m = 0; m < sys->nsensors; m++) {
         const wt_sensor *s = &sys->sensors[m];
         const wt_noise *no = wt_tomography_noise(nm->t, m);
@@ -290,6 +292,7 @@ static int build_lowrank(wt_mvm_normal *nm)
              * it is removed too: k = 3), V = C̃⁻¹ U */
             const double *f = wt_noise_focus(no);
             const int k = f ? 3 : 2;
+            ctt[m] = c;
             double u = 1.0 / sqrt((double)ms);
             double *U[3], *V[3];
             for (int a = 0; a < k; a++) {
@@ -326,6 +329,33 @@ static int build_lowrank(wt_mvm_normal *nm)
             }
             c += 2 * ms;
         }
+    }
+    const double *fc = wt_tomography_common_focus(nm->t);
+    if (fc) {
+        /* the LGS's common focus: one more U column u_c = (e_1, …, e_n)/√n across the LGS (⟂ every LGS's tip and
+         * tilt, so U stays orthonormal) and v_c = C̃⁻¹ u_c; Q's UᵀV couples u_c to each LGS's tip and tilt columns */
+        double *uc = zs + (size_t)c * ns, *vc = zs + (size_t)(c + 1) * ns;
+        const double sn = 1.0 / sqrt((double)sys->nlgs);
+        double gcc = 0.0;
+        for (int m = 0; m < sys->nlgs; m++) {
+            const wt_sensor *s = &sys->sensors[m];
+            const int ms = s->nsub;
+            for (int i = 0; i < 2 * ms; i++) uc[s->offset + i] = sn * fc[s->offset + i];
+            wt_noise_apply_inv(wt_tomography_noise(nm->t, m), 1.0, uc + s->offset, vc + s->offset);
+            const double u = 1.0 / sqrt((double)ms);
+            double gx = 0.0, gy = 0.0; /* tip_mᵀ v_c, tilt_mᵀ v_c (= u_cᵀ C̃⁻¹ tip_m, C̃⁻¹ symmetric) */
+            for (int i = 0; i < ms; i++) {
+                gx += u * vc[s->offset + i];
+                gy += u * vc[s->offset + ms + i];
+            }
+            for (int i = 0; i < 2 * ms; i++) gcc += uc[s->offset + i] * vc[s->offset + i];
+            Q[ctt[m] + (size_t)r * c] = Q[c + (size_t)r * ctt[m]] = gx;
+            Q[ctt[m] + 1 + (size_t)r * c] = Q[c + (size_t)r * (ctt[m] + 1)] = gy;
+        }
+        Q[c + (size_t)r * c] = gcc;
+        Q[c + (size_t)r * (c + 1)] = -1.0;
+        Q[(c + 1) + (size_t)r * c] = -1.0;
+        c += 2;
     }
     size_t ws = wt_mvm_priv_wavelet_work(nm->t);
     WT_ALLOC(ctx, work, (size_t)nm->nth * ws, "wavelet workspace");

@@ -232,6 +232,13 @@ int wt_config_priv_check_consistency(pstate *ps, wt_config *cfg)
         (st = check_sizes(ps, cfg, "recon.cg9.layer_size", &cfg->cg9)) < 0)
         return st;
     if ((st = resolve_sensor_points(ps, cfg)) < 0) return st;
+    {   /* the mode says which focus the removal takes out: without the removal it would be ignored */
+        const int km = wt_config_priv_find_key("recon.lgs_focus_mode");
+        if (ps->set[km] && !cfg->lgs_focus_removal)
+            return FAIL(ps, km, ps->set[km], "key 'recon.lgs_focus_mode' is given but 'recon.lgs_focus_removal' is "
+                        "false: the mode chooses which LGS focus the removal projects out; set "
+                        "recon.lgs_focus_removal = true, or leave the mode out");
+    }
     if ((st = resolve_fit_points(ps, cfg)) < 0) return st;
     if ((st = resolve_priors(ps, cfg)) < 0) return st;
     if ((st = resolve_file_sha256(ps, "lgs.sodium_profile_sha256",

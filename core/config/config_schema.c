@@ -359,6 +359,11 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "(Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T onto tip, tilt and the focus slope pattern): a change of the sodium "
      "centroid's altitude, which every LGS reads as focus, no longer reaches the tomography, and the focus comes "
      "from the NGS; needs an NGS that measures focus (ngs.subapertures 2) (optional, default false)"},
+    {"recon.lgs_focus_mode", K_ENUM, F_OPT, 0, 0, "", 1, CF(lgs_focus_mode), NOCOUNT, 0, 0, "each|common", 0,
+     "with recon.lgs_focus_removal = true, which focus T projects out: each = every LGS's own focus (one direction "
+     "per LGS); common = only the focus common to all LGS, f_c = (f_1, …, f_n)/√n, the one direction a change of "
+     "the sodium centroid's altitude moves, so the differences of focus between the LGS (the altitude split of the "
+     "turbulence's quadratic phase) stay in the tomography; tip-tilt per LGS either way (optional, default each)"},
     KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
     {"recon.predict", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(predict), NOCOUNT, 0, 0, NULL, 0,
      "pcg3 and cg9: move each reconstructed layer by its wind (the reconstructor's atmosphere, recon.atmosphere, "

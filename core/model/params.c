@@ -25,7 +25,7 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
         par->atm_fraction[k] = m->fraction[k];
     }
     par->model_error = cfg->model_error;
-    par->lgs_focus_removal = cfg->lgs_focus_removal;
+    par->lgs_focus_removal = cfg->lgs_focus_removal ? (cfg->lgs_focus_mode == 1 ? 2 : 1) : 0;
     par->loop_noise_gain = wt_noise_loop_gain(cfg->gain, cfg->delay);
     par->source = cfg->path;
     par->fft_wisdom = cfg->fft_wisdom;

@@ -109,8 +109,9 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
     t->tau = par->tau;
     t->model_error = par->model_error != 0;
-    t->lgs_focus = par->lgs_focus_removal != 0;
+    t->lgs_focus = par->lgs_focus_removal;
     if (t->lgs_focus) WT_TRY(wt_tomography__focus_check(t, par->source));
+    WT_TRY(wt_tomography__common_alloc(t));
     wt_tomography__model_error_grid(t, var, par->wavelet_levels);
     if (par->model_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
     for (int m = 0; m < t->S; m++) {
@@ -193,6 +194,7 @@ void wt_tomography_free(wt_tomography *t)
     wt_free(ctx, t->proj);
     wt_free(ctx, t->projs);
     wt_free(ctx, t->noise);
+    wt_tomography__common_free(t);
     wt_free(ctx, t->alpha_d);
     wt_free(ctx, t->ngs_row);
     wt_free(ctx, t->ngs_ptr);

@@ -55,8 +55,10 @@ typedef struct wt_tomography_params {
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
     int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
-    int lgs_focus_removal; /* 1: the LGS weights remove focus as well as tip-tilt (recon.lgs_focus_removal): the
-                              focus then comes from the NGS, of which one at least must measure it (2x2) */
+    int lgs_focus_removal; /* 1: the LGS weights remove each LGS's focus as well as tip-tilt (recon.lgs_focus_removal);
+                              2: only the focus common to all LGS (recon.lgs_focus_mode = "common"): the
+                              focus (1) or the LGS's common focus (2) then comes from the NGS, of which one at least
+                              must measure it (2x2) */
     double loop_noise_gain; /* κ = Σh², the integrator's noise gain (wt_noise_loop_gain): with the variant's
                                loop_noise_average the sensors' σ² is multiplied by it, the model error not */
     const char *source;    /* where the parameters came from, for messages (the configuration file) */
@@ -91,6 +93,12 @@ const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l);
 const struct wt_projection *wt_tomography_projection(const wt_tomography *t, int m, int l);
 const struct wt_noise *wt_tomography_noise(const wt_tomography *t, int m);
 const wt_system *wt_tomography_system(const wt_tomography *t);
+/* recon.lgs_focus_mode = "common": the LGS weight is the sensors' own (wt_tomography_noise) plus a term coupling
+ * the LGS (core/model/tomography_focus.c). weight_common adds that term of Ĉ⁻¹ x to y (x, y: every sensor's slopes;
+ * nothing without the mode); common_focus is the stacked unit focus patterns (e_1, …, e_n) over the LGS's slopes
+ * (the first of the slope vector; f_c = that / √n), or NULL without the mode. */
+void wt_tomography_weight_common(const wt_tomography *t, const double *x, double *y);
+const double *wt_tomography_common_focus(const wt_tomography *t);
 /* α D (ncoef values). */
 const double *wt_tomography_alpha_prior(const wt_tomography *t);
 /* 1 when the prior is the full (non-diagonal) form: alpha_prior is then only its diagonal, and no sparse

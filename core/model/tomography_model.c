@@ -36,7 +36,8 @@ void wt_tomography__bin_profile(int L, const double *alt, int natm, const double
  * explained by any layer of the model, and at low noise the MAP explains it anyway with wrong
  * structure on the other layers. So it is treated as noise ("tomographic error as noise"): its variance
  * per slope, averaged over the sensor's slopes with their global tip-tilt removed (the weight removes
- * it; and their focus with recon.lgs_focus_removal), is added to σ²:
+ * it; and their focus with recon.lgs_focus_removal: all of it in mode each, the 1/n_LGS share of its power that
+ * the common direction f_c carries in mode common, as for focus errors independent between the LGS), is added to σ²:
  *   σ²_e,m = Σ_k E|(I − T) Γ_m [P_m(h_k) − (1 − w_k) P_m(h_l) − w_k P_m(h_{l+1})] φ_k|² / (2 nsub),
  * φ_k drawn from the layer's exact wavelet prior (Cn² fraction f_k) on the finest reconstruction
  * spacing, WT_MODEL_ERROR_DRAWS draws per layer with a fixed seed (the reconstructor stays a
@@ -125,7 +126,7 @@ static int model_error_add(wt_tomography *t, double r0, int natm, const double *
                 if (fp) { /* (I − T) with the focus: ‖(I − T_tt) v‖² − (fᵀv)², f ⟂ tip and tilt */
                     double a = 0.0;
                     for (int i = 0; i < s->nslopes; i++) a += fp[i] * sl[i];
-                    sum -= a * a;
+                    sum -= t->lgs_focus == 2 ? a * a / sys->nlgs : a * a;
                 }
                 for (int axis = 0; axis < 2; axis++) { /* (I − T): the global tip and tilt removed */
                     double *v = sl + (size_t)axis * s->nsub, mean = 0.0;
@@ -196,51 +197,10 @@ static int model_error_cached(wt_tomography *t, double r0, int natm, const doubl
  * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
  * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
  * proportion: both options are off by default). */
-/* ---- LGS focus removal (recon.lgs_focus_removal) -----------------------------------------------------
- * A change of the sodium centroid's altitude Δh moves every LGS spot by (r − l) Δh / H²: a tilt (the launch
- * offset l) plus a focus. T then projects each LGS's slopes onto span{tip, tilt, f} with f the focus slope
- * pattern (core/op/noise.h), and the tomography's focus comes from the NGS; one of them must measure it. */
-int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f)
-{
-    int st = WT_OK;
-    double *cx = NULL;
-    WT_ALLOC(ctx, cx, 2 * (size_t)s->nsub, "subaperture centres");
-    for (int k = 0; k < s->nsub; k++) wt_shack_hartmann_centre(s->sh, k, &cx[k], &cx[s->nsub + k]);
-    st = wt_noise_focus_pattern(s->nsub, cx, cx + s->nsub, f);
-fail:
-    wt_free(ctx, cx);
-    return st;
-}
-
-int wt_tomography__focus_check(const wt_tomography *t, const char *source)
-{
-    const wt_system *sys = t->sys;
-    int st = WT_OK, ok = 0;
-    double *f = NULL;
-    for (int m = 0; m < sys->nsensors && !ok; m++) {
-        const wt_sensor *s = &sys->sensors[m];
-        if (s->kind != WT_SENSOR_NGS || s->nsub < 2) continue;
-        WT_ALLOC(t->ctx, f, 2 * (size_t)s->nsub, "focus pattern");
-        st = wt_tomography__focus_pattern(t->ctx, s, f);
-        if (st < 0) goto fail;
-        ok = st;
-        st = WT_OK;
-        wt_free(t->ctx, f);
-        f = NULL;
-    }
-    if (!ok)
-        st = WT_ERROR(t->ctx, WT_ERR_CONFIG,
-                      "%s: recon.lgs_focus_removal = true removes the LGS focus, and no NGS measures it (%d NGS, none "
-                      "with 2x2 subapertures: ngs.subapertures needs a 2)", source ? source : "tomography", sys->nngs);
-fail:
-    wt_free(t->ctx, f);
-    return st;
-}
-
 /* *out (an LGS's weight) gets the focus removal too when it is on; *out is freed on failure */
 static int sensor_focus(wt_tomography *t, const wt_sensor *s, wt_noise **out)
 {
-    if (!t->lgs_focus || s->kind != WT_SENSOR_LGS) return WT_OK;
+    if (t->lgs_focus != 1 || s->kind != WT_SENSOR_LGS) return WT_OK; /* (common: the tomography's own term) */
     int st = WT_OK;
     double *cx = NULL;
     WT_ALLOC(t->ctx, cx, 2 * (size_t)s->nsub, "subaperture centres");
@@ -311,6 +271,7 @@ int wt_tomography__noise(wt_tomography *t)
         wt_noise_free(t->noise[m]);
         t->noise[m] = nz;
     }
+    wt_tomography__common_update(t);
     return WT_OK;
 }
 
@@ -355,6 +316,7 @@ int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const doubl
         wt_noise_free(t->noise[m]);
         t->noise[m] = nz[m];
     }
+    wt_tomography__common_update(t);
     const double s_old = pow(t->r0, -5.0 / 3.0), s_new = pow(r0, -5.0 / 3.0);
     for (int l = 0; l < t->L; l++) {
         wt_prior_rescale(t->prior[l], (f[l] * s_new) / (t->frac[l] * s_old));

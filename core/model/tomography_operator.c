@@ -153,6 +153,7 @@ static void adjoint_space(const wt_tomography *t, wt_tomography_work *w, const d
             const double *x = slopes + s->offset;
             double *ws = w->weighted + s->offset;
             wt_noise_set_weight_many(&nz, 1, &x, &ws);
+            wt_tomography__common_add(t, w, m, ws);
             wt_sensor_stack_phase_t(&t->stack, m, 1.0, ws, w->phase + (size_t)m * t->ncg);
         }
         wt_tomography__prof_busy(t, w, WT_TOMO_STAGE_ADJOINT_SENSORS, id, b0);
@@ -196,6 +197,8 @@ static void adjoint_group(const wt_tomography *t, wt_tomography_work *w, int g, 
         k++;
     }
     wt_noise_set_weight_many(nz, k, x, ws);
+    for (int m = 0; m < t->S; m++)
+        if (t->group[m] == g) wt_tomography__common_add(t, w, m, w->weighted + sys->sensors[m].offset);
     for (int m = 0; m < t->S; m++)
         if (t->group[m] == g)
             wt_sensor_stack_apply_t_sensor(&t->stack, m, 1.0, w->weighted + sys->sensors[m].offset, acc,
@@ -248,6 +251,9 @@ static void adjoint_layers_team(const wt_tomography *t, wt_tomography_work *w, c
 static void adjoint_run(const wt_tomography *t, wt_tomography_work *w, const double *slopes, const double *cx,
                         double *c, int f32)
 {
+    /* the LGS's common focus term needs two sums over all LGS slopes before any sensor's weight (the operator's
+     * fp32 slopes are the float ones its forward wrote; the right-hand side's the double measurements) */
+    if (t->fc_e) wt_tomography__common_coef(t, w, slopes, f32 && !slopes ? w->slopes32 : NULL);
     if (by_layers(t)) {
         if (f32) wt_tomography__adjoint_space_f32(t, w, slopes, cx, c);
         else adjoint_space(t, w, slopes, cx, c);

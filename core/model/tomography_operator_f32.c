@@ -52,6 +52,7 @@ static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, cons
         ws[q] = w->weighted32 + off;
     }
     wt_noise_set_weight_many_f32(nz, k, x, ws);
+    for (int q = 0; q < k; q++) wt_tomography__common_add_f32(t, w, ms[q], ws[q]);
 }
 
 /* Sensor m's slopes s (double: the right-hand side's measurements) rounded into w->slopes32 */

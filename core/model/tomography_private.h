@@ -2,8 +2,8 @@
  * workspaces, profile), tomography_operator.c (the operator, right-hand side and solve), tomography_operator_f32.c
  * (the single-precision operator's float stages), tomography_ngs.c (its explicit NGS term), tomography_cost.c
  * (bytes, flops, non-zeros), tomography_model.c (what the atmosphere model sets: the prior's strengths, the
- * layer-binning model error, the sensors' noise weights) and tomography_noise.c (the noise weights of sensors whose
- * reference changed); not part of any interface. Calls between them go one way: the object calls the model's and
+ * layer-binning model error, the sensors' noise weights), tomography_noise.c (the noise weights of sensors whose
+ * reference changed) and tomography_focus.c (the LGS focus removal's own parts); not part of any interface. Calls between them go one way: the object calls the model's and
  * the NGS term's set-up; the operator calls its float stages, which call the NGS term. */
 #ifndef WT_TOMOGRAPHY_PRIVATE_H
 #define WT_TOMOGRAPHY_PRIVATE_H
@@ -68,7 +68,12 @@ struct wt_tomography {
     int wavelet_order, wavelet_levels;
     double kappa, tau;        /* the measurement noise's loop factor κ and the elongation weight τ of C̃ */
     int model_error;          /* recon.model_error */
-    int lgs_focus;            /* recon.lgs_focus_removal: the LGS weights project out focus as well as tip-tilt */
+    int lgs_focus;            /* recon.lgs_focus_removal: 0 off, 1 each LGS's focus (in its noise object), 2 only
+                                 the focus common to the LGS (recon.lgs_focus_mode = "common": the fc_* below) */
+    int64_t fc_n;             /* common focus: the LGS's slopes, the first fc_n of the slope vector */
+    double *fc_e, *fc_g;      /* [fc_n] e_j, g_j = Ĉ_tt,j⁻¹ e_j per LGS at its offset (tomography_focus.c); NULL: none */
+    float *fc_e32, *fc_g32;   /* the same rounded to float (the fp32 operator) */
+    double fc_gamma;          /* γ = Σ_j e_jᵀ g_j / n_LGS */
     double me_dx;             /* the model error's sample grid: spacing [m] and side */
     int me_n;
     int me_ncache;            /* unit layers' model error kept per altitude (wt_tomography_set_profile) */
@@ -99,6 +104,7 @@ struct wt_tomography_work {
     double *prof;     /* wt_tomography_profile_start: per stage, prof_stride doubles (calls, wall, then each thread's
                          busy time on a cache line of its own); NULL or prof_on 0: not timing */
     int prof_on;
+    double fc_c1, fc_c2;  /* the common focus term's coefficients of the slopes being weighted (tomography_focus.c) */
 };
 
 /* core/model/tomography_model.c: the profile compressed onto the L layers at alt and floored; the model error's sample
@@ -106,7 +112,8 @@ struct wt_tomography_work {
  * t->model_var, κ and τ (replacing t->noise). */
 void wt_tomography__bin_profile(int L, const double *alt, int natm, const double *atm_alt, const double *atm_frac,
                                 double *frac);
-/* recon.lgs_focus_removal: a WT_ERR_CONFIG naming the key unless some NGS measures focus (2x2) */
+/* core/model/tomography_focus.c. recon.lgs_focus_removal: a WT_ERR_CONFIG naming the key unless some NGS measures
+ * focus (2x2) */
 int wt_tomography__focus_check(const wt_tomography *t, const char *source);
 /* f (2 nsub) = the unit focus slope pattern of sensor s (wt_noise_focus_pattern on its subaperture centres);
  * returns 1, or 0 when it has none (a 1x1 sensor), or an error status when out of memory */
@@ -114,6 +121,16 @@ int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f)
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
 int wt_tomography__noise(wt_tomography *t);
+/* core/model/tomography_focus.c, recon.lgs_focus_mode = "common" (each a no-op otherwise): the LGS's focus patterns
+ * (alloc, at set-up), their weights g_j and γ after the noise models changed (update), the term's two coefficients
+ * c1, c2 of the slopes x (or, x NULL, of the float x32) into w (coef, before the weights), and y_m += c1 e_m + c2 g_m
+ * on sensor m's weighted slopes y (add; nothing for an NGS) */
+int wt_tomography__common_alloc(wt_tomography *t);
+void wt_tomography__common_free(wt_tomography *t);
+void wt_tomography__common_update(wt_tomography *t);
+void wt_tomography__common_coef(const wt_tomography *t, wt_tomography_work *w, const double *x, const float *x32);
+void wt_tomography__common_add(const wt_tomography *t, const wt_tomography_work *w, int m, double *y);
+void wt_tomography__common_add_f32(const wt_tomography *t, const wt_tomography_work *w, int m, float *y);
 
 /* ---- the stages' profile clock (wt_tomography_profile_start), the layer owners and sizes: shared by the object
  * (tomography.c), the operator (tomography_operator.c), its single-precision stages (tomography_operator_f32.c)
