@@ -288,10 +288,11 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
     t->tau = par->tau;
     t->model_error = par->model_error != 0;
+    t->subgrid_error = par->subgrid_error != 0;
     t->lgs_focus = par->lgs_focus_removal != 0;
     if (t->lgs_focus) WT_TRY(wt_tomography__focus_check(t, par->source));
     wt_tomography__model_error_grid(t, var, par->wavelet_levels);
-    if (par->model_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
+    if (par->model_error || par->subgrid_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {

@@ -53,7 +53,7 @@ struct wt_tomography {
     wt_sensor_stack stack;    /* Σ_m Γ_m P_m over projs (a view) */
     int64_t zero_offset;
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
-    double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
+    double model_var[2 * WT_MAX_GS];  /* S: layer-binning and sub-grid model errors added to σ² [rad²] */
     int64_t ncg;              /* corner grid points */
     int nthreads;
     int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
@@ -65,6 +65,7 @@ struct wt_tomography {
     int wavelet_order, wavelet_levels;
     double kappa, tau;        /* the measurement noise's loop factor κ and the elongation weight τ of C̃ */
     int model_error;          /* recon.model_error */
+    int subgrid_error;        /* recon.subgrid_error */
     int lgs_focus;            /* recon.lgs_focus_removal: the LGS weights project out focus as well as tip-tilt */
     double me_dx;             /* the model error's sample grid: spacing [m] and side */
     int me_n;
@@ -110,6 +111,8 @@ int wt_tomography__focus_check(const wt_tomography *t, const char *source);
 int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f);
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
+/* the sub-grid model error's a(Δ, d') of a unit layer [rad² per axis] (tomography_model.c), for the tests */
+double wt_tomography__subgrid_error(double delta, double dp, double L0);
 int wt_tomography__noise(wt_tomography *t);
 
 #endif
