@@ -1,6 +1,8 @@
 /* tests/test_subgrid.c: the sub-grid model error of the LGS slopes (recon.subgrid_error, core/model/tomography_model.c):
- * the unit integral a(Δ, d') against an independent quadrature, the demo's sum over the layers, its r0 scaling, its sum
- * with the layer-binning error, and a model update that gives the set-up's value back. */
+ * the unit integral a(Δ, d') against an independent quadrature, the demo's sum over the layers, its r0 scaling, the
+ * weight's floor max(κσ², σ²_g) + σ²_e (the binning error still added, the elongation term unchanged, nothing changed
+ * where κσ² is above the floor), and a model update that gives the set-up's value back. */
+#include <string.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -8,6 +10,7 @@
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 #include "core/model/tomography_private.h"
+#include "core/op/noise.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -90,7 +93,8 @@ START_TEST(test_subgrid_demo)
     int nlgs = 0;
     for (int m = 0; m < f.sys->nsensors; m++) {
         const wt_sensor *s = &f.sys->sensors[m];
-        const double v = wt_tomography_model_error(f.t, m);
+        const double v = wt_tomography_subgrid_error(f.t, m);
+        ck_assert_double_eq(wt_tomography_model_error(f.t, m), 0.0);
         if (s->kind != WT_SENSOR_LGS) {
             ck_assert_double_eq(v, 0.0);
             continue;
@@ -106,7 +110,7 @@ START_TEST(test_subgrid_demo)
         ck_assert_rel(v, e, 1e-12, 0.0);
         const double mas = sqrt(v) / (M_PI / 180.0 / 3600.0) * 1e3;
         ck_assert_msg(mas > 40.0 && mas < 100.0, "sub-grid error %g mas", mas);
-        ck_assert_rel(wt_tomography_model_error(h.t, m), v * pow(2.0, 5.0 / 3.0), 1e-9, 0.0);
+        ck_assert_rel(wt_tomography_subgrid_error(h.t, m), v * pow(2.0, 5.0 / 3.0), 1e-9, 0.0);
     }
     ck_assert_int_eq(nlgs, c->nlgs);
     teardown(&f);
@@ -114,33 +118,69 @@ START_TEST(test_subgrid_demo)
 }
 END_TEST
 
-/* PCG-3: the two model errors add; a model update (r0 doubled, then back) gives the set-up's sub-grid variances
- * back (the binning error's updates draw other screens, test_profile.c) */
-START_TEST(test_subgrid_with_binning)
+/* y = C̃ e_i for LGS m's subaperture i: the diagonal entry and the xy entry */
+static void cov_entry(const wt_tomography *t, int m, int i, double *xx, double *xy)
 {
-    const char *sg[] = {"recon.subgrid_error=true"};
-    const char *me[] = {"recon.model_error=true"};
-    const char *both[] = {"recon.subgrid_error=true", "recon.model_error=true"};
-    fixture a, b, ab;
-    setup(&a, 0, 1, sg);
-    setup(&b, 0, 1, me);
-    setup(&ab, 0, 2, both);
+    const int nsub = wt_tomography_noise(t, m) ? t->sys->sensors[m].nsub : 0;
+    double *x = calloc((size_t)2 * nsub, sizeof *x), *y = calloc((size_t)2 * nsub, sizeof *y);
+    x[i] = 1.0;
+    wt_noise_apply_cov(wt_tomography_noise(t, m), 1.0, x, y);
+    *xx = y[i];
+    *xy = y[nsub + i];
+    free(x), free(y);
+}
+
+/* PCG-3 at 10^4 photons (σ ~5 mas, under the ~65 mas floor): C̃_i = (σ²_g + σ²_e) I + σ² (τ/θf²) β βᵀ, the binning
+ * error unchanged by the key; at the demo's 100 photons (σ ~146 mas, above it) the weight is the one without the
+ * key, to the bit; a model update (r0 doubled, then back) gives the set-up's floor back (the binning error's
+ * updates draw other screens, test_profile.c) */
+START_TEST(test_subgrid_floor)
+{
+    const char *bright[] = {"lgs.wfs.photons=1e4", "recon.model_error=true", "recon.subgrid_error=true"};
+    const char *bright0[] = {"lgs.wfs.photons=1e4", "recon.model_error=true"};
+    const char *dim[] = {"recon.model_error=true", "recon.subgrid_error=true"};
+    const char *dim0[] = {"recon.model_error=true"};
+    fixture a, a0, b, b0;
+    setup(&a, 0, 3, bright);
+    setup(&a0, 0, 2, bright0);
+    setup(&b, 0, 2, dim);
+    setup(&b0, 0, 1, dim0);
     double v0[2 * WT_MAX_GS];
-    for (int m = 0; m < ab.sys->nsensors; m++) {
-        const double va = wt_tomography_model_error(a.t, m), vb = wt_tomography_model_error(b.t, m);
-        if (ab.sys->sensors[m].kind == WT_SENSOR_LGS) ck_assert_double_gt(va, 0.0);
-        ck_assert_rel(wt_tomography_model_error(ab.t, m), va + vb, 1e-12, 0.0);
-        v0[m] = va;
+    for (int m = 0; m < a.sys->nsensors; m++) {
+        const wt_sensor *s = &a.sys->sensors[m];
+        const double g = wt_tomography_subgrid_error(a.t, m), e = wt_tomography_model_error(a.t, m);
+        v0[m] = g;
+        ck_assert_double_eq(e, wt_tomography_model_error(a0.t, m));
+        if (s->kind != WT_SENSOR_LGS) continue;
+        ck_assert_double_gt(g, 10.0 * s->sigma2);
+        ck_assert_double_gt(e, 0.0);
+        const int i = s->nsub / 3;
+        ck_assert_ptr_nonnull(s->beta);
+        const double k = a.cfg->tau / (s->spot_fwhm * s->spot_fwhm), bx = s->beta[i], by = s->beta[s->nsub + i];
+        double xx, xy;
+        cov_entry(a.t, m, i, &xx, &xy);
+        ck_assert_rel(xx, g + e + s->sigma2 * k * bx * bx, 1e-12, 0.0);
+        ck_assert_rel(xy, s->sigma2 * k * bx * by, 1e-12, 1e-30);
+        /* 100 photons: above the floor, the weight of a reconstructor without the key */
+        ck_assert_double_lt(wt_tomography_subgrid_error(b.t, m), b.sys->sensors[m].sigma2);
+        double yy, yx, zz, zx;
+        cov_entry(b.t, m, i, &yy, &yx);
+        cov_entry(b0.t, m, i, &zz, &zx);
+        ck_assert_double_eq(yy, zz);
+        ck_assert_double_eq(yx, zx);
+        ck_assert_double_eq(wt_tomography_lgs_precision(b.t, m), wt_tomography_lgs_precision(b0.t, m));
+        ck_assert_rel(wt_tomography_lgs_precision(a.t, m), s->nsub / (g + e), 1e-12, 0.0);
     }
     const wt_config *c = a.cfg;
     ck_assert_int_eq(wt_tomography_set_profile(a.t, 2.0 * c->r0, c->nlayers, c->layer_altitude, c->layer_fraction), WT_OK);
     for (int m = 0; m < a.sys->nsensors; m++)
-        ck_assert_rel(wt_tomography_model_error(a.t, m), v0[m] * pow(2.0, -5.0 / 3.0), 1e-12, 0.0);
+        ck_assert_rel(wt_tomography_subgrid_error(a.t, m), v0[m] * pow(2.0, -5.0 / 3.0), 1e-12, 0.0);
     ck_assert_int_eq(wt_tomography_set_profile(a.t, c->r0, c->nlayers, c->layer_altitude, c->layer_fraction), WT_OK);
-    for (int m = 0; m < a.sys->nsensors; m++) ck_assert_rel(wt_tomography_model_error(a.t, m), v0[m], 1e-12, 0.0);
+    for (int m = 0; m < a.sys->nsensors; m++) ck_assert_rel(wt_tomography_subgrid_error(a.t, m), v0[m], 1e-12, 0.0);
     teardown(&a);
+    teardown(&a0);
     teardown(&b);
-    teardown(&ab);
+    teardown(&b0);
 }
 END_TEST
 
@@ -151,7 +191,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 60);
     tcase_add_test(tc, test_subgrid_unit);
     tcase_add_test(tc, test_subgrid_demo);
-    tcase_add_test(tc, test_subgrid_with_binning);
+    tcase_add_test(tc, test_subgrid_floor);
     suite_add_tcase(s, tc);
     return s;
 }

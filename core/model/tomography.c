@@ -45,6 +45,7 @@ const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l) { return 
 double wt_tomography_layer_altitude(const wt_tomography *t, int l) { return t->alt[l]; }
 double wt_tomography_layer_fraction(const wt_tomography *t, int l) { return t->frac[l]; }
 double wt_tomography_model_error(const wt_tomography *t, int m) { return t->model_var[m]; }
+double wt_tomography_subgrid_error(const wt_tomography *t, int m) { return t->subgrid_var[m]; }
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }

@@ -53,7 +53,8 @@ struct wt_tomography {
     wt_sensor_stack stack;    /* Σ_m Γ_m P_m over projs (a view) */
     int64_t zero_offset;
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
-    double model_var[2 * WT_MAX_GS];  /* S: layer-binning and sub-grid model errors added to σ² [rad²] */
+    double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
+    double subgrid_var[2 * WT_MAX_GS]; /* S: sub-grid model error, the floor of κσ² [rad²] (subgrid_error) */
     int64_t ncg;              /* corner grid points */
     int nthreads;
     int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
