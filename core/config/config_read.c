@@ -407,6 +407,11 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     expected_text(ks, want, sizeof want);
     if (!s) {
         if (ks->flags & F_AUTO) return WT_OK;
+        /* a list whose default is another key's (list_defaults) left out with that key: the key is reported */
+        if ((ks->flags & F_DEFAULT) && wt_config_priv_is_list(ks->type)) {
+            *(int *)((char *)cfg + ks->count_off) = 0;
+            return WT_OK;
+        }
         if (ks->type == K_STR) {
             *dst = '\0';
             return WT_OK;
@@ -516,7 +521,9 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     int first = k;
     while (first > 0 && wt_config_priv_keys[first - 1].count_off == ks->count_off) first--;
     int *count = (int *)((char *)cfg + ks->count_off);
-    if (first == k || is_missing(ps, first)) *count = n; /* a missing first list is reported with the others */
+    /* a required first list left out is reported with the other missing keys; its siblings set the count */
+    if (first == k || (!config_lookup(ps->cf, wt_config_priv_keys[first].path) && !(wt_config_priv_keys[first].flags & F_OPT)))
+        *count = n;
     else if (*count != n)
         return FAIL(ps, k, s, "key '%s' has %d elements but '%s' has %d; they must have the same length", ks->path, n,
                     wt_config_priv_keys[first].path, *count);
@@ -557,8 +564,14 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     if (!config_read_string(&cf, src.text)) {
         const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
         char at[1100];
-        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at),
-                      e, syntax_hint(e));
+        /* a duplicate after @include: name the included files, where the first definition is */
+        char inc[1200] = "";
+        size_t ni = 0;
+        for (int i = 1; strstr(e, "duplicate setting") && i < src.nfiles && ni < sizeof inc; i++)
+            ni += (size_t)snprintf(inc + ni, sizeof inc - ni, "%s'%s'", i > 1 ? ", " : " (included: ", src.files[i]);
+        if (*inc && ni < sizeof inc) snprintf(inc + ni, sizeof inc - ni, ")");
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s%s",
+                      wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at), e, inc, syntax_hint(e));
         goto fail;
     }
     /* A file may carry its own overrides (a preset that @includes another and changes a few keys:
