@@ -187,7 +187,7 @@ install: all
 	install -m 644 $(ATMOSPHERE) $(DESTDIR)$(PKGDATADIR)/atmosphere/
 	install -m 644 $(NIGHTS) $(DESTDIR)$(PKGDATADIR)/nights/
 	install -m 644 docs/c-api.md docs/python-api.md $(DESTDIR)$(DOCDIR)/
-	install -m 644 examples/rtc_loop.c $(DESTDIR)$(DOCDIR)/examples/
+	install -m 644 examples/rtc_loop.c examples/my-system.cfg $(DESTDIR)$(DOCDIR)/examples/
 	install -m 644 $(PY_SRC) $(DESTDIR)$(PYTHONDIR)/wavetomo/
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
 
@@ -201,7 +201,7 @@ uninstall:
 	    $(ATMOSPHERE:data/atmosphere/%=$(DESTDIR)$(PKGDATADIR)/atmosphere/%) \
 	    $(NIGHTS:data/nights/%=$(DESTDIR)$(PKGDATADIR)/nights/%) \
 	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/python-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c \
-	    $(PY_SRC:python/wavetomo/%=$(DESTDIR)$(PYTHONDIR)/wavetomo/%)
+	    $(DESTDIR)$(DOCDIR)/examples/my-system.cfg $(PY_SRC:python/wavetomo/%=$(DESTDIR)$(PYTHONDIR)/wavetomo/%)
 	rm -rf $(DESTDIR)$(PYTHONDIR)/wavetomo/__pycache__
 	@rmdir $(DESTDIR)$(INCLUDEDIR)/wavetomo $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
 	    $(DESTDIR)$(PKGDATADIR)/atmosphere $(DESTDIR)$(PKGDATADIR)/nights \

@@ -96,7 +96,7 @@ START_TEST(test_tree)
                            "share/wavetomo/presets/eelt-mcao-eso35.cfg", "share/wavetomo/nights/demo-ground-doubling.txt",
                            "share/wavetomo/nights/eso35-ground-doubling.txt", "share/wavetomo/presets/demo-night.cfg",
                            "share/wavetomo/presets/eelt-mcao-night.cfg", "share/doc/wavetomo/c-api.md",
-                           "share/doc/wavetomo/examples/rtc_loop.c"};
+                           "share/doc/wavetomo/examples/rtc_loop.c", "share/doc/wavetomo/examples/my-system.cfg"};
     char p[1024];
     for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
         snprintf(p, sizeof p, "%s%s/%s", dest, prefix, files[i]);
