@@ -6,7 +6,7 @@ The subclasses also derive from the matching built-in exception, so `except Valu
 argument or configuration and `except OSError` a missing file.
 """
 
-__all__ = ["Error", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError",
+__all__ = ["Error", "LoadError", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError",
            "NumericError", "FormatError", "InterruptedRun", "CommandError", "SolverWarning"]
 
 # status codes of include/wavetomo/context.h
@@ -33,6 +33,11 @@ class Error(Exception):
 
     def __str__(self):
         return self.message
+
+
+class LoadError(Error, ImportError):
+    """The C library could not be loaded (missing, lacking a function, or of another major version): raised
+    by the first call that needs it, not by `import wavetomo`; the message names every place looked in."""
 
 
 class NoMemoryError(Error, MemoryError):

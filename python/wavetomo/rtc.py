@@ -11,6 +11,7 @@ bits) and returns float32; anything else runs in float64. Sizes, NaN and Inf are
 whose message the exception carries. Each object owns its C context and instance; a lock lets one thread
 at a time run a frame on it (different objects run in parallel: ctypes releases the GIL).
 """
+import ctypes
 import os
 import threading
 import warnings
@@ -24,7 +25,10 @@ from .layout import DM, Layout, Sensor
 
 __all__ = ["System", "Reconstructor"]
 
-_L = _lib.lib
+
+def _L() -> ctypes.CDLL:
+    """The C library (loaded at the first object's set-up: LoadError if missing)."""
+    return _lib.load()
 
 
 def _ptr(a):
@@ -52,35 +56,35 @@ class System:
     # -- set-up ---------------------------------------------------------------------------------------
     def _open(self, recon, config, text, matrix, set, threads):
         self._rtc = None
-        self._ctx = _L.wt_context_alloc()
+        self._ctx = _L().wt_context_alloc()
         if not self._ctx:
             raise MemoryError("wavetomo: no memory for a context")
         self._lock = threading.Lock()
         if threads is not None:
-            _L.wt_context_set_threads(self._ctx, int(threads))
+            _L().wt_context_set_threads(self._ctx, int(threads))
         sets = [s.encode() for s in overrides(set)]
-        arr = (_lib.ctypes.c_char_p * max(len(sets), 1))(*sets)
-        out = _lib.ctypes.c_void_p()
+        arr = (ctypes.c_char_p * max(len(sets), 1))(*sets)
+        out = ctypes.c_void_p()
         if matrix is not None:
             if text is not None:
                 raise TypeError("a stored MVM takes its configuration from config= (a file) or from the matrix, not text=")
-            st = _L.wt_rtc_open_mvm(self._ctx, _path(matrix), _path(config), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open_mvm(self._ctx, _path(matrix), _path(config), len(sets), arr, ctypes.byref(out))
         elif (config is None) == (text is None):
             raise TypeError("give a configuration file (config=) or its text (text=), one of the two")
         elif text is not None:
-            st = _L.wt_rtc_open_text(self._ctx, recon.encode(), text.encode(), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open_text(self._ctx, recon.encode(), text.encode(), len(sets), arr, ctypes.byref(out))
         else:
-            st = _L.wt_rtc_open(self._ctx, recon.encode(), _path(config), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open(self._ctx, recon.encode(), _path(config), len(sets), arr, ctypes.byref(out))
         if st < 0:
             self._raise(st)
         self._rtc = out.value
-        self.nslopes = int(_L.wt_rtc_nslopes(self._rtc))
-        self.nactuators = int(_L.wt_rtc_nactuators(self._rtc))
+        self.nslopes = int(_L().wt_rtc_nslopes(self._rtc))
+        self.nactuators = int(_L().wt_rtc_nactuators(self._rtc))
         self._layout = self._dms = None
 
     def _raise(self, st):
-        msg = _L.wt_error_message(self._ctx).decode(errors="replace") or _L.wt_strerror(st).decode()
-        _L.wt_error_clear(self._ctx)
+        msg = _L().wt_error_message(self._ctx).decode(errors="replace") or _L().wt_strerror(st).decode()
+        _L().wt_error_clear(self._ctx)
         raise error_for(st, msg)
 
     def _handle(self):
@@ -95,9 +99,9 @@ class System:
         if _L is None:  # interpreter shutdown
             return
         if rtc:
-            _L.wt_rtc_close(rtc)
+            _L().wt_rtc_close(rtc)
         if ctx:
-            _L.wt_context_free(ctx)
+            _L().wt_context_free(ctx)
 
     def __del__(self):
         try:
@@ -121,13 +125,13 @@ class System:
     @property
     def recon(self):
         """"none" for a System; "pcg3", "cg9", "mvm-pcg3" or "mvm-cg9" for a Reconstructor."""
-        return _L.wt_rtc_recon(self._handle()).decode()
+        return _L().wt_rtc_recon(self._handle()).decode()
 
     @property
     def config(self):
         """The effective configuration (libconfig text after the overrides, every key given): the
         "config" dataset an output file of this system holds."""
-        return _L.wt_rtc_config(self._handle()).decode()
+        return _L().wt_rtc_config(self._handle()).decode()
 
     @property
     def settings(self):
@@ -136,26 +140,26 @@ class System:
 
     @property
     def nsensors(self):
-        return int(_L.wt_rtc_nsensors(self._handle()))
+        return int(_L().wt_rtc_nsensors(self._handle()))
 
     @property
     def ndms(self):
-        return int(_L.wt_rtc_ndms(self._handle()))
+        return int(_L().wt_rtc_ndms(self._handle()))
 
     @property
     def delay(self):
         """loop.delay_frames d [frames]"""
-        return int(_L.wt_rtc_delay(self._handle()))
+        return int(_L().wt_rtc_delay(self._handle()))
 
     @property
     def gain(self):
         """loop.gain g of the POLC integrator"""
-        return float(_L.wt_rtc_gain(self._handle()))
+        return float(_L().wt_rtc_gain(self._handle()))
 
     @property
     def rate(self):
         """frame rate [Hz]"""
-        return float(_L.wt_rtc_rate(self._handle()))
+        return float(_L().wt_rtc_rate(self._handle()))
 
     @property
     def sensors(self):
@@ -170,7 +174,7 @@ class System:
             h, out = self._handle(), []
             for k in range(self.ndms):
                 d = _lib.DM_c()
-                st = _L.wt_rtc_dm_info(h, k, _lib.ctypes.byref(d))
+                st = _L().wt_rtc_dm_info(h, k, ctypes.byref(d))
                 if st < 0:
                     self._raise(st)
                 out.append(DM(d.altitude, d.pitch, d.nactive, d.offset, d.nx, d.ny, d.x0, d.y0))
@@ -184,18 +188,18 @@ class System:
             h, sensors = self._handle(), []
             for m in range(self.nsensors):
                 info = _lib.Sensor_c()
-                st = _L.wt_rtc_sensor_info(h, m, _lib.ctypes.byref(info))
+                st = _L().wt_rtc_sensor_info(h, m, ctypes.byref(info))
                 if st < 0:
                     self._raise(st)
                 xy = np.empty((info.nsub, 2))
-                st = _L.wt_rtc_subapertures(h, m, _ptr(xy))
+                st = _L().wt_rtc_subapertures(h, m, _ptr(xy))
                 if st < 0:
                     self._raise(st)
                 sensors.append(Sensor(info.name.decode(), "LGS" if info.kind == _lib.WT_RTC_LGS else "NGS",
                                       info.nsub, info.offset, info.theta_x, info.theta_y, info.altitude, xy))
             pos = np.empty((self.nactuators, 2))
             idx = np.empty((self.nactuators, 3), dtype=np.int32)
-            st = _L.wt_rtc_actuators(h, _ptr(pos), _ptr(idx))
+            st = _L().wt_rtc_actuators(h, _ptr(pos), _ptr(idx))
             if st < 0:
                 self._raise(st)
             self._layout = Layout(sensors, idx, pos)
@@ -221,11 +225,11 @@ class System:
     def interaction(self, commands):
         """slopes = Â commands: the slopes [rad] the sensors see of DM commands [m] (the POLC term,
         s_ol = s + Â a). commands: (nactuators,) or (frames, nactuators); float64 out."""
-        return self._apply(_L.wt_rtc_interaction, commands, self.nactuators, self.nslopes)
+        return self._apply(_L().wt_rtc_interaction, commands, self.nactuators, self.nslopes)
 
     def interaction_t(self, slopes):
         """commands = Âᵀ slopes, the transpose. slopes: (nslopes,) or (frames, nslopes); float64 out."""
-        return self._apply(_L.wt_rtc_interaction_t, slopes, self.nslopes, self.nactuators)
+        return self._apply(_L().wt_rtc_interaction_t, slopes, self.nslopes, self.nactuators)
 
 
 class Reconstructor(System):
@@ -259,17 +263,17 @@ class Reconstructor(System):
     @property
     def frames(self):
         """Frames run since open or reset."""
-        return int(_L.wt_rtc_frames(self._handle()))
+        return int(_L().wt_rtc_frames(self._handle()))
 
     @property
     def frame_time(self):
         """Wall time of the last frame call in the library [s] (input checks, conversions, reconstruction)."""
-        return float(_L.wt_rtc_frame_time(self._handle()))
+        return float(_L().wt_rtc_frame_time(self._handle()))
 
     def reset(self):
         """Forget the history: the integrator, its delay queue, the warm start, the frame count."""
         with self._lock:
-            _L.wt_rtc_reset(self._handle())
+            _L().wt_rtc_reset(self._handle())
 
     def _vector(self, x, n, dtype, what):
         x = np.asarray(x)
@@ -296,7 +300,7 @@ class Reconstructor(System):
                   and out.flags.writeable):
             raise ValueError("out: expected a writeable C-contiguous %s vector" % np.dtype(dtype).name)
         flags = (_lib.WT_RTC_RAW if raw else 0) | (_lib.WT_RTC_SLOPES_OL if slopes_ol else 0)
-        fn = _L.wt_rtc_frame_f32 if dtype == np.float32 else _L.wt_rtc_frame
+        fn = _L().wt_rtc_frame_f32 if dtype == np.float32 else _L().wt_rtc_frame
         h = self._handle()
         with self._lock:
             st = fn(h, _ptr(s), s.size, _ptr(a), flags, _ptr(out), out.size)
@@ -304,8 +308,8 @@ class Reconstructor(System):
                 self._raise(st)
             self.last_status = st
             if st > 0:
-                msg = _L.wt_error_message(self._ctx).decode(errors="replace")
-                warnings.warn(SolverWarning(msg or _L.wt_strerror(st).decode()), stacklevel=2)
+                msg = _L().wt_error_message(self._ctx).decode(errors="replace")
+                warnings.warn(SolverWarning(msg or _L().wt_strerror(st).decode()), stacklevel=2)
         return out
 
     def replay(self, slopes, applied=None, *, raw=False, slopes_ol=False):
