@@ -44,6 +44,6 @@ def library_path() -> str:
 
 __all__ = ["System", "Reconstructor", "Sensor", "DM", "Layout", "ARCSEC", "sim", "compare", "budget", "build", "run",
            "executable", "read", "read_run", "read_telemetry", "read_matrix", "read_commands", "read_compare",
-           "read_budget", "Result", "MatrixResult", "overrides", "parse_config", "version", "library_path", "Error", "LoadError",
-           "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError", "NumericError",
+           "read_budget", "Result", "MatrixResult", "overrides", "parse_config", "version", "library_path", "Error",
+           "LoadError", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError", "NumericError",
            "FormatError", "InterruptedRun", "CommandError", "SolverWarning"]
