@@ -14,7 +14,7 @@ call that needs it: `import wavetomo` works without it, and that call raises Loa
 import os
 
 from . import _lib
-from ._version import VERSION as __version__
+from ._version import VERSION
 from .commands import budget, build, compare, executable, run, sim
 from .config import overrides, parse as parse_config
 from .errors import (CommandError, ConfigError, Error, FileError, FormatError, InterruptedRun, InvalidError,
@@ -23,6 +23,8 @@ from .files import (MatrixResult, Result, read, read_budget, read_commands, read
                     read_telemetry)
 from .layout import ARCSEC, DM, Layout, Sensor
 from .rtc import Reconstructor, System
+
+__version__ = VERSION  # this package's: the C header's it was built from (version() is the loaded library's)
 
 
 def version() -> str:
