@@ -232,8 +232,8 @@ check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
 	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
-# The suites, among them the Python package's pytest suite (tests/test_python.sh reports it as a Check
-# suite, so its tests count in the closing tally), the README's tour run as written (tests/test_tour.sh,
+# The suites, among them the Python package's pytest suite on the package pip-installed into a temporary venv
+# (tests/test_python.sh reports it as a Check suite, so its tests count in the closing tally), the README's tour run as written (tests/test_tour.sh,
 # reported the same way) and tests/test_install's checks of `make install` into a temporary DESTDIR made here
 # (by this make, with its variables: a make run from inside a suite would not know them); the programs it
 # builds against a sanitized library (make debug-test) need the sanitizers too (WT_INSTALL_CFLAGS).
