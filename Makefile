@@ -4,7 +4,8 @@
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
                 libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
-                openmpi-bin libopenmpi-dev python3-numpy python3-h5py python3-pytest
+                openmpi-bin libopenmpi-dev python3-numpy python3-h5py python3-pytest \
+                python3-pip python3-setuptools python3-wheel python3-venv
 
 CC      ?= gcc
 PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig plplot
@@ -46,7 +47,7 @@ PCFILE    := $(BUILD)/wavetomo.pc
 PUBLIC_H  := $(sort $(wildcard include/wavetomo/*.h))
 
 .PHONY: all deps test test-run demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
-        install uninstall docs
+        install uninstall docs check-python-package
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB)
 
@@ -148,10 +149,15 @@ PKGDATADIR := $(DATADIR)/wavetomo
 DOCDIR     ?= $(DATADIR)/doc/wavetomo
 # the Python package (python/wavetomo, ctypes over the shared library: nothing to compile) where Debian's
 # interpreter looks for a prefix's modules: /usr/local/lib/python3.X/dist-packages; it finds the library
-# and the executable relative to itself (docs/python-api.md)
+# and the executable relative to itself (docs/python-api.md). pip installs it (pyproject.toml), offline with
+# Debian's setuptools and wheel, into exactly that directory: --target, because pip's --prefix follows
+# Debian's scheme, which puts PREFIX/local/lib/... under any prefix. --no-deps: numpy is Debian's, and pip
+# would not see it from a --target install.
 PYTHON     ?= /usr/bin/python3
 PYTHONDIR  ?= $(LIBDIR)/python$(shell $(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null || echo 3)/dist-packages
-PY_SRC     := $(sort $(wildcard python/wavetomo/*.py))
+PIP_OFFLINE := $(PYTHON) -m pip install -q --no-build-isolation --no-index --no-cache-dir --disable-pip-version-check \
+               --root-user-action=ignore
+PY_DIST    := wavetomo-$(VERSION).dist-info
 PRESETS    := $(sort $(wildcard data/presets/*.cfg))
 SODIUM     := $(sort $(wildcard data/sodium/*.txt))
 ATMOSPHERE := $(sort $(wildcard data/atmosphere/*.txt))
@@ -173,7 +179,7 @@ install: all
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(INCLUDEDIR)/wavetomo \
 	    $(DESTDIR)$(MANDIR)/man1 $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
 	    $(DESTDIR)$(PKGDATADIR)/atmosphere $(DESTDIR)$(PKGDATADIR)/nights \
-	    $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(PYTHONDIR)/wavetomo
+	    $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(PYTHONDIR)
 	install -m 755 $(BIN)/wavetomo $(DESTDIR)$(BINDIR)/wavetomo
 	install -m 755 $(SHLIB) $(DESTDIR)$(LIBDIR)/
 	ln -sf $(notdir $(SHLIB)) $(DESTDIR)$(LIBDIR)/$(SONAME)
@@ -187,8 +193,8 @@ install: all
 	install -m 644 $(ATMOSPHERE) $(DESTDIR)$(PKGDATADIR)/atmosphere/
 	install -m 644 $(NIGHTS) $(DESTDIR)$(PKGDATADIR)/nights/
 	install -m 644 docs/c-api.md docs/python-api.md $(DESTDIR)$(DOCDIR)/
-	install -m 644 examples/rtc_loop.c $(DESTDIR)$(DOCDIR)/examples/
-	install -m 644 $(PY_SRC) $(DESTDIR)$(PYTHONDIR)/wavetomo/
+	install -m 644 examples/rtc_loop.c examples/my-system.cfg $(DESTDIR)$(DOCDIR)/examples/
+	$(PIP_OFFLINE) --no-deps --no-compile --upgrade --target $(DESTDIR)$(PYTHONDIR) $(CURDIR)
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
 
 uninstall:
@@ -201,11 +207,15 @@ uninstall:
 	    $(ATMOSPHERE:data/atmosphere/%=$(DESTDIR)$(PKGDATADIR)/atmosphere/%) \
 	    $(NIGHTS:data/nights/%=$(DESTDIR)$(PKGDATADIR)/nights/%) \
 	    $(DESTDIR)$(DOCDIR)/c-api.md $(DESTDIR)$(DOCDIR)/python-api.md $(DESTDIR)$(DOCDIR)/examples/rtc_loop.c \
-	    $(PY_SRC:python/wavetomo/%=$(DESTDIR)$(PYTHONDIR)/wavetomo/%)
+	    $(DESTDIR)$(DOCDIR)/examples/my-system.cfg
+	@# the Python package: the files its RECORD lists (what pip uninstall would remove), and its bytecode
+	if [ -f $(DESTDIR)$(PYTHONDIR)/$(PY_DIST)/RECORD ]; then \
+	  cd $(DESTDIR)$(PYTHONDIR) && sed 's/,.*//' $(PY_DIST)/RECORD | xargs rm -f; fi
 	rm -rf $(DESTDIR)$(PYTHONDIR)/wavetomo/__pycache__
 	@rmdir $(DESTDIR)$(INCLUDEDIR)/wavetomo $(DESTDIR)$(PKGDATADIR)/presets $(DESTDIR)$(PKGDATADIR)/sodium \
 	    $(DESTDIR)$(PKGDATADIR)/atmosphere $(DESTDIR)$(PKGDATADIR)/nights \
 	    $(DESTDIR)$(PKGDATADIR) $(DESTDIR)$(DOCDIR)/examples $(DESTDIR)$(DOCDIR) $(DESTDIR)$(PYTHONDIR)/wavetomo \
+	    $(DESTDIR)$(PYTHONDIR)/$(PY_DIST) \
 	    2>/dev/null || true
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ] && command -v ldconfig >/dev/null; then ldconfig; fi
 
@@ -223,8 +233,8 @@ check-deps: deps
 	@$(MAKE) --no-print-directory $(LIB)
 	@CC="$(CC)" BUILD=$(BUILD) CPPFLAGS_EXTRA="-Iinclude $(PKG_CFLAGS) $(MPI_CFLAGS) -I/usr/include/suitesparse" bash tests/check_deps.sh
 
-# The suites, among them the Python package's pytest suite (tests/test_python.sh reports it as a Check
-# suite, so its tests count in the closing tally), the README's tour run as written (tests/test_tour.sh,
+# The suites, among them the Python package's pytest suite on the package pip-installed into a temporary venv
+# (tests/test_python.sh reports it as a Check suite, so its tests count in the closing tally), the README's tour run as written (tests/test_tour.sh,
 # reported the same way) and tests/test_install's checks of `make install` into a temporary DESTDIR made here
 # (by this make, with its variables: a make run from inside a suite would not know them); the programs it
 # builds against a sanitized library (make debug-test) need the sanitizers too (WT_INSTALL_CFLAGS).
@@ -243,6 +253,12 @@ test-run: deps check-deps
 	rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
 	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN) tests/test_python.sh tests/test_tour.sh; rc=$$?; \
 	    rm -rf $$d; exit $$rc
+
+# The Python package installed as the README says (the files of a fresh clone, pip offline into a new
+# virtual environment with the system's site packages), then its pytest suite against this build: make test's
+# test_python.sh alone.
+check-python-package: all
+	@BUILD=$(BUILD) BIN=$(BIN) bash tests/test_python.sh
 
 # The main job: MVM, PCG-3 and CG-9 side by side in closed loop on the demo system, with the report.
 demo: all

@@ -96,7 +96,7 @@ START_TEST(test_tree)
                            "share/wavetomo/presets/eelt-mcao-eso35.cfg", "share/wavetomo/nights/demo-ground-doubling.txt",
                            "share/wavetomo/nights/eso35-ground-doubling.txt", "share/wavetomo/presets/demo-night.cfg",
                            "share/wavetomo/presets/eelt-mcao-night.cfg", "share/doc/wavetomo/c-api.md",
-                           "share/doc/wavetomo/examples/rtc_loop.c"};
+                           "share/doc/wavetomo/examples/rtc_loop.c", "share/doc/wavetomo/examples/my-system.cfg"};
     char p[1024];
     for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
         snprintf(p, sizeof p, "%s%s/%s", dest, prefix, files[i]);
@@ -224,13 +224,15 @@ START_TEST(test_example_rtc_loop)
 }
 END_TEST
 
-/* The installed Python package, imported by Debian's interpreter from the installed tree alone (no
- * LD_LIBRARY_PATH, no WAVETOMO_LIB / WAVETOMO_BIN, from a clean directory): it finds the installed library
- * and executable relative to itself, opens a reconstructor on an installed preset and runs a sim. */
+/* The installed Python package (by pip: its metadata and py.typed are there), imported by Debian's
+ * interpreter from the installed tree alone (no LD_LIBRARY_PATH, no WAVETOMO_LIB / WAVETOMO_BIN, from a clean
+ * directory): it finds the installed library and executable relative to itself, opens a reconstructor on an
+ * installed preset and runs a sim. */
 START_TEST(test_python_against_install)
 {
-    SH_OK("ls -d %s%s/lib/python3*/dist-packages/wavetomo/__init__.py %s%s/share/doc/wavetomo/python-api.md", dest,
-          prefix, dest, prefix);
+    SH_OK("ls -d %s%s/lib/python3*/dist-packages/wavetomo/__init__.py %s%s/lib/python3*/dist-packages/wavetomo/py.typed "
+          "%s%s/lib/python3*/dist-packages/wavetomo-" WT_VERSION_STRING ".dist-info/RECORD "
+          "%s%s/share/doc/wavetomo/python-api.md", dest, prefix, dest, prefix, dest, prefix, dest, prefix);
     SH_OK("env -u LD_LIBRARY_PATH -u WAVETOMO_LIB -u WAVETOMO_BIN PYTHONDONTWRITEBYTECODE=1 "
           "PYTHONPATH=\"$(echo %s%s/lib/python3*/dist-packages)\" /usr/bin/python3 -c '"
           "import wavetomo, numpy as np\n"

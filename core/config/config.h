@@ -233,6 +233,7 @@ typedef struct wt_config {
     /* reconstructor */
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */
     int model_error;                 /* 1: LGS noise variance + the layer-binning model error */
+    int subgrid_error;               /* 1: LGS noise variance floored at the slope variance beyond the layer grids' Nyquist */
     int lgs_focus_removal;           /* 1: the tomography removes LGS focus as it removes LGS tip-tilt */
     int lgs_focus_mode;              /* with lgs_focus_removal: 0 each LGS's own focus, 1 only their common focus */
     int lit_sensor_model;            /* reconstructor's sensor model: 0 Fried (paper), 1 lit-area average */

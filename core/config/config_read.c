@@ -87,6 +87,11 @@ static void describe(const config_setting_t *s, char *buf, size_t n)
 /* libconfig's message, plus what to do about its least obvious one */
 static const char *syntax_hint(const char *e)
 {
+    if (e && strstr(e, "duplicate setting"))
+        return " (a group or key defined twice, e.g. a group that an @included file already defines: libconfig "
+               "refuses the second. To change an included file's values, list them after the @include as "
+               "overrides = [ \"group.key = value\", ... ]; they apply after the file's settings and before "
+               "--set: see data/presets/eelt-mcao-nea20.cfg and docs/guide.md)";
     return e && strstr(e, "mismatched element type")
                ? " (the elements of [ ... ] share one type: write 1.0, not 1, among numbers, or use ( ... ))"
                : "";
@@ -311,7 +316,8 @@ static int fill_defaults(pstate *ps)
     char loc[512], num_[40];
     for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) {
         const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
-        if (!(ks->flags & F_DEFAULT) || config_lookup(ps->cf, ks->path)) continue;
+        /* a list's default is another key's value (list_defaults), known once the profiles are expanded */
+        if (!(ks->flags & F_DEFAULT) || wt_config_priv_is_list(ks->type) || config_lookup(ps->cf, ks->path)) continue;
         const char *leaf;
         config_setting_t *g = wt_config_priv_ensure_parent(ps->cf, ks->path, &leaf), *d = NULL;
         static const int ctype[] = {CONFIG_TYPE_INT, CONFIG_TYPE_INT64, CONFIG_TYPE_FLOAT, CONFIG_TYPE_BOOL,
@@ -339,6 +345,54 @@ static int fill_defaults(pstate *ps)
     return WT_OK;
 }
 
+/* Lists whose default is another key's list: a reconstruction layer at each DM (pcg3, the paper's PCG-3) or at
+ * each of the truth's layers (cg9, the paper's CG-9). Copied into the tree after the overrides and the profile
+ * files, so that the canonical text holds the list as if the file had given it. */
+static int list_defaults(pstate *ps)
+{
+    static const char *const pairs[][2] = {{"recon.pcg3.layer_altitudes_m", "dm.altitudes_m"},
+                                           {"recon.cg9.layer_altitudes_m", "atmosphere.altitudes_m"}};
+    for (size_t i = 0; i < sizeof pairs / sizeof *pairs; i++) {
+        const int k = wt_config_priv_find_key(pairs[i][0]);
+        const config_setting_t *from = config_lookup(ps->cf, pairs[i][1]);
+        /* a malformed source is reported when the source itself is loaded */
+        if (k < 0 || config_lookup(ps->cf, pairs[i][0]) || !from || !config_setting_is_aggregate(from) ||
+            config_setting_is_group(from))
+            continue;
+        double v[WT_MAX_LAYERS];
+        const int n = config_setting_length(from);
+        if (n < 1 || n > WT_MAX_LAYERS) continue;
+        for (int j = 0; j < n; j++) v[j] = wt_config_priv_num(config_setting_get_elem(from, (unsigned)j));
+        int st = wt_config_priv_write_list(ps, k, v, NULL, n);
+        if (st != WT_OK) return st;
+    }
+    return WT_OK;
+}
+
+static int load_key(pstate *ps, wt_config *cfg, int k);
+
+/* A required key the file leaves out (after the defaults, the overrides and the profile files). */
+static int is_missing(const pstate *ps, int k)
+{
+    const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
+    return !(ks->flags & (F_OPT | F_AUTO | F_DEFAULT)) && ks->type != K_STR && !config_lookup(ps->cf, ks->path);
+}
+
+/* Every required key the file leaves out, in one message (a new system learns them all at once); one alone is
+ * reported by load_key with what it expects. */
+static int report_missing(pstate *ps, wt_config *cfg, const int *missing, int n)
+{
+    char list[1200] = "", loc[512];
+    size_t len = 0;
+    if (n == 1) return load_key(ps, cfg, missing[0]);
+    for (int i = 0; i < n && len < sizeof list; i++)
+        len += (size_t)snprintf(list + len, sizeof list - len, "%s'%s'", i ? ", " : "", wt_config_priv_keys[missing[i]].path);
+    return FAIL(ps, missing[0], NULL,
+                "%d missing keys: %s; every other key has a default (`wavetomo info --keys` and docs/config.md "
+                "describe each; examples/my-system.cfg is a short complete system)",
+                n, list);
+}
+
 static int load_key(pstate *ps, wt_config *cfg, int k)
 {
     const wt_config_priv_key_spec *ks = &wt_config_priv_keys[k];
@@ -353,6 +407,11 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     expected_text(ks, want, sizeof want);
     if (!s) {
         if (ks->flags & F_AUTO) return WT_OK;
+        /* a list whose default is another key's (list_defaults) left out with that key: the key is reported */
+        if ((ks->flags & F_DEFAULT) && wt_config_priv_is_list(ks->type)) {
+            *(int *)((char *)cfg + ks->count_off) = 0;
+            return WT_OK;
+        }
         if (ks->type == K_STR) {
             *dst = '\0';
             return WT_OK;
@@ -462,7 +521,9 @@ static int load_key(pstate *ps, wt_config *cfg, int k)
     int first = k;
     while (first > 0 && wt_config_priv_keys[first - 1].count_off == ks->count_off) first--;
     int *count = (int *)((char *)cfg + ks->count_off);
-    if (first == k) *count = n;
+    /* a required first list left out is reported with the other missing keys; its siblings set the count */
+    if (first == k || (!config_lookup(ps->cf, wt_config_priv_keys[first].path) && !(wt_config_priv_keys[first].flags & F_OPT)))
+        *count = n;
     else if (*count != n)
         return FAIL(ps, k, s, "key '%s' has %d elements but '%s' has %d; they must have the same length", ks->path, n,
                     wt_config_priv_keys[first].path, *count);
@@ -503,8 +564,14 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     if (!config_read_string(&cf, src.text)) {
         const char *e = config_error_text(&cf) ? config_error_text(&cf) : "unknown error";
         char at[1100];
-        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s", wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at),
-                      e, syntax_hint(e));
+        /* a duplicate after @include: name the included files, where the first definition is */
+        char inc[1200] = "";
+        size_t ni = 0;
+        for (int i = 1; strstr(e, "duplicate setting") && i < src.nfiles && ni < sizeof inc; i++)
+            ni += (size_t)snprintf(inc + ni, sizeof inc - ni, "%s'%s'", i > 1 ? ", " : " (included: ", src.files[i]);
+        if (*inc && ni < sizeof inc) snprintf(inc + ni, sizeof inc - ni, ")");
+        st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s: syntax error: %s%s%s",
+                      wt_config_priv_src_line(&ps, config_error_line(&cf), at, sizeof at), e, inc, syntax_hint(e));
         goto fail;
     }
     /* A file may carry its own overrides (a preset that @includes another and changes a few keys:
@@ -542,9 +609,15 @@ static int parse_text(wt_context *ctx, const char *text, const char *name, const
     for (int i = 0; i < nfile + noverrides; i++) WT_TRY(apply_override(&ps, i));
     WT_TRY(fill_defaults(&ps));
     WT_TRY(wt_config_priv_expand_profiles(&ps));
+    WT_TRY(list_defaults(&ps));
     WT_ALLOC(ctx, cfg, 1, "the configuration");
     snprintf(cfg->path, sizeof cfg->path, "%s", ps.name);
-    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) WT_TRY(load_key(&ps, cfg, k));
+    int missing[WT_CONFIG_PRIV_NKEYS], nmissing = 0;
+    for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++) {
+        if (is_missing(&ps, k)) missing[nmissing++] = k;
+        else WT_TRY(load_key(&ps, cfg, k));
+    }
+    if (nmissing > 0) WT_TRY(report_missing(&ps, cfg, missing, nmissing));
     WT_TRY(wt_config_priv_check_consistency(&ps, cfg));
     WT_TRY(wt_config_priv_check_derived(ctx, cfg));
     WT_TRY(wt_config_priv_build_canonical(&ps, cfg));

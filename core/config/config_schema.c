@@ -35,13 +35,23 @@
 #define KE(p, ch, dst, d) {p, K_ENUM, 0, 0, 0, "", 1, CF(dst), NOCOUNT, 0, 0, ch, 0, d}
 #define KFL_(p, fl, lo, hi, u, sc, dst, cnt, mn, mx, d) {p, K_FLOATS, fl, lo, hi, u, sc, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
 #define KIL_(p, fl, lo, hi, dst, cnt, mn, mx, d) {p, K_INTS, fl, lo, hi, "", 1, CF(dst), CF(cnt), mn, mx, NULL, 0, d}
+/* keys with a default (F_DEFAULT: left out = the default written in the file, so in the canonical text and the
+ * matrix hash as if given); def in the file's unit, an enum's the index of its choice; the text says it */
+#define KFD(...) KFD_(__VA_ARGS__)
+#define KID(...) KID_(__VA_ARGS__)
+#define KFD_(p, fl, lo, hi, u, sc, dst, def, d) {p, K_FLOAT, F_DEFAULT | (fl), lo, hi, u, sc, CF(dst), NOCOUNT, 0, 0, NULL, def, d}
+#define KID_(p, fl, lo, hi, dst, def, d) {p, K_INT, F_DEFAULT | (fl), lo, hi, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, def, d}
+#define KBD(p, dst, def, d) {p, K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(dst), NOCOUNT, 0, 0, NULL, def, d}
+#define KED(p, ch, dst, def, d) {p, K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(dst), NOCOUNT, 0, 0, ch, def, d}
 
-#define SENSOR(pre, w, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, kdef, kdefs, wldef, wldefs)                                                                                   \
+#define SENSOR(pre, w, rn, rns, fw, fws, px, pxs, cdef, cdefs, npdef, npdefs, nfdef, nfdefs, kdef, kdefs, wldef, wldefs)   \
     KF(pre ".photons", GT0(1e12), "photons", 1, w.photons, "detected photons per subaperture per frame"),        \
-    KF(pre ".read_noise_e", GE0(1e6), "e-", 1, w.read_noise_e, "read noise per pixel (rms)"),                   \
-    KF(pre ".spot_fwhm_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.spot_fwhm, "FWHM of the non-elongated spot"),     \
-    KF(pre ".pixel_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.pixel, "pixel scale"),                                \
-    KI(pre ".pixels", 0, 1, 1024, w.pixels, "pixels across a subaperture (Ns)"),                            \
+    KFD(pre ".read_noise_e", GE0(1e6), "e-", 1, w.read_noise_e, rn,                                          \
+        "read noise per pixel (rms) (optional, default " rns ")"),                                           \
+    KFD(pre ".spot_fwhm_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.spot_fwhm, fw,                           \
+        "FWHM of the non-elongated spot (optional, default " fws ")"),                                       \
+    KFD(pre ".pixel_arcsec", GT0(MAXFIELD), "arcsec", ARCSEC, w.pixel, px, "pixel scale (optional, default " pxs ")"), \
+    KID(pre ".pixels", 0, 1, 1024, w.pixels, 4, "pixels across a subaperture (Ns) (optional, default 4)"),   \
     {pre ".nea_mas", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1e7, "mas", MAS, CF(w.nea), NOCOUNT, 0, 0, NULL, -1.0, \
      "noise-equivalent angle per axis (rms) of the unelongated spot (the short axis of an elongated one); when "  \
      "given it replaces the photon/read-noise model"},                                                     \
@@ -113,9 +123,9 @@
                    "diag(W C W^T), full = the von Karman covariance C itself on the periodic layer grid, applied by " \
                    "FFT (not diagonal; an MVM built with it has a dense normal matrix, n² doubles: 4.8 GB for pcg3 at E-ELT size)"
 
-#define VARIANT(pre, v, spacing_rule, cover, prior_default)                                                                     \
-    KFL(pre ".layer_altitudes_m", F_INCR, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS,      \
-        "reconstruction layer altitudes, strictly increasing"),                                            \
+#define VARIANT(pre, v, spacing_rule, cover, prior_default, alt_from, iters, iterss, prec, precs)                        \
+    KFL(pre ".layer_altitudes_m", F_INCR | F_DEFAULT, 0.0, MAXALT, "m", 1, v.altitudes, v.nlayers, 1, WT_MAX_LAYERS, \
+        "reconstruction layer altitudes, strictly increasing (optional, default " alt_from ")"),                 \
     {pre ".layer_spacing_m", K_FLOATS, F_LO_OPEN | F_AUTO, 0.0, 100.0, "m", 1, CF(v.spacing), CF(v.nlayers), 1,   \
      WT_MAX_LAYERS, NULL, 0, "grid spacing of each reconstruction layer; left out (or \"auto\"): per layer, "     \
      spacing_rule " / layer_oversampling (docs/design.md)"},                                          \
@@ -125,9 +135,10 @@
      "; with layer_spacing_m given, for that spacing (a size without layer_spacing_m is refused)"},                                                   \
     {pre ".layer_oversampling", K_FLOAT, F_OPT, 0.25, 16.0, "", 1, CF(v.oversampling), NOCOUNT, 0, 0, NULL, 1.0, \
      "the automatic layer_spacing_m is divided by this (default 1); refused beside a given layer_spacing_m"},                                                                                        \
-    KI(pre ".iterations", 0, 1, 1000000, v.iterations, "(P)CG iterations per frame"),                          \
-    KF(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, "relative residual to stop at; 0 = always run all iterations"), \
-    KE(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs|multilevel|fourier", v.preconditioner,    \
+    KID(pre ".iterations", 0, 1, 1000000, v.iterations, iters, "(P)CG iterations per frame (optional, default " iterss ")"), \
+    KFD(pre ".tolerance", F_HI_OPEN, 0.0, 1.0, "", 1, v.tolerance, 0.0,                                      \
+        "relative residual to stop at; 0 = always run all iterations (optional, default 0)"),                \
+    KED(pre ".preconditioner", "none|jacobi|jacobi_ngs|coarse_ngs|multilevel|fourier", v.preconditioner, prec, \
        "jacobi = modified Jacobi PCG, jacobi_ngs = the same plus the exact rank-r NGS term (Woodbury), "   \
        "coarse_ngs = jacobi_ngs with the coarse wavelet coefficients of all layers inverted as one exact "  \
        "block, multilevel = coarse_ngs with, below the coarse block, the layers' coefficients at each "     \
@@ -135,7 +146,7 @@
        "frequency of the layers scaled by the inverse of the largest eigenvalue of the layers' symbol "    \
        "there, the coarsest scales solved exactly, plus the NGS term (every layer on one n x n grid, the full "  \
        "prior; the solve runs on the layers' values instead of their wavelet coefficients: the same "       \
-       "iterates without the DWTs), none = plain CG"),                      \
+       "iterates without the DWTs), none = plain CG (optional, default " precs ")"),                        \
     {pre ".coarse_levels", K_INT, F_DEFAULT, 0, 30, "", 1, CF(v.coarse_levels), NOCOUNT, 0, 0, NULL, 2,       \
      "coarse_ngs and multilevel: the coarse block holds the scaling coefficients and the coarse_levels "   \
      "coarsest detail levels of every layer; fourier: the same space, exactly (0 = the scaling "          \
@@ -218,14 +229,20 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KI("lgs.count", 0, 0, WT_MAX_GS, nlgs, "number of laser guide stars, evenly spaced in azimuth"),
     KF("lgs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, lgs_radius, "radius of the LGS asterism"),
     KF("lgs.azimuth0_deg", ANYANGLE, "deg", DEG, lgs_azimuth0, "azimuth of the first LGS; the others follow every 360/count deg"),
-    KF("lgs.altitude_m", GT0(MAXALT), "m", 1, lgs_altitude, "sodium layer altitude H; above every atmosphere, DM and reconstruction layer"),
-    KF("lgs.sodium_fwhm_m", GE0(1e5), "m", 1, sodium_fwhm, "sodium layer FWHM thickness (spot elongation); 0 = no elongation; a diffractive LGS with lgs.sodium_profile uses the profile instead"),
-    KF("lgs.launch_radius_m", GE0(1000.0), "m", 1, launch_radius, "side-launch distance from the pupil centre, at the azimuth of its LGS"),
-    KF("lgs.tt_jitter_arcsec", GE0(100.0), "arcsec", ARCSEC, lgs_tt_jitter, "random LGS tip-tilt per axis per frame (rms)"),
+    KFD("lgs.altitude_m", GT0(MAXALT), "m", 1, lgs_altitude, 90000.0,
+        "sodium layer altitude H; above every atmosphere, DM and reconstruction layer (optional, default 90000)"),
+    KFD("lgs.sodium_fwhm_m", GE0(1e5), "m", 1, sodium_fwhm, 10000.0,
+        "sodium layer FWHM thickness (spot elongation); 0 = no elongation; a diffractive LGS with "
+        "lgs.sodium_profile uses the profile instead (optional, default 10000)"),
+    KFD("lgs.launch_radius_m", GE0(1000.0), "m", 1, launch_radius, 0.0,
+        "side-launch distance from the pupil centre, at the azimuth of its LGS (optional, default 0: launched from "
+        "the centre, behind the secondary; a side launch elongates the spots more and must be given)"),
+    KFD("lgs.tt_jitter_arcsec", GE0(100.0), "arcsec", ARCSEC, lgs_tt_jitter, 0.2,
+        "random LGS tip-tilt per axis per frame (rms) (optional, default 0.2)"),
     KI("lgs.wfs.subapertures", 0, 1, 1024, lgs_wfs.subapertures, "Shack-Hartmann subapertures across the pupil"),
-    KF("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction,
-       "a subaperture is used when at least this fraction is illuminated (NGS sensors too)"),
-    SENSOR("lgs.wfs", lgs_wfs, 2, "mf", 16, "16", 32, "32", 3, "3: 0.37 arcsec cells at 1.1 arcsec pixels, whose "
+    KFD("lgs.wfs.valid_fraction", F_LO_OPEN, 0.0, 1.0, "", 1, lgs_wfs.valid_fraction, 0.5,
+        "a subaperture is used when at least this fraction is illuminated (NGS sensors too) (optional, default 0.5)"),
+    SENSOR("lgs.wfs", lgs_wfs, 3.0, "3", 1.1, "1.1", 1.0, "1", 2, "mf", 16, "16", 32, "32", 3, "3: 0.37 arcsec cells at 1.1 arcsec pixels, whose "
            "blur the 1 arcsec uplink spot absorbs", 589.0, "589 (sodium D2)"),
     {"lgs.uplink_fwhm_arcsec", K_FLOAT, F_DEFAULT, 0.0, 100.0, "arcsec", ARCSEC, CF(uplink_fwhm), NOCOUNT, 0, 0, NULL, 1.0,
      "diffractive LGS: FWHM of the Gaussian uplink (laser) spot on the sodium layer, convolved with the sodium "
@@ -284,7 +301,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),
     KIL("ngs.subapertures", 0, 1, 2, ngs_subapertures, nngs, 0, WT_MAX_GS,
         "sensor of each NGS: 2 = 2x2 Shack-Hartmann, 1 = tip-tilt"),
-    SENSOR("ngs.wfs", ngs_wfs, 0, "cog", 64,
+    SENSOR("ngs.wfs", ngs_wfs, 5.0, "5", 0.1, "0.1: a partially corrected H-band spot", 0.05, "0.05", 0, "cog", 64,
            "64: the 1x1 sensor's whole pupil at D/64 (0.66 m on 42 m), an FFT field of 64 x 1650 nm / 42 m = 0.52 "
            "arcsec (1.04 arcsec for the 2x2), which holds a partially corrected H-band spot and +-0.2 arcsec of "
            "tip-tilt; the slopes of 64, 128 and 256 samples agree within 0.1 mas (docs/design.md, make bench-ngs)",
@@ -307,15 +324,19 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "rings of guard actuators: also active when within this many pitches (square support) of that disk; "
      "the grid grows by this many actuators on each side; 0 = the paper's active set (optional, default 1)"},
 
-    KI("evaluation.grid", F_ODD, 1, 15, eval_grid, "evaluation directions per side of the square grid"),
-    KF("evaluation.spacing_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, eval_spacing, "spacing of the evaluation directions"),
-    KF("evaluation.wavelength_nm", 0, 10.0, 1e6, "nm", 1e-9, eval_wavelength, "wavelength of the Strehl ratios"),
-    KI("evaluation.settle_frames", 0, 0, INF, settle_frames, "frames left out of the long-exposure averages; < loop.frames"),
+    KID("evaluation.grid", F_ODD, 1, 15, eval_grid, 5,
+        "evaluation directions per side of the square grid (optional, default 5)"),
+    KFD("evaluation.spacing_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, eval_spacing, 30.0,
+        "spacing of the evaluation directions (optional, default 30: a 2 arcmin square with the default grid)"),
+    KFD("evaluation.wavelength_nm", 0, 10.0, 1e6, "nm", 1e-9, eval_wavelength, 2200.0,
+        "wavelength of the Strehl ratios (optional, default 2200: K band)"),
+    KID("evaluation.settle_frames", 0, 0, INF, settle_frames, 20,
+        "frames left out of the long-exposure averages; < loop.frames (optional, default 20)"),
 
-    KF("loop.rate_hz", 0, 1.0, 1e6, "Hz", 1, rate, "frame rate"),
-    KI("loop.frames", 0, 1, INF, frames, "frames to run"),
-    KI("loop.delay_frames", 0, 1, 2, delay, "frames between measurement and application"),
-    KF("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, "integrator gain g"),
+    KFD("loop.rate_hz", 0, 1.0, 1e6, "Hz", 1, rate, 500.0, "frame rate (optional, default 500)"),
+    KID("loop.frames", 0, 1, INF, frames, 200, "frames to run (optional, default 200)"),
+    KID("loop.delay_frames", 0, 1, 2, delay, 2, "frames between measurement and application (optional, default 2)"),
+    KFD("loop.gain", F_LO_OPEN, 0.0, 1.0, "", 1, gain, 0.4, "integrator gain g (optional, default 0.4)"),
     {"loop.gain_levels", K_FLOATS, F_OPT | F_LO_OPEN, 0.0, 1.0, "", 1, CF(gain_levels), CF(ngain_levels), 2,
      WT_MAX_GAIN_BANDS, NULL, 0,
      "integrator gain per spatial scale of the DM commands, coarsest first: [g_0, ..., g_L]; band 0 = what is "
@@ -329,10 +350,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "is all band 0); daubechies = the zero-padded periodic DWT of order recon.wavelet_order, band j = its "
      "detail level L+1-j (the edge of the active disk leaks a tilt into the detail bands) (default bilinear)"},
 
-    KI("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, "simulation grid points per LGS subaperture side"),
-    {"sim.seed", K_INT64, 0, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 0,
-     "seed of the turbulence and noise generators, up to 2^63 - 1 (read as 64 bits, no L suffix needed)"},
-    KB("sim.noise", noise, "add sensor noise to the simulated measurements"),
+    KID("sim.points_per_subaperture", 0, 1, 16, points_per_subaperture, 4,
+        "simulation grid points per LGS subaperture side (optional, default 4)"),
+    {"sim.seed", K_INT64, F_DEFAULT, 0.0, INF, "", 1, CF(seed), NOCOUNT, 0, 0, NULL, 1,
+     "seed of the turbulence and noise generators, up to 2^63 - 1 (read as 64 bits, no L suffix needed) "
+     "(optional, default 1)"},
+    KBD("sim.noise", noise, 1, "add sensor noise to the simulated measurements (optional, default true)"),
     {"sim.psf_interval_frames", K_INT, F_DEFAULT, 0, 1000000, "", 1, CF(psf_interval), NOCOUNT, 0, 0, NULL, 10,
      "long-exposure PSF per evaluation direction at evaluation.wavelength_nm (core/sim/psf.h): the image of every "
      "N-th frame after the settle frames is added (Nyquist-sampled FFT of the pupil field); 0 = no PSFs "
@@ -341,10 +364,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "side of the stored PSF images, even, around the centre, at most the padded FFT's N (Nyquist: 2 pixels per "
      "lambda/D, so 64 = +-16 lambda/D) (optional, default 64)"},
 
-    KF("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, "prior weight alpha"),
-    KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
-    KI("recon.wavelet_order", 0, 1, 10, wavelet_order, "Daubechies order N (2N taps)"),
-    KI("recon.wavelet_levels", 0, 1, 30, wavelet_levels, "wavelet levels J"),
+    KFD("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, 1.0, "prior weight alpha (optional, default 1)"),
+    KFD("recon.tau", 0, 0.0, 1.0, "", 1, tau, 0.8,
+        "elongation weight tau of the reconstructor's noise model (optional, default 0.8)"),
+    KID("recon.wavelet_order", 0, 1, 10, wavelet_order, 3, "Daubechies order N (2N taps) (optional, default 3)"),
+    KID("recon.wavelet_levels", 0, 1, 30, wavelet_levels, 3,
+        "wavelet levels J (optional, default 3; the E-ELT preset's 128-point layers use 5)"),
     {"recon.prior", K_ENUM, F_AUTO, 0, 0, "", 1, CF(exact_prior), NOCOUNT, 0, 0, PRIOR_CHOICES, 0,
      "the prior of both variants (each variant's recon.<variant>.prior overrides it): " PRIOR_DESC
      "; left out (or \"auto\"): each variant's default (optional)"},
@@ -354,6 +379,13 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.model_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(model_error), NOCOUNT, 0, 0, NULL, 0,
      "LGS noise variance plus the slope variance of the layer-binning model error (true layers between "
      "the reconstruction altitudes; zero for cg9's layers) (optional, default false)"},
+    {"recon.subgrid_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(subgrid_error), NOCOUNT, 0, 0, NULL, 0,
+     "the LGS measurement noise of the reconstructor's weight floored at the slope variance of the turbulence "
+     "finer than the reconstruction layers' grids (beyond each grid's Nyquist frequency, through the "
+     "subapertures and the LGS cone; analytic, von Karman, from the model's profile): max(kappa sigma^2, "
+     "sigma_g^2), the binning error of model_error added as before. No layer of the model can explain that part "
+     "of a slope, and a weight that trusts the slopes more than it (many photons) puts it on the layers anyway; "
+     "nothing changes where the noise is above the floor (optional, default false)"},
     {"recon.lgs_focus_removal", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(lgs_focus_removal), NOCOUNT, 0, 0, NULL, 0,
      "pcg3, cg9 and mvm: the LGS noise weights project out each LGS's global focus as they do its tip-tilt "
      "(Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T onto tip, tilt and the focus slope pattern): a change of the sodium "
@@ -364,7 +396,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "per LGS); common = only the focus common to all LGS, f_c = (f_1, …, f_n)/√n, the one direction a change of "
      "the sodium centroid's altitude moves, so the differences of focus between the LGS (the altitude split of the "
      "turbulence's quadratic phase) stay in the tomography; tip-tilt per LGS either way (optional, default each)"},
-    KB("recon.warm_start", warm_start, "start each frame from the previous frame's solution"),
+    KBD("recon.warm_start", warm_start, 1, "start each frame from the previous frame's solution (optional, default true)"),
     {"recon.predict", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(predict), NOCOUNT, 0, 0, NULL, 0,
      "pcg3 and cg9: move each reconstructed layer by its wind (the reconstructor's atmosphere, recon.atmosphere, "
      "compressed onto the variant's layers) over the loop's delay, loop.delay_frames / loop.rate_hz, before the "
@@ -493,11 +525,15 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      CF(model.error_wind_direction), NOCOUNT, 0, 0, NULL, 0.0,
      "a model error: added to every model layer's wind direction (a rotation from +x towards +y); not in an MVM's "
      "identity, as error_wind_speed_scale (default 0: no error)"},
-    VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT),
-    VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT),
-    KI("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, "fitting CG iterations per frame"),
-    KF("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization,
-       "fitting Tikhonov weight, relative to the mean diagonal of H^T H"),
+    VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT,
+            "dm.altitudes_m: a layer at each DM", 4, "4", 2, "jacobi_ngs"),
+    VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT,
+            "atmosphere.altitudes_m (after atmosphere.profile): a layer at each of the truth's", 20, "20", 2,
+            "jacobi_ngs"),
+    KID("recon.cg9.fit_iterations", 0, 1, 1000000, cg9.fit_iterations, 10,
+        "fitting CG iterations per frame, with fit_solver = cg (optional, default 10)"),
+    KFD("recon.cg9.fit_regularization", GE0(1e6), "", 1, cg9.fit_regularization, 1e-3,
+        "fitting Tikhonov weight, relative to the mean diagonal of H^T H (optional, default 1e-3)"),
     {"recon.cg9.fit_points_per_subaperture", K_INT, F_AUTO, 1, 16, "", 1, CF(cg9.fit_sampling), NOCOUNT, 0, 0, NULL, 2,
      "fitting sample points per LGS subaperture side: 1 = the Fried corners of the valid subapertures, "
      "q > 1 = every point of the d/q grid inside the pupil; when left out (or \"auto\") the smallest q with d/q "

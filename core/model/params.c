@@ -25,6 +25,7 @@ void wt_tomography_params_from_config(const wt_config *cfg, wt_tomography_params
         par->atm_fraction[k] = m->fraction[k];
     }
     par->model_error = cfg->model_error;
+    par->subgrid_error = cfg->subgrid_error;
     par->lgs_focus_removal = cfg->lgs_focus_removal ? (cfg->lgs_focus_mode == 1 ? 2 : 1) : 0;
     par->loop_noise_gain = wt_noise_loop_gain(cfg->gain, cfg->delay);
     par->source = cfg->path;

@@ -24,6 +24,7 @@ const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l) { return 
 double wt_tomography_layer_altitude(const wt_tomography *t, int l) { return t->alt[l]; }
 double wt_tomography_layer_fraction(const wt_tomography *t, int l) { return t->frac[l]; }
 double wt_tomography_model_error(const wt_tomography *t, int m) { return t->model_var[m]; }
+double wt_tomography_subgrid_error(const wt_tomography *t, int m) { return t->subgrid_var[m]; }
 int64_t wt_tomography_layer_offset(const wt_tomography *t, int l) { return t->off[l]; }
 const wt_wavelet *wt_tomography_wavelet(const wt_tomography *t, int l) { return t->wav[l]; }
 const double *wt_tomography_alpha_prior(const wt_tomography *t) { return t->alpha_d; }
@@ -109,11 +110,12 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->kappa = var->loop_noise_average ? par->loop_noise_gain : 1.0;
     t->tau = par->tau;
     t->model_error = par->model_error != 0;
+    t->subgrid_error = par->subgrid_error != 0;
     t->lgs_focus = par->lgs_focus_removal;
     if (t->lgs_focus) WT_TRY(wt_tomography__focus_check(t, par->source));
     WT_TRY(wt_tomography__common_alloc(t));
     wt_tomography__model_error_grid(t, var, par->wavelet_levels);
-    if (par->model_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
+    if (par->model_error || par->subgrid_error) WT_TRY(wt_tomography__model_error(t, par->r0, par->natm, par->atm_altitude, par->atm_fraction));
     for (int m = 0; m < t->S; m++) {
         const wt_sensor *s = &sys->sensors[m];
         for (int l = 0; l < t->L; l++) {

@@ -55,6 +55,8 @@ typedef struct wt_tomography_params {
     double atm_altitude[WT_MAX_LAYERS]; /* [m] */
     double atm_fraction[WT_MAX_LAYERS]; /* fractions, sum 1 */
     int model_error;       /* 1: LGS σ² plus the layer-binning model error (recon.model_error) */
+    int subgrid_error;     /* 1: the LGS κσ² floored at the slope variance beyond the layer grids' Nyquist
+                              (recon.subgrid_error) */
     int lgs_focus_removal; /* 1: the LGS weights remove each LGS's focus as well as tip-tilt (recon.lgs_focus_removal);
                               2: only the focus common to all LGS (recon.lgs_focus_mode = "common"): the
                               focus (1) or the LGS's common focus (2) then comes from the NGS, of which one at least
@@ -82,6 +84,9 @@ double wt_tomography_layer_altitude(const wt_tomography *t, int l);
 double wt_tomography_layer_fraction(const wt_tomography *t, int l);
 /* The layer-binning model error added to sensor m's noise variance per axis [rad²] (recon.model_error). */
 double wt_tomography_model_error(const wt_tomography *t, int m);
+/* The sub-grid model error of sensor m per axis [rad²] (recon.subgrid_error), the floor of its measurement noise in
+ * the weight: C̃ uses max(κσ², σ²_g) + σ²_e (core/model/tomography_model.c); 0 when off and for the NGS. */
+double wt_tomography_subgrid_error(const wt_tomography *t, int m);
 /* Sensor m's short-axis noise precision Σ_i 1/λ_min(C̃_i) over its subapertures [rad⁻²], C̃_i its weight's 2x2 block
  * before the tip-tilt removal: what a new model's σ²_e scales (wt_precond_update). */
 double wt_tomography_lgs_precision(const wt_tomography *t, int m);

@@ -3,7 +3,8 @@
  *   the prior's strength per layer   D_ℓ ∝ 1 / (f_ℓ r0^(−5/3))   (the von Kármán spectrum is linear in f r0^(−5/3) at
  *                                    fixed L0: a new model rescales every prior, it does not rebuild it),
  *   the layer-binning model error σ²_e,m = Σ_k f_k r0^(−5/3) u_m(h_k)   (u: a unit layer's, below),
- *   the sensors' noise weights       C̃_m = κσ² (…) + σ²_e,m I,
+ *   the sub-grid model error         σ²_g,m = Σ_k f_k r0^(−5/3) c_k² Σ_l b_kl a(Δ_l, d c_k)   (below),
+ *   the sensors' noise weights       C̃_m = max(κσ², σ²_g,m) (…) + σ²_e,m I,
  *
  * at set-up (wt_tomography_alloc) and whenever the model changes (wt_tomography_set_profile: the loop that learns
  * its atmosphere, SPEC §12 "Updates"). The projections, wavelets and the NGS term do not depend on the model. */
@@ -47,6 +48,9 @@ void wt_tomography__bin_profile(int L, const double *alt, int natm, const double
  * The term is linear in each layer's f_k r0^(−5/3) (the screen scales with its square root): a model that
  * changes is served from unit layers (f = 1, r0 = 1 m) kept per altitude (wt_tomography_set_profile). */
 enum { WT_MODEL_ERROR_DRAWS = 4 };
+
+static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const double *atm_alt,
+                              const double *atm_frac, double *var_e);
 
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels)
 {
@@ -157,8 +161,9 @@ fail:
 
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac)
 {
-    for (int m = 0; m < t->S; m++) t->model_var[m] = 0.0;
-    return model_error_add(t, r0, natm, atm_alt, atm_frac, 0, t->model_var);
+    for (int m = 0; m < t->S; m++) t->model_var[m] = t->subgrid_var[m] = 0.0;
+    if (t->subgrid_error) subgrid_error_add(t, r0, natm, atm_alt, atm_frac, t->subgrid_var);
+    return t->model_error ? model_error_add(t, r0, natm, atm_alt, atm_frac, 0, t->model_var) : WT_OK;
 }
 
 /* The unit layers' model error at each of the natm altitudes (kept: a learned model keeps its altitude grid, so
@@ -191,9 +196,89 @@ static int model_error_cached(wt_tomography *t, double r0, int natm, const doubl
     return WT_OK;
 }
 
+/* ---- Sub-grid model error of the LGS slopes (recon.subgrid_error) ------------------------------------
+ *
+ * A reconstruction layer of spacing Δ holds no spatial frequency beyond its Nyquist 1/(2Δ) (in either axis),
+ * while a subaperture averages the gradient of all of them: that part of every slope is explained by no
+ * layer of the model, and with a confident noise weight (many photons) the MAP explains it anyway, with
+ * wrong structure on the layers and in the modes only the prior holds (the field's tip-tilt: docs/results.md
+ * "more light"). The weight then trusts a slope no more than the model can explain it: σ²_g floors the
+ * measurement noise, max(κσ², σ²_g), rather than adding to it as the binning error does. The sum is the white-noise
+ * model of it, but the part sits at the grid's finest scales, which a MAP with κσ² > σ²_g already leaves to its
+ * prior, and adding it there weakens the large scales the slopes do measure (measured: the sum costs the demo 2 nm
+ * at its 100 photons, the floor leaves it bit for bit; docs/results.md "more light"). An LGS at H sees a layer at h through
+ * subapertures of side d c, c = 1 − h/H, in the layer's coordinates, and its slope is c times the layer's
+ * gradient averaged over them; per axis, for the von Kármán phase spectrum at 500 nm
+ * W(f) = 0.023 r0^(−5/3) (|f|² + L0^(−2))^(−11/6) [rad² m²] and the slope as an angle (λ = 500 nm):
+ *   a(Δ, d') = (λ/2π)² ∫_{max(|fx|,|fy|) > 1/(2Δ)} W(f) (2π fx)² sinc²(d' fx) sinc²(d' fy) d²f   (r0 = 1 m),
+ *   σ²_g,m = Σ_k f_k r0^(−5/3) c_k² [(1 − w_k) a(Δ_l, d c_k) + w_k a(Δ_{l+1}, d c_k)],
+ * the true layer k split onto its two nearest reconstruction layers l, l + 1 with the prior's weights w_k. The
+ * global tip-tilt of these frequencies, which the weight removes, is negligible (sinc² at f ≥ 1/(2Δ) over a
+ * whole pupil). The NGS average over metres, where the part is small against their σ², and are left alone. */
+enum { WT_SUBGRID_IN = 48, WT_SUBGRID_OUT = 160 };
+
+static double sinc(double x) { return fabs(x) < 1e-8 ? 1.0 : sin(M_PI * x) / (M_PI * x); }
+
+/* a(Δ, dp) [rad² per unit f r0^(−5/3)]: midpoint rule on a tensor grid of one quadrant (the integrand is even in
+ * fx and fy), uniform up to fc = 1/(2Δ), geometric from fc to 400/dp; the tail beyond decays as f^(−5/3) and
+ * is below 1e-3 of the integral (a grid of twice the cells changes it by < 0.5 %) */
+static double subgrid_unit(double delta, double dp, double L0)
+{
+    const double fc = 0.5 / delta, fhi = fmax(400.0 / dp, 8.0 * fc), lam = 500e-9;
+    const int n = WT_SUBGRID_IN + WT_SUBGRID_OUT;
+    double f[WT_SUBGRID_IN + WT_SUBGRID_OUT], w[WT_SUBGRID_IN + WT_SUBGRID_OUT];
+    for (int i = 0; i < WT_SUBGRID_IN; i++) {
+        w[i] = fc / WT_SUBGRID_IN;
+        f[i] = (i + 0.5) * w[i];
+    }
+    const double q = pow(fhi / fc, 1.0 / WT_SUBGRID_OUT);
+    for (int i = 0; i < WT_SUBGRID_OUT; i++) {
+        const double a = fc * pow(q, i), b = a * q;
+        f[WT_SUBGRID_IN + i] = 0.5 * (a + b);
+        w[WT_SUBGRID_IN + i] = b - a;
+    }
+    const double k0 = 1.0 / (L0 * L0);
+    double sum = 0.0;
+    for (int i = 0; i < n; i++) {
+        const double sx = sinc(dp * f[i]), gx = 2.0 * M_PI * f[i] * sx;
+        for (int j = (i < WT_SUBGRID_IN ? WT_SUBGRID_IN : 0); j < n; j++) {
+            const double sy = sinc(dp * f[j]);
+            sum += w[i] * w[j] * pow(f[i] * f[i] + f[j] * f[j] + k0, -11.0 / 6.0) * gx * gx * sy * sy;
+        }
+    }
+    const double c = lam / (2.0 * M_PI);
+    return 4.0 * 0.023 * c * c * sum;
+}
+
+static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const double *atm_alt,
+                              const double *atm_frac, double *var_e)
+{
+    const wt_system *sys = t->sys;
+    const double s53 = pow(r0, -5.0 / 3.0);
+    for (int m = 0; m < t->S; m++) {
+        const wt_sensor *s = &sys->sensors[m];
+        if (s->kind != WT_SENSOR_LGS || !(s->altitude > 0.0)) continue;
+        const double d = sys->diameter / s->subapertures;
+        double v = 0.0;
+        for (int k = 0; k < natm; k++) {
+            const double h = atm_alt[k], f = atm_frac[k], c = 1.0 - h / s->altitude;
+            if (!(f > 0.0) || !(c > 0.0)) continue;
+            int l;
+            double w;
+            wt_profile_bin_altitude(t->L, t->alt, h, &l, &w);
+            double a = (1.0 - w) * subgrid_unit(t->grid[l].dx, d * c, t->L0);
+            if (w > 0.0) a += w * subgrid_unit(t->grid[l + 1].dx, d * c, t->L0);
+            v += f * s53 * c * c * a;
+        }
+        var_e[m] += v;
+    }
+}
+
+double wt_tomography__subgrid_error(double delta, double dp, double L0) { return subgrid_unit(delta, dp, L0); }
+
 /* ---- the sensors' noise model ------------------------------------------------------------------------
- * C̃_i = κσ²(I + (τ/θf²) β βᵀ) + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ), σ²_t = κσ² + σ²_e:
- * the model error is isotropic, the elongation term keeps its size; κ (loop_noise_average, else 1)
+ * C̃_i = max(κσ², σ²_g) I + κσ² (τ/θf²) β βᵀ + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ),
+ * σ²_t = max(κσ², σ²_g) + σ²_e: the model errors are isotropic, the elongation term keeps its size; κ (loop_noise_average, else 1)
  * scales the measurement noise only. With lit_noise as well, the per-subaperture factor c_i scales
  * σ²_t whole (the model error of a partly lit subaperture is taken as larger in the same
  * proportion: both options are off by default). */
@@ -228,15 +313,19 @@ static int sensor_noise(wt_tomography *t, int m, wt_noise **out)
         double *cov = wt_malloc(ctx, 3 * (size_t)ns, sizeof *cov);
         if (!cov) return WT_ERROR(ctx, WT_ERR_NOMEM, "out of memory for %s's noise blocks", s->name);
         for (int i = 0; i < ns; i++) {
-            cov[i] = kappa * s->diffr->cov[i] + t->model_var[m];
-            cov[ns + i] = kappa * s->diffr->cov[ns + i];
-            cov[2 * ns + i] = kappa * s->diffr->cov[2 * ns + i] + t->model_var[m];
+            const double a = kappa * s->diffr->cov[i], b = kappa * s->diffr->cov[ns + i], d = kappa * s->diffr->cov[2 * ns + i];
+            /* the sub-grid floor lifts the block's smaller eigenvalue to σ²_g (isotropic, as the error is) */
+            const double lmin = 0.5 * (a + d) - sqrt(0.25 * (a - d) * (a - d) + b * b);
+            const double e = t->model_var[m] + fmax(0.0, t->subgrid_var[m] - lmin);
+            cov[i] = a + e;
+            cov[ns + i] = b;
+            cov[2 * ns + i] = d + e;
         }
         const int st = wt_noise_alloc_blocks(ctx, ns, cov, t->tau, s->kind == WT_SENSOR_LGS, out);
         wt_free(ctx, cov);
         return st < 0 ? st : sensor_focus(t, s, out);
     }
-    const double s2n = kappa * s->sigma2, s2t = s2n + t->model_var[m];
+    const double s2n = kappa * s->sigma2, s2t = fmax(s2n, t->subgrid_var[m]) + t->model_var[m];
     const int st = wt_noise_alloc_scaled(ctx, s->nsub, s2t, s->noise_scale, s->spot_fwhm, s->beta,
                                          t->tau * (s2n / s2t), s->kind == WT_SENSOR_LGS, out);
     return st < 0 ? st : sensor_focus(t, s, out);
@@ -246,18 +335,18 @@ double wt_tomography_lgs_precision(const wt_tomography *t, int m)
 {
     /* the smaller eigenvalue of each block sensor_noise builds: τ scales only the part beyond it */
     const wt_sensor *s = &t->sys->sensors[m];
-    const double kappa = t->kappa, e = t->model_var[m];
+    const double kappa = t->kappa, e = t->model_var[m], g = t->subgrid_var[m];
     double sum = 0.0;
     if (s->diffr) {
         const double *c = s->diffr->cov;
         const int ns = s->nsub;
         for (int i = 0; i < ns; i++) {
             const double a = kappa * c[i], b = kappa * c[ns + i], d = kappa * c[2 * ns + i];
-            sum += 1.0 / (0.5 * (a + d) - sqrt(0.25 * (a - d) * (a - d) + b * b) + e);
+            sum += 1.0 / (fmax(0.5 * (a + d) - sqrt(0.25 * (a - d) * (a - d) + b * b), g) + e);
         }
         return sum;
     }
-    const double s2t = kappa * s->sigma2 + e;
+    const double s2t = fmax(kappa * s->sigma2, g) + e;
     for (int i = 0; i < s->nsub; i++) sum += 1.0 / ((s->noise_scale ? s->noise_scale[i] : 1.0) * s2t);
     return sum;
 }
@@ -291,24 +380,28 @@ int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const doubl
         sum += frac[k];
     }
     if (!(sum > 0.0)) return WT_ERROR(ctx, WT_ERR_INVALID, "tomography (%s): new model has no turbulence", t->variant);
-    double f[WT_MAX_LAYERS], norm[WT_MAX_LAYERS], var_e[2 * WT_MAX_GS];
+    double f[WT_MAX_LAYERS], norm[WT_MAX_LAYERS], var_e[2 * WT_MAX_GS], var_g[2 * WT_MAX_GS];
     for (int k = 0; k < natm; k++) norm[k] = frac[k] / sum;
     wt_tomography__bin_profile(t->L, t->alt, natm, alt, norm, f);
     /* the model error first: it is the only step that can fail, and the object stays as it was if it does */
-    for (int m = 0; m < t->S; m++) var_e[m] = 0.0;
+    for (int m = 0; m < t->S; m++) var_e[m] = var_g[m] = 0.0;
     if (t->model_error) {
         const int st = model_error_cached(t, r0, natm, alt, norm, var_e);
         if (st < 0) return st;
     }
+    if (t->subgrid_error) subgrid_error_add(t, r0, natm, alt, norm, var_g);
     wt_noise *nz[2 * WT_MAX_GS] = {NULL};
-    double keep[2 * WT_MAX_GS];
+    double keep[2 * WT_MAX_GS], keep_g[2 * WT_MAX_GS];
     memcpy(keep, t->model_var, sizeof keep);
+    memcpy(keep_g, t->subgrid_var, sizeof keep_g);
     memcpy(t->model_var, var_e, sizeof var_e);
+    memcpy(t->subgrid_var, var_g, sizeof var_g);
     for (int m = 0; m < t->S; m++) {
         const int st = sensor_noise(t, m, &nz[m]);
         if (st < 0) {
             for (int q = 0; q < m; q++) wt_noise_free(nz[q]);
             memcpy(t->model_var, keep, sizeof keep);
+            memcpy(t->subgrid_var, keep_g, sizeof keep_g);
             return st;
         }
     }

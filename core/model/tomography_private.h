@@ -57,6 +57,7 @@ struct wt_tomography {
     int64_t zero_offset;
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
     double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
+    double subgrid_var[2 * WT_MAX_GS]; /* S: sub-grid model error, the floor of κσ² [rad²] (subgrid_error) */
     int64_t ncg;              /* corner grid points */
     int nthreads;
     int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
@@ -68,6 +69,7 @@ struct wt_tomography {
     int wavelet_order, wavelet_levels;
     double kappa, tau;        /* the measurement noise's loop factor κ and the elongation weight τ of C̃ */
     int model_error;          /* recon.model_error */
+    int subgrid_error;        /* recon.subgrid_error */
     int lgs_focus;            /* recon.lgs_focus_removal: 0 off, 1 each LGS's focus (in its noise object), 2 only
                                  the focus common to the LGS (recon.lgs_focus_mode = "common": the fc_* below) */
     int64_t fc_n;             /* common focus: the LGS's slopes, the first fc_n of the slope vector */
@@ -120,6 +122,8 @@ int wt_tomography__focus_check(const wt_tomography *t, const char *source);
 int wt_tomography__focus_pattern(wt_context *ctx, const wt_sensor *s, double *f);
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels);
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac);
+/* the sub-grid model error's a(Δ, d') of a unit layer [rad² per axis] (tomography_model.c), for the tests */
+double wt_tomography__subgrid_error(double delta, double dp, double L0);
 int wt_tomography__noise(wt_tomography *t);
 /* core/model/tomography_focus.c, recon.lgs_focus_mode = "common" (each a no-op otherwise): the LGS's focus patterns
  * (alloc, at set-up), their weights g_j and γ after the noise models changed (update), the term's two coefficients

@@ -1,14 +1,24 @@
 """python/tests/conftest.py: the files the Python tests compare against, made once per session by the
 command line itself (`wavetomo sim/build/run` on the demo preset; the executable wavetomo.executable()
-finds: $WAVETOMO_BIN under make test). tests/test_python.sh runs this suite for make test."""
+finds: $WAVETOMO_BIN under make test). tests/test_python.sh runs this suite for make test, with the package
+pip-installed into a virtual environment.
+
+The suite tests this checkout's build: without $WAVETOMO_LIB and $WAVETOMO_BIN it sets them to build/ and bin/
+here, so that a package installed elsewhere (a venv's site-packages, which finds no library beside itself)
+runs against them too."""
+import os
 import pathlib
 import subprocess
 
 import pytest
 
 import wavetomo
+from wavetomo import _lib
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
+for var, path in (("WAVETOMO_LIB", REPO / "build" / _lib.SONAME), ("WAVETOMO_BIN", REPO / "bin" / "wavetomo")):
+    if not os.environ.get(var) and path.exists():
+        os.environ[var] = str(path)
 DEMO = str(REPO / "data" / "presets" / "demo.cfg")
 FRAMES = 8
 SEED = 3

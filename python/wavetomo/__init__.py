@@ -7,40 +7,45 @@
     res["eval/strehl_le"].reshape(5, 5)
 
 The per-frame objects (System, Reconstructor) call libwavetomo.so through ctypes; the runs (sim, compare,
-budget, build, run) call the `wavetomo` executable; the readers use h5py.
+budget, build, run) call the `wavetomo` executable; the readers use h5py. The library is loaded at the first
+call that needs it: `import wavetomo` works without it, and that call raises LoadError saying where it looked
+($WAVETOMO_LIB points to it).
 """
+import os
+
 from . import _lib
+from ._version import VERSION
 from .commands import budget, build, compare, executable, run, sim
 from .config import overrides, parse as parse_config
 from .errors import (CommandError, ConfigError, Error, FileError, FormatError, InterruptedRun, InvalidError,
-                     LibraryError, NoMemoryError, NumericError, SolverWarning)
+                     LibraryError, LoadError, NoMemoryError, NumericError, SolverWarning)
 from .files import (MatrixResult, Result, read, read_budget, read_commands, read_compare, read_matrix, read_run,
                     read_telemetry)
 from .layout import ARCSEC, DM, Layout, Sensor
 from .rtc import Reconstructor, System
 
-
-def version():
-    """The version of the C library loaded ("0.1.0")."""
-    return _lib.lib.wt_version().decode()
+__version__ = VERSION  # this package's: the C header's it was built from (version() is the loaded library's)
 
 
-def library_path():
+def version() -> str:
+    """The version of the C library loaded ("0.1.0"); __version__ is this package's, the same when they fit."""
+    return _lib.load().wt_version().decode()
+
+
+def library_path() -> str:
     """The file of the C library loaded."""
-    import os
-    if os.sep in _lib.path:
-        return os.path.realpath(_lib.path)
+    path = _lib.path()
+    if os.sep in path:
+        return os.path.realpath(path)
     with open("/proc/self/maps") as f:  # found by the loader's search
         for line in f:
             if "libwavetomo.so" in line:
                 return os.path.realpath(line.split(None, 5)[-1].strip())
-    return _lib.path
+    return path
 
-
-__version__ = version()
 
 __all__ = ["System", "Reconstructor", "Sensor", "DM", "Layout", "ARCSEC", "sim", "compare", "budget", "build", "run",
            "executable", "read", "read_run", "read_telemetry", "read_matrix", "read_commands", "read_compare",
            "read_budget", "Result", "MatrixResult", "overrides", "parse_config", "version", "library_path", "Error",
-           "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError", "NumericError",
+           "LoadError", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError", "NumericError",
            "FormatError", "InterruptedRun", "CommandError", "SolverWarning"]

@@ -1,24 +1,31 @@
 """wavetomo/_lib.py: finding and loading libwavetomo.so, and the ctypes prototypes of its public C API
 (include/wavetomo/*.h; docs/c-api.md). No compiler is involved: ctypes reads the shared library as built
-or installed.
+or installed. python/tests/test_prototypes.py checks every prototype here against the headers.
 
-Where the library is looked for, first found wins:
+The library is loaded at the first call that needs it (load()), not at import: `import wavetomo`, the
+readers and the command runs work without it. Where it is looked for, first found wins:
   1. $WAVETOMO_LIB (a path to libwavetomo.so.N; when set, nothing else is tried)
   2. the build tree the package sits in: python/wavetomo/../../build/libwavetomo.so.N
   3. an installed tree: LIBDIR/pythonX.Y/dist-packages/wavetomo/../../../libwavetomo.so.N (make install)
   4. the loader's own search (LD_LIBRARY_PATH, the ldconfig cache): libwavetomo.so.N
-N is the soname's major version this package was written for (ABI_MAJOR).
+N is the major version of the C library this package was written for (_version.VERSION), the soname's.
 """
 import ctypes
 import os
 import pathlib
+import threading
+from typing import Any, Dict, List, Optional, Tuple
 
-ABI_MAJOR = 0
+from ._version import VERSION
+from .errors import LoadError
+
+ABI_MAJOR = int(VERSION.split(".")[0])
 SONAME = "libwavetomo.so.%d" % ABI_MAJOR
 _HERE = pathlib.Path(__file__).resolve().parent
 
 
-def _candidates():
+def candidates() -> List[str]:
+    """Where the library is looked for, in order (see the module's comment)."""
     env = os.environ.get("WAVETOMO_LIB")
     if env:
         return [env]
@@ -47,7 +54,7 @@ _D = ctypes.c_double
 _SETS = ctypes.POINTER(ctypes.c_char_p)
 
 # name: (restype, argtypes), exactly the declarations of the public headers
-_PROTOTYPES = {
+_PROTOTYPES: Dict[str, Tuple[Any, List[Any]]] = {
     "wt_version": (_S, []),
     "wt_version_number": (_I, []),
     "wt_strerror": (_S, [_I]),
@@ -91,9 +98,13 @@ WT_RTC_LGS = 0
 WT_RTC_NGS = 1
 
 
-def _load():
+_lock = threading.Lock()
+_loaded: Optional[Tuple[ctypes.CDLL, str]] = None
+
+
+def _open() -> Tuple[ctypes.CDLL, str]:
     tried = []
-    for c in _candidates():
+    for c in candidates():
         if os.sep in c and not os.path.exists(c):
             tried.append("%s (no such file)" % c)
             continue
@@ -106,15 +117,31 @@ def _load():
             try:
                 f = getattr(lib, name)
             except AttributeError:
-                raise ImportError("wavetomo: %s lacks %s (a library older than this package; rebuild it)" % (c, name))
+                raise LoadError("wavetomo: %s lacks %s (a library older than this package; rebuild it)" % (c, name))
             f.restype, f.argtypes = res, args
         major = lib.wt_version_number() // 10000
         if major != ABI_MAJOR:
-            raise ImportError("wavetomo: %s is version %s, this package needs major version %d"
-                              % (c, lib.wt_version().decode(), ABI_MAJOR))
+            raise LoadError("wavetomo: %s is version %s, this package (%s) needs major version %d"
+                            % (c, lib.wt_version().decode(), VERSION, ABI_MAJOR))
         return lib, c
-    raise ImportError("wavetomo: cannot load the C library %s; tried:\n  %s\n(build it with `make`, or set "
-                      "WAVETOMO_LIB to its path)" % (SONAME, "\n  ".join(tried)))
+    raise LoadError("wavetomo: cannot load the C library %s; tried:\n  %s\nBuild it with `make` in the source "
+                    "tree, install it with `make install`, or set WAVETOMO_LIB to the path of %s."
+                    % (SONAME, "\n  ".join(tried), SONAME))
 
 
-lib, path = _load()
+def load() -> ctypes.CDLL:
+    """The C library, loaded at the first call (then the same object). Raises LoadError, naming every
+    place it looked, when it is missing, lacks a function or has another major version."""
+    global _loaded
+    if _loaded is None:
+        with _lock:
+            if _loaded is None:
+                _loaded = _open()
+    return _loaded[0]
+
+
+def path() -> str:
+    """The name the library was loaded by (a path, or the soname the loader resolved)."""
+    load()
+    assert _loaded is not None
+    return _loaded[1]

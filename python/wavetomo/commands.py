@@ -17,17 +17,19 @@ import shutil
 import signal
 import subprocess
 import tempfile
+from typing import Any, List, Optional, Sequence, Tuple, Union
 
 from . import files
-from .config import overrides
+from .config import Overrides, overrides
 from .errors import CommandError, FileError
+from .files import PathLike, Result
 
 __all__ = ["executable", "sim", "build", "run", "compare", "budget"]
 
 _HERE = pathlib.Path(__file__).resolve().parent
 
 
-def executable():
+def executable() -> str:
     """The path of the `wavetomo` executable the runs use."""
     env = os.environ.get("WAVETOMO_BIN")
     if env:
@@ -45,7 +47,8 @@ def executable():
                     "prefix, nor on the PATH: build it with `make`, or set WAVETOMO_BIN", -4)
 
 
-def _common(args, config, set, threads, force):
+def _common(args: List[Any], config: Optional[PathLike], set: Overrides, threads: Optional[int],
+            force: bool) -> List[Any]:
     if config is not None:
         args += ["--config", os.fspath(config)]
     for s in overrides(set):
@@ -57,7 +60,7 @@ def _common(args, config, set, threads, force):
     return args
 
 
-def _call(args):
+def _call(args: List[Any]) -> Tuple[str, str]:
     """Run `wavetomo ARGS`; its stdout (the summary it prints) on success, CommandError otherwise."""
     cmd = [executable()] + [str(a) for a in args]
     # its own session: a Ctrl-C reaches Python only (on a terminal as in Jupyter), which passes the command
@@ -82,29 +85,31 @@ def _call(args):
     return out, err
 
 
-def _methods(recon):
+def _methods(recon: Union[str, Sequence[str]]) -> str:
     return recon if isinstance(recon, str) else ",".join(recon)
 
 
 class _Out:
     """An output path: the caller's, or one in a temporary directory removed after reading."""
 
-    def __init__(self, path, name):
+    def __init__(self, path: Optional[PathLike], name: str) -> None:
         self.tmp = tempfile.TemporaryDirectory(prefix="wavetomo-") if path is None else None
         self.path = os.path.join(self.tmp.name, name) if self.tmp else os.fspath(path)
 
-    def done(self):
+    def done(self) -> None:
         if self.tmp:
             self.tmp.cleanup()
 
 
-def sim(config, recon="pcg3", *, set=None, frames=None, seed=None, iters=None, noise=True, matrix=None,
-        out=None, telemetry=None, dump_screens=False, threads=None, force=False):
+def sim(config: PathLike, recon: str = "pcg3", *, set: Overrides = None, frames: Optional[int] = None,
+        seed: Optional[int] = None, iters: Optional[int] = None, noise: bool = True, matrix: Optional[PathLike] = None,
+        out: Optional[PathLike] = None, telemetry: Union[PathLike, bool, None] = None, dump_screens: bool = False,
+        threads: Optional[int] = None, force: bool = False) -> Result:
     """`wavetomo sim`: the closed loop of one reconstructor ("pcg3", "cg9", "none", or "mvm" with
     matrix=). Returns read_run(RUN.h5) (out=None: a temporary file, removed), with .stdout (the summary)
     and .telemetry = read_telemetry(TEL.h5) when telemetry= is a path or True (True: temporary)."""
     o = _Out(out, "run.h5")
-    t = _Out(None if telemetry is True else telemetry, "tel.h5") if telemetry else None
+    t = _Out(None if isinstance(telemetry, bool) else telemetry, "tel.h5") if telemetry else None
     try:
         args = _common(["sim"], config, set, threads, force) + ["--recon", recon, "--out", o.path]
         if matrix is not None:
@@ -132,7 +137,8 @@ def sim(config, recon="pcg3", *, set=None, frames=None, seed=None, iters=None, n
             t.done()
 
 
-def build(config, out, *, recon="pcg3", set=None, memory=None, threads=None, force=False):
+def build(config: PathLike, out: PathLike, *, recon: str = "pcg3", set: Overrides = None,
+          memory: Union[str, float, None] = None, threads: Optional[int] = None, force: bool = False) -> pathlib.Path:
     """`wavetomo build`: the MVM control matrix of the configuration into `out` (MATRIX.h5). Returns the
     path (give it to Reconstructor(matrix=...), or read it with read_matrix)."""
     args = _common(["build"], config, set, threads, force) + ["--recon", recon, "--out", os.fspath(out)]
@@ -142,8 +148,9 @@ def build(config, out, *, recon="pcg3", set=None, memory=None, threads=None, for
     return pathlib.Path(out)
 
 
-def run(telemetry, *, recon=None, matrix=None, config=None, iters=None, out=None, set=None, threads=None,
-        force=False):
+def run(telemetry: PathLike, *, recon: Optional[str] = None, matrix: Optional[PathLike] = None,
+        config: Optional[PathLike] = None, iters: Optional[int] = None, out: Optional[PathLike] = None,
+        set: Overrides = None, threads: Optional[int] = None, force: bool = False) -> Result:
     """`wavetomo run`: a telemetry file replayed through pcg3 / cg9 (recon=) or a stored MVM (matrix=).
     Returns read_commands(CMDS.h5) (out=None: temporary): "reconstruction" (frames, nactuators) = R s_ol."""
     o = _Out(out, "cmds.h5")
@@ -163,15 +170,17 @@ def run(telemetry, *, recon=None, matrix=None, config=None, iters=None, out=None
         o.done()
 
 
-def _sweep(sweep):
+def _sweep(sweep: Union[str, Tuple[str, Sequence[Any]], None]) -> Optional[str]:
     if sweep is None or isinstance(sweep, str):
         return sweep
     key, values = sweep
     return "%s=%s" % (key, ",".join(overrides({key: v})[0].split("=", 1)[1] for v in values))
 
 
-def compare(config, recon=("mvm", "pcg3", "cg9"), *, out=None, sweep=None, seeds=None, frames=None, seed=None,
-            resume=False, set=None, threads=None, force=False):
+def compare(config: PathLike, recon: Union[str, Sequence[str]] = ("mvm", "pcg3", "cg9"), *,
+            out: Optional[PathLike] = None, sweep: Union[str, Tuple[str, Sequence[Any]], None] = None,
+            seeds: Optional[int] = None, frames: Optional[int] = None, seed: Optional[int] = None,
+            resume: bool = False, set: Overrides = None, threads: Optional[int] = None, force: bool = False) -> Result:
     """`wavetomo compare`: the closed loop of each method (and each sweep value, and seed) on the same
     turbulence and noise. recon: "mvm,pcg3" or a list; sweep: ("lgs.wfs.photons", [50, 100]) or
     "lgs.wfs.photons=50,100"; seeds: N seeds from sim.seed. Returns read_compare(DIR/results.h5) with
@@ -198,7 +207,9 @@ def compare(config, recon=("mvm", "pcg3", "cg9"), *, out=None, sweep=None, seeds
         o.done()
 
 
-def budget(config, recon=("cg9",), *, out=None, frames=None, seed=None, set=None, threads=None, force=False):
+def budget(config: PathLike, recon: Union[str, Sequence[str]] = ("cg9",), *, out: Optional[PathLike] = None,
+           frames: Optional[int] = None, seed: Optional[int] = None, set: Overrides = None,
+           threads: Optional[int] = None, force: bool = False) -> Result:
     """`wavetomo budget`: the error budget of each method ("cg9", "pcg3", "mvm"). Returns
     read_budget(DIR/results.h5): "<method>/<term>" [nm] with the analytic estimates in .meta, .dir as
     compare's."""

@@ -6,6 +6,10 @@ library returns (System.config, the "config" dataset of every output) into a fla
 """
 import numbers
 import re
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Union
+
+# set= of every entry point: {key: Python value} or "key=value" strings
+Overrides = Optional[Union[Mapping[str, Any], Iterable[str]]]
 
 __all__ = ["overrides", "parse"]
 
@@ -33,7 +37,7 @@ def _value(v):
     return _scalar(v)
 
 
-def overrides(set=None):
+def overrides(set: Overrides = None) -> List[str]:
     """The `key=value` strings of `set`: a dict {key: value} (a Python bool, number, string, or a list of
     them: written in libconfig syntax, strings quoted) or an iterable of "key=value" strings (libconfig
     text as on the command line: `"dm.pitch_m=[0.5, 1.0, 1.0]"`)."""
@@ -140,7 +144,7 @@ class _Parser:
         raise ValueError("configuration text: unexpected %r" % tok)
 
 
-def parse(text):
+def parse(text: str) -> Dict[str, Any]:
     """A configuration's libconfig text as a flat dict {dotted key: value} (numbers, bools, strings,
     lists), e.g. parse(System(...).config)["loop.gain"]."""
     p = _Parser(text)

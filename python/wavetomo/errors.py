@@ -6,7 +6,9 @@ The subclasses also derive from the matching built-in exception, so `except Valu
 argument or configuration and `except OSError` a missing file.
 """
 
-__all__ = ["Error", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError",
+from typing import List, Optional
+
+__all__ = ["Error", "LoadError", "NoMemoryError", "InvalidError", "ConfigError", "FileError", "LibraryError",
            "NumericError", "FormatError", "InterruptedRun", "CommandError", "SolverWarning"]
 
 # status codes of include/wavetomo/context.h
@@ -26,13 +28,18 @@ WT_ERR_INTERRUPTED = -8
 class Error(Exception):
     """A wavetomo failure: `message` is the library's text, `status` its status code (< 0)."""
 
-    def __init__(self, message, status=None):
+    def __init__(self, message: str, status: Optional[int] = None) -> None:
         super().__init__(message)
         self.message = message
         self.status = status
 
-    def __str__(self):
+    def __str__(self) -> str:
         return self.message
+
+
+class LoadError(Error, ImportError):
+    """The C library could not be loaded (missing, lacking a function, or of another major version): raised
+    by the first call that needs it, not by `import wavetomo`; the message names every place looked in."""
 
 
 class NoMemoryError(Error, MemoryError):
@@ -72,7 +79,7 @@ class CommandError(Error):
     `returncode` its exit status (1: refused or failed, 2: bad usage, 128 + N: signal N), `stderr` all it
     wrote there, `command` the argument list."""
 
-    def __init__(self, message, returncode, stderr, command):
+    def __init__(self, message: str, returncode: int, stderr: str, command: List[str]) -> None:
         super().__init__(message, None)
         self.returncode = returncode
         self.stderr = stderr
@@ -88,6 +95,6 @@ _BY_STATUS = {WT_ERR_NOMEM: NoMemoryError, WT_ERR_INVALID: InvalidError, WT_ERR_
               WT_ERR_FORMAT: FormatError, WT_ERR_INTERRUPTED: InterruptedRun}
 
 
-def error_for(status, message):
+def error_for(status: int, message: str) -> Error:
     """The exception of a negative status code with its message."""
     return _BY_STATUS.get(status, Error)(message, status)

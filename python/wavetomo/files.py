@@ -8,6 +8,7 @@ these refuse a file that is not complete (no root attribute complete = 1: writte
 stopped) and a file of another kind, with FormatError naming what is missing.
 """
 import os
+from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
@@ -16,6 +17,8 @@ from .layout import ARCSEC, Layout, Sensor
 
 __all__ = ["Result", "MatrixResult", "read", "read_run", "read_telemetry", "read_matrix", "read_commands",
            "read_compare", "read_budget"]
+
+PathLike = Union[str, "os.PathLike[str]"]
 
 # What identifies each kind of file: required datasets (and root attributes)
 _KINDS = {
@@ -54,38 +57,44 @@ class Result(dict):
     "matrix", "commands", "compare" or "budget"; attrs: the root attributes (strings as str); meta[path]:
     the attributes of a dataset or group."""
 
-    def __init__(self, path, kind):
+    # set by the runs (wavetomo.sim, compare, budget, run) on the Result they return
+    stdout: str
+    stderr: str
+    telemetry: Optional["Result"]
+    dir: Optional[str]
+
+    def __init__(self, path: str, kind: str) -> None:
         super().__init__()
         self.path = path
         self.kind = kind
-        self.attrs = {}
-        self.meta = {}
+        self.attrs: Dict[str, Any] = {}
+        self.meta: Dict[str, Dict[str, Any]] = {}
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return "<wavetomo.Result %s %s: %d datasets>" % (self.kind, self.path, len(self))
 
-    def group(self, prefix):
+    def group(self, prefix: str) -> Dict[str, Any]:
         """The datasets under prefix/ as a dict, keyed by the rest of their path: group("eval")["strehl_le"]."""
         p = prefix.rstrip("/") + "/"
         return {k[len(p):]: v for k, v in self.items() if k.startswith(p)}
 
-    def units(self, name):
+    def units(self, name: str) -> str:
         """The units of dataset `name` ("" when dimensionless)."""
         return self.meta.get(name, {}).get("units", "")
 
     @property
-    def config(self):
+    def config(self) -> Optional[str]:
         """The effective configuration text of the run (the "config" dataset)."""
         return self.get("config")
 
     @property
-    def methods(self):
+    def methods(self) -> List[str]:
         """compare / budget: the methods in their order ([M] of the (M, ...) datasets)."""
         m = self.attrs.get("methods", "")
         return [x for x in m.split(",") if x]
 
     @property
-    def layout(self):
+    def layout(self) -> Optional[Layout]:
         """The Layout of the file's "layout" group (None when the file has none, as compare's results)."""
         if "layout/sensor_slope_offset" not in self:
             return None
@@ -99,7 +108,7 @@ class Result(dict):
                                   self["layout/%s/subaperture_centre" % name]))
         return Layout(sensors, self["layout/actuator_index"], self["layout/actuator_position"])
 
-    def psf(self, method=None, value=0):
+    def psf(self, method: Optional[str] = None, value: int = 0) -> Optional[Dict[str, Any]]:
         """The long-exposure PSFs (sim.psf_interval_frames > 0; None without them) as a dict: "image" (directions, n, n)
         for a run file, (seeds, directions, n, n) for compare's method `method` at sweep value index `value`;
         "strehl_peak" (the PSF-peak Strehl, [seeds,] directions); "theta_x", "theta_y" [arcsec] of the
@@ -132,11 +141,11 @@ class MatrixResult(Result):
         return x * np.asarray(scale, dtype=np.float32)[:, None] if scale is not None else x
 
     @property
-    def R(self):
+    def R(self) -> np.ndarray:
         return self._scaled("R")
 
     @property
-    def RA(self):
+    def RA(self) -> np.ndarray:
         return self._scaled("RA")
 
 
@@ -152,7 +161,7 @@ def _kind_of(keys, attrs):
     return None
 
 
-def read(path, kind=None):
+def read(path: PathLike, kind: Optional[str] = None) -> Result:
     """Read a wavetomo output file whole. kind: None (found from the datasets) or the kind it must be
     ("run", "telemetry", "matrix", "commands", "compare", "budget"). Raises FileError (missing),
     FormatError (not HDF5, incomplete, or not a file of that kind, naming what is missing)."""
@@ -170,9 +179,10 @@ def read(path, kind=None):
         if attrs.get("complete") != 1:
             raise FormatError("%s: incomplete file (no root attribute complete = 1): written by a run that stopped "
                               "before the end, or not by wavetomo" % path, -7)
-        data, meta = {}, {}
+        data: Dict[str, Any] = {}
+        meta: Dict[str, Dict[str, Any]] = {}
 
-        def visit(name, obj):
+        def visit(name: str, obj: Any) -> None:
             m = {k: _attr(v) for k, v in obj.attrs.items()}
             if m:
                 meta[name] = m
@@ -197,36 +207,38 @@ def read(path, kind=None):
     return res
 
 
-def read_run(path):
+def read_run(path: PathLike) -> Result:
     """RUN.h5 of `wavetomo sim --out`: LE Strehl and WFE per direction and over the field, per-frame
     Strehl and rms, timings, layout."""
     return read(path, "run")
 
 
-def read_telemetry(path):
+def read_telemetry(path: PathLike) -> Result:
     """TEL.h5 of `wavetomo sim --telemetry`: slopes, slopes_ol (frames, nslopes) and commands
     (frames, nactuators), float32."""
     return read(path, "telemetry")
 
 
-def read_matrix(path):
+def read_matrix(path: PathLike) -> MatrixResult:
     """MATRIX.h5 of `wavetomo build`: a MatrixResult (.R, .RA as float32 matrices)."""
-    return read(path, "matrix")
+    res = read(path, "matrix")
+    assert isinstance(res, MatrixResult)  # read() makes one of every matrix file
+    return res
 
 
-def read_commands(path):
+def read_commands(path: PathLike) -> Result:
     """CMDS.h5 of `wavetomo run`: reconstruction (frames, nactuators) float32 = R s_ol, time (frames,) [ms]."""
     return read(path, "commands")
 
 
-def read_compare(path):
+def read_compare(path: PathLike) -> Result:
     """results.h5 of `wavetomo compare` (a directory is taken as DIR/results.h5): (M methods, V sweep
     values[, seeds][, directions]) arrays; .methods."""
     path = os.fspath(path)
     return read(os.path.join(path, "results.h5") if os.path.isdir(path) else path, "compare")
 
 
-def read_budget(path):
+def read_budget(path: PathLike) -> Result:
     """results.h5 of `wavetomo budget` (a directory is taken as DIR/results.h5): "<method>/<term>" [nm],
     analytic estimates in .meta["<method>/<term>"]; .methods."""
     path = os.fspath(path)

@@ -2,10 +2,13 @@
 library (System.layout) and from any output file's "layout" group (Result.layout)."""
 import dataclasses
 import math
+from typing import List, Tuple
 
 import numpy as np
 
 __all__ = ["ARCSEC", "Sensor", "DM", "Layout"]
+
+_Slice = slice  # the built-in, by a name the properties called slice do not hide
 
 ARCSEC = math.pi / (180.0 * 3600.0)  # radians per arcsecond (the library's WT_ARCSEC)
 
@@ -24,15 +27,15 @@ class Sensor:
     subapertures: np.ndarray  # (nsub, 2) centres (x, y) in the pupil [m], in slope order
 
     @property
-    def nslopes(self):
+    def nslopes(self) -> int:
         return 2 * self.nsub
 
     @property
-    def slice(self):
+    def slice(self) -> _Slice:
         """The sensor's slopes in a slope vector: s[sensor.slice]."""
         return slice(self.offset, self.offset + 2 * self.nsub)
 
-    def split(self, slopes):
+    def split(self, slopes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """(s_x, s_y) of this sensor from a slope vector (or frames x slopes): views, nsub values each."""
         s = np.asarray(slopes)[..., self.slice]
         return s[..., :self.nsub], s[..., self.nsub:]
@@ -51,26 +54,26 @@ class DM:
     y0: float
 
     @property
-    def slice(self):
+    def slice(self) -> _Slice:
         return slice(self.offset, self.offset + self.nactive)
 
 
 @dataclasses.dataclass
 class Layout:
     """The orderings of a system's slope and command vectors."""
-    sensors: list                 # [Sensor], in slope order (the LGS first)
+    sensors: List[Sensor]         # in slope order (the LGS first)
     actuator_index: np.ndarray    # (nact, 3) int32: DM (0-based), column ix, row iy of each command
     actuator_position: np.ndarray  # (nact, 2) float64 [m]: (x, y) in its DM's conjugate plane
 
     @property
-    def nslopes(self):
+    def nslopes(self) -> int:
         return sum(s.nslopes for s in self.sensors)
 
     @property
-    def nactuators(self):
+    def nactuators(self) -> int:
         return len(self.actuator_index)
 
-    def sensor(self, name):
+    def sensor(self, name: str) -> Sensor:
         for s in self.sensors:
             if s.name == name:
                 return s

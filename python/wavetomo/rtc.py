@@ -11,27 +11,34 @@ bits) and returns float32; anything else runs in float64. Sizes, NaN and Inf are
 whose message the exception carries. Each object owns its C context and instance; a lock lets one thread
 at a time run a frame on it (different objects run in parallel: ctypes releases the GIL).
 """
+import ctypes
 import os
 import threading
 import warnings
+from typing import Any, Callable, Dict, List, NoReturn, Optional
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _lib
-from .config import overrides, parse
+from .config import Overrides, overrides, parse
 from .errors import Error, SolverWarning, error_for
+from .files import PathLike
 from .layout import DM, Layout, Sensor
 
 __all__ = ["System", "Reconstructor"]
 
-_L = _lib.lib
+
+def _L() -> ctypes.CDLL:
+    """The C library (loaded at the first object's set-up: LoadError if missing)."""
+    return _lib.load()
 
 
-def _ptr(a):
+def _ptr(a: Optional[np.ndarray]) -> Optional[int]:
     return a.ctypes.data if a is not None else None
 
 
-def _path(p):
+def _path(p: Optional[PathLike]) -> Optional[bytes]:
     return os.fsencode(p) if p is not None else None
 
 
@@ -45,73 +52,81 @@ class System:
     """
 
     _kind = "none"
+    nslopes: int                  # the length of a slope vector
+    nactuators: int               # the length of a command vector
+    _rtc: Optional[int]           # the C instance (wt_rtc *), None once closed
+    _ctx: Optional[int]           # its context (wt_context *)
+    _layout: Optional[Layout]
+    _dms: Optional[List[DM]]
 
-    def __init__(self, config=None, *, text=None, set=None, threads=None):
+    def __init__(self, config: Optional[PathLike] = None, *, text: Optional[str] = None, set: Overrides = None,
+                 threads: Optional[int] = None) -> None:
         self._open(self._kind, config, text, None, set, threads)
 
     # -- set-up ---------------------------------------------------------------------------------------
-    def _open(self, recon, config, text, matrix, set, threads):
+    def _open(self, recon: str, config: Optional[PathLike], text: Optional[str], matrix: Optional[PathLike],
+              set: Overrides, threads: Optional[int]) -> None:
         self._rtc = None
-        self._ctx = _L.wt_context_alloc()
+        self._ctx = _L().wt_context_alloc()
         if not self._ctx:
             raise MemoryError("wavetomo: no memory for a context")
         self._lock = threading.Lock()
         if threads is not None:
-            _L.wt_context_set_threads(self._ctx, int(threads))
+            _L().wt_context_set_threads(self._ctx, int(threads))
         sets = [s.encode() for s in overrides(set)]
-        arr = (_lib.ctypes.c_char_p * max(len(sets), 1))(*sets)
-        out = _lib.ctypes.c_void_p()
+        arr = (ctypes.c_char_p * max(len(sets), 1))(*sets)
+        out = ctypes.c_void_p()
         if matrix is not None:
             if text is not None:
                 raise TypeError("a stored MVM takes its configuration from config= (a file) or from the matrix, not text=")
-            st = _L.wt_rtc_open_mvm(self._ctx, _path(matrix), _path(config), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open_mvm(self._ctx, _path(matrix), _path(config), len(sets), arr, ctypes.byref(out))
         elif (config is None) == (text is None):
             raise TypeError("give a configuration file (config=) or its text (text=), one of the two")
         elif text is not None:
-            st = _L.wt_rtc_open_text(self._ctx, recon.encode(), text.encode(), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open_text(self._ctx, recon.encode(), text.encode(), len(sets), arr, ctypes.byref(out))
         else:
-            st = _L.wt_rtc_open(self._ctx, recon.encode(), _path(config), len(sets), arr, _lib.ctypes.byref(out))
+            st = _L().wt_rtc_open(self._ctx, recon.encode(), _path(config), len(sets), arr, ctypes.byref(out))
         if st < 0:
             self._raise(st)
         self._rtc = out.value
-        self.nslopes = int(_L.wt_rtc_nslopes(self._rtc))
-        self.nactuators = int(_L.wt_rtc_nactuators(self._rtc))
+        self.nslopes = int(_L().wt_rtc_nslopes(self._rtc))
+        self.nactuators = int(_L().wt_rtc_nactuators(self._rtc))
         self._layout = self._dms = None
 
-    def _raise(self, st):
-        msg = _L.wt_error_message(self._ctx).decode(errors="replace") or _L.wt_strerror(st).decode()
-        _L.wt_error_clear(self._ctx)
+    def _raise(self, st: int) -> NoReturn:
+        msg = _L().wt_error_message(self._ctx).decode(errors="replace") or _L().wt_strerror(st).decode()
+        _L().wt_error_clear(self._ctx)
         raise error_for(st, msg)
 
-    def _handle(self):
+    def _handle(self) -> int:
         if self._rtc is None:
             raise Error("wavetomo: this %s is closed" % type(self).__name__)
         return self._rtc
 
-    def close(self):
+    def close(self) -> None:
         """Free the C instance and context (also done when the object is collected)."""
         rtc, ctx = getattr(self, "_rtc", None), getattr(self, "_ctx", None)
         self._rtc = self._ctx = None
         if _L is None:  # interpreter shutdown
             return
         if rtc:
-            _L.wt_rtc_close(rtc)
+            _L().wt_rtc_close(rtc)
         if ctx:
-            _L.wt_context_free(ctx)
+            _L().wt_context_free(ctx)
 
-    def __del__(self):
+    def __del__(self) -> None:
         try:
             self.close()
         except Exception:
             pass
 
-    def __enter__(self):
+    def __enter__(self) -> "System":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> None:
         self.close()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         if self._rtc is None:
             return "<wavetomo.%s (closed)>" % type(self).__name__
         return "<wavetomo.%s %s: %d slopes, %d commands>" % (type(self).__name__, self.recon, self.nslopes,
@@ -119,58 +134,58 @@ class System:
 
     # -- what the system is ---------------------------------------------------------------------------
     @property
-    def recon(self):
+    def recon(self) -> str:
         """"none" for a System; "pcg3", "cg9", "mvm-pcg3" or "mvm-cg9" for a Reconstructor."""
-        return _L.wt_rtc_recon(self._handle()).decode()
+        return _L().wt_rtc_recon(self._handle()).decode()
 
     @property
-    def config(self):
+    def config(self) -> str:
         """The effective configuration (libconfig text after the overrides, every key given): the
         "config" dataset an output file of this system holds."""
-        return _L.wt_rtc_config(self._handle()).decode()
+        return _L().wt_rtc_config(self._handle()).decode()
 
     @property
-    def settings(self):
+    def settings(self) -> Dict[str, Any]:
         """The effective configuration as {dotted key: value}: settings["loop.gain"]."""
         return parse(self.config)
 
     @property
-    def nsensors(self):
-        return int(_L.wt_rtc_nsensors(self._handle()))
+    def nsensors(self) -> int:
+        return int(_L().wt_rtc_nsensors(self._handle()))
 
     @property
-    def ndms(self):
-        return int(_L.wt_rtc_ndms(self._handle()))
+    def ndms(self) -> int:
+        return int(_L().wt_rtc_ndms(self._handle()))
 
     @property
-    def delay(self):
+    def delay(self) -> int:
         """loop.delay_frames d [frames]"""
-        return int(_L.wt_rtc_delay(self._handle()))
+        return int(_L().wt_rtc_delay(self._handle()))
 
     @property
-    def gain(self):
+    def gain(self) -> float:
         """loop.gain g of the POLC integrator"""
-        return float(_L.wt_rtc_gain(self._handle()))
+        return float(_L().wt_rtc_gain(self._handle()))
 
     @property
-    def rate(self):
+    def rate(self) -> float:
         """frame rate [Hz]"""
-        return float(_L.wt_rtc_rate(self._handle()))
+        return float(_L().wt_rtc_rate(self._handle()))
 
     @property
-    def sensors(self):
+    def sensors(self) -> List[Sensor]:
         """[Sensor] in slope order: name, kind, nsub, offset, direction [rad], source altitude [m],
         subaperture centres (nsub, 2) [m]."""
         return self.layout.sensors
 
     @property
-    def dms(self):
+    def dms(self) -> List[DM]:
         """[DM] in command order: altitude [m], pitch [m], nactive, offset, grid nx, ny, x0, y0 [m]."""
         if self._dms is None:
             h, out = self._handle(), []
             for k in range(self.ndms):
                 d = _lib.DM_c()
-                st = _L.wt_rtc_dm_info(h, k, _lib.ctypes.byref(d))
+                st = _L().wt_rtc_dm_info(h, k, ctypes.byref(d))
                 if st < 0:
                     self._raise(st)
                 out.append(DM(d.altitude, d.pitch, d.nactive, d.offset, d.nx, d.ny, d.x0, d.y0))
@@ -178,31 +193,31 @@ class System:
         return list(self._dms)
 
     @property
-    def layout(self):
+    def layout(self) -> Layout:
         """The Layout of slopes and commands (the same as an output file's Result.layout)."""
         if self._layout is None:
             h, sensors = self._handle(), []
             for m in range(self.nsensors):
                 info = _lib.Sensor_c()
-                st = _L.wt_rtc_sensor_info(h, m, _lib.ctypes.byref(info))
+                st = _L().wt_rtc_sensor_info(h, m, ctypes.byref(info))
                 if st < 0:
                     self._raise(st)
                 xy = np.empty((info.nsub, 2))
-                st = _L.wt_rtc_subapertures(h, m, _ptr(xy))
+                st = _L().wt_rtc_subapertures(h, m, _ptr(xy))
                 if st < 0:
                     self._raise(st)
                 sensors.append(Sensor(info.name.decode(), "LGS" if info.kind == _lib.WT_RTC_LGS else "NGS",
                                       info.nsub, info.offset, info.theta_x, info.theta_y, info.altitude, xy))
             pos = np.empty((self.nactuators, 2))
             idx = np.empty((self.nactuators, 3), dtype=np.int32)
-            st = _L.wt_rtc_actuators(h, _ptr(pos), _ptr(idx))
+            st = _L().wt_rtc_actuators(h, _ptr(pos), _ptr(idx))
             if st < 0:
                 self._raise(st)
             self._layout = Layout(sensors, idx, pos)
         return self._layout
 
     # -- the interaction ------------------------------------------------------------------------------
-    def _apply(self, fn, x, nin, nout):
+    def _apply(self, fn: Callable[..., int], x: npt.ArrayLike, nin: int, nout: int) -> np.ndarray:
         x = np.asarray(x)
         if not (np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)):
             raise TypeError("expected real numbers, got dtype %s" % x.dtype)
@@ -218,14 +233,14 @@ class System:
                     self._raise(st)
         return out[0] if x.ndim == 1 else out
 
-    def interaction(self, commands):
+    def interaction(self, commands: npt.ArrayLike) -> np.ndarray:
         """slopes = Â commands: the slopes [rad] the sensors see of DM commands [m] (the POLC term,
         s_ol = s + Â a). commands: (nactuators,) or (frames, nactuators); float64 out."""
-        return self._apply(_L.wt_rtc_interaction, commands, self.nactuators, self.nslopes)
+        return self._apply(_L().wt_rtc_interaction, commands, self.nactuators, self.nslopes)
 
-    def interaction_t(self, slopes):
+    def interaction_t(self, slopes: npt.ArrayLike) -> np.ndarray:
         """commands = Âᵀ slopes, the transpose. slopes: (nslopes,) or (frames, nslopes); float64 out."""
-        return self._apply(_L.wt_rtc_interaction_t, slopes, self.nslopes, self.nactuators)
+        return self._apply(_L().wt_rtc_interaction_t, slopes, self.nslopes, self.nactuators)
 
 
 class Reconstructor(System):
@@ -243,7 +258,9 @@ class Reconstructor(System):
     OpenMP threads of pcg3 / cg9 (the MVM uses OpenBLAS's, OPENBLAS_NUM_THREADS).
     """
 
-    def __init__(self, config=None, recon=None, *, matrix=None, text=None, set=None, threads=None):
+    def __init__(self, config: Optional[PathLike] = None, recon: Optional[str] = None, *,
+                 matrix: Optional[PathLike] = None, text: Optional[str] = None, set: Overrides = None,
+                 threads: Optional[int] = None) -> None:
         if matrix is not None:
             if recon not in (None, "mvm"):
                 raise TypeError("recon=%r with matrix=: a stored MVM is the reconstructor" % (recon,))
@@ -254,24 +271,24 @@ class Reconstructor(System):
         elif recon == "none":
             raise TypeError("recon='none' is the system alone: use wavetomo.System")
         self.last_status = 0
-        self._open(recon, config, text, matrix, set, threads)
+        self._open(recon or "mvm", config, text, matrix, set, threads)
 
     @property
-    def frames(self):
+    def frames(self) -> int:
         """Frames run since open or reset."""
-        return int(_L.wt_rtc_frames(self._handle()))
+        return int(_L().wt_rtc_frames(self._handle()))
 
     @property
-    def frame_time(self):
+    def frame_time(self) -> float:
         """Wall time of the last frame call in the library [s] (input checks, conversions, reconstruction)."""
-        return float(_L.wt_rtc_frame_time(self._handle()))
+        return float(_L().wt_rtc_frame_time(self._handle()))
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the history: the integrator, its delay queue, the warm start, the frame count."""
         with self._lock:
-            _L.wt_rtc_reset(self._handle())
+            _L().wt_rtc_reset(self._handle())
 
-    def _vector(self, x, n, dtype, what):
+    def _vector(self, x: npt.ArrayLike, n: int, dtype: Any, what: str) -> np.ndarray:
         x = np.asarray(x)
         if not (np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)):
             raise TypeError("%s: expected real numbers, got dtype %s" % (what, x.dtype))
@@ -280,7 +297,8 @@ class Reconstructor(System):
                 what, n, x.shape, " (replay() takes frames x values)" if x.ndim == 2 else ""))
         return np.ascontiguousarray(x, dtype=dtype)
 
-    def __call__(self, slopes, applied=None, *, raw=False, slopes_ol=False, out=None):
+    def __call__(self, slopes: npt.ArrayLike, applied: Optional[npt.ArrayLike] = None, *, raw: bool = False,
+                 slopes_ol: bool = False, out: Optional[np.ndarray] = None) -> np.ndarray:
         """One frame: the commands [m] of slopes [rad] (see the class). float32 slopes give float32
         commands (the library's float32 entry), others float64. out: a C-contiguous vector of that
         dtype to write into (no allocation per frame). Raises InvalidError (a size other than the
@@ -296,7 +314,7 @@ class Reconstructor(System):
                   and out.flags.writeable):
             raise ValueError("out: expected a writeable C-contiguous %s vector" % np.dtype(dtype).name)
         flags = (_lib.WT_RTC_RAW if raw else 0) | (_lib.WT_RTC_SLOPES_OL if slopes_ol else 0)
-        fn = _L.wt_rtc_frame_f32 if dtype == np.float32 else _L.wt_rtc_frame
+        fn = _L().wt_rtc_frame_f32 if dtype == np.float32 else _L().wt_rtc_frame
         h = self._handle()
         with self._lock:
             st = fn(h, _ptr(s), s.size, _ptr(a), flags, _ptr(out), out.size)
@@ -304,11 +322,12 @@ class Reconstructor(System):
                 self._raise(st)
             self.last_status = st
             if st > 0:
-                msg = _L.wt_error_message(self._ctx).decode(errors="replace")
-                warnings.warn(SolverWarning(msg or _L.wt_strerror(st).decode()), stacklevel=2)
+                msg = _L().wt_error_message(self._ctx).decode(errors="replace")
+                warnings.warn(SolverWarning(msg or _L().wt_strerror(st).decode()), stacklevel=2)
         return out
 
-    def replay(self, slopes, applied=None, *, raw=False, slopes_ol=False):
+    def replay(self, slopes: npt.ArrayLike, applied: Optional[npt.ArrayLike] = None, *, raw: bool = False,
+               slopes_ol: bool = False) -> np.ndarray:
         """Frames in order: slopes (frames, nslopes) [and applied (frames, nactuators)] -> commands
         (frames, nactuators), each row as one call. `wavetomo run` is replay(tel["slopes_ol"], raw=True,
         slopes_ol=True) for pcg3 / cg9 and replay(tel["slopes"], tel["commands"], raw=True) for the MVM."""
