@@ -241,6 +241,10 @@ int wt_cmd_sim(int argc, char **argv)
     long frames = cfg->frames;
     if (tel) {
         int64_t bytes = (int64_t)frames * (2 * sys->nslopes + sys->nact) * 4;
+        if (cfg->telemetry_maps > 0) { /* the maps on the loop's fine grid, (n p + 1)² points per direction */
+            const int64_t side = (int64_t)sys->n * cfg->points_per_subaperture + 1;
+            bytes += (frames + cfg->telemetry_maps - 1) / cfg->telemetry_maps * (sys->neval * side * side + sys->nact) * 4;
+        }
         if ((st = wt_cli_check_output(&cli, tel, bytes, args.matrix, NULL)) < 0) goto fail;
     }
     if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
@@ -265,6 +269,7 @@ int wt_cmd_sim(int argc, char **argv)
     double setup = wt_time_now() - t0;
     if (tel && (st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
     if ((st = wt_sim_record_alloc(cli.ctx, sys, frames, cfg->eval_wavelength, tw, &rec)) < 0) goto fail;
+    if (tw && cfg->telemetry_maps > 0 && (st = wt_sim_record_maps(rec, lp, tw, cfg->telemetry_maps)) < 0) goto fail;
     if (!cli.quiet)
         fprintf(stderr, "wavetomo sim: %s, %s, %ld frames, seed %llu, %lld slopes, %lld actuators (set-up %.1f s)\n",
                 cfg->path, recon, frames, (unsigned long long)cfg->seed, (long long)sys->nslopes,

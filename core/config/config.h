@@ -232,6 +232,7 @@ typedef struct wt_config {
     int psf_pixels;                  /* side of the stored PSF images (even) */
     int npsf_wavelengths;            /* 0: PSFs at eval_wavelength only; else the list below */
     double psf_wavelength[WT_MAX_PSF_WAVELENGTHS]; /* wavelengths of the PSF bands [m] */
+    int telemetry_maps;              /* sim --telemetry: residual maps and commands every N-th frame (0: none) */
 
     /* reconstructor */
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */

@@ -346,6 +346,10 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "with sim --fits): the residual OPD's phase 2 pi OPD / lambda at each; the padding N dx >= 2 D is the same at "
      "every lambda, so every image has Nyquist pixels of lambda/(2D), lambda / (N dx) in angle; left out: none (psf/ "
      "at evaluation.wavelength_nm is always made; --fits then writes that one)"},
+    {"sim.telemetry_maps_interval_frames", K_INT, F_OPT, 0, 1000000, "", 1, CF(telemetry_maps), NOCOUNT, 0, 0, NULL, 0,
+     "with sim --telemetry: every N-th frame (frames 0, N, 2N, ...) TEL.h5 also gets maps/residual, the "
+     "piston-removed residual OPD on the pupil of every evaluation direction (float32, the fine grid), and "
+     "maps/commands, the DM commands of those frames; 0 or left out: none"},
 
     KF("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, "prior weight alpha"),
     KF("recon.tau", 0, 0.0, 1.0, "", 1, tau, "elongation weight tau of the reconstructor's noise model"),
