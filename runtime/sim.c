@@ -42,7 +42,8 @@ static void help(void)
            "                   the long-exposure PSFs and their peak Strehl (sim.psf_interval_frames),\n"
            "                   the configuration, seed and versions (docs/formats.md)\n"
            "  --telemetry F    also write per frame the measured and pseudo-open-loop slopes and the\n"
-           "                   applied commands (float32), for `wavetomo run`\n"
+           "                   applied commands (float32), for `wavetomo run`; with\n"
+           "                   sim.telemetry_maps_interval_frames = N also every N-th frame's residual OPD maps\n"
            "  --fits DIR       also write the long-exposure PSFs as FITS, one file DIR/psf_<nm>nm.fits per\n"
            "                   wavelength of sim.psf_wavelengths_nm (or evaluation.wavelength_nm): the PSF cube\n"
            "                   (x, y, direction), the Strehl map and the directions' table (DIR is created)\n"
@@ -259,11 +260,14 @@ int wt_cmd_sim(int argc, char **argv)
     if (pp.every > 0 &&
         (st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pp, &psf)) < 0)
         goto fail;
-    /* the bands of sim.psf_wavelengths_nm: the same images at each wavelength (psf.h) */
+    /* the bands of sim.psf_wavelengths_nm: the same images at each wavelength (psf.h); the evaluation wavelength's
+     * band is psf itself (the same images, made once) */
     for (; pp.every > 0 && nband < cfg->npsf_wavelengths; nband++) {
         wt_psf_params pb = pp;
         pb.wavelength = cfg->psf_wavelength[nband];
-        if ((st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pb, &band[nband])) < 0)
+        if (pb.wavelength == pp.wavelength) band[nband] = psf;
+        else if ((st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pb,
+                                    &band[nband])) < 0)
             goto fail;
     }
     double setup = wt_time_now() - t0;
@@ -285,7 +289,8 @@ int wt_cmd_sim(int argc, char **argv)
             const double *maps[WT_MAX_EVAL];
             for (int j = 0; j < sys->neval; j++) maps[j] = wt_loop_residual(lp, j);
             wt_psf_frame(psf, t, maps);
-            for (int k = 0; k < nband; k++) wt_psf_frame(band[k], t, maps);
+            for (int k = 0; k < nband; k++)
+                if (band[k] != psf) wt_psf_frame(band[k], t, maps);
             tpsf += wt_time_now() - p0;
         }
         double se = wt_sim_record_field_strehl(rec, t);
@@ -376,7 +381,8 @@ fail:
 cleanup:
     wt_sim_record_free(rec);
     wt_psf_free(psf);
-    for (int k = 0; k < nband; k++) wt_psf_free(band[k]);
+    for (int k = 0; k < nband; k++)
+        if (band[k] != psf) wt_psf_free(band[k]);
     wt_h5_abort(w);
     wt_h5_abort(tw);
     wt_loop_free(lp);
