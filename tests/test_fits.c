@@ -254,7 +254,20 @@ START_TEST(test_sim_fits_against_h5)
     ck_assert(!wt_h5_exists(r, "psf/wavelengths"));
     wt_h5_close(r);
 
-    /* refusals: no PSFs to export, a wavelength given twice (naming the key) */
+    /* refusals: a file of that name that is not FITS (before the run: no RUN.h5), no PSFs to export, a wavelength
+     * given twice (naming the key) */
+    snprintf(path, sizeof path, "%s/fits0/psf_2200nm.fits", dir);
+    FILE *fp = fopen(path, "w");
+    ck_assert_ptr_nonnull(fp);
+    fputs("not a FITS file\n", fp);
+    fclose(fp);
+    ck_assert_int_eq(tu_run(wt, dir, "sim " DEMO " --frames 6 --set evaluation.settle_frames=2 --quiet --out %s/run3.h5 "
+                                     "--fits %s/fits0", dir, dir),
+                     1);
+    ck_assert(tu_file_has(dir, "stderr.txt", "psf_2200nm.fits' exists and is not a wavetomo output"));
+    snprintf(path, sizeof path, "%s/run3.h5", dir);
+    ck_assert_int_ne(stat(path, &sb), 0);
+
     ck_assert_int_eq(tu_run(wt, dir,
                             "sim " DEMO " --frames 6 --set evaluation.settle_frames=2 --set sim.psf_interval_frames=0 "
                             "--quiet --out %s/run1.h5 --fits %s/fits1", dir, dir),
