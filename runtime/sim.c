@@ -274,6 +274,9 @@ int wt_cmd_sim(int argc, char **argv)
     if (tel && (st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
     if ((st = wt_sim_record_alloc(cli.ctx, sys, frames, cfg->eval_wavelength, tw, &rec)) < 0) goto fail;
     if (tw && cfg->telemetry_maps > 0 && (st = wt_sim_record_maps(rec, lp, tw, cfg->telemetry_maps)) < 0) goto fail;
+    if (!tw && cfg->telemetry_maps > 0 && !cli.quiet)
+        fprintf(stderr, "wavetomo sim: note: sim.telemetry_maps_interval_frames = %d records into --telemetry TEL.h5, "
+                "which is not given: no maps\n", cfg->telemetry_maps);
     if (!cli.quiet)
         fprintf(stderr, "wavetomo sim: %s, %s, %ld frames, seed %llu, %lld slopes, %lld actuators (set-up %.1f s)\n",
                 cfg->path, recon, frames, (unsigned long long)cfg->seed, (long long)sys->nslopes,
