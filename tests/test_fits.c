@@ -129,6 +129,20 @@ START_TEST(test_roundtrip_synthetic)
     long rows = 0;
     fits_get_num_rows(f, &rows, &fs);
     ck_assert_int_eq(rows, nd);
+    /* every keyword once (a column's comment is modified, not a second TTYPE written) */
+    int nkeys = 0, more = 0, ttype4 = 0;
+    fits_get_hdrspace(f, &nkeys, &more, &fs);
+    for (int i = 1; i <= nkeys; i++) {
+        char card[FLEN_CARD];
+        fits_read_record(f, i, card, &fs);
+        ttype4 += !strncmp(card, "TTYPE4  =", 9);
+    }
+    ck_assert_int_eq(fs, 0);
+    ck_assert_int_eq(ttype4, 1);
+    char comment[FLEN_COMMENT];
+    fits_read_key(f, TSTRING, "TTYPE4", s, comment, &fs);
+    ck_assert_str_eq(s, "STREHL");
+    ck_assert_ptr_nonnull(strstr(comment, "PSF-peak Strehl"));
     double c[6][nd];
     for (int k = 0; k < 6; k++) read_column(f, k + 1, nd, c[k]);
     for (int j = 0; j < nd; j++) {

@@ -128,9 +128,10 @@ static int write_file(wt_context *ctx, fitsfile *f, const char *path, const wt_f
                               : p->wfe[j] * 1e9;
         fits_write_col(f, TDOUBLE, c + 2, 1, 1, nd, col, &fs);
     }
-    fits_write_key(f, TSTRING, "TTYPE4", (void *)"STREHL", "PSF-peak Strehl: peak of the plane INDEX", &fs);
-    fits_write_key(f, TSTRING, "TTYPE5", (void *)"STREHL_M", "Marechal exp(-(2 pi WFE/lambda)^2)", &fs);
-    fits_write_key(f, TSTRING, "TTYPE6", (void *)"WFE", "long-exposure rms residual, piston removed", &fs);
+    /* the columns' meaning in the comments of their names (fits_create_tbl wrote generic ones) */
+    fits_modify_comment(f, "TTYPE4", "PSF-peak Strehl: peak of the plane INDEX", &fs);
+    fits_modify_comment(f, "TTYPE5", "Marechal exp(-(2 pi WFE/lambda)^2)", &fs);
+    fits_modify_comment(f, "TTYPE6", "long-exposure rms residual, piston removed", &fs);
     common_keys(f, p, &fs);
     if (fs) st = fits_fail(ctx, path, "write the DIRECTIONS table", fs);
 fail:
