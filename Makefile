@@ -3,12 +3,12 @@
 # `make debug`, `make install PREFIX=/usr/local DESTDIR=...`, `make uninstall`.
 
 DEB_PACKAGES := build-essential pkg-config libopenblas-dev liblapacke-dev libsuitesparse-dev \
-                libhdf5-dev libfftw3-dev libconfig-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
+                libhdf5-dev libfftw3-dev libconfig-dev libcfitsio-dev libplplot-dev plplot-driver-cairo fonts-dejavu-core check \
                 openmpi-bin libopenmpi-dev python3-numpy python3-h5py python3-pytest \
                 python3-pip python3-setuptools python3-wheel python3-venv
 
 CC      ?= gcc
-PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig plplot
+PKGS    := openblas lapacke hdf5-serial fftw3 fftw3f libconfig cfitsio plplot
 # -march=native is opt-in (`make NATIVE=1`): a binary built on one machine must run on another, and
 # the instruction set (FMA contraction) changes floating-point results, so the bit-identity reference
 # tests/regress/commands.sha256 is recorded without it.
@@ -162,7 +162,7 @@ PRESETS    := $(sort $(wildcard data/presets/*.cfg))
 SODIUM     := $(sort $(wildcard data/sodium/*.txt))
 ATMOSPHERE := $(sort $(wildcard data/atmosphere/*.txt))
 NIGHTS     := $(sort $(wildcard data/nights/*.txt))
-PC_REQUIRES := openblas lapacke hdf5-serial fftw3 fftw3f libconfig
+PC_REQUIRES := openblas lapacke hdf5-serial fftw3 fftw3f libconfig cfitsio
 
 # the directories below the prefix are written relative to it (${prefix}/lib): `pkg-config --define-prefix`
 # then finds a tree that was moved, or is still in its DESTDIR

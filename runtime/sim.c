@@ -16,13 +16,14 @@
 #include "core/sim/compare.h"
 #include "core/sim/psf.h"
 #include "core/model/sensing.h"
+#include "core/base/sha256.h"
 
 static void help(void)
 {
     printf("usage: wavetomo sim [--config] FILE [--set key=value]... [--recon pcg3|cg9|none|mvm]\n"
            "                    [--matrix MATRIX.h5]\n"
            "                    [--frames N] [--seed S] [--iters N] [--no-noise] --out RUN.h5\n"
-           "                    [--telemetry TEL.h5] [--dump-screens] [--threads N] [--quiet]\n"
+           "                    [--telemetry TEL.h5] [--fits DIR] [--dump-screens] [--threads N] [--quiet]\n"
            "\n"
            "Runs the closed-loop MCAO simulation of SPEC §2-§8: frozen-flow von Karman layers, truth\n"
            "Shack-Hartmann sensors with photon/read noise, spot elongation and LGS tip-tilt, the chosen\n"
@@ -41,7 +42,11 @@ static void help(void)
            "                   the long-exposure PSFs and their peak Strehl (sim.psf_interval_frames),\n"
            "                   the configuration, seed and versions (docs/formats.md)\n"
            "  --telemetry F    also write per frame the measured and pseudo-open-loop slopes and the\n"
-           "                   applied commands (float32), for `wavetomo run`\n"
+           "                   applied commands (float32), for `wavetomo run`; with\n"
+           "                   sim.telemetry_maps_interval_frames = N also every N-th frame's residual OPD maps\n"
+           "  --fits DIR       also write the long-exposure PSFs as FITS, one file DIR/psf_<nm>nm.fits per\n"
+           "                   wavelength of sim.psf_wavelengths_nm (or evaluation.wavelength_nm): the PSF cube\n"
+           "                   (x, y, direction), the Strehl map and the directions' table (DIR is created)\n"
            "  --dump-screens   add the layer screens of frame 0 and the residual OPD maps of the last\n"
            "                   frame to RUN.h5\n"
            "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
@@ -50,7 +55,7 @@ static void help(void)
 }
 
 typedef struct {
-    const char *recon, *out, *tel, *seed, *matrix;
+    const char *recon, *out, *tel, *seed, *matrix, *fits;
     long frames, iters;
     int dump, nonoise;
 } sim_args;
@@ -85,6 +90,43 @@ static int inloop_gain(wt_h5_writer *w, const wt_system *sys, int print)
     return st;
 }
 
+/* --fits DIR: PSFs to export, DIR made, and each file's name free (or a FITS file to replace) before the run */
+static int check_fits(wt_cli *cli, const char *dir, const wt_config *cfg)
+{
+    if (cfg->psf_interval < 1)
+        return WT_ERROR(cli->ctx, WT_ERR_CONFIG, "--fits %s: no PSFs to export with sim.psf_interval_frames = 0 (%s)", dir,
+                        cfg->path);
+    int st = wt_cli_ensure_dir(cli->ctx, dir);
+    const int nw = cfg->npsf_wavelengths ? cfg->npsf_wavelengths : 1;
+    for (int k = 0; k < nw && st >= 0; k++) {
+        char name[64], path[4200];
+        wt_fits_psf_name(cfg->npsf_wavelengths ? cfg->psf_wavelength[k] : cfg->eval_wavelength, name, sizeof name);
+        snprintf(path, sizeof path, "%s/%s", dir, name);
+        st = wt_cli_check_text_output(cli, path, "SIMPLE  =", NULL);
+    }
+    return st;
+}
+
+/* One FITS file of --fits: p's images with the run's directions, WFE and provenance. */
+static int write_fits(const char *dir, const wt_psf *p, const wt_config *cfg, const wt_system *sys,
+                      const wt_loop *lp, const char *recon)
+{
+    char name[64], path[4200], hash[65], telescope[80], creator[64];
+    double wfe[WT_MAX_EVAL];
+    const wt_strehl_le *le = wt_loop_le(lp);
+    for (int j = 0; j < sys->neval; j++) wfe[j] = wt_strehl_le_wfe(le, j);
+    wt_fits_psf_name(wt_psf_wavelength(p), name, sizeof name);
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    wt_sha256_hex(cfg->canonical, strlen(cfg->canonical), hash);
+    const char *base = strrchr(cfg->path, '/');
+    snprintf(telescope, sizeof telescope, "simulated D = %.4g m (%.36s)", cfg->diameter, base ? base + 1 : cfg->path);
+    snprintf(creator, sizeof creator, "wavetomo %s", WT_VERSION);
+    const wt_fits_psf meta = {.wfe = wfe, .theta_x = sys->eval_x, .theta_y = sys->eval_y, .grid = cfg->eval_grid,
+                              .spacing = cfg->eval_spacing, .obstruction = cfg->obstruction, .telescope = telescope,
+                              .recon = recon, .seed = cfg->seed, .config_sha256 = hash, .creator = creator};
+    return wt_psf_write_fits(p, path, &meta);
+}
+
 static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
 {
     sim_args *a = user;
@@ -94,6 +136,7 @@ static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
                        : !strcmp(o, "--telemetry") ? &a->tel
                        : !strcmp(o, "--seed")     ? &a->seed
                        : !strcmp(o, "--matrix")   ? &a->matrix
+                       : !strcmp(o, "--fits")     ? &a->fits
                                                   : NULL;
     if (!strcmp(o, "--no-noise")) a->nonoise = 1;
     else if (!strcmp(o, "--dump-screens")) a->dump = 1;
@@ -148,7 +191,7 @@ int wt_cmd_sim(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo sim", help)) return 1;
-    sim_args args = {"pcg3", NULL, NULL, NULL, NULL, -1, -1, 0, 0};
+    sim_args args = {"pcg3", NULL, NULL, NULL, NULL, NULL, -1, -1, 0, 0};
     int rc = wt_cli_parse(&cli, argc, argv, sim_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -185,18 +228,24 @@ int wt_cmd_sim(int argc, char **argv)
     wt_mvm *mvm = NULL;
     wt_h5_writer *w = NULL, *tw = NULL;
     wt_sim_record *rec = NULL;
-    wt_psf *psf = NULL;
+    wt_psf *psf = NULL, *band[WT_MAX_PSF_WAVELENGTHS] = {NULL};
     double tpsf = 0.0;
+    int nband = 0;
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto fail;
     if ((rc = wt_cli_estimate(&cli, cfg, WT_TASK_SIM, kind, iters)) >= 0) goto cleanup; /* --dry-run, or too big */
     rc = 0;
     /* find an unwritable output before the run, not after it */
     if ((st = wt_cli_check_output(&cli, out, 0, args.matrix, NULL)) < 0) goto fail;
+    if (args.fits && (st = check_fits(&cli, args.fits, cfg)) < 0) goto fail;
     if ((st = wt_system_alloc(cli.ctx, cfg, &sys)) < 0) goto fail;
     long frames = cfg->frames;
     if (tel) {
         int64_t bytes = (int64_t)frames * (2 * sys->nslopes + sys->nact) * 4;
+        if (cfg->telemetry_maps > 0) { /* the maps on the loop's fine grid, (n p + 1)² points per direction */
+            const int64_t side = (int64_t)sys->n * cfg->points_per_subaperture + 1;
+            bytes += (frames + cfg->telemetry_maps - 1) / cfg->telemetry_maps * (sys->neval * side * side + sys->nact) * 4;
+        }
         if ((st = wt_cli_check_output(&cli, tel, bytes, args.matrix, NULL)) < 0) goto fail;
     }
     if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
@@ -211,9 +260,23 @@ int wt_cmd_sim(int argc, char **argv)
     if (pp.every > 0 &&
         (st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pp, &psf)) < 0)
         goto fail;
+    /* the bands of sim.psf_wavelengths_nm: the same images at each wavelength (psf.h); the evaluation wavelength's
+     * band is psf itself (the same images, made once) */
+    for (; pp.every > 0 && nband < cfg->npsf_wavelengths; nband++) {
+        wt_psf_params pb = pp;
+        pb.wavelength = cfg->psf_wavelength[nband];
+        if (pb.wavelength == pp.wavelength) band[nband] = psf;
+        else if ((st = wt_psf_alloc(cli.ctx, wt_loop_fine_grid(lp), wt_loop_pupil_mask(lp), sys->neval, &pb,
+                                    &band[nband])) < 0)
+            goto fail;
+    }
     double setup = wt_time_now() - t0;
     if (tel && (st = wt_h5_create(cli.ctx, tel, &tw)) < 0) goto fail;
     if ((st = wt_sim_record_alloc(cli.ctx, sys, frames, cfg->eval_wavelength, tw, &rec)) < 0) goto fail;
+    if (tw && cfg->telemetry_maps > 0 && (st = wt_sim_record_maps(rec, lp, tw, cfg->telemetry_maps)) < 0) goto fail;
+    if (!tw && cfg->telemetry_maps > 0 && !cli.quiet)
+        fprintf(stderr, "wavetomo sim: note: sim.telemetry_maps_interval_frames = %d records into --telemetry TEL.h5, "
+                "which is not given: no maps\n", cfg->telemetry_maps);
     if (!cli.quiet)
         fprintf(stderr, "wavetomo sim: %s, %s, %ld frames, seed %llu, %lld slopes, %lld actuators (set-up %.1f s)\n",
                 cfg->path, recon, frames, (unsigned long long)cfg->seed, (long long)sys->nslopes,
@@ -230,6 +293,8 @@ int wt_cmd_sim(int argc, char **argv)
             const double *maps[WT_MAX_EVAL];
             for (int j = 0; j < sys->neval; j++) maps[j] = wt_loop_residual(lp, j);
             wt_psf_frame(psf, t, maps);
+            for (int k = 0; k < nband; k++)
+                if (band[k] != psf) wt_psf_frame(band[k], t, maps);
             tpsf += wt_time_now() - p0;
         }
         double se = wt_sim_record_field_strehl(rec, t);
@@ -253,6 +318,7 @@ int wt_cmd_sim(int argc, char **argv)
                                          "mean wall time per frame of the long-exposure PSFs (sim.psf_interval_frames; included "
                                          "in timing/total, in no part of frame/time)")) < 0))
         goto fail;
+    if (nband && (st = wt_psf_write_bands((const wt_psf *const *)band, nband, w, "psf/wavelengths")) < 0) goto fail;
     if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
     if ((st = wt_h5_write_double(w, "timing/setup", setup, "s", "set-up time (atmosphere, operators)")) < 0) goto fail;
     if (tw) {
@@ -266,6 +332,13 @@ int wt_cmd_sim(int argc, char **argv)
     st = wt_h5_commit(w);
     w = NULL;
     if (st < 0) goto fail;
+    if (args.fits) {
+        if (nband)
+            for (int k = 0; k < nband && st >= 0; k++) st = write_fits(args.fits, band[k], cfg, sys, lp, recon);
+        else
+            st = write_fits(args.fits, psf, cfg, sys, lp, recon);
+        if (st < 0) goto fail;
+    }
 
     const wt_strehl_le *le = wt_loop_le(lp);
     double field = 0.0, fwfe = 0.0;
@@ -304,13 +377,16 @@ int wt_cmd_sim(int argc, char **argv)
     }
     print_learned(wt_loop_adapt(lp), frames, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
-    printf("  results: %s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "");
+    printf("  results: %s%s%s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "", args.fits ? ", FITS PSFs in " : "",
+           args.fits ? args.fits : "");
     goto cleanup;
 fail:
     rc = wt_cli_fail(&cli, st);
 cleanup:
     wt_sim_record_free(rec);
     wt_psf_free(psf);
+    for (int k = 0; k < nband; k++)
+        if (band[k] != psf) wt_psf_free(band[k]);
     wt_h5_abort(w);
     wt_h5_abort(tw);
     wt_loop_free(lp);

@@ -20,6 +20,7 @@
 #define WT_MAX_DMS 8
 #define WT_MAX_EVAL 225 /* 15 x 15 evaluation directions */
 #define WT_MAX_GAIN_BANDS 16 /* loop.gain_levels: the scaling block and up to 15 wavelet levels */
+#define WT_MAX_PSF_WAVELENGTHS 16 /* sim.psf_wavelengths_nm: J to N bands and more, each one PSF per direction */
 #define WT_ARCSEC (M_PI / (180.0 * 3600.0)) /* radians per arcsecond */
 
 typedef struct wt_sensor_config {
@@ -229,6 +230,9 @@ typedef struct wt_config {
     int noise;                       /* 0: noise-free sensors (the truth adds no noise) */
     int psf_interval;                /* long-exposure PSFs: every N-th frame after the settle frames (0: none) */
     int psf_pixels;                  /* side of the stored PSF images (even) */
+    int npsf_wavelengths;            /* 0: PSFs at eval_wavelength only; else the list below */
+    double psf_wavelength[WT_MAX_PSF_WAVELENGTHS]; /* wavelengths of the PSF bands [m] */
+    int telemetry_maps;              /* sim --telemetry: residual maps and commands every N-th frame (0: none) */
 
     /* reconstructor */
     int prior_aliasing;              /* 1: prior variances of grid samples (aliased spectrum) */

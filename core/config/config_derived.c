@@ -28,6 +28,13 @@ static int check_variant(wt_context *ctx, const wt_config *cfg, const char *name
 
 int wt_config_priv_check_derived(wt_context *ctx, const wt_config *cfg)
 {
+    /* one PSF band (one FITS file, named by its nm) per wavelength */
+    for (int a = 0; a < cfg->npsf_wavelengths; a++)
+        for (int b = 0; b < a; b++)
+            if (fabs(cfg->psf_wavelength[a] - cfg->psf_wavelength[b]) < 1e-15)
+                return WT_ERROR(ctx, WT_ERR_CONFIG,
+                                "%s: key 'sim.psf_wavelengths_nm' elements [%d] and [%d] are both %g nm: give each "
+                                "wavelength once", cfg->path, b, a, cfg->psf_wavelength[a] * 1e9);
     /* frozen flow: the shift per frame v / rate against the pupil */
     for (int l = 0; l < cfg->nlayers; l++) {
         double shift = cfg->wind_speed[l] / cfg->rate;

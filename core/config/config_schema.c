@@ -363,6 +363,16 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"sim.psf_pixels", K_INT, F_DEFAULT | F_EVEN, 8, 4096, "", 1, CF(psf_pixels), NOCOUNT, 0, 0, NULL, 64,
      "side of the stored PSF images, even, around the centre, at most the padded FFT's N (Nyquist: 2 pixels per "
      "lambda/D, so 64 = +-16 lambda/D) (optional, default 64)"},
+    {"sim.psf_wavelengths_nm", K_FLOATS, F_OPT, 10.0, 1e6, "nm", 1e-9, CF(psf_wavelength), CF(npsf_wavelengths), 1,
+     WT_MAX_PSF_WAVELENGTHS, NULL, 0,
+     "wavelengths of extra long-exposure PSFs per evaluation direction (psf/wavelengths/ of RUN.h5, one FITS file each "
+     "with sim --fits): the residual OPD's phase 2 pi OPD / lambda at each; the padding N dx >= 2 D is the same at "
+     "every lambda, so every image has Nyquist pixels of lambda/(2D), lambda / (N dx) in angle; left out: none (psf/ "
+     "at evaluation.wavelength_nm is always made; --fits then writes that one)"},
+    {"sim.telemetry_maps_interval_frames", K_INT, F_OPT, 0, 1000000, "", 1, CF(telemetry_maps), NOCOUNT, 0, 0, NULL, 0,
+     "with sim --telemetry: every N-th frame (frames 0, N, 2N, ...) TEL.h5 also gets maps/residual, the "
+     "piston-removed residual OPD on the pupil of every evaluation direction (float32, the fine grid), and "
+     "maps/commands, the DM commands of those frames; 0 or left out: none"},
 
     KFD("recon.alpha", 0, 1e-12, 1e12, "", 1, alpha, 1.0, "prior weight alpha (optional, default 1)"),
     KFD("recon.tau", 0, 0.0, 1.0, "", 1, tau, 0.8,

@@ -136,6 +136,10 @@ int wt_h5_matrix_close(wt_h5_matrix *m);
  * frame. The first dimension is unlimited; chunks hold whole frames. [out] *out, owned by w. */
 int wt_h5_series_create(wt_h5_writer *w, const char *name, int file_type, int64_t n, const char *units,
                         const char *description, wt_h5_series **out);
+/* The same for frames of rank 1..WT_H5_MAX_RANK-1 and dims[0..rank-1] (row-major): a (frames, dims...) dataset;
+ * frames of rank >= 2 are chunked by slices of their first dimension (a map of a stack per chunk). */
+int wt_h5_series_create_shaped(wt_h5_writer *w, const char *name, int file_type, int rank, const int64_t *dims,
+                               const char *units, const char *description, wt_h5_series **out);
 /* Append one frame: n values (1 if n == 0) of mem_type. */
 int wt_h5_series_append(wt_h5_series *s, int mem_type, const void *data);
 /* Frames appended so far. */

@@ -24,7 +24,9 @@ struct wt_h5_series {
     wt_h5_writer *w;
     hid_t dset;
     char *name;
-    int64_t n, len;
+    int64_t n, len;            /* values per frame, frames appended */
+    int frank;                 /* rank of a frame (0: one value) */
+    hsize_t fdims[WT_H5_MAX_RANK]; /* its dims */
 };
 
 static int matrix_close(wt_h5_matrix *m, int check);
@@ -182,31 +184,43 @@ int wt_h5_matrix_close(wt_h5_matrix *m)
 
 /* ---- appendable series -------------------------------------------------------------------------- */
 
-static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int64_t n, const char *units, const char *desc,
-                              wt_h5_series **out)
+/* A frame of rank frank (0: one value) and dims fdims; a chunk holds whole frames, or for frames of rank ≥ 2 as
+ * many of a frame's first-dimension slices as fit (one map of a stack of maps per frame). */
+static int series_create_impl(wt_h5_writer *w, const char *name, int ft, int frank, const int64_t *fdims,
+                              const char *units, const char *desc, wt_h5_series **out)
 {
     int st = WT_OK;
     wt_h5_series *s = NULL;
     hid_t space = -1, dcpl = -1;
-    int rank = n > 0 ? 2 : 1;
-    hsize_t hd[2] = {0, (hsize_t)n}, maxd[2] = {H5S_UNLIMITED, (hsize_t)n}, cd[2] = {PROBE_FRAMES, (hsize_t)n};
-    hsize_t chunk[2];
+    const int rank = frank + 1;
+    int64_t n = frank ? 1 : 0;
+    hsize_t hd[WT_H5_MAX_RANK] = {0}, maxd[WT_H5_MAX_RANK] = {H5S_UNLIMITED}, cd[WT_H5_MAX_RANK] = {PROBE_FRAMES};
+    hsize_t chunk[WT_H5_MAX_RANK];
+    if (frank < 0 || rank > WT_H5_MAX_RANK)
+        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of frames of rank %d", w->target, name, frank);
+    for (int i = 0; i < frank; i++) {
+        if (fdims[i] < 0)
+            return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
+                            (long long)fdims[i]);
+        hd[i + 1] = maxd[i + 1] = cd[i + 1] = (hsize_t)fdims[i];
+        n *= fdims[i];
+    }
     if (!out) return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: wt_h5_series_create: out is NULL", w->target);
     *out = NULL;
     WT_TRY(wt_h5_priv_check_new(w, name, units, desc, 1));
     WT_TRY(wt_h5_priv_check_types(w, name, ft, ft));
     if (wt_h5_priv_type_half(ft))
         return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s': 16-bit floats are for matrices only", w->target, name);
-    if (n < 0)
-        return WT_ERROR(w->ctx, WT_ERR_INVALID, "%s: series '%s' of %lld values per frame", w->target, name,
-                        (long long)n);
     WT_ALLOC(w->ctx, s, 1, "an HDF5 series handle");
     s->w = w;
     s->dset = -1;
     s->n = n;
+    s->frank = frank;
+    for (int i = 0; i < frank; i++) s->fdims[i] = (hsize_t)fdims[i];
     if (!(s->name = wt_h5_priv_dupstr(w->ctx, name))) FAIL(w->ctx, WT_ERR_NOMEM, "out of memory for a dataset name");
     if ((space = H5Screate_simple(rank, hd, maxd)) < 0 ||
-        (dcpl = wt_h5_priv_numeric_dcpl(rank, cd, wt_h5_priv_type_size(ft), SERIES_CHUNK_BYTES, 1, 0, chunk)) < 0 ||
+        (dcpl = wt_h5_priv_numeric_dcpl(rank, cd, wt_h5_priv_type_size(ft), SERIES_CHUNK_BYTES,
+                                        frank >= 2 ? 2 : 1, 0, chunk)) < 0 ||
         (s->dset = H5Dcreate2(w->file, name, wt_h5_priv_file_type(ft), space, w->lcpl, dcpl, H5P_DEFAULT)) < 0)
         H5FAIL(w->ctx, WT_ERR_LIBRARY, "%s: cannot create series '%s' (H5Dcreate2)", w->target, name);
     WT_TRY(wt_h5_priv_set_doc(w, s->dset, name, units, desc));
@@ -228,7 +242,14 @@ fail:
 int wt_h5_series_create(wt_h5_writer *w, const char *name, int file_type, int64_t n, const char *units,
                         const char *description, wt_h5_series **out)
 {
-    WRITER_CALL(w, w, series_create_impl(w, name, file_type, n, units, description, out));
+    const int64_t d[1] = {n};
+    WRITER_CALL(w, w, series_create_impl(w, name, file_type, n != 0 ? 1 : 0, d, units, description, out));
+}
+
+int wt_h5_series_create_shaped(wt_h5_writer *w, const char *name, int file_type, int rank, const int64_t *dims,
+                               const char *units, const char *description, wt_h5_series **out)
+{
+    WRITER_CALL(w, w, series_create_impl(w, name, file_type, rank, dims, units, description, out));
 }
 
 static int series_append_impl(wt_h5_series *s, int mt, const void *data)
@@ -237,9 +258,10 @@ static int series_append_impl(wt_h5_series *s, int mt, const void *data)
     int st = WT_OK;
     hid_t fs = -1, ms = -1;
     WT_TRY(check_data(w, s->name, s->dset, mt, data));
-    hsize_t ext[2] = {(hsize_t)s->len + 1, (hsize_t)s->n}, start[2] = {(hsize_t)s->len, 0};
-    hsize_t count[2] = {1, (hsize_t)s->n};
-    int rank = s->n > 0 ? 2 : 1;
+    hsize_t ext[WT_H5_MAX_RANK] = {(hsize_t)s->len + 1}, start[WT_H5_MAX_RANK] = {(hsize_t)s->len};
+    hsize_t count[WT_H5_MAX_RANK] = {1};
+    const int rank = s->frank + 1;
+    for (int i = 0; i < s->frank; i++) ext[i + 1] = count[i + 1] = s->fdims[i];
     if (H5Dset_extent(s->dset, ext) < 0 || (fs = H5Dget_space(s->dset)) < 0 ||
         H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
         (ms = H5Screate_simple(rank, count, NULL)) < 0)

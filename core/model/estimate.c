@@ -189,9 +189,12 @@ void wt_estimate_resources(const wt_config *c, const wt_estimate_request *req, w
             /* pupil points across (nr rows), the padded N ≥ 2 nr, the kept n pixels; images taken */
             const double nr = c->lgs_wfs.subapertures * c->points_per_subaperture, N = 2.0 * nr;
             const double n = fmin((double)c->psf_pixels, N), taken = ceil((frames - c->settle_frames) / c->psf_interval);
-            term(e, 12.0 * s.neval * n * n + 2.0 * 8.0 * (nr + n) * N, "long-exposure PSFs",
-                 "sim.psf_pixels (%.0f), evaluation.grid, sim.points_per_subaperture, 2 threads' FFT rows", n);
-            e->seconds += fmax(taken, 0.0) * s.neval *
+            double bands = 1.0; /* the evaluation wavelength's and each other of sim.psf_wavelengths_nm */
+            for (int k = 0; k < c->npsf_wavelengths; k++) bands += c->psf_wavelength[k] != c->eval_wavelength;
+            term(e, bands * (12.0 * s.neval * n * n + 2.0 * 8.0 * (nr + n) * N), "long-exposure PSFs",
+                 "sim.psf_pixels (%.0f), evaluation.grid, sim.points_per_subaperture, 2 threads' FFT rows%s", n,
+                 bands > 1.0 ? ", sim.psf_wavelengths_nm (bands)" : "");
+            e->seconds += bands * fmax(taken, 0.0) * s.neval *
                           (PSF_POINT_NS * M_PI / 4.0 * nr * nr + 5.0 * N * log2(N) * (nr + n) / PSF_FFT_RATE +
                            PSF_TOUCH_NS * (nr + n) * N);
         }

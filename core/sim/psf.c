@@ -2,6 +2,8 @@
  * N x N FFT in two 1-D passes (pupil rows, then the kept columns), |·|² / N_P² summed over the frames taken. */
 #include "psf.h"
 
+#include "../config/config.h"
+
 #include <fftw3.h>
 #include <math.h>
 #include <string.h>
@@ -222,6 +224,7 @@ long wt_psf_frames(const wt_psf *p) { return p->frames; }
 int wt_psf_pixels(const wt_psf *p) { return p->n; }
 int wt_psf_fft_size(const wt_psf *p) { return p->N; }
 double wt_psf_pixel_scale(const wt_psf *p) { return p->pixel; }
+double wt_psf_wavelength(const wt_psf *p) { return p->par.wavelength; }
 double wt_psf_pixel_lod(const wt_psf *p) { return p->pixel * p->par.diameter / p->par.wavelength; }
 
 void wt_psf_image(const wt_psf *p, int j, float *img)
@@ -271,6 +274,8 @@ int wt_psf_write_images(wt_h5_writer *w, const char *group, int nrun, int ndir, 
     return WT_OK;
 }
 
+static void gather(const wt_psf *p, float *img, double *s);
+
 int wt_psf_write(const wt_psf *p, wt_h5_writer *w, const char *group)
 {
     int st = WT_OK;
@@ -279,12 +284,87 @@ int wt_psf_write(const wt_psf *p, wt_h5_writer *w, const char *group)
     const size_t nn = (size_t)p->n * p->n;
     WT_ALLOC(p->ctx, img, nn * p->ndir, "psf images");
     WT_ALLOC(p->ctx, s, p->ndir, "psf Strehl");
+    gather(p, img, s);
+    st = wt_psf_write_images(w, group, 0, p->ndir, p->n, img, s, p->par.wavelength, wt_psf_pixel_lod(p), p->pixel,
+                             p->frames, p->par.every, p->N);
+fail:
+    wt_free(p->ctx, img);
+    wt_free(p->ctx, s);
+    return st;
+}
+
+/* the mean images and peaks of p into img [ndir n n] and s [ndir] */
+static void gather(const wt_psf *p, float *img, double *s)
+{
+    const size_t nn = (size_t)p->n * p->n;
     for (int j = 0; j < p->ndir; j++) {
         wt_psf_image(p, j, img + nn * j);
         s[j] = wt_psf_strehl(p, j);
     }
-    st = wt_psf_write_images(w, group, 0, p->ndir, p->n, img, s, p->par.wavelength, wt_psf_pixel_lod(p), p->pixel,
-                             p->frames, p->par.every, p->N);
+}
+
+int wt_psf_write_bands(const wt_psf *const *p, int nw, wt_h5_writer *w, const char *group)
+{
+    wt_context *ctx = p[0]->ctx;
+    const int ndir = p[0]->ndir, n = p[0]->n;
+    for (int k = 1; k < nw; k++)
+        if (p[k]->ndir != ndir || p[k]->n != n || p[k]->N != p[0]->N)
+            return WT_ERROR(ctx, WT_ERR_INVALID, "psf: band %d has %d directions of %d pixels (N %d), band 0 %d of %d (N %d)",
+                            k, p[k]->ndir, p[k]->n, p[k]->N, ndir, n, p[0]->N);
+    int st = WT_OK;
+    float *img = NULL;
+    double *s = NULL, lnm[WT_MAX_PSF_WAVELENGTHS], mas[WT_MAX_PSF_WAVELENGTHS];
+    if (nw < 1 || nw > WT_MAX_PSF_WAVELENGTHS)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "psf: %d wavelengths (1 to %d)", nw, WT_MAX_PSF_WAVELENGTHS);
+    const size_t nn = (size_t)n * n;
+    WT_ALLOC(ctx, img, nn * ndir * nw, "psf images");
+    WT_ALLOC(ctx, s, (size_t)ndir * nw, "psf Strehl");
+    for (int k = 0; k < nw; k++) {
+        gather(p[k], img + nn * ndir * k, s + (size_t)ndir * k);
+        lnm[k] = p[k]->par.wavelength * 1e9;
+        mas[k] = p[k]->pixel * RAD2MAS;
+    }
+    char name[256];
+    const int64_t d4[4] = {nw, ndir, n, n}, d2[2] = {nw, ndir}, d1[1] = {nw};
+    snprintf(name, sizeof name, "%s/image", group);
+    if ((st = wt_h5_write(w, name, WT_H5_F32, WT_H5_F32, 4, d4, img, "",
+                          "long-exposure PSF per wavelength (index as wavelength_nm) and evaluation direction (index as "
+                          "eval/theta_x), n x n pixels as psf/image, pixel scale pixel_mas of its wavelength, normalised "
+                          "so the diffraction-limited PSF of the same pupil peaks at 1")) < 0 ||
+        (st = wt_h5_attr_write_double(w, name, "pixel_lambda_over_d", wt_psf_pixel_lod(p[0]))) < 0 ||
+        (st = wt_h5_attr_write_int64(w, name, "frames", p[0]->frames)) < 0 ||
+        (st = wt_h5_attr_write_int64(w, name, "every", p[0]->par.every)) < 0 ||
+        (st = wt_h5_attr_write_int64(w, name, "fft_size", p[0]->N)) < 0 ||
+        (st = wt_h5_attr_write_string(w, name, "normalisation", "diffraction-limited peak = 1")) < 0)
+        goto fail;
+    snprintf(name, sizeof name, "%s/strehl_peak", group);
+    if ((st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 2, d2, s, "",
+                          "PSF-peak Strehl per wavelength and evaluation direction: the peak of image")) < 0)
+        goto fail;
+    snprintf(name, sizeof name, "%s/wavelength_nm", group);
+    if ((st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 1, d1, lnm, "nm", "wavelength of each band (sim.psf_wavelengths_nm)")) < 0)
+        goto fail;
+    snprintf(name, sizeof name, "%s/pixel_mas", group);
+    st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 1, d1, mas, "mas", "pixel scale of each band's images: lambda/(N dx)");
+fail:
+    wt_free(ctx, img);
+    wt_free(ctx, s);
+    return st;
+}
+
+int wt_psf_write_fits(const wt_psf *p, const char *path, const wt_fits_psf *meta)
+{
+    int st = WT_OK;
+    float *img = NULL;
+    double *s = NULL;
+    WT_ALLOC(p->ctx, img, (size_t)p->n * p->n * p->ndir, "psf images");
+    WT_ALLOC(p->ctx, s, p->ndir, "psf Strehl");
+    gather(p, img, s);
+    wt_fits_psf f = *meta;
+    f.wavelength = p->par.wavelength, f.n = p->n, f.ndir = p->ndir, f.image = img, f.strehl = s;
+    f.pixel = p->pixel, f.pixel_lod = wt_psf_pixel_lod(p), f.fft_size = p->N, f.frames = p->frames;
+    f.every = p->par.every, f.diameter = p->par.diameter;
+    st = wt_fits_write_psf(p->ctx, path, &f);
 fail:
     wt_free(p->ctx, img);
     wt_free(p->ctx, s);

@@ -26,6 +26,7 @@
 #include <stdint.h>
 
 #include "../base/base.h"
+#include "../io/fits.h"
 #include "../io/h5.h"
 #include "../op/grid.h"
 
@@ -61,6 +62,7 @@ int wt_psf_pixels(const wt_psf *p);    /* image side n */
 int wt_psf_fft_size(const wt_psf *p);  /* N */
 double wt_psf_pixel_scale(const wt_psf *p); /* θ_p [rad] */
 double wt_psf_pixel_lod(const wt_psf *p);   /* θ_p in λ/D */
+double wt_psf_wavelength(const wt_psf *p);  /* λ [m] */
 /* The long-exposure image of direction j (n x n, mean of the frames taken; zeros before any). */
 void wt_psf_image(const wt_psf *p, int j, float *img);
 /* Its peak: the PSF-peak Strehl of direction j (0 before any frame). */
@@ -74,5 +76,15 @@ int wt_psf_write(const wt_psf *p, wt_h5_writer *w, const char *group);
 int wt_psf_write_images(wt_h5_writer *w, const char *group, int nrun, int ndir, int n, const float *img,
                         const double *strehl, double wavelength, double pixel_lod, double pixel_rad, long frames,
                         int every, int fft_size);
+
+/* Several wavelengths' images (p[k], k < nw: the same directions, pupil, N and n; only λ differs, so the pixel is
+ * the same in λ/D and λ_k/(N dx) in angle) into w under `group`: group/image [nw, ndir, n, n] float32,
+ * group/strehl_peak [nw, ndir], group/wavelength_nm [nw], group/pixel_mas [nw]. */
+int wt_psf_write_bands(const wt_psf *const *p, int nw, wt_h5_writer *w, const char *group);
+
+/* The images of p as one FITS file at `path` (core/io/fits.h): meta gives the run's part (directions, their WFE,
+ * the grid, telescope, reconstructor, seed, configuration hash, creator); the images, their Strehl, the wavelength,
+ * pixel scales, N, frames and cadence come from p. Allocates the images for the call. */
+int wt_psf_write_fits(const wt_psf *p, const char *path, const wt_fits_psf *meta);
 
 #endif

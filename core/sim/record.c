@@ -21,6 +21,9 @@ struct wt_sim_record {
     wt_loop_times prev;                   /* the loop's cumulative times at the previous frame */
     float *fbuf;                          /* max(nslopes, nact): one telemetry row */
     wt_h5_series *slopes, *slopes_ol, *commands; /* telemetry (NULL: none) */
+    int maps_every;                       /* residual maps every N-th frame (0: none) */
+    float *maps;                          /* ndir x np: one frame's residual maps */
+    wt_h5_series *maps_res, *maps_cmd, *maps_frame;
     int nl;                               /* a changing night: the truth's layers (0: no night) */
     double *night_t, *night_r0;           /* frames: night time [s], r0 [m] */
     double *night_f, *night_v, *night_d;  /* frames x nl: fractions, wind speed [m/s], direction [deg] */
@@ -75,9 +78,63 @@ void wt_sim_record_free(wt_sim_record *r)
     wt_free(r->ctx, r->rms_nm);
     wt_free(r->ctx, r->time_ms);
     wt_free(r->ctx, r->fbuf);
+    wt_free(r->ctx, r->maps);
     double *night[] = {r->night_t, r->night_r0, r->night_f, r->night_v, r->night_d};
     for (int k = 0; k < 5; k++) wt_free(r->ctx, night[k]);
     wt_free(r->ctx, r);
+}
+
+int wt_sim_record_maps(wt_sim_record *r, const wt_loop *lp, wt_h5_writer *tel, int every)
+{
+    int st = WT_OK;
+    if (every < 1 || !tel) return WT_ERROR(r->ctx, WT_ERR_INVALID, "run record: maps every %d frames, telemetry %s", every,
+                                           tel ? "open" : "missing");
+    const wt_grid *g = wt_loop_fine_grid(lp);
+    const int64_t np = wt_grid_size(g), nd = r->sys->neval;
+    const int64_t dm[3] = {nd, g->ny, g->nx}, dp[2] = {g->ny, g->nx}, dc[1] = {r->sys->nact};
+    WT_ALLOC(r->ctx, r->maps, (size_t)(nd * np), "residual maps");
+    WT_TRY(wt_h5_write(tel, "maps/pupil", WT_H5_U8, WT_H5_U8, 2, dp, wt_loop_pupil_mask(lp), "",
+                       "the pupil on the fine grid of maps/residual (1 inside; row = y)"));
+    WT_TRY(wt_h5_attr_write_double(tel, "maps/pupil", "spacing_m", g->dx));
+    WT_TRY(wt_h5_attr_write_int64(tel, "maps/pupil", "every", every));
+    WT_TRY(wt_h5_series_create_shaped(tel, "maps/residual", WT_H5_F32, 3, dm, "m",
+                                      "piston-removed residual OPD per recorded frame and evaluation direction (index as "
+                                      "eval/theta_x) on the fine pupil grid of maps/pupil (row = y, 0 outside the pupil); "
+                                      "its rms over the pupil is the frame's residual rms (RUN.h5 frame/rms)",
+                                      &r->maps_res));
+    WT_TRY(wt_h5_series_create_shaped(tel, "maps/commands", WT_H5_F32, 1, dc, "m",
+                                      "DM commands a_t applied during each recorded frame (actuator OPD), ordering in "
+                                      "layout/actuator_index", &r->maps_cmd));
+    WT_TRY(wt_h5_series_create(tel, "maps/frame", WT_H5_I64, 0, "", "the frame index t of each recorded frame",
+                               &r->maps_frame));
+    r->maps_every = every;
+fail:
+    return st;
+}
+
+/* Frame t's residual maps (piston removed over the pupil, 0 outside), its commands and index */
+static int append_maps(wt_sim_record *r, const wt_loop *lp, long t)
+{
+    const wt_grid *g = wt_loop_fine_grid(lp);
+    const uint8_t *mask = wt_loop_pupil_mask(lp);
+    const int64_t np = wt_grid_size(g);
+    for (int j = 0; j < r->sys->neval; j++) {
+        const double *res = wt_loop_residual(lp, j);
+        double mean = 0.0;
+        int64_t c = 0;
+        for (int64_t i = 0; i < np; i++)
+            if (mask[i]) mean += res[i], c++;
+        mean /= c > 0 ? (double)c : 1.0;
+        float *m = r->maps + (size_t)j * np;
+        for (int64_t i = 0; i < np; i++) m[i] = mask[i] ? (float)(res[i] - mean) : 0.0f;
+    }
+    int st = wt_h5_series_append(r->maps_res, WT_H5_F32, r->maps);
+    if (st < 0) return st;
+    const double *a = wt_loop_applied(lp);
+    for (int64_t i = 0; i < r->sys->nact; i++) r->fbuf[i] = (float)a[i];
+    if ((st = wt_h5_series_append(r->maps_cmd, WT_H5_F32, r->fbuf)) < 0) return st;
+    const int64_t ti = t;
+    return wt_h5_series_append(r->maps_frame, WT_H5_I64, &ti);
 }
 
 int wt_sim_record_frame(wt_sim_record *r, const wt_loop *lp, double step)
@@ -105,6 +162,10 @@ int wt_sim_record_frame(wt_sim_record *r, const wt_loop *lp, double step)
             r->night_v[i] = ns.wind_speed[l];
             r->night_d[i] = ns.wind_direction[l] * (180.0 / M_PI);
         }
+    }
+    if (r->maps_every && t % r->maps_every == 0) {
+        int st = append_maps(r, lp, t);
+        if (st < 0) return st;
     }
     r->t++;
     if (!r->slopes) return WT_OK;

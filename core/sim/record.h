@@ -21,6 +21,12 @@ int wt_sim_record_alloc(wt_context *ctx, const wt_system *sys, long frames, doub
                         wt_h5_writer *tel, wt_sim_record **out);
 void wt_sim_record_free(wt_sim_record *r);
 
+/* With the telemetry writer of alloc: every `every`-th frame (t mod every = 0) of wt_sim_record_frame also appends
+ * to TEL.h5 maps/residual (ndir, ny, nx) float32 [m], the piston-removed residual OPD on the loop's fine grid (0
+ * outside the pupil), maps/commands (nact) and maps/frame; maps/pupil (ny, nx) and the grid's spacing are written
+ * here. Allocates one frame's maps. */
+int wt_sim_record_maps(wt_sim_record *r, const wt_loop *lp, wt_h5_writer *tel, int every);
+
 /* Keep the loop's last frame (and append it to the telemetry); step: the wall time of its wt_loop_step
  * [s], the last column of frame/time. Fails past `frames` frames. */
 int wt_sim_record_frame(wt_sim_record *r, const wt_loop *lp, double step);

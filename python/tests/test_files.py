@@ -120,6 +120,18 @@ def test_psf(files, tmp_path):
     assert np.all((p["strehl_peak"] > 0) & (p["strehl_peak"] <= 1))
     off = wavetomo.sim(DEMO, "pcg3", frames=4, seed=2, set={"sim.psf_interval_frames": 0}, threads=1)
     assert off.psf() is None and "psf/image" not in off
+    # bands (sim.psf_wavelengths_nm): the evaluation wavelength's band is psf/ itself; θ_p ∝ λ at one N
+    b = wavetomo.sim(DEMO, "pcg3", frames=6, seed=2, threads=1,
+                     set={"evaluation.settle_frames": 2, "sim.psf_interval_frames": 2,
+                          "sim.psf_wavelengths_nm": [1650.0, 2200.0]})
+    j, k = b.psf(wavelength_nm=1650.0), b.psf(wavelength_nm=2200)
+    assert np.array_equal(k["image"], b.psf()["image"]) and k["pixel_mas"] == b.psf()["pixel_mas"]
+    assert j["pixel_mas"] == pytest.approx(k["pixel_mas"] * 1650 / 2200, rel=1e-12)
+    assert np.all(j["strehl_peak"] < k["strehl_peak"])
+    with pytest.raises(ValueError, match="bands are"):
+        b.psf(wavelength_nm=1250.0)
+    with pytest.raises(ValueError, match="no PSF bands"):
+        run.psf(wavelength_nm=2200.0)
     d = tmp_path / "cmp"
     cli("compare", "--config", DEMO, "--recon", "pcg3,none", "--frames", FRAMES, "--out", d)
     c = wavetomo.read_compare(d)

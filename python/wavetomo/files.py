@@ -108,13 +108,28 @@ class Result(dict):
                                   self["layout/%s/subaperture_centre" % name]))
         return Layout(sensors, self["layout/actuator_index"], self["layout/actuator_position"])
 
-    def psf(self, method: Optional[str] = None, value: int = 0) -> Optional[Dict[str, Any]]:
+    def psf(self, method: Optional[str] = None, value: int = 0,
+            wavelength_nm: Optional[float] = None) -> Optional[Dict[str, Any]]:
         """The long-exposure PSFs (sim.psf_interval_frames > 0; None without them) as a dict: "image" (directions, n, n)
         for a run file, (seeds, directions, n, n) for compare's method `method` at sweep value index `value`;
         "strehl_peak" (the PSF-peak Strehl, [seeds,] directions); "theta_x", "theta_y" [arcsec] of the
         directions; and the image attributes: "pixel_lambda_over_d", "pixel_mas", "wavelength_nm", "frames",
         "every", "fft_size". Pixel (ix, iy) of an n x n image is at ((ix - n/2), (iy - n/2)) pixels, x right,
-        y up; normalised so that the diffraction-limited PSF peaks at 1 (docs/formats.md)."""
+        y up; normalised so that the diffraction-limited PSF peaks at 1 (docs/formats.md). wavelength_nm: a run's
+        band of sim.psf_wavelengths_nm (psf/wavelengths/), the same dict at that wavelength."""
+        if wavelength_nm is not None:
+            if self.kind == "compare" or "psf/wavelengths/wavelength_nm" not in self:
+                raise ValueError("wavelength_nm=%r: the file has no PSF bands (sim.psf_wavelengths_nm)" % wavelength_nm)
+            bands = [float(x) for x in self["psf/wavelengths/wavelength_nm"]]
+            if float(wavelength_nm) not in bands:
+                raise ValueError("wavelength_nm=%r: the file's bands are %s nm" % (wavelength_nm, bands))
+            k = bands.index(float(wavelength_nm))
+            m = self.meta.get("psf/wavelengths/image", {})
+            out = {key: m.get(key) for key in ("pixel_lambda_over_d", "frames", "every", "fft_size")}
+            out.update(wavelength_nm=bands[k], pixel_mas=float(self["psf/wavelengths/pixel_mas"][k]),
+                       image=self["psf/wavelengths/image"][k], strehl_peak=self["psf/wavelengths/strehl_peak"][k],
+                       theta_x=self["eval/theta_x"], theta_y=self["eval/theta_y"])
+            return out
         if self.kind == "compare":
             if method not in self.methods:
                 raise ValueError("method %r: the file has %s" % (method, ", ".join(self.methods)))
