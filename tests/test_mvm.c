@@ -554,6 +554,25 @@ END_TEST
 START_TEST(test_r_matches_pcg3_focus) { check_r_matches(0, 1, focus_on); }
 END_TEST
 
+/* ph = x² + y² on the sensing grid (a focus); returns the scale that makes its slopes on the first LGS 10 times the
+ * rms of the slopes s */
+static double focus_phase(const fixture *f, const double *s, double *ph)
+{
+    const wt_grid *g = &f->sys->sense_grid;
+    const double rms = tu_norm(s, f->ns) / sqrt((double)f->ns);
+    for (int iy = 0; iy < g->ny; iy++)
+        for (int ix = 0; ix < g->nx; ix++) {
+            const double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
+            ph[ix + (int64_t)g->nx * iy] = x * x + y * y;
+        }
+    const wt_sensor *l1 = &f->sys->sensors[0];
+    double *fs = calloc(l1->nslopes, sizeof *fs);
+    wt_shack_hartmann_apply(l1->sh, 1.0, ph, fs);
+    const double a = 10.0 * rms / (tu_norm(fs, l1->nslopes) / sqrt((double)l1->nslopes));
+    free(fs);
+    return a;
+}
+
 /* The LGS slopes of a pure focus phase φ = a r² (on the sensors' sample grid, through each LGS's own Γ: what a
  * sodium altitude change puts on every LGS) added to the slopes: with the focus removal the right-hand side
  * changes by rounding only (Ĉ⁻¹ Γ φ = 0: the Fried slopes of a quadratic are exactly ∝ the subaperture centres),
@@ -570,17 +589,7 @@ START_TEST(test_focus_slopes_ignored)
                *c1 = calloc(f.n, sizeof *c1), *c2 = calloc(f.n, sizeof *c2);
         test_slopes(&f, s, 81);
         memcpy(s2, s, f.ns * sizeof *s);
-        const double rms = tu_norm(s, f.ns) / sqrt((double)f.ns);
-        for (int iy = 0; iy < g->ny; iy++)
-            for (int ix = 0; ix < g->nx; ix++) {
-                const double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
-                ph[ix + (int64_t)g->nx * iy] = x * x + y * y;
-            }
-        const wt_sensor *l1 = &f.sys->sensors[0];
-        double *fs = calloc(l1->nslopes, sizeof *fs);
-        wt_shack_hartmann_apply(l1->sh, 1.0, ph, fs);
-        const double a = 10.0 * rms / (tu_norm(fs, l1->nslopes) / sqrt((double)l1->nslopes));
-        free(fs);
+        const double a = focus_phase(&f, s, ph);
         for (int m = 0; m < f.sys->nlgs; m++) {
             const wt_sensor *l = &f.sys->sensors[m];
             wt_shack_hartmann_apply(l->sh, a, ph, s2 + l->offset);
@@ -805,17 +814,7 @@ START_TEST(test_common_slopes_ignored)
                *c1 = calloc(f.n, sizeof *c1), *c2 = calloc(f.n, sizeof *c2);
         test_slopes(&f, s, 321);
         memcpy(s2, s, f.ns * sizeof *s);
-        const double rms = tu_norm(s, f.ns) / sqrt((double)f.ns);
-        for (int iy = 0; iy < g->ny; iy++)
-            for (int ix = 0; ix < g->nx; ix++) {
-                const double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
-                ph[ix + (int64_t)g->nx * iy] = x * x + y * y;
-            }
-        const wt_sensor *l1 = &f.sys->sensors[0];
-        double *fs = calloc(l1->nslopes, sizeof *fs);
-        wt_shack_hartmann_apply(l1->sh, 1.0, ph, fs);
-        const double a = 10.0 * rms / (tu_norm(fs, l1->nslopes) / sqrt((double)l1->nslopes));
-        free(fs);
+        const double a = focus_phase(&f, s, ph);
         ck_assert_int_eq(f.sys->nlgs % 2, 0);
         for (int m = 0; m < f.sys->nlgs; m++) {
             const wt_sensor *l = &f.sys->sensors[m];
