@@ -169,6 +169,9 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert(stderr_has("key 'recon.predict' = true: the MVM's control matrix has no predictor"));
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --set recon.predict=maybe --out %s/rq.h5", dir), 0);
     ck_assert(stderr_has("recon.predict"));
+    ck_assert_int_ne(run("sim --config data/presets/demo.cfg --set recon.predict=true --set recon.predict_lead_frames=-1.0 "
+                         "--out %s/rq.h5", dir), 0);
+    ck_assert(stderr_has("recon.predict_lead_frames"));
     ck_assert_int_ne(run("sim --config data/presets/demo-diffractive.cfg --set 'lgs.wfs.reference_seeing=\"blurred\"' "
                          "--out %s/rs.h5", dir), 0);
     ck_assert(stderr_has("lgs.wfs.reference_seeing") && stderr_has("tilt_removed"));

@@ -522,6 +522,19 @@ END_TEST
 /* ---- LGS focus removal (recon.lgs_focus_removal) ----------------------------------------------------- */
 static const char *const focus_on[] = {"recon.lgs_focus_removal=true"};
 
+/* The factorised normal equations' solve of the right-hand side of random slopes (s, b, x: scratch) equals PCG run
+ * to convergence (xp) within 1e-9 */
+static void solve_matches_pcg(fixture *f, wt_mvm_normal *nm, double *s, double *b, double *x, double *xp,
+                              unsigned long seed)
+{
+    test_slopes(f, s, seed);
+    tu_tomo_rhs(f->t, s, b);
+    ck_assert_int_eq(wt_mvm_normal_solve(nm, 1, b, x), WT_OK);
+    wt_pcg_result res;
+    ck_assert_int_eq(wt_tomography_solve(f->t, wt_precond_pcg(f->p), s, xp, 20000, 1e-12, NULL, &res), WT_OK);
+    ck_assert_double_le(tu_rel_diff(x, xp, f->n), 1e-9);
+}
+
 /* The factorised M with the focus in the low rank (6 per LGS) is the matrix-free M (1e-12, as above), and its
  * solve is PCG's converged one (1e-9, as above). */
 START_TEST(test_focus_normal_matches)
@@ -538,12 +551,7 @@ START_TEST(test_focus_normal_matches)
     ck_assert_int_eq(wt_mvm_normal_apply(nm, x, y1), WT_OK);
     tu_tomo_apply(f.t, x, y2);
     ck_assert_double_le(tu_rel_diff(y1, y2, f.n), 1e-12);
-    test_slopes(&f, s, 72);
-    tu_tomo_rhs(f.t, s, y1);
-    ck_assert_int_eq(wt_mvm_normal_solve(nm, 1, y1, x), WT_OK);
-    wt_pcg_result res;
-    ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, xp, 20000, 1e-12, NULL, &res), WT_OK);
-    ck_assert_double_le(tu_rel_diff(x, xp, f.n), 1e-9);
+    solve_matches_pcg(&f, nm, s, y1, x, xp, 72);
     free(x), free(y1), free(y2), free(s), free(xp);
     wt_mvm_normal_free(nm);
     teardown(&f);
@@ -783,12 +791,7 @@ START_TEST(test_common_normal_matches)
     tu_tomo_apply(g.t, x, y1);
     ck_assert_double_le(tu_rel_diff(y1, y2, f.n), 1e-5);
     teardown(&g);
-    test_slopes(&f, s, 312);
-    tu_tomo_rhs(f.t, s, y1);
-    ck_assert_int_eq(wt_mvm_normal_solve(nm, 1, y1, x), WT_OK);
-    wt_pcg_result res;
-    ck_assert_int_eq(wt_tomography_solve(f.t, wt_precond_pcg(f.p), s, xp, 20000, 1e-12, NULL, &res), WT_OK);
-    ck_assert_double_le(tu_rel_diff(x, xp, f.n), 1e-9);
+    solve_matches_pcg(&f, nm, s, y1, x, xp, 312);
     free(x), free(y1), free(y2), free(s), free(xp);
     wt_mvm_normal_free(nm);
     teardown(&f);
