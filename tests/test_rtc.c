@@ -350,6 +350,124 @@ START_TEST(test_instances_in_threads)
 }
 END_TEST
 
+/* Several loops on one plan (wt_rtc_share): an original A and its share B, fed different slopes in turns, give
+ * exactly the commands of two instances opened independently (pcg3, cg9, the MVM; delay 2 with loop.gain_levels),
+ * Â included; the original closed half-way leaves the share running on the plan. The share of the MVM allocates
+ * (through its context) less than one R: R and R Â are not copied; every block of both contexts is freed. */
+static void *bytes_malloc(void *user, size_t n)
+{
+    size_t *p = malloc(n + 16);
+    if (!p) return NULL;
+    *(size_t *)user += n;
+    *p = n;
+    return (char *)p + 16;
+}
+
+static void bytes_free(void *user, void *q)
+{
+    if (!q) return;
+    size_t *p = (size_t *)((char *)q - 16);
+    *(size_t *)user -= *p; /* user: the bytes live */
+    free(p);
+}
+
+START_TEST(test_share_equals_open)
+{
+    const int k = _i; /* 0 pcg3, 1 cg9, 2 the MVM */
+    const char *set[] = {"loop.delay_frames=2", "loop.gain_levels=[0.6, 0.5, 0.4, 0.3]"};
+    size_t live[2] = {0, 0}, peak_share;
+    wt_context *ctx[3] = {tu_context(), tu_context(), tu_context()};
+    for (int i = 0; i < 2; i++) wt_context_set_allocator(ctx[i], bytes_malloc, bytes_free, &live[i]);
+    wt_rtc *r[4]; /* A, its share B, and the independent C, D */
+    char m[256];
+    path(m, sizeof m, "M.h5");
+    for (int i = 0; i < 4; i++) {
+        if (i == 1) continue;
+        wt_context *c = i == 0 ? ctx[0] : ctx[2];
+        int st = k == 2 ? wt_rtc_open_mvm(c, m, DEMO, 2, set, &r[i]) : wt_rtc_open(c, k ? "cg9" : "pcg3", DEMO, 2, set, &r[i]);
+        ck_assert_msg(st == WT_OK, "%s", wt_error_message(c));
+    }
+    ck_assert_msg(wt_rtc_share(ctx[1], r[0], &r[1]) == WT_OK, "%s", wt_error_message(ctx[1]));
+    peak_share = live[1];
+    const int64_t ns = wt_rtc_nslopes(r[0]), na = wt_rtc_nactuators(r[0]);
+    ck_assert_int_eq(wt_rtc_nslopes(r[1]), ns);
+    ck_assert_str_eq(wt_rtc_recon(r[1]), wt_rtc_recon(r[0]));
+    ck_assert_str_eq(wt_rtc_config(r[1]), wt_rtc_config(r[0]));
+    ck_assert_int_eq(wt_rtc_delay(r[1]), 2);
+    if (k == 2) /* R alone is 4 na ns bytes */
+        ck_assert_msg(peak_share < (size_t)(4 * na * ns) && live[0] > (size_t)(4 * na * ns),
+                      "the share allocated %zu bytes, the original %zu, R is %lld", peak_share, live[0],
+                      (long long)(4 * na * ns));
+    double *s = malloc((size_t)(2 * FRAMES * ns) * sizeof *s), *c = malloc((size_t)(4 * na) * sizeof *c),
+           *ia = malloc((size_t)(2 * ns) * sizeof *ia);
+    tu_randn(s, 2 * FRAMES * ns, 31);
+    for (int64_t i = 0; i < 2 * FRAMES * ns; i++) s[i] *= 1e-7;
+    for (int t = 0; t < FRAMES; t++) {
+        if (t == FRAMES / 2) { /* the original goes: the share keeps the plan */
+            wt_rtc_close(r[0]);
+            r[0] = NULL;
+        }
+        for (int i = 0; i < 4; i++) { /* A and C take the first series, B and D the second */
+            if (!r[i]) continue;
+            const double *st = s + ((size_t)(i % 2) * FRAMES + (size_t)t) * (size_t)ns;
+            ck_assert_msg(wt_rtc_frame(r[i], st, ns, NULL, 0, c + i * na, na) >= 0, "%s", wt_error_message(ctx[i < 2 ? i : 2]));
+        }
+        for (int i = 0; i < 2; i++)
+            ck_assert_msg(!r[i] || !memcmp(c + i * na, c + (i + 2) * na, (size_t)na * sizeof *c),
+                          "%s: frame %d of the %s differs from an independent instance's", wt_rtc_recon(r[1]), t,
+                          i ? "share" : "original");
+    }
+    ck_assert_int_eq(wt_rtc_frames(r[1]), FRAMES);
+    ck_assert_int_eq(wt_rtc_interaction(r[1], c + na, na, ia, ns), WT_OK); /* Â with the share's workspace */
+    ck_assert_int_eq(wt_rtc_interaction(r[3], c + na, na, ia + ns, ns), WT_OK);
+    ck_assert(!memcmp(ia, ia + ns, (size_t)ns * sizeof *ia));
+    for (int i = 1; i < 4; i++) wt_rtc_close(r[i]);
+    ck_assert_msg(live[0] == 0 && live[1] == 0, "%zu and %zu bytes left", live[0], live[1]);
+    free(s), free(c), free(ia);
+    for (int i = 0; i < 3; i++) wt_context_free(ctx[i]);
+}
+END_TEST
+
+/* Shares of one plan (one context each) running frames at once from two threads give what two shares give one
+ * after the other (pcg3: Â's operator shared; the MVM: R and R Â). */
+START_TEST(test_shares_in_threads)
+{
+    for (int k = 0; k < 3; k += 2) {
+        wt_context *c0 = tu_context();
+        wt_rtc *plan = open_case(c0, k);
+        job j[4];
+        for (int i = 0; i < 4; i++) {
+            j[i].ctx = tu_context();
+            ck_assert_int_eq(wt_rtc_share(j[i].ctx, plan, &j[i].rtc), WT_OK);
+            const int64_t ns = wt_rtc_nslopes(j[i].rtc), na = wt_rtc_nactuators(j[i].rtc);
+            double *s = malloc((size_t)(4 * ns) * sizeof *s);
+            tu_randn(s, 4 * ns, 40 + (unsigned long)(i % 2));
+            for (int64_t q = 0; q < 4 * ns; q++) s[q] *= 1e-7;
+            j[i].s = s;
+            j[i].out = calloc((size_t)(4 * na), sizeof *j[i].out);
+            j[i].st = WT_OK;
+        }
+        wt_rtc_close(plan); /* the shares hold the plan */
+        run_job(&j[0]);
+        run_job(&j[1]);
+        pthread_t th[2];
+        for (int i = 0; i < 2; i++) ck_assert_int_eq(pthread_create(&th[i], NULL, run_job, &j[2 + i]), 0);
+        for (int i = 0; i < 2; i++) ck_assert_int_eq(pthread_join(th[i], NULL), 0);
+        for (int i = 0; i < 2; i++) {
+            ck_assert_msg(j[2 + i].st >= 0, "%s", wt_error_message(j[2 + i].ctx));
+            ck_assert_msg(!memcmp(j[i].out, j[2 + i].out, (size_t)(4 * wt_rtc_nactuators(j[i].rtc)) * sizeof(double)),
+                          "%s: share %d in a thread differs", wt_rtc_recon(j[i].rtc), i);
+        }
+        for (int i = 0; i < 4; i++) {
+            free((void *)j[i].s), free(j[i].out);
+            wt_rtc_close(j[i].rtc);
+            wt_context_free(j[i].ctx);
+        }
+        wt_context_free(c0);
+    }
+}
+END_TEST
+
 /* The orderings the API reports are the "layout" group of wavetomo's output files: sensors' slope blocks
  * contiguous in order, subaperture centres, actuator positions and (DM, ix, iy). */
 START_TEST(test_orderings)
@@ -546,6 +664,19 @@ START_TEST(test_open_out_of_memory)
         ck_assert_msg(al.live == 0, "budget %ld: %ld blocks left", b, al.live);
     }
     ck_assert(ok);
+    /* a share that runs out of memory (its context's) leaves nothing behind and the plan to its holder */
+    wt_context *c2 = tu_context();
+    wt_rtc *src = open_case(c2, 2), *rtc = NULL;
+    for (long b = 0, st = WT_ERR_NOMEM; st == WT_ERR_NOMEM; b++) {
+        tu_alloc_budget(&al, b);
+        if ((st = wt_rtc_share(ctx, src, &rtc)) < 0) ck_assert_ptr_null(rtc);
+        wt_rtc_close(rtc);
+        ck_assert_int_eq(al.live, 0);
+    }
+    ck_assert_int_eq(wt_rtc_share(ctx, NULL, &rtc), WT_ERR_INVALID);
+    ck_assert(has(ctx, "src is NULL") && !rtc);
+    wt_rtc_close(src);
+    wt_context_free(c2);
     free(text);
     wt_context_free(ctx);
 }
@@ -653,6 +784,8 @@ Suite *make_suite(void)
     tcase_add_loop_test(tc, test_no_allocation_per_frame, 0, 2);
     tcase_add_test(tc, test_reset_and_raw);
     tcase_add_test(tc, test_instances_in_threads);
+    tcase_add_loop_test(tc, test_share_equals_open, 0, 3);
+    tcase_add_test(tc, test_shares_in_threads);
     tcase_add_test(tc, test_orderings);
     tcase_add_test(tc, test_bad_frames);
     tcase_add_test(tc, test_bad_open);

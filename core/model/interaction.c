@@ -56,28 +56,43 @@ void wt_interaction_free(wt_interaction *ia)
     wt_free(ia->ctx, ia);
 }
 
-void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, double *s)
+int64_t wt_interaction_grids_size(const wt_interaction *ia) { return ia->ndm; }
+int64_t wt_interaction_phase_size(const wt_interaction *ia) { return (int64_t)ia->sys->nsensors * ia->ncg; }
+
+void wt_interaction_apply_ws(const wt_interaction *ia, double alpha, const double *a, double *s, double *grids,
+                             double *phase, int nthreads)
 {
     const wt_system *sys = ia->sys;
-    wt_dm_expand(sys->dm, a, ia->grids);
-    wt_sensor_stack_apply(&ia->stack, alpha, ia->grids, s, ia->phase, sys->nslopes > 16384 ? wt_context_threads(ia->ctx) : 1);
+    wt_dm_expand(sys->dm, a, grids);
+    wt_sensor_stack_apply(&ia->stack, alpha, grids, s, phase, sys->nslopes > 16384 ? nthreads : 1);
 }
 
-void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, double *a)
+void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, double *s)
+{
+    wt_interaction_apply_ws(ia, alpha, a, s, ia->grids, ia->phase, wt_context_threads(ia->ctx));
+}
+
+void wt_interaction_apply_t_ws(const wt_interaction *ia, double alpha, const double *s, double *a, double *grids,
+                               double *phase)
 {
     const wt_system *sys = ia->sys;
     /* serial over sensors: every sensor scatters into the same DM grids */
-    memset(ia->grids, 0, (size_t)ia->ndm * sizeof *ia->grids);
+    memset(grids, 0, (size_t)ia->ndm * sizeof *grids);
     for (int m = 0; m < sys->nsensors; m++)
-        wt_sensor_stack_apply_t_sensor(&ia->stack, m, alpha, s + sys->sensors[m].offset, ia->grids, ia->phase);
+        wt_sensor_stack_apply_t_sensor(&ia->stack, m, alpha, s + sys->sensors[m].offset, grids, phase);
     /* a += restriction of the grids to the active actuators */
     int64_t p = 0, q = 0;
     for (int k = 0; k < sys->dm->ndms; k++) {
         int64_t np = wt_grid_size(&sys->dm->grid[k]);
         for (int64_t i = 0; i < np; i++)
-            if (sys->dm->active[k][i]) a[q++] += ia->grids[p + i];
+            if (sys->dm->active[k][i]) a[q++] += grids[p + i];
         p += np;
     }
+}
+
+void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, double *a)
+{
+    wt_interaction_apply_t_ws(ia, alpha, s, a, ia->grids, ia->phase);
 }
 
 int wt_interaction_assemble(wt_interaction *ia, wt_sparse **out)

@@ -20,6 +20,15 @@ void wt_interaction_free(wt_interaction *ia);
 void wt_interaction_apply(wt_interaction *ia, double alpha, const double *a, double *s);
 /* a <- a + alpha Âᵀ s */
 void wt_interaction_apply_t(wt_interaction *ia, double alpha, const double *s, double *a);
+/* The same with the caller's workspace, so that one operator serves several callers at once (one workspace
+ * each; ia is not modified, the bits those of the forms above): grids of wt_interaction_grids_size doubles, phase
+ * of wt_interaction_phase_size; nthreads: the OpenMP threads of the forward (the forms above use ia's context's). */
+int64_t wt_interaction_grids_size(const wt_interaction *ia);
+int64_t wt_interaction_phase_size(const wt_interaction *ia);
+void wt_interaction_apply_ws(const wt_interaction *ia, double alpha, const double *a, double *s, double *grids,
+                             double *phase, int nthreads);
+void wt_interaction_apply_t_ws(const wt_interaction *ia, double alpha, const double *s, double *a, double *grids,
+                               double *phase);
 /* Â as a sparse matrix: nslopes x nact. */
 int wt_interaction_assemble(wt_interaction *ia, wt_sparse **out);
 

@@ -2,7 +2,8 @@
  * or a stored MVM, then frames of pseudo-open-loop control around the reconstructors of core/model and
  * the MVM of core/solve. The numerics are theirs; this file checks the boundary. The control law (the delay's
  * command queue, the integrator with loop.gain or the scale-dependent loop.gain_levels) is core/model/control.h's,
- * the one core/sim/loop.c steps. */
+ * the one core/sim/loop.c steps. An instance is a state (one loop) on a counted, read-only plan that
+ * wt_rtc_share lets several states hold: one R in memory for several loops or threads. */
 #include "rtc.h"
 
 #include <math.h>
@@ -16,18 +17,34 @@
 #include "../model/reconstructor.h"
 #include "../solve/mvm.h"
 
-struct wt_rtc {
-    wt_context *ctx;
-    wt_config *own_cfg;     /* parsed by a public open (freed by close); NULL when the caller's */
+/* The plan: what several loops may share (FFTW's plan to their executes), read-only once built: the system,
+ * Â's operator (its workspace is each state's) and the stored R and RÂ. Counted: every instance holds it,
+ * the last close frees it, with the context it was built with. Built and released from one thread at a time
+ * (as open and close). pcg3 / cg9 keep their operators in the state: their tomography, preconditioner and
+ * fitting carry per-solve workspace and the warm start beside the matrices. */
+typedef struct rtc_plan {
+    int refs;
+    wt_context *ctx;        /* the context of the open that built it (its allocator frees the plan) */
+    wt_config *own_cfg;     /* parsed by a public open; NULL when the caller's */
     wt_system *own_sys;     /* built by a public open; NULL when the caller's */
     const wt_system *sys;
     int kind;               /* WT_RECON_PCG3, _CG9, _MVM or _NONE */
     char recon[16];         /* "pcg3", "cg9", "mvm-pcg3", "mvm-cg9", "none" */
-    wt_reconstructor *rec;  /* pcg3 / cg9 / none (r = 0) */
+    int iterations;         /* pcg3 / cg9: the (P)CG count of every state's reconstructor (< 0: the variant's) */
     wt_interaction *ia;     /* Â (s_ol = s + Â a_t; wt_rtc_interaction); NULL for an only-OL instance */
     wt_mvm *mvm;            /* the MVM: R and R Â */
-    double rate;            /* frame rate [Hz] */
+} rtc_plan;
+
+/* One loop on a plan: its control law, warm start and workspace. */
+struct wt_rtc {
+    wt_context *ctx;
+    rtc_plan *plan;
+    const wt_system *sys;   /* the plan's, as are the next four */
+    const wt_interaction *ia;
+    const wt_mvm *mvm;
     int64_t ns, na;
+    wt_reconstructor *rec;  /* pcg3 / cg9 / none (r = 0): this loop's operators and warm start */
+    double *ia_grids, *ia_phase; /* Â's workspace */
     wt_control *ctl;        /* the control law; its clock counts the POLC frames (WT_RTC_RAW frames do not tick) */
     int64_t frames;         /* all frames since open or reset (named in messages) */
     double *s, *a, *r;      /* the frame in double: slopes (then s_ol), applied a_t, reconstruction r (and the
@@ -63,43 +80,42 @@ static void describe_actuator(const wt_system *sys, int64_t i, char *buf, size_t
     snprintf(buf, n, "?");
 }
 
-int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const char *matrix, int iterations,
-                       int only_ol, wt_rtc **out)
+static void plan_release(rtc_plan *p)
+{
+    if (!p || --p->refs > 0) return;
+    wt_context *ctx = p->ctx;
+    wt_interaction_free(p->ia);
+    wt_mvm_free(p->mvm);
+    wt_system_free(p->own_sys);
+    wt_config_free(ctx, p->own_cfg);
+    wt_free(ctx, p);
+}
+
+/* A loop on plan p (taking a reference to it), its state allocated with ctx. */
+static int state_alloc(wt_context *ctx, rtc_plan *p, wt_rtc **out)
 {
     int st = WT_OK;
     wt_rtc *rtc = NULL;
-    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: no place for the instance (out is NULL)");
     *out = NULL;
-    if (!ctx || !sys) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: NULL context or system");
-    const wt_config *cfg = sys->cfg;
-    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM && kind != WT_RECON_NONE)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor %s: expected pcg3, cg9, none or a stored MVM",
-                        wt_reconstructor_name(kind));
-    if ((kind == WT_RECON_MVM) != (matrix != NULL))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %s", matrix ? "a matrix file is for the MVM only"
-                                                                       : "the MVM needs its matrix file");
     WT_ALLOC(ctx, rtc, 1, "per-frame reconstructor");
     rtc->ctx = ctx;
-    rtc->sys = sys;
-    rtc->kind = kind;
-    rtc->rate = cfg->rate;
-    rtc->ns = rtc->sys->nslopes;
-    rtc->na = rtc->sys->nact;
-    if (kind == WT_RECON_MVM) {
-        char variant[16] = "";
-        WT_TRY(wt_mvm_read(ctx, matrix, cfg, rtc->na, rtc->ns, &rtc->mvm, variant));
-        snprintf(rtc->recon, sizeof rtc->recon, "mvm-%.8s", variant);
-    } else {
+    rtc->sys = p->sys;
+    rtc->ia = p->ia;
+    rtc->mvm = p->mvm;
+    rtc->ns = p->sys->nslopes;
+    rtc->na = p->sys->nact;
+    if (p->kind != WT_RECON_MVM) {
         wt_reconstructor_params rp;
-        wt_reconstructor_params_from_config(cfg, kind, iterations, &rp);
-        WT_TRY(wt_reconstructor_alloc(ctx, rtc->sys, kind, &rp, &rtc->rec));
-        snprintf(rtc->recon, sizeof rtc->recon, "%s", wt_reconstructor_name(kind));
+        wt_reconstructor_params_from_config(p->sys->cfg, p->kind, p->iterations, &rp);
+        WT_TRY(wt_reconstructor_alloc(ctx, p->sys, p->kind, &rp, &rtc->rec));
     }
-    /* Â: the POLC term of pcg3 / cg9 frames, and wt_rtc_interaction for every kind (the MVM's frames use R Â) */
-    if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, rtc->sys, &rtc->ia));
+    if (p->ia) {
+        WT_ALLOC(ctx, rtc->ia_grids, wt_interaction_grids_size(p->ia), "interaction workspace");
+        WT_ALLOC(ctx, rtc->ia_phase, wt_interaction_phase_size(p->ia), "interaction workspace");
+    }
     {
-        const wt_control_params cp = wt_control_params_from_config(cfg);
-        WT_TRY(wt_control_alloc(ctx, rtc->sys, &cp, &rtc->ctl));
+        const wt_control_params cp = wt_control_params_from_config(p->sys->cfg);
+        WT_TRY(wt_control_alloc(ctx, p->sys, &cp, &rtc->ctl));
     }
     WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");
     WT_ALLOC(ctx, rtc->a, rtc->na, "applied commands");
@@ -107,11 +123,57 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
     WT_ALLOC(ctx, rtc->sf, rtc->ns, "float32 slopes");
     WT_ALLOC(ctx, rtc->af, rtc->na, "float32 applied commands");
     WT_ALLOC(ctx, rtc->rf, rtc->na, "float32 reconstruction");
+    rtc->plan = p;
+    p->refs++;
     *out = rtc;
     return WT_OK;
 fail:
     wt_rtc_close(rtc);
     return st;
+}
+
+int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const char *matrix, int iterations,
+                       int only_ol, wt_rtc **out)
+{
+    int st = WT_OK;
+    rtc_plan *p = NULL;
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: no place for the instance (out is NULL)");
+    *out = NULL;
+    if (!ctx || !sys) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: NULL context or system");
+    if (kind != WT_RECON_PCG3 && kind != WT_RECON_CG9 && kind != WT_RECON_MVM && kind != WT_RECON_NONE)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: reconstructor %s: expected pcg3, cg9, none or a stored MVM",
+                        wt_reconstructor_name(kind));
+    if ((kind == WT_RECON_MVM) != (matrix != NULL))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %s", matrix ? "a matrix file is for the MVM only"
+                                                                       : "the MVM needs its matrix file");
+    WT_ALLOC(ctx, p, 1, "per-frame reconstructor's plan");
+    p->refs = 1; /* this function's, released below: the state holds the plan from then on */
+    p->ctx = ctx;
+    p->sys = sys;
+    p->kind = kind;
+    p->iterations = iterations;
+    if (kind == WT_RECON_MVM) {
+        char variant[16] = "";
+        WT_TRY(wt_mvm_read(ctx, matrix, sys->cfg, sys->nact, sys->nslopes, &p->mvm, variant));
+        snprintf(p->recon, sizeof p->recon, "mvm-%.8s", variant);
+    } else {
+        snprintf(p->recon, sizeof p->recon, "%s", wt_reconstructor_name(kind));
+    }
+    /* Â: the POLC term of pcg3 / cg9 frames, and wt_rtc_interaction for every kind (the MVM's frames use R Â) */
+    if (!only_ol) WT_TRY(wt_interaction_alloc(ctx, sys, &p->ia));
+    st = state_alloc(ctx, p, out);
+fail:
+    plan_release(p);
+    return st;
+}
+
+int wt_rtc_share(wt_context *ctx, const wt_rtc *src, wt_rtc **out)
+{
+    if (!out) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_share: no place for the instance (out is NULL)");
+    *out = NULL;
+    if (!ctx) return WT_ERR_INVALID; /* nowhere to say why */
+    if (!src) return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_share: no instance to share (src is NULL)");
+    return state_alloc(ctx, src->plan, out);
 }
 
 /* The public opens: the system of a parsed configuration, then the instance on it, which owns both. */
@@ -125,8 +187,8 @@ static int open_owned(wt_context *ctx, wt_config *cfg, int kind, const char *mat
         wt_config_free(ctx, cfg);
         return st;
     }
-    (*out)->own_sys = sys;
-    (*out)->own_cfg = cfg;
+    (*out)->plan->own_sys = sys;
+    (*out)->plan->own_cfg = cfg;
     return st;
 }
 
@@ -209,11 +271,10 @@ void wt_rtc_close(wt_rtc *rtc)
     wt_free(ctx, rtc->sf);
     wt_free(ctx, rtc->af);
     wt_free(ctx, rtc->rf);
+    wt_free(ctx, rtc->ia_grids);
+    wt_free(ctx, rtc->ia_phase);
     wt_reconstructor_free(rtc->rec);
-    wt_interaction_free(rtc->ia);
-    wt_mvm_free(rtc->mvm);
-    wt_system_free(rtc->own_sys);
-    wt_config_free(ctx, rtc->own_cfg);
+    plan_release(rtc->plan);
     wt_free(ctx, rtc);
 }
 
@@ -274,7 +335,8 @@ static const double *finish(wt_rtc *rtc, const double *a_t, unsigned flags)
 static int reconstruct(wt_rtc *rtc, const double *s, const double *a_t, unsigned flags)
 {
     if (s != rtc->s) memcpy(rtc->s, s, (size_t)rtc->ns * sizeof *rtc->s);
-    if (!(flags & WT_RTC_SLOPES_OL)) wt_interaction_apply(rtc->ia, 1.0, a_t, rtc->s);
+    if (!(flags & WT_RTC_SLOPES_OL))
+        wt_interaction_apply_ws(rtc->ia, 1.0, a_t, rtc->s, rtc->ia_grids, rtc->ia_phase, wt_context_threads(rtc->ctx));
     return wt_reconstructor_apply(rtc->rec, rtc->s, rtc->r);
 }
 
@@ -379,7 +441,7 @@ int wt_rtc_interaction(wt_rtc *rtc, const double *commands, int64_t nactuators, 
     if (st < 0 || (st = check_finite(rtc, "wt_rtc_interaction", commands, rtc->na, 0)) < 0) return st;
     /* s = 0 + Â a: the frame's s_ol = s + Â a_t with s = 0, in the same operations */
     memset(slopes, 0, (size_t)rtc->ns * sizeof *slopes);
-    wt_interaction_apply(rtc->ia, 1.0, commands, slopes);
+    wt_interaction_apply_ws(rtc->ia, 1.0, commands, slopes, rtc->ia_grids, rtc->ia_phase, wt_context_threads(rtc->ctx));
     return WT_OK;
 }
 
@@ -389,7 +451,7 @@ int wt_rtc_interaction_t(wt_rtc *rtc, const double *slopes, int64_t nslopes, dou
                                rtc ? rtc->na : 0);
     if (st < 0 || (st = check_finite(rtc, "wt_rtc_interaction_t", slopes, rtc->ns, 1)) < 0) return st;
     memset(commands, 0, (size_t)rtc->na * sizeof *commands);
-    wt_interaction_apply_t(rtc->ia, 1.0, slopes, commands);
+    wt_interaction_apply_t_ws(rtc->ia, 1.0, slopes, commands, rtc->ia_grids, rtc->ia_phase);
     return WT_OK;
 }
 
@@ -399,10 +461,10 @@ int64_t wt_rtc_nslopes(const wt_rtc *rtc) { return rtc->ns; }
 int64_t wt_rtc_nactuators(const wt_rtc *rtc) { return rtc->na; }
 int wt_rtc_nsensors(const wt_rtc *rtc) { return rtc->sys->nsensors; }
 int wt_rtc_ndms(const wt_rtc *rtc) { return rtc->sys->dm->ndms; }
-const char *wt_rtc_recon(const wt_rtc *rtc) { return rtc->recon; }
+const char *wt_rtc_recon(const wt_rtc *rtc) { return rtc->plan->recon; }
 int wt_rtc_delay(const wt_rtc *rtc) { return wt_control_delay(rtc->ctl); }
 double wt_rtc_gain(const wt_rtc *rtc) { return wt_control_gain(rtc->ctl); }
-double wt_rtc_rate(const wt_rtc *rtc) { return rtc->rate; }
+double wt_rtc_rate(const wt_rtc *rtc) { return rtc->sys->cfg->rate; }
 int64_t wt_rtc_frames(const wt_rtc *rtc) { return rtc->frames; }
 double wt_rtc_frame_time(const wt_rtc *rtc) { return rtc->frame_time; }
 

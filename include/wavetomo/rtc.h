@@ -4,8 +4,12 @@
  * Part of the public, stable interface. Plan once, execute many (FFTW's shape):
  *   wt_rtc_open / wt_rtc_open_text / wt_rtc_open_mvm   set-up: reads the configuration (and the matrix),
  *                                                      builds the operators; may allocate, read files, fail
+ *   wt_rtc_share                                       another loop on an instance's plan (its system, Â
+ *                                                      and stored R, not copied): several loops, one R
  *   wt_rtc_frame / wt_rtc_frame_f32                    one frame: allocates nothing, does no I/O
  *   wt_rtc_reset, the queries, wt_rtc_close
+ * An instance is one loop's state (the integrator, its delay queue, the warm start, the workspace) on a
+ * plan that is read-only once built and freed with the last instance holding it.
  *
  * What a frame computes (pseudo-open-loop control, POLC, paper Algorithm POLC, SPEC §7), with s the
  * frame's slopes, a_t the commands applied while they were measured, R the reconstructor, Â the
@@ -40,9 +44,10 @@
  *             wt_rtc_actuators; commands are mirror surface heights in the DM's conjugate plane [m].
  *
  * Threads: one instance may be used by one thread at a time (the warm start and the integrator are
- * state); different instances may run frames concurrently from different threads. Set-up reads files
- * through HDF5 and libconfig, which are not thread-safe as Debian builds them: open and close instances
- * from one thread at a time. The frame call uses the context's thread count in its OpenMP regions
+ * state); different instances, shares of one plan included, may run frames concurrently from different
+ * threads (give each thread its own context: errors are written there). Set-up reads files through HDF5
+ * and libconfig, which are not thread-safe as Debian builds them, and a share counts its plan: open,
+ * share and close instances from one thread at a time. The frame call uses the context's thread count in its OpenMP regions
  * (wt_context_set_threads), and the MVM's GEMV OpenBLAS's. The context's allocator is called only by open
  * and close.
  */
@@ -82,7 +87,16 @@ int wt_rtc_open_text(wt_context *ctx, const char *recon, const char *config_text
  * hash (of the keys that can change R) differs. */
 int wt_rtc_open_mvm(wt_context *ctx, const char *matrix_file, const char *config_file, int nset,
                     const char *const *set, wt_rtc **out);
-/* Free the instance (NULL is accepted). */
+/* A new loop on src's plan: the same system and configuration, Â and (for the MVM) R and R Â, which are
+ * not copied: one R in memory for several loops. The new instance has its own integrator and delay queue
+ * (zero, as after wt_rtc_reset), frame count, warm start and workspace; src is not modified and either
+ * may be closed first (the plan lives while an instance holds it). pcg3 and cg9 have no stored R: the
+ * share builds its own operators on the shared system (their preconditioner and fitting carry the warm
+ * start and per-solve workspace), the set-up time and memory of an open without reading the configuration.
+ * ctx receives the new instance's errors and allocations and sets its frames' threads; src's context,
+ * which built the plan and frees it, must outlive every share. [out] *out, or NULL on failure. */
+int wt_rtc_share(wt_context *ctx, const wt_rtc *src, wt_rtc **out);
+/* Free the instance (NULL is accepted); the plan with the last instance holding it. */
 void wt_rtc_close(wt_rtc *rtc);
 
 /* One frame (see above). slopes: nslopes values; applied: NULL or nactuators values; commands:

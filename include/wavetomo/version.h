@@ -8,7 +8,7 @@
 #define WAVETOMO_VERSION_H
 
 #define WT_VERSION_MAJOR 0
-#define WT_VERSION_MINOR 1
+#define WT_VERSION_MINOR 2
 #define WT_VERSION_PATCH 0
 
 /* "MAJOR.MINOR.PATCH", built from the three numbers above so that they cannot disagree */
