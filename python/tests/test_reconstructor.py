@@ -1,7 +1,7 @@
 """python/tests/test_reconstructor.py: wavetomo.Reconstructor and System over libwavetomo.so. The
 reconstructor's commands are `wavetomo run`'s bit for bit (pcg3, cg9, the MVM; float32 and float64 frames),
 its POLC is the closed loop's, it is the composition of the raw reconstruction, Â and the integrator, reset
-forgets, instances run in parallel threads, the geometry is the files' layout group, and bad input raises
+forgets, instances run in parallel threads, shares of one plan are independent loops, the geometry is the files' layout group, and bad input raises
 with the library's message."""
 import re
 import threading
@@ -153,6 +153,32 @@ def test_threads(files):
     [t.join() for t in th]
     for c in alone:
         assert np.array_equal(got[c], alone[c])
+
+
+@pytest.mark.parametrize("case", ["pcg3", "mvm"])
+def test_share(files, case):
+    """share(): another loop on the same plan. The original and its share fed different slopes give the
+    commands of two objects opened independently (their own integrators and warm starts), in two threads at
+    once too; the original closed first leaves the share running (its plan and the context that built it are
+    held)."""
+    tel = wavetomo.read_telemetry(files["tel"])
+    s1, s2 = tel["slopes"].astype(np.float64), tel["slopes"][::-1].astype(np.float64)
+    ref1, ref2 = open_case(files, case).replay(s1), open_case(files, case).replay(s2)
+    rec = open_case(files, case)
+    sh = rec.share()
+    assert isinstance(sh, wavetomo.Reconstructor) and sh.recon == rec.recon and sh.config == rec.config
+    assert sh.frames == 0 and sh.nslopes == rec.nslopes
+    got = {}
+    th = [threading.Thread(target=lambda r=r, s=s, k=k: got.__setitem__(k, r.replay(s)))
+          for k, (r, s) in enumerate(((rec, s1), (sh, s2)))]
+    [t.start() for t in th]
+    [t.join() for t in th]
+    assert np.array_equal(got[0], ref1) and np.array_equal(got[1], ref2)
+    rec.close()
+    sh.reset()
+    assert np.array_equal(sh.replay(s2), ref2)
+    with pytest.raises(wavetomo.Error, match="closed"):
+        rec.share()
 
 
 def test_interaction(files):

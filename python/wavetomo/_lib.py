@@ -68,6 +68,7 @@ _PROTOTYPES: Dict[str, Tuple[Any, List[Any]]] = {
     "wt_rtc_open": (_I, [_P, _S, _S, _I, _SETS, ctypes.POINTER(_P)]),
     "wt_rtc_open_text": (_I, [_P, _S, _S, _I, _SETS, ctypes.POINTER(_P)]),
     "wt_rtc_open_mvm": (_I, [_P, _S, _S, _I, _SETS, ctypes.POINTER(_P)]),
+    "wt_rtc_share": (_I, [_P, _P, ctypes.POINTER(_P)]),
     "wt_rtc_close": (None, [_P]),
     "wt_rtc_frame": (_I, [_P, _P, _I64, _P, ctypes.c_uint, _P, _I64]),
     "wt_rtc_frame_f32": (_I, [_P, _P, _I64, _P, ctypes.c_uint, _P, _I64]),

@@ -10,6 +10,7 @@ numpy in and out: a float32 frame runs the library's float32 entry (the telemetr
 bits) and returns float32; anything else runs in float64. Sizes, NaN and Inf are checked by the library,
 whose message the exception carries. Each object owns its C context and instance; a lock lets one thread
 at a time run a frame on it (different objects run in parallel: ctypes releases the GIL).
+Reconstructor.share() opens another loop on the same plan (system, Â, stored R): several loops, one R.
 """
 import ctypes
 import os
@@ -42,6 +43,32 @@ def _path(p: Optional[PathLike]) -> Optional[bytes]:
     return os.fsencode(p) if p is not None else None
 
 
+# wt_rtc_share counts its plan: shares and closes one at a time (wavetomo/rtc.h, "Threads")
+_plan_lock = threading.Lock()
+
+
+class _Context:
+    """A C context (wt_context *), freed when the last object holding it goes: an object's own, and the one
+    its plan was built with, which every share of the plan holds (wt_rtc_share: it must outlive them)."""
+
+    handle: Optional[int]
+
+    def __init__(self, threads: Optional[int]) -> None:
+        self.handle = _L().wt_context_alloc()
+        if not self.handle:
+            raise MemoryError("wavetomo: no memory for a context")
+        if threads is not None:
+            _L().wt_context_set_threads(self.handle, int(threads))
+
+    def __del__(self) -> None:
+        h, self.handle = getattr(self, "handle", None), None
+        if h and _L is not None:  # (_L is None at interpreter shutdown)
+            try:
+                _L().wt_context_free(h)
+            except Exception:
+                pass
+
+
 class System:
     """The system of a configuration file (or text) with overrides, as the library reads it.
 
@@ -55,7 +82,9 @@ class System:
     nslopes: int                  # the length of a slope vector
     nactuators: int               # the length of a command vector
     _rtc: Optional[int]           # the C instance (wt_rtc *), None once closed
-    _ctx: Optional[int]           # its context (wt_context *)
+    _ctx: Optional[int]           # its context (wt_context *), _context's handle
+    _context: Optional[_Context]
+    _plan_context: Optional[_Context]  # the context that built the plan (this object's, or a share's source's)
     _layout: Optional[Layout]
     _dms: Optional[List[DM]]
 
@@ -67,12 +96,9 @@ class System:
     def _open(self, recon: str, config: Optional[PathLike], text: Optional[str], matrix: Optional[PathLike],
               set: Overrides, threads: Optional[int]) -> None:
         self._rtc = None
-        self._ctx = _L().wt_context_alloc()
-        if not self._ctx:
-            raise MemoryError("wavetomo: no memory for a context")
+        self._context = self._plan_context = _Context(threads)
+        self._ctx = self._context.handle
         self._lock = threading.Lock()
-        if threads is not None:
-            _L().wt_context_set_threads(self._ctx, int(threads))
         sets = [s.encode() for s in overrides(set)]
         arr = (ctypes.c_char_p * max(len(sets), 1))(*sets)
         out = ctypes.c_void_p()
@@ -88,7 +114,10 @@ class System:
             st = _L().wt_rtc_open(self._ctx, recon.encode(), _path(config), len(sets), arr, ctypes.byref(out))
         if st < 0:
             self._raise(st)
-        self._rtc = out.value
+        self._opened(out.value)
+
+    def _opened(self, rtc: int) -> None:
+        self._rtc = rtc
         self.nslopes = int(_L().wt_rtc_nslopes(self._rtc))
         self.nactuators = int(_L().wt_rtc_nactuators(self._rtc))
         self._layout = self._dms = None
@@ -104,15 +133,14 @@ class System:
         return self._rtc
 
     def close(self) -> None:
-        """Free the C instance and context (also done when the object is collected)."""
-        rtc, ctx = getattr(self, "_rtc", None), getattr(self, "_ctx", None)
+        """Free the C instance and context (also done when the object is collected); the plan (R) stays while
+        a share holds it."""
+        rtc = getattr(self, "_rtc", None)
         self._rtc = self._ctx = None
-        if _L is None:  # interpreter shutdown
-            return
-        if rtc:
-            _L().wt_rtc_close(rtc)
-        if ctx:
-            _L().wt_context_free(ctx)
+        if rtc and _L is not None:  # (_L is None at interpreter shutdown)
+            with _plan_lock:
+                _L().wt_rtc_close(rtc)
+        self._context = self._plan_context = None  # the contexts go with their last holder
 
     def __del__(self) -> None:
         try:
@@ -272,6 +300,28 @@ class Reconstructor(System):
             raise TypeError("recon='none' is the system alone: use wavetomo.System")
         self.last_status = 0
         self._open(recon or "mvm", config, text, matrix, set, threads)
+
+    def share(self, *, threads: Optional[int] = None) -> "Reconstructor":
+        """Another loop on this reconstructor's plan: the same system, Â and stored R (not copied: one R in
+        memory for several loops), with its own integrator and delay queue (at zero), warm start, frame count,
+        context and lock; the two may run frames in parallel threads and be closed in either order. pcg3 and
+        cg9 build their own operators on the shared system (wavetomo/rtc.h, wt_rtc_share). threads: the new
+        loop's OpenMP threads (default: this one's)."""
+        h = self._handle()
+        new = type(self).__new__(type(self))
+        new._rtc = None
+        new.last_status = 0
+        new._context = _Context(threads if threads is not None else int(_L().wt_context_threads(self._ctx)))
+        new._plan_context = self._plan_context
+        new._ctx = new._context.handle
+        new._lock = threading.Lock()
+        out = ctypes.c_void_p()
+        with _plan_lock:
+            st = _L().wt_rtc_share(new._ctx, h, ctypes.byref(out))
+        if st < 0:
+            new._raise(st)
+        new._opened(out.value)
+        return new
 
     @property
     def frames(self) -> int:
