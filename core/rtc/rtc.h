@@ -12,7 +12,7 @@
  * (P)CG count), or WT_RECON_MVM with the path of MATRIX.h5 (refused unless built for sys->cfg). only_ol:
  * every frame will carry WT_RTC_SLOPES_OL (pseudo-open-loop slopes), so Â is not built (a frame without
  * the flag, and wt_rtc_interaction, are then refused). sys (and its configuration) is not owned and must
- * outlive the instance. */
+ * outlive the instance and every share of it (wt_rtc_share). */
 int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const char *matrix, int iterations,
                        int only_ol, wt_rtc **out);
 

@@ -45,11 +45,11 @@
  *
  * Threads: one instance may be used by one thread at a time (the warm start and the integrator are
  * state); different instances, shares of one plan included, may run frames concurrently from different
- * threads (a context each, for each its own error message). Set-up reads files through HDF5
- * and libconfig, which are not thread-safe as Debian builds them, and a share counts its plan: open,
- * share and close instances from one thread at a time. The frame call uses the context's thread count in its OpenMP regions
- * (wt_context_set_threads), and the MVM's GEMV OpenBLAS's. The context's allocator is called only by open
- * and close.
+ * threads (a context each, for each its own error message). Set-up reads files through HDF5 and
+ * libconfig, which are not thread-safe as Debian builds them, and a share counts its plan: open, share
+ * and close instances from one thread at a time. The frame call uses the context's thread count in its
+ * OpenMP regions (wt_context_set_threads), and the MVM's GEMV OpenBLAS's. The context's allocator is
+ * called only by open, share and close.
  */
 #ifndef WAVETOMO_RTC_H
 #define WAVETOMO_RTC_H
