@@ -144,25 +144,35 @@ fail:
     return st;
 }
 
+/* acc[i] += Σ_j M[q j + b0 + i] r[c_idx[j]] for i < nb, j in order (M: q x q column-major, float when f32, each
+ * value converted to double exactly). f32 and nb are constants where it is inlined, so each call is its own loop. */
+static inline __attribute__((always_inline)) void coarse_columns(const wt_precond *p, const double *r, const void *M,
+                                                                 const int f32, int b0, const int nb, double *acc)
+{
+    const int q = p->nc;
+    for (int j = 0; j < q; j++) {
+        const double v = r[p->c_idx[j]];
+        if (f32) {
+            const float *restrict col = (const float *)M + (size_t)q * j + b0;
+            for (int i = 0; i < nb; i++) acc[i] += (double)col[i] * v;
+        } else {
+            const double *restrict col = (const double *)M + (size_t)q * j + b0;
+            for (int i = 0; i < nb; i++) acc[i] += col[i] * v;
+        }
+    }
+}
+
 /* z[c_idx[i]] = Σ_j (B_c⁻¹)_ij r[c_idx[j]] for the coarse rows i in [i0, i1) (coarse_ngs: the block's inverse
  * held explicitly). Each row's sum runs over j in order whatever rows a call takes: the same bits for any split
  * of the rows over threads. By blocks of 64 rows, the block's sums in registers/L1 while the columns stream. */
 static inline __attribute__((always_inline)) void coarse_inv_block(const wt_precond *p, const double *r, double *z,
                                                                    int b0, int nb, const int f32)
 {
-    const int q = p->nc;
     double acc[64] = {0.0};
-#define WT_COARSE_COLUMNS(T, M, NB)                                                                                   \
-    for (int j = 0; j < q; j++) {                                                                                     \
-        const double v = r[p->c_idx[j]];                                                                              \
-        const T *restrict col = (M) + (size_t)q * j + b0;                                                             \
-        for (int i = 0; i < (NB); i++) acc[i] += (double)col[i] * v;                                                  \
-    }
-    if (f32 && nb == 64) WT_COARSE_COLUMNS(float, p->c_inv32, 64)
-    else if (f32) WT_COARSE_COLUMNS(float, p->c_inv32, nb)
-    else if (nb == 64) WT_COARSE_COLUMNS(double, p->c_inv, 64)
-    else WT_COARSE_COLUMNS(double, p->c_inv, nb)
-#undef WT_COARSE_COLUMNS
+    if (f32 && nb == 64) coarse_columns(p, r, p->c_inv32, 1, b0, 64, acc);
+    else if (f32) coarse_columns(p, r, p->c_inv32, 1, b0, nb, acc);
+    else if (nb == 64) coarse_columns(p, r, p->c_inv, 0, b0, 64, acc);
+    else coarse_columns(p, r, p->c_inv, 0, b0, nb, acc);
     for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
 }
 

@@ -33,6 +33,13 @@
 #define WT_PROJ_SSE2 1
 #endif
 
+/* the kernels shared with projection_f32.c, in double */
+#define REAL double
+#define K(name) name##_f64
+#include "projection_kernels.inc"
+#undef REAL
+#undef K
+
 /* A coordinate within this many cells of the first/last grid line is treated as on it: such a point
  * is on the edge up to rounding of (1 − h/H) r + θh, and the weight it would put outside is < 1e-9. */
 #define EDGE_SLACK 1e-9
@@ -639,7 +646,7 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
                 continue;
             }
             const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
-            WT_PROJ_T_PAIRS(double, lo, hi); /* (runs are never empty) */
+            t_pairs_f64(cb, w0, w1, y, a0, a1, lo, hi, r0, r1);
         }
     }
 }

@@ -18,6 +18,13 @@
 #include "projection.h"
 #include "projection_private.h"
 
+/* the kernels shared with projection.c, in float */
+#define REAL float
+#define K(name) name##_f32
+#include "projection_kernels.inc"
+#undef REAL
+#undef K
+
 /* A GCC-vectorised loop over the stencils would gather, slower than the scalar loop (projection.c) */
 #if defined(__GNUC__) && !defined(__clang__)
 #define WT_F32_SCALAR __attribute__((optimize("no-tree-vectorize")))
@@ -92,7 +99,7 @@ WT_CPU_CLONES static void aligned_run(float a0, const float *restrict y, int n, 
 }
 
 /* One layer's Pᵀ on points [ix, hi) of one run: the identity stencil's contiguous form, or projection.c's column
- * pairs (WT_PROJ_T_PAIRS) */
+ * pairs (projection_kernels.inc) */
 static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, float *restrict r0, float *restrict r1,
                                                               const float *restrict y, int ix, int hi)
 {
@@ -107,7 +114,7 @@ static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, 
             for (float *restrict r = r0 + cb[ix] - ix; ix < hi; ix++) r[ix] += a0 * y[ix];
         return;
     }
-    WT_PROJ_T_PAIRS(float, ix, hi);
+    t_pairs_f32(cb, w0, w1, y, a0, a1, ix, hi, r0, r1);
 }
 
 WT_F32_SCALAR static void apply_t_scalar(const wt_projection *p, float alpha, const float *restrict points,
