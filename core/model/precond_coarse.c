@@ -144,22 +144,25 @@ fail:
     return st;
 }
 
-/* acc[i] += Σ_j M[q j + b0 + i] r[c_idx[j]] for i < nb, j in order (M: q x q column-major, float when f32, each
- * value converted to double exactly). f32 and nb are constants where it is inlined, so each call is its own loop. */
-static inline __attribute__((always_inline)) void coarse_columns(const wt_precond *p, const double *r, const void *M,
-                                                                 const int f32, int b0, const int nb, double *acc)
+/* acc[i] += Σ_j M[q j + b0 + i] r[c_idx[j]] for i < nb, j in order (M: q x q column-major, M32 when f32, its
+ * values converted to double exactly, else M64). f32 and nb are constants where it is inlined: one loop each. */
+static inline __attribute__((always_inline)) void coarse_columns(const wt_precond *p, const double *r,
+                                                                 const float *M32, const double *M64, const int f32,
+                                                                 int b0, const int nb, double *acc)
 {
     const int q = p->nc;
-    for (int j = 0; j < q; j++) {
-        const double v = r[p->c_idx[j]];
-        if (f32) {
-            const float *restrict col = (const float *)M + (size_t)q * j + b0;
+    if (f32)
+        for (int j = 0; j < q; j++) {
+            const double v = r[p->c_idx[j]];
+            const float *restrict col = M32 + (size_t)q * j + b0;
             for (int i = 0; i < nb; i++) acc[i] += (double)col[i] * v;
-        } else {
-            const double *restrict col = (const double *)M + (size_t)q * j + b0;
-            for (int i = 0; i < nb; i++) acc[i] += col[i] * v;
         }
-    }
+    else
+        for (int j = 0; j < q; j++) {
+            const double v = r[p->c_idx[j]];
+            const double *restrict col = M64 + (size_t)q * j + b0;
+            for (int i = 0; i < nb; i++) acc[i] += (double)col[i] * v;
+        }
 }
 
 /* z[c_idx[i]] = Σ_j (B_c⁻¹)_ij r[c_idx[j]] for the coarse rows i in [i0, i1) (coarse_ngs: the block's inverse
@@ -169,10 +172,10 @@ static inline __attribute__((always_inline)) void coarse_inv_block(const wt_prec
                                                                    int b0, int nb, const int f32)
 {
     double acc[64] = {0.0};
-    if (f32 && nb == 64) coarse_columns(p, r, p->c_inv32, 1, b0, 64, acc);
-    else if (f32) coarse_columns(p, r, p->c_inv32, 1, b0, nb, acc);
-    else if (nb == 64) coarse_columns(p, r, p->c_inv, 0, b0, 64, acc);
-    else coarse_columns(p, r, p->c_inv, 0, b0, nb, acc);
+    if (f32 && nb == 64) coarse_columns(p, r, p->c_inv32, NULL, 1, b0, 64, acc);
+    else if (f32) coarse_columns(p, r, p->c_inv32, NULL, 1, b0, nb, acc);
+    else if (nb == 64) coarse_columns(p, r, NULL, p->c_inv, 0, b0, 64, acc);
+    else coarse_columns(p, r, NULL, p->c_inv, 0, b0, nb, acc);
     for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
 }
 
