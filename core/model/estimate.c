@@ -16,7 +16,7 @@
 #define DENSE_RATE 55e9      /* flops per s of the dense path, 2 threads: 17 Tflop of dpotrf + dpotrs in 299 s (results §23) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
-/* Diffractive sensors (core/optics/spot.h; `make bench-spot` on the E-ELT LGS, 2 threads, 2026-11-25): */
+/* Diffractive sensors (core/optics/spot.h; calibrated by `make bench-spot` on the E-ELT LGS, 2 threads): */
 #define SPOT_TABLE_NS 30e-9   /* s of set-up per float of a subaperture's kernel table (2.99 s for 30672 × 3249) */
 #define SPOT_FLOP_RATE 8e9    /* image flops (wt_spot_cost) per s, 2 threads (0.126 Mflop in ~15 µs of wall) */
 #define SPOT_NOISE_NS 30e-9   /* s per pixel of Poisson + Gaussian noise, 2 threads */

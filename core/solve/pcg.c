@@ -1,6 +1,6 @@
 /* core/solve/pcg.c: (P)CG, Hestenes–Stiefel form with the recursive residual (paper §6.1).
  *
- * Breakdown (issue 10): in exact arithmetic pᵀAp > 0 and rᵀz > 0 until the residual is 0. In floating
+ * Breakdown: in exact arithmetic pᵀAp > 0 and rᵀz > 0 until the residual is 0. In floating
  * point, with rtol = 0 and many iterations, the residual reaches rounding level and rᵀz underflows to 0
  * (then β = 0/0 = NaN poisons p) or pᵀAp rounds to ≤ 0. That is convergence, not a fault: the iteration
  * stops there with WT_WARN_BREAKDOWN, keeps the last iterate and reports the residual reached. Only a
