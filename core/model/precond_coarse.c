@@ -88,9 +88,10 @@ int wt_precond__coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
         side[l] = wt_precond__coarse_side(t, l, coarse_levels);
         q += side[l] * side[l];
     }
-    if (q > 4096)
+    if (q > WT_PRECOND_COARSE_MAX)
         return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: %s with coarse_levels %d gives a block of %d "
-                        "coefficients; at most 4096 (lower coarse_levels)", wt_precond__kind_names[p->kind], coarse_levels, q);
+                        "coefficients; at most %d (lower coarse_levels)", wt_precond__kind_names[p->kind], coarse_levels, q,
+                        WT_PRECOND_COARSE_MAX);
     WT_ALLOC(ctx, p->c_idx, q, "coarse indices");
     WT_ALLOC(ctx, p->c_L, (size_t)q * q, "coarse block");
     WT_ALLOC(ctx, p->c_w, q, "coarse work");
