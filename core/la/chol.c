@@ -191,8 +191,7 @@ void wt_chol_info_get(const wt_chol *c, wt_chol_info *info)
         info->factor_bytes = 16.0 * c->cm.lnz + 8.0 * 6.0 * (double)c->n;
         info->factorize_bytes = info->factor_bytes;
     }
-    /* the permuted copy of A and the integer workspace (measured on E-ELT cg9: factor 4.11 GB, A 2.99 GB,
-     * CHOLMOD peak 7.77 GB) */
+    /* the permuted copy of A and the integer workspace (CHOLMOD's peak is the factor, A and this copy together) */
     info->factorize_bytes += 16.0 * (double)c->nnz + 8.0 * 8.0 * (double)c->n;
 }
 

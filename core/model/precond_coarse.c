@@ -21,8 +21,8 @@
  * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
  * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
- * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
- * backward one took ~67 µs of an ~0.47 ms iteration that way). coarse_ngs then replaces the factor by the
+ * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds, a visible part
+ * of an iteration at E-ELT size). coarse_ngs then replaces the factor by the
  * block's inverse (coarse_invert): the same ~2 nc² flops as one product whose rows split over the threads.
  * The multilevel kind keeps the solves. The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
 WT_CPU_CLONES void wt_precond__coarse_solve(const wt_precond *p, const double *r, double *z)
@@ -38,7 +38,7 @@ WT_CPU_CLONES void wt_precond__coarse_solve(const wt_precond *p, const double *r
 /* coarse_ngs: the block's inverse, column j = (L Lᵀ)⁻¹ e_j, symmetrised (the preconditioner must be symmetric;
  * the solves' rounding is not), in place of the factor. An apply is then one matrix-vector product whose rows
  * split over the threads, where the two triangular solves were chains of 2q dependent columns on one thread
- * (at E-ELT size: 384², 1.2 MB that the operator evicts between applies, ~50 µs of an iteration). */
+ * (at E-ELT size 384², 1.2 MB, which the operator evicts from the caches between applies). */
 int wt_precond__coarse_invert(wt_precond *p, int single)
 {
     int st = WT_OK;
