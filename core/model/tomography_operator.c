@@ -63,7 +63,7 @@ void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const dou
  * the LGS: a float rounding before their weights reaches the NGS term only through the NGS's dozen global modes
  * (the rows of Ĉ⁻¹ Γ P), which the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ,
  * accumulator or DWT) spreads 1e-7 of that large term over every mode, and moved the low-noise field WFE by
- * +0.07 nm (docs/results.md §30; test_tomography test_single_precision_ngs_term). */
+ * +0.07 nm (docs/results.md §30; test_tomography_f32 test_single_precision_ngs_term). */
 /* Thread id's part (of nt; inside a parallel region): its layers */
 static void layers_dwt_team(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32,
                             int id, int nt)
