@@ -122,7 +122,7 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 # is only for the report driver).
 $(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_pupil.o $(BUILD)/compare/plot_psf.o
 
-$(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h $(LIB)
+$(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  CC/LD   $@")
 	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) $(shell pkg-config --cflags check) -o $@ $< $(filter %.o,$^) $(LIB) \

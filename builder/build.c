@@ -1,6 +1,6 @@
 /* builder/build.c: `wavetomo build`: the offline MVM builder (SPEC §9). Thin driver: reads the
  * configuration, runs core/build/mvm (CHOLMOD factorisation, column solves), writes MATRIX.h5.
- * Under mpirun (issue 11) every rank assembles and factorises, solves the blocks of right-hand sides
+ * Under mpirun every rank assembles and factorises, solves the blocks of right-hand sides
  * b % K == rank (wt_mvm_options.part_*), and rank 0 gathers the rows and writes the one file: the same
  * blocks in the same order as a serial build, so the matrix is bit for bit the serial one. */
 #include <stdio.h>

@@ -135,7 +135,7 @@ int wt_cli_common_option(wt_cli *cli, int argc, char **argv, int *i)
         if (t > 0) omp_set_num_threads((int)t);
 #endif
         /* OpenBLAS keeps its own pool: without this the MVM's GEMVs and the builder's BLAS use every core
-         * whatever --threads says (issue 10) */
+         * whatever --threads says */
         if (t > 0) openblas_set_num_threads((int)t);
     }
     return 1;
@@ -223,7 +223,7 @@ const char *wt_cli_value(wt_cli *cli, int argc, char **argv, int *i)
     return argv[++*i];
 }
 
-/* Strict numbers (issue 10, F): the whole text is the number, no blank before it, no overflow clamped
+/* Strict numbers: the whole text is the number, no blank before it, no overflow clamped
  * by strtol/strtoll/strtod, nothing empty. */
 int wt_cli_int(wt_cli *cli, const char *name, const char *text, long lo, long hi, long *out)
 {

@@ -58,7 +58,7 @@ int wt_cli_double(wt_cli *cli, const char *name, const char *text, double lo, do
 /* Split s in place at commas into items (at most max); an empty item ("1,,3", a trailing comma) or too
  * many items is a usage error naming the option: returns -1, else the number of items. */
 int wt_cli_split(wt_cli *cli, const char *name, char *s, char **items, int max);
-/* Before writing output `path` (issue 10, K): refuse when it is the configuration (--config) or in1/in2
+/* Before writing output `path`: refuse when it is the configuration (--config) or in1/in2
  * (other inputs, may be NULL) — same device and inode, or the same resolved path — or an output checked
  * before; refuse to replace an existing file that is not a wavetomo output unless --force; then
  * wt_h5_check_writable(path, bytes). Returns a status (message in the context), like the library. */

@@ -1,4 +1,4 @@
-/* cli/mpi.h: the one place wavetomo talks MPI (issue 11: `mpirun -n K wavetomo compare|build`). The library
+/* cli/mpi.h: the one place wavetomo talks MPI (`mpirun -n K wavetomo compare|build`). The library
  * (core/) stays MPI-free: it only learns "compute part i of n" (wt_mvm_options.part_index/part_count); the
  * drivers split the work with wt_mpi_rank/size and move plain bytes with the calls below.
  *

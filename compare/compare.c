@@ -4,7 +4,7 @@
  * written by compare/report.c; this driver parses the options and walks the cases, stopping between frames on
  * SIGINT/SIGTERM with what is finished kept (--resume runs the rest).
  *
- * Under mpirun (issue 11) the cases are dealt to the ranks before any runs, the same way on every rank
+ * Under mpirun the cases are dealt to the ranks before any runs, the same way on every rank
  * (longest first to the least loaded rank, by the resource estimate); all the MVM cases that share a matrix
  * (same hash: one cache file) go to one rank, so no two ranks build or write the same cache file. A case's
  * numbers depend only on its configuration, seed and threads, not on the rank that runs it; rank 0 gathers

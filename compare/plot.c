@@ -280,7 +280,7 @@ double wt_plot_viridis_luminance(double t)
 
 const char *wt_plot_pname(const char *path) { return path ? path : "(null)"; }
 
-/* Vertical error bars y ± e at the finite points (issue 11: the standard error over seeds). */
+/* Vertical error bars y ± e at the finite points (the standard error over seeds). */
 static void error_bars(int n, const double *x, const double *y, const double *e)
 {
     for (int k = 0; k < n; k++) {

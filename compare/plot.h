@@ -33,7 +33,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                          const char *const *groups, int nseries, const char *const *series, const double *values,
                          const double *marks);
 
-/* Long-exposure PSFs over the field (issue 21 §5): a g x g mosaic, panel i + g j at field column i (x right) and
+/* Long-exposure PSFs over the field: a g x g mosaic, panel i + g j at field column i (x right) and
  * row j (y up) as wt_plot_strehl_map, each the central part (at most WT_PLOT_PSF_SHOW pixels across) of the n x n
  * image img[(i + g j) n²] (pixel (ix, iy) at ix + n iy, x right, y up; core/sim/psf.h), in log10 over 5 decades
  * below the diffraction-limited peak (= 1), with the panel's PSF-peak Strehl strehl[i + g j] printed in it and a
@@ -56,7 +56,7 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
                     int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
                     double dt);
 
-/* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`, issue 19 item 7) ---- */
+/* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`) ---------------------- */
 
 /* Where the subapertures are: the valid subapertures' centres and side, the annulus outline, the launch. */
 typedef struct wt_plot_pupil {

@@ -1,4 +1,4 @@
-/* compare/plot_psf.c: the report's figures of issue 21 §5, PLplot (the job, colours and helpers of plot.c):
+/* compare/plot_psf.c: the report's long-exposure PSF figures, PLplot (the job, colours and helpers of plot.c):
  * the mosaic of long-exposure PSFs over the field (core/sim/psf.h, SPEC §8b) and the residual WFE of every frame
  * with its running long-exposure value (SPEC §8), the settle window shaded. Nothing is computed here but the
  * log scale, the running mean and the axis ranges. */

@@ -1,4 +1,4 @@
-/* compare/plot_pupil.c: pictures of one Shack–Hartmann sensor over the pupil (issue 19 item 7): the mosaic of
+/* compare/plot_pupil.c: pictures of one Shack–Hartmann sensor over the pupil: the mosaic of
  * its subapertures' spot images, and maps of a value per subaperture (centroid gain, truncation). PLplot,
  * through the job of plot.c (own stream, temporary PNG renamed onto the path; see plot.c's header).
  *

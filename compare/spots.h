@@ -1,4 +1,4 @@
-/* compare/spots.h: the pictures of one diffractive sensor (issue 19 item 7), written by `wavetomo info CONFIG
+/* compare/spots.h: the pictures of one diffractive sensor, written by `wavetomo info CONFIG
  * --spots DIR` and by `wavetomo compare` beside the report of a diffractive system:
  *   DIR/spots_<SENSOR>.png  the noise-free mean spot image I0 of every valid subaperture in its cell over the
  *                           pupil, truncation frames, the launch (compare/plot.h wt_plot_spots);

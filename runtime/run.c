@@ -152,7 +152,7 @@ int wt_cmd_run(int argc, char **argv)
     wt_progress_start(&pr, "frames", "frames", (long)F);
     if (cli.quiet) pr.enabled = 0;
     for (int64_t t = 0; t < F; t++) {
-        /* the reader refuses NaN/Inf, naming the dataset, frame and column (issue 10, H) */
+        /* the reader refuses NaN/Inf, naming the dataset, frame and column */
         if ((st = wt_h5_read_rows(tr, sname, WT_H5_F32, t, 1, sf)) < 0) goto fail;
         /* the MVM: R s_ol = R s + (R Â) a, the stored POLC form with the telemetry's applied commands (no Â
          * at run time); pcg3 / cg9: R s_ol of the telemetry's pseudo-open-loop slopes */

@@ -15,6 +15,7 @@
 # (transitive) dependency list must belong to its own module or one the table below allows. Circles:
 # the direct #include edges between files (and between modules) go through tsort, which refuses a loop;
 # so do the calls between the library's object files (nm: a symbol one file uses and another defines).
+# No .c, .h or .inc of core/ over 800 lines (WT_MAX_LINES).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 CC=${CC:-gcc}
@@ -108,6 +109,15 @@ if [ -n "$DOBJ" ]; then
     esac
   done <<< "$dedges"
 fi
+# STYLE.md's size rule: a core/ file over WT_MAX_LINES lines is usually two modules (split it by responsibility)
+WT_MAX_LINES=${WT_MAX_LINES:-800}
+for f in core/*/*.c core/*/*.h core/*/*.inc; do
+  [ -e "$f" ] || continue
+  n=$(wc -l < "$f")
+  if [ "$n" -gt "$WT_MAX_LINES" ]; then
+    echo "check-deps: $f has $n lines, over $WT_MAX_LINES: split it by responsibility (STYLE.md)"; bad=1
+  fi
+done
 rm -f /tmp/check_deps.$$
-if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {build, sim, rtc} ← cli ← drivers ← app, config and io on base only; no include or call circle, no call running back up"; fi
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {build, sim, rtc} ← cli ← drivers ← app, config and io on base only; no include or call circle, no call running back up, no core file over $WT_MAX_LINES lines"; fi
 exit $bad

@@ -2,7 +2,8 @@
  * its regularisation ε is the stated fraction of the true mean diagonal of Σ_j H_jᵀ H_j (the probing
  * that computes it must not let two probes share a sample point), a shape the DMs can make is
  * fitted exactly, on both the Fried-corner and the finer pupil sampling, by both solvers; the assembled
- * normal matrix is the operator, and the Cholesky fit equals the converged CG fit within κ(N)·rounding. */
+ * normal matrix is the operator, and the Cholesky fit equals the converged CG fit within κ(N)·rounding; after the
+ * tomography's solve, the fit recovers a DM shape, and a continued fit equals a warm-started one. */
 #include <lapacke.h>
 
 #include "core/model/fitting.h"
@@ -10,6 +11,7 @@
 #include "core/model/system.h"
 #include "testmodel.h"
 #include "testutil.h"
+#include "tomography_fixture.h"
 
 /* ε against the brute-force diagonal: F e_i = (Σ H_jᵀ H_j + ε I) e_i, so F_ii − ε is the diagonal. */
 static void check_epsilon(int sampling)
@@ -342,6 +344,125 @@ START_TEST(test_cholesky_refusals)
 }
 END_TEST
 
+START_TEST(test_fitting_recovers_dm_shape)
+{
+    const char *set[] = {"recon.cg9.fit_regularization=1e-9"};
+    fixture f;
+    setup(&f, DEMO, -1, 1, set);
+    const wt_system *sys = f.sys;
+    wt_grid layers[WT_MAX_DMS];
+    double alts[WT_MAX_DMS];
+    int64_t off[WT_MAX_DMS + 1] = {0};
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        /* a layer grid at the DM pitch, large enough to hold the actuator grid */
+        int n = 64;
+        layers[k] = wt_grid_layer(n, sys->dm->grid[k].dx);
+        alts[k] = sys->dm->altitude[k];
+        off[k + 1] = off[k] + wt_grid_size(&layers[k]);
+    }
+    wt_fitting *fit;
+    const wt_fitting_params fp = {.regularization = 1e-9, .sampling = 1};
+    ck_assert_int_eq(wt_fitting_alloc(f.ctx, sys, sys->dm->ndms, layers, alts, &fp, &fit), WT_OK);
+    int64_t na = sys->nact;
+    double *a0 = malloc(na * sizeof *a0), *a = calloc(na, sizeof *a), *grid = calloc(wt_dm_grid_points(sys->dm), sizeof *grid);
+    double *phi = calloc(off[sys->dm->ndms], sizeof *phi);
+    tu_randn(a0, na, 41);
+    wt_dm_expand(sys->dm, a0, grid);
+    int64_t p = 0;
+    for (int k = 0; k < sys->dm->ndms; k++) {
+        const wt_grid *g = &sys->dm->grid[k];
+        for (int iy = 0; iy < g->ny; iy++)
+            for (int ix = 0; ix < g->nx; ix++) {
+                double x = g->x0 + ix * g->dx, y = g->y0 + iy * g->dx;
+                int lx = (int)lround((x - layers[k].x0) / layers[k].dx), ly = (int)lround((y - layers[k].y0) / layers[k].dx);
+                phi[off[k] + lx + (int64_t)layers[k].nx * ly] = grid[p + ix + (int64_t)g->nx * iy];
+            }
+        p += wt_grid_size(g);
+    }
+    /* symmetry of the fitting operator */
+    double *u = malloc(na * sizeof *u), *v = malloc(na * sizeof *v), *fu = malloc(na * sizeof *fu), *fv = malloc(na * sizeof *fv);
+    tu_randn(u, na, 42);
+    tu_randn(v, na, 43);
+    tu_fitting_apply(fit, na, u, fu);
+    tu_fitting_apply(fit, na, v, fv);
+    ck_assert_rel(tu_dot(u, fv, na), tu_dot(v, fu, na), 1e-12, 0.0);
+    wt_pcg_result r;
+    wt_fitting_solve(fit, phi, a, 2000, 1e-12, NULL, &r);
+    /* compare H_j a with H_j a0 in every direction */
+    double *ga = calloc(wt_dm_grid_points(sys->dm), sizeof *ga);
+    wt_dm_expand(sys->dm, a, ga);
+    double worst = 0.0;
+    for (int j = 0; j < sys->neval; j++) {
+        wt_projection *h;
+        ck_assert_int_eq(wt_projection_alloc(f.ctx, sys->dm->ndms, sys->dm->grid, sys->dm->altitude, 0.0, sys->eval_x[j],
+                                             sys->eval_y[j], &sys->corner_grid, sys->corner_mask, 1, &h),
+                         WT_OK);
+        int64_t nc = wt_grid_size(&sys->corner_grid);
+        double *p1 = calloc(nc, sizeof *p1), *p2 = calloc(nc, sizeof *p2);
+        wt_projection_apply(h, 1.0, ga, p1);
+        wt_projection_apply(h, 1.0, grid, p2);
+        worst = fmax(worst, tu_rel_diff(p1, p2, nc));
+        free(p1), free(p2);
+        wt_projection_free(h);
+    }
+    /* ε = 1e-9 of the mean diagonal perturbs the solution by O(1e-9 κ); 1e-5 leaves room for the
+     * weakly seen corners */
+    ck_assert_msg(worst < 1e-5, "fitted DM phase differs from the true one by %g", worst);
+    free(a0), free(a), free(grid), free(phi), free(u), free(v), free(fu), free(fv), free(ga);
+    wt_fitting_free(fit);
+    teardown(&f);
+}
+END_TEST
+
+/* The fitting's warm start continued (wt_fitting_solve_continue), as the reconstructor runs it frame after
+ * frame: the CG-9 fitting of drifting layers gives the warm-started solutions up to rounding (8 frames of
+ * 10 iterations; bound as for the tomography above), and after a wt_fitting_solve_maps on the same
+ * object, or on other commands, the next continue is a fresh warm-started solve, bit for bit. */
+START_TEST(test_fitting_continue_matches_warm_start)
+{
+    fixture f, g;
+    setup(&f, DEMO, 1, 0, NULL);
+    setup(&g, DEMO, 1, 0, NULL);
+    wt_tomography_params tp;
+    wt_tomography_params_from_config(f.cfg, &tp);
+    wt_fitting *fa, *fb;
+    const wt_fitting_params fp = {.regularization = f.cfg->cg9.fit_regularization, .sampling = 2};
+    ck_assert_int_eq(wt_fitting_alloc_for(f.ctx, f.t, &fp, &fa), WT_OK);
+    ck_assert_int_eq(wt_fitting_alloc_for(g.ctx, g.t, &fp, &fb), WT_OK);
+    const int64_t n = wt_tomography_nunknowns(f.t), na = f.sys->nact;
+    double *c = malloc(n * sizeof *c), *dc = malloc(n * sizeof *dc), *phi = malloc(n * sizeof *phi);
+    double *aa = calloc(na, sizeof *aa), *ab = calloc(na, sizeof *ab), *ac = calloc(na, sizeof *ac);
+    tu_randn(c, n, 61);
+    double worst = 0.0;
+    for (int frame = 0; frame < 8; frame++) {
+        if (frame > 0) {
+            tu_randn(dc, n, 70 + frame);
+            for (int64_t i = 0; i < n; i++) c[i] += 0.1 * dc[i];
+        }
+        wt_tomography_layers(f.t, c, phi);
+        ck_assert_int_eq(wt_fitting_solve(fa, phi, aa, 10, 0.0, NULL, NULL), WT_OK);
+        ck_assert_int_eq(wt_fitting_solve_continue(fb, phi, ab, 10, 0.0, NULL, NULL), WT_OK);
+        const double e = tu_rel_diff(ab, aa, na);
+        if (e > worst) worst = e;
+    }
+    fprintf(stderr, "fitting continue: largest relative difference from warm starts %g\n", worst);
+    ck_assert_msg(worst <= 1e-9 && worst > 0.0, "continued fittings differ from warm starts by %g", worst);
+    /* a maps solve in between (its own commands) leaves nothing to continue from */
+    const wt_grid *sg = wt_fitting_sample_grid(fb);
+    double *maps = calloc((size_t)wt_grid_size(sg) * f.sys->neval, sizeof *maps);
+    ck_assert_int_ge(wt_fitting_solve_maps(fb, maps, ac, 2, 0.0, NULL), WT_OK);
+    memcpy(aa, ab, na * sizeof *aa);
+    ck_assert_int_eq(wt_fitting_solve_continue(fb, phi, ab, 10, 0.0, NULL, NULL), WT_OK);
+    ck_assert_int_eq(wt_fitting_solve(fa, phi, aa, 10, 0.0, NULL, NULL), WT_OK);
+    for (int64_t i = 0; i < na; i++) ck_assert(aa[i] == ab[i]);
+    free(c), free(dc), free(phi), free(aa), free(ab), free(ac), free(maps);
+    wt_fitting_free(fa);
+    wt_fitting_free(fb);
+    teardown(&g);
+    teardown(&f);
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("fitting");
@@ -355,6 +476,11 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_cholesky_refusals);
     tcase_add_test(tc, test_operators_accumulate);
     suite_add_tcase(s, tc);
+    TCase *tt = tcase_create("tomography"); /* the fitting after the tomography's solve */
+    tcase_set_timeout(tt, 900);
+    tcase_add_test(tt, test_fitting_recovers_dm_shape);
+    tcase_add_test(tt, test_fitting_continue_matches_warm_start);
+    suite_add_tcase(s, tt);
     return s;
 }
 

@@ -57,7 +57,7 @@ enum { WT_WFS_GEOMETRIC = 0, WT_WFS_DIFFRACTIVE = 1 };
 
 /* The reconstructors' priors (recon.prior, recon.<variant>.prior: the index in "paper|exact|full") and each
  * variant's default when both keys are left out (docs/design.md "The prior"): the full covariance for both
- * since session 11 (pcg3's MVM holds it as a dense normal matrix; docs/results.md §23). */
+ * (pcg3's MVM holds it as a dense normal matrix; docs/results.md §23 says what it costs and gains). */
 enum { WT_CFG_PRIOR_PAPER = 0, WT_CFG_PRIOR_EXACT = 1, WT_CFG_PRIOR_FULL = 2 };
 #define WT_PRIOR_DEFAULT_PCG3 WT_CFG_PRIOR_FULL
 #define WT_PRIOR_DEFAULT_PCG3_TEXT "\"full\""

@@ -1,4 +1,4 @@
-/* core/config/config_grid.c: the automatic reconstruction layer grids (SPEC §6; issue 22 item 4).
+/* core/config/config_grid.c: the automatic reconstruction layer grids (SPEC §6).
  *
  * When `recon.<variant>.layer_spacing_m` and `layer_size` are left out (or "auto"), each layer at altitude h
  * gets (docs/design.md, "Choices where the sources are silent"):

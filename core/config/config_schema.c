@@ -15,7 +15,7 @@
 #define ARCSEC WT_ARCSEC
 #define DEG (M_PI / 180.0)
 #define MAS (1e-3 * WT_ARCSEC)
-/* Every float key has finite bounds that the code can run (issue 10, classes A/E): a value of 1e308
+/* Every float key has finite bounds that the code can run: a value of 1e308
  * gives Inf/NaN deep inside a computation, and an extreme one overflows an index. The bounds are wide
  * (well beyond any telescope or atmosphere) and derived sizes are checked after loading (config_derived.c). */
 #define GT0(hi) F_LO_OPEN, 0.0, (hi) /* in (0, hi] */

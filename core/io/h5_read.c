@@ -6,7 +6,7 @@
  * the caller expects, and a Fletcher32 checksum failure is an error rather than a wrong number.
  * HDF5's printing is off during every call (wt_h5_priv_quiet_on/off, see h5_private.h).
  *
- * Bad-input policy (issue 10, classes G, H, I):
+ * Bad-input policy (G: types, H: values, I: extents):
  *  - G: a numeric read accepts only a conversion that is exact for every value of the file's type:
  *    float32 -> float32/float64, float64 -> float64, an integer into a float whose mantissa holds it
  *    (up to 24 bits into float32, 32 into float64), an integer into an integer type that holds its whole

@@ -119,7 +119,7 @@ const char *wt_h5_library_version(void)
 
 /* A temporary that is being thrown away after a write error (disk full, file too large): HDF5 1.10 still
  * flushes its metadata cache on H5Fclose, that flush fails again, the close fails and leaves the file in
- * HDF5's table, and the library's own clean-up at exit then crashes inside H5F__close_cb (issue 10, A').
+ * HDF5's table, and the library's own clean-up at exit then crashes inside H5F__close_cb.
  * Pointing the file's descriptor at an anonymous memory file first lets that last flush and truncate
  * succeed into memory that is freed with it (/dev/null would refuse the truncate), so the close completes
  * once and releases everything; the temporary is unlinked right after. Only on the discard path, and only

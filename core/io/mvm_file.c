@@ -200,7 +200,7 @@ int wt_mvm_file_read_open(wt_context *ctx, wt_h5_reader *r, const wt_mvm_file_sy
                       path, diff, diff[0] ? "; " : "", hash, sys->sha256, sys->path);
         goto fail;
     }
-    /* provenance (issue 10, J): the stored configuration text must still give the stored hash (an edited
+    /* provenance: the stored configuration text must still give the stored hash (an edited
      * file is refused), and the variant must be one the builder writes */
     if ((st = wt_h5_read_string(r, "matrix_config", &text)) < 0) goto fail;
     wt_sha256_hex(text, strlen(text), own);

@@ -191,8 +191,7 @@ void wt_chol_info_get(const wt_chol *c, wt_chol_info *info)
         info->factor_bytes = 16.0 * c->cm.lnz + 8.0 * 6.0 * (double)c->n;
         info->factorize_bytes = info->factor_bytes;
     }
-    /* the permuted copy of A and the integer workspace (measured on E-ELT cg9: factor 4.11 GB, A 2.99 GB,
-     * CHOLMOD peak 7.77 GB) */
+    /* the permuted copy of A and the integer workspace (CHOLMOD's peak is the factor, A and this copy together) */
     info->factorize_bytes += 16.0 * (double)c->nnz + 8.0 * 8.0 * (double)c->n;
 }
 
@@ -424,12 +423,12 @@ void wt_chol_split(const wt_chol *c, double *group0, double *group1, double *top
 
 /* Supernode k packed (see one_plan.val), in double or float: column j starts at j (nscol + m) − j (j − 1) / 2
  * with m = nsrow − nscol rows below the diagonal block, and holds L(j, j), L(j + 1 .. nscol − 1, j), then
- * the m rows below. The kernels are written once over the value type and the variant (four copies by the
- * macro) and cloned for AVX2/AVX-512 like the transforms. The dots keep 8 partial sums in fixed lanes
+ * the m rows below. The kernels are written once over the value type and the variant (chol_kernels.inc,
+ * included four times below) and cloned for AVX2/AVX-512 like the transforms. The dots keep 8 partial sums in fixed lanes
  * (lane i % 8), added in a fixed order at the end (ISO C: no FMA contraction), so every clone, variant and
  * thread count gives the same bits.
  *
- * Two variants of the same arithmetic (issue 20 §2): "ref", the plain loops (GCC left the float dots' lanes
+ * Two variants of the same arithmetic: "ref", the plain loops (GCC left the float dots' lanes
  * scalar: one vcvtss2sd + vmulsd + vaddsd per entry), kept as the bit-for-bit oracle of tests/test_chol.c and
  * the baseline of the paired bench (recon.cg9.fit_kernels = "reference"); "fast", the lanes as one GCC vector
  * (8 doubles: one load, conversion, multiply and add per 8 entries in the AVX-512 clone), and the forward
@@ -441,16 +440,16 @@ typedef double v8d __attribute__((vector_size(64)));
 #define ACC8_ref(x) double x[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
 #define ACC8_fast(x) v8d x = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
 /* acc[l] += a[i + l] b[i + l], l < 8 */
-#define DOT8_ref(SUF, acc, a, b, i) for (int l = 0; l < 8; l++) acc[l] += (double)(a)[(i) + l] * (b)[(i) + l]
-#define DOT8_fast(SUF, acc, a, b, i)                                                                             \
+#define DOT8_ref(LD, acc, a, b, i) for (int l = 0; l < 8; l++) acc[l] += (double)(a)[(i) + l] * (b)[(i) + l]
+#define DOT8_fast(LD, acc, a, b, i)                                                                             \
     do {                                                                                                       \
         v8d x_, z_;                                                                                            \
-        load8_##SUF(&x_, (a) + (i));                                                                           \
+        LD(&x_, (a) + (i));                                                                           \
         load8_d(&z_, (b) + (i));                                                                               \
         acc += x_ * z_;                                                                                        \
     } while (0)
 /* the rows below, 4 columns a pass: acc_c[l] += c_c[i + l] w[i + l] */
-#define DOT8x4_ref(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                    \
+#define DOT8x4_ref(LD, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                    \
     for (int l = 0; l < 8; l++) {                                                                              \
         const double wi = w[(i) + l];                                                                          \
         a0[l] += (double)c0[(i) + l] * wi;                                                                     \
@@ -458,14 +457,14 @@ typedef double v8d __attribute__((vector_size(64)));
         a2[l] += (double)c2[(i) + l] * wi;                                                                     \
         a3[l] += (double)c3[(i) + l] * wi;                                                                     \
     }
-#define DOT8x4_fast(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                   \
+#define DOT8x4_fast(LD, a0, a1, a2, a3, c0, c1, c2, c3, w, i)                                                   \
     do {                                                                                                       \
         v8d wi_, x0_, x1_, x2_, x3_;                                                                           \
         load8_d(&wi_, (w) + (i));                                                                              \
-        load8_##SUF(&x0_, (c0) + (i));                                                                         \
-        load8_##SUF(&x1_, (c1) + (i));                                                                         \
-        load8_##SUF(&x2_, (c2) + (i));                                                                         \
-        load8_##SUF(&x3_, (c3) + (i));                                                                         \
+        LD(&x0_, (c0) + (i));                                                                         \
+        LD(&x1_, (c1) + (i));                                                                         \
+        LD(&x2_, (c2) + (i));                                                                         \
+        LD(&x3_, (c3) + (i));                                                                         \
         a0 += x0_ * wi_;                                                                                       \
         a1 += x1_ * wi_;                                                                                       \
         a2 += x2_ * wi_;                                                                                       \
@@ -497,110 +496,81 @@ typedef double v8d __attribute__((vector_size(64)));
 
 /* 8 consecutive values (unaligned) as doubles: one vector load (+ conversion) in every clone; through a
  * pointer, since a 64-byte vector return would cross the default clone's ABI */
-#define LOAD8(T, SUF)                                                                                            \
-    typedef T wt_v8_##SUF __attribute__((vector_size(8 * sizeof(T))));                                       \
-    static inline __attribute__((always_inline)) void load8_##SUF(v8d *out, const T *restrict a)               \
-    {                                                                                                          \
-        wt_v8_##SUF x;                                                                                         \
-        memcpy(&x, a, sizeof x);                                                                               \
-        *out = __builtin_convertvector(x, v8d);                                                                \
-    }
-LOAD8(double, d)
-LOAD8(float, f)
+typedef double wt_v8_d __attribute__((vector_size(64)));
+typedef float wt_v8_f __attribute__((vector_size(32)));
+static inline __attribute__((always_inline)) void load8_d(v8d *out, const double *restrict a)
+{
+    wt_v8_d x;
+    memcpy(&x, a, sizeof x);
+    *out = __builtin_convertvector(x, v8d);
+}
+static inline __attribute__((always_inline)) void load8_f(v8d *out, const float *restrict a)
+{
+    wt_v8_f x;
+    memcpy(&x, a, sizeof x);
+    *out = __builtin_convertvector(x, v8d);
+}
 
-#define ONE_KERNELS(T, SUF, V)                                                                                   \
-    static inline double dot_##V##_##SUF(const T *restrict a, const double *restrict b, int64_t m)              \
-    {                                                                                                          \
-        ACC8_##V(acc);                                                                                         \
-        int64_t i = 0;                                                                                         \
-        for (; i + 8 <= m; i += 8) DOT8_##V(SUF, acc, a, b, i);                                                \
-        for (int l = 0; i + l < m; l++) acc[l] += (double)a[i + l] * b[i + l];                                 \
-        return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));              \
-    }                                                                                                          \
-    /* forward: y[k1 .. k2) ← L_kk⁻¹ y[k1 .. k2); then the rows below: w = L_bk y[k1 .. k2), and y[s_i] −= w_i  \
-     * (into the group's buffer, with the opposite sign, for a row of the top part) */                         \
-    WT_CPU_CLONES static void forward_##V##_##SUF(const T *restrict v, const int64_t *restrict rows, int64_t k1, \
-                                                  int64_t nscol, int64_t nsrow, double *restrict y,            \
-                                                  double *restrict w, double *restrict buf,                    \
-                                                  const int *restrict top)                                     \
-    {                                                                                                          \
-        const int64_t m = nsrow - nscol;                                                                       \
-        double *restrict yk = y + k1;                                                                          \
-        FWD_BLOCK_##V(T, v, yk, nscol, m);                                                                     \
-        if (m == 0) return;                                                                                    \
-        for (int64_t i = 0; i < m; i++) w[i] = 0.0;                                                            \
-        int64_t j = 0;                                                                                         \
-        for (; j + 4 <= nscol; j += 4) { /* 4 columns a pass over w: the same adds, in the same order */      \
-            const T *restrict c0 = v + ONE_COL(j, nscol, m) + (nscol - j);                                     \
-            const T *restrict c1 = v + ONE_COL(j + 1, nscol, m) + (nscol - j - 1);                             \
-            const T *restrict c2 = v + ONE_COL(j + 2, nscol, m) + (nscol - j - 2);                             \
-            const T *restrict c3 = v + ONE_COL(j + 3, nscol, m) + (nscol - j - 3);                             \
-            const double y0 = yk[j], y1 = yk[j + 1], y2 = yk[j + 2], y3 = yk[j + 3];                           \
-            for (int64_t i = 0; i < m; i++)                                                                    \
-                w[i] = (((w[i] + (double)c0[i] * y0) + (double)c1[i] * y1) + (double)c2[i] * y2) +             \
-                       (double)c3[i] * y3;                                                                     \
-        }                                                                                                      \
-        for (; j < nscol; j++) {                                                                               \
-            const T *restrict col = v + ONE_COL(j, nscol, m) + (nscol - j);                                    \
-            const double yj = yk[j];                                                                           \
-            for (int64_t i = 0; i < m; i++) w[i] += (double)col[i] * yj;                                       \
-        }                                                                                                      \
-        const int64_t *restrict below = rows + nscol;                                                          \
-        if (buf) {                                                                                             \
-            for (int64_t i = 0; i < m; i++) {                                                                  \
-                const int64_t r = below[i];                                                                    \
-                if (top[r]) buf[r] += w[i];                                                                    \
-                else y[r] -= w[i];                                                                             \
-            }                                                                                                  \
-        } else                                                                                                 \
-            for (int64_t i = 0; i < m; i++) y[below[i]] -= w[i];                                               \
-    }                                                                                                          \
-    /* backward: y[k1 .. k2) ← L_kkᵀ⁻¹ (y[k1 .. k2) − L_bkᵀ y[rows below]) */                                  \
-    WT_CPU_CLONES static void backward_##V##_##SUF(const T *restrict v, const int64_t *restrict rows,           \
-                                                   int64_t k1, int64_t nscol, int64_t nsrow,                   \
-                                                   double *restrict y, double *restrict w)                     \
-    {                                                                                                          \
-        const int64_t m = nsrow - nscol;                                                                       \
-        double *restrict yk = y + k1;                                                                          \
-        for (int64_t i = 0; i < m; i++) w[i] = y[rows[nscol + i]];                                             \
-        /* the rows below first, 4 columns a pass over w (each dot in its own 8 lanes: the bits of dot_) */     \
-        double *restrict t = w + m;                                                                            \
-        int64_t j = 0;                                                                                         \
-        for (; j + 4 <= nscol && m > 0; j += 4) {                                                              \
-            const T *restrict c0 = v + ONE_COL(j, nscol, m) + (nscol - j);                                     \
-            const T *restrict c1 = v + ONE_COL(j + 1, nscol, m) + (nscol - j - 1);                             \
-            const T *restrict c2 = v + ONE_COL(j + 2, nscol, m) + (nscol - j - 2);                             \
-            const T *restrict c3 = v + ONE_COL(j + 3, nscol, m) + (nscol - j - 3);                             \
-            ACC8_##V(a0);                                                                                      \
-            ACC8_##V(a1);                                                                                      \
-            ACC8_##V(a2);                                                                                      \
-            ACC8_##V(a3);                                                                                      \
-            int64_t i = 0;                                                                                     \
-            for (; i + 8 <= m; i += 8) DOT8x4_##V(SUF, a0, a1, a2, a3, c0, c1, c2, c3, w, i);                  \
-            for (int l = 0; i + l < m; l++) {                                                                  \
-                const double wi = w[i + l];                                                                    \
-                a0[l] += (double)c0[i + l] * wi;                                                               \
-                a1[l] += (double)c1[i + l] * wi;                                                               \
-                a2[l] += (double)c2[i + l] * wi;                                                               \
-                a3[l] += (double)c3[i + l] * wi;                                                               \
-            }                                                                                                  \
-            t[j] = ((a0[0] + a0[1]) + (a0[2] + a0[3])) + ((a0[4] + a0[5]) + (a0[6] + a0[7]));                  \
-            t[j + 1] = ((a1[0] + a1[1]) + (a1[2] + a1[3])) + ((a1[4] + a1[5]) + (a1[6] + a1[7]));              \
-            t[j + 2] = ((a2[0] + a2[1]) + (a2[2] + a2[3])) + ((a2[4] + a2[5]) + (a2[6] + a2[7]));              \
-            t[j + 3] = ((a3[0] + a3[1]) + (a3[2] + a3[3])) + ((a3[4] + a3[5]) + (a3[6] + a3[7]));              \
-        }                                                                                                      \
-        for (; j < nscol; j++) t[j] = dot_##V##_##SUF(v + ONE_COL(j, nscol, m) + (nscol - j), w, m);          \
-        for (int64_t jj = nscol - 1; jj >= 0; jj--) {                                                          \
-            const T *restrict col = v + ONE_COL(jj, nscol, m);                                                 \
-            const double s = t[jj] + dot_##V##_##SUF(col + 1, yk + jj + 1, nscol - jj - 1);                    \
-            yk[jj] = (yk[jj] - s) / (double)col[0];                                                            \
-        }                                                                                                      \
-    }
-
-ONE_KERNELS(double, d, ref)
-ONE_KERNELS(float, f, ref)
-ONE_KERNELS(double, d, fast)
-ONE_KERNELS(float, f, fast)
+#define REAL double
+#define LOAD8 load8_d
+#define K(name) name##_ref_d
+#define ACC8 ACC8_ref
+#define DOT8 DOT8_ref
+#define DOT8x4 DOT8x4_ref
+#define FWD_BLOCK FWD_BLOCK_ref
+#include "chol_kernels.inc"
+#undef REAL
+#undef LOAD8
+#undef K
+#undef ACC8
+#undef DOT8
+#undef DOT8x4
+#undef FWD_BLOCK
+#define REAL float
+#define LOAD8 load8_f
+#define K(name) name##_ref_f
+#define ACC8 ACC8_ref
+#define DOT8 DOT8_ref
+#define DOT8x4 DOT8x4_ref
+#define FWD_BLOCK FWD_BLOCK_ref
+#include "chol_kernels.inc"
+#undef REAL
+#undef LOAD8
+#undef K
+#undef ACC8
+#undef DOT8
+#undef DOT8x4
+#undef FWD_BLOCK
+#define REAL double
+#define LOAD8 load8_d
+#define K(name) name##_fast_d
+#define ACC8 ACC8_fast
+#define DOT8 DOT8_fast
+#define DOT8x4 DOT8x4_fast
+#define FWD_BLOCK FWD_BLOCK_fast
+#include "chol_kernels.inc"
+#undef REAL
+#undef LOAD8
+#undef K
+#undef ACC8
+#undef DOT8
+#undef DOT8x4
+#undef FWD_BLOCK
+#define REAL float
+#define LOAD8 load8_f
+#define K(name) name##_fast_f
+#define ACC8 ACC8_fast
+#define DOT8 DOT8_fast
+#define DOT8x4 DOT8x4_fast
+#define FWD_BLOCK FWD_BLOCK_fast
+#include "chol_kernels.inc"
+#undef REAL
+#undef LOAD8
+#undef K
+#undef ACC8
+#undef DOT8
+#undef DOT8x4
+#undef FWD_BLOCK
 
 /* Part `part` of the plan, forward or backward; buf: the group's buffer of top rows (forward, groups only). */
 static void one_part(const wt_chol *c, int part, int backward, double *w, double *buf, const int *top)

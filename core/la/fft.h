@@ -3,8 +3,8 @@
  *
  * The full von Kármán prior (core/op/prior.c) and the fourier preconditioner (core/model/precond.c) each run
  * an n x n r2c + c2r pair per layer and iteration. FFTW_ESTIMATE picks the algorithm from a model, without
- * timing: the same plan, hence the same bits, on every machine. A measured plan (FFTW_MEASURE) is ~1.6x faster
- * at n = 128 on the E-ELT's host, but timing depends on the machine and the moment, so two runs could pick
+ * timing: the same plan, hence the same bits, on every machine. A measured plan (FFTW_MEASURE) is faster
+ * at the E-ELT's n = 128, but timing depends on the machine and the moment, so two runs could pick
  * different algorithms and round differently. Wisdom separates the two: `wavetomo wisdom` measures once and
  * stores the chosen algorithms in a file; a run plans from that file alone (FFTW_WISDOM_ONLY), so the same
  * file gives the same plans and the same bits, and the file's SHA-256 (recon.fft_wisdom_sha256) travels in

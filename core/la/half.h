@@ -1,5 +1,6 @@
 /* core/la/half.h: float32 matrices stored as 16-bit floats (IEEE binary16 "fp16", or bfloat16 "bf16")
- * and their matrix-vector product with float32 accumulation (issue 11, "MVM storage precision").
+ * and their matrix-vector product with float32 accumulation (`recon.mvm_precision`; docs/guide.md "Storage
+ * precision").
  *
  * The MVM apply y = R s reads every element of R once per frame and does 2 flops with it: it runs at the
  * memory bandwidth, so halving the bytes of R halves its time. Each row i is stored as

@@ -203,7 +203,9 @@ void wt_sparse_apply(const wt_sparse *a, double alpha, const double *x, double *
 
 void wt_sparse_apply_t(const wt_sparse *a, double alpha, const double *x, double *y)
 {
-#pragma omp parallel for schedule(static) if (a->ncol > 4096)
+/* columns from which the transpose's independent dots take a thread team (fewer: the region costs more) */
+enum { APPLY_T_PARALLEL_MIN = 4096 };
+#pragma omp parallel for schedule(static) if (a->ncol > APPLY_T_PARALLEL_MIN)
     for (int64_t c = 0; c < a->ncol; c++) {
         double s = 0.0;
         for (int64_t k = a->colptr[c]; k < a->colptr[c + 1]; k++) s += a->val[k] * x[a->rowind[k]];

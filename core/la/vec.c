@@ -15,6 +15,13 @@
 #endif
 
 enum { SIDE = 8 }; /* chunks summed side by side */
+/* Lengths above which a call takes a thread team: below, the region's start and end cost more than the pass over
+ * the vectors saves (a pass with more arrays pays sooner). The chunk sums make the bits independent of them. */
+enum {
+    DOT_PARALLEL_MIN = 32768,  /* wt_vec_dot: two arrays read */
+    MANY_PARALLEL_MIN = 8192,  /* wt_vec_dot_many, wt_vec_sub_many: q + 1 arrays */
+    GROUPS_PARALLEL_MIN = 16384 /* wt_vec_sum_groups: the groups' accumulators */
+};
 
 /* part[c] = Σ_{i ∈ chunk c} x_i y_i for c in [c0, c1), chunk c = [c len, min(c len + len, n)) */
 static void chunk_dots(const double *restrict x, const double *restrict y, int64_t n, int64_t len, int c0, int c1,
@@ -47,7 +54,7 @@ double wt_vec_dot(const double *x, const double *y, int64_t n)
 {
     double part[WT_VEC_CHUNKS];
     const int64_t len = (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS;
-#pragma omp parallel if (n > 32768)
+#pragma omp parallel if (n > DOT_PARALLEL_MIN)
     {
 #ifdef _OPENMP
         const int nt = omp_get_num_threads(), id = omp_get_thread_num();
@@ -135,7 +142,7 @@ void wt_vec_dot_many(const double *X, int64_t ld, int q, const double *y, int64_
                      double *out, int nthreads)
 {
     double part[WT_VEC_MAX_MANY * WT_VEC_CHUNKS];
-#pragma omp parallel num_threads(nthreads > 0 ? nthreads : 1) if (n > 8192)
+#pragma omp parallel num_threads(nthreads > 0 ? nthreads : 1) if (n > MANY_PARALLEL_MIN)
     {
 #ifdef _OPENMP
         const int nt = omp_get_num_threads(), id = omp_get_thread_num();
@@ -188,7 +195,7 @@ void wt_vec_sub_many_range(double *z, const double *X, int64_t ld, int q, const 
 void wt_vec_sub_many(double *z, const double *X, int64_t ld, int q, const double *v, int64_t n, const int64_t *runs,
                      int nruns, int nthreads)
 {
-#pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1) if (n > 8192)
+#pragma omp parallel for schedule(static) num_threads(nthreads > 0 ? nthreads : 1) if (n > MANY_PARALLEL_MIN)
     for (int c = 0; c < WT_VEC_CHUNKS; c++) {
         const int64_t len = (n + WT_VEC_CHUNKS - 1) / WT_VEC_CHUNKS, a = (int64_t)c * len, b = a + len < n ? a + len : n;
         wt_vec_sub_many_range(z, X, ld, q, v, runs, nruns, a, b);
@@ -245,7 +252,7 @@ WT_CPU_CLONES int64_t wt_vec_first_nonfinite(const double *x, int64_t n)
 
 void wt_vec_sum_groups(const double *acc, int64_t n, double *out)
 {
-#pragma omp parallel for schedule(static) if (n > 16384)
+#pragma omp parallel for schedule(static) if (n > GROUPS_PARALLEL_MIN)
     for (int64_t i = 0; i < n; i++) {
         double v = acc[i];
         for (int g = 1; g < WT_GROUPS; g++) v += acc[(int64_t)g * n + i];

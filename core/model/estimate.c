@@ -16,11 +16,11 @@
 #define DENSE_RATE 55e9      /* flops per s of the dense path, 2 threads: 17 Tflop of dpotrf + dpotrs in 299 s (results §23) */
 #define SOLVE_RATE 25e9       /* flops per s of CHOLMOD's supernodal solves (§4: 53 s for 10027 columns) */
 #define NORMAL_NS 2.0e-6      /* s per non-zero of N formed (§4: 1.3–2.4 µs) */
-/* Diffractive sensors (core/optics/spot.h; `make bench-spot` on the E-ELT LGS, 2 threads, 2026-11-25): */
+/* Diffractive sensors (core/optics/spot.h; calibrated by `make bench-spot` on the E-ELT LGS, 2 threads): */
 #define SPOT_TABLE_NS 30e-9   /* s of set-up per float of a subaperture's kernel table (2.99 s for 30672 × 3249) */
 #define SPOT_FLOP_RATE 8e9    /* image flops (wt_spot_cost) per s, 2 threads (0.126 Mflop in ~15 µs of wall) */
 #define SPOT_NOISE_NS 30e-9   /* s per pixel of Poisson + Gaussian noise, 2 threads */
-#define SPOT_MC_NS 95e-9      /* s per pixel draw of the Monte-Carlo calibration, 2 threads (centroid.h: 190 thread-ns) */
+#define SPOT_MC_NS 95e-9      /* s per pixel draw of the Monte-Carlo calibration, 2 threads (~190 thread-ns each, `make bench-spot`) */
 /* the long-exposure PSFs (core/sim/psf.c), one thread, measured at the E-ELT size (336 pupil points across, N = 672,
  * 64 pixels: ~30 ms per frame taken for 25 directions when quiet, 60-80 ms at a load average of 10) */
 #define PSF_POINT_NS 8e-9     /* s per pupil point: phase, reduction, sin/cos, store */

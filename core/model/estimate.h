@@ -1,6 +1,6 @@
 /* core/model/estimate.h: the peak memory and the run time of a command, estimated from the configuration
- * alone, before anything large is allocated (issue 10, class C: sizes that fit every key's range but not
- * the machine are refused up front, naming the keys that drive them).
+ * alone, before anything large is allocated (sizes that fit every key's range but not the machine are refused
+ * up front, naming the keys that drive them).
  *
  * Memory: the sum of the largest arrays each command holds at its peak, counted from the sizes the
  * configuration implies (SPEC §1: subapertures n, fine points n p + 1 per side, phase screens of side
@@ -15,7 +15,7 @@
  * bilinear read per fine point, layer and line of sight (sensors and evaluation directions); the
  * reconstructor: the flops of its iterations (the stencils of core/model/tomography_cost.c); the MVM: its
  * bytes streamed. The rates are the ones measured on this 2-core machine when quiet (docs/results.md §7b:
- * single thread, the GEMV at §2's 28 GB/s; 2026-11-24): the time is an order of magnitude, not a promise.
+ * single thread, the GEMV of §2): the time is an order of magnitude, not a promise.
  *
  * Diffractive sensors (`*.wfs.model = "diffractive"`, built with the system by every command): the spot
  * kernel tables, k² Lp² floats per subaperture with its n_p² amplitudes (14 kB at the E-ELT LGS: 16 pixels

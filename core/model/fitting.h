@@ -52,7 +52,7 @@ typedef struct wt_fitting_stats {
 
 /* layers: the reconstruction layer grids and altitudes (the tomography's); nlayers = 0 makes a fitting
  * that only fits given maps (wt_fitting_solve_maps). par->solver WT_FIT_CHOLESKY assembles and factors N here
- * (E-ELT: ~3 s, docs/results.md §15); an unknown solver is WT_ERR_INVALID, a factorisation that fails
+ * (seconds at E-ELT size: docs/results.md §15); an unknown solver is WT_ERR_INVALID, a factorisation that fails
  * WT_ERR_NUMERIC naming recon.cg9.fit_regularization. */
 int wt_fitting_alloc(wt_context *ctx, const wt_system *sys, int nlayers, const wt_grid *layers,
                      const double *altitudes, const wt_fitting_params *par, wt_fitting **out);

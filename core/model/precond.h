@@ -60,9 +60,10 @@ const char *wt_precond_kind_name(int kind);
 int wt_precond_kind(const char *name);
 
 /* Build the preconditioner of kind par->kind for the tomography t (not owned; must outlive the object).
- * Cost at E-ELT size: jacobi ~1 s (coloured probing), the NGS term r applies of the adjoint, coarse_ngs
- * nc applies of M (3-10 s for nc = 384), multilevel that and L forward applies per colour of every
- * detail level below the coarse block (~the cost of the Jacobi probing), fourier L applies and L² FFTs.
+ * Cost: jacobi a forward apply per layer and colour (coloured probing), the NGS term r applies of the adjoint,
+ * coarse_ngs nc applies of M (the longest at E-ELT size, nc = 384; docs/results.md has the times), multilevel that
+ * and L forward applies per colour of every detail level below the coarse block (~the cost of the Jacobi probing),
+ * fourier L applies and L² FFTs.
  * WT_ERR_INVALID for an unknown kind, a negative coarse_levels (but fourier's), fourier on wavelet
  * coefficients or another kind but none on the layers' values (wt_tomography_space); WT_ERR_CONFIG when the
  * coarse block would exceed 4096 coefficients or (fourier) the layers are not on one grid; WT_ERR_NUMERIC

@@ -21,8 +21,8 @@
  * levels, 8 m apart for both the 0.5 m and the 1 m E-ELT layers at coarse_levels 2) by the exact block
  * of the LGS + prior part of M; its Cholesky factor is computed once (nc applies of M at set-up) and
  * costs two triangular solves, ~2 nc² flops, per iteration (nc = 384 on the E-ELT pcg3 layers). Both
- * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds: the
- * backward one took ~67 µs of an ~0.47 ms iteration that way). coarse_ngs then replaces the factor by the
+ * solves run by columns (axpys that vectorise; a row-oriented solve is a chain of dependent adds, a visible part
+ * of an iteration at E-ELT size). coarse_ngs then replaces the factor by the
  * block's inverse (coarse_invert): the same ~2 nc² flops as one product whose rows split over the threads.
  * The multilevel kind keeps the solves. The NGS stay in the Woodbury term, now around B: P = B + R C_n Rᵀ. */
 WT_CPU_CLONES void wt_precond__coarse_solve(const wt_precond *p, const double *r, double *z)
@@ -38,7 +38,7 @@ WT_CPU_CLONES void wt_precond__coarse_solve(const wt_precond *p, const double *r
 /* coarse_ngs: the block's inverse, column j = (L Lᵀ)⁻¹ e_j, symmetrised (the preconditioner must be symmetric;
  * the solves' rounding is not), in place of the factor. An apply is then one matrix-vector product whose rows
  * split over the threads, where the two triangular solves were chains of 2q dependent columns on one thread
- * (at E-ELT size: 384², 1.2 MB that the operator evicts between applies, ~50 µs of an iteration). */
+ * (at E-ELT size 384², 1.2 MB, which the operator evicts from the caches between applies). */
 int wt_precond__coarse_invert(wt_precond *p, int single)
 {
     int st = WT_OK;
@@ -88,9 +88,10 @@ int wt_precond__coarse(wt_precond *p, wt_tomography *t, int coarse_levels)
         side[l] = wt_precond__coarse_side(t, l, coarse_levels);
         q += side[l] * side[l];
     }
-    if (q > 4096)
+    if (q > WT_PRECOND_COARSE_MAX)
         return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: %s with coarse_levels %d gives a block of %d "
-                        "coefficients; at most 4096 (lower coarse_levels)", wt_precond__kind_names[p->kind], coarse_levels, q);
+                        "coefficients; at most %d (lower coarse_levels)", wt_precond__kind_names[p->kind], coarse_levels, q,
+                        WT_PRECOND_COARSE_MAX);
     WT_ALLOC(ctx, p->c_idx, q, "coarse indices");
     WT_ALLOC(ctx, p->c_L, (size_t)q * q, "coarse block");
     WT_ALLOC(ctx, p->c_w, q, "coarse work");
@@ -144,25 +145,38 @@ fail:
     return st;
 }
 
+/* acc[i] += Σ_j M[q j + b0 + i] r[c_idx[j]] for i < nb, j in order (M: q x q column-major, M32 when f32, its
+ * values converted to double exactly, else M64). f32 and nb are constants where it is inlined: one loop each. */
+static inline __attribute__((always_inline)) void coarse_columns(const wt_precond *p, const double *r,
+                                                                 const float *M32, const double *M64, const int f32,
+                                                                 int b0, const int nb, double *acc)
+{
+    const int q = p->nc;
+    if (f32)
+        for (int j = 0; j < q; j++) {
+            const double v = r[p->c_idx[j]];
+            const float *restrict col = M32 + (size_t)q * j + b0;
+            for (int i = 0; i < nb; i++) acc[i] += (double)col[i] * v;
+        }
+    else
+        for (int j = 0; j < q; j++) {
+            const double v = r[p->c_idx[j]];
+            const double *restrict col = M64 + (size_t)q * j + b0;
+            for (int i = 0; i < nb; i++) acc[i] += (double)col[i] * v;
+        }
+}
+
 /* z[c_idx[i]] = Σ_j (B_c⁻¹)_ij r[c_idx[j]] for the coarse rows i in [i0, i1) (coarse_ngs: the block's inverse
  * held explicitly). Each row's sum runs over j in order whatever rows a call takes: the same bits for any split
  * of the rows over threads. By blocks of 64 rows, the block's sums in registers/L1 while the columns stream. */
 static inline __attribute__((always_inline)) void coarse_inv_block(const wt_precond *p, const double *r, double *z,
                                                                    int b0, int nb, const int f32)
 {
-    const int q = p->nc;
     double acc[64] = {0.0};
-#define WT_COARSE_COLUMNS(T, M, NB)                                                                                   \
-    for (int j = 0; j < q; j++) {                                                                                     \
-        const double v = r[p->c_idx[j]];                                                                              \
-        const T *restrict col = (M) + (size_t)q * j + b0;                                                             \
-        for (int i = 0; i < (NB); i++) acc[i] += (double)col[i] * v;                                                  \
-    }
-    if (f32 && nb == 64) WT_COARSE_COLUMNS(float, p->c_inv32, 64)
-    else if (f32) WT_COARSE_COLUMNS(float, p->c_inv32, nb)
-    else if (nb == 64) WT_COARSE_COLUMNS(double, p->c_inv, 64)
-    else WT_COARSE_COLUMNS(double, p->c_inv, nb)
-#undef WT_COARSE_COLUMNS
+    if (f32 && nb == 64) coarse_columns(p, r, p->c_inv32, NULL, 1, b0, 64, acc);
+    else if (f32) coarse_columns(p, r, p->c_inv32, NULL, 1, b0, nb, acc);
+    else if (nb == 64) coarse_columns(p, r, NULL, p->c_inv, 0, b0, 64, acc);
+    else coarse_columns(p, r, NULL, p->c_inv, 0, b0, nb, acc);
     for (int i = 0; i < nb; i++) z[p->c_idx[b0 + i]] = acc[i];
 }
 

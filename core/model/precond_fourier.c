@@ -193,9 +193,9 @@ static int fourier_coarse_block(wt_precond *p, wt_tomography *t)
     const int L = wt_tomography_nlayers(t), n = p->fd_n, sc = p->fd_sc, sc2 = sc * sc, q = L * sc2;
     const int64_t m2 = (int64_t)n * n;
     double *e = NULL, *sl = NULL, *col = NULL, *u = NULL, *cols = NULL;
-    if (q > 4096)
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: fourier's coarse block has %d coefficients; at most 4096 "
-                        "(lower coarse_levels)", q);
+    if (q > WT_PRECOND_COARSE_MAX)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "tomography: fourier's coarse block has %d coefficients; at most %d "
+                        "(lower coarse_levels)", q, WT_PRECOND_COARSE_MAX);
     WT_ALLOC(ctx, p->c_L, (size_t)q * q, "coarse block");
     WT_ALLOC(ctx, p->c_w, q, "coarse work");
     WT_ALLOC(ctx, e, p->n, "coarse probe");

@@ -88,7 +88,7 @@ static void probe_block(const wt_tomography *t, int l, int level, int orient, in
 }
 
 /* J⁻¹ = 1 / (diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D), the diagonal by probe_block over every layer, level,
- * orientation and colour (~1 s at E-ELT pcg3 size). */
+ * orientation and colour (a forward apply each). */
 int wt_precond__jacobi(wt_precond *p, const wt_tomography *t)
 {
     int st = WT_OK;

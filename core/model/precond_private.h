@@ -13,6 +13,9 @@
 #include <stdint.h>
 
 #define WT_FOURIER_MAX_SC 64 /* the fourier kind's coarse square, side per layer at most */
+/* The coarse block's coefficients at most (coarse_ngs, multilevel, fourier): its dense factor is q² doubles (128 MB)
+ * and its set-up q applies of M̃ plus q³/3 flops */
+#define WT_PRECOND_COARSE_MAX 4096
 
 struct wt_precond {
     wt_context *ctx;

@@ -303,13 +303,16 @@ static void direction(const wt_sensing *ws, int k, double *ex, double *ey)
     else *ex = 1.0, *ey = 0.0;
 }
 
+/* subapertures from which a frame's gain sums take a thread team (fewer: the region costs more than the sums) */
+enum { GAIN_PARALLEL_MIN = 256 };
+
 /* the sums of wt_sensing_gain_in_loop for this frame's slopes */
 static void gain_accumulate(wt_sensing *ws, const double *slopes)
 {
     const int np = ws->np, nsub = ws->nsub;
     const double dx = ws->side / np;
     double sum[4] = {0};
-#pragma omp parallel for schedule(static) reduction(+ : sum[:4]) if (nsub > 256 && !omp_in_parallel())
+#pragma omp parallel for schedule(static) reduction(+ : sum[:4]) if (nsub > GAIN_PARALLEL_MIN && !omp_in_parallel())
     for (int k = 0; k < nsub; k++) {
         const float *a = ws->amp + (size_t)k * np * np, *o = ws->opd + (size_t)k * np * np;
         double gx = 0, wx = 0, gy = 0, wy = 0;

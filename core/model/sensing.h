@@ -35,7 +35,7 @@
 typedef struct wt_spot wt_spot;
 typedef struct wt_sodium wt_sodium;
 
-/* The truncation limits of the detector field (item "bad input" of issue 19): above WARN of a spot's flux
+/* The truncation limits of the detector field : above WARN of a spot's flux
  * outside the field (worst subaperture of the noise-free reference), a warning naming the keys; above
  * REFUSE, refused. */
 #define WT_SENSING_TRUNC_WARN 0.5

@@ -18,6 +18,9 @@
 #include "../op/projection.h"
 #include "../op/wavelet.h"
 
+/* Below both the operator runs on one thread: its apply is too short for a parallel region to pay (below) */
+enum { SERIAL_MAX_UNKNOWNS = 16384, SERIAL_MAX_SLOPES = 8192 };
+
 int64_t wt_tomography_nunknowns(const wt_tomography *t) { return t->n; }
 int wt_tomography_nlayers(const wt_tomography *t) { return t->L; }
 const wt_grid *wt_tomography_layer_grid(const wt_tomography *t, int l) { return &t->grid[l]; }
@@ -143,10 +146,10 @@ int wt_tomography_alloc(wt_context *ctx, const wt_system *sys, const wt_recon_va
     t->stack = (wt_sensor_stack){.sys = sys, .nin = 1, .proj = t->projs, .in_offset = &t->zero_offset};
 
     /* A parallel region costs a few µs on an idle machine and a scheduler time slice when a thread is
-     * descheduled: below ~16k unknowns and ~8k slopes (an apply of well under 0.1 ms: the demo's 0.04) threads do not
-     * pay. The slopes count too: the sensors' part can dominate a small grid (the 42 × 42 geometry: 6144 unknowns,
-     * 15516 slopes, 0.48 ms an apply on one thread; on two, the frame ×0.67: docs/results.md §31). */
-    t->nthreads = t->n < 16384 && sys->nslopes < 8192 ? 1 : wt_context_threads(ctx);
+     * descheduled: an operator below both SERIAL_MAX_UNKNOWNS and SERIAL_MAX_SLOPES (the demo's) is too small an
+     * apply for threads to pay. The slopes count too: the sensors' part can dominate a small grid (the 42 × 42
+     * geometry; docs/results.md §31). */
+    t->nthreads = t->n < SERIAL_MAX_UNKNOWNS && sys->nslopes < SERIAL_MAX_SLOPES ? 1 : wt_context_threads(ctx);
     {
         double cost[2 * WT_MAX_GS];
         for (int m = 0; m < t->S; m++) cost[m] = (double)sys->sensors[m].nslopes + 1.0;

@@ -205,8 +205,8 @@ static int model_error_cached(wt_tomography *t, double r0, int natm, const doubl
  * "more light"). The weight then trusts a slope no more than the model can explain it: σ²_g floors the
  * measurement noise, max(κσ², σ²_g), rather than adding to it as the binning error does. The sum is the white-noise
  * model of it, but the part sits at the grid's finest scales, which a MAP with κσ² > σ²_g already leaves to its
- * prior, and adding it there weakens the large scales the slopes do measure (measured: the sum costs the demo 2 nm
- * at its 100 photons, the floor leaves it bit for bit; docs/results.md "more light"). An LGS at H sees a layer at h through
+ * prior, and adding it there weakens the large scales the slopes do measure (docs/results.md "more light": the sum
+ * costs the demo at its 100 photons, the floor leaves it bit for bit). An LGS at H sees a layer at h through
  * subapertures of side d c, c = 1 − h/H, in the layer's coordinates, and its slope is c times the layer's
  * gradient averaged over them; per axis, for the von Kármán phase spectrum at 500 nm
  * W(f) = 0.023 r0^(−5/3) (|f|² + L0^(−2))^(−11/6) [rad² m²] and the slope as an angle (λ = 500 nm):

@@ -9,7 +9,7 @@
 
 /* The fp32 operator's NGS term. At low noise the NGS weigh ~10⁵ times the LGS, so their part stays double
  * (tomography_operator.c's layers_dwt says why); as the chain Γ P, Ĉ⁻¹, Γᵀ, Pᵀ it was the double work of every apply, its projections scalar (short
- * runs) and their transposes in the layers' stage after a barrier: ~0.16 ms of a 1.5 ms E-ELT frame. An NGS has
+ * runs) and their transposes in the layers' stage after a barrier: a tenth of an E-ELT frame. An NGS has
  * few slopes (12 for the E-ELT's three), so its part is the explicit rank-r matrix G = [Pᵀ Γᵀ e_k] (the same
  * linear map; its columns live on the footprints' rims: ~1/8 of the layers' points), applied as Gᵀ φ (slopes) and
  * G w (the weighted slopes onto the layers' sum). Built here column by column with the double adjoint: twice, to

@@ -63,7 +63,7 @@ void wt_tomography_prior_apply_layer_ws(const wt_tomography *t, int l, const dou
  * the LGS: a float rounding before their weights reaches the NGS term only through the NGS's dozen global modes
  * (the rows of Ĉ⁻¹ Γ P), which the preconditioner's Woodbury term holds exactly; one after them (a float Γᵀ, Pᵀ,
  * accumulator or DWT) spreads 1e-7 of that large term over every mode, and moved the low-noise field WFE by
- * +0.07 nm (docs/results.md §30; test_tomography test_single_precision_ngs_term). */
+ * +0.07 nm (docs/results.md §30; test_tomography_f32 test_single_precision_ngs_term). */
 /* Thread id's part (of nt; inside a parallel region): its layers */
 static void layers_dwt_team(const wt_tomography *t, wt_tomography_work *w, const double *c, double *phi, float *phi32,
                             int id, int nt)
@@ -288,7 +288,7 @@ static void adjoint_prior(const wt_tomography *t, wt_tomography_work *w, const d
 
 /* slopes = Γ P φ for every sensor and w->pphi = α C_φ⁻¹ φ on every layer (the full prior's term, which the
  * adjoint adds back): independent tasks, each writing its own output, so any thread may run any of them (the
- * same bits on any thread count). The layers' FFTs first, largest first (layer 0, 128², is ~60 µs, as long as
+ * same bits on any thread count). The layers' FFTs first, largest first (layer 0's 128² takes as long as
  * several sensors): with one dynamic loop the other thread takes the small layers and then the sensors, where
  * a loop over the layers alone (transform + FFT per layer) left it idle for half of the large layer's task. */
 static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, const double *phi, double *slopes,
@@ -314,8 +314,8 @@ static void forward_slopes_prior(const wt_tomography *t, wt_tomography_work *w, 
     wt_tomography__prof_wall(t, w, WT_TOMO_STAGE_FORWARD, t0);
 }
 
-/* The fp32 operator's first two stages in one parallel region (a region's start and end cost ~3 µs on this host,
- * a barrier ~1.5): the layers' transforms (phi32; phi in double for the full prior's FFTs), then the forward.
+/* The fp32 operator's first two stages in one parallel region (a region's start and end cost about two barriers,
+ * and the fp32 stages are short): the layers' transforms (phi32; phi in double for the full prior's FFTs), then the forward.
  * In space phi is c and only its rounding runs. */
 static void dwt_forward_f32(const wt_tomography *t, wt_tomography_work *w, const double *c, double *pphi)
 {
@@ -423,7 +423,7 @@ static int solve(wt_tomography *t, wt_pcg_precond P, const double *s, double *c,
 {
     const double t0 = wt_tomography__prof_t0(t->work);
     /* A NaN or Inf slope reaches the right-hand side (every slope has a weight and a non-empty Γᵀ, Pᵀ; NaN · 0 is
-     * NaN): its n values are tested instead of the 2.5 times as many slopes (~20 µs of a frame), and the slopes
+     * NaN): its n values are tested instead of the 2.5 times as many slopes (a pass over them per frame), and the slopes
      * searched only then; the solver's state is not touched (its next right-hand side is a buffer of its own) */
     double *b = wt_pcg_rhs(t->pcg);
     adjoint_slopes(t, t->work, s, b);

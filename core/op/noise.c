@@ -467,7 +467,7 @@ WT_CPU_CLONES void wt_noise_set_weight_many(const wt_noise *const *ns, int k, co
 /* The float weight's sums: LANES independent double partial sums per sum, so that the adder's latency is hidden
  * (one chain waits ~4 cycles per subaperture) and a block of LANES subapertures is a few vector instructions.
  * 16 lanes are two AVX-512 or four AVX2 registers per sum, enough chains in flight for either; with 8, GCC 12
- * leaves the AVX-512 clone's products scalar (×4 slower), 32 gains nothing. */
+ * leaves the AVX-512 clone's products scalar, 32 gains nothing. */
 enum { LANES = 16 };
 
 static inline __attribute__((always_inline)) double lanes_total(const double *acc)
@@ -575,7 +575,7 @@ static void focus_f32(const wt_noise *n, const float *xx, const float *xy, float
 /* Ĉ⁻¹ x in the double set_batch's order (means of x, v = C̃⁻¹ (x − T x) with its sums, y = v − T v), in float with
  * the sums in double and the means rounded to float where they meet the slopes. One sensor at a time: the lanes
  * leave no adder latency for a batch to share, and three passes over x, the blocks and y run at about the L2's
- * bandwidth (3 LGS of 5300 subapertures: ~6 µs against ~18 µs for the double batch, AVX-512). */
+ * bandwidth (on the E-ELT LGS a third of the double batch's time, AVX-512). */
 WT_CPU_CLONES void wt_noise_set_weight_many_f32(const wt_noise *const *ns, int k, const float *const *x,
                                                 float *const *y)
 {

@@ -11,17 +11,17 @@
  * apply loop then reads only the layer values and the target row, with the few KB of tables in L1.
  * Masked target points are stored as runs [lo, hi) per row, so apply never tests a mask. Along a run
  * the stencil columns advance monotonically, which apply_t exploits to write each layer column once
- * per run instead of once per point (1.9x faster than the plain scatter; see the loop). The same
- * trick in apply (reuse the y-interpolated column while the stencil stays put) saves loads but adds
- * a data-dependent branch, and measured between 0.75x and 1.07x of the plain gather depending on the
- * machine's state, so apply keeps the plain gather.
+ * per run instead of once per point (the plain scatter chains every update through the previous store;
+ * see the loop). The same trick in apply (reuse the y-interpolated column while the stencil stays put)
+ * saves loads but adds a data-dependent branch, which wins or loses with the machine's state, so apply
+ * keeps the plain gather.
  *
  * Weights are kept as (w0, w1) pairs instead of one fraction f (w0 = 1 − f, w1 = f) so that
  * clamp_outside needs no special path: a stencil corner beyond the grid simply gets weight 0 (the
  * zero-extended layer), with its base index pulled back inside the grid.
  *
  * No OpenMP inside: the tomography calls projections of different sensors from its own parallel
- * region, and a nested team would oversubscribe the cores; one call is ~10 µs of work.
+ * region, and a nested team would oversubscribe the cores; one call is too little work for a team of its own.
  */
 #include "projection.h"
 #include "projection_private.h"
@@ -32,6 +32,13 @@
 #include <emmintrin.h>
 #define WT_PROJ_SSE2 1
 #endif
+
+/* the kernels shared with projection_f32.c, in double */
+#define REAL double
+#define K(name) name##_f64
+#include "projection_kernels.inc"
+#undef REAL
+#undef K
 
 /* A coordinate within this many cells of the first/last grid line is treated as on it: such a point
  * is on the edge up to rounding of (1 − h/H) r + θh, and the weight it would put outside is < 1e-9. */
@@ -295,9 +302,9 @@ int64_t wt_projection_nin(const wt_projection *p) { return p->nin; }
 int64_t wt_projection_nout(const wt_projection *p) { return (int64_t)p->tnx * p->tny; }
 
 #if defined(__GNUC__) && !defined(__clang__)
-/* GCC vectorises apply's loop with gather instructions, which measured 1.6x slower than the scalar
- * loop on AMD Zen (28 vs 18 µs for the E-ELT LGS case); the scalar loop already issues ~2.7 memory
- * operations per cycle, close to the load/store-port bound. */
+/* GCC vectorises apply's loop with gather instructions, slower than the scalar loop on AMD Zen (a gather
+ * is several loads' worth of micro-ops); the scalar loop already issues close to the load/store ports' bound of
+ * memory operations per cycle. */
 #define WT_SCALAR_LOOPS __attribute__((optimize("no-tree-vectorize")))
 #else
 #define WT_SCALAR_LOOPS
@@ -408,7 +415,7 @@ WT_SCALAR_LOOPS static inline __attribute__((always_inline)) void apply_layers(c
  * point's r[j] and r[j + 1]. Per lane the arithmetic is the scalar expression's, in its order, and the
  * layers are added per point in layer order; a block where a layer's columns span more than 6 cells
  * (not met where p->narrow is 0, which keeps the two-lane kernel: the 0.5 m ground layer under the
- * 0.5 m corners, where this one measured slower) computes that layer's 8 terms by the scalar expression. */
+ * 0.5 m corners, where this one is slower: its blocks span more cells) computes that layer's 8 terms by the scalar expression. */
 __attribute__((target("avx512f"))) static void apply_layers_avx512(const wt_projection *p, int l0, int nl, double alpha,
                                                                   const double *restrict layers, double *restrict points)
 {
@@ -623,8 +630,8 @@ WT_CPU_CLONES static void aligned_t(double a0, const double *restrict y, int n, 
 WT_SCALAR_LOOPS
 void wt_projection_apply_t(const wt_projection *p, double alpha, const double *restrict points, double *restrict layers)
 {
-    /* layer by layer (running the layers side by side per point, as apply does, measured 12 % slower
-     * on the E-ELT LGS: the per-layer column state then no longer fits the registers) */
+    /* layer by layer (running the layers side by side per point, as apply does, is slower on the E-ELT LGS: the
+     * per-layer column state then no longer fits the registers) */
     const int nl = p->nlayers, tnx = p->tnx, tny = p->tny;
     for (int32_t r = 0; r < p->nrun; r++) {
         const int iy = p->run_row[r], lo = p->run_lo[r], hi = p->run_hi[r];
@@ -639,7 +646,7 @@ void wt_projection_apply_t(const wt_projection *p, double alpha, const double *r
                 continue;
             }
             const double *restrict w0 = p->cw0 + (size_t)l * tnx, *restrict w1 = p->cw1 + (size_t)l * tnx;
-            WT_PROJ_T_PAIRS(double, lo, hi); /* (runs are never empty) */
+            t_pairs_f64(cb, w0, w1, y, a0, a1, lo, hi, r0, r1);
         }
     }
 }

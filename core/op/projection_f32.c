@@ -4,11 +4,10 @@
  *
  * Why a second set of kernels and not the double ones on converted data: the double kernels' speed is set by how
  * many target points an AVX-512 register holds (8) and, for Pᵀ, by the add latency of its per-column running
- * sums. In float P takes 16 points a block (×1.5 on the E-ELT LGS); Pᵀ is rebuilt as two passes (the tables'
- * comment below, wt_projection_f32_free): the target rows into their layer rows by contiguous vector adds, then one
- * fixed 1-D transposed interpolation along x per layer row, a few lane permutes per 16 columns (×2.1–2.5 on the LGS's
- * 1 m layers, against the double scatter; a 16-point in-block prefix-sum form measured only ×1.2: its lane moves
- * bound it). Short runs (the NGS models' rims, a lit-area model's subaperture edges) keep scalar loops: Pᵀ as fast
+ * sums. In float P takes 16 points a block; Pᵀ is rebuilt as two passes (the tables' comment below,
+ * wt_projection_f32_free): the target rows into their layer rows by contiguous vector adds, then one fixed 1-D
+ * transposed interpolation along x per layer row, a few lane permutes per 16 columns (a 16-point in-block prefix-sum
+ * form gains less: its lane moves bound it). Short runs (the NGS models' rims, a lit-area model's subaperture edges) keep scalar loops: Pᵀ as fast
  * as the double one there, P slower than its two-lane form (the NGS are 3 of 9 sensors and a fifth of the work).
  * Accuracy: float's unit roundoff 2^-24 ≈ 6e-8 per operation; a point adds ≤ 4 layers × 4 terms, a layer value the
  * terms of the few target points of its cells: relative errors ~1e-6, far below the noise the tomography weighs.
@@ -17,6 +16,13 @@
 
 #include "projection.h"
 #include "projection_private.h"
+
+/* the kernels shared with projection.c, in float */
+#define REAL float
+#define K(name) name##_f32
+#include "projection_kernels.inc"
+#undef REAL
+#undef K
 
 /* A GCC-vectorised loop over the stencils would gather, slower than the scalar loop (projection.c) */
 #if defined(__GNUC__) && !defined(__clang__)
@@ -85,14 +91,14 @@ WT_F32_SCALAR static void apply_scalar(const wt_projection *p, float alpha, cons
 }
 
 /* The identity stencil's Pᵀ: contiguous, vectorised (scalar, a store and a load 4 KiB apart, as the workspace's
- * page-aligned arrays are, falsely wait on each other: ×8 slower) */
+ * page-aligned arrays are, falsely wait on each other: 4K aliasing) */
 WT_CPU_CLONES static void aligned_run(float a0, const float *restrict y, int n, float *restrict r)
 {
     for (int i = 0; i < n; i++) r[i] += a0 * y[i];
 }
 
 /* One layer's Pᵀ on points [ix, hi) of one run: the identity stencil's contiguous form, or projection.c's column
- * pairs (WT_PROJ_T_PAIRS) */
+ * pairs (projection_kernels.inc) */
 static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, float *restrict r0, float *restrict r1,
                                                               const float *restrict y, int ix, int hi)
 {
@@ -107,7 +113,7 @@ static inline __attribute__((always_inline)) void scatter_run(const row_f32 *q, 
             for (float *restrict r = r0 + cb[ix] - ix; ix < hi; ix++) r[ix] += a0 * y[ix];
         return;
     }
-    WT_PROJ_T_PAIRS(float, ix, hi);
+    t_pairs_f32(cb, w0, w1, y, a0, a1, ix, hi, r0, r1);
 }
 
 WT_F32_SCALAR static void apply_t_scalar(const wt_projection *p, float alpha, const float *restrict points,

@@ -49,39 +49,6 @@ typedef struct wt_proj_t32 {
     float *wt;            /* [nblk][K][16] */
 } wt_proj_t32;
 
-/* One layer row's Pᵀ over the points [LO, HI) of one run, in REAL (projection.c's wt_projection_apply_t, double;
- * projection_f32.c's scatter_run, float): neighbouring points share stencil columns, and scattering each point
- * straight into the layer would chain every update through the previous store, so the sums of the current column
- * pair (jc, jc + 1) stay in registers and a column is written once the run has left it. Reads cb, w0, w1, y, a0, a1
- * of the caller's scope; adds into r0, r1 (the stencil's two layer rows). LO < HI. */
-#define WT_PROJ_T_PAIRS(REAL, LO, HI)                                                                              \
-    do {                                                                                                           \
-        int32_t jc_ = cb[(LO)];                                                                                    \
-        REAL s0_ = 0, s1_ = 0;                                                                                     \
-        for (int ix_ = (LO); ix_ < (HI); ix_++) {                                                                  \
-            const int32_t j_ = cb[ix_];                                                                            \
-            if (j_ != jc_) {                                                                                       \
-                r0[jc_] += a0 * s0_;                                                                               \
-                r1[jc_] += a1 * s0_;                                                                               \
-                if (j_ == jc_ + 1) {                                                                               \
-                    s0_ = s1_;                                                                                     \
-                } else {                                                                                           \
-                    r0[jc_ + 1] += a0 * s1_;                                                                       \
-                    r1[jc_ + 1] += a1 * s1_;                                                                       \
-                    s0_ = 0;                                                                                       \
-                }                                                                                                  \
-                s1_ = 0;                                                                                           \
-                jc_ = j_;                                                                                          \
-            }                                                                                                      \
-            s0_ += w0[ix_] * y[ix_];                                                                               \
-            s1_ += w1[ix_] * y[ix_];                                                                               \
-        }                                                                                                          \
-        r0[jc_] += a0 * s0_;                                                                                       \
-        r1[jc_] += a1 * s0_;                                                                                       \
-        r0[jc_ + 1] += a0 * s1_;                                                                                   \
-        r1[jc_ + 1] += a1 * s1_;                                                                                   \
-    } while (0)
-
 /* Builds p->t32 (called by wt_projection_alloc for a covered projection; layers: its layer grids) */
 int wt_projection_f32_setup(wt_projection *p, const wt_grid *layers);
 void wt_projection_f32_free(wt_projection *p);

@@ -1,5 +1,5 @@
 /* core/op/scale_gain.h: the integrator gain of the POLC loop per spatial scale of the DM commands
- * (issue 20 §4; the paper's closing remark "the gain in the temporal control can be applied
+ * (the paper's closing remark "the gain in the temporal control can be applied
  * scale-dependently").
  *
  *   a_{t+d} = a_{t+d−1} + G (R s_ol − a_t),   G = Σ_{j=0}^{L} g_j Π_j   (block-diagonal over the DMs)

@@ -14,8 +14,8 @@
  * sensor it is mostly the rim of the illuminated region of each big subaperture.
  *
  * The Fried sensor stores its valid cells as runs along rows, so apply reads two contiguous corner
- * rows per run and apply_t writes each corner once (gather form): for n = 84 they take 2.4 and 3.1 µs
- * against 5.9 and 33 µs for a per-cell gather/scatter, whose scatter chains through store forwarding.
+ * rows per run and apply_t writes each corner once (gather form), several times faster than a per-cell
+ * gather/scatter, whose scatter chains each update through store forwarding.
  *
  * The fp32 forms (the tomography's single-precision operator) run the same three paths on float copies
  * of the coefficients, rounded once at alloc so that the applies convert nothing and stay const; their
@@ -544,7 +544,18 @@ void wt_shack_hartmann_centre(const wt_shack_hartmann *s, int k, double *x, doub
     *y = -0.5 * s->n * s->d + (j + 0.5) * w;
 }
 
-/* The applies are cloned for AVX2 and AVX-512 (WT_CPU_CLONES, core/base/base.h: the same bits on every CPU). */
+/* The applies are cloned for AVX2 and AVX-512 (WT_CPU_CLONES, core/base/base.h: the same bits on every CPU). Their
+ * Fried and CSR kernels are written once (shack_hartmann_kernels.inc), in double and in float. */
+#define REAL double
+#define K(name) name##_f64
+#include "shack_hartmann_kernels.inc"
+#undef REAL
+#undef K
+#define REAL float
+#define K(name) name##_f32
+#include "shack_hartmann_kernels.inc"
+#undef REAL
+#undef K
 
 WT_CPU_CLONES
 void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const double *restrict phase,
@@ -552,19 +563,7 @@ void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const dou
 {
     const int nsub = s->nsub;
     if (s->m == 0) {
-        /* a run of valid cells reads two contiguous corner rows: b (bottom) and t (top) */
-        const int nc = s->n + 1;
-        const double a = alpha / (2.0 * s->d);
-        for (int32_t r = 0; r < s->nrun; r++) {
-            const double *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
-            double *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
-            const int len = s->run_len[r];
-            for (int i = 0; i < len; i++) {
-                const double d1 = t[i + 1] - b[i], d2 = b[i + 1] - t[i]; /* the two diagonals */
-                sx[i] += a * (d1 + d2);
-                sy[i] += a * (d1 - d2);
-            }
-        }
+        fried_apply_f64(s, alpha / (2.0 * s->d), phase, slopes);
         return;
     }
     if (s->quad_u) {
@@ -591,30 +590,8 @@ void wt_shack_hartmann_apply(const wt_shack_hartmann *s, double alpha, const dou
         }
         return;
     }
-    for (int r = 0; r < 2 * nsub; r++) {
-        double acc = 0.0;
-        for (int32_t q = s->rowptr[r]; q < s->rowptr[r + 1]; q++) acc += s->val[q] * phase[s->colind[q]];
-        slopes[r] += alpha * acc;
-    }
+    csr_apply_f64(2 * nsub, s->rowptr, s->colind, s->val, alpha, phase, slopes);
 }
-
-/* Fried's transpose in gather form, in REAL (wt_shack_hartmann_apply_t and its _f32 form): corner i of a run's
- * bottom row takes −(s_x + s_y) from the cell to its right and (s_x − s_y) from the cell to its left; the top row
- * (s_y − s_x) and (s_x + s_y). Reads s, a (α / 2d), nc, nsub, slopes of the caller's scope; adds into phase. */
-#define WT_FRIED_GATHER_T(REAL)                                                                                   \
-    for (int32_t r = 0; r < s->nrun; r++) {                                                                        \
-        REAL *restrict b = phase + s->run_corner[r], *restrict t = b + nc;                                         \
-        const REAL *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;                                  \
-        const int len = s->run_len[r];                                                                             \
-        b[0] -= a * (sx[0] + sy[0]);                                                                               \
-        t[0] += a * (sy[0] - sx[0]);                                                                               \
-        for (int i = 1; i < len; i++) {                                                                            \
-            b[i] += a * ((sx[i - 1] - sy[i - 1]) - (sx[i] + sy[i]));                                               \
-            t[i] += a * ((sx[i - 1] + sy[i - 1]) + (sy[i] - sx[i]));                                               \
-        }                                                                                                          \
-        b[len] += a * (sx[len - 1] - sy[len - 1]);                                                                 \
-        t[len] += a * (sx[len - 1] + sy[len - 1]);                                                                 \
-    }
 
 WT_CPU_CLONES
 void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const double *restrict slopes,
@@ -622,13 +599,7 @@ void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const d
 {
     const int nsub = s->nsub;
     if (s->m == 0) {
-        /* Gather form: corner i of a run's bottom row takes −(s_x + s_y) from the cell to its right and
-         * (s_x − s_y) from the cell to its left; the top row (s_y − s_x) and (s_x + s_y). Writing each
-         * corner once (instead of scattering every cell to its four corners) avoids chaining each
-         * update through the previous cell's store and lets the loop vectorise. */
-        const int nc = s->n + 1;
-        const double a = alpha / (2.0 * s->d);
-        WT_FRIED_GATHER_T(double);
+        fried_apply_t_f64(s, alpha / (2.0 * s->d), slopes, phase);
         return;
     }
     if (s->quad_u) {
@@ -658,10 +629,7 @@ void wt_shack_hartmann_apply_t(const wt_shack_hartmann *s, double alpha, const d
         }
         return;
     }
-    for (int r = 0; r < 2 * nsub; r++) {
-        const double t = alpha * slopes[r];
-        for (int32_t q = s->rowptr[r]; q < s->rowptr[r + 1]; q++) phase[s->colind[q]] += s->val[q] * t;
-    }
+    csr_apply_t_f64(2 * nsub, s->rowptr, s->colind, s->val, alpha, slopes, phase);
 }
 
 /* The fp32 forms. A lit cell's rows are its Fried rows times u_k (u = 1/(2d) for the Fried sensor), so
@@ -674,17 +642,7 @@ void wt_shack_hartmann_apply_f32(const wt_shack_hartmann *s, float alpha, const 
 {
     const int nsub = s->nsub, nc = s->n + 1;
     if (s->m == 0) {
-        const float a = (float)(alpha / (2.0 * s->d));
-        for (int32_t r = 0; r < s->nrun; r++) {
-            const float *restrict b = phase + s->run_corner[r], *restrict t = b + nc;
-            float *restrict sx = slopes + s->run_k[r], *restrict sy = sx + nsub;
-            const int len = s->run_len[r];
-            for (int i = 0; i < len; i++) {
-                const float d1 = t[i + 1] - b[i], d2 = b[i + 1] - t[i];
-                sx[i] += a * (d1 + d2);
-                sy[i] += a * (d1 - d2);
-            }
-        }
+        fried_apply_f32(s, (float)(alpha / (2.0 * s->d)), phase, slopes);
         return;
     }
     if (s->quad_u32) {
@@ -701,13 +659,7 @@ void wt_shack_hartmann_apply_f32(const wt_shack_hartmann *s, float alpha, const 
         }
         return;
     }
-    const int32_t *restrict rowptr = s->rowptr, *restrict colind = s->colind;
-    const float *restrict val = s->val32;
-    for (int r = 0; r < 2 * nsub; r++) {
-        float acc = 0.0f;
-        for (int32_t q = rowptr[r]; q < rowptr[r + 1]; q++) acc += val[q] * phase[colind[q]];
-        slopes[r] += alpha * acc;
-    }
+    csr_apply_f32(2 * nsub, s->rowptr, s->colind, s->val32, alpha, phase, slopes);
 }
 
 WT_CPU_CLONES
@@ -716,9 +668,7 @@ void wt_shack_hartmann_apply_t_f32(const wt_shack_hartmann *s, float alpha, cons
 {
     const int nsub = s->nsub, nc = s->n + 1;
     if (s->m == 0) {
-        /* the gather form of the double apply_t */
-        const float a = (float)(alpha / (2.0 * s->d));
-        WT_FRIED_GATHER_T(float);
+        fried_apply_t_f32(s, (float)(alpha / (2.0 * s->d)), slopes, phase);
         return;
     }
     if (s->quad_u32) {
@@ -739,12 +689,7 @@ void wt_shack_hartmann_apply_t_f32(const wt_shack_hartmann *s, float alpha, cons
         }
         return;
     }
-    const int32_t *restrict rowptr = s->rowptr, *restrict colind = s->colind;
-    const float *restrict val = s->val32;
-    for (int r = 0; r < 2 * nsub; r++) {
-        const float t = alpha * slopes[r];
-        for (int32_t q = rowptr[r]; q < rowptr[r + 1]; q++) phase[colind[q]] += val[q] * t;
-    }
+    csr_apply_t_f32(2 * nsub, s->rowptr, s->colind, s->val32, alpha, slopes, phase);
 }
 
 int wt_shack_hartmann_assemble(const wt_shack_hartmann *s, wt_sparse **out)

@@ -510,8 +510,8 @@ int wt_centroid_alloc(wt_context *ctx, const wt_centroid_params *par, int nsub, 
     if (par->method == WT_CENTROID_MF) WT_ALLOC(ctx, c->rows, 2 * npix * (size_t)nsub, "the matched-filter rows");
     if (par->method == WT_CENTROID_TCOG) WT_ALLOC(ctx, work, 3 * npix, "the threshold workspace");
 
-    /* Set-up is serial (the first error stops it, with its message): measured ~0.02 s (CoG), ~0.15 s
-     * (tCoG: an erfc per pixel), ~0.05 s (MF) for a 5112-subaperture sensor of 16² pixels. */
+    /* Set-up is serial (the first error stops it, with its message): a fraction of a second for an E-ELT LGS of
+     * 16² pixels, the tCoG's the longest (an erfc per pixel). */
     for (int i = 0; i < nsub; i++) {
         const float *r = ref + npix * (size_t)i, *dx = dref_x + npix * (size_t)i, *dy = dref_y + npix * (size_t)i;
         double cxx, cxy, cyy;

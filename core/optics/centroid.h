@@ -128,8 +128,8 @@ void wt_centroid_noise_cov(const wt_centroid *c, double *cov);
  * Subaperture i draws from wt_rng (seed, stream i), so the result does not depend on the thread count.
  * cov 3·nsub as wt_centroid_noise_cov (sample covariance, ndraws − 1 in the denominator); mean 2·nsub
  * [s_x…, s_y…] (NULL: not wanted). Allocates a workspace (ns² floats per thread). Cost: ndraws·nsub·ns²
- * pixel draws, a Poisson and a normal deviate each (measured ~190 thread-ns on a busy 2-core machine: about
- * two minutes for a 5112-subaperture sensor of 16² pixels with ndraws = 1000 on 2 threads). A set-up tool
+ * pixel draws, a Poisson and a normal deviate each (minutes for an E-ELT LGS of 16² pixels with ndraws = 1000;
+ * SPOT_MC_NS of core/model/estimate.c is the rate). A set-up tool
  * and the check of the analytic covariance, not a per-frame path. */
 int wt_centroid_noise_mc(const wt_centroid *c, const float *images, int ndraws, uint64_t seed, double *cov,
                          double *mean);

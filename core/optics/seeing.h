@@ -54,7 +54,7 @@ int wt_seeing_lag_table(wt_context *ctx, int np, double dx, double wavelength, d
  * (ux, uy) at [(ux mod N) + N (uy mod N)], N ≥ 2 n_p − 1 (so that no two lags share a cell; not checked
  * here: the caller's FFT size). amp [n_p²] (sample (i, j) at i + n_p j, the spacing of Dl). W: N² floats.
  * work: wt_seeing_work_size(n_p) doubles. A subaperture without a lit sample gets W = 0. Allocates
- * nothing, ~n_p⁴ exponentials (1 ms at n_p = 16). */
+ * nothing, ~n_p⁴ exponentials. */
 void wt_seeing_otf(int np, int gtilt, const double *Dl, const float *amp, int N, float *W, double *work);
 size_t wt_seeing_work_size(int np);
 

@@ -1,6 +1,6 @@
 /* core/optics/shift.h: sub-pixel shifts of small detector images by cubic B-spline interpolation, accumulated cheaply,
- * and the derivative images of the mean (the matched filter's reference rebuilt from the loop's own pixels, issue 37
- * item 2; docs/design.md "The reference from the loop's own pixels").
+ * and the derivative images of the mean (the matched filter's reference rebuilt from the loop's own pixels;
+ * docs/design.md "The reference from the loop's own pixels").
  *
  * An image I[m] (Ns x Ns pixels, zero outside the detector) is read as the cubic spline I(x) = Σ_k c[k] β3(x − k),
  * β3(x) = 2/3 − x² + |x|³/2 (|x| < 1), (2 − |x|)³/6 (1 ≤ |x| < 2), 0 beyond, whose coefficients interpolate the

@@ -22,7 +22,7 @@ static inline int omp_in_parallel(void) { return 0; }
 
 
 /* u mod n in [0, n). fmod is exact, where u − n floor(u / n) loses the result for |u| ≫ n and then
- * indexes outside the screen (issue 10: a wind of 1e22 m/s); a non-finite u maps to 0. */
+ * indexes outside the screen (a wind of 1e22 m/s); a non-finite u maps to 0. */
 static inline double wrap(double u, int n)
 {
     u = fmod(u, n);

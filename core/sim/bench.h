@@ -53,7 +53,7 @@ typedef struct wt_bench_tomography {
 int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
                             const char *name, int reps, wt_bench_tomography *out);
 
-/* Paired timing (issue 20 §5): two reconstructors A and B of one kind (WT_RECON_PCG3 or CG9; two
+/* Paired timing: two reconstructors A and B of one kind (WT_RECON_PCG3 or CG9; two
  * configurations, of one system or of two) applied frame after frame, alternately — A B, B A, A B, … (the
  * order alternates so that neither side always runs on the caches and clock the other left) — to the
  * same slopes: a seeded sequence s_t = 0.9 s_{t−1} + 0.44 n_t, n_t white with 1 µrad rms (temporally

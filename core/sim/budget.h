@@ -1,4 +1,4 @@
-/* core/sim/budget.h: the error budget of the residual over the field (SPEC §11, issue 9 §1).
+/* core/sim/budget.h: the error budget of the residual over the field (SPEC §11).
  *
  * Each term is measured by loop runs (core/sim/loop.h) on the same seed that remove one cause; σ² is the
  * field mean over the evaluation directions and the frames after the settle period (piston removed):

@@ -5,7 +5,7 @@
  *
  * A plan names the cases (methods x sweep values) and what makes their results comparable (the
  * configuration's canonical text hash, the seed, the frames); a stored plan that differs from the one
- * asked for is refused for resumption, naming what differs (issue 10: compare --resume).
+ * asked for is refused for resumption, naming what differs (compare --resume).
  */
 #ifndef WT_COMPARE_H
 #define WT_COMPARE_H
@@ -66,7 +66,7 @@ int wt_compare_run_rebuild(wt_context *ctx, const wt_system *sys, int kind, cons
 struct wt_psf_params;
 void wt_compare_psf_params(const wt_config *cfg, struct wt_psf_params *par);
 
-/* ---- statistics over seeds (issue 11: `compare --seeds N`) ----------------------------------------------
+/* ---- statistics over seeds (`compare --seeds N`) -----------------------------------------------------------
  * Each seed is an independent realisation of the turbulence and noise; every method runs on the same seeds,
  * so methods are compared by the paired difference d_s = x_s(A) − x_s(B), whose scatter is much smaller than
  * that of either x_s (the realisation's luck is common to both). Standard error of a mean of n values:

@@ -1,5 +1,5 @@
 /* core/sim/psf.h: long-exposure point-spread functions of the residual wavefront per evaluation direction
- * (SPEC §8b; issue 21 §5).
+ * (SPEC §8b).
  *
  *   U = P · exp(2πi φ / λ)  on the fine pupil grid (P: the pupil mask, φ: the residual OPD [m]),
  *   zero-padded to N x N with N dx ≥ q D (q = 2: Nyquist, a pixel of λ/(N dx) ≤ λ/(2D)),

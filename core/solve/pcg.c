@@ -1,6 +1,6 @@
 /* core/solve/pcg.c: (P)CG, Hestenes–Stiefel form with the recursive residual (paper §6.1).
  *
- * Breakdown (issue 10): in exact arithmetic pᵀAp > 0 and rᵀz > 0 until the residual is 0. In floating
+ * Breakdown: in exact arithmetic pᵀAp > 0 and rᵀz > 0 until the residual is 0. In floating
  * point, with rtol = 0 and many iterations, the residual reaches rounding level and rᵀz underflows to 0
  * (then β = 0/0 = NaN poisons p) or pᵀAp rounds to ≤ 0. That is convergence, not a fault: the iteration
  * stops there with WT_WARN_BREAKDOWN, keeps the last iterate and reports the residual reached. Only a
@@ -75,11 +75,15 @@ double wt_pcg_flops_per_iteration(int64_t n, int preconditioned)
     return (double)n * (12.0 + (preconditioned ? 1.0 : 0.0));
 }
 
-/* The vector work of an iteration runs on the solver's threads from 16384 unknowns on (PCG-3's 24576: ~30 µs of
- * serial dots and updates per iteration otherwise), each dot as wt_vec_dot's fixed chunk sums split over the
+/* The vector work of an iteration runs on the solver's threads from PARALLEL_VECTORS_MIN unknowns on (PCG-3's E-ELT
+ * 24576 included: serial dots and updates would otherwise be a visible part of an iteration), each dot as wt_vec_dot's fixed chunk sums split over the
  * threads (the same bits for any thread count), an update fused with the dot that follows it where both read
  * the same rows. */
-static int parallel_vectors(const wt_pcg *w) { return w->nthreads > 1 && w->n >= 16384; }
+enum {
+    PARALLEL_VECTORS_MIN = 16384, /* unknowns from which an iteration's vector work is split over the threads */
+    PARALLEL_UPDATE_MIN = 32768   /* the serial path's plain update takes the team above it: long enough a stream */
+};
+static int parallel_vectors(const wt_pcg *w) { return w->nthreads > 1 && w->n >= PARALLEL_VECTORS_MIN; }
 
 /* This thread's chunks [c0, c1) of the WT_VEC_CHUNKS: whole groups of 8 (wt_vec_dot_part's side-by-side unit) */
 static void my_chunks(int *c0, int *c1)
@@ -126,7 +130,7 @@ static double update_r_norm2(const wt_pcg *w, int mode, double a, const double *
     const int64_t n = w->n;
     if (!parallel_vectors(w)) {
         if (mode == 0)
-#pragma omp parallel for schedule(static) if (n > 32768) num_threads(w->nthreads)
+#pragma omp parallel for schedule(static) if (n > PARALLEL_UPDATE_MIN) num_threads(w->nthreads)
             for (int64_t i = 0; i < n; i++) r[i] -= a * q[i];
         else
             for (int64_t i = 0; i < n; i++) r[i] = (b[i] - b_prev[i]) + r[i];
