@@ -42,9 +42,10 @@ void wt_tomography__forward_f32_team(const wt_tomography *t, wt_tomography_work 
 /* The float weights of the k sensors ms (LGS) in one call (wt_noise_set_weight_many_f32) */
 static void weigh_f32(const wt_tomography *t, wt_tomography_work *w, int k, const int *ms)
 {
-    const wt_noise *nz[2 * WT_MAX_GS];
-    const float *x[2 * WT_MAX_GS];
-    float *ws[2 * WT_MAX_GS];
+    /* zeroed: gcc -O1 (the sanitiser build) cannot see that the first k entries are all that is read */
+    const wt_noise *nz[2 * WT_MAX_GS] = {0};
+    const float *x[2 * WT_MAX_GS] = {0};
+    float *ws[2 * WT_MAX_GS] = {0};
     for (int q = 0; q < k; q++) {
         const int64_t off = t->sys->sensors[ms[q]].offset;
         nz[q] = t->noise[ms[q]];
