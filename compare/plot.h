@@ -15,11 +15,25 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
                          const double *field, const double *on_err, const double *field_err, int log_x);
 
-/* A g x g map of LE Strehl over the field (index i + g j, x = column, y = row, in arcsec at positions
- * coords[0..g-1]), with a colour bar and each cell's value printed; one PNG per call. vmin/vmax fix
- * the colour scale so that maps of several methods compare (pass the same range). */
+/* The guide stars drawn on the field maps: directions [arcsec] (x right, y up), LGS a star, NGS a triangle, with
+ * a legend; the map's window widens to hold them. A NULL wt_plot_stars draws none. */
+typedef struct wt_plot_stars {
+    int nlgs, nngs;
+    const double *lgs_x, *lgs_y; /* [nlgs] */
+    const double *ngs_x, *ngs_y; /* [nngs] */
+} wt_plot_stars;
+
+/* compare/plot_maps.c: a g x g map of LE Strehl over the field (index i + g j, x = column, y = row, in arcsec at
+ * positions coords[0..g-1]), with a colour bar, each cell's value printed and the guide stars (may be NULL); one PNG
+ * per call. vmin/vmax fix the colour scale so that maps of several methods compare (pass the same range). */
 int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
-                       const double *strehl, double vmin, double vmax);
+                       const double *strehl, double vmin, double vmax, const wt_plot_stars *stars);
+
+/* compare/plot_maps.c: the same map of a difference between two methods (diff[i + g j], NaN: missing) on a diverging
+ * blue-white-red scale symmetric about zero ([-max|d|, max|d|]), the colour bar labelled bar_label (with its unit),
+ * each cell printed with fmt (one number conversion, e.g. "%+.1f"). */
+int wt_plot_diff_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
+                     const double *diff, const char *bar_label, const char *fmt, const wt_plot_stars *stars);
 
 /* Stacked bars: time per frame of each method [ms], stacked by part
  * (nparts parts named parts[k], times[m * nparts + k]). */

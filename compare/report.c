@@ -34,10 +34,9 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     snprintf(path, sizeof path, "%s/time_per_frame.png", a->out);
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
+    if ((st = wt_cmp_check_map_outputs(cli, a, owner)) < 0) return st;
     for (int m = 0; m < a->nm; m++)
         for (int v = 0; v < nv; v++) {
-            snprintf(path, sizeof path, "%s/map_%s_%d.png", a->out, a->methods[m], v);
-            if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
             snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
             if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
         }
@@ -520,11 +519,9 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
         if (doc) {
             fprintf(f, "\n");
             if (a->nv > 1 && !missing) fprintf(f, "![LE Strehl against %s](strehl_vs_sweep.png)\n\n", a->key);
-            for (int v = 0; v < nv; v++)
-                for (int m = 0; m < a->nm; m++)
-                    if (S[m * nv + v].mean.done)
-                        fprintf(f, "![%s%s%s](map_%s_%d.png) ", a->methods[m], a->nv ? " " : "", val(a, v), a->methods[m], v);
+            wt_cmp_maps_markdown(f, a, S, 0);
             if (!missing) fprintf(f, "\n\n![time per frame](time_per_frame.png)");
+            wt_cmp_maps_markdown(f, a, S, 1);
             fprintf(f, "\n\n## Convergence\n\nThe residual WFE of each frame (field rms, thin) and its running "
                        "long-exposure value from the settle window on (thick, ending at the WFE of the table); the "
                        "grey band is the settle window, left out of every average%s.\n\n", a->ns > 1 ? " (first seed)" : "");
@@ -660,20 +657,9 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
                                        a->ns > 1 ? on_se : NULL, a->ns > 1 ? fi_se : NULL, logx)) < 0)
             return st;
     }
-    double coords[16], vmin = 1.0, vmax = 0.0;
+    double coords[16];
     for (int i = 0; i < g; i++) coords[i] = (i - 0.5 * (g - 1)) * sys->cfg->eval_spacing / WT_ARCSEC;
-    for (int c = 0; c < nm * nv; c++)
-        for (int j = 0; j < sys->neval && S[c].mean.done; j++)
-            vmin = fmin(vmin, S[c].mean.strehl[j]), vmax = fmax(vmax, S[c].mean.strehl[j]);
-    for (int c = 0; c < nm * nv; c++) {
-        if (!S[c].mean.done) continue;
-        int m = c / nv, v = c % nv;
-        snprintf(path, sizeof path, "%s/map_%s_%d.png", a->out, a->methods[m], v);
-        snprintf(title, sizeof title, "LE Strehl, %s%s%s%s%s", a->methods[m], a->nv ? ", " : "", a->nv ? a->key : "",
-                 a->nv ? "=" : "", val(a, v));
-        if (a->ns > 1) snprintf(title + strlen(title), sizeof title - strlen(title), ", mean of %d seeds", a->ns);
-        if ((st = wt_plot_strehl_map(cli->ctx, path, title, g, coords, S[c].mean.strehl, vmin, vmax)) < 0) return st;
-    }
+    if ((st = wt_cmp_maps(cli, a, sys, S, coords)) < 0) return st;
     if ((st = extra_plots(cli, a, sys, R, S, X, coords)) < 0) return st;
     if (missing) return WT_OK;
     double times[WT_COMPARE_MAXM * NP];
