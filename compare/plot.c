@@ -328,10 +328,19 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
     int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
 
-    plvpor(0.10, 0.68, 0.12, 0.90);
+    plvpor(0.10, 0.68, 0.14, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
     wt_plot_axes(log_x ? "bcnstl" : "bcnst", "bcnstv", log_x ? "gl" : "g", "g");
-    wt_plot_labels(xlabel, "LE Strehl", title);
+    /* a second line of the x label (after a newline), smaller: the key under its meaning */
+    char first[LABEL_MAX], second[LABEL_MAX];
+    const char *nl = strchr(xlabel, '\n');
+    snprintf(first, sizeof first, "%.*s", nl ? (int)(nl - xlabel) : (int)strlen(xlabel), xlabel);
+    wt_plot_labels(first, "LE Strehl", title);
+    if (nl) {
+        plschr(0.0, 0.95);
+        plmtex("b", 5.2, 0.5, 0.5, wt_plot_escape(second, sizeof second, nl + 1));
+        plschr(0.0, 1.15);
+    }
 
     for (int m = 0; m < nmethods; m++) {
         const double *on = on_axis + (long)m * nvalues, *fa = field + (long)m * nvalues;

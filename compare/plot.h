@@ -8,7 +8,7 @@
 #include "core/base/base.h"
 
 /* LE Strehl against the swept value for each method: on-axis solid, field average dashed, one colour
- * per method, legend, axis labels (x label = the swept key), title. on_axis/field: [nmethods][nvalues]
+ * per method, legend, axis labels (x label: the swept key's meaning and unit; a second line after a '\n', smaller), title. on_axis/field: [nmethods][nvalues]
  * row-major; on_err/field_err: the same shape, error bars ± the value (NULL: none). log_x: logarithmic x
  * axis (e.g. for α). */
 int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
