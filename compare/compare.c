@@ -127,7 +127,7 @@ typedef struct {
 static int on_frame(void *user, long frame, double mean)
 {
     case_progress *p = user;
-    snprintf(p->extra, sizeof p->extra, "field SE Strehl %.3f", mean);
+    snprintf(p->extra, sizeof p->extra, "Strehl %.3f so far (field average)", mean);
     wt_progress_update(&p->pr, frame, p->extra);
     return wt_interrupt_pending(); /* Ctrl-C: stop this case, keep the finished ones */
 }
