@@ -519,16 +519,20 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
         if (isfinite(values[i])) vmax = fmax(vmax, fabs(values[i]));
         if (marks && isfinite(marks[i])) vmax = fmax(vmax, fabs(marks[i]));
     }
-    double ymax = vmax > 0.0 ? 1.12 * vmax : 1.0;
+    int negative = 0;
+    for (int i = 0; i < ngroups * nseries; i++) negative |= isfinite(values[i]) && values[i] < 0.0;
+    /* headroom for the values, written upwards over the bars (side by side they run into each other) */
+    double ymax = vmax > 0.0 ? 1.22 * vmax : 1.0;
     double xmin = 0.4, xmax = ngroups + 0.6, w = 0.8 / nseries;
 
     wt_plot_job j;
     int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
-    plvpor(0.10, 0.78, 0.16, 0.90);
+    plvpor(0.10, 0.76, 0.20, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
     wt_plot_axes("bc", "bcnstv", "", "g");
     wt_plot_labels("", ylabel, title);
+
     char txt[LABEL_MAX];
     plschr(0.0, 0.8);
     for (int k = 0; k < ngroups; k++) {
@@ -544,7 +548,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                 plcol0(C_FG);
                 plline(5, fx, fy);
                 snprintf(txt, sizeof txt, ymax < 10.0 ? "%.2f" : "%.0f", v); /* fractions: two decimals */
-                plptex(x0 + 0.5 * w, fabs(v) + 0.03 * ymax, 1.0, 0.0, 0.5, txt);
+                plptex(x0 + 0.5 * w, fabs(v) + 0.015 * ymax, 0.0, 1.0, 0.0, txt);
             }
             double m = marks ? marks[k * nseries + s] : NAN;
             if (isfinite(m)) {
@@ -558,8 +562,21 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
     }
     plschr(0.0, 1.15);
     plcol0(C_FG);
+    /* group names slanted, ending under their group, so that long names of neighbouring groups stay apart: drawn in
+     * a viewport stretched down to the page's foot (the same world y scale), as PLplot clips text to the viewport */
+    plvpor(0.0, 0.76, 0.0, 0.90);
+    plwind(xmin - (xmax - xmin) * 0.10 / 0.66, xmax, -ymax * 0.20 / 0.70, ymax);
+    /* plptex's direction is in world units: 30 degrees on the page is (cos 30 / px per x, sin 30 / px per y) */
+    const double dx = cos(M_PI / 6) * (xmax - xmin) / (0.66 * PAGE_W), dy = sin(M_PI / 6) * ymax / (0.70 * PAGE_H);
     for (int k = 0; k < ngroups; k++)
-        plmtex("b", 1.8 + 1.2 * (k % 2), (k + 1.0 - xmin) / (xmax - xmin), 0.5, wt_plot_escape(txt, sizeof txt, groups[k]));
+        plptex(k + 1.0, -0.03 * ymax, dx, dy, 1.0, wt_plot_escape(txt, sizeof txt, groups[k]));
+    if (negative) { /* the bars show magnitudes: say which are negative */
+        plschr(0.0, 0.95);
+        plmtex("b", -1.2, 0.5, 0.5, "hatched: a negative value (the label's sign), drawn at its magnitude");
+        plschr(0.0, 1.15);
+    }
+    plvpor(0.10, 0.76, 0.20, 0.90); /* the legend beside the bars */
+    plwind(xmin, xmax, 0.0, ymax);
 
     PLINT opt[MAX_SERIES + 1], tcol[MAX_SERIES + 1], bcol[MAX_SERIES + 1], bpat[MAX_SERIES + 1], lcol[MAX_SERIES + 1],
         lsty[MAX_SERIES + 1];

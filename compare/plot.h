@@ -41,7 +41,8 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
                       int nparts, const char *const *parts, const double *times);
 
 /* Grouped bars: one group per x label (groups[k]), one bar per series (colour, legend), values
- * [k * nseries + s] (NaN or 0: no bar; negative: drawn hatched at its magnitude), each labelled with its
+ * [k * nseries + s] (NaN or 0: no bar; negative: drawn hatched at its magnitude, and a line under the title says
+ * so), each labelled with its
  * value; marks (may be NULL): a thick black tick at that height over the bar (e.g. an analytic estimate). */
 int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, const char *ylabel, int ngroups,
                          const char *const *groups, int nseries, const char *const *series, const double *values,
