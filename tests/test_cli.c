@@ -193,6 +193,15 @@ START_TEST(test_compare_writes_the_report)
         ck_assert_msg(is_png(out, pngs[i]), "%s is not a PNG", pngs[i]);
         ck_assert_msg(file_size(out, pngs[i]) > 2000, "%s is (nearly) empty", pngs[i]);
     }
+    /* each method's WFE minus the first method's over the field, per sweep value, linked from report.md; none of the
+     * first against itself */
+    const char *diffs[] = {"diff_pcg3_mvm_0.png", "diff_cg9_mvm_0.png", "diff_pcg3_mvm_1.png", "diff_cg9_mvm_1.png"};
+    for (int i = 0; i < 4; i++) ck_assert_msg(is_png(out, diffs[i]) && file_size(out, diffs[i]) > 2000, "%s", diffs[i]);
+    ck_assert_int_lt(file_size(out, "diff_mvm_mvm_0.png"), 0);
+    char grep[1024];
+    snprintf(grep, sizeof grep, "grep -q '## Differences between methods' %1$s/report.md && grep -q '(diff_cg9_mvm_1.png)' "
+             "%1$s/report.md && grep -q '| method | lgs.wfs.photons |' %1$s/report.md", out);
+    ck_assert_msg(system(grep) == 0, "report.md lacks the differences or the sweep column");
     /* summary.csv: a header and one row per method and sweep value */
     char p[256], line[512];
     snprintf(p, sizeof p, "%s/summary.csv", out);
@@ -484,6 +493,11 @@ START_TEST(test_info_spots)
     fclose(f);
     text[n] = 0;
     ck_assert(strstr(text, "(spots_LGS1.png)") && strstr(text, "(gain_LGS1.png)"));
+    /* without a sweep the table has no sweep column (it would hold nothing), and one method has no difference map */
+    ck_assert_msg(strstr(text, "| method | LE Strehl on-axis") && strstr(text, "| pcg3 | 0.") && !strstr(text, "| – |"),
+                  "%s", text);
+    ck_assert_int_lt(file_size(out, "diff_pcg3_pcg3_0.png"), 0);
+    ck_assert(!strstr(text, "## Differences between methods"));
 }
 END_TEST
 
