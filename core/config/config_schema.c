@@ -594,14 +594,6 @@ void wt_config_priv_range(const wt_config_priv_key_spec *ks, char *buf, size_t n
 
 /* ---------------------------------------------------------------- public */
 
-int wt_config_key_doc(const char *path, const char **unit, const char **description)
-{
-    const int k = path ? wt_config_priv_find_key(path) : -1;
-    if (unit) *unit = k >= 0 ? wt_config_priv_keys[k].unit : NULL;
-    if (description) *description = k >= 0 ? wt_config_priv_keys[k].desc : NULL;
-    return k >= 0 ? WT_OK : WT_ERR_INVALID;
-}
-
 void wt_config_print_reference(FILE *f)
 {
     static const char *tname[] = {"int", "int", "float", "bool", "string", "float[]", "int[]", "path"};
