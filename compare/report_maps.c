@@ -16,10 +16,12 @@
 static int cols(const wt_cmp_cases *a) { return a->nv ? a->nv : 1; }
 static const char *val(const wt_cmp_cases *a, int v) { return a->nv ? a->values[v] : ""; }
 
-/* ", key=value" of sweep column v (empty without a sweep) and ", mean of N seeds" */
+/* ", photons=100" of sweep column v (the key's last part: the titles stay within the page; empty without a
+ * sweep) and ", mean of N seeds" */
 static void suffix(char *s, size_t n, const wt_cmp_cases *a, int v)
 {
-    snprintf(s, n, "%s%s%s%s", a->nv ? ", " : "", a->nv ? a->key : "", a->nv ? "=" : "", val(a, v));
+    const char *dot = a->nv ? strrchr(a->key, '.') : NULL;
+    snprintf(s, n, "%s%s%s%s", a->nv ? ", " : "", a->nv ? (dot ? dot + 1 : a->key) : "", a->nv ? "=" : "", val(a, v));
     if (a->ns > 1) snprintf(s + strlen(s), n - strlen(s), ", mean of %d seeds", a->ns);
 }
 
@@ -98,8 +100,8 @@ int wt_cmp_maps(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const 
             for (int j = 0; j < nd; j++) d[j] = S[m * nv + v].mean.wfe[j] - S[v].mean.wfe[j];
             suffix(sfx, sizeof sfx, a, v);
             snprintf(path, sizeof path, "%s/diff_%s_%s_%d.png", a->out, a->methods[m], a->methods[0], v);
-            snprintf(title, sizeof title, "residual WFE, %s − %s (> 0: %s worse)%s", a->methods[m], a->methods[0],
-                     a->methods[m], sfx);
+            snprintf(title, sizeof title, "WFE %s − %s (> 0: %s worse)%s", a->methods[m], a->methods[0], a->methods[m],
+                     sfx);
             st = wt_plot_diff_map(cli->ctx, path, title, g, coords, d, "WFE difference [nm]", "%+.1f", &stars);
         }
     return st;
