@@ -414,8 +414,11 @@ int wt_cmd_sim(int argc, char **argv)
            args.fits ? args.fits : "");
     if (!sig) sig = wt_interrupt_pending(); /* a signal while the files were written: they are complete */
     if (sig) { /* after the files: the one line a script or a log needs, and the status that tells it apart */
-        fprintf(stderr, "wavetomo sim: stopped by %s after %ld of %ld frames: %s has them (attribute 'interrupted')\n",
-                signal_name(sig), done, frames, out);
+        if (done < frames)
+            fprintf(stderr, "wavetomo sim: stopped by %s after %ld of %ld frames: %s has them (attribute 'interrupted')\n",
+                    signal_name(sig), done, frames, out);
+        else
+            fprintf(stderr, "wavetomo sim: %s after the last frame: %s is complete\n", signal_name(sig), out);
         rc = 128 + sig;
     }
     goto cleanup;
