@@ -120,7 +120,7 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 
 # Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
 # is only for the report driver).
-$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_pupil.o $(BUILD)/compare/plot_psf.o
+$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_maps.o $(BUILD)/compare/plot_pupil.o $(BUILD)/compare/plot_psf.o
 
 $(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
 	@mkdir -p $(dir $@)

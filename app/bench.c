@@ -228,7 +228,7 @@ static int bench_mvm_apply(wt_cli *cli, const wt_system *sys, int reps)
            bytes / g.med / 1e9);
     for (int k = 0; k < 2; k++) {
         const wt_bench_stats h = b.half[k];
-        printf("  %s GEMV     %8.2f ms  [%.2f, %.2f]  reads %.2f GB: %.1f GB/s; %.2f x sgemv's time (%s); "
+        printf("  %s GEMV     %8.2f ms  [%.2f, %.2f]  reads %.3g GB: %.3g GB/s; %.2f x sgemv's time (%s); "
                "max |dy| / max |y| = %.1e\n",
                wt_prec_name(b.half_prec[k]), h.med * 1e3, h.p10 * 1e3, h.p90 * 1e3, bytes / 2e9,
                bytes / 2.0 / h.med / 1e9, h.med / g.med, h.med < g.med ? "faster" : "slower", b.half_error[k]);

@@ -32,9 +32,11 @@ static void help(void)
            "Runs the closed loop for each reconstructor and each value of the swept key on identical\n"
            "turbulence and noise (the same seed), and writes DIR/results.h5, DIR/summary.csv, DIR/report.md\n"
            "and PNG figures: LE Strehl against the swept key (on-axis solid, field average dashed), LE Strehl\n"
-           "maps over the field per method, the time per frame per method, the long-exposure PSFs over the field\n"
-           "per method (log scale, PSF-peak Strehl in each panel; sim.psf_interval_frames) and the residual WFE\n"
-           "of every frame per method with the settle window (the loop's convergence).\n"
+           "maps over the field per method with the guide stars marked, each method's residual WFE minus the\n"
+           "first method's over the field (with two methods or more), the time per frame per method, the\n"
+           "long-exposure PSFs over the field per method (log scale, PSF-peak Strehl in each panel;\n"
+           "sim.psf_interval_frames) and the residual WFE of every frame per method with the settle window\n"
+           "(the loop's convergence).\n"
            "\n"
            "  --recon LIST   comma-separated, from mvm, pcg3, cg9, none (default mvm,pcg3,cg9)\n"
            "  --sweep K=V,.. a configuration key and its values (libconfig syntax each), e.g.\n"
@@ -127,7 +129,7 @@ typedef struct {
 static int on_frame(void *user, long frame, double mean)
 {
     case_progress *p = user;
-    snprintf(p->extra, sizeof p->extra, "field SE Strehl %.3f", mean);
+    snprintf(p->extra, sizeof p->extra, "Strehl %.3f so far (field average)", mean);
     wt_progress_update(&p->pr, frame, p->extra);
     return wt_interrupt_pending(); /* Ctrl-C: stop this case, keep the finished ones */
 }

@@ -328,10 +328,19 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
     int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
 
-    plvpor(0.10, 0.68, 0.12, 0.90);
+    plvpor(0.10, 0.68, 0.14, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
     wt_plot_axes(log_x ? "bcnstl" : "bcnst", "bcnstv", log_x ? "gl" : "g", "g");
-    wt_plot_labels(xlabel, "LE Strehl", title);
+    /* a second line of the x label (after a newline), smaller: the key under its meaning */
+    char first[LABEL_MAX], second[LABEL_MAX];
+    const char *nl = strchr(xlabel, '\n');
+    snprintf(first, sizeof first, "%.*s", nl ? (int)(nl - xlabel) : (int)strlen(xlabel), xlabel);
+    wt_plot_labels(first, "LE Strehl", title);
+    if (nl) {
+        plschr(0.0, 0.95);
+        plmtex("b", 5.2, 0.5, 0.5, wt_plot_escape(second, sizeof second, nl + 1));
+        plschr(0.0, 1.15);
+    }
 
     for (int m = 0; m < nmethods; m++) {
         const double *on = on_axis + (long)m * nvalues, *fa = field + (long)m * nvalues;
@@ -377,102 +386,6 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
              PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.12, C_BG,
              C_GRID, 1, 0, 0, 2 * nmethods, opt, 1.0, 0.95, 2.0, 0.0, tcol, text, NULL, NULL, NULL, NULL, lcol, lsty,
              lwid, lcol, sscale, snum, sym);
-    return wt_plot_job_end(&j);
-}
-
-int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
-                       const double *strehl, double vmin, double vmax)
-{
-    if (g < 1 || g > MAX_GRID)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl map of %d x %d cells; expected 1..%d per side",
-                        wt_plot_pname(path), g, g, MAX_GRID);
-    if (!coords || !strehl) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl map with a NULL array", wt_plot_pname(path));
-    if (!isfinite(vmin) || !isfinite(vmax) || vmin > vmax)
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': colour range [%g, %g]; expected finite vmin <= vmax",
-                        wt_plot_pname(path), vmin, vmax);
-    if (vmin == vmax) vmin -= 0.05, vmax += 0.05; /* a uniform field (min = max over the maps): one mid colour */
-    for (int i = 0; i < g; i++)
-        if (!isfinite(coords[i]) || (i > 0 && !(coords[i] > coords[i - 1])))
-            return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': field coordinate %d = %g [arcsec]; expected finite and "
-                            "increasing", wt_plot_pname(path), i, coords[i]);
-    for (long i = 0; i < (long)g * g; i++)
-        if (isinf(strehl[i]))
-            return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl of cell %ld is %g; expected finite (NaN: missing)",
-                            wt_plot_pname(path), i, strehl[i]);
-
-    /* cell edges halfway between the evaluation directions, the outer ones mirrored */
-    double e[MAX_GRID + 1];
-    if (g == 1) {
-        e[0] = coords[0] - 0.5, e[1] = coords[0] + 0.5;
-    } else {
-        for (int i = 1; i < g; i++) e[i] = 0.5 * (coords[i - 1] + coords[i]);
-        e[0] = 2.0 * coords[0] - e[1];
-        e[g] = 2.0 * coords[g - 1] - e[g - 1];
-    }
-
-    wt_plot_job j;
-    int st = wt_plot_job_begin(&j, ctx, path);
-    if (st < 0) return st;
-
-    plvpas(0.08, 0.78, 0.12, 0.90, 1.0);
-    plwind(e[0], e[g], e[0], e[g]);
-    for (int r = 0; r < g; r++) {
-        for (int c = 0; c < g; c++) {
-            double v = strehl[c + (long)g * r];
-            PLFLT fx[4] = {e[c], e[c + 1], e[c + 1], e[c]}, fy[4] = {e[r], e[r], e[r + 1], e[r + 1]};
-            double t = fmin(fmax((v - vmin) / (vmax - vmin), 0.0), 1.0);
-            if (isnan(v))
-                plcol0(C_MISSING);
-            else
-                plcol1(t);
-            plfill(4, fx, fy);
-        }
-    }
-    /* white seams so that neighbouring cells of close colour stay distinct */
-    plcol0(C_WHITE);
-    plwidth(1.5);
-    for (int i = 1; i < g; i++) {
-        pljoin(e[i], e[0], e[i], e[g]);
-        pljoin(e[0], e[i], e[g], e[i]);
-    }
-    plwidth(1.0);
-    if (g <= 9) {
-        /* label the evaluation directions themselves: they need not be multiples of a tick step */
-        wt_plot_axes("bc", "bc", "", "");
-        for (int i = 0; i < g; i++) {
-            char s[32];
-            double f = (coords[i] - e[0]) / (e[g] - e[0]);
-            snprintf(s, sizeof s, "%g", coords[i]);
-            plmtex("b", 1.4, f, 0.5, s);
-            plmtex("lv", 0.6, f, 1.0, s);
-        }
-    } else {
-        wt_plot_axes("bcnst", "bcnstv", "", "");
-    }
-    wt_plot_labels("field x [arcsec]", "field y [arcsec]", title);
-
-    /* each value in its cell; character height follows the cell so 8x8 maps stay legible */
-    double chr = fmax(0.4, fmin(1.25, 7.5 / g));
-    plschr(0.0, chr);
-    for (int r = 0; r < g; r++) {
-        for (int c = 0; c < g; c++) {
-            double v = strehl[c + (long)g * r];
-            char s[32];
-            if (isnan(v)) {
-                snprintf(s, sizeof s, "n/a");
-                plcol0(C_FG);
-            } else {
-                snprintf(s, sizeof s, "%.3f", v);
-                double t = fmin(fmax((v - vmin) / (vmax - vmin), 0.0), 1.0);
-                plcol0(wt_plot_viridis_luminance(t) > 0.45 ? C_FG : C_WHITE);
-            }
-            plptex(0.5 * (e[c] + e[c + 1]), 0.5 * (e[r] + e[r + 1]), 1.0, 0.0, 0.5, s); /* centred on the point */
-        }
-    }
-    plschr(0.0, 1.15);
-    plcol0(C_FG);
-
-    wt_plot_colour_bar(vmin, vmax, "LE Strehl", 0.0, 0.05, 0.0, 0.05, 1.0);
     return wt_plot_job_end(&j);
 }
 
@@ -606,16 +519,20 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
         if (isfinite(values[i])) vmax = fmax(vmax, fabs(values[i]));
         if (marks && isfinite(marks[i])) vmax = fmax(vmax, fabs(marks[i]));
     }
-    double ymax = vmax > 0.0 ? 1.12 * vmax : 1.0;
+    int negative = 0;
+    for (int i = 0; i < ngroups * nseries; i++) negative |= isfinite(values[i]) && values[i] < 0.0;
+    /* headroom for the values, written upwards over the bars (side by side they run into each other) */
+    double ymax = vmax > 0.0 ? 1.22 * vmax : 1.0;
     double xmin = 0.4, xmax = ngroups + 0.6, w = 0.8 / nseries;
 
     wt_plot_job j;
     int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) return st;
-    plvpor(0.10, 0.78, 0.16, 0.90);
+    plvpor(0.10, 0.76, 0.20, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
     wt_plot_axes("bc", "bcnstv", "", "g");
     wt_plot_labels("", ylabel, title);
+
     char txt[LABEL_MAX];
     plschr(0.0, 0.8);
     for (int k = 0; k < ngroups; k++) {
@@ -631,7 +548,7 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
                 plcol0(C_FG);
                 plline(5, fx, fy);
                 snprintf(txt, sizeof txt, ymax < 10.0 ? "%.2f" : "%.0f", v); /* fractions: two decimals */
-                plptex(x0 + 0.5 * w, fabs(v) + 0.03 * ymax, 1.0, 0.0, 0.5, txt);
+                plptex(x0 + 0.5 * w, fabs(v) + 0.015 * ymax, 0.0, 1.0, 0.0, txt);
             }
             double m = marks ? marks[k * nseries + s] : NAN;
             if (isfinite(m)) {
@@ -645,8 +562,21 @@ int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, c
     }
     plschr(0.0, 1.15);
     plcol0(C_FG);
+    /* group names slanted, ending under their group, so that long names of neighbouring groups stay apart: drawn in
+     * a viewport stretched down to the page's foot (the same world y scale), as PLplot clips text to the viewport */
+    plvpor(0.0, 0.76, 0.0, 0.90);
+    plwind(xmin - (xmax - xmin) * 0.10 / 0.66, xmax, -ymax * 0.20 / 0.70, ymax);
+    /* plptex's direction is in world units: 30 degrees on the page is (cos 30 / px per x, sin 30 / px per y) */
+    const double dx = cos(M_PI / 6) * (xmax - xmin) / (0.66 * PAGE_W), dy = sin(M_PI / 6) * ymax / (0.70 * PAGE_H);
     for (int k = 0; k < ngroups; k++)
-        plmtex("b", 1.8 + 1.2 * (k % 2), (k + 1.0 - xmin) / (xmax - xmin), 0.5, wt_plot_escape(txt, sizeof txt, groups[k]));
+        plptex(k + 1.0, -0.03 * ymax, dx, dy, 1.0, wt_plot_escape(txt, sizeof txt, groups[k]));
+    if (negative) { /* the bars show magnitudes: say which are negative */
+        plschr(0.0, 0.95);
+        plmtex("b", -1.2, 0.5, 0.5, "hatched: a negative value (the label's sign), drawn at its magnitude");
+        plschr(0.0, 1.15);
+    }
+    plvpor(0.10, 0.76, 0.20, 0.90); /* the legend beside the bars */
+    plwind(xmin, xmax, 0.0, ymax);
 
     PLINT opt[MAX_SERIES + 1], tcol[MAX_SERIES + 1], bcol[MAX_SERIES + 1], bpat[MAX_SERIES + 1], lcol[MAX_SERIES + 1],
         lsty[MAX_SERIES + 1];

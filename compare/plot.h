@@ -8,18 +8,32 @@
 #include "core/base/base.h"
 
 /* LE Strehl against the swept value for each method: on-axis solid, field average dashed, one colour
- * per method, legend, axis labels (x label = the swept key), title. on_axis/field: [nmethods][nvalues]
+ * per method, legend, axis labels (x label: the swept key's meaning and unit; a second line after a '\n', smaller), title. on_axis/field: [nmethods][nvalues]
  * row-major; on_err/field_err: the same shape, error bars ± the value (NULL: none). log_x: logarithmic x
  * axis (e.g. for α). */
 int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
                          const double *field, const double *on_err, const double *field_err, int log_x);
 
-/* A g x g map of LE Strehl over the field (index i + g j, x = column, y = row, in arcsec at positions
- * coords[0..g-1]), with a colour bar and each cell's value printed; one PNG per call. vmin/vmax fix
- * the colour scale so that maps of several methods compare (pass the same range). */
+/* The guide stars drawn on the field maps: directions [arcsec] (x right, y up), LGS a star, NGS a triangle, with
+ * a legend; the map's window widens to hold them. A NULL wt_plot_stars draws none. */
+typedef struct wt_plot_stars {
+    int nlgs, nngs;
+    const double *lgs_x, *lgs_y; /* [nlgs] */
+    const double *ngs_x, *ngs_y; /* [nngs] */
+} wt_plot_stars;
+
+/* compare/plot_maps.c: a g x g map of LE Strehl over the field (index i + g j, x = column, y = row, in arcsec at
+ * positions coords[0..g-1]), with a colour bar, each cell's value printed and the guide stars (may be NULL); one PNG
+ * per call. vmin/vmax fix the colour scale so that maps of several methods compare (pass the same range). */
 int wt_plot_strehl_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
-                       const double *strehl, double vmin, double vmax);
+                       const double *strehl, double vmin, double vmax, const wt_plot_stars *stars);
+
+/* compare/plot_maps.c: the same map of a difference between two methods (diff[i + g j], NaN: missing) on a diverging
+ * blue-white-red scale symmetric about zero ([-max|d|, max|d|]), the colour bar labelled bar_label (with its unit),
+ * each cell printed with fmt (one number conversion, e.g. "%+.1f"). */
+int wt_plot_diff_map(wt_context *ctx, const char *path, const char *title, int g, const double *coords,
+                     const double *diff, const char *bar_label, const char *fmt, const wt_plot_stars *stars);
 
 /* Stacked bars: time per frame of each method [ms], stacked by part
  * (nparts parts named parts[k], times[m * nparts + k]). */
@@ -27,7 +41,8 @@ int wt_plot_time_bars(wt_context *ctx, const char *path, const char *title, int 
                       int nparts, const char *const *parts, const double *times);
 
 /* Grouped bars: one group per x label (groups[k]), one bar per series (colour, legend), values
- * [k * nseries + s] (NaN or 0: no bar; negative: drawn hatched at its magnitude), each labelled with its
+ * [k * nseries + s] (NaN or 0: no bar; negative: drawn hatched at its magnitude, and a line under the title says
+ * so), each labelled with its
  * value; marks (may be NULL): a thick black tick at that height over the bar (e.g. an analytic estimate). */
 int wt_plot_grouped_bars(wt_context *ctx, const char *path, const char *title, const char *ylabel, int ngroups,
                          const char *const *groups, int nseries, const char *const *series, const double *values,

@@ -34,10 +34,9 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     snprintf(path, sizeof path, "%s/time_per_frame.png", a->out);
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
+    if ((st = wt_cmp_check_map_outputs(cli, a, owner)) < 0) return st;
     for (int m = 0; m < a->nm; m++)
         for (int v = 0; v < nv; v++) {
-            snprintf(path, sizeof path, "%s/map_%s_%d.png", a->out, a->methods[m], v);
-            if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
             snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
             if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
         }
@@ -410,12 +409,13 @@ static void write_differences(FILE *f, const wt_cmp_cases *a, const wt_compare_r
     fprintf(f, "\n## Paired differences over the seeds\n\nEvery method ran on the same %d seeds, so each seed gives a "
                "difference A − B free of that realisation's luck; mean ± standard error over the seeds. *noise*: "
                "|mean| < 2 SE, the two methods are not told apart by these seeds.\n\n"
-               "| A − B | %s | Δ LE Strehl on-axis | Δ LE Strehl field | Δ WFE field [nm] |\n|---|---|---|---|---|\n",
-            a->ns, a->nv ? a->key : "–");
+               "| A − B |%s%s%s Δ LE Strehl on-axis | Δ LE Strehl field | Δ WFE field [nm] |\n|---|%s---|---|---|\n",
+            a->ns, a->nv ? " " : "", a->nv ? a->key : "", a->nv ? " |" : "", a->nv ? "---|" : "");
     for (int v = 0; v < nv; v++)
         for (int i = 0; i < a->nm; i++)
             for (int j = i + 1; j < a->nm; j++) {
-                fprintf(f, "| %s − %s | %s |", a->methods[i], a->methods[j], a->nv ? a->values[v] : "–");
+                fprintf(f, "| %s − %s |", a->methods[i], a->methods[j]);
+                if (a->nv) fprintf(f, " %s |", a->values[v]);
                 for (int k = 0; k < WT_NMETRICS; k++) {
                     double d, se;
                     int n;
@@ -469,15 +469,18 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
             else
                 fprintf(f, "LE Strehl: the Maréchal exp(−σ²) of each frame's residual, averaged over the frames after the "
                            "settle window; no PSFs (sim.psf_interval_frames = 0).\n\n");
-            fprintf(f, "| method | %s | LE Strehl on-axis (Maréchal) | LE Strehl field (Maréchal) | PSF-peak Strehl on-axis "
+            /* the swept key's column only with a sweep (without one it would hold nothing) */
+            if (a->nv) fprintf(f, "| method | %s ", a->key);
+            else fprintf(f, "| method ");
+            fprintf(f, "| LE Strehl on-axis (Maréchal) | LE Strehl field (Maréchal) | PSF-peak Strehl on-axis "
                        "| PSF-peak Strehl field | WFE field [nm] | ms/frame | reconstruction ms "
-                       "| reconstructor memory [MB] |\n|---|---|---|---|---|---|---|---|---|---|\n", a->nv ? a->key : "–");
+                       "| reconstructor memory [MB] |\n|---%s|---|---|---|---|---|---|---|---|\n", a->nv ? "|---" : "");
         }
         for (int m = 0; m < a->nm; m++)
             for (int v = 0; v < nv; v++) {
                 const wt_compare_summary *q = &S[m * nv + v];
                 const wt_compare_result *r = &q->mean;
-                const char *vs = a->nv ? a->values[v] : (doc ? "–" : "");
+                const char *vs = a->nv ? a->values[v] : "";
                 if (!doc && r->done)
                     fprintf(f, "%s,%s,%.5f,%.5f,%.2f,%.3f,%.3f,%.2f,%.0f,1", a->methods[m], vs, r->on_axis, r->field,
                             r->wfe_field, r->total, r->parts[2] + r->parts[3], r->setup, r->memory);
@@ -492,7 +495,7 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                     fprintf(f, ",,,0");
                 if (!doc) fprintf(f, "\n");
                 else if (r->done) {
-                    fprintf(f, "| %s | %s | ", a->methods[m], vs);
+                    fprintf(f, "| %s | %s%s", a->methods[m], vs, a->nv ? " | " : "");
                     pm(f, a, 4, r->on_axis, q->se[WT_METRIC_ON_AXIS]);
                     fprintf(f, " | ");
                     pm(f, a, 4, r->field, q->se[WT_METRIC_FIELD]);
@@ -501,7 +504,7 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                     pm(f, a, 1, r->wfe_field, q->se[WT_METRIC_WFE]);
                     fprintf(f, " | %.1f | %.2f | %.1f |\n", r->total, r->parts[2] + r->parts[3], r->memory / 1e6);
                 } else
-                    fprintf(f, "| %s | %s | missing%s | | | | | | | |\n", a->methods[m], vs,
+                    fprintf(f, "| %s | %s%smissing%s | | | | | | | |\n", a->methods[m], vs, a->nv ? " | " : "",
                             a->ns > 1 && q->nseeds ? " (some seeds)" : "");
             }
         if (doc && a->ns > 1 && a->nm > 1) write_differences(f, a, R);
@@ -520,11 +523,9 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
         if (doc) {
             fprintf(f, "\n");
             if (a->nv > 1 && !missing) fprintf(f, "![LE Strehl against %s](strehl_vs_sweep.png)\n\n", a->key);
-            for (int v = 0; v < nv; v++)
-                for (int m = 0; m < a->nm; m++)
-                    if (S[m * nv + v].mean.done)
-                        fprintf(f, "![%s%s%s](map_%s_%d.png) ", a->methods[m], a->nv ? " " : "", val(a, v), a->methods[m], v);
+            wt_cmp_maps_markdown(f, a, S, 0);
             if (!missing) fprintf(f, "\n\n![time per frame](time_per_frame.png)");
+            wt_cmp_maps_markdown(f, a, S, 1);
             fprintf(f, "\n\n## Convergence\n\nThe residual WFE of each frame (field rms, thin) and its running "
                        "long-exposure value from the settle window on (thick, ending at the WFE of the table); the "
                        "grey band is the settle window, left out of every average%s.\n\n", a->ns > 1 ? " (first seed)" : "");
@@ -632,6 +633,22 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
     return st;
 }
 
+/* The sweep's axis: what the key is with its unit, and the key on a second line ("detected photons per
+ * subaperture per frame [photons]\nlgs.wfs.photons"): the description's head (up to its first " (" or ";") when
+ * short enough for the axis, else the key alone with its unit. */
+static void axis_label(char *s, size_t n, const char *key)
+{
+    const char *unit = NULL, *desc = NULL;
+    wt_config_key_doc(key, &unit, &desc);
+    size_t len = desc ? strcspn(desc, ";") : 0;
+    const char *paren = desc ? strstr(desc, " (") : NULL;
+    if (paren && (size_t)(paren - desc) < len) len = (size_t)(paren - desc);
+    char u[64] = "";
+    if (unit && *unit) snprintf(u, sizeof u, " [%s]", unit);
+    if (len > 0 && len <= 48) snprintf(s, n, "%.*s%s\nkey %s", (int)len, desc, u, key);
+    else snprintf(s, n, "%s%s", key, u);
+}
+
 static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_result *R,
                       const wt_compare_summary *S, const wt_cmp_extra *X, int missing)
 {
@@ -651,29 +668,20 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
         on[c] = S[c].mean.on_axis, fi[c] = S[c].mean.field, on_se[c] = S[c].se[WT_METRIC_ON_AXIS],
         fi_se[c] = S[c].se[WT_METRIC_FIELD];
     if (a->nv > 1 && !missing) {
+        char xlabel[256];
+        axis_label(xlabel, sizeof xlabel, a->key);
         snprintf(path, sizeof path, "%s/strehl_vs_sweep.png", a->out);
         int logx = numeric && positive && x[nv - 1] / x[0] > 20.0;
         if ((st = wt_plot_strehl_sweep(cli->ctx, path,
                                        a->ns > 1 ? "LE Strehl ± SE over seeds (on-axis solid, field dashed)"
                                                  : "LE Strehl (on-axis solid, field average dashed)",
-                                       a->key, nm, (const char *const *)a->methods, nv, x, on, fi,
+                                       xlabel, nm, (const char *const *)a->methods, nv, x, on, fi,
                                        a->ns > 1 ? on_se : NULL, a->ns > 1 ? fi_se : NULL, logx)) < 0)
             return st;
     }
-    double coords[16], vmin = 1.0, vmax = 0.0;
+    double coords[16];
     for (int i = 0; i < g; i++) coords[i] = (i - 0.5 * (g - 1)) * sys->cfg->eval_spacing / WT_ARCSEC;
-    for (int c = 0; c < nm * nv; c++)
-        for (int j = 0; j < sys->neval && S[c].mean.done; j++)
-            vmin = fmin(vmin, S[c].mean.strehl[j]), vmax = fmax(vmax, S[c].mean.strehl[j]);
-    for (int c = 0; c < nm * nv; c++) {
-        if (!S[c].mean.done) continue;
-        int m = c / nv, v = c % nv;
-        snprintf(path, sizeof path, "%s/map_%s_%d.png", a->out, a->methods[m], v);
-        snprintf(title, sizeof title, "LE Strehl, %s%s%s%s%s", a->methods[m], a->nv ? ", " : "", a->nv ? a->key : "",
-                 a->nv ? "=" : "", val(a, v));
-        if (a->ns > 1) snprintf(title + strlen(title), sizeof title - strlen(title), ", mean of %d seeds", a->ns);
-        if ((st = wt_plot_strehl_map(cli->ctx, path, title, g, coords, S[c].mean.strehl, vmin, vmax)) < 0) return st;
-    }
+    if ((st = wt_cmp_maps(cli, a, sys, S, coords)) < 0) return st;
     if ((st = extra_plots(cli, a, sys, R, S, X, coords)) < 0) return st;
     if (missing) return WT_OK;
     double times[WT_COMPARE_MAXM * NP];

@@ -43,6 +43,13 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a);
  * cases it has done into R (per seed, indexed by wt_cmp_case). *ndone: how many. */
 int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *want, wt_compare_result *R,
                          wt_cmp_extra *X, int *ndone);
+/* compare/report_maps.c: the maps over the evaluation field. check: their files (owner: results.h5);
+ * markdown: their links in report.md (differences = 0: the Strehl maps', 1: the section of the differences); maps: draw them (each done case's LE Strehl on one scale, and each method's
+ * residual WFE minus the first method's), the guide stars marked; coords: the g field positions [arcsec]. */
+int wt_cmp_check_map_outputs(wt_cli *cli, const wt_cmp_cases *a, const char *owner);
+void wt_cmp_maps_markdown(FILE *f, const wt_cmp_cases *a, const wt_compare_summary *S, int differences);
+int wt_cmp_maps(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_summary *S,
+                const double *coords);
 /* results.h5, summary.csv, report.md and the figures from the per-seed results R; with several seeds the
  * tables and curves show the mean ± standard error over the seeds and the paired differences between the
  * methods (core/sim/compare.h), results.h5 keeps every seed's values; cases not done are marked missing. */

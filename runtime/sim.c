@@ -1,6 +1,7 @@
 /* runtime/sim.c: `wavetomo sim`: the closed-loop end-to-end simulation of one reconstructor
  * (core/sim/loop), with its result file, optional telemetry and screen dumps (core/sim/record). */
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,7 +52,10 @@ static void help(void)
            "                   frame to RUN.h5\n"
            "  --dry-run        print the estimated peak memory and run time and the keys that drive them; stop\n"
            "  --max-memory S   refuse up front when the estimate exceeds S bytes (4G, 512M; default MemAvailable)\n"
-           "A progress line (frames, frames/s, ETA, running field-average Strehl) goes to stderr on a terminal.\n");
+           "A progress line (frames, frames/s, ETA, running field-average Strehl) goes to stderr on a terminal.\n"
+           "Ctrl-C (SIGINT, SIGTERM, SIGHUP) during the loop finishes the frame in hand, writes RUN.h5 (and TEL.h5)\n"
+           "with the frames done, marked by the root attributes 'interrupted' and 'frames_requested', then exits\n"
+           "with 128 + the signal number; during the set-up, or a second signal, ends it at once (no file written).\n");
 }
 
 typedef struct {
@@ -125,6 +129,22 @@ static int write_fits(const char *dir, const wt_psf *p, const wt_config *cfg, co
                               .spacing = cfg->eval_spacing, .obstruction = cfg->obstruction, .telescope = telescope,
                               .recon = recon, .seed = cfg->seed, .config_sha256 = hash, .creator = creator};
     return wt_psf_write_fits(p, path, &meta);
+}
+
+static const char *signal_name(int sig)
+{
+    return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP" : "a signal";
+}
+
+/* A run stopped by a signal: the root attributes saying so (the datasets hold the frames done). */
+static int mark_stopped(wt_h5_writer *w, int sig, long done, long frames, long averaged)
+{
+    char why[256];
+    snprintf(why, sizeof why, "stopped early by %s after %ld of %ld frames; long-exposure figures over the %ld frames "
+             "after the settle window", signal_name(sig), done, frames, averaged);
+    int st = wt_h5_attr_write_string(w, "/", "interrupted", why);
+    if (st >= 0) st = wt_h5_attr_write_int64(w, "/", "frames_requested", frames);
+    return st;
 }
 
 static int sim_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -277,6 +297,11 @@ int wt_cmd_sim(int argc, char **argv)
     if (!tw && cfg->telemetry_maps > 0 && !cli.quiet)
         fprintf(stderr, "wavetomo sim: note: sim.telemetry_maps_interval_frames = %d records into --telemetry TEL.h5, "
                 "which is not given: no maps\n", cfg->telemetry_maps);
+    /* From here a first SIGINT/SIGTERM/SIGHUP only raises the deferral flag (core/io/h5_temp.c: a
+     * sig_atomic_t, the one mutable global a handler needs); the loop finishes the frame in hand and the files
+     * are written with the frames done (compare's mechanism). Before this point (set-up) a signal ends the
+     * process and unlinks the temporaries: nothing is done yet. A second signal acts at once. */
+    wt_interrupt_defer(1);
     if (!cli.quiet)
         fprintf(stderr, "wavetomo sim: %s, %s, %ld frames, seed %llu, %lld slopes, %lld actuators (set-up %.1f s)\n",
                 cfg->path, recon, frames, (unsigned long long)cfg->seed, (long long)sys->nslopes,
@@ -285,6 +310,8 @@ int wt_cmd_sim(int argc, char **argv)
     wt_progress_start(&pr, "frames", "frames", frames);
     if (cli.quiet) pr.enabled = 0;
     double run0 = wt_time_now(), sum_field = 0.0;
+    long done = frames; /* frames simulated: fewer when a signal stopped the loop */
+    int sig = 0;
     for (long t = 0; t < frames; t++) {
         const double f0 = wt_time_now();
         if ((st = wt_loop_step(lp)) < 0 || (st = wt_sim_record_frame(rec, lp, wt_time_now() - f0)) < 0) goto fail;
@@ -300,8 +327,12 @@ int wt_cmd_sim(int argc, char **argv)
         double se = wt_sim_record_field_strehl(rec, t);
         sum_field += se;
         char extra[64];
-        snprintf(extra, sizeof extra, "field SE Strehl %.3f (mean %.3f)", se, sum_field / (t + 1));
+        snprintf(extra, sizeof extra, "Strehl %.3f this frame, %.3f so far (field average)", se, sum_field / (t + 1));
         wt_progress_update(&pr, t + 1, extra);
+        if ((sig = wt_interrupt_pending())) {
+            done = t + 1;
+            break;
+        }
     }
     wt_progress_end(&pr);
     double run = wt_time_now() - run0;
@@ -309,21 +340,23 @@ int wt_cmd_sim(int argc, char **argv)
     if ((st = wt_h5_create(cli.ctx, out, &w)) < 0) goto fail;
     if ((st = wt_cli_write_provenance(&cli, w, cfg, argc, argv)) < 0) goto fail;
     if ((st = wt_h5_attr_write_string(w, "/", "recon", recon)) < 0) goto fail;
+    if (done < frames && (st = mark_stopped(w, sig, done, frames, wt_loop_le(lp)->frames)) < 0) goto fail;
     if ((st = wt_sim_record_write(rec, w, lp, cfg->settle_frames)) < 0) goto fail;
     if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
     if ((st = inloop_gain(w, sys, 0)) < 0) goto fail;
     if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
     if (psf && ((st = wt_psf_write(psf, w, "psf")) < 0 ||
-                (st = wt_h5_write_double(w, "timing/psf", tpsf / frames * 1e3, "ms",
+                (st = wt_h5_write_double(w, "timing/psf", tpsf / done * 1e3, "ms",
                                          "mean wall time per frame of the long-exposure PSFs (sim.psf_interval_frames; included "
                                          "in timing/total, in no part of frame/time)")) < 0))
         goto fail;
     if (nband && (st = wt_psf_write_bands((const wt_psf *const *)band, nband, w, "psf/wavelengths")) < 0) goto fail;
-    if ((st = wt_h5_write_double(w, "timing/total", run / frames * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
+    if ((st = wt_h5_write_double(w, "timing/total", run / done * 1e3, "ms", "mean wall time per frame")) < 0) goto fail;
     if ((st = wt_h5_write_double(w, "timing/setup", setup, "s", "set-up time (atmosphere, operators)")) < 0) goto fail;
     if (tw) {
         if ((st = wt_cli_write_provenance(&cli, tw, cfg, argc, argv)) < 0) goto fail;
         if ((st = wt_h5_attr_write_string(tw, "/", "recon", recon)) < 0) goto fail;
+        if (done < frames && (st = mark_stopped(tw, sig, done, frames, wt_loop_le(lp)->frames)) < 0) goto fail;
         if ((st = wt_cli_write_layout(tw, sys)) < 0) goto fail;
         st = wt_h5_commit(tw);
         tw = NULL;
@@ -347,7 +380,7 @@ int wt_cmd_sim(int argc, char **argv)
         fwfe += pow(wt_strehl_le_wfe(le, j), 2) / sys->neval;
     }
     wt_loop_times tm = wt_loop_get_times(lp);
-    printf("%s: %ld frames (%ld averaged) at %.0f nm\n", recon, frames, le->frames, cfg->eval_wavelength * 1e9);
+    printf("%s: %ld frames (%ld averaged) at %.0f nm\n", recon, done, le->frames, cfg->eval_wavelength * 1e9);
     printf("  LE Strehl (Marechal) on-axis %.4f   field average %.4f\n", wt_strehl_le_strehl(le, sys->eval_centre), field);
     if (psf) {
         double pf = 0.0;
@@ -359,9 +392,9 @@ int wt_cmd_sim(int argc, char **argv)
            sqrt(fwfe) * 1e9);
     printf("  time per frame %.2f ms (%.2f frames/s): atmosphere %.2f, sensors %.2f, reconstruction %.2f, "
            "fitting %.2f, control %.2f, evaluation %.2f ms; set-up %.2f s\n",
-           run / frames * 1e3, frames / run, tm.atmosphere / frames * 1e3, tm.sensors / frames * 1e3,
-           tm.reconstruction / frames * 1e3, tm.fitting / frames * 1e3, tm.control / frames * 1e3,
-           tm.evaluation / frames * 1e3, setup);
+           run / done * 1e3, done / run, tm.atmosphere / done * 1e3, tm.sensors / done * 1e3,
+           tm.reconstruction / done * 1e3, tm.fitting / done * 1e3, tm.control / done * 1e3,
+           tm.evaluation / done * 1e3, setup);
     inloop_gain(NULL, sys, 1);
     if (wt_loop_sodium(lp)) {
         const wt_sodium_drive_stats ds = wt_sodium_drive_get_stats(wt_loop_sodium(lp));
@@ -373,16 +406,26 @@ int wt_cmd_sim(int argc, char **argv)
                ds.reference_rebuilds ? ds.c_e_seconds / ds.reference_rebuilds : 0.0);
         if (cfg->lgs_reference == 2)
             printf("  pixels: re-centred images accumulated %.2f ms per frame (sensors above: %.2f ms per frame, "
-                   "accumulation included)\n", ds.accumulate_seconds / frames * 1e3, tm.sensors / frames * 1e3);
+                   "accumulation included)\n", ds.accumulate_seconds / done * 1e3, tm.sensors / done * 1e3);
     }
-    print_learned(wt_loop_adapt(lp), frames, tm.learning);
-    if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / frames * 1e3);
+    print_learned(wt_loop_adapt(lp), done, tm.learning);
+    if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / done * 1e3);
     printf("  results: %s%s%s%s%s\n", out, tel ? ", telemetry: " : "", tel ? tel : "", args.fits ? ", FITS PSFs in " : "",
            args.fits ? args.fits : "");
+    if (!sig) sig = wt_interrupt_pending(); /* a signal while the files were written: they are complete */
+    if (sig) { /* after the files: the one line a script or a log needs, and the status that tells it apart */
+        if (done < frames)
+            fprintf(stderr, "wavetomo sim: stopped by %s after %ld of %ld frames: %s has them (attribute 'interrupted')\n",
+                    signal_name(sig), done, frames, out);
+        else
+            fprintf(stderr, "wavetomo sim: %s after the last frame: %s is complete\n", signal_name(sig), out);
+        rc = 128 + sig;
+    }
     goto cleanup;
 fail:
     rc = wt_cli_fail(&cli, st);
 cleanup:
+    wt_interrupt_defer(0);
     wt_sim_record_free(rec);
     wt_psf_free(psf);
     for (int k = 0; k < nband; k++)

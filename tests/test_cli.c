@@ -1,6 +1,8 @@
 /* tests/test_cli.c: the wavetomo commands as a user runs them: the comparison report on the demo
  * system, the build → run chain, and clear refusals with non-zero exits. Uses $BIN/wavetomo (make test
  * builds it first). */
+#include <fcntl.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -66,6 +68,84 @@ static int is_png(const char *d, const char *name)
 static void setup(void) { tu_cli_setup(wt, sizeof wt, dir, sizeof dir, "wt_cli_"); }
 static void teardown(void) { tu_cli_teardown(dir); }
 
+/* Start `wavetomo ARGS` (args[0] = the binary) with its stderr into a pipe whose read end is *rd. */
+static pid_t spawn_stderr(const char *const *args, int *rd)
+{
+    int fd[2];
+    ck_assert_int_eq(pipe(fd), 0);
+    pid_t pid = fork();
+    ck_assert(pid >= 0);
+    if (pid == 0) {
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(fd[1], 2), dup2(nul, 1), close(fd[0]);
+        execv(wt, (char *const *)args);
+        _exit(127);
+    }
+    close(fd[1]);
+    *rd = fd[0];
+    return pid;
+}
+
+/* sim interrupted in its loop: SIGTERM once the loop runs (the line before it read) ends the frame in hand and
+ * writes RUN.h5 and TEL.h5 complete (readers accept them), with every per-frame dataset as long as `frames`, the
+ * root attributes saying after how many of the requested frames and why, finite long-exposure figures; exit
+ * 128 + 15 and one line saying so; no temporary left. */
+START_TEST(test_sim_interrupt)
+{
+    char out[256], tel[256], line[1024], msg[1024] = "";
+    snprintf(out, sizeof out, "%s/si.h5", dir);
+    snprintf(tel, sizeof tel, "%s/sit.h5", dir);
+    const char *args[] = {wt, "sim", "--config", "data/presets/demo.cfg", "--frames", "100000", "--out", out, "--telemetry", tel, NULL};
+    int rd;
+    pid_t pid = spawn_stderr(args, &rd);
+    FILE *f = fdopen(rd, "r");
+    int started = 0;
+    while (!started && fgets(line, sizeof line, f)) started = strstr(line, "100000 frames, seed") != NULL;
+    ck_assert_msg(started, "sim did not start its loop");
+    usleep(300000); /* some frames past the settle window (20 frames of the demo) on an idle machine */
+    ck_assert_int_eq(kill(pid, SIGTERM), 0);
+    while (fgets(line, sizeof line, f))
+        if (strstr(line, "stopped by")) snprintf(msg, sizeof msg, "%s", line);
+    fclose(f);
+    int status;
+    ck_assert_int_eq(waitpid(pid, &status, 0), pid);
+    ck_assert_msg(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM, "status %d", status);
+    ck_assert_msg(strstr(msg, "stopped by SIGTERM after ") && strstr(msg, " of 100000 frames"), "message '%s'", msg);
+    snprintf(line, sizeof line, "ls %s | grep -q 'tmp-'", dir);
+    ck_assert_msg(system(line) != 0, "a temporary was left in %s", dir);
+
+    wt_context *ctx = tu_context();
+    wt_h5_reader *r = NULL;
+    ck_assert_msg(wt_h5_open(ctx, out, &r) == WT_OK, "%s", wt_error_message(ctx));
+    int64_t frames = 0, requested = 0, settle = 0;
+    char *why = NULL;
+    ck_assert_int_eq(wt_h5_read_int64(r, "frames", &frames), WT_OK);
+    ck_assert_int_eq(wt_h5_read_int64(r, "settle_frames", &settle), WT_OK);
+    ck_assert_int_eq(wt_h5_attr_read_int64(r, "/", "frames_requested", &requested), WT_OK);
+    ck_assert_int_eq(wt_h5_attr_read_string(r, "/", "interrupted", &why), WT_OK);
+    ck_assert_msg(frames >= 1 && frames < 100000 && requested == 100000, "%lld of %lld", (long long)frames,
+                  (long long)requested);
+    char want[128];
+    snprintf(want, sizeof want, "SIGTERM after %lld of 100000 frames", (long long)frames);
+    ck_assert_msg(strstr(why, want) && strstr(msg, want), "'%s' / '%s' lack '%s'", why, msg, want);
+    free(why);
+    double *se = malloc((size_t)frames * sizeof *se), le = -1.0;
+    int64_t dims[1] = {frames};
+    ck_assert_msg(wt_h5_read(r, "frame/strehl_field", WT_H5_F64, 1, dims, NULL, se, (size_t)frames) == WT_OK, "%s",
+                  wt_error_message(ctx));
+    for (int64_t t = 0; t < frames; t++) ck_assert_msg(se[t] > 0.0 && se[t] <= 1.0, "frame %lld: %g", (long long)t, se[t]);
+    ck_assert_int_eq(wt_h5_read_double(r, "strehl_le_field", &le), WT_OK);
+    if (frames > settle) ck_assert_msg(le > 0.0 && le <= 1.0, "LE Strehl %g over %lld frames", le, (long long)frames);
+    free(se);
+    wt_h5_close(r);
+    ck_assert_msg(wt_h5_open(ctx, tel, &r) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_h5_attr_read_int64(r, "/", "frames_requested", &requested), WT_OK);
+    ck_assert_int_eq(requested, 100000);
+    wt_h5_close(r);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_did_you_mean)
 {
     /* a misspelt command or option is refused (exit 2) with the nearest name: a dropped or doubled letter,
@@ -113,6 +193,15 @@ START_TEST(test_compare_writes_the_report)
         ck_assert_msg(is_png(out, pngs[i]), "%s is not a PNG", pngs[i]);
         ck_assert_msg(file_size(out, pngs[i]) > 2000, "%s is (nearly) empty", pngs[i]);
     }
+    /* each method's WFE minus the first method's over the field, per sweep value, linked from report.md; none of the
+     * first against itself */
+    const char *diffs[] = {"diff_pcg3_mvm_0.png", "diff_cg9_mvm_0.png", "diff_pcg3_mvm_1.png", "diff_cg9_mvm_1.png"};
+    for (int i = 0; i < 4; i++) ck_assert_msg(is_png(out, diffs[i]) && file_size(out, diffs[i]) > 2000, "%s", diffs[i]);
+    ck_assert_int_lt(file_size(out, "diff_mvm_mvm_0.png"), 0);
+    char grep[1024];
+    snprintf(grep, sizeof grep, "grep -q '## Differences between methods' %1$s/report.md && grep -q '(diff_cg9_mvm_1.png)' "
+             "%1$s/report.md && grep -q '| method | lgs.wfs.photons |' %1$s/report.md", out);
+    ck_assert_msg(system(grep) == 0, "report.md lacks the differences or the sweep column");
     /* summary.csv: a header and one row per method and sweep value */
     char p[256], line[512];
     snprintf(p, sizeof p, "%s/summary.csv", out);
@@ -404,6 +493,11 @@ START_TEST(test_info_spots)
     fclose(f);
     text[n] = 0;
     ck_assert(strstr(text, "(spots_LGS1.png)") && strstr(text, "(gain_LGS1.png)"));
+    /* without a sweep the table has no sweep column (it would hold nothing), and one method has no difference map */
+    ck_assert_msg(strstr(text, "| method | LE Strehl on-axis") && strstr(text, "| pcg3 | 0.") && !strstr(text, "| – |"),
+                  "%s", text);
+    ck_assert_int_lt(file_size(out, "diff_pcg3_pcg3_0.png"), 0);
+    ck_assert(!strstr(text, "## Differences between methods"));
 }
 END_TEST
 
@@ -419,6 +513,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_did_you_mean);
     tcase_add_test(tc, test_info_spots);
     tcase_add_test(tc, test_wisdom_command);
+    tcase_add_test(tc, test_sim_interrupt);
     suite_add_tcase(s, tc);
     return s;
 }

@@ -142,7 +142,7 @@ static int draw_map(wt_context *ctx, const char *path, double peak)
 {
     double s[25];
     map_data(s, peak);
-    return wt_plot_strehl_map(ctx, path, "PCG-3 LE Strehl over the field", 5, coords, s, 0.2, 0.7);
+    return wt_plot_strehl_map(ctx, path, "PCG-3 LE Strehl over the field", 5, coords, s, 0.2, 0.7, NULL);
 }
 
 static int draw_bars(wt_context *ctx, const char *path)
@@ -199,6 +199,42 @@ START_TEST(test_bars_write_png)
 }
 END_TEST
 
+/* Guide stars on the maps (an LGS ring inside the cells, an NGS ring outside them, which widens the window) and
+ * the difference map: each is drawn (the stars change the picture, a difference and its opposite give different
+ * pictures, an all-zero difference draws); bad stars and a format without exactly one number are refused. */
+static const double lgs_x[4] = {22.5, 0.0, -22.5, 0.0}, lgs_y[4] = {0.0, 22.5, 0.0, -22.5};
+static const double ngs_x[3] = {40.0, -20.0, -20.0}, ngs_y[3] = {0.0, 34.64, -34.64};
+START_TEST(test_stars_and_difference_map)
+{
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), a[256], b[256];
+    snprintf(a, sizeof a, "%s/a.png", dir);
+    snprintf(b, sizeof b, "%s/b.png", dir);
+    const wt_plot_stars stars = {4, 3, lgs_x, lgs_y, ngs_x, ngs_y};
+    double s[25], d[25], nd[25], z[25] = {0};
+    map_data(s, 0.6);
+    for (int i = 0; i < 25; i++) d[i] = 10.0 * (s[i] - 0.5), nd[i] = -d[i];
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, a, "with stars", 5, coords, s, 0.2, 0.7, &stars), WT_OK);
+    assert_png(a, 900, 650);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, b, "with stars", 5, coords, s, 0.2, 0.7, NULL), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "the guide stars do not change the map");
+    ck_assert_int_eq(wt_plot_diff_map(ctx, a, "difference", 5, coords, d, "WFE difference [nm]", "%+.1f", &stars), WT_OK);
+    assert_png(a, 900, 650);
+    ck_assert_int_eq(wt_plot_diff_map(ctx, b, "difference", 5, coords, nd, "WFE difference [nm]", "%+.1f", &stars), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "a difference and its opposite draw the same picture");
+    ck_assert_int_eq(wt_plot_diff_map(ctx, b, "none", 5, coords, z, "WFE difference [nm]", "%+.1f", NULL), WT_OK);
+    ck_assert_int_eq(wt_plot_diff_map(ctx, b, "t", 5, coords, d, "x", "no number", NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_diff_map(ctx, b, "t", 5, coords, d, "x", "%f %f", NULL), WT_ERR_INVALID);
+    const double bad[1] = {NAN};
+    const wt_plot_stars nan_star = {1, 0, bad, lgs_y, NULL, NULL};
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, b, "t", 5, coords, s, 0.2, 0.7, &nan_star), WT_ERR_INVALID);
+    ck_assert(strstr(wt_error_message(ctx), "guide star 0"));
+    ck_assert_int_eq(count_entries(dir, "tmp"), 0);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* The data reach the picture: different values give different bytes (a plot that ignored its inputs,
  * or drew them outside the window, would not change). */
 START_TEST(test_data_change_the_image)
@@ -231,7 +267,7 @@ START_TEST(test_missing_directory_refused)
     map_data(s, 0.6);
     int st[3] = {
         wt_plot_strehl_sweep(ctx, path, "t", "x", 3, methods, 5, alpha, on, fa, NULL, NULL, 0),
-        wt_plot_strehl_map(ctx, path, "t", 5, coords, s, 0.2, 0.7),
+        wt_plot_strehl_map(ctx, path, "t", 5, coords, s, 0.2, 0.7, NULL),
         wt_plot_time_bars(ctx, path, "t", 3, methods, 6, parts, times),
     };
     for (int i = 0; i < 3; i++) ck_assert_int_eq(st[i], WT_ERR_IO);
@@ -333,11 +369,11 @@ START_TEST(test_invalid_inputs_refused)
     const char *const nullname[3] = {"MVM", NULL, "CG-9"};
     ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "x", 3, nullname, 5, x, on, fa, NULL, NULL, 1), WT_ERR_INVALID);
 
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.7, 0.6), WT_ERR_INVALID);
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.2, NAN), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.7, 0.6, NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.2, NAN, NULL), WT_ERR_INVALID);
     c[3] = c[2]; /* cells need increasing coordinates */
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.2, 0.7), WT_ERR_INVALID);
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 0, coords, s, 0.2, 0.7), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 5, c, s, 0.2, 0.7, NULL), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "t", 0, coords, s, 0.2, 0.7, NULL), WT_ERR_INVALID);
 
     t[7] = -1.0;
     ck_assert_int_eq(wt_plot_time_bars(ctx, path, "t", 3, methods, 6, parts, t), WT_ERR_INVALID);
@@ -362,10 +398,10 @@ START_TEST(test_edge_inputs_draw)
     char *dir = make_dir(), path[256];
     snprintf(path, sizeof path, "%s/one.png", dir);
     double s1 = 0.4, c1 = 0.0;
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "on-axis #1", 1, &c1, &s1, 0.0, 1.0), WT_OK);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "on-axis #1", 1, &c1, &s1, 0.0, 1.0, NULL), WT_OK);
     assert_png(path, 900, 650);
     /* a degenerate colour range (all maps equal: min = max) is drawn, not refused */
-    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "uniform", 1, &c1, &s1, 0.4, 0.4), WT_OK);
+    ck_assert_int_eq(wt_plot_strehl_map(ctx, path, "uniform", 1, &c1, &s1, 0.4, 0.4, NULL), WT_OK);
     assert_png(path, 900, 650);
     snprintf(path, sizeof path, "%s/single.png", dir);
     const char *const m1[1] = {"run #2"};
@@ -556,6 +592,7 @@ Suite *make_suite(void)
     tcase_set_timeout(tc, 60);
     tcase_add_test(tc, test_sweep_writes_png);
     tcase_add_test(tc, test_map_writes_png);
+    tcase_add_test(tc, test_stars_and_difference_map);
     tcase_add_test(tc, test_bars_write_png);
     tcase_add_test(tc, test_data_change_the_image);
     tcase_add_test(tc, test_missing_directory_refused);

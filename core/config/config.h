@@ -270,6 +270,10 @@ int wt_config_parse(wt_context *ctx, const char *text, const char *name, int nov
                     const char *const *overrides, wt_config **out);
 void wt_config_free(wt_context *ctx, wt_config *cfg);
 
+/* Key `path`'s unit in the file ("" for none) and its description, from the schema (static strings); WT_OK, or
+ * WT_ERR_INVALID (and both NULL) when it is not a key. For labels (a sweep's axis) and messages. */
+int wt_config_key_doc(const char *path, const char **unit, const char **description);
+
 /* Print every key with its type, range and unit (the config reference), one per line. */
 void wt_config_print_reference(FILE *f);
 

@@ -15,6 +15,14 @@ int wt_config_priv_find_key(const char *path)
     return -1;
 }
 
+int wt_config_key_doc(const char *path, const char **unit, const char **description)
+{
+    const int k = path ? wt_config_priv_find_key(path) : -1;
+    if (unit) *unit = k >= 0 ? wt_config_priv_keys[k].unit : NULL;
+    if (description) *description = k >= 0 ? wt_config_priv_keys[k].desc : NULL;
+    return k >= 0 ? WT_OK : WT_ERR_INVALID;
+}
+
 int wt_config_priv_fail(wt_config_priv_state *ps, const char *loc, const char *fmt, ...)
 {
     char msg[1536];

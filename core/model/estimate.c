@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "reconstructor.h"
 
@@ -268,11 +269,34 @@ static void human_time(char *buf, size_t n, double s)
     else snprintf(buf, n, "%.3g days", s / 86400);
 }
 
+/* The 1-minute load average over the online cores, or a negative value when /proc/loadavg cannot be read. */
+static double load_per_core(int *cores)
+{
+    FILE *f = fopen("/proc/loadavg", "r");
+    double load = -1.0;
+    if (!f) return -1.0;
+    if (fscanf(f, "%lf", &load) != 1) load = -1.0;
+    fclose(f);
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    *cores = n > 0 ? (int)n : 1;
+    return load < 0.0 ? -1.0 : load / *cores;
+}
+
+/* Above this load per core the estimate, calibrated on an idle machine, is said to be a lower bound: the run gets
+ * only a share of the cores (with a load of L per core, about 1/L of them; docs/results.md has a measured case). */
+#define WT_ESTIMATE_BUSY_LOAD 0.5
+
 void wt_estimate_print(FILE *f, const char *prefix, const wt_estimate *e)
 {
-    char t[32];
+    char t[32], busy[128] = "";
     human_time(t, sizeof t, e->seconds);
-    fprintf(f, "%sestimated peak memory %.3g GB, run time %s (2-core reference machine)\n", prefix, e->bytes / 1e9, t);
+    int cores = 1;
+    const double load = load_per_core(&cores);
+    if (load > WT_ESTIMATE_BUSY_LOAD)
+        snprintf(busy, sizeof busy, "; a lower bound here: load average %.1f on %d core%s", load * cores, cores,
+                 cores == 1 ? "" : "s");
+    fprintf(f, "%sestimated peak memory %.3g GB, run time %s (idle 2-core reference machine%s)\n", prefix, e->bytes / 1e9,
+            t, busy);
     int used[WT_ESTIMATE_TERMS] = {0};
     for (int r = 0; r < e->nterms; r++) {
         int best = -1;
