@@ -64,12 +64,18 @@ int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int
                        long nframes, const double *wfe, int settle);
 
 /* Every case's residual over the run, smoothed: the rms of the field WFE over a trailing window of `window` frames
- * [nm] (wfe[(m * nvalues + v) * nframes + t], NaN: none) against time t · dt [s], one colour per method, one line
- * style per sweep value (values: their labels); the settle window shaded. For the runs whose model changes (a
- * learned atmosphere, a night): which method follows, and when. */
+ * [nm] (wfe[(m * nvalues + v) * nframes + t], NaN: none) against x0 + t · dx in the unit of xname (simulated
+ * seconds, or night minutes for a changing night), one colour per method, one line style per sweep value (values:
+ * their labels); the settle window shaded. ref ≥ 0: each case minus its method's case at value ref (the oracle of a
+ * learned atmosphere: what each model costs at a glance), the reference's own zero line left out. For the runs
+ * whose model changes (a learned atmosphere, a night): which method follows, and when. */
+typedef struct wt_plot_run_axis {
+    double x0, dx;     /* x of frame 0 and per frame */
+    const char *xname; /* "time [s]", "night time [min]" */
+} wt_plot_run_axis;
 int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
                     int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
-                    double dt);
+                    const wt_plot_run_axis *axis, int ref);
 
 /* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`) ---------------------- */
 

@@ -186,21 +186,24 @@ int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int
 
 int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
                     int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
-                    double dt)
+                    const wt_plot_run_axis *axis, int ref)
 {
     enum { MAXM = 8, MAXV = 5 };
+    const double dt = axis ? axis->dx : 0.0, x0 = axis ? axis->x0 : 0.0;
     if (nmethods < 1 || nmethods > MAXM || nvalues < 1 || nvalues > MAXV || nframes < 2 || window < 1 ||
-        window > nframes || settle < 0 || settle >= nframes || !(dt > 0.0))
-        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': %d methods x %d values x %ld frames, window %d, settle %d, dt %g; "
-                        "expected 1..%d methods, 1..%d values, a window within the frames and dt > 0", wt_plot_pname(path),
-                        nmethods, nvalues, nframes, window, settle, dt, MAXM, MAXV);
+        window > nframes || settle < 0 || settle >= nframes || !(dt > 0.0) || !isfinite(x0) || !axis->xname ||
+        ref < -1 || ref >= nvalues || (ref >= 0 && nvalues < 2))
+        return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': %d methods x %d values x %ld frames, window %d, settle %d, dx %g, "
+                        "reference value %d; expected 1..%d methods, 1..%d values, a window within the frames, dx > 0 and "
+                        "a reference among 2 or more values", wt_plot_pname(path), nmethods, nvalues, nframes, window,
+                        settle, dt, ref, MAXM, MAXV);
     const long nc = (long)nmethods * nvalues, np = nframes - window + 1;
     double *y = malloc((size_t)nc * np * sizeof *y), *x = malloc((size_t)np * sizeof *x);
     if (!y || !x) {
         free(y), free(x);
         return WT_ERROR(ctx, WT_ERR_NOMEM, "plot '%s': out of memory", wt_plot_pname(path));
     }
-    double lo = INFINITY, hi = 0.0;
+    double lo = INFINITY, hi = -INFINITY;
     for (long c = 0; c < nc; c++) { /* the trailing window's rms: point i covers frames i … i + window − 1 */
         const double *w = wfe + c * nframes;
         double acc = 0.0;
@@ -213,18 +216,25 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
                 else bad--;
             }
             if (t >= window - 1) {
-                const double v = bad ? NAN : sqrt(fmax(acc, 0.0) / window);
-                y[c * np + t - window + 1] = v;
-                if (isfinite(v)) lo = fmin(lo, v), hi = fmax(hi, v);
+                y[c * np + t - window + 1] = bad ? NAN : sqrt(fmax(acc, 0.0) / window);
             }
         }
     }
-    if (!(hi > 0.0)) {
+    if (ref >= 0) /* each case minus its method's reference (the reference itself kept: it is not drawn) */
+        for (int m = 0; m < nmethods; m++)
+            for (int v = 0; v < nvalues; v++)
+                for (long i = 0; i < np && v != ref; i++)
+                    y[((long)m * nvalues + v) * np + i] -= y[((long)m * nvalues + ref) * np + i];
+    for (long c = 0; c < nc; c++)
+        for (long i = 0; i < np && (ref < 0 || c % nvalues != ref); i++)
+            if (isfinite(y[c * np + i])) lo = fmin(lo, y[c * np + i]), hi = fmax(hi, y[c * np + i]);
+    if (!(hi >= lo) || (ref < 0 && !(hi > 0.0))) {
         free(y), free(x);
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': no residual to draw", wt_plot_pname(path));
     }
-    for (long i = 0; i < np; i++) x[i] = (double)(i + window) * dt;
-    const double pad = 0.05 * (hi - lo) + 1.0, ylo = fmax(0.0, lo - pad), yhi = hi + pad;
+    if (ref >= 0) lo = fmin(lo, 0.0), hi = fmax(hi, 0.0); /* the reference's zero in view */
+    for (long i = 0; i < np; i++) x[i] = x0 + (double)(i + window) * dt;
+    const double pad = 0.05 * (hi - lo) + 1.0, ylo = ref >= 0 ? lo - pad : fmax(0.0, lo - pad), yhi = hi + pad;
     wt_plot_job j;
     int st = wt_plot_job_begin(&j, ctx, path);
     if (st < 0) {
@@ -232,19 +242,30 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
         return st;
     }
     plvpor(0.11, 0.66, 0.12, 0.90);
-    plwind(0.0, (double)nframes * dt, ylo, yhi);
+    plwind(x0, x0 + (double)nframes * dt, ylo, yhi);
     if (settle > 0) {
-        PLFLT fx[4] = {0.0, settle * dt, settle * dt, 0.0}, fy[4] = {ylo, ylo, yhi, yhi};
+        PLFLT fx[4] = {x0, x0 + settle * dt, x0 + settle * dt, x0}, fy[4] = {ylo, ylo, yhi, yhi};
         plcol0(C_MISSING);
         plfill(4, fx, fy);
     }
     wt_plot_axes("bcnstg", "bcnstgv", "g", "");
     char xl[96];
-    snprintf(xl, sizeof xl, "time [s] (the end of a trailing %d-frame window)", window);
+    snprintf(xl, sizeof xl, "%s (the end of a trailing %d-frame window)", axis->xname, window);
     wt_plot_labels(xl, "", title);
-    plmtex("l", 4.2, 0.5, 0.5, "residual WFE, field rms over the window [nm]");
+    if (ref >= 0) {
+        char yl[LABEL_MAX + 64], bare[LABEL_MAX];
+        const size_t n = strlen(values[ref]);
+        const int q = n >= 2 && values[ref][0] == '"' && values[ref][n - 1] == '"';
+        snprintf(bare, sizeof bare, "%.*s", q ? (int)n - 2 : (int)n, values[ref] + q);
+        snprintf(yl, sizeof yl, "field WFE over the window minus %s's [nm]", bare);
+        plmtex("l", 4.2, 0.5, 0.5, yl);
+        plcol0(C_FG);
+        pljoin(x0, 0.0, x0 + (double)nframes * dt, 0.0);
+    } else
+        plmtex("l", 4.2, 0.5, 0.5, "residual WFE, field rms over the window [nm]");
     static const PLINT style[MAXV] = {1, 3, 2, 4, 5}; /* solid, long dashes, short dashes, … (PLplot's 1 … 8) */
     for (long c = 0; c < nc; c++) {
+        if (ref >= 0 && c % nvalues == ref) continue; /* its zero line is drawn above */
         plcol0(C_PAL + (int)(c / nvalues) % N_PAL);
         pllsty(style[c % nvalues]);
         plwidth(1.8);
@@ -264,13 +285,15 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
         text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], methods[m]);
         opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_PAL + m % N_PAL, lsty[nl] = 1, lwid[nl] = 2.4;
     }
-    for (int v = 0; v < nvalues && nvalues > 1; v++, nl++) {
+    for (int v = 0; v < nvalues && nvalues > 1; v++) {
+        if (v == ref) continue; /* drawn as the zero line */
         char bare[LABEL_MAX]; /* a string value without its quotes */
         const size_t n = strlen(values[v]);
         snprintf(bare, sizeof bare, "%.*s", n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"' ? (int)n - 2 : (int)n,
                  values[v] + (n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"'));
         text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], bare);
         opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_FG, lsty[nl] = style[v], lwid[nl] = 1.8;
+        nl++;
     }
     for (int i = 0; i < nl; i++) bcol[i] = C_MISSING, bpat[i] = 0, bscale[i] = 0.8, bwid[i] = 1.0;
     PLFLT lw, lh;

@@ -16,6 +16,16 @@
 
 static int cols(const wt_cmp_cases *a) { return a->nv ? a->nv : 1; }
 static const char *val(const wt_cmp_cases *a, int v) { return a->nv ? a->values[v] : ""; }
+/* The sweep value that is the reconstructors' oracle atmosphere (recon.atmosphere.source = "oracle"), −1 without
+ * one: the run figure then has a companion with every case minus it */
+static int oracle_value(const wt_cmp_cases *a)
+{
+    if (a->nv < 2 || strcmp(a->key, "recon.atmosphere.source") != 0) return -1;
+    for (int v = 0; v < a->nv; v++)
+        if (strcmp(a->values[v], "\"oracle\"") == 0 || strcmp(a->values[v], "oracle") == 0) return v;
+    return -1;
+}
+
 /* The run figure: a sweep of 2–5 values over 2–8 methods, long enough for a window (wt_plot_wfe_run) */
 static int run_plot(const wt_cmp_cases *a, long frames) { return a->nv >= 2 && a->nv <= 5 && a->nm <= 8 && frames >= 100; }
 static int run_window(long frames) { return frames / 24 > 10 ? (int)(frames / 24) : 10; }
@@ -46,6 +56,8 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
     }
     snprintf(path, sizeof path, "%s/wfe_over_run.png", a->out);
     if (a->nv >= 2 && (st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
+    snprintf(path, sizeof path, "%s/wfe_minus_oracle.png", a->out);
+    if (oracle_value(a) >= 0 && (st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     return WT_OK;
 }
 
@@ -535,6 +547,10 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
                            "field WFE's rms over a trailing window of %d frames (for a model that changes during the "
                            "run: a learned atmosphere, a night)%s.\n\n![residual WFE over the run](wfe_over_run.png)",
                         a->key, run_window(cfg->frames), a->ns > 1 ? " (first seed)" : "");
+            if (run_plot(a, cfg->frames) && oracle_value(a) >= 0)
+                fprintf(f, "\n\nThe same curves minus each method's oracle (the truth compressed onto its layers): what "
+                           "each model of the atmosphere costs, over the run.\n\n![each model against the oracle]"
+                           "(wfe_minus_oracle.png)");
             int psfs = 0;
             for (int c = 0; c < a->nm * nv; c++) psfs += S[c].mean.done && S[c].mean.psf_frames > 0;
             if (psfs) {
@@ -605,8 +621,19 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
         snprintf(path, sizeof path, "%s/wfe_over_run.png", a->out);
         const char *dot = strrchr(a->key, '.');
         snprintf(title, sizeof title, "over the run, by %s", dot ? dot + 1 : a->key);
+        const wt_night_config *night = &sys->cfg->night;
+        wt_plot_run_axis axis = {0.0, 1.0 / sys->cfg->rate, "time [s]"};
+        if (night->source != WT_NIGHT_CFG_NONE) /* a night is read in night time: frames stand for longer */
+            axis = (wt_plot_run_axis){night->start / 60.0, night->compression / sys->cfg->rate / 60.0, "night time [min]"};
         st = wt_plot_wfe_run(cli->ctx, path, title, nm, (const char *const *)a->methods, nv, vals, F, y,
-                             sys->cfg->settle_frames, run_window(F), 1.0 / sys->cfg->rate);
+                             sys->cfg->settle_frames, run_window(F), &axis, -1);
+        const int ref = oracle_value(a);
+        if (st >= 0 && ref >= 0) {
+            snprintf(path, sizeof path, "%s/wfe_minus_oracle.png", a->out);
+            snprintf(title, sizeof title, "each model against the oracle");
+            st = wt_plot_wfe_run(cli->ctx, path, title, nm, (const char *const *)a->methods, nv, vals, F, y,
+                                 sys->cfg->settle_frames, run_window(F), &axis, ref);
+        }
         free(y);
     }
     for (int c = 0; c < nm * nv && st >= 0; c++) {

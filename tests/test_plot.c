@@ -235,6 +235,40 @@ START_TEST(test_stars_and_difference_map)
 }
 END_TEST
 
+/* The run figure against a reference value (the oracle of a learned atmosphere): drawn in night minutes; the
+ * reference, not drawn itself, is subtracted (changing only its data changes the picture); the plain figure
+ * differs from it; a reference outside the values, or with one value, is refused with nothing written. */
+START_TEST(test_run_minus_reference)
+{
+    enum { NM = 2, NV = 3, NF = 150 };
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), a[256], b[256];
+    snprintf(a, sizeof a, "%s/a.png", dir);
+    snprintf(b, sizeof b, "%s/b.png", dir);
+    static const char *const vals[NV] = {"\"learned\"", "\"oracle\"", "\"given\""};
+    static double w[NM * NV * NF];
+    for (int c = 0; c < NM * NV; c++)
+        for (int t = 0; t < NF; t++) w[c * NF + t] = 300.0 + 10.0 * (c % NV) + 20.0 * sin(0.1 * t + c);
+    const wt_plot_run_axis night = {0.0, 2.4 / 60.0, "night time [min]"};
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, a, "against the oracle", NM, methods, NV, vals, NF, w, 10, 10, &night, 1), WT_OK);
+    assert_png(a, 900, 650);
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, b, "over the run", NM, methods, NV, vals, NF, w, 10, 10, &night, -1), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "the figure against the reference is the plain one");
+    for (int t = 0; t < NF; t++) w[1 * NF + t] += 5.0 * cos(0.05 * t); /* method 0's reference only */
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, b, "against the oracle", NM, methods, NV, vals, NF, w, 10, 10, &night, 1), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "the reference's data do not reach the picture");
+    char c[256];
+    snprintf(c, sizeof c, "%s/c.png", dir);
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, c, "t", NM, methods, NV, vals, NF, w, 10, 10, &night, NV), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, c, "t", NM, methods, 1, vals, NF, w, 10, 10, &night, 0), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_wfe_run(ctx, c, "t", NM, methods, NV, vals, NF, w, 10, 10, NULL, -1), WT_ERR_INVALID);
+    ck_assert(access(c, F_OK) != 0);
+    ck_assert_int_eq(count_entries(dir, "tmp"), 0);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* The data reach the picture: different values give different bytes (a plot that ignored its inputs,
  * or drew them outside the window, would not change). */
 START_TEST(test_data_change_the_image)
@@ -593,6 +627,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_sweep_writes_png);
     tcase_add_test(tc, test_map_writes_png);
     tcase_add_test(tc, test_stars_and_difference_map);
+    tcase_add_test(tc, test_run_minus_reference);
     tcase_add_test(tc, test_bars_write_png);
     tcase_add_test(tc, test_data_change_the_image);
     tcase_add_test(tc, test_missing_directory_refused);
