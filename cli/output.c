@@ -215,6 +215,13 @@ int wt_cli_ensure_dir(wt_context *ctx, const char *path)
     return WT_OK;
 }
 
+/* wt_mvm_options.stop: a deferred SIGINT/SIGTERM/SIGHUP (wt_interrupt_defer) is pending */
+static int stop_on_signal(void *user)
+{
+    (void)user;
+    return wt_interrupt_pending() != 0;
+}
+
 int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys, int argc, char **argv,
                       wt_mvm **out, double *build_s)
 {
@@ -240,7 +247,10 @@ int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *s
     wt_h5_writer *w = NULL;
     if ((st = wt_h5_check_replaceable(cli->ctx, path, cli->force)) < 0) return st;
     if (!cli->quiet) fprintf(stderr, "%s: building the MVM for %s (hash %.16s)\n", cli->prog, cfg->path, cfg->matrix_sha256);
-    if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", NULL, out)) < 0) return st;
+    wt_mvm_options o;
+    wt_mvm_options_default(&o);
+    o.stop = stop_on_signal; /* compare and budget defer SIGTERM: a build of minutes ends at its next block */
+    if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", &o, out)) < 0) return st;
     *build_s = (*out)->stats.t_total;
     if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
     if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 && (st = wt_cli_write_layout(w, sys)) >= 0 &&

@@ -457,6 +457,32 @@ START_TEST(test_budget_refuses)
 }
 END_TEST
 
+/* A stop request between solve blocks ends the build with WT_ERR_INTERRUPTED, nothing returned, the message
+ * naming the rows done; polled once per block but the last, so a stop that never fires costs the same bits. */
+static int stop_after(void *user)
+{
+    int *calls = user;
+    return ++*calls >= 2;
+}
+START_TEST(test_stop_between_blocks)
+{
+    fixture f;
+    setup(&f, 0, 0, NULL);
+    wt_mvm_options opt;
+    wt_mvm_options_default(&opt);
+    opt.block = 8; /* several blocks on the test system */
+    ck_assert_int_gt(f.na, 3 * opt.block);
+    int calls = 0;
+    opt.stop = stop_after, opt.stop_user = &calls;
+    wt_mvm *mv = NULL;
+    ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_ERR_INTERRUPTED);
+    ck_assert_ptr_null(mv);
+    ck_assert_int_eq(calls, 2);
+    ck_assert_msg(strstr(wt_error_message(f.ctx), "after 16 of"), "message: %s", wt_error_message(f.ctx));
+    teardown(&f);
+}
+END_TEST
+
 /* pcg3 needs a layer reaching every DM (a layer goes to the DMs around its altitude): layers at 0 and
  * 4 km only leave the 12.7 km DM 3 without any, refused naming the DM before any heavy work. */
 START_TEST(test_pcg3_layer_mismatch_refused)
@@ -916,6 +942,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_ra_matches);
     tcase_add_test(tc, test_orderings);
     tcase_add_test(tc, test_budget_refuses);
+    tcase_add_test(tc, test_stop_between_blocks);
     tcase_add_test(tc, test_pcg3_layer_mismatch_refused);
     tcase_add_test(tc, test_focus_normal_matches);
     tcase_add_test(tc, test_r_matches_pcg3_focus);

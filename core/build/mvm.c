@@ -278,6 +278,11 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
             }
         }
         wt_mvm_priv_progress(&opt, "solve", i0 + cb, nact);
+        if (opt.stop && i0 + cb < nact && opt.stop(opt.stop_user)) {
+            st = WT_ERROR(ctx, WT_ERR_INTERRUPTED, "the MVM build was stopped after %lld of %lld rows",
+                          (long long)(i0 + cb), (long long)nact);
+            goto fail;
+        }
     }
     stats.t_solve = wt_time_now() - tt;
     stats.t_total = wt_time_now() - t0;

@@ -67,6 +67,10 @@ typedef struct wt_mvm_options {
                                    those of a whole build (`mpirun wavetomo build`: one part per rank) */
     wt_mvm_progress_fn progress; /* NULL: none */
     void *progress_user;
+    /* Polled between solve blocks (seconds apart at E-ELT size, where the solve is most of a build of minutes):
+     * non-zero stops the build with WT_ERR_INTERRUPTED and nothing returned. NULL: never. */
+    int (*stop)(void *user);
+    void *stop_user;
 } wt_mvm_options;
 
 /* commands = WT_MVM_LAYER_VALUES, no budget, block 256, no progress. */
