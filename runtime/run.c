@@ -110,8 +110,14 @@ int wt_cmd_run(int argc, char **argv)
             goto fail;
         }
     }
-    const wt_config *use = cfg ? cfg : tcfg;
-    /* the telemetry's stored loop.frames is the number of frames it holds */
+    wt_config *use = cfg ? cfg : tcfg;
+    {   /* the estimate counts the frames the file holds (fewer than loop.frames when `sim` was interrupted) */
+        int rk = 0;
+        int64_t d[3] = {0, 0, 0};
+        const char *sn = kind == WT_RECON_MVM ? "slopes" : "slopes_ol";
+        if (wt_h5_exists(tr, sn) && wt_h5_dims(tr, sn, &rk, d) >= 0 && rk == 2 && d[0] >= 1 && d[0] < use->frames)
+            use->frames = (int)d[0];
+    }
     if ((rc = wt_cli_estimate(&cli, use, WT_TASK_RUN, kind, (int)args.iters)) >= 0) goto cleanup;
     rc = 0;
     if ((st = wt_system_alloc(cli.ctx, use, &sys)) < 0) goto fail;
