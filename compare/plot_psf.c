@@ -184,6 +184,15 @@ int wt_plot_wfe_frames(wt_context *ctx, const char *path, const char *title, int
     return wt_plot_job_end(&j);
 }
 
+/* A sweep value as a label: a libconfig string without its quotes (into out, returned) */
+static const char *unquote(char *out, size_t size, const char *value)
+{
+    const size_t n = strlen(value);
+    const int q = n >= 2 && value[0] == '"' && value[n - 1] == '"';
+    snprintf(out, size, "%.*s", q ? (int)n - 2 : (int)n, value + q);
+    return out;
+}
+
 int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nmethods, const char *const *methods,
                     int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
                     const wt_plot_run_axis *axis, int ref)
@@ -254,10 +263,7 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
     wt_plot_labels(xl, "", title);
     if (ref >= 0) {
         char yl[LABEL_MAX + 64], bare[LABEL_MAX];
-        const size_t n = strlen(values[ref]);
-        const int q = n >= 2 && values[ref][0] == '"' && values[ref][n - 1] == '"';
-        snprintf(bare, sizeof bare, "%.*s", q ? (int)n - 2 : (int)n, values[ref] + q);
-        snprintf(yl, sizeof yl, "field WFE over the window minus %s's [nm]", bare);
+        snprintf(yl, sizeof yl, "field WFE over the window minus %s's [nm]", unquote(bare, sizeof bare, values[ref]));
         plmtex("l", 4.2, 0.5, 0.5, yl);
         plcol0(C_FG);
         pljoin(x0, 0.0, x0 + (double)nframes * dt, 0.0);
@@ -287,11 +293,8 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
     }
     for (int v = 0; v < nvalues && nvalues > 1; v++) {
         if (v == ref) continue; /* drawn as the zero line */
-        char bare[LABEL_MAX]; /* a string value without its quotes */
-        const size_t n = strlen(values[v]);
-        snprintf(bare, sizeof bare, "%.*s", n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"' ? (int)n - 2 : (int)n,
-                 values[v] + (n >= 2 && values[v][0] == '"' && values[v][n - 1] == '"'));
-        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], bare);
+        char bare[LABEL_MAX];
+        text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], unquote(bare, sizeof bare, values[v]));
         opt[nl] = PL_LEGEND_LINE, tcol[nl] = C_FG, lcol[nl] = C_FG, lsty[nl] = style[v], lwid[nl] = 1.8;
         nl++;
     }

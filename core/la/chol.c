@@ -519,13 +519,6 @@ static inline __attribute__((always_inline)) void load8_f(v8d *out, const float 
 #define DOT8x4 DOT8x4_ref
 #define FWD_BLOCK FWD_BLOCK_ref
 #include "chol_kernels.inc"
-#undef REAL
-#undef LOAD8
-#undef K
-#undef ACC8
-#undef DOT8
-#undef DOT8x4
-#undef FWD_BLOCK
 #define REAL float
 #define LOAD8 load8_f
 #define K(name) name##_ref_f
@@ -534,13 +527,6 @@ static inline __attribute__((always_inline)) void load8_f(v8d *out, const float 
 #define DOT8x4 DOT8x4_ref
 #define FWD_BLOCK FWD_BLOCK_ref
 #include "chol_kernels.inc"
-#undef REAL
-#undef LOAD8
-#undef K
-#undef ACC8
-#undef DOT8
-#undef DOT8x4
-#undef FWD_BLOCK
 #define REAL double
 #define LOAD8 load8_d
 #define K(name) name##_fast_d
@@ -549,13 +535,6 @@ static inline __attribute__((always_inline)) void load8_f(v8d *out, const float 
 #define DOT8x4 DOT8x4_fast
 #define FWD_BLOCK FWD_BLOCK_fast
 #include "chol_kernels.inc"
-#undef REAL
-#undef LOAD8
-#undef K
-#undef ACC8
-#undef DOT8
-#undef DOT8x4
-#undef FWD_BLOCK
 #define REAL float
 #define LOAD8 load8_f
 #define K(name) name##_fast_f
@@ -564,13 +543,6 @@ static inline __attribute__((always_inline)) void load8_f(v8d *out, const float 
 #define DOT8x4 DOT8x4_fast
 #define FWD_BLOCK FWD_BLOCK_fast
 #include "chol_kernels.inc"
-#undef REAL
-#undef LOAD8
-#undef K
-#undef ACC8
-#undef DOT8
-#undef DOT8x4
-#undef FWD_BLOCK
 
 /* Part `part` of the plan, forward or backward; buf: the group's buffer of top rows (forward, groups only). */
 static void one_part(const wt_chol *c, int part, int backward, double *w, double *buf, const int *top)
