@@ -101,6 +101,32 @@ static void print_atmospheres(const wt_config *cfg)
     }
 }
 
+/* The LGS slopes' part that no layer grid of this variant holds (σ_g, core/model/tomography_model.c): with an
+ * LGS noise below it and recon.subgrid_error off, more light can make the reconstruction worse. */
+static void print_subgrid(const wt_system *sys, const wt_tomography *t, const wt_tomography_params *tp)
+{
+    const wt_model_atmosphere_config *m = &sys->cfg->model;
+    double var[2 * WT_MAX_GS], gmin = INFINITY, gmax = 0.0, nea = INFINITY;
+    wt_tomography_subgrid_variances(t, m->r0, m->nlayers, m->altitude, m->fraction, var);
+    for (int k = 0; k < sys->nsensors; k++) {
+        if (sys->sensors[k].kind != WT_SENSOR_LGS) continue;
+        gmin = fmin(gmin, sqrt(var[k]));
+        gmax = fmax(gmax, sqrt(var[k]));
+        nea = fmin(nea, sqrt(sys->sensors[k].sigma2));
+    }
+    if (!(gmax > 0.0)) return;
+    const double mas = 1e3 / WT_ARCSEC;
+    char range[48];
+    if (gmax - gmin > 0.005 * gmax) snprintf(range, sizeof range, "%.1f-%.1f", gmin * mas, gmax * mas);
+    else snprintf(range, sizeof range, "%.1f", gmax * mas);
+    printf("  LGS slopes' sub-grid model error: %s mas per axis (the turbulence beyond the layer grids' Nyquist); %s\n",
+           range,
+           tp->subgrid_error ? "the LGS noise weight floored at it (recon.subgrid_error = true)"
+           : nea < gmax ? "above the LGS noise and not in the weight: more light can make this reconstructor worse "
+                          "(recon.subgrid_error = true floors the weight at it)"
+                        : "below the LGS noise (recon.subgrid_error = false)");
+}
+
 static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_variant_config *v, const char *name,
                           int count_nnz, int *st_out)
 {
@@ -152,6 +178,7 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
         printf("  total unknowns: %lld; prior: %s diagonal D, %lld non-zeros (recon.%s.prior = \"%s\")\n", n,
                v->prior == WT_CFG_PRIOR_EXACT ? "exact" : "the paper's", n, name,
                v->prior == WT_CFG_PRIOR_EXACT ? "exact" : "paper");
+    print_subgrid(sys, t, &tp);
     if (count_nnz) {
         int64_t gp[2 * WT_MAX_GS], a[2 * WT_MAX_GS];
         st = wt_tomography_count_nnz(t, gp, a);

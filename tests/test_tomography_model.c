@@ -24,13 +24,14 @@
 START_TEST(test_nea_and_lit_noise)
 {
     const char *set[] = {"lgs.wfs.nea_mas=30.0", "lgs.wfs.lit_noise=true", "ngs.wfs.lit_noise=true",
-                         "recon.tau=1.0", "lgs.wfs.valid_fraction=0.3"};
+                         "recon.tau=1.0", "lgs.wfs.valid_fraction=0.3",
+                         "recon.subgrid_error=false"}; /* the weight of the measurement noise alone */
     const double nea = 30e-3 * M_PI / (180.0 * 3600.0);
     wt_context *ctx = tu_context();
     wt_config *cfg;
     wt_system *sys;
     wt_tomography *t;
-    ck_assert_int_eq(wt_config_read(ctx, DEMO, 5, set, &cfg), WT_OK);
+    ck_assert_int_eq(wt_config_read(ctx, DEMO, 6, set, &cfg), WT_OK);
     ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     wt_tomography_params tp;
     wt_tomography_params_from_config(cfg, &tp);

@@ -389,13 +389,14 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.model_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(model_error), NOCOUNT, 0, 0, NULL, 0,
      "LGS noise variance plus the slope variance of the layer-binning model error (true layers between "
      "the reconstruction altitudes; zero for cg9's layers) (optional, default false)"},
-    {"recon.subgrid_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(subgrid_error), NOCOUNT, 0, 0, NULL, 0,
+    {"recon.subgrid_error", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(subgrid_error), NOCOUNT, 0, 0, NULL, 1,
      "the LGS measurement noise of the reconstructor's weight floored at the slope variance of the turbulence "
      "finer than the reconstruction layers' grids (beyond each grid's Nyquist frequency, through the "
      "subapertures and the LGS cone; analytic, von Karman, from the model's profile): max(kappa sigma^2, "
      "sigma_g^2), the binning error of model_error added as before. No layer of the model can explain that part "
      "of a slope, and a weight that trusts the slopes more than it (many photons) puts it on the layers anyway; "
-     "nothing changes where the noise is above the floor (optional, default false)"},
+     "nothing changes where the noise is above the floor; false: the weight of the measurement noise alone "
+     "(optional, default true)"},
     {"recon.lgs_focus_removal", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(lgs_focus_removal), NOCOUNT, 0, 0, NULL, 0,
      "pcg3, cg9 and mvm: the LGS noise weights project out each LGS's global focus as they do its tip-tilt "
      "(Ĉ⁻¹ = (I − T) C̃⁻¹ (I − T), T onto tip, tilt and the focus slope pattern): a change of the sodium "

@@ -87,6 +87,10 @@ double wt_tomography_model_error(const wt_tomography *t, int m);
 /* The sub-grid model error of sensor m per axis [rad²] (recon.subgrid_error), the floor of its measurement noise in
  * the weight: C̃ uses max(κσ², σ²_g) + σ²_e (core/model/tomography_model.c); 0 when off and for the NGS. */
 double wt_tomography_subgrid_error(const wt_tomography *t, int m);
+/* σ²_g of every sensor [rad² per axis; 0 for the NGS] for a profile of natm layers (r0 at 500 nm, altitudes [m],
+ * fractions summing to 1) on this tomography's layers, whether recon.subgrid_error is on or not (`wavetomo info`). */
+void wt_tomography_subgrid_variances(const wt_tomography *t, double r0, int natm, const double *alt, const double *frac,
+                                     double *var);
 /* Sensor m's short-axis noise precision Σ_i 1/λ_min(C̃_i) over its subapertures [rad⁻²], C̃_i its weight's 2x2 block
  * before the tip-tilt removal: what a new model's σ²_e scales (wt_precond_update). */
 double wt_tomography_lgs_precision(const wt_tomography *t, int m);

@@ -49,7 +49,7 @@ void wt_tomography__bin_profile(int L, const double *alt, int natm, const double
  * changes is served from unit layers (f = 1, r0 = 1 m) kept per altitude (wt_tomography_set_profile). */
 enum { WT_MODEL_ERROR_DRAWS = 4 };
 
-static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const double *atm_alt,
+static void subgrid_error_add(const wt_tomography *t, wt_tomography *mt, double r0, int natm, const double *atm_alt,
                               const double *atm_frac, double *var_e);
 
 void wt_tomography__model_error_grid(wt_tomography *t, const wt_recon_variant_config *var, int wavelet_levels)
@@ -162,7 +162,7 @@ fail:
 int wt_tomography__model_error(wt_tomography *t, double r0, int natm, const double *atm_alt, const double *atm_frac)
 {
     for (int m = 0; m < t->S; m++) t->model_var[m] = t->subgrid_var[m] = 0.0;
-    if (t->subgrid_error) subgrid_error_add(t, r0, natm, atm_alt, atm_frac, t->subgrid_var);
+    if (t->subgrid_error) subgrid_error_add(t, t, r0, natm, atm_alt, atm_frac, t->subgrid_var);
     return t->model_error ? model_error_add(t, r0, natm, atm_alt, atm_frac, 0, t->model_var) : WT_OK;
 }
 
@@ -250,7 +250,23 @@ static double subgrid_unit(double delta, double dp, double L0)
     return 4.0 * 0.023 * c * c * sum;
 }
 
-static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const double *atm_alt,
+/* a(Δ, d′) at t's L0, from t's memo when it has one (mt: the same t, writable; NULL: compute) */
+static double subgrid_unit_memo(wt_tomography *mt, double delta, double dp, double L0)
+{
+    if (!mt) return subgrid_unit(delta, dp, L0);
+    for (int i = 0; i < mt->subgrid_nmemo; i++) {
+        const double *k = mt->subgrid_memo[i];
+        if (k[0] == delta && k[1] == dp && k[2] == L0) return k[3];
+    }
+    const double a = subgrid_unit(delta, dp, L0);
+    if (mt->subgrid_nmemo < WT_SUBGRID_MEMO) { /* (full: computed each time, as without the memo) */
+        double *k = mt->subgrid_memo[mt->subgrid_nmemo++];
+        k[0] = delta, k[1] = dp, k[2] = L0, k[3] = a;
+    }
+    return a;
+}
+
+static void subgrid_error_add(const wt_tomography *t, wt_tomography *mt, double r0, int natm, const double *atm_alt,
                               const double *atm_frac, double *var_e)
 {
     const wt_system *sys = t->sys;
@@ -266,8 +282,8 @@ static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const
             int l;
             double w;
             wt_profile_bin_altitude(t->L, t->alt, h, &l, &w);
-            double a = (1.0 - w) * subgrid_unit(t->grid[l].dx, d * c, t->L0);
-            if (w > 0.0) a += w * subgrid_unit(t->grid[l + 1].dx, d * c, t->L0);
+            double a = (1.0 - w) * subgrid_unit_memo(mt, t->grid[l].dx, d * c, t->L0);
+            if (w > 0.0) a += w * subgrid_unit_memo(mt, t->grid[l + 1].dx, d * c, t->L0);
             v += f * s53 * c * c * a;
         }
         var_e[m] += v;
@@ -275,6 +291,13 @@ static void subgrid_error_add(const wt_tomography *t, double r0, int natm, const
 }
 
 double wt_tomography__subgrid_error(double delta, double dp, double L0) { return subgrid_unit(delta, dp, L0); }
+
+void wt_tomography_subgrid_variances(const wt_tomography *t, double r0, int natm, const double *alt, const double *frac,
+                                     double *var)
+{
+    for (int m = 0; m < t->S; m++) var[m] = 0.0;
+    subgrid_error_add(t, NULL, r0, natm, alt, frac, var);
+}
 
 /* ---- the sensors' noise model ------------------------------------------------------------------------
  * C̃_i = max(κσ², σ²_g) I + κσ² (τ/θf²) β βᵀ + σ²_e I = σ²_t (I + (τ κσ²/σ²_t / θf²) β βᵀ),
@@ -389,7 +412,7 @@ int wt_tomography_set_profile(wt_tomography *t, double r0, int natm, const doubl
         const int st = model_error_cached(t, r0, natm, alt, norm, var_e);
         if (st < 0) return st;
     }
-    if (t->subgrid_error) subgrid_error_add(t, r0, natm, alt, norm, var_g);
+    if (t->subgrid_error) subgrid_error_add(t, t, r0, natm, alt, norm, var_g);
     wt_noise *nz[2 * WT_MAX_GS] = {NULL};
     double keep[2 * WT_MAX_GS], keep_g[2 * WT_MAX_GS];
     memcpy(keep, t->model_var, sizeof keep);

@@ -18,6 +18,9 @@
 /* distinct altitudes of the model profiles one tomography can take over its updates (a learned model's grid) */
 #define WT_TOMO_MODEL_CACHE 128
 
+/* the sub-grid unit integrals a tomography remembers (a learned grid: up to 64 altitudes, 2 layer spacings each) */
+#define WT_SUBGRID_MEMO 256
+
 struct wt_tomography {
     wt_context *ctx;
     const wt_system *sys;
@@ -58,6 +61,10 @@ struct wt_tomography {
     wt_noise **noise;         /* S: the reconstructor's model (τ as configured) */
     double model_var[2 * WT_MAX_GS];  /* S: layer-binning model error added to σ² [rad²] (model_error) */
     double subgrid_var[2 * WT_MAX_GS]; /* S: sub-grid model error, the floor of κσ² [rad²] (subgrid_error) */
+    /* its unit integrals a(Δ, d′, L0) computed so far: every LGS at one range shares them, and a learned model's
+     * updates keep their altitude grid, so after the first update none is computed again (~2 ms each) */
+    int subgrid_nmemo;
+    double subgrid_memo[WT_SUBGRID_MEMO][4]; /* Δ, d′, L0, a */
     int64_t ncg;              /* corner grid points */
     int nthreads;
     int group[2 * WT_MAX_GS];  /* sensor → accumulator group (fixed: results independent of threads) */
@@ -216,3 +223,4 @@ void wt_tomography__adjoint_space_f32(const wt_tomography *t, wt_tomography_work
                                       const double *cx, double *c);
 
 #endif
+
