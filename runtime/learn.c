@@ -44,7 +44,10 @@ static void help(void)
            "               geometry is not the telemetry's\n"
            "  --frames N   use the first N frames (default: all)\n"
            "  --batches B  split the frames into B batches (2-%d, default %d): the uncertainty is the spread of\n"
-           "               the batch estimates / sqrt(B); each batch needs at least %d frames\n"
+           "               the batch estimates / sqrt(B), times sqrt(tau / batch duration) when the batches are\n"
+           "               shorter than the screens' renewal time tau = D sum f_k / v_k (each layer moving the\n"
+           "               aperture D at recon.atmosphere's wind: until then batches see the same turbulence);\n"
+           "               each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
            "  --wind       also the wind of each layer holding >= 5 %% of the Cn2 (minutes on the demo: the lagged\n"
            "               maps' fit evaluates the response maps at many shifts)\n"
@@ -224,8 +227,8 @@ static int write_profile(wt_h5_writer *w, const char *grp, int n, const double *
     if ((st = wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 1, d1, f, "", desc)) < 0) return st;
     if (!sig) return WT_OK;
     snprintf(name, sizeof name, "%s/cn2_fraction_sigma", grp);
-    snprintf(desc, sizeof desc, "uncertainty of the Cn2 fractions of %s: spread of the batch estimates / sqrt(batches)",
-             what);
+    snprintf(desc, sizeof desc, "uncertainty of the Cn2 fractions of %s: spread of the batch estimates / sqrt(batches) "
+             "x estimate/sigma_factor", what);
     return wt_h5_write(w, name, WT_H5_F64, WT_H5_F64, 1, d1, sig, "", desc);
 }
 
@@ -240,7 +243,9 @@ static void compress_estimate(const wt_learn_estimate *e, int L, const double *r
         for (int l = 0; l < L; l++) s1[l] += fb[l], s2[l] += fb[l] * fb[l];
     }
     for (int l = 0; l < L; l++)
-        sig[l] = e->nbatch >= 2 ? sqrt(fmax(0.0, (s2[l] - s1[l] * s1[l] / e->nbatch) / (e->nbatch - 1)) / e->nbatch) : 0.0;
+        sig[l] = e->nbatch >= 2 ? e->sigma_factor *
+                                      sqrt(fmax(0.0, (s2[l] - s1[l] * s1[l] / e->nbatch) / (e->nbatch - 1)) / e->nbatch)
+                                : 0.0;
 }
 
 static void print_table(const char *title, int n, const double *alt, const double *f, const double *sig, const double *truth)
@@ -376,6 +381,8 @@ int wt_cmd_learn(int argc, char **argv)
         free(e);
         goto fail;
     }
+    wt_learn_estimate_count_screens(e, sys->diameter, dt, use->model.nlayers, use->model.fraction,
+                                    use->model.wind_speed);
     /* the truth (the telemetry's simulated atmosphere), binned onto the same grid and layers: for comparison only */
     double tgrid[WT_LEARN_MAX_ALT], t3[WT_MAX_LAYERS], t9[WT_MAX_LAYERS], e3[WT_MAX_LAYERS], s3[WT_MAX_LAYERS],
         e9[WT_MAX_LAYERS], s9[WT_MAX_LAYERS];
@@ -392,6 +399,9 @@ int wt_cmd_learn(int argc, char **argv)
            1e3 * tadd / (double)F, tfit);
     printf("  r0 (500 nm)  %.4f ± %.4f m   truth %.4f m (%+.1f %%); L0 %.1f m (fixed, recon.atmosphere)\n", e->r0,
            e->r0_sigma, tcfg->r0, 100 * (e->r0 / tcfg->r0 - 1), e->L0);
+    printf("  uncertainties: the %d batches' spread / sqrt(batches) x %.2f: the frames saw %.2f renewals of the screens "
+           "(each layer moving the aperture's %.1f m at recon.atmosphere's wind)\n", e->nbatch, e->sigma_factor,
+           e->screens, sys->diameter);
     print_table("Cn2 fractions on the altitude grid", na, alt, e->fraction, e->fraction_sigma, tgrid);
     print_table("compressed onto pcg3's layers", use->pcg3.nlayers, use->pcg3.altitudes, e3, s3, t3);
     print_table("compressed onto cg9's layers", use->cg9.nlayers, use->cg9.altitudes, e9, s9, t9);
@@ -412,7 +422,13 @@ int wt_cmd_learn(int argc, char **argv)
     }
     if ((st = wt_h5_write_double(w, "estimate/r0_m", e->r0, "m", "Fried parameter at 500 nm, (sum c_h)^(-3/5)")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/r0_sigma_m", e->r0_sigma, "m",
-                                 "uncertainty of r0: spread of the batch estimates / sqrt(batches)")) < 0 ||
+                                 "uncertainty of r0: spread of the batch estimates / sqrt(batches) x sigma_factor")) < 0 ||
+        (st = wt_h5_write_double(w, "estimate/sigma_factor", e->sigma_factor, "",
+                                 "sqrt(max(1, tau / batch duration)), tau = D sum_k f_k / max(v_k, 1 m/s) the screens' "
+                                 "renewal time at recon.atmosphere's wind: consecutive batches see the same turbulence "
+                                 "until it moved by the aperture D")) < 0 ||
+        (st = wt_h5_write_double(w, "estimate/screens", e->screens, "",
+                                 "renewals of the screens the frames saw, T / tau")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/L0_m", e->L0, "m", "outer scale of the response maps (fixed)")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/residual", e->residual, "",
                                  "weighted rms misfit of the fit over the weighted rms of the maps")) < 0 ||

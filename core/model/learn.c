@@ -34,6 +34,31 @@ int wt_learn_default_grid(double H, int max, double *alt)
     return k;
 }
 
+double wt_learn_screen_factor(double D, double batch_s, double total_s, int n, const double *fraction,
+                              const double *speed, double *screens)
+{
+    double tau = 0.0, ftot = 0.0;
+    for (int k = 0; k < n; k++) {
+        if (!(fraction[k] > 0.0)) continue;
+        tau += fraction[k] / fmax(fabs(speed[k]), WT_LEARN_VMIN);
+        ftot += fraction[k];
+    }
+    tau = ftot > 0.0 ? D * tau / ftot : 0.0;
+    if (screens) *screens = tau > 0.0 ? total_s / tau : 0.0;
+    return batch_s > 0.0 && tau > batch_s ? sqrt(tau / batch_s) : 1.0;
+}
+
+void wt_learn_estimate_count_screens(wt_learn_estimate *e, double D, double dt, int n, const double *fraction,
+                                     const double *speed)
+{
+    const int B = e->nbatch > 0 ? e->nbatch : 1;
+    const double T = (double)e->frames * dt;
+    const double f = wt_learn_screen_factor(D, T / B, T, n, fraction, speed, &e->screens);
+    e->sigma_factor = f;
+    e->r0_sigma *= f;
+    for (int a = 0; a < e->nalt; a++) e->fraction_sigma[a] *= f;
+}
+
 static double merge_separation(const wt_learn_geometry *g)
 {
     double tmax = 0.0;

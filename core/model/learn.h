@@ -147,7 +147,26 @@ typedef struct wt_learn_estimate {
     double residual;                     /* weighted rms misfit / weighted rms of the statistic (autos and differences), all frames [-] */
     double batch_fraction[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* each batch's f_h (nbatch ≥ 2) [-] */
     double batch_r0[WT_LEARN_MAX_BATCH];                          /* each batch's r0 [m] */
+    double sigma_factor;                 /* r0_sigma and fraction_sigma = the batches' spread / √B times this (1 from
+                                            the fit; wt_learn_estimate_count_screens sets it) [-] */
+    double screens;                      /* the turbulence renewals the frames saw, T/τ (0: not counted) [-] */
 } wt_learn_estimate;
+
+/* The batches' spread counts only the turbulence the batches saw apart: consecutive batches look at the same
+ * screens until each layer has moved by about the aperture D (the maps average over the pupil; their slowest
+ * part, the one that makes one realisation's r0 differ from the next, is the scales up to D). With the screens'
+ * renewal time τ = D Σ_k f_k / max(v_k, WT_LEARN_VMIN) (Cn²-weighted: the slow layers set it) and batches of t_b
+ * seconds, the standard error of the mean of batches with correlation time τ is the spread's / √B times
+ * √max(1, τ / t_b) (batch means of a correlated sequence). Returns that factor; *screens (may be NULL) the renewals
+ * the whole telemetry of T seconds saw, T / τ. n layers of fractions f and speeds v [m/s] (a model's: the wind is
+ * not the estimate's). */
+#define WT_LEARN_VMIN 1.0 /* [m/s]: a still layer still renews by boiling, on a time the model does not know */
+double wt_learn_screen_factor(double D, double batch_s, double total_s, int n, const double *fraction,
+                              const double *speed, double *screens);
+/* r0_sigma and fraction_sigma of an estimate of frames of dt seconds in its batches scaled by that factor (the
+ * uncertainty that counts the screens seen), sigma_factor and screens recorded. */
+void wt_learn_estimate_count_screens(wt_learn_estimate *e, double D, double dt, int n, const double *fraction,
+                                     const double *speed);
 
 /* The response maps of the nalt increasing altitudes alt (< H) at outer scale L0, restricted to the offsets the fit
  * uses, and their normal matrix: computed once (the costly part of a fit, OpenMP team), so that a fit of new frames

@@ -340,7 +340,7 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
             goto fail;
         }
     const double *alt = M->alt;
-    est->nalt = m, est->L0 = M->L0, est->frames = L->frames, est->nbatch = nb ? nb : 1;
+    est->nalt = m, est->L0 = M->L0, est->frames = L->frames, est->nbatch = nb ? nb : 1, est->sigma_factor = 1.0;
     double tot = 0, mis = 0;
     for (int a = 0; a < m; a++) tot += x[a];
     if (!(tot > 0)) {
