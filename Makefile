@@ -27,8 +27,14 @@ LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
 BUILD   ?= build
 BIN     ?= bin
 
-CORE_SRC  := $(sort $(wildcard core/*/*.c))
-CLI_SRC   := $(sort $(wildcard cli/*.c builder/*.c runtime/*.c compare/*.c app/*.c))
+# The shared library (build/libwavetomo.{a,so}): the foundation core/*/ and the library part of the top
+# folders that hold one (LIB_DIRS). The executable bin/wavetomo: its dispatcher (app/), the commands' shared
+# plumbing (cli/), and the commands in the top folders (cmd_*.c; every file of EXE_DIRS).
+LIB_DIRS  := builder
+EXE_DIRS  := runtime compare
+CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) $(EXE_DIRS:%=%/*.c))
+CORE_SRC  := $(sort $(filter-out $(CMD_SRC),$(wildcard core/*/*.c $(LIB_DIRS:%=%/*.c))))
+CLI_SRC   := $(sort $(wildcard cli/*.c app/*.c) $(CMD_SRC))
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
 CORE_OBJ  := $(CORE_SRC:%.c=$(BUILD)/%.o)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)

@@ -10,7 +10,7 @@
 
 #include "app/commands.h"
 #include "cli/cli.h"
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/la/half.h"
 #include "core/model/learn.h"
 #include "core/model/params.h"

@@ -4,7 +4,7 @@
 #include <string.h>
 
 #include "app/commands.h"
-#include "builder/build.h"
+#include "builder/cmd_build.h"
 #include "compare/compare.h"
 #include "runtime/runtime.h"
 #include "cli/cli.h"

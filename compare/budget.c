@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "compare/compare.h"
+#include "builder/cmd_build.h"
 #include "cli/cli.h"
 #include "compare/plot.h"
 #include "core/io/h5.h"
@@ -160,7 +161,7 @@ int wt_cmd_budget(int argc, char **argv)
     for (int m = 0; m < a.nm; m++) {
         double build;
         kinds[m] = wt_reconstructor_kind(a.methods[m]);
-        if (kinds[m] == WT_RECON_MVM && (st = wt_cli_mvm_cached(&cli, a.out, cfg, sys, argc, argv, &mvm[m], &build)) < 0)
+        if (kinds[m] == WT_RECON_MVM && (st = wt_build_mvm_cached(&cli, a.out, cfg, sys, argc, argv, &mvm[m], &build)) < 0)
             goto fail;
     }
     wt_budget_options o;

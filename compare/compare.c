@@ -17,7 +17,8 @@
 #include <string.h>
 
 #include "cli/mpi.h"
-#include "core/build/mvm_build.h"
+#include "builder/cmd_build.h"
+#include "builder/mvm_build.h"
 #include "compare/compare.h"
 #include "compare/report.h"
 #include "compare/spots.h"
@@ -260,7 +261,7 @@ static int run_cases(wt_cli *cli, const wt_cmp_cases *a, int m, int v, const int
     for (int s = 0; s < a->ns && st >= 0 && !wt_interrupt_pending(); s++) {
         int c = wt_cmp_case(a, m, v, s);
         if (owner[c] != rank) continue;
-        if (kind == WT_RECON_MVM && !mvm && (st = wt_cli_mvm_cached(cli, a->out, cfg, sys, argc, argv, &mvm, &build)) < 0) {
+        if (kind == WT_RECON_MVM && !mvm && (st = wt_build_mvm_cached(cli, a->out, cfg, sys, argc, argv, &mvm, &build)) < 0) {
             if (st == WT_ERR_INTERRUPTED && wt_interrupt_pending()) st = WT_OK; /* said once, with the cases kept */
             break;
         }

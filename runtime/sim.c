@@ -8,7 +8,7 @@
 
 #include "runtime/runtime.h"
 #include "cli/cli.h"
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
 #include "core/sim/loop.h"

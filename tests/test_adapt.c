@@ -3,7 +3,7 @@
  * from the next frame on; a learning MVM loop applies its old matrix until the new one's build latency has passed
  * (bit for bit the never-rebuilt loop's frames), then the new one; too few frames per estimate, a reconstructor
  * that cannot learn and an MVM without its rebuild are refused. */
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/profile.h"
 #include "core/model/system.h"
 #include "core/io/h5.h"

@@ -8,7 +8,7 @@
  * its last T); or, cumulative, from every frame since the start (a static night). What the estimate replaces:
  *   pcg3, cg9: the reconstructor's model at the next frame (wt_reconstructor_set_model: priors, model error,
  *              noise weights, preconditioner, prediction shifts); its wall time is reported, not simulated;
- *   mvm:       a new control matrix built from the estimate by the driver's rebuild callback (core/build is above
+ *   mvm:       a new control matrix built from the estimate by the driver's rebuild callback (builder/ is above
  *              this module), swapped in when the build would be finished: `latency` night seconds after the
  *              estimate (< 0: the build's measured wall time on this machine); the old matrix is applied
  *              meanwhile. One build at a time, as on one build machine: an estimate made while a build runs

@@ -63,7 +63,7 @@ typedef struct wt_loop_options {
     int no_predict;     /* 1: the reconstructor without recon.predict's shift (the budget's instantaneous runs, which
                          * have no delay to predict over, and its closed loop without prediction) */
     wt_adapt_rebuild_fn rebuild; /* a learning MVM loop (recon.atmosphere.source = "learned"): builds the matrix of
-                                  * an estimate (the driver's: core/build is above this module); else NULL */
+                                  * an estimate (the driver's: builder/ is above this module); else NULL */
     void *rebuild_user;
 } wt_loop_options;
 

@@ -1,5 +1,5 @@
 /* core/solve/mvm.h: the stored MVM control matrix at run time and its one POLC apply (SPEC §9, §7;
- * FFTW's execute to the planner of core/build/mvm_build.h).
+ * FFTW's execute to the planner of builder/mvm_build.h).
  *
  *   y = R s + (R Â) a        R: n_act x n_slopes, RÂ: n_act x n_act, float32, row = actuator,
  *

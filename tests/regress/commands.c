@@ -18,7 +18,7 @@
 
 #include "core/base/sha256.h"
 #include "core/io/h5.h"
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
 #include "core/sim/loop.h"

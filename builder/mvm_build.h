@@ -1,4 +1,4 @@
-/* core/build/mvm_build.h: the offline MVM control matrix of the wavelet MAP tomography (SPEC §9, §7; paper
+/* builder/mvm_build.h: the offline MVM control matrix of the wavelet MAP tomography (SPEC §9, §7; paper
  * eq. eqn_lse solved once for every actuator instead of once per frame).
  *
  *   commands = E c,   c = M⁻¹ Ãᵀ Ĉ⁻¹ s,   M = Σ_m Ã_mᵀ Ĉ_m⁻¹ Ã_m + α D            (wt_tomography)
@@ -48,9 +48,9 @@
 #ifndef WT_MVM_BUILD_H
 #define WT_MVM_BUILD_H
 
-#include "../la/sparse.h"
-#include "../model/tomography.h"
-#include "../solve/mvm.h"
+#include "../core/la/sparse.h"
+#include "../core/model/tomography.h"
+#include "../core/solve/mvm.h"
 
 /* Progress: phase name ("assemble", "normal", "factorize", "solve", …), work done out of total. */
 typedef void (*wt_mvm_progress_fn)(void *user, const char *phase, int64_t done, int64_t total);

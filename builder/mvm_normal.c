@@ -1,4 +1,4 @@
-/* core/build/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
+/* builder/mvm_normal.c: the factorised MAP normal matrix of the MVM builder (SPEC §9, §7; paper eq.
  * eqn_lse): N = Σ_LGS Ã_mᵀ C̃_m⁻¹ Ã_m + α D assembled column by column (Ã from mvm_assemble.c) and
  * factorised by CHOLMOD, the LGS tip-tilt removal and the NGS as the low-rank B Q Bᵀ, and solves with
  * M = N + B Q Bᵀ by Sherman–Morrison–Woodbury (the derivation is in mvm_build.h). With the full prior
@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../la/chol.h"
-#include "../op/noise.h"
+#include "../core/la/chol.h"
+#include "../core/op/noise.h"
 
 /* ---- N = Gᵀ G + α D (upper triangle) ------------------------------------------------------------
  * The two rows of G of one subaperture (x and y, mixed by Lᵀ) have the same pattern

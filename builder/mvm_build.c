@@ -1,4 +1,4 @@
-/* core/build/mvm.c: the offline MVM builder (SPEC §9): the command maps E (pcg3 layer values, cg9 exact
+/* builder/mvm_build.c: the offline MVM builder (SPEC §9): the command maps E (pcg3 layer values, cg9 exact
  * fitting), then R = E M⁻¹ Ãᵀ Ĉ⁻¹ and RÂ by block solves with the factorised normal matrix M of
  * mvm_assemble.c (Ã) and mvm_normal.c (N, its factorisation and the Woodbury correction). */
 #include "mvm_private.h"
@@ -8,13 +8,13 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../op/noise.h"
-#include "../op/projection.h"
-#include "../model/fitting.h"
-#include "../model/interaction.h"
-#include "../model/params.h"
-#include "../model/profile.h"
-#include "../model/reconstructor.h"
+#include "../core/op/noise.h"
+#include "../core/op/projection.h"
+#include "../core/model/fitting.h"
+#include "../core/model/interaction.h"
+#include "../core/model/params.h"
+#include "../core/model/profile.h"
+#include "../core/model/reconstructor.h"
 
 /* ---- command maps E ------------------------------------------------------------------------------ */
 

@@ -1,7 +1,7 @@
-/* core/build/mvm_private.h: what the three files of the MVM builder share (SPEC §9; see mvm.h).
+/* builder/mvm_private.h: what the three files of the MVM builder share (SPEC §9; see mvm_build.h).
  *
- * Private to core/build/mvm.c (the command maps E, R and RÂ), core/build/mvm_assemble.c (Γ P, the
- * wavelet basis templates, the column-by-column construction of Ã) and core/build/mvm_normal.c (N and
+ * Private to builder/mvm_build.c (the command maps E, R and RÂ), builder/mvm_assemble.c (Γ P, the
+ * wavelet basis templates, the column-by-column construction of Ã) and builder/mvm_normal.c (N and
  * the factorised normal matrix M = N + B Q Bᵀ); included by nothing else. The normal object stays
  * opaque here too: the builder reaches the two things it needs from it through accessors.
  */

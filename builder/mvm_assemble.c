@@ -1,14 +1,14 @@
-/* core/build/mvm_assemble.c: the sparse Ã = Γ P W⁻¹ of the MVM builder (SPEC §9, §7; paper eq. eqn_lse):
+/* builder/mvm_assemble.c: the sparse Ã = Γ P W⁻¹ of the MVM builder (SPEC §9, §7; paper eq. eqn_lse):
  * the builder's options and memory budget, Γ P over all sensors and layers, the wavelet basis templates that give every column of W⁻¹, and the
- * parallel two-pass CSC construction that core/build/mvm_normal.c reuses for G = Lᵀ Ã_LGS and N. */
+ * parallel two-pass CSC construction that builder/mvm_normal.c reuses for G = Lᵀ Ã_LGS and N. */
 #include "mvm_private.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#include "../op/projection.h"
+#include "../core/op/projection.h"
 
-/* ---- options, memory budget, workspace sizes: the builder's bottom layer (mvm.c and mvm_normal.c
+/* ---- options, memory budget, workspace sizes: the builder's bottom layer (mvm_build.c and mvm_normal.c
  * call these; this file calls neither of them) ------------------------------------------------------ */
 
 void wt_mvm_options_default(wt_mvm_options *opt)
