@@ -29,10 +29,11 @@ BIN     ?= bin
 
 # The shared library (build/libwavetomo.{a,so}): the foundation core/*/ and the library part of the top
 # folders that hold one (LIB_DIRS). The executable bin/wavetomo: its dispatcher (app/), the commands' shared
-# plumbing (cli/), and the commands in the top folders (cmd_*.c; every file of EXE_DIRS).
-LIB_DIRS  := builder
-EXE_DIRS  := runtime compare
-CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) $(EXE_DIRS:%=%/*.c))
+# plumbing (cli/), and the commands in the top folders (cmd_*.c; compare's reports, report*.c, which draw with
+# PLplot; every file of EXE_DIRS).
+LIB_DIRS  := builder sim compare
+EXE_DIRS  := runtime
+CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) compare/report*.c $(EXE_DIRS:%=%/*.c))
 CORE_SRC  := $(sort $(filter-out $(CMD_SRC),$(wildcard core/*/*.c $(LIB_DIRS:%=%/*.c))))
 CLI_SRC   := $(sort $(wildcard cli/*.c app/*.c) $(CMD_SRC))
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
@@ -124,9 +125,9 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 	@$(if $(V),,echo "  MAN     $@")
 	$(Q)bash cli/man.sh $(BIN)/wavetomo $(VERSION) > $@.tmp && mv $@.tmp $@
 
-# Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
+# Suites of driver-level modules link those objects too (cli/plot.c is not in the library: PLplot
 # is only for the report driver).
-$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_maps.o $(BUILD)/compare/plot_pupil.o $(BUILD)/compare/plot_psf.o
+$(BUILD)/tests/test_plot: $(BUILD)/cli/plot.o $(BUILD)/cli/plot_maps.o $(BUILD)/cli/plot_pupil.o $(BUILD)/cli/plot_psf.o
 
 $(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
 	@mkdir -p $(dir $@)

@@ -5,8 +5,9 @@
 
 #include "app/commands.h"
 #include "builder/cmd_build.h"
-#include "compare/compare.h"
+#include "compare/cmd_compare.h"
 #include "runtime/runtime.h"
+#include "sim/cmd_sim.h"
 #include "cli/cli.h"
 #include "core/base/names.h"
 #include "core/io/h5.h"

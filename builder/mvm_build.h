@@ -118,8 +118,8 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt, w
 int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt, wt_mvm **out);
 
-/* The same for a learned atmosphere model (core/sim/adapt.h's rebuild callback, which the drivers pass to a learning
- * MVM loop: core/sim cannot call this module): the variant's tomography with the model's r0 and natm-layer profile
+/* The same for a learned atmosphere model (sim/adapt.h's rebuild callback, which the drivers pass to a learning
+ * MVM loop: sim cannot call this module): the variant's tomography with the model's r0 and natm-layer profile
  * (alt [m], frac) in place of the configuration's — when `sampled` (an estimate on a grid), its hats compressed onto
  * the variant's layers as PCG-3 and CG-9 take it (wt_profile_compress_hats) — the rest as wt_mvm_build_variant with
  * sys->cfg. user: a wt_mvm_rebuilder. */

@@ -8,7 +8,7 @@
 
 #include "runtime/runtime.h"
 #include "cli/cli.h"
-#include "compare/plot.h"
+#include "cli/plot.h"
 #include "core/io/h5.h"
 #include "core/model/learn.h"
 #include "core/model/profile.h"

@@ -10,7 +10,7 @@
 #include "core/model/system.h"
 #include "core/optics/shift.h"
 #include "core/optics/spot.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define DDEMO "data/presets/demo-diffractive.cfg"

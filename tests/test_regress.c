@@ -10,7 +10,7 @@
 #include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define TABLE "tests/regress/strehl.tsv"

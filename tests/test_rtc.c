@@ -1,6 +1,6 @@
 /* tests/test_rtc.c: the public per-frame API (include/wavetomo/rtc.h): its commands are `wavetomo run`'s
  * bit for bit (pcg3, cg9, the MVM; float32 and float64 entries), its POLC is the closed loop's
- * (core/sim/loop.c) bit for bit, a frame allocates nothing, reset and RAW frames keep the state they
+ * (sim/loop.c) bit for bit, a frame allocates nothing, reset and RAW frames keep the state they
  * promise, instances run concurrently, the orderings are the output files' layout, Â is the frame's POLC
  * term, and bad input is refused with a message naming it. The demo preset throughout; `wavetomo sim/build/run` made the files
  * ($BIN/wavetomo, which make test builds first). */
@@ -12,7 +12,7 @@
 #include "core/config/config.h"
 #include "core/io/h5.h"
 #include "core/rtc/rtc.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "core/solve/mvm.h"
 #include "testutil.h"
 #include "wavetomo/wavetomo.h"

@@ -1,4 +1,4 @@
-/* core/model/control.h: the loop's control law, one for the simulator (core/sim/loop.c) and the per-frame API
+/* core/model/control.h: the loop's control law, one for the simulator (sim/loop.c) and the per-frame API
  * (core/rtc/rtc.c, `wavetomo run`, Python) — SPEC §7, the paper's pseudo-open-loop control:
  *
  *   a_{t+d} = a_{t+d−1} + g (r_t − a_t)                                       (loop.gain), or

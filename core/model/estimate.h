@@ -4,7 +4,7 @@
  *
  * Memory: the sum of the largest arrays each command holds at its peak, counted from the sizes the
  * configuration implies (SPEC §1: subapertures n, fine points n p + 1 per side, phase screens of side
- * 2 (D + 2 h_top θ_max) / δ as core/sim/loop.c sizes them, active actuators within D/2 + h tan θc plus the
+ * 2 (D + 2 h_top θ_max) / δ as sim/loop.c sizes them, active actuators within D/2 + h tan θc plus the
  * guard rings, layer grids of the reconstruction variants) times the bytes the code stores per element,
  * plus the process's own base (libraries, ~15 MB). The sparse Cholesky factor of the MVM build is not known
  * before CHOLMOD's analysis: it is modelled as nnz(L) = 10.5 n^1.5 for n unknowns (fitted to the two E-ELT

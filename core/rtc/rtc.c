@@ -2,7 +2,7 @@
  * or a stored MVM, then frames of pseudo-open-loop control around the reconstructors of core/model and
  * the MVM of core/solve. The numerics are theirs; this file checks the boundary. The control law (the delay's
  * command queue, the integrator with loop.gain or the scale-dependent loop.gain_levels) is core/model/control.h's,
- * the one core/sim/loop.c steps. An instance is a state (one loop) on a counted, read-only plan that
+ * the one sim/loop.c steps. An instance is a state (one loop) on a counted, read-only plan that
  * wt_rtc_share lets several states hold: one R in memory for several loops or threads. */
 #include "rtc.h"
 

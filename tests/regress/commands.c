@@ -21,7 +21,7 @@
 #include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 
 static int fail(wt_context *ctx, const char *what)
 {
