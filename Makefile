@@ -27,13 +27,11 @@ LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
 BUILD   ?= build
 BIN     ?= bin
 
-# The shared library (build/libwavetomo.{a,so}): the foundation core/*/ and the library part of the top
-# folders that hold one (LIB_DIRS). The executable bin/wavetomo: its dispatcher (app/), the commands' shared
-# plumbing (cli/), and the commands in the top folders (cmd_*.c; compare's reports, report*.c, which draw with
-# PLplot; every file of EXE_DIRS).
-LIB_DIRS  := builder sim compare
-EXE_DIRS  := runtime
-CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) compare/report*.c $(EXE_DIRS:%=%/*.c))
+# The shared library (build/libwavetomo.{a,so}): the foundation core/*/ and the library part of each top
+# folder (LIB_DIRS). The executable bin/wavetomo: its dispatcher (app/), the commands' shared plumbing (cli/),
+# and in the top folders the commands (cmd_*.c) and compare's reports (report*.c, which draw with PLplot).
+LIB_DIRS  := builder runtime sim compare
+CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) compare/report*.c)
 CORE_SRC  := $(sort $(filter-out $(CMD_SRC),$(wildcard core/*/*.c $(LIB_DIRS:%=%/*.c))))
 CLI_SRC   := $(sort $(wildcard cli/*.c app/*.c) $(CMD_SRC))
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
@@ -91,10 +89,10 @@ $(FLAGS_STAMP): FORCE
 .PHONY: FORCE
 FORCE:
 
-# -Wconversion where the code is clean of it today (core/base, config, io, la, solve; op, model, build and
-# sim are not yet: ~360 mostly int64 -> size_t index conversions)
+# -Wconversion where the code is clean of it today (core/base, config, io, la, solve; the runtime's library part;
+# op, model, builder and sim are not yet: ~360 mostly int64 -> size_t index conversions)
 $(BUILD)/core/base/%.o $(BUILD)/core/config/%.o $(BUILD)/core/io/%.o $(BUILD)/core/la/%.o \
-$(BUILD)/core/solve/%.o $(BUILD)/core/rtc/%.o: WARN += -Wconversion
+$(BUILD)/core/solve/%.o $(BUILD)/runtime/rtc.o $(BUILD)/runtime/control.o: WARN += -Wconversion
 
 $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	@mkdir -p $(dir $@)

@@ -6,7 +6,7 @@
 #include "app/commands.h"
 #include "builder/cmd_build.h"
 #include "compare/cmd_compare.h"
-#include "runtime/runtime.h"
+#include "runtime/cmd_run.h"
 #include "sim/cmd_sim.h"
 #include "cli/cli.h"
 #include "core/base/names.h"

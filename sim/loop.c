@@ -5,7 +5,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "../core/model/control.h"
+#include "../runtime/control.h"
 #include "../core/model/fitting.h"
 #include "../core/model/interaction.h"
 #include "../core/model/sensing.h"

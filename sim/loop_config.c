@@ -6,7 +6,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "../core/model/control.h"
+#include "../runtime/control.h"
 #include "../core/model/params.h"
 
 

@@ -4,11 +4,11 @@
 #
 #   base ← config        (the configuration layer: libconfig text -> wt_config, the schema)
 #   base ← io            (the file layer: HDF5, plain data only, no configuration, no numerical module)
-#   base ← la ← op ← solve ← model ← {builder, rtc, sim ← compare}   (the library: core/*/, then the top folders)
+#   base ← la ← op ← solve ← model ← {builder, runtime ← sim ← compare}   (the library: core/*/, then the top folders)
 #   base ← la ← optics   (diffractive sensing: sodium profile, spot images, centroiders, their noise)
 #   solve and above may use config and io; model and above may use optics.
 #   the executable: cli (the commands' shared plumbing, over core/ only) ← driver (the commands: every cmd_*.c,
-#   compare's reports, runtime/) ← app (main's dispatcher and its inspection commands)
+#   compare's reports report*.c) ← app (main's dispatcher and its inspection commands)
 #   public (include/wavetomo/*.h: the installed headers) ← every module; they include only each other
 #
 # Every source and header of the library and the executable is passed to `$CC -MM`; every project file in its
@@ -31,16 +31,15 @@ declare -A ALLOW=(
   [optics]="public base la optics"
   [model]="public base la op config io solve optics model"
   [builder]="public base la op config io solve optics model builder"
-  [sim]="public base la op config io solve optics model sim"
-  [compare]="public base la op config io solve optics model sim compare"
-  [rtc]="public base la op config io solve optics model rtc"
+  [runtime]="public base la op config io solve optics model runtime"
+  [sim]="public base la op config io solve optics model runtime sim"
+  [compare]="public base la op config io solve optics model runtime sim compare"
   [cli]="public base la op config io solve optics model cli"
-  [driver]="public base la op config io solve optics model builder sim rtc compare cli driver"
-  [app]="public base la op config io solve optics model builder sim rtc compare cli driver app"
+  [driver]="public base la op config io solve optics model builder runtime sim compare cli driver"
+  [app]="public base la op config io solve optics model builder runtime sim compare cli driver app"
 )
-# the top folders: those with a library part (its commands are their cmd_*.c), and those of commands only
-LIB_DIRS="builder sim compare"
-EXE_DIRS="runtime"
+# the top folders: each holds a library part and its commands (cmd_*.c; compare's reports, report*.c)
+LIB_DIRS="builder runtime sim compare"
 module() { # path relative to the root -> module name
   case "$1" in
     include/wavetomo/*) echo public ;;
@@ -50,12 +49,11 @@ module() { # path relative to the root -> module name
     */cmd_* | compare/report*) echo driver ;;
     */*) local d=${1%%/*}
          case " $LIB_DIRS " in *" $d "*) echo "$d"; return ;; esac
-         case " $EXE_DIRS " in *" $d "*) echo driver; return ;; esac
          echo external ;;
     *) echo external ;;
   esac
 }
-DIRS="cli app $LIB_DIRS $EXE_DIRS"
+DIRS="cli app $LIB_DIRS"
 # the library's sources (core/*/ and the library parts of LIB_DIRS) and the executable's
 LIB_C=$(for c in core/*/*.c $(for d in $LIB_DIRS; do echo $d/*.c; done); do [ "$(module "$c")" = driver ] || echo "$c"; done | tr '\n' ' ')
 EXE_C=$(for d in $DIRS; do for c in $d/*.c; do case " $LIB_C " in *" $c "*) ;; *) echo "$c" ;; esac; done; done)
@@ -132,5 +130,5 @@ for f in core/*/*.c core/*/*.h core/*/*.inc $(for d in $LIB_DIRS; do echo $d/*.c
   fi
 done
 rm -f /tmp/check_deps.$$
-if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {builder, rtc, sim ← compare}; cli ← drivers ← app; config and io on base only; no include or call circle, no call running back up, no library file over $WT_MAX_LINES lines"; fi
+if [ $bad = 0 ]; then echo "check-deps: $(echo "$files" | wc -w) files follow public ← base ← la ← op ← solve ← model ← {builder, runtime ← sim ← compare}; cli ← drivers ← app; config and io on base only; no include or call circle, no call running back up, no library file over $WT_MAX_LINES lines"; fi
 exit $bad

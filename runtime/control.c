@@ -1,4 +1,4 @@
-/* core/model/control.c: the loop's control law (control.h): the delay's command queue and the integrator, with one
+/* runtime/control.c: the loop's control law (control.h): the delay's command queue and the integrator, with one
  * gain g or the scale-dependent G = Σ_j g_j Π_j (core/op/scale_gain.h). */
 #include "control.h"
 

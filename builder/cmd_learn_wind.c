@@ -1,7 +1,7 @@
-/* runtime/learn_wind.c: the wind of `wavetomo learn` (SPEC §12 "Wind", core/model/learn.h): per altitude of the
+/* builder/cmd_learn_wind.c: the wind of `wavetomo learn` (SPEC §12 "Wind", core/model/learn.h): per altitude of the
  * identification grid, compressed onto the reconstructors' layers and onto the truth's layers (a reconstruction
  * layer's wind = the Cn²-weighted mean of the vectors it absorbs, core/model/profile.h), the truth beside. */
-#include "runtime/learn_wind.h"
+#include "builder/cmd_learn_wind.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,5 @@
-/* core/model/control.h: the loop's control law, one for the simulator (sim/loop.c) and the per-frame API
- * (core/rtc/rtc.c, `wavetomo run`, Python) — SPEC §7, the paper's pseudo-open-loop control:
+/* runtime/control.h: the loop's control law, one for the simulator (sim/loop.c) and the per-frame API
+ * (runtime/rtc.c, `wavetomo run`, Python) — SPEC §7, the paper's pseudo-open-loop control:
  *
  *   a_{t+d} = a_{t+d−1} + g (r_t − a_t)                                       (loop.gain), or
  *   a_{t+d} = a_{t+d−1} + G (r_t − a_t),   G = Σ_j g_j Π_j per band of the commands   (loop.gain_levels,
@@ -11,9 +11,9 @@
 #ifndef WT_CONTROL_H
 #define WT_CONTROL_H
 
-#include "../config/config.h"
-#include "../op/scale_gain.h"
-#include "system.h"
+#include "../core/config/config.h"
+#include "../core/op/scale_gain.h"
+#include "../core/model/system.h"
 
 typedef struct wt_control wt_control;
 

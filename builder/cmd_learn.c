@@ -1,4 +1,4 @@
-/* runtime/learn.c: `wavetomo learn`: the Cn² profile and r0 identified from the pseudo-open-loop LGS slopes of a
+/* builder/cmd_learn.c: `wavetomo learn`: the Cn² profile and r0 identified from the pseudo-open-loop LGS slopes of a
  * telemetry file (SPEC §12, core/model/learn.h), compressed onto the reconstructors' layers, beside the truth
  * when the telemetry's configuration holds it. */
 #include <math.h>
@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "runtime/runtime.h"
+#include "builder/cmd_build.h"
 #include "cli/cli.h"
 #include "cli/plot.h"
 #include "core/io/h5.h"
@@ -14,7 +14,7 @@
 #include "core/model/profile.h"
 #include "core/model/system.h"
 #include "core/base/rng.h"
-#include "runtime/learn_wind.h"
+#include "builder/cmd_learn_wind.h"
 
 /* An estimate is the mean of its batches' cross-products: a batch of fewer frames than this gives a spread that
  * says little (the batch covariance of 4 frames is itself ±70 %). */

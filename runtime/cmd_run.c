@@ -1,4 +1,4 @@
-/* runtime/run.c: `wavetomo run`: apply a stored MVM (float32 GEMV, POLC form) or the matrix-free
+/* runtime/cmd_run.c: `wavetomo run`: apply a stored MVM (float32 GEMV, POLC form) or the matrix-free
  * wavelet reconstructor to every frame of a telemetry file, and time it (SPEC §7, §9), through the
  * public per-frame API (include/wavetomo/rtc.h) in its WT_RTC_RAW mode. */
 #include <math.h>
@@ -6,14 +6,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "runtime/runtime.h"
+#include "runtime/cmd_run.h"
 #include "cli/cli.h"
 #include "core/io/h5.h"
 #include "core/io/mvm_file.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 #include "core/model/estimate.h"
-#include "core/rtc/rtc.h"
+#include "runtime/rtc_internal.h"
 
 static void help(void)
 {

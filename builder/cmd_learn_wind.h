@@ -1,6 +1,6 @@
-/* runtime/learn_wind.h: the wind part of `wavetomo learn` (runtime/learn_wind.c): its tables and datasets. */
-#ifndef WT_RUNTIME_LEARN_WIND_H
-#define WT_RUNTIME_LEARN_WIND_H
+/* builder/cmd_learn_wind.h: the wind part of `wavetomo learn` (builder/cmd_learn_wind.c): its tables and datasets. */
+#ifndef WT_BUILDER_CMD_LEARN_WIND_H
+#define WT_BUILDER_CMD_LEARN_WIND_H
 
 #include "core/config/config.h"
 #include "core/io/h5.h"

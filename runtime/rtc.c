@@ -1,21 +1,21 @@
-/* core/rtc/rtc.c: the per-frame reconstructor API (include/wavetomo/rtc.h): set-up from a configuration
+/* runtime/rtc.c: the per-frame reconstructor API (include/wavetomo/rtc.h): set-up from a configuration
  * or a stored MVM, then frames of pseudo-open-loop control around the reconstructors of core/model and
  * the MVM of core/solve. The numerics are theirs; this file checks the boundary. The control law (the delay's
- * command queue, the integrator with loop.gain or the scale-dependent loop.gain_levels) is core/model/control.h's,
+ * command queue, the integrator with loop.gain or the scale-dependent loop.gain_levels) is runtime/control.h's,
  * the one sim/loop.c steps. An instance is a state (one loop) on a counted, read-only plan that
  * wt_rtc_share lets several states hold: one R in memory for several loops or threads. */
-#include "rtc.h"
+#include "rtc_internal.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
-#include "../io/h5.h"
-#include "../model/control.h"
-#include "../model/interaction.h"
-#include "../model/params.h"
-#include "../model/reconstructor.h"
-#include "../solve/mvm.h"
+#include "../core/io/h5.h"
+#include "control.h"
+#include "../core/model/interaction.h"
+#include "../core/model/params.h"
+#include "../core/model/reconstructor.h"
+#include "../core/solve/mvm.h"
 
 /* The plan: what several loops may share (FFTW's plan to their executes), read-only once built: the system,
  * Â's operator (its workspace is each state's) and the stored R and RÂ. Counted: every instance holds it,

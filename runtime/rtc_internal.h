@@ -1,4 +1,4 @@
-/* core/rtc/rtc.h: the drivers' side of the public per-frame API (include/wavetomo/rtc.h): an instance
+/* runtime/rtc_internal.h: the drivers' side of the public per-frame API (include/wavetomo/rtc.h): an instance
  * opened on a system the caller has already built (`wavetomo run` checks the telemetry's shapes against
  * it before the reconstructor or the matrix is made or read). */
 #ifndef WT_RTC_INTERNAL_H
@@ -6,7 +6,7 @@
 
 #include "wavetomo/rtc.h"
 
-#include "../model/system.h"
+#include "../core/model/system.h"
 
 /* kind WT_RECON_PCG3, WT_RECON_CG9 or WT_RECON_NONE (matrix NULL; iterations ≥ 0 overrides the variant's
  * (P)CG count), or WT_RECON_MVM with the path of MATRIX.h5 (refused unless built for sys->cfg). only_ol:
