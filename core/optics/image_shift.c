@@ -1,15 +1,15 @@
-/* core/optics/shift.c: cubic B-spline shifts accumulated and the mean image with its derivatives (shift.h):
+/* core/optics/image_shift.c: cubic B-spline shifts accumulated and the mean image with its derivatives (image_shift.h):
  *   acc = Σ_f T_{u_f} I_f,  mean = P acc / n,  ∂mean/∂u_x = −D_x B_y P mean,  D = (c[i+1] − c[i−1]) / 2,
  *   B = [1 4 1]/6, P = B⁻¹ (causal and anti-causal recursions of pole z = √3 − 2, on lines padded with PAD zeros:
  *   the truncation is z^PAD ~ 1e-7 of the edge's coefficients). */
-#include "shift.h"
+#include "image_shift.h"
 
 #include <math.h>
 #include <string.h>
 
 #define PAD 12
 
-int wt_shift_side(int ns) { return ns + 2 * WT_SHIFT_MARGIN; }
+int wt_image_shift_side(int ns) { return ns + 2 * WT_IMAGE_SHIFT_MARGIN; }
 
 /* the four taps of a shift u: (T_u c)[i] = Σ_t c[i − k0 − t] w[t] */
 static void taps(double u, int *k0, double w[4])
@@ -29,9 +29,9 @@ static double clampu(double u)
     return u > WT_SHIFT_MAXSHIFT ? WT_SHIFT_MAXSHIFT : u < -WT_SHIFT_MAXSHIFT ? -WT_SHIFT_MAXSHIFT : u;
 }
 
-void wt_shift_accumulate(int ns, const float *img, double ux, double uy, float *acc, float *tmp)
+void wt_image_shift_accumulate(int ns, const float *img, double ux, double uy, float *acc, float *tmp)
 {
-    const int E = wt_shift_side(ns), M = WT_SHIFT_MARGIN;
+    const int E = wt_image_shift_side(ns), M = WT_IMAGE_SHIFT_MARGIN;
     int kx, ky;
     double wx[4], wy[4];
     taps(clampu(ux), &kx, wx);
@@ -70,15 +70,15 @@ static void prefilter(double *x, int n, int s, double *line)
     for (int i = 0; i < n; i++) x[(size_t)i * s] = 6.0 * line[PAD + i];
 }
 
-int wt_shift_work(int ns)
+int wt_image_shift_work(int ns)
 {
-    const int E = wt_shift_side(ns);
+    const int E = wt_image_shift_side(ns);
     return E * E + E + 2 * PAD; /* ≥ (ns + 2)² + ns + 2 + 2 PAD */
 }
 
-void wt_shift_mean(int ns, const float *acc, double scale, float *mean, double *tmp)
+void wt_image_shift_mean(int ns, const float *acc, double scale, float *mean, double *tmp)
 {
-    const int E = wt_shift_side(ns), M = WT_SHIFT_MARGIN;
+    const int E = wt_image_shift_side(ns), M = WT_IMAGE_SHIFT_MARGIN;
     double *a = tmp, *line = tmp + (size_t)E * E;
     /* the mean of the shifted frames: P acc (the accumulator's margin holds every frame's T_u I whole) */
     for (size_t q = 0; q < (size_t)E * E; q++) a[q] = acc[q] * scale;
@@ -88,7 +88,7 @@ void wt_shift_mean(int ns, const float *acc, double scale, float *mean, double *
         for (int i = 0; i < ns; i++) mean[i + (size_t)ns * j] = (float)a[(i + M) + (size_t)E * (j + M)];
 }
 
-void wt_shift_derivative(int ns, const float *mean, float *dx, float *dy, double *tmp)
+void wt_image_shift_derivative(int ns, const float *mean, float *dx, float *dy, double *tmp)
 {
     const int F = ns + 2;
     double *c = tmp, *line = tmp + (size_t)F * F;

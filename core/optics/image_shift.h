@@ -1,4 +1,4 @@
-/* core/optics/shift.h: sub-pixel shifts of small detector images by cubic B-spline interpolation, accumulated cheaply,
+/* core/optics/image_shift.h: sub-pixel shifts of small detector images by cubic B-spline interpolation, accumulated cheaply,
  * and the derivative images of the mean (the matched filter's reference rebuilt from the loop's own pixels;
  * docs/design.md "The reference from the loop's own pixels").
  *
@@ -25,26 +25,26 @@
  * within 1e-3 of the peak shifted and 1e-2 differentiated: tests/test_pixels.c). Cost per frame:
  * 2 · 4 · Ns (Ns + 2 MARGIN) multiply-adds at most (~3 k at Ns = 16).
  */
-#ifndef WT_SHIFT_H
-#define WT_SHIFT_H
+#ifndef WT_IMAGE_SHIFT_H
+#define WT_IMAGE_SHIFT_H
 
 /* Pixels by which the accumulator is wider than the detector on each side; shifts are clamped to ±MAXSHIFT pixels. */
-#define WT_SHIFT_MARGIN 4
+#define WT_IMAGE_SHIFT_MARGIN 4
 #define WT_SHIFT_MAXSHIFT 2.0
 
 /* The side of an accumulator: ns + 2 MARGIN. */
-int wt_shift_side(int ns);
+int wt_image_shift_side(int ns);
 
-/* acc[E²] (E = wt_shift_side(ns)) += T_u img[ns²] for the shift (ux, uy) [pixels], through tmp[ns E] (scratch; single
+/* acc[E²] (E = wt_image_shift_side(ns)) += T_u img[ns²] for the shift (ux, uy) [pixels], through tmp[ns E] (scratch; single
  * precision: the frame's pixels are). A non-finite shift is taken as 0, one beyond ±MAXSHIFT clamped to it. */
-void wt_shift_accumulate(int ns, const float *img, double ux, double uy, float *acc, float *tmp);
+void wt_image_shift_accumulate(int ns, const float *img, double ux, double uy, float *acc, float *tmp);
 
 /* The mean of the frames accumulated, scale = 1 / n: mean[ns²] = the detector's part of P acc · scale. tmp:
- * wt_shift_work(ns) doubles. */
-void wt_shift_mean(int ns, const float *acc, double scale, float *mean, double *tmp);
+ * wt_image_shift_work(ns) doubles. */
+void wt_image_shift_mean(int ns, const float *acc, double scale, float *mean, double *tmp);
 /* The derivative images of the spline of img[ns²] (zero outside the detector) along x and y per pixel of shift (a
- * content moving by +u), either may be NULL. tmp: wt_shift_work(ns) doubles. */
-void wt_shift_derivative(int ns, const float *img, float *dx, float *dy, double *tmp);
-int wt_shift_work(int ns);
+ * content moving by +u), either may be NULL. tmp: wt_image_shift_work(ns) doubles. */
+void wt_image_shift_derivative(int ns, const float *img, float *dx, float *dy, double *tmp);
+int wt_image_shift_work(int ns);
 
 #endif
