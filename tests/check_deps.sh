@@ -14,7 +14,8 @@
 # Every source and header of the library and the executable is passed to `$CC -MM`; every project file in its
 # (transitive) dependency list must belong to its own module or one the table below allows. Circles:
 # the direct #include edges between files (and between modules) go through tsort, which refuses a loop;
-# so do the calls between the library's object files (nm: a symbol one file uses and another defines).
+# so do the calls between the library's object files (nm: a symbol one file uses and another defines), and
+# each of those calls, like each call between the executable's objects, must go to a module the table allows.
 # No .c, .h or .inc of the library over 800 lines (WT_MAX_LINES).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -100,6 +101,15 @@ if [ -n "$OBJ" ]; then
   if [ -n "$cedges" ] && ! echo "$cedges" | tsort >/dev/null 2>/tmp/check_deps.$$; then
     echo "check-deps: call circle between files of the library:"; cat /tmp/check_deps.$$; bad=1
   fi
+  # and each call goes to a module the table allows (a declaration written by hand includes nothing)
+  while read -r a b; do
+    [ -n "$a" ] || continue
+    ma=$(module "${a#${BUILD:-build}/}"); mb=$(module "${b#${BUILD:-build}/}")
+    case " ${ALLOW[$ma]} " in
+      *" $mb "*) ;;
+      *) echo "check-deps: ${a#${BUILD:-build}/} ($ma) calls into ${b#${BUILD:-build}/} ($mb): a call running back up"; bad=1 ;;
+    esac
+  done <<< "$cedges"
 else
   echo "check-deps: the library (${BUILD:-build}/core) not built, call circles not checked"
 fi
