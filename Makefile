@@ -27,8 +27,13 @@ LDLIBS  += -lcholmod -lsuitesparseconfig -lm -fopenmp
 BUILD   ?= build
 BIN     ?= bin
 
-CORE_SRC  := $(sort $(wildcard core/*/*.c))
-CLI_SRC   := $(sort $(wildcard cli/*.c builder/*.c runtime/*.c compare/*.c app/*.c))
+# The shared library (build/libwavetomo.{a,so}): the foundation core/*/ and the library part of each top
+# folder (LIB_DIRS). The executable bin/wavetomo: its dispatcher (app/), the commands' shared plumbing (cli/),
+# and in the top folders the commands (cmd_*.c) and compare's reports (report*.c, which draw with PLplot).
+LIB_DIRS  := builder runtime sim compare
+CMD_SRC   := $(wildcard $(LIB_DIRS:%=%/cmd_*.c) compare/report*.c)
+CORE_SRC  := $(sort $(filter-out $(CMD_SRC),$(wildcard core/*/*.c $(LIB_DIRS:%=%/*.c))))
+CLI_SRC   := $(sort $(wildcard cli/*.c app/*.c) $(CMD_SRC))
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
 CORE_OBJ  := $(CORE_SRC:%.c=$(BUILD)/%.o)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
@@ -84,10 +89,10 @@ $(FLAGS_STAMP): FORCE
 .PHONY: FORCE
 FORCE:
 
-# -Wconversion where the code is clean of it today (core/base, config, io, la, solve; op, model, build and
-# sim are not yet: ~360 mostly int64 -> size_t index conversions)
+# -Wconversion where the code is clean of it today (core/base, config, io, la, solve; the runtime's library part;
+# op, model, builder and sim are not yet: ~360 mostly int64 -> size_t index conversions)
 $(BUILD)/core/base/%.o $(BUILD)/core/config/%.o $(BUILD)/core/io/%.o $(BUILD)/core/la/%.o \
-$(BUILD)/core/solve/%.o $(BUILD)/core/rtc/%.o: WARN += -Wconversion
+$(BUILD)/core/solve/%.o $(BUILD)/runtime/rtc.o $(BUILD)/runtime/control.o: WARN += -Wconversion
 
 $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	@mkdir -p $(dir $@)
@@ -118,9 +123,9 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 	@$(if $(V),,echo "  MAN     $@")
 	$(Q)bash cli/man.sh $(BIN)/wavetomo $(VERSION) > $@.tmp && mv $@.tmp $@
 
-# Suites of driver-level modules link those objects too (compare/plot.c is not in the library: PLplot
+# Suites of driver-level modules link those objects too (cli/plot.c is not in the library: PLplot
 # is only for the report driver).
-$(BUILD)/tests/test_plot: $(BUILD)/compare/plot.o $(BUILD)/compare/plot_maps.o $(BUILD)/compare/plot_pupil.o $(BUILD)/compare/plot_psf.o
+$(BUILD)/tests/test_plot: $(BUILD)/cli/plot.o $(BUILD)/cli/plot_maps.o $(BUILD)/cli/plot_pupil.o $(BUILD)/cli/plot_psf.o
 
 $(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
 	@mkdir -p $(dir $@)

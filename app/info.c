@@ -5,7 +5,7 @@
 
 #include "app/commands.h"
 #include "cli/cli.h"
-#include "compare/spots.h"
+#include "compare/report_spots.h"
 #include "core/model/sensing.h"
 #include "core/la/half.h"
 #include "core/model/fitting.h"

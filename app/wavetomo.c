@@ -4,9 +4,10 @@
 #include <string.h>
 
 #include "app/commands.h"
-#include "builder/build.h"
-#include "compare/compare.h"
-#include "runtime/runtime.h"
+#include "builder/cmd_build.h"
+#include "compare/cmd_compare.h"
+#include "runtime/cmd_run.h"
+#include "sim/cmd_sim.h"
 #include "cli/cli.h"
 #include "core/base/names.h"
 #include "core/io/h5.h"

@@ -123,10 +123,5 @@ int wt_cli_telemetry_config(wt_cli *cli, struct wt_h5_reader *tr, const char *te
 
 /* mkdir -p: the directory and its missing parents (cli/output.c). */
 int wt_cli_ensure_dir(wt_context *ctx, const char *path);
-/* The MVM (pcg3 layers) of cfg: read from DIR/cache/mvm-pcg3-<hash>.h5 when it matches, else built and
- * cached there (DIR/cache must exist); *build_s: the build time (0 from the cache). In cli/output.c. */
-struct wt_mvm;
-int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, struct wt_system *sys, int argc, char **argv,
-                      struct wt_mvm **out, double *build_s);
 
 #endif

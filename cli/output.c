@@ -10,8 +10,6 @@
 
 #include "cli.h"
 #include "core/io/h5.h"
-#include "core/build/mvm_build.h"
-#include "core/la/half.h"
 #include "core/model/profile.h"
 #include "core/model/system.h"
 
@@ -213,53 +211,6 @@ int wt_cli_ensure_dir(wt_context *ctx, const char *path)
     if (stat(path, &sb) != 0 || !S_ISDIR(sb.st_mode))
         return WT_ERROR(ctx, WT_ERR_IO, "'%s' is not a directory", path);
     return WT_OK;
-}
-
-/* wt_mvm_options.stop: a deferred SIGINT/SIGTERM/SIGHUP (wt_interrupt_defer) is pending */
-static int stop_on_signal(void *user)
-{
-    (void)user;
-    return wt_interrupt_pending() != 0;
-}
-
-int wt_cli_mvm_cached(wt_cli *cli, const char *dir, wt_config *cfg, wt_system *sys, int argc, char **argv,
-                      wt_mvm **out, double *build_s)
-{
-    char path[2048];
-    int st;
-    *build_s = 0.0;
-    /* the precision is not part of the system's hash (one system, several storages): it names the file */
-    snprintf(path, sizeof path, "%s/cache/mvm-pcg3-%.16s%s%s.h5", dir, cfg->matrix_sha256, cfg->mvm_precision ? "-" : "",
-             cfg->mvm_precision ? wt_prec_name(cfg->mvm_precision) : "");
-    FILE *f = fopen(path, "rb");
-    if (f) {
-        fclose(f);
-        if (wt_mvm_read(cli->ctx, path, cfg, sys->nact, sys->nslopes, out, NULL) == WT_OK &&
-            (*out)->precision != cfg->mvm_precision) {
-            wt_mvm_free(*out);
-            *out = NULL;
-        } else if (*out) {
-            if (!cli->quiet) fprintf(stderr, "%s: mvm from the cache %s\n", cli->prog, path);
-            return WT_OK;
-        }
-        if (!cli->quiet) fprintf(stderr, "%s: rebuilding the stale or damaged %s\n", cli->prog, path);
-    }
-    wt_h5_writer *w = NULL;
-    if ((st = wt_h5_check_replaceable(cli->ctx, path, cli->force)) < 0) return st;
-    if (!cli->quiet) fprintf(stderr, "%s: building the MVM for %s (hash %.16s)\n", cli->prog, cfg->path, cfg->matrix_sha256);
-    wt_mvm_options o;
-    wt_mvm_options_default(&o);
-    o.stop = stop_on_signal; /* compare and budget defer SIGTERM: a build of minutes ends at its next block */
-    if ((st = wt_mvm_build_variant(cli->ctx, sys, cfg, "pcg3", &o, out)) < 0) return st;
-    *build_s = (*out)->stats.t_total;
-    if ((st = wt_h5_create(cli->ctx, path, &w)) < 0) return st;
-    if ((st = wt_cli_write_provenance(cli, w, cfg, argc, argv)) >= 0 && (st = wt_cli_write_layout(w, sys)) >= 0 &&
-        (st = wt_mvm_write(w, *out, cfg, "pcg3")) >= 0) {
-        st = wt_h5_commit(w);
-        w = NULL;
-    }
-    wt_h5_abort(w);
-    return st;
 }
 
 int wt_cli_telemetry_config(wt_cli *cli, struct wt_h5_reader *tr, const char *tel, wt_config **tcfg, wt_config **cfg)

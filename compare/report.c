@@ -7,18 +7,18 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "compare/plot.h"
+#include "cli/plot.h"
 #include "core/io/h5.h"
-#include "core/sim/adapt.h"
-#include "core/sim/psf.h"
+#include "sim/adapt.h"
+#include "sim/psf.h"
 
 #define NP WT_COMPARE_NPART
 
-static int cols(const wt_cmp_cases *a) { return a->nv ? a->nv : 1; }
-static const char *val(const wt_cmp_cases *a, int v) { return a->nv ? a->values[v] : ""; }
+static int cols(const wt_compare_cases *a) { return a->nv ? a->nv : 1; }
+static const char *val(const wt_compare_cases *a, int v) { return a->nv ? a->values[v] : ""; }
 /* The sweep value that is the reconstructors' oracle atmosphere (recon.atmosphere.source = "oracle"), −1 without
  * one: the run figure then has a companion with every case minus it */
-static int oracle_value(const wt_cmp_cases *a)
+static int oracle_value(const wt_compare_cases *a)
 {
     if (a->nv < 2 || strcmp(a->key, "recon.atmosphere.source") != 0) return -1;
     for (int v = 0; v < a->nv; v++)
@@ -27,10 +27,10 @@ static int oracle_value(const wt_cmp_cases *a)
 }
 
 /* The run figure: a sweep of 2–5 values over 2–8 methods, long enough for a window (wt_plot_wfe_run) */
-static int run_plot(const wt_cmp_cases *a, long frames) { return a->nv >= 2 && a->nv <= 5 && a->nm <= 8 && frames >= 100; }
+static int run_plot(const wt_compare_cases *a, long frames) { return a->nv >= 2 && a->nv <= 5 && a->nm <= 8 && frames >= 100; }
 static int run_window(long frames) { return frames / 24 > 10 ? (int)(frames / 24) : 10; }
 
-int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
+int wt_compare_check_outputs(wt_cli *cli, const wt_compare_cases *a)
 {
     char path[2200], owner[2200];
     int st, nv = cols(a);
@@ -44,7 +44,7 @@ int wt_cmp_check_outputs(wt_cli *cli, const wt_cmp_cases *a)
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     snprintf(path, sizeof path, "%s/time_per_frame.png", a->out);
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
-    if ((st = wt_cmp_check_map_outputs(cli, a, owner)) < 0) return st;
+    if ((st = wt_compare_check_map_outputs(cli, a, owner)) < 0) return st;
     for (int m = 0; m < a->nm; m++)
         for (int v = 0; v < nv; v++) {
             snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
@@ -125,7 +125,7 @@ static int write_fields(wt_h5_writer *w, const char *group, const wt_compare_res
 }
 
 /* With several seeds: the standard errors of the means and the paired differences between the methods. */
-static int write_statistics(wt_h5_writer *w, const wt_cmp_cases *a, const wt_compare_result *R,
+static int write_statistics(wt_h5_writer *w, const wt_compare_cases *a, const wt_compare_result *R,
                             const wt_compare_summary *S, double *buf)
 {
     int st = WT_OK, nm = a->nm, nv = cols(a), np = nm * (nm - 1) / 2;
@@ -147,7 +147,7 @@ static int write_statistics(wt_h5_writer *w, const wt_cmp_cases *a, const wt_com
             for (int j = i + 1; j < nm; j++, p++)
                 for (int v = 0; v < nv; v++) {
                     int n;
-                    wt_compare_paired(&R[wt_cmp_case(a, i, v, 0)], &R[wt_cmp_case(a, j, v, 0)], a->ns, k,
+                    wt_compare_paired(&R[wt_compare_case(a, i, v, 0)], &R[wt_compare_case(a, j, v, 0)], a->ns, k,
                                       &buf[p * nv + v], &se[p * nv + v], &n);
                 }
         int64_t d[2] = {np, nv};
@@ -167,8 +167,8 @@ static int write_statistics(wt_h5_writer *w, const wt_cmp_cases *a, const wt_com
 
 /* series/wfe_field [method, sweep value, seed, frame] (0: not run; the readers refuse NaN) and psf/<method>_<v>/ per seed (zeros: not
  * run) for the cases that kept them. */
-static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, const wt_config *cfg, const wt_system *sys,
-                       const wt_compare_result *R, const wt_cmp_extra *X)
+static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_compare_cases *a, const wt_config *cfg, const wt_system *sys,
+                       const wt_compare_result *R, const wt_compare_extra *X)
 {
     int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, nc = nm * nv * ns, nd = sys->neval;
     long F = 0;
@@ -199,9 +199,9 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
         for (int v = 0; v < nv && st >= 0; v++) {
             int first = -1;
             for (int k = 0; k < ns; k++)
-                if (R[wt_cmp_case(a, m, v, k)].done && X->psf[wt_cmp_case(a, m, v, k)] && first < 0) first = k;
+                if (R[wt_compare_case(a, m, v, k)].done && X->psf[wt_compare_case(a, m, v, k)] && first < 0) first = k;
             if (first < 0) continue;
-            const wt_compare_result *r0 = &R[wt_cmp_case(a, m, v, first)];
+            const wt_compare_result *r0 = &R[wt_compare_case(a, m, v, first)];
             const int n = (int)r0->psf_pixels;
             const size_t per = (size_t)nd * n * n;
             float *img = calloc((size_t)ns * per, sizeof *img);
@@ -211,7 +211,7 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
                 return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory writing the PSFs");
             }
             for (int k = 0; k < ns; k++) {
-                const int c = wt_cmp_case(a, m, v, k);
+                const int c = wt_compare_case(a, m, v, k);
                 if (!R[c].done || !X->psf[c] || (int)R[c].psf_pixels != n) continue;
                 memcpy(img + per * k, X->psf[c], per * sizeof *img);
                 memcpy(sp + (size_t)nd * k, R[c].psf_strehl, (size_t)nd * sizeof *sp);
@@ -226,9 +226,9 @@ static int write_extra(wt_cli *cli, wt_h5_writer *w, const wt_cmp_cases *a, cons
     return st;
 }
 
-static int write_results(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
+static int write_results(wt_cli *cli, const wt_compare_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
                          const wt_system *sys, const wt_compare_result *R, const wt_compare_summary *S,
-                         const wt_cmp_extra *X, int argc, char **argv)
+                         const wt_compare_extra *X, int argc, char **argv)
 {
     int st, nm = a->nm, nv = cols(a), nd = sys->neval, ns = a->ns, nc = nm * nv * ns;
     char path[2200];
@@ -290,8 +290,8 @@ out:
 
 /* --resume: the per-frame residuals and PSFs of the cases done (what write_extra wrote); a file without them
  * (sim.psf_interval_frames = 0) leaves them NULL. */
-static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_cmp_cases *a, wt_compare_result *R,
-                      int64_t frames, wt_cmp_extra *X)
+static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_compare_cases *a, wt_compare_result *R,
+                      int64_t frames, wt_compare_extra *X)
 {
     int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, nc = nm * nv * ns, rank = 0;
     int64_t dims[WT_H5_MAX_RANK] = {0};
@@ -329,7 +329,7 @@ static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_c
             if (st >= 0) st = wt_h5_attr_read_double(r, name, "pixel_mas", &mas);
             if (st >= 0) st = wt_h5_attr_read_int64(r, name, "fft_size", &fft);
             for (int k = 0; k < ns && st >= 0; k++) {
-                const int c = wt_cmp_case(a, m, v, k);
+                const int c = wt_compare_case(a, m, v, k);
                 if (!R[c].done) continue;
                 if (!(X->psf[c] = wt_malloc(cli->ctx, per, sizeof(float)))) {
                     st = WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory");
@@ -344,8 +344,8 @@ static int read_extra(wt_cli *cli, wt_h5_reader *r, const char *path, const wt_c
     return st;
 }
 
-int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *want, wt_compare_result *R,
-                         wt_cmp_extra *X, int *ndone)
+int wt_compare_read_previous(wt_cli *cli, const wt_compare_cases *a, const wt_compare_plan *want, wt_compare_result *R,
+                         wt_compare_extra *X, int *ndone)
 {
     char path[2200], name[128], *s = NULL;
     wt_h5_reader *r = NULL;
@@ -407,7 +407,7 @@ int wt_cmp_read_previous(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_pl
 }
 
 /* "0.3821 ± 0.0042" with several seeds, "0.3821" with one (prec decimals). */
-static void pm(FILE *f, const wt_cmp_cases *a, int prec, double mean, double se)
+static void pm(FILE *f, const wt_compare_cases *a, int prec, double mean, double se)
 {
     if (a->ns > 1) fprintf(f, "%.*f ± %.*f", prec, mean, prec, se);
     else fprintf(f, "%.*f", prec, mean);
@@ -415,7 +415,7 @@ static void pm(FILE *f, const wt_cmp_cases *a, int prec, double mean, double se)
 
 /* report.md: the paired differences between the methods over the seeds, each marked resolved or within the
  * noise (|mean| < 2 SE). */
-static void write_differences(FILE *f, const wt_cmp_cases *a, const wt_compare_result *R)
+static void write_differences(FILE *f, const wt_compare_cases *a, const wt_compare_result *R)
 {
     int nv = cols(a), noise = 0, total = 0;
     fprintf(f, "\n## Paired differences over the seeds\n\nEvery method ran on the same %d seeds, so each seed gives a "
@@ -431,7 +431,7 @@ static void write_differences(FILE *f, const wt_cmp_cases *a, const wt_compare_r
                 for (int k = 0; k < WT_NMETRICS; k++) {
                     double d, se;
                     int n;
-                    wt_compare_paired(&R[wt_cmp_case(a, i, v, 0)], &R[wt_cmp_case(a, j, v, 0)], a->ns, k, &d, &se, &n);
+                    wt_compare_paired(&R[wt_compare_case(a, i, v, 0)], &R[wt_compare_case(a, j, v, 0)], a->ns, k, &d, &se, &n);
                     int in = n >= 2 && fabs(d) < 2.0 * se;
                     noise += in, total++;
                     if (n < 2) fprintf(f, " %d seed%s done |", n, n == 1 ? "" : "s");
@@ -443,7 +443,7 @@ static void write_differences(FILE *f, const wt_cmp_cases *a, const wt_compare_r
     fprintf(f, "\n%d of %d differences are within the noise.\n", noise, total);
 }
 
-static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, const wt_compare_result *R,
+static int write_text(wt_cli *cli, const wt_compare_cases *a, const wt_config *cfg, const wt_compare_result *R,
                       const wt_compare_summary *S, int missing, int argc, char **argv)
 {
     char path[2200], tmp[2300];
@@ -535,9 +535,9 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
         if (doc) {
             fprintf(f, "\n");
             if (a->nv > 1 && !missing) fprintf(f, "![LE Strehl against %s](strehl_vs_sweep.png)\n\n", a->key);
-            wt_cmp_maps_markdown(f, a, S, 0);
+            wt_compare_maps_markdown(f, a, S, 0);
             if (!missing) fprintf(f, "\n\n![time per frame](time_per_frame.png)");
-            wt_cmp_maps_markdown(f, a, S, 1);
+            wt_compare_maps_markdown(f, a, S, 1);
             fprintf(f, "\n\n## Convergence\n\nThe residual WFE of each frame (field rms, thin) and its running "
                        "long-exposure value from the settle window on (thick, ending at the WFE of the table); the "
                        "grey band is the settle window, left out of every average%s.\n\n", a->ns > 1 ? " (first seed)" : "");
@@ -577,8 +577,8 @@ static int write_text(wt_cli *cli, const wt_cmp_cases *a, const wt_config *cfg, 
 
 /* The figures; the sweep curve and the time bars only when every case is done (no holes in a curve). */
 /* The PSF mosaics (mean of the seeds done) and the per-frame residual curves (first seed done of each method). */
-static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_result *R,
-                       const wt_compare_summary *S, const wt_cmp_extra *X, const double *coords)
+static int extra_plots(wt_cli *cli, const wt_compare_cases *a, const wt_system *sys, const wt_compare_result *R,
+                       const wt_compare_summary *S, const wt_compare_extra *X, const double *coords)
 {
     int st = WT_OK, nm = a->nm, nv = cols(a), ns = a->ns, g = sys->cfg->eval_grid, nd = sys->neval;
     char path[2200], title[256];
@@ -588,7 +588,7 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
         for (int m = 0; m < nm; m++) {
             first[m] = -1;
             for (int k = ns - 1; k >= 0; k--)
-                if (R[wt_cmp_case(a, m, v, k)].done && X->wfe[wt_cmp_case(a, m, v, k)]) first[m] = wt_cmp_case(a, m, v, k);
+                if (R[wt_compare_case(a, m, v, k)].done && X->wfe[wt_compare_case(a, m, v, k)]) first[m] = wt_compare_case(a, m, v, k);
             if (first[m] >= 0 && R[first[m]].frames > F) F = (long)R[first[m]].frames;
         }
         if (F < 2) continue;
@@ -614,7 +614,7 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
             for (int v = 0; v < nv; v++) {
                 int c = -1;
                 for (int k = ns - 1; k >= 0; k--)
-                    if (R[wt_cmp_case(a, m, v, k)].done && X->wfe[wt_cmp_case(a, m, v, k)]) c = wt_cmp_case(a, m, v, k);
+                    if (R[wt_compare_case(a, m, v, k)].done && X->wfe[wt_compare_case(a, m, v, k)]) c = wt_compare_case(a, m, v, k);
                 for (long t = 0; t < F; t++)
                     y[((size_t)m * nv + v) * F + t] = c >= 0 && t < (long)R[c].frames ? X->wfe[c][t] : NAN;
             }
@@ -644,7 +644,7 @@ static int extra_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys,
         if (!img) return WT_ERROR(cli->ctx, WT_ERR_NOMEM, "out of memory for the PSF mosaic");
         int k = 0;
         for (int s2 = 0; s2 < ns; s2++) {
-            const int cc = wt_cmp_case(a, m, v, s2);
+            const int cc = wt_compare_case(a, m, v, s2);
             if (!R[cc].done || !X->psf[cc] || (int)R[cc].psf_pixels != n) continue;
             for (size_t i = 0; i < per; i++) img[i] += X->psf[cc][i];
             k++;
@@ -676,8 +676,8 @@ static void axis_label(char *s, size_t n, const char *key)
     else snprintf(s, n, "%s%s", key, u);
 }
 
-static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_result *R,
-                      const wt_compare_summary *S, const wt_cmp_extra *X, int missing)
+static int make_plots(wt_cli *cli, const wt_compare_cases *a, const wt_system *sys, const wt_compare_result *R,
+                      const wt_compare_summary *S, const wt_compare_extra *X, int missing)
 {
     int st, nm = a->nm, nv = cols(a), g = sys->cfg->eval_grid;
     char path[2200], title[256];
@@ -708,7 +708,7 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
     }
     double coords[16];
     for (int i = 0; i < g; i++) coords[i] = (i - 0.5 * (g - 1)) * sys->cfg->eval_spacing / WT_ARCSEC;
-    if ((st = wt_cmp_maps(cli, a, sys, S, coords)) < 0) return st;
+    if ((st = wt_compare_maps(cli, a, sys, S, coords)) < 0) return st;
     if ((st = extra_plots(cli, a, sys, R, S, X, coords)) < 0) return st;
     if (missing) return WT_OK;
     double times[WT_COMPARE_MAXM * NP];
@@ -722,8 +722,8 @@ static int make_plots(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, 
     return wt_plot_time_bars(cli->ctx, path, title, nm, (const char *const *)a->methods, NP, names, times);
 }
 
-int wt_cmp_write_all(wt_cli *cli, const wt_cmp_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
-                     const wt_system *sys, const wt_compare_result *R, const wt_cmp_extra *X, int argc, char **argv)
+int wt_compare_write_all(wt_cli *cli, const wt_compare_cases *a, const wt_compare_plan *plan, const wt_config *cfg,
+                     const wt_system *sys, const wt_compare_result *R, const wt_compare_extra *X, int argc, char **argv)
 {
     int st, missing = 0, nmv = a->nm * cols(a);
     wt_compare_summary *S = malloc((size_t)nmv * sizeof *S);

@@ -1,4 +1,4 @@
-/* compare/report_maps.c: the report's maps over the evaluation field (compare/plot_maps.c draws them): each
+/* compare/report_maps.c: the report's maps over the evaluation field (cli/plot_maps.c draws them): each
  * method's LE Strehl map on one colour scale, and for two methods or more each method's residual WFE minus the
  * first listed method's, per evaluation direction,
  *     d_j = σ_j(method) − σ_j(reference)   [nm],
@@ -9,23 +9,23 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "compare/plot.h"
+#include "cli/plot.h"
 #include "compare/report.h"
 #include "core/model/system.h"
 
-static int cols(const wt_cmp_cases *a) { return a->nv ? a->nv : 1; }
-static const char *val(const wt_cmp_cases *a, int v) { return a->nv ? a->values[v] : ""; }
+static int cols(const wt_compare_cases *a) { return a->nv ? a->nv : 1; }
+static const char *val(const wt_compare_cases *a, int v) { return a->nv ? a->values[v] : ""; }
 
 /* ", photons=100" of sweep column v (the key's last part: the titles stay within the page; empty without a
  * sweep) and ", mean of N seeds" */
-static void suffix(char *s, size_t n, const wt_cmp_cases *a, int v)
+static void suffix(char *s, size_t n, const wt_compare_cases *a, int v)
 {
     const char *dot = a->nv ? strrchr(a->key, '.') : NULL;
     snprintf(s, n, "%s%s%s%s", a->nv ? ", " : "", a->nv ? (dot ? dot + 1 : a->key) : "", a->nv ? "=" : "", val(a, v));
     if (a->ns > 1) snprintf(s + strlen(s), n - strlen(s), ", mean of %d seeds", a->ns);
 }
 
-int wt_cmp_check_map_outputs(wt_cli *cli, const wt_cmp_cases *a, const char *owner)
+int wt_compare_check_map_outputs(wt_cli *cli, const wt_compare_cases *a, const char *owner)
 {
     char path[2200];
     int st = WT_OK;
@@ -41,12 +41,12 @@ int wt_cmp_check_map_outputs(wt_cli *cli, const wt_cmp_cases *a, const char *own
     return st;
 }
 
-static int both_done(const wt_cmp_cases *a, const wt_compare_summary *S, int m, int v)
+static int both_done(const wt_compare_cases *a, const wt_compare_summary *S, int m, int v)
 {
     return m > 0 && S[m * cols(a) + v].mean.done && S[v].mean.done;
 }
 
-void wt_cmp_maps_markdown(FILE *f, const wt_cmp_cases *a, const wt_compare_summary *S, int differences)
+void wt_compare_maps_markdown(FILE *f, const wt_compare_cases *a, const wt_compare_summary *S, int differences)
 {
     const int nv = cols(a);
     for (int v = 0; v < nv && !differences; v++)
@@ -69,7 +69,7 @@ void wt_cmp_maps_markdown(FILE *f, const wt_cmp_cases *a, const wt_compare_summa
                         val(a, v), a->methods[m], a->methods[0], v);
 }
 
-int wt_cmp_maps(wt_cli *cli, const wt_cmp_cases *a, const wt_system *sys, const wt_compare_summary *S,
+int wt_compare_maps(wt_cli *cli, const wt_compare_cases *a, const wt_system *sys, const wt_compare_summary *S,
                 const double *coords)
 {
     const int nm = a->nm, nv = cols(a), g = sys->cfg->eval_grid, nd = sys->neval;

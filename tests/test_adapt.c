@@ -1,14 +1,14 @@
-/* tests/test_adapt.c: the loop that learns its atmosphere (core/sim/adapt.h, SPEC §12 "Updates"): a learned run
+/* tests/test_adapt.c: the loop that learns its atmosphere (sim/adapt.h, SPEC §12 "Updates"): a learned run
  * that starts from the truth's profile is the oracle's run, bit for bit, until its first estimate, which it uses
  * from the next frame on; a learning MVM loop applies its old matrix until the new one's build latency has passed
  * (bit for bit the never-rebuilt loop's frames), then the new one; too few frames per estimate, a reconstructor
  * that cannot learn and an MVM without its rebuild are refused. */
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/profile.h"
 #include "core/model/system.h"
 #include "core/io/h5.h"
-#include "core/sim/compare.h"
-#include "core/sim/loop.h"
+#include "compare/compare.h"
+#include "sim/loop.h"
 
 #include <unistd.h>
 #include "testutil.h"

@@ -9,7 +9,7 @@
 #include <stdint.h>
 
 #include "core/op/grid.h"
-#include "core/sim/atmosphere.h"
+#include "sim/atmosphere.h"
 
 #define LAMBDA0 500e-9
 

@@ -1,9 +1,9 @@
-/* tests/test_bench.c: the paired mode of core/sim/bench.h (issue 20 §5): both sides see the same slopes
+/* tests/test_bench.c: the paired mode of compare/bench.h (issue 20 §5): both sides see the same slopes
  * (two identical configurations give the same commands, bit for bit), the per-pair ratios are summarised
  * like the timings, two systems of different sizes are paired without comparing commands, and bad
  * arguments are refused; the single-configuration run's frame profile counts the stages a frame runs. Timings are not checked against values: the host decides them. */
 #include "core/model/params.h"
-#include "core/sim/bench.h"
+#include "compare/bench.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"

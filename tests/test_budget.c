@@ -1,9 +1,9 @@
-/* tests/test_budget.c: the error budget (core/sim/budget.h) on demo-scale systems: the fitting term of a
+/* tests/test_budget.c: the error budget (compare/budget.h) on demo-scale systems: the fitting term of a
  * single ground layer against κ (p/r0)^(5/3), the terms non-negative and adding up in quadrature to the
  * total, no noise term without noise, the same numbers for the same seed, and the analytic pieces. */
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
-#include "core/sim/budget.h"
+#include "compare/budget.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -36,7 +36,7 @@ static wt_budget_result budget_of(const char *path, int open_loop, int warmup, i
 
 static wt_budget_result budget(int nset, const char *const *set_extra) { return budget_of(DEMO, 0, 4, nset, set_extra); }
 
-/* The instantaneous pseudo-open loop (core/sim/loop.h WT_LOOP_OPEN_POLC). With the demo's geometric
+/* The instantaneous pseudo-open loop (sim/loop.h WT_LOOP_OPEN_POLC). With the demo's geometric
  * (linear) sensors it is the flat open loop but for the truth/model difference of Â applied to the previous
  * reconstruction: with both warm-started from frame 0 (the flat run's warm-up covers the settle period)
  * its noise-free run lies within 2 % of the flat one (measured 0.1 % at 180 frames; a cold-started flat

@@ -6,7 +6,7 @@
 #include "core/config/config.h"
 #include "core/io/h5.h"
 #include "core/model/learn.h"
-#include "core/sim/atmosphere.h"
+#include "sim/atmosphere.h"
 #include "core/op/grid.h"
 #include "testutil.h"
 
@@ -200,7 +200,7 @@ END_TEST
 
 /* ---------------------------------------------------------------- open-loop slopes of simulated screens */
 
-/* K frames of the LGS slopes of a von Kármán atmosphere (core/sim/atmosphere.h), each slope the mean OPD gradient
+/* K frames of the LGS slopes of a von Kármán atmosphere (sim/atmosphere.h), each slope the mean OPD gradient
  * over its subaperture, from q = 4 samples per side (trapezoid edge means), into s (K × nlgs × 2 nsub). Frames are
  * `step` metres of frozen flow apart (independent when step exceeds the footprint); each seed a new screen. */
 /* frames of nl frozen-flow layers (each moving `step` = 10 m per frame, or speed[l] when speed is not NULL), per_seed

@@ -4,8 +4,8 @@
 #include "core/model/system.h"
 #include "core/op/prior.h"
 #include "core/op/wavelet.h"
-#include "core/sim/atmosphere.h"
-#include "core/sim/loop.h"
+#include "sim/atmosphere.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"

@@ -1,4 +1,4 @@
-/* tests/test_mvm.c: the offline MVM builder (core/model/mvm.c, core/la/chol.c; SPEC §9): the assembled
+/* tests/test_mvm.c: the offline MVM builder (builder/mvm_build.c, core/la/chol.c; SPEC §9): the assembled
  * Ã against the matrix-free slopes, the factorised M = N + B Q Bᵀ against the matrix-free normal
  * operator and PCG, R s against the converged matrix-free reconstructors (pcg3 and cg9), RÂ, the
  * orderings, the memory budget and the error paths. */
@@ -7,7 +7,7 @@
 #include "core/la/chol.h"
 #include "core/model/fitting.h"
 #include "core/model/interaction.h"
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/params.h"
 #include "core/model/precond.h"

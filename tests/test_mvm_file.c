@@ -4,7 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/io/mvm_file.h"
 #include "core/la/half.h"
 #include "core/model/system.h"

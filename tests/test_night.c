@@ -1,4 +1,4 @@
-/* tests/test_night.c: a changing night for the truth (core/sim/night.h, SPEC §12 "A changing night"): the
+/* tests/test_night.c: a changing night for the truth (sim/night.h, SPEC §12 "A changing night"): the
  * interpolation of a night file's states (exact at the knots, linear between), the stochastic model's walks
  * (stationary log-variance, correlation, same seed same numbers), the screens' scale, the integration of a
  * changing wind, time compression, the night's keys and the loop's record of the truth's state, and the bad
@@ -8,10 +8,10 @@
 #include "core/config/config.h"
 #include "core/io/h5.h"
 #include "core/model/system.h"
-#include "core/sim/atmosphere.h"
-#include "core/sim/loop.h"
-#include "core/sim/night.h"
-#include "core/sim/record.h"
+#include "sim/atmosphere.h"
+#include "sim/loop.h"
+#include "sim/night.h"
+#include "sim/record.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"

@@ -1,5 +1,5 @@
 /* tests/test_pixels.c: the matched filter's reference from the loop's own pixels (lgs.wfs.reference = pixels; issue
- * 37 item 2; core/optics/shift.h, core/model/sensing.h "wt_sensing_pixels_*"): the cubic B-spline shift against a
+ * 37 item 2; core/optics/image_shift.h, core/model/sensing.h "wt_sensing_pixels_*"): the cubic B-spline shift against a
  * pixel-integrated Gaussian; a reference rebuilt from noise-free frames of the set-up spot is the set-up's (images,
  * covariance) to rounding; from noisy frames its error falls as 1/√frames; the refusals. */
 #include <math.h>
@@ -8,9 +8,9 @@
 #include "core/model/sensing.h"
 #include "core/optics/centroid.h"
 #include "core/model/system.h"
-#include "core/optics/shift.h"
+#include "core/optics/image_shift.h"
 #include "core/optics/spot.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define DDEMO "data/presets/demo-diffractive.cfg"
@@ -30,15 +30,15 @@ START_TEST(test_spline_shift)
 {
     enum { NS = 32 };
     const double c = 15.3, sg = 2.0, u = 0.3; /* the detector's edges 7.6 σ away: no flux crosses them */
-    float img[NS * NS], mean[NS * NS], dx[NS * NS], dy[NS * NS], acc[(NS + 2 * WT_SHIFT_MARGIN) * (NS + 2 * WT_SHIFT_MARGIN)];
+    float img[NS * NS], mean[NS * NS], dx[NS * NS], dy[NS * NS], acc[(NS + 2 * WT_IMAGE_SHIFT_MARGIN) * (NS + 2 * WT_IMAGE_SHIFT_MARGIN)];
     double tmp[4096];
-    ck_assert_int_le(wt_shift_work(NS) + NS * NS, 4096);
+    ck_assert_int_le(wt_image_shift_work(NS) + NS * NS, 4096);
     for (int j = 0; j < NS; j++)
         for (int i = 0; i < NS; i++) img[i + NS * j] = (float)(gpix(i, c, sg) * gpix(j, c, sg));
     memset(acc, 0, sizeof acc);
-    wt_shift_accumulate(NS, img, u, 0.0, acc, (float *)tmp);
-    wt_shift_mean(NS, acc, 1.0, mean, tmp);
-    wt_shift_derivative(NS, img, dx, dy, tmp);
+    wt_image_shift_accumulate(NS, img, u, 0.0, acc, (float *)tmp);
+    wt_image_shift_mean(NS, acc, 1.0, mean, tmp);
+    wt_image_shift_derivative(NS, img, dx, dy, tmp);
     const double peak = gpix(15, c, sg) * gpix(15, c, sg);
     double m0 = 0.0, m1 = 0.0, dpeak = 0.0, derr = 0.0, err = 0.0;
     for (int j = 0; j < NS; j++)
@@ -59,8 +59,8 @@ START_TEST(test_spline_shift)
     ck_assert_msg(fabs(m1 / m0 - c0 / n0 - u) < 1e-5, "centroid moved by %.7f, not %.1f", m1 / m0 - c0 / n0, u);
     ck_assert_msg(derr < 1e-2 * dpeak, "derivative off by %g of its peak", derr / dpeak);
     memset(acc, 0, sizeof acc);
-    for (int f = 0; f < 3; f++) wt_shift_accumulate(NS, img, 0.0, 0.0, acc, (float *)tmp);
-    wt_shift_mean(NS, acc, 1.0 / 3.0, mean, tmp);
+    for (int f = 0; f < 3; f++) wt_image_shift_accumulate(NS, img, 0.0, 0.0, acc, (float *)tmp);
+    wt_image_shift_mean(NS, acc, 1.0 / 3.0, mean, tmp);
     for (int q = 0; q < NS * NS; q++) ck_assert_float_eq_tol(mean[q], img[q], 1e-6 * peak);
 }
 END_TEST

@@ -1,11 +1,11 @@
-/* tests/test_plot.c: the report figures (compare/plot): complete PNGs of the requested size, nothing left
+/* tests/test_plot.c: the report figures (cli/plot): complete PNGs of the requested size, nothing left
  * behind on refusal, repeatable output when several figures are drawn in one process. */
 #include <dirent.h>
 #include <plplot.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "compare/plot.h"
+#include "cli/plot.h"
 #include "testutil.h"
 
 /* A 900 x 650 PNG of a few lines and fills compresses to tens of kB; a blank page is ~5 kB and a
@@ -447,7 +447,7 @@ START_TEST(test_edge_inputs_draw)
 }
 END_TEST
 
-/* ---- the pupil pictures of a sensor (compare/plot_pupil.c) ---- */
+/* ---- the pupil pictures of a sensor (cli/plot_pupil.c) ---- */
 
 /* n x n subapertures of side d over a disc of diameter n d, each an ns x ns Gaussian spot elongated along the
  * direction from the launch (lx, 0); trunc grows with the distance. */
@@ -558,7 +558,7 @@ START_TEST(test_spots_invalid_refused)
 }
 END_TEST
 
-/* The PSF mosaic and the per-frame residual curves (compare/plot_psf.c, issue 21 §5): complete PNGs of their
+/* The PSF mosaic and the per-frame residual curves (cli/plot_psf.c, issue 21 §5): complete PNGs of their
  * sizes, the data reaching the picture (another Strehl / another curve gives other bytes), nothing written on a
  * refusal (an odd or oversized image, a negative or NaN PSF value, a settle window past the frames, a residual
  * of 0 nm on the log axis). */

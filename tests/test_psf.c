@@ -1,9 +1,9 @@
-/* tests/test_psf.c: long-exposure PSFs (SPEC §8b; core/sim/psf.h): the diffraction-limited image of a disc and of
+/* tests/test_psf.c: long-exposure PSFs (SPEC §8b; sim/psf.h): the diffraction-limited image of a disc and of
  * an annulus (peak 1, Parseval, the Airy FWHM), a tilt's shift, the PSF-peak Strehl of a small random residual
  * against the extended Maréchal exp(−σ²), the frames taken, no allocation per frame, the same bits for any
  * thread count and for the same seed of a closed loop, and refused parameters. */
-#include "core/sim/loop.h"
-#include "core/sim/psf.h"
+#include "sim/loop.h"
+#include "sim/psf.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"

@@ -2,7 +2,7 @@
  * number of (P)CG iterations from a zero start is homogeneous (R(2s) = 2R(s) bit for bit: scaling by
  * a power of two commutes with every rounding), a converged one is linear, the MVM reconstructor is the
  * stored matrix's own apply (core/solve/mvm.h), and none is zero. */
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/la/sparse.h"
 #include "core/model/reconstructor.h"
 #include "core/model/params.h"

@@ -1,4 +1,4 @@
-/* tests/test_record.c: what `sim --telemetry` records (core/sim/record.h): with sim.telemetry_maps_interval_frames
+/* tests/test_record.c: what `sim --telemetry` records (sim/record.h): with sim.telemetry_maps_interval_frames
  * the residual maps of every N-th frame, whose rms over the pupil is that frame's residual rms in RUN.h5
  * (frame/rms), and the commands of those frames, which are the per-frame telemetry's; without the key, no maps. */
 #include "core/io/h5.h"

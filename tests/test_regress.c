@@ -7,10 +7,10 @@
  * row's own seed, so an unchanged code reproduces the reference to its printed resolution; a change
  * larger than one realisation sigma, in either direction, fails, and the table is then updated in a
  * commit that says why. A malformed table fails too. */
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define TABLE "tests/regress/strehl.tsv"

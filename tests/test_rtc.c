@@ -1,6 +1,6 @@
 /* tests/test_rtc.c: the public per-frame API (include/wavetomo/rtc.h): its commands are `wavetomo run`'s
  * bit for bit (pcg3, cg9, the MVM; float32 and float64 entries), its POLC is the closed loop's
- * (core/sim/loop.c) bit for bit, a frame allocates nothing, reset and RAW frames keep the state they
+ * (sim/loop.c) bit for bit, a frame allocates nothing, reset and RAW frames keep the state they
  * promise, instances run concurrently, the orderings are the output files' layout, Â is the frame's POLC
  * term, and bad input is refused with a message naming it. The demo preset throughout; `wavetomo sim/build/run` made the files
  * ($BIN/wavetomo, which make test builds first). */
@@ -11,8 +11,8 @@
 
 #include "core/config/config.h"
 #include "core/io/h5.h"
-#include "core/rtc/rtc.h"
-#include "core/sim/loop.h"
+#include "runtime/rtc_internal.h"
+#include "sim/loop.h"
 #include "core/solve/mvm.h"
 #include "testutil.h"
 #include "wavetomo/wavetomo.h"
@@ -173,7 +173,7 @@ END_TEST
  * (r = R s + (R Â) a_t, rounded differently in float32) within 1e-4 of the commands' norm: a float32
  * GEMV of ~2000 terms rounds at ~1e-6 relative, accumulated over 8 frames of an integrator of gain < 1;
  * a missing or mis-signed POLC term is an O(1) difference. Cases 4–7 again with the scale-dependent gain
- * (loop.gain_levels, one law for both: core/model/control.h), 6–7 with a delay of 1 frame. */
+ * (loop.gain_levels, one law for both: runtime/control.h), 6–7 with a delay of 1 frame. */
 START_TEST(test_polc_equals_loop)
 {
     const int k = _i % 4; /* 0 pcg3, 1 cg9, 2 MVM via s_ol, 3 MVM via s */

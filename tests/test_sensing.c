@@ -1,7 +1,7 @@
 /* tests/test_sensing.c: the diffractive sensors wired end to end (issue 19; core/model/sensing.h, the loop's
  * truth, the reconstructor's noise model): the set-up covariance against the covariance of the truth's
  * slopes, thread-independence, no allocation per frame, a pure tilt measured as that tilt, and the demo's
- * closed loop against the uncorrected one; the sodium layer in time (core/sim/sodium_drive.h): an unchanging
+ * closed loop against the uncorrected one; the sodium layer in time (sim/sodium_drive.h): an unchanging
  * sequence gives today's bits, the oracle's reference of an unchanging profile is the set-up's, the system is
  * left as it was found, and the keys' and the sequence's refusals. */
 #include <unistd.h>
@@ -13,7 +13,7 @@
 #include "core/optics/centroid.h"
 #include "core/optics/sodium.h"
 #include "core/optics/spot.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define DDEMO "data/presets/demo-diffractive.cfg"

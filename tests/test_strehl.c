@@ -1,6 +1,6 @@
-/* tests/test_strehl.c: image quality of a residual (SPEC §8; core/sim/strehl.h): the piston-removed
+/* tests/test_strehl.c: image quality of a residual (SPEC §8; sim/strehl.h): the piston-removed
  * rms of a known OPD, the Maréchal Strehl exp(−(2πσ/λ)²), and the long-exposure averages. */
-#include "core/sim/strehl.h"
+#include "sim/strehl.h"
 #include "testutil.h"
 
 /* φ = c + b sin(2π x / P) over whole periods: the mean is c, the piston-removed rms b/√2; points

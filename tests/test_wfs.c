@@ -8,7 +8,7 @@
 
 #include "core/op/pupil.h"
 #include "core/op/shack_hartmann.h"
-#include "core/sim/wfs.h"
+#include "sim/wfs.h"
 
 /* the E-ELT LGS sensor (SPEC §1) on the default fine grid */
 #define N 84

@@ -100,7 +100,7 @@ typedef struct wt_recon_variant_config {
 
 /* The reconstructor's atmosphere (SPEC §12 "Truth and model are separate objects"; recon.atmosphere): where it
  * comes from. WT_MODEL_LEARNED starts from the given model and replaces it by the loop's own estimates
- * (core/sim/adapt.h). */
+ * (sim/adapt.h). */
 enum { WT_MODEL_ORACLE = 0, WT_MODEL_GIVEN = 1, WT_MODEL_LEARNED = 2 };
 
 /* The reconstructor's atmosphere as a profile before it is compressed onto each variant's layers
@@ -134,7 +134,7 @@ typedef struct wt_model_atmosphere_config {
     double error_wind_direction;          /* added to every layer's wind direction [rad] */
 } wt_model_atmosphere_config;
 
-/* A changing night of the truth (SPEC §12 "A changing night"; atmosphere.night.*, core/sim/night.h): the r0,
+/* A changing night of the truth (SPEC §12 "A changing night"; atmosphere.night.*, sim/night.h): the r0,
  * Cn² fractions and winds of the truth's layers over the night's time, from a file or a stochastic model. */
 enum { WT_NIGHT_CFG_NONE = 0, WT_NIGHT_CFG_FILE = 1, WT_NIGHT_CFG_RANDOM = 2 };
 typedef struct wt_night_config {

@@ -4,14 +4,14 @@
  * cannot run: a layer that moves farther than the pupil in one frame (frozen flow of SPEC §2 with no
  * correlation left between frames, and a shift v t that loses the screen index's precision), a phase
  * screen wider than the atmosphere accepts (its side 2 (D + 2 h_top θ_max) / δ, δ = D / (n_sub p), as
- * core/sim/loop.c sizes it), or more reconstruction unknowns than an index or a vector can hold. These are
+ * sim/loop.c sizes it), or more reconstruction unknowns than an index or a vector can hold. These are
  * refused here, before any allocation, naming every key involved and its value.
  */
 #include "config_private.h"
 
 #include <math.h>
 
-#define MAX_SCREEN 32768            /* the atmosphere's largest screen side (core/sim/atmosphere.c) */
+#define MAX_SCREEN 32768            /* the atmosphere's largest screen side (sim/atmosphere.c) */
 #define MAX_UNKNOWNS (1L << 28)     /* reconstruction unknowns of one variant: 2 GiB per double vector */
 
 static int check_variant(wt_context *ctx, const wt_config *cfg, const char *name, const wt_recon_variant_config *v)

@@ -22,7 +22,7 @@
 #define SPOT_FLOP_RATE 8e9    /* image flops (wt_spot_cost) per s, 2 threads (0.126 Mflop in ~15 µs of wall) */
 #define SPOT_NOISE_NS 30e-9   /* s per pixel of Poisson + Gaussian noise, 2 threads */
 #define SPOT_MC_NS 95e-9      /* s per pixel draw of the Monte-Carlo calibration, 2 threads (~190 thread-ns each, `make bench-spot`) */
-/* the long-exposure PSFs (core/sim/psf.c), one thread, measured at the E-ELT size (336 pupil points across, N = 672,
+/* the long-exposure PSFs (sim/psf.c), one thread, measured at the E-ELT size (336 pupil points across, N = 672,
  * 64 pixels: ~30 ms per frame taken for 25 directions when quiet, 60-80 ms at a load average of 10) */
 #define PSF_POINT_NS 8e-9     /* s per pupil point: phase, reduction, sin/cos, store */
 #define PSF_FFT_RATE 20e9     /* FFT flops (5 N log2 N per transform) per s, float32 */
@@ -52,7 +52,7 @@ static void derive(const wt_config *c, sizes *s)
     s->neval = sq(c->eval_grid);
     s->nsensors = c->nlgs + c->nngs;
     s->nlos = s->nsensors + s->neval;
-    /* the screen side of core/sim/loop.c: twice the widest footprint at the top layer */
+    /* the screen side of sim/loop.c: twice the widest footprint at the top layer */
     double eval = 0.5 * (c->eval_grid - 1) * c->eval_spacing * M_SQRT2;
     double th = fmax(fmax(c->nlgs ? c->lgs_radius : 0.0, c->nngs ? c->ngs_radius : 0.0), eval);
     double delta = c->diameter / (n * c->points_per_subaperture);

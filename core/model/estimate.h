@@ -4,12 +4,12 @@
  *
  * Memory: the sum of the largest arrays each command holds at its peak, counted from the sizes the
  * configuration implies (SPEC §1: subapertures n, fine points n p + 1 per side, phase screens of side
- * 2 (D + 2 h_top θ_max) / δ as core/sim/loop.c sizes them, active actuators within D/2 + h tan θc plus the
+ * 2 (D + 2 h_top θ_max) / δ as sim/loop.c sizes them, active actuators within D/2 + h tan θc plus the
  * guard rings, layer grids of the reconstruction variants) times the bytes the code stores per element,
  * plus the process's own base (libraries, ~15 MB). The sparse Cholesky factor of the MVM build is not known
  * before CHOLMOD's analysis: it is modelled as nnz(L) = 10.5 n^1.5 for n unknowns (fitted to the two E-ELT
  * builds of docs/results.md §4, 39.6 M and 402 M non-zeros, within 6 %), nnz(N) = nnz(L) / 2.5; the build
- * itself checks its exact figures again before each large allocation (core/build/mvm_build.h).
+ * itself checks its exact figures again before each large allocation (builder/mvm_build.h).
  *
  * Time: counted work per frame divided by a calibrated rate. The atmosphere and the evaluation: one
  * bilinear read per fine point, layer and line of sight (sensors and evaluation directions); the

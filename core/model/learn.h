@@ -31,7 +31,7 @@
  *   C_ij^c(δ; k) = Σ_t Σ_a M(a) M(a + δ) s_i^c(a, t − k) s_j^c(a + δ, t) / (K_k P(δ)),   c ∈ {x x, y y},
  *
  * for every ordered pair (i, j) (a lag breaks the symmetry) from a ring of the last k_max frames' spectra. Under
- * frozen flow (screen(x − v t), core/sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
+ * frozen flow (screen(x − v t), sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
  * screen moved by v k Δt, so that it adds c_h R_ij^c(δ; h, s = v k Δt) to that map: the response of the
  * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: a layer l is a local maximum of the profile fit's c_h
  * and the bins nearest to it (they share its wind: the grid is finer than the pairs' altitude resolution); with v_l
@@ -188,7 +188,7 @@ int wt_learn_fit(const wt_learn *L, int nalt, const double *alt, double L0, wt_l
 /* (a convenience: wt_learn_model_alloc, wt_learn_fit_model, wt_learn_model_free) */
 
 /* The wind per altitude of an estimate (plain data). Direction: of motion, counter-clockwise from +x [rad] in
- * [0, 2π) (core/sim/atmosphere.h's convention). */
+ * [0, 2π) (sim/atmosphere.h's convention). */
 #define WT_LEARN_WIND_MIN_FRACTION 0.05 /* SPEC §12 / the task: a wind for bins with ≥ 5 % of the Cn² */
 typedef struct wt_learn_wind {
     int nalt;

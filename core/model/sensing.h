@@ -89,8 +89,8 @@ typedef struct wt_sensing {
     int reference_changed;     /* the reference is not the set-up's (wt_sensing_set_reference) */
     /* the reference from the loop's own pixels (wt_sensing_pixels_*); pix_acc NULL: not accumulating */
     float *pix_acc;            /* [nsub E²] Σ of every frame's image since the last rebuild, re-centred by its slopes
-                                  before interpolation (core/optics/shift.h: T_u I on E = Ns + 2 margins) */
-    double *pix_tmp;           /* [threads (wt_shift_work(Ns) + Ns²)] scratch of the shifts */
+                                  before interpolation (core/optics/image_shift.h: T_u I on E = Ns + 2 margins) */
+    double *pix_tmp;           /* [threads (wt_image_shift_work(Ns) + Ns²)] scratch of the shifts */
     float *pix_anchor;         /* [2 nsub Ns²] the set-up reference's derivatives less those of its pixels' spline */
     long pix_frames;           /* frames in pix_acc */
     double pix_seconds;        /* wall time of the accumulation since wt_sensing_pixels_start */
@@ -155,7 +155,7 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
 /* The reference from the loop's own pixels (lgs.wfs.reference = pixels; docs/design.md "The reference from the loop's
  * own pixels"). After wt_sensing_pixels_start every wt_sensing_detect adds each subaperture's image (noisy, as the
  * detector reads it) re-centred by the slope it measured — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
- * (core/optics/shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
+ * (core/optics/image_shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
  * n frames accumulated: I0 = max(mean, 0) per pixel (the expected image is ≥ 0, and the matched filter's variance
  * I0 + B + σe² must stay positive with neither background nor read noise), and its derivatives
  *   ∂I0/∂θ = [S(I0) + ∂I0_set-up/∂θ − S(I0_set-up)],  S(I) = the derivative images of I's spline (shift.h) / p:

@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../optics/shift.h"
+#include "../optics/image_shift.h"
 #include "../optics/sodium.h"
 #include "../optics/spot.h"
 
@@ -122,15 +122,15 @@ int wt_sensing_pixels_start(wt_sensing *ws)
     const int nth = wt_context_threads(ctx);
     int st = WT_OK;
     wt_sensing_pixels_stop(ws);
-    const size_t E2 = (size_t)wt_shift_side(ws->ns) * wt_shift_side(ws->ns);
+    const size_t E2 = (size_t)wt_image_shift_side(ws->ns) * wt_image_shift_side(ws->ns);
     WT_ALLOC(ctx, ws->pix_acc, (size_t)ws->nsub * E2, "pixel reference accumulator");
-    WT_ALLOC(ctx, ws->pix_tmp, ((size_t)wt_shift_work(ws->ns) + n2) * (nth > 0 ? nth : 1), "pixel reference scratch");
+    WT_ALLOC(ctx, ws->pix_tmp, ((size_t)wt_image_shift_work(ws->ns) + n2) * (nth > 0 ? nth : 1), "pixel reference scratch");
     memset(ws->pix_acc, 0, (size_t)ws->nsub * E2 * sizeof *ws->pix_acc);
     ws->pix_frames = 0;
     ws->pix_seconds = 0.0;
     /* the anchor: the set-up reference's derivatives (the spot model's, of the set-up profile) less its spline's */
     {
-        const size_t npix = (size_t)ws->nsub * n2, wk = (size_t)wt_shift_work(ws->ns) + n2;
+        const size_t npix = (size_t)ws->nsub * n2, wk = (size_t)wt_image_shift_work(ws->ns) + n2;
         float *i0 = NULL, *dx = NULL, *dy = NULL;
         WT_ALLOC(ctx, ws->pix_anchor, 2 * npix, "pixel reference anchor");
         dx = ws->pix_anchor, dy = ws->pix_anchor + npix;
@@ -147,8 +147,8 @@ int wt_sensing_pixels_start(wt_sensing *ws)
 #pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
         for (int k = 0; k < nsub; k++) {
             double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
-            float *sx = (float *)(w + (size_t)wt_shift_work(ns)), *sy = sx + n2; /* the scratch's last n2 doubles */
-            wt_shift_derivative(ns, i0 + n2 * k, sx, sy, w);
+            float *sx = (float *)(w + (size_t)wt_image_shift_work(ns)), *sy = sx + n2; /* the scratch's last n2 doubles */
+            wt_image_shift_derivative(ns, i0 + n2 * k, sx, sy, w);
             for (size_t q = 0; q < n2; q++)
                 dx[n2 * k + q] = (float)(dx[n2 * k + q] - sx[q] / p), dy[n2 * k + q] = (float)(dy[n2 * k + q] - sy[q] / p);
         }
@@ -173,13 +173,13 @@ void wt_sensing_pixels_add(wt_sensing *ws, const float *images, const double *sl
 {
     const double t0 = wt_time_now();
     const int nsub = ws->nsub, ns = ws->ns, nth = wt_context_threads(ws->ctx);
-    const size_t n2 = (size_t)ns * ns, E2 = (size_t)wt_shift_side(ns) * wt_shift_side(ns);
-    const size_t wk = (size_t)wt_shift_work(ns) + n2;
+    const size_t n2 = (size_t)ns * ns, E2 = (size_t)wt_image_shift_side(ns) * wt_image_shift_side(ns);
+    const size_t wk = (size_t)wt_image_shift_work(ns) + n2;
     const double inv_p = 1.0 / ws->pixel;
     /* the spot of slope s sits at +s: moved back by −s / p pixels */
 #pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
     for (int k = 0; k < nsub; k++)
-        wt_shift_accumulate(ns, images + n2 * k, -slopes[k] * inv_p, -slopes[nsub + k] * inv_p, ws->pix_acc + E2 * k,
+        wt_image_shift_accumulate(ns, images + n2 * k, -slopes[k] * inv_p, -slopes[nsub + k] * inv_p, ws->pix_acc + E2 * k,
                             (float *)(ws->pix_tmp + wk * (size_t)wt_thread_id()));
     ws->pix_frames++;
     ws->pix_seconds += wt_time_now() - t0;
@@ -195,8 +195,8 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
                         "accumulated; the old reference is kept",
                         WT_SENSING_PIXELS_MIN_FRAMES, ws->pix_frames);
     const int nsub = ws->nsub, ns = ws->ns, nth = wt_context_threads(ctx);
-    const size_t n2 = (size_t)ns * ns, npix = (size_t)nsub * n2, E2 = (size_t)wt_shift_side(ns) * wt_shift_side(ns);
-    const size_t wk = (size_t)wt_shift_work(ns) + n2;
+    const size_t n2 = (size_t)ns * ns, npix = (size_t)nsub * n2, E2 = (size_t)wt_image_shift_side(ns) * wt_image_shift_side(ns);
+    const size_t wk = (size_t)wt_image_shift_work(ns) + n2;
     const double inv_n = 1.0 / (double)ws->pix_frames, inv_p = 1.0 / ws->pixel;
     int st = WT_OK;
     float *i0 = NULL, *dix = NULL, *diy = NULL;
@@ -208,9 +208,9 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
         float *a = i0 + n2 * k, *dx = dix + n2 * k, *dy = diy + n2 * k;
         double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
         /* the mean, ≥ 0, then the derivatives of that */
-        wt_shift_mean(ns, ws->pix_acc + E2 * k, inv_n, a, w);
+        wt_image_shift_mean(ns, ws->pix_acc + E2 * k, inv_n, a, w);
         for (size_t q = 0; q < n2; q++) a[q] = a[q] > 0.0f ? a[q] : 0.0f;
-        wt_shift_derivative(ns, a, dx, dy, w);
+        wt_image_shift_derivative(ns, a, dx, dy, w);
         const float *ax = ws->pix_anchor + n2 * k, *ay = ws->pix_anchor + npix + n2 * k;
         for (size_t q = 0; q < n2; q++) dx[q] = (float)(dx[q] * inv_p + ax[q]), dy[q] = (float)(dy[q] * inv_p + ay[q]);
     }

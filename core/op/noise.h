@@ -32,7 +32,7 @@ void wt_noise_elongation(int nsub, const double *cx, const double *cy, double la
                          double sodium_fwhm, double lgs_altitude, double *beta);
 
 /* The integrator's noise gain Σ_k h_k²: the variance of the command a_t that a unit-variance white
- * measurement error puts through a_{t+d} = a_{t+d−1} + g (x_t − a_t) (the POLC loop of core/sim/loop.c),
+ * measurement error puts through a_{t+d} = a_{t+d−1} + g (x_t − a_t) (the POLC loop of sim/loop.c),
  * i.e. the factor by which the loop averages measurement noise over its memory. g/(2 − g) for delay 1;
  * 0.389 for g = 0.4, delay 2. gain in (0, 1], delay 1 or 2 (the config's ranges, for which the loop is stable). */
 double wt_noise_loop_gain(double gain, int delay);

@@ -1,5 +1,5 @@
 /* core/solve/mvm.h: the stored MVM control matrix at run time and its one POLC apply (SPEC §9, §7;
- * FFTW's execute to the planner of core/build/mvm_build.h).
+ * FFTW's execute to the planner of builder/mvm_build.h).
  *
  *   y = R s + (R Â) a        R: n_act x n_slopes, RÂ: n_act x n_act, float32, row = actuator,
  *
@@ -8,7 +8,7 @@
  *
  * the pseudo-open-loop reconstruction R s_ol with s_ol = s + Â a written so that Â is not needed at run
  * time (`wavetomo run`), or y = R s_ol when the caller already has the pseudo-open-loop slopes (the
- * closed loop of core/sim/loop, `sim --recon mvm`, `compare`). Slope order: the system's (LGS first,
+ * closed loop of sim/loop, `sim --recon mvm`, `compare`). Slope order: the system's (LGS first,
  * then NGS; [s_x…, s_y…] per sensor); actuator order: DM by DM, active actuators in grid-index order.
  *
  * The container is plain data: the two matrices, what they are commands of, and the record of their

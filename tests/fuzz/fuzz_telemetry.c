@@ -1,7 +1,7 @@
 /* tests/fuzz/fuzz_telemetry.c: libFuzzer target of the telemetry reading of `wavetomo run` (SPEC §9).
  *
  * Input: the bytes of a telemetry file (TEL.h5 of `wavetomo sim --telemetry`), opened as a memory image
- * (wt_h5_open_image: core driver, no disk I/O). The calls and their order are runtime/run.c's: the stored
+ * (wt_h5_open_image: core driver, no disk I/O). The calls and their order are runtime/cmd_run.c's: the stored
  * configuration text parsed (in the include sandbox), its hash against the system's, the shapes of
  * slopes, slopes_ol and commands for the demo system, then every frame read row by row (at most 16) as
  * float32 and checked finite. The demo system (sizes) is built once. */

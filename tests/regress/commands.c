@@ -18,10 +18,10 @@
 
 #include "core/base/sha256.h"
 #include "core/io/h5.h"
-#include "core/build/mvm_build.h"
+#include "builder/mvm_build.h"
 #include "core/model/system.h"
 #include "core/model/tomography.h"
-#include "core/sim/loop.h"
+#include "sim/loop.h"
 
 static int fail(wt_context *ctx, const char *what)
 {

@@ -1,0 +1,145 @@
+/* sim/sodium_drive.c: the truth's LGS spots following a sodium sequence, and the reference that follows
+ * them or not (sodium_drive.h). */
+#include "sodium_drive.h"
+
+#include <math.h>
+
+#include "../core/model/sensing.h"
+#include "../core/optics/sodium.h"
+#include "night.h"
+
+struct wt_sodium_drive {
+    wt_context *ctx;
+    const wt_system *sys;
+    wt_sodium_drive_params par;
+    wt_sodium_seq *seq;      /* NULL: the set-up profile throughout */
+    wt_sodium *na;           /* the profile of the last truth rebuild (the sequence's altitudes) */
+    long seq_every, ref_every; /* cadences in frames */
+    wt_sodium_drive_stats stats;
+};
+
+static long frames_of(double night_s, double frame_night)
+{
+    const long n = lround(night_s / frame_night);
+    return n < 1 ? 1 : n;
+}
+
+int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium_drive_params *par,
+                          wt_sodium_drive **out)
+{
+    int st = WT_OK, nlgs = 0;
+    *out = NULL;
+    const int has_seq = par->sequence && par->sequence[0];
+    for (int m = 0; m < sys->nsensors; m++) nlgs += sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS;
+    if (nlgs == 0 || (!has_seq && par->reference == WT_REFERENCE_STATIC)) return WT_OK;
+    if (par->reference != WT_REFERENCE_STATIC && par->reference != WT_REFERENCE_ORACLE &&
+        par->reference != WT_REFERENCE_PIXELS)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "sodium drive: reference kind %d unknown", par->reference);
+    const double frame_night = par->frame_time * par->compression;
+    if (!(frame_night > 0.0) || par->frames <= par->first_frame ||
+        (par->reference != WT_REFERENCE_STATIC && par->reference_update < frame_night * (1.0 - 1e-9)) ||
+        par->sequence_update < 0.0 || (par->sequence_update > 0.0 && par->sequence_update < frame_night * (1.0 - 1e-9)))
+        return WT_ERROR(ctx, WT_ERR_INVALID,
+                        "sodium drive: a frame of %g s of night, frames %ld to %ld, cadences %g s (sequence) and %g s "
+                        "(reference): each cadence must be at least a frame (%s)",
+                        frame_night, par->first_frame, par->frames, par->sequence_update, par->reference_update,
+                        par->origin ? par->origin : "");
+    wt_sodium_drive *d = NULL;
+    WT_ALLOC(ctx, d, 1, "sodium drive");
+    d->ctx = ctx;
+    d->sys = sys;
+    d->par = *par;
+    d->par.sequence = NULL; /* (not kept) */
+    d->seq_every = par->sequence_update > 0.0 ? frames_of(par->sequence_update, frame_night) : 1;
+    d->ref_every = frames_of(par->reference_update, frame_night);
+    if (par->reference == WT_REFERENCE_PIXELS && d->ref_every < WT_SENSING_PIXELS_MIN_FRAMES) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                      "key 'lgs.wfs.reference_update_s' = %g s of night is %ld frame(s) of %g s: the reference from the "
+                      "loop's pixels (lgs.wfs.reference = \"pixels\") is the mean of the frames of one period and needs "
+                      "at least %d; give at least %g s (%s)",
+                      par->reference_update, d->ref_every, frame_night, WT_SENSING_PIXELS_MIN_FRAMES,
+                      WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
+        goto fail;
+    }
+    if (par->reference == WT_REFERENCE_PIXELS)
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
+                (st = wt_sensing_pixels_start(sys->sensors[m].diffr)) < 0)
+                goto fail;
+    if (has_seq) {
+        WT_TRY(wt_sodium_seq_read(ctx, par->sequence, &d->seq));
+        const double t0 = wt_night_clock(par->start, par->frame_time, par->compression, par->first_frame);
+        const double t1 = wt_night_clock(par->start, par->frame_time, par->compression, par->frames - 1);
+        WT_TRY(wt_sodium_seq_check_covers(ctx, d->seq, t0, t1, par->origin ? par->origin : "the run"));
+        WT_TRY(wt_sodium_seq_profile(ctx, d->seq, t0, &d->na));
+        for (int m = 0; m < sys->nsensors; m++) {
+            const wt_sensor *s = &sys->sensors[m];
+            if (!s->diffr || s->kind != WT_SENSOR_LGS) continue;
+            if ((st = wt_sodium_check_covers(ctx, d->na, s->altitude, par->sequence)) < 0) {
+                st = WT_ERROR(ctx, WT_ERR_CONFIG, "key 'lgs.sodium_sequence' = \"%s\" (%s): %s", par->sequence, s->name,
+                              wt_error_message(ctx));
+                goto fail;
+            }
+        }
+    }
+    *out = d;
+    return WT_OK;
+fail:
+    wt_sodium_drive_free(d);
+    return st;
+}
+
+int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec)
+{
+    const wt_system *sys = d->sys;
+    const long j = frame - d->par.first_frame;
+    int st = WT_OK;
+    if (d->seq && j % d->seq_every == 0) {
+        const double t0 = wt_time_now();
+        const double t = wt_night_clock(d->par.start, d->par.frame_time, d->par.compression, frame);
+        if ((st = wt_sodium_seq_at(d->seq, t, d->na)) < 0) return st;
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
+                (st = wt_sensing_set_sodium(sys->sensors[m].diffr, d->na)) < 0)
+                return st;
+        d->stats.truth_rebuilds++;
+        d->stats.truth_seconds += wt_time_now() - t0;
+    }
+    const int pixels = d->par.reference == WT_REFERENCE_PIXELS;
+    if ((d->par.reference == WT_REFERENCE_ORACLE || (pixels && j > 0)) && j % d->ref_every == 0) {
+        const double t0 = wt_time_now();
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
+                (st = pixels ? wt_sensing_pixels_reference(sys->sensors[m].diffr)
+                             : wt_sensing_rebuild_reference(sys->sensors[m].diffr)) < 0)
+                return st;
+        const double t1 = wt_time_now();
+        if (rec && (st = wt_reconstructor_refresh_noise(rec)) < 0) return st;
+        d->stats.reference_rebuilds++;
+        d->stats.reference_seconds += wt_time_now() - t0;
+        d->stats.c_e_seconds += wt_time_now() - t1;
+    }
+    return WT_OK;
+}
+
+wt_sodium_drive_stats wt_sodium_drive_get_stats(const wt_sodium_drive *d)
+{
+    wt_sodium_drive_stats s = d->stats;
+    for (int m = 0; m < d->sys->nsensors; m++)
+        if (d->par.reference == WT_REFERENCE_PIXELS && d->sys->sensors[m].diffr) s.accumulate_seconds += d->sys->sensors[m].diffr->pix_seconds;
+    return s;
+}
+
+void wt_sodium_drive_free(wt_sodium_drive *d)
+{
+    if (!d) return;
+    for (int m = 0; m < d->sys->nsensors; m++) {
+        wt_sensing *ws = d->sys->sensors[m].diffr;
+        if (ws && wt_sensing_restore(ws) < 0)
+            wt_log(d->ctx, WT_LOG_WARN, "sodium drive: %s could not be restored to its set-up reference: %s",
+                   d->sys->sensors[m].name, wt_error_message(d->ctx));
+    }
+    wt_sodium_seq_free(d->seq);
+    wt_sodium_free(d->na);
+    wt_free(d->ctx, d);
+}
