@@ -185,7 +185,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     KFL("atmosphere.wind_speed_mps", GE0(1000.0), "m/s", 1, wind_speed, nlayers, 1, WT_MAX_LAYERS, "wind speed of each layer"),
     KFL("atmosphere.wind_direction_deg", ANYANGLE, "deg", DEG, wind_direction, nlayers, 1, WT_MAX_LAYERS,
         "direction each layer moves towards, from +x towards +y"),
-    /* a changing night of the truth (SPEC §12; core/sim/night.h): simulation only, never in the matrix identity */
+    /* a changing night of the truth (SPEC §12; sim/night.h): simulation only, never in the matrix identity */
     {"atmosphere.night.source", K_ENUM, F_OPT, 0, 0, "", 1, CF(night.source), NOCOUNT, 0, 0, "none|file|random", 0,
      "a changing night for the truth (the simulated atmosphere only; the reconstructors keep their own): none = the "
      "atmosphere above, fixed for the run; file = the states of atmosphere.night.file; random = the stochastic model "
@@ -357,7 +357,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "(optional, default 1)"},
     KBD("sim.noise", noise, 1, "add sensor noise to the simulated measurements (optional, default true)"),
     {"sim.psf_interval_frames", K_INT, F_DEFAULT, 0, 1000000, "", 1, CF(psf_interval), NOCOUNT, 0, 0, NULL, 10,
-     "long-exposure PSF per evaluation direction at evaluation.wavelength_nm (core/sim/psf.h): the image of every "
+     "long-exposure PSF per evaluation direction at evaluation.wavelength_nm (sim/psf.h): the image of every "
      "N-th frame after the settle frames is added (Nyquist-sampled FFT of the pupil field); 0 = no PSFs "
      "(optional, default 10)"},
     {"sim.psf_pixels", K_INT, F_DEFAULT | F_EVEN, 8, 4096, "", 1, CF(psf_pixels), NOCOUNT, 0, 0, NULL, 64,
