@@ -2,7 +2,6 @@
  * model's Ornstein–Uhlenbeck walks), their linear interpolation, and the per-frame drive of the atmosphere. */
 #include "night.h"
 
-#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -10,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../core/base/numbers.h"
 #include "../core/base/rng.h"
 
 #define DEG (M_PI / 180.0) /* the configuration's degrees → radians, the same product as config_read.c's */
@@ -140,43 +140,21 @@ static int read_file(wt_night *n, const wt_night_params *p)
     FILE *fp = fopen(path, "r");
     if (!fp) return file_error(n, WT_ERR_IO, "cannot open the night file '%s': %s %s", path, strerror(errno), tail);
     int st = WT_OK, lineno = 0;
-    long cap = 0;
+    long cap = 0, vcap = 0;
     char *line = NULL;
     size_t lcap = 0;
-    double *v = NULL;
-    v = wt_malloc(n->ctx, (size_t)ncol, sizeof *v);
-    if (!v) {
-        st = WT_ERROR(n->ctx, WT_ERR_NOMEM, "out of memory reading the night file %s", path);
-        goto out;
-    }
+    double *v = NULL; /* a line's numbers (wt_read_numbers) */
     while (getline(&line, &lcap, fp) >= 0) {
         lineno++;
-        char *hash = strchr(line, '#');
-        if (hash) *hash = '\0';
-        int nf = 0;
-        for (char *s = line;;) {
-            while (isspace((unsigned char)*s)) s++;
-            if (!*s) break;
-            char *e = s;
-            while (*e && !isspace((unsigned char)*e)) e++;
-            const char save = *e;
-            *e = '\0';
-            char *end;
-            errno = 0;
-            const double x = strtod(s, &end);
-            if (*end || end == s || !isfinite(x) || errno == ERANGE) {
-                st = file_error(n, WT_ERR_CONFIG, "%s:%d: column %d: '%s' is not a finite number %s", path, lineno,
-                                nf + 1, s, tail);
-                goto out;
-            }
-            if (nf < ncol) v[nf] = x;
-            nf++;
-            *e = save;
-            s = e;
+        const wt_numbers_where w = {path, lineno, 1, NULL, 0, tail, WT_ERR_CONFIG};
+        const long nf = wt_read_numbers(n->ctx, line, &w, &v, &vcap);
+        if (nf < 0) {
+            st = (int)nf;
+            goto out;
         }
         if (nf == 0) continue;
         if (nf != ncol) {
-            st = file_error(n, WT_ERR_CONFIG, "%s:%d: %d columns; expected %d = 2 + 3 x %d %s", path, lineno, nf, ncol,
+            st = file_error(n, WT_ERR_CONFIG, "%s:%d: %ld columns; expected %d = 2 + 3 x %d %s", path, lineno, nf, ncol,
                             nl, tail);
             goto out;
         }

@@ -17,7 +17,8 @@
  */
 #include "config_private.h"
 
-#include <ctype.h>
+#include "../base/numbers.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -56,6 +57,8 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
     int st = WT_OK, lineno = 0, first_line = 0, prev_line = 0;
     char *line = NULL;
     size_t cap = 0;
+    double *v = NULL; /* a line's numbers (wt_read_numbers) */
+    long vcap = 0;
     double sum = 0.0;
     const wt_config_priv_key_spec *ks[NCOL];
     for (int c = 0; c < NCOL; c++) {
@@ -72,41 +75,23 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
                         strerror(errno));
     while (getline(&line, &cap, f) >= 0) {
         lineno++;
-        char *hash = strchr(line, '#');
-        if (hash) *hash = '\0';
-        double v[NCOL + 1];
-        int nf = 0;
-        for (char *s = line;;) {
-            while (isspace((unsigned char)*s)) s++;
-            if (!*s) break;
-            char *e = s;
-            while (*e && !isspace((unsigned char)*e)) e++;
-            const char save = *e;
-            *e = '\0';
-            char *end;
-            errno = 0;
-            const double x = strtod(s, &end);
-            if (nf < NCOL && (*end || end == s || !isfinite(x) || errno == ERANGE)) {
-                st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: column %d (%s): '%s' is not a finite number %s",
-                              path, lineno, nf + 1, col_name[nf], s, tail);
-                goto out;
-            }
-            if (nf <= NCOL) v[nf] = x;
-            nf++;
-            *e = save;
-            s = e;
+        const wt_numbers_where w = {path, lineno, 1, col_name, NCOL, tail, WT_ERR_CONFIG};
+        const long nf = wt_read_numbers(ctx, line, &w, &v, &vcap);
+        if (nf < 0) {
+            st = (int)nf;
+            goto out;
         }
         if (nf == 0) continue;
         if (nf < NCOL - 1 || nf > NCOL) {
             st = WT_ERROR(ctx, WT_ERR_CONFIG,
-                          "%s:%d: %d column%s; expected 3 or 4: altitude [m], Cn2 fraction, wind speed [m/s] and an "
+                          "%s:%d: %ld column%s; expected 3 or 4: altitude [m], Cn2 fraction, wind speed [m/s] and an "
                           "optional wind direction [deg] %s", path, lineno, nf, nf == 1 ? "" : "s",
                           tail);
             goto out;
         }
-        if (p->n == 0) p->ncol = nf, first_line = lineno;
+        if (p->n == 0) p->ncol = (int)nf, first_line = lineno;
         else if (nf != p->ncol) {
-            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: %d columns, but the first layer (line %d) has %d: every line "
+            st = WT_ERROR(ctx, WT_ERR_CONFIG, "%s:%d: %ld columns, but the first layer (line %d) has %d: every line "
                           "must have the same columns %s", path, lineno, nf, first_line, p->ncol,
                           tail);
             goto out;
@@ -154,6 +139,7 @@ static int read_profile(wt_config_priv_state *ps, const char *path, const char *
                       "within %g (key '%s' at %s)", path, p->n, first_line, prev_line, sum, WT_PROFILE_SUM_TOL, key, loc);
 out:
     free(line); /* getline's buffer comes from malloc */
+    wt_free(ctx, v);
     fclose(f);
     return st;
 }

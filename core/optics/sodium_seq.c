@@ -8,6 +8,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../base/numbers.h"
+
+/* ends the message of a field that is not a number */
+#define SEQ_EXPECTED                                                                                               \
+    "(a sodium sequence: the word altitude_m and the altitudes [m], then a line per night time: time_s and a "    \
+    "density per altitude)"
+
 struct wt_sodium_seq {
     wt_context *ctx;
     char path[1024]; /* for messages */
@@ -28,31 +35,6 @@ void wt_sodium_seq_free(wt_sodium_seq *q)
 }
 
 static int is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
-
-/* The numbers of one line (comment removed) into v (grown as needed): the count, or −(field number) of the
- * first field that is not a finite number. */
-static long parse_numbers(wt_context *ctx, char *p, double **v, long *cap)
-{
-    long n = 0;
-    for (;;) {
-        while (is_blank(*p)) p++;
-        if (!*p) return n;
-        char *end;
-        errno = 0;
-        const double x = strtod(p, &end);
-        if (end == p || errno == ERANGE || !isfinite(x) || (*end && !is_blank(*end))) return -(n + 1);
-        if (n == *cap) {
-            const long nc = *cap ? 2 * *cap : 256;
-            double *w = wt_malloc(ctx, (size_t)nc, sizeof *w);
-            if (!w) return -(1L << 40);
-            if (n) memcpy(w, *v, (size_t)n * sizeof *w);
-            wt_free(ctx, *v);
-            *v = w, *cap = nc;
-        }
-        (*v)[n++] = x;
-        p = end;
-    }
-}
 
 /* append one knot (time + n densities) to q, growing its arrays */
 static int add_knot(wt_sodium_seq *q, long *kcap, const double *v)
@@ -106,14 +88,10 @@ int wt_sodium_seq_read(wt_context *ctx, const char *path, wt_sodium_seq **out)
                               path, lineno);
                 goto fail;
             }
-            const long n = parse_numbers(ctx, p + 10, &v, &vcap);
-            if (n == -(1L << 40)) {
-                st = WT_ERROR(ctx, WT_ERR_NOMEM, "sodium sequence %s: out of memory", path);
-                goto fail;
-            }
+            const wt_numbers_where w = {path, lineno, 2, NULL, 0, SEQ_EXPECTED, WT_ERR_INVALID};
+            const long n = wt_read_numbers(ctx, p + 10, &w, &v, &vcap);
             if (n < 0) {
-                st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium sequence %s:%d: altitude %ld is not a finite number", path,
-                              lineno, -n);
+                st = (int)n;
                 goto fail;
             }
             if (n < 2 || n > 1000000) {
@@ -134,14 +112,10 @@ int wt_sodium_seq_read(wt_context *ctx, const char *path, wt_sodium_seq **out)
             memcpy(q->alt, v, (size_t)n * sizeof *v);
             continue;
         }
-        const long n = parse_numbers(ctx, p, &v, &vcap);
-        if (n == -(1L << 40)) {
-            st = WT_ERROR(ctx, WT_ERR_NOMEM, "sodium sequence %s: out of memory", path);
-            goto fail;
-        }
+        const wt_numbers_where w = {path, lineno, 1, NULL, 0, SEQ_EXPECTED, WT_ERR_INVALID};
+        const long n = wt_read_numbers(ctx, p, &w, &v, &vcap);
         if (n < 0) {
-            st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium sequence %s:%d: field %ld is not a finite number", path, lineno,
-                          -n);
+            st = (int)n;
             goto fail;
         }
         if (n != q->n + 1) {
