@@ -12,7 +12,7 @@
 
 #include "core/model/params.h"
 #include "core/model/precond.h"
-#include "core/model/precond_private.h"
+#include "core/model/precond_base.h"
 #include "core/model/reconstructor.h"
 #include "core/model/system.h"
 

@@ -11,7 +11,11 @@
  * models and wavelets it exposes), so the operator's file knows none of this. J: precond_jacobi.c; B:
  * precond_coarse.c, with precond_multilevel.c's layer blocks or precond_fourier.c's B_F; the NGS term:
  * precond_lowrank.c; what they are built from: precond_base.c; the updates: precond_update.c. */
-#include "precond_private.h"
+#include "precond_coarse.h"
+#include "precond_fourier.h"
+#include "precond_jacobi.h"
+#include "precond_lowrank.h"
+#include "precond_multilevel.h"
 
 #include <string.h>
 

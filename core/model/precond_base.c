@@ -4,7 +4,7 @@
  *   prior's: the parts of an update, SPEC §12 "Updates"), the coloured probing's geometry, the dense Cholesky
  *   factorisation of a block, and the NGS term's kernels on its factor K and its blocked Y (P⁻¹ = B⁻¹ − Y K⁻¹ Yᵀ).
  */
-#include "precond_private.h"
+#include "precond_base.h"
 
 #include <math.h>
 #include <string.h>

@@ -5,7 +5,9 @@
  *
  * and z = B⁻¹ r, the kind's part before the NGS term (wt_precond__base_apply: this block, the multilevel layer
  * blocks or the fourier kind's B_F). */
-#include "precond_private.h"
+#include "precond_coarse.h"
+#include "precond_fourier.h"
+#include "precond_multilevel.h"
 
 #include <string.h>
 

@@ -5,7 +5,7 @@
  *           coarse space V_c (each layer's coarsest scaling functions);
  *   with the NGS term, Yᵀ r = Rᵀ u on the filtered layers (the NGS's adjoint columns held sparse per layer).
  */
-#include "precond_private.h"
+#include "precond_fourier.h"
 
 #include <lapacke.h>
 #include <math.h>

@@ -3,7 +3,7 @@
  *   J = diag(Σ_LGS Ãᵀ C̃⁻¹ Ã) + α D,   exact, by coloured probing,
  *
  * below every kind but none and fourier (J⁻¹ off the coarse block, or alone). */
-#include "precond_private.h"
+#include "precond_jacobi.h"
 
 #include <math.h>
 #include <string.h>

@@ -4,7 +4,10 @@
  *
  * its set-up (R, K's factor, Y laid out as the apply reads it) and the apply around the kind's B⁻¹
  * (precond_coarse.c, precond_multilevel.c, precond_fourier.c). */
-#include "precond_private.h"
+#include "precond_lowrank.h"
+#include "precond_coarse.h"
+#include "precond_fourier.h"
+#include "precond_multilevel.h"
 
 #include <stdint.h>
 #include <string.h>
@@ -31,7 +34,7 @@
  * runs a chunk changes nothing: the same bits for any thread count. B a compile-time constant (always inlined:
  * the B sums of 8 lanes stay in vector registers); a last block past n takes only its rows < n. The update
  * reads the same copy (one pass over ~1 MB each instead of a column-major Y and a row-major copy). */
-/* (yb_vec, yb_vec32 and YB_COL: precond_private.h) */
+/* (yb_vec, yb_vec32 and YB_COL: precond_base.h) */
 
 static inline __attribute__((always_inline)) void yb_dots_chunk(const int B, const int f32, const wt_precond *p,
                                                                 const double *r, int64_t b0, int64_t b1,

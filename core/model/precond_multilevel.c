@@ -4,7 +4,7 @@
  *          M̃ = Σ_LGS Ãᵀ C̃⁻¹ Ã + α D on the layers' coefficients there (a block Jacobi over a partition: SPD),
  *
  * their entries by J's coloured probing (precond_jacobi.c), each block Cholesky-factored. */
-#include "precond_private.h"
+#include "precond_multilevel.h"
 
 #include <math.h>
 #include <string.h>

@@ -17,7 +17,7 @@
  * model). Cost: O(nlgs n) for J, O(nc³) for the block, nk λ_max of order L for the symbol (core/la/heig.h: only the
  * largest eigenvalue is used, not zheev's all), Y = B⁻¹ R from the spectra of R kept at set-up (fourier: one
  * inverse FFT per NGS column and layer, precond_fourier.c) or r applies of B⁻¹ — no apply of M, no FFT of a probe. */
-#include "precond_private.h"
+#include "precond_lowrank.h"
 
 #include <lapacke.h>
 #include <math.h>

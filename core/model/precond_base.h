@@ -1,10 +1,16 @@
-/* core/model/precond_private.h: the preconditioner object's layout, shared by precond.c (the interface and the
- * dispatch to the kinds), precond_jacobi.c (J), precond_coarse.c (the coarse block and B⁻¹), precond_lowrank.c
- * (the NGS term), precond_multilevel.c, precond_fourier.c, precond_base.c (what they are built from) and
- * precond_update.c (the parts kept at set-up and the update for a new atmosphere model); not part of any
- * interface. */
-#ifndef WT_PRECOND_PRIVATE_H
-#define WT_PRECOND_PRIVATE_H
+/* core/model/precond_base.h: the preconditioner object's layout and what every kind is built from
+ * (precond_base.c): the bottom of the preconditioner's files. Each kind declares its entry points in a header of
+ * its own, and a file includes the headers of what it calls, so the includes follow the calls, one way:
+ *
+ *   precond.c (the interface, the dispatch)      → every kind's header
+ *   precond_update.c (a new atmosphere model)    → precond_lowrank.h
+ *   precond_lowrank.c (the NGS term)             → precond_coarse.h, precond_fourier.h, precond_multilevel.h
+ *   precond_coarse.c (the coarse block, B⁻¹)     → precond_fourier.h, precond_multilevel.h
+ *   precond_fourier.c, precond_multilevel.c, precond_jacobi.c                   → precond_base.h only
+ *
+ * Not part of any interface. */
+#ifndef WT_PRECOND_BASE_H
+#define WT_PRECOND_BASE_H
 
 #include "precond.h"
 
@@ -94,21 +100,8 @@ struct wt_precond {
     size_t pu_spare_bytes;
 };
 
-/* The kinds' names, by WT_PRECOND_* (precond_base.c) */
+/* The kinds' names, by WT_PRECOND_* */
 extern const char *const wt_precond__kind_names[WT_PRECOND_NKINDS];
-
-/* The kinds' parts, each file calling only those below it (precond.c dispatches):
- * J⁻¹ into p->jinv by coloured probing (precond_jacobi.c) */
-int wt_precond__jacobi(wt_precond *p, const wt_tomography *t);
-/* The coarse block (precond_coarse.c): layer l's coarse square's side; the block's Cholesky factor into p->c_L;
- * z = B_c⁻¹ r on the block by the factor's two solves, or by the inverse's rows [i0, i1) */
-int wt_precond__coarse_side(const wt_tomography *t, int l, int coarse_levels);
-int wt_precond__coarse(wt_precond *p, wt_tomography *t, int coarse_levels);
-void wt_precond__coarse_solve(const wt_precond *p, const double *r, double *z);
-void wt_precond__coarse_inv_rows(const wt_precond *p, const double *r, double *z, int i0, int i1);
-/* The NGS term (precond_lowrank.c): R, K and Y at set-up (nothing without NGS); z = P⁻¹ r */
-int wt_precond__lowrank(wt_precond *p, wt_tomography *t);
-void wt_precond__lowrank_apply(const wt_precond *p, const double *r, double *z);
 
 /* In-place Cholesky of the q x q SPD matrix A (column-major; lower triangle used and overwritten); WT_ERR_NUMERIC
  * naming `what` when it is not positive definite */
@@ -117,25 +110,11 @@ int wt_precond__cholesky(wt_context *ctx, int q, double *A, const char *what);
  * naming it) and Lᵀ copied into its upper triangle, so that the backward solve runs by contiguous columns too;
  * p->nc = q */
 int wt_precond__coarse_factor(wt_precond *p, int q, const char *what);
-/* coarse_ngs: c_L's factor replaced by the block's inverse c_inv (or c_inv32 when single) */
-int wt_precond__coarse_invert(wt_precond *p, int single);
-/* z = B⁻¹ r: the kind's part before the NGS term */
-void wt_precond__base_apply(const wt_precond *p, const double *r, double *z);
-/* Y = B⁻¹ R, K = Ĉ⁻¹_NGS + Rᵀ Y factored, Y laid out as the kind's apply reads it (R n x nlr, cinv nlr x nlr) */
-int wt_precond__lowrank_factor(wt_precond *p, const double *R, const double *cinv);
-/* fourier: the layer-l coarse coefficients C = Qᵀ X (u: fd_sc fd_n of work) */
-void wt_precond__coarse_coef(const wt_precond *p, const double *X, double *C, double *u);
-
 /* Centre (in grid points) of the support of a periodic 1-D profile; the colouring's period and the per-thread buffer
- * sizes of the coloured probing (precond_jacobi.c) */
+ * sizes of the coloured probing (precond_jacobi.c, precond_multilevel.c) */
 double wt_precond__support_centre(const double *mag, int n);
 void wt_precond__probe_sizes(const wt_tomography *t, int *s, int64_t *maxn2, int64_t *maxsl, int64_t *wsize);
-/* multilevel (precond_multilevel.c): the layer blocks below coarse squares of sides sc[l]; z = B_b⁻¹ r on the
- * blocks [b0, b1) */
-int wt_precond__layer_blocks(wt_precond *p, const wt_tomography *t, const int *sc);
-void wt_precond__layer_blocks_apply(const wt_precond *p, const double *r, double *z, int64_t b0, int64_t b1);
-
-/* The parts (precond_update.c), measured at set-up when wt_precond_params.updatable: */
+/* The parts, measured at set-up when wt_precond_params.updatable (precond_update.c updates from them): */
 int wt_precond__parts_begin(wt_precond *p, const wt_tomography *t);
 /* layer l's prior Cn² now, f r0^(−5/3) (its prior's precision scales as its inverse) */
 double wt_precond__layer_cn2(const wt_tomography *t, int l);
@@ -175,13 +154,5 @@ void wt_precond__lgs_prior_column(wt_tomography *t, int l, const double *e, doub
 /* K v = w in place (the NGS term's factor); z −= Y w on Y's row blocks [b0, b1) */
 void wt_precond__lowrank_solve(const wt_precond *p, double *w);
 void wt_precond__yb_update(const wt_precond *p, const double *w, double *z, int64_t b0, int64_t b1);
-/* fourier (precond_fourier.c): set-up; z = B_F⁻¹ r (ngs: with the NGS term's Woodbury correction); the NGS
- * columns' sparse per-layer form */
-int wt_precond__fourier(wt_precond *p, wt_tomography *t, int coarse_levels);
-void wt_precond__fourier_apply(const wt_precond *p, const double *r, double *z, int ngs);
-int wt_precond__fourier_ngs_columns(wt_precond *p, const wt_tomography *t, const double *R);
-/* fourier with fd_rhat: Y = B⁻¹ R (n x nlr, 64-byte aligned), the bits of nlr applies of B⁻¹ to R's columns, the
- * nlr L layers side by side on the threads */
-int wt_precond__fourier_lowrank_Y(const wt_precond *p, double *Y);
 
 #endif
