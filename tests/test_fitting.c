@@ -13,15 +13,35 @@
 #include "testutil.h"
 #include "tomography_fixture.h"
 
+/* The demo system with its defaults: the set-up of the "core" test case, a checked fixture (each test gets its
+ * own, made in its own process). */
+typedef struct {
+    wt_context *ctx;
+    wt_config *cfg;
+    wt_system *sys;
+} sysfix;
+static sysfix F;
+
+static void demo_setup(void)
+{
+    F.ctx = tu_context();
+    ck_assert_int_eq(wt_config_read(F.ctx, "data/presets/demo.cfg", 0, NULL, &F.cfg), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(F.ctx, F.cfg, &F.sys), WT_OK);
+}
+
+static void demo_teardown(void)
+{
+    wt_system_free(F.sys);
+    wt_config_free(F.ctx, F.cfg);
+    wt_context_free(F.ctx);
+}
+
 /* ε against the brute-force diagonal: F e_i = (Σ H_jᵀ H_j + ε I) e_i, so F_ii − ε is the diagonal. */
 static void check_epsilon(int sampling)
 {
-    wt_context *ctx = tu_context();
-    wt_config *cfg;
-    wt_system *sys;
+    wt_context *ctx = F.ctx;
+    const wt_system *sys = F.sys;
     wt_fitting *fit;
-    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
-    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     const double reg = 1e-3;
     const wt_fitting_params fp = {.regularization = reg, .sampling = sampling};
     ck_assert_int_eq(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &fit), WT_OK);
@@ -38,9 +58,6 @@ static void check_epsilon(int sampling)
     ck_assert_rel(eps, reg * sum / (double)na, 1e-12, 0.0);
     free(e), free(y);
     wt_fitting_free(fit);
-    wt_system_free(sys);
-    wt_config_free(ctx, cfg);
-    wt_context_free(ctx);
 }
 
 START_TEST(test_epsilon_fried) { check_epsilon(1); }
@@ -53,12 +70,9 @@ END_TEST
  * them in every direction (to the bias of a tiny ε and the CG tolerance). */
 START_TEST(test_representable_maps)
 {
-    wt_context *ctx = tu_context();
-    wt_config *cfg;
-    wt_system *sys;
+    wt_context *ctx = F.ctx;
+    const wt_system *sys = F.sys;
     wt_fitting *fit;
-    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
-    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     const wt_fitting_params fp = {.regularization = 1e-10, .sampling = 2, .solver = _i}; /* CG, then Cholesky */
     ck_assert_int_eq(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &fit), WT_OK);
     const wt_grid *sg = wt_fitting_sample_grid(fit);
@@ -91,9 +105,6 @@ START_TEST(test_representable_maps)
                   r.iterations);
     free(a0), free(a), free(g0), free(g1), free(maps), free(m1);
     wt_fitting_free(fit);
-    wt_system_free(sys);
-    wt_config_free(ctx, cfg);
-    wt_context_free(ctx);
 }
 END_TEST
 
@@ -101,13 +112,11 @@ END_TEST
  * tomography M, Ã and the right-hand side). */
 START_TEST(test_operators_accumulate)
 {
-    wt_context *ctx = tu_context();
-    wt_config *cfg;
-    wt_system *sys;
+    wt_context *ctx = F.ctx;
+    const wt_config *cfg = F.cfg;
+    const wt_system *sys = F.sys;
     wt_fitting *fit;
     wt_tomography *t;
-    ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg), WT_OK);
-    ck_assert_int_eq(wt_system_alloc(ctx, cfg, &sys), WT_OK);
     const wt_fitting_params fp = {.regularization = 1e-3, .sampling = 1};
     ck_assert_int_eq(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &fp, &fit), WT_OK);
     wt_tomography_params tp;
@@ -139,39 +148,14 @@ START_TEST(test_operators_accumulate)
     free(x), free(y0), free(ax), free(y);
     wt_tomography_free(t);
     wt_fitting_free(fit);
-    wt_system_free(sys);
-    wt_config_free(ctx, cfg);
-    wt_context_free(ctx);
 }
 END_TEST
-
-/* The demo's cg9 fitting (sampling 2) with either solver. */
-typedef struct {
-    wt_context *ctx;
-    wt_config *cfg;
-    wt_system *sys;
-} sysfix;
-
-static void sys_setup(sysfix *f)
-{
-    f->ctx = tu_context();
-    ck_assert_int_eq(wt_config_read(f->ctx, "data/presets/demo.cfg", 0, NULL, &f->cfg), WT_OK);
-    ck_assert_int_eq(wt_system_alloc(f->ctx, f->cfg, &f->sys), WT_OK);
-}
-
-static void sys_teardown(sysfix *f)
-{
-    wt_system_free(f->sys);
-    wt_config_free(f->ctx, f->cfg);
-    wt_context_free(f->ctx);
-}
 
 /* wt_fitting_assemble: the sparse N the Cholesky solver factors is the operator: N x = apply(x) to the rounding
  * of sums in another order (~1e-15 relative; 1e-13 asked), symmetric to the same, and ε on the diagonal. */
 START_TEST(test_assembled_equals_apply)
 {
-    sysfix f;
-    sys_setup(&f);
+    const sysfix f = F;
     const wt_fitting_params fp = {.regularization = 1e-3, .sampling = 2};
     wt_fitting *fit;
     ck_assert_int_eq(wt_fitting_alloc(f.ctx, f.sys, 0, NULL, NULL, &fp, &fit), WT_OK);
@@ -201,7 +185,6 @@ START_TEST(test_assembled_equals_apply)
     free(x), free(y), free(z), free(d);
     wt_sparse_free(N);
     wt_fitting_free(fit);
-    sys_teardown(&f);
 }
 END_TEST
 
@@ -217,8 +200,7 @@ END_TEST
  * same direct solve. */
 START_TEST(test_cholesky_equals_converged_cg)
 {
-    sysfix f;
-    sys_setup(&f);
+    const sysfix f = F;
     wt_tomography_params tp;
     wt_tomography_params_from_config(f.cfg, &tp);
     wt_tomography *t;
@@ -298,7 +280,6 @@ START_TEST(test_cholesky_equals_converged_cg)
     wt_fitting_free(fcg);
     wt_fitting_free(fch);
     wt_tomography_free(t);
-    sys_teardown(&f);
 }
 END_TEST
 
@@ -307,8 +288,7 @@ END_TEST
  * nothing left allocated. */
 START_TEST(test_cholesky_refusals)
 {
-    sysfix f;
-    sys_setup(&f);
+    const sysfix f = F;
     wt_fitting *fit = (wt_fitting *)&f;
     wt_fitting_params fp = {.regularization = 1e-3, .sampling = 1, .solver = 2};
     ck_assert_int_eq(wt_fitting_alloc(f.ctx, f.sys, 0, NULL, NULL, &fp, &fit), WT_ERR_INVALID);
@@ -340,7 +320,6 @@ START_TEST(test_cholesky_refusals)
         ck_assert_int_eq(fa.live, 0);
     }
     wt_context_set_allocator(f.ctx, NULL, NULL, NULL);
-    sys_teardown(&f);
 }
 END_TEST
 
@@ -468,6 +447,7 @@ Suite *make_suite(void)
     Suite *s = suite_create("fitting");
     TCase *tc = tcase_create("core");
     tcase_set_timeout(tc, 120);
+    tcase_add_checked_fixture(tc, demo_setup, demo_teardown);
     tcase_add_test(tc, test_epsilon_fried);
     tcase_add_test(tc, test_epsilon_pupil_grid);
     tcase_add_loop_test(tc, test_representable_maps, WT_FIT_CG, WT_FIT_CHOLESKY + 1);

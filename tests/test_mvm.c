@@ -146,15 +146,32 @@ START_TEST(test_r_matches_full_prior)
 }
 END_TEST
 
+/* The pcg3 system with the paper's prior ("pcg3" test case), and its MVM too ("pcg3_matrix"): checked fixtures,
+ * made in each test's own process. Not unchecked ones, made once before the forks: the set-up runs OpenMP
+ * regions, and GCC's OpenMP thread pool does not survive fork (a test's first parallel region then waits on the
+ * parent's threads forever). */
+static fixture F;
+static wt_mvm *MV;
+static void pcg3_setup(void) { setup(&F, 0, 0, NULL); }
+static void pcg3_teardown(void) { teardown(&F); }
+static void pcg3_matrix_setup(void)
+{
+    pcg3_setup();
+    build(&F, 0, &MV);
+}
+static void pcg3_matrix_teardown(void)
+{
+    wt_mvm_free(MV);
+    pcg3_teardown();
+}
+
 /* RÂ = R · Â with the dense Â: the builder forms it from the double-precision rows before rounding,
  * so the difference to float R times Â is float rounding of R (6e-8) amplified by cancellation in the
  * sums; 1e-5 relative per row. */
 START_TEST(test_ra_matches)
 {
-    fixture f;
-    setup(&f, 0, 0, NULL);
-    wt_mvm *mv = NULL;
-    build(&f, 0, &mv);
+    fixture f = F;
+    const wt_mvm *mv = MV;
     wt_interaction *ia = NULL;
     ck_assert_int_eq(wt_interaction_alloc(f.ctx, f.sys, &ia), WT_OK);
     double *ahat = calloc(f.ns * f.na, sizeof *ahat), *e = calloc(f.na, sizeof *e), *rf = malloc(f.ns * f.na * sizeof *rf),
@@ -179,8 +196,6 @@ START_TEST(test_ra_matches)
     free(ref);
     free(got);
     wt_interaction_free(ia);
-    wt_mvm_free(mv);
-    teardown(&f);
 }
 END_TEST
 
@@ -193,10 +208,8 @@ END_TEST
  * requiring 70 %. */
 START_TEST(test_orderings)
 {
-    fixture f;
-    setup(&f, 0, 0, NULL);
-    wt_mvm *mv = NULL;
-    build(&f, 0, &mv);
+    fixture f = F;
+    const wt_mvm *mv = MV;
     ck_assert_int_eq(mv->nact, f.sys->nact);
     ck_assert_int_eq(mv->nslopes, f.sys->nslopes);
     const wt_grid *dg = &f.sys->dm->grid[0];
@@ -226,8 +239,6 @@ START_TEST(test_orderings)
         }
     ck_assert_int_gt(total, 20);
     ck_assert_msg(good >= 0.7 * total, "only %d of %d largest weights next to their actuator", good, total);
-    wt_mvm_free(mv);
-    teardown(&f);
 }
 END_TEST
 
@@ -235,8 +246,7 @@ END_TEST
  * byte below the build's own peak estimate stops at a later one; both name the bytes. */
 START_TEST(test_budget_refuses)
 {
-    fixture f;
-    setup(&f, 0, 0, NULL);
+    fixture f = F;
     wt_mvm_options opt;
     wt_mvm_options_default(&opt);
     wt_mvm *mv = NULL;
@@ -259,7 +269,6 @@ START_TEST(test_budget_refuses)
     opt.memory_budget = peak + 1.0;
     ck_assert_int_eq(wt_mvm_build(f.ctx, f.t, &opt, &mv), WT_OK);
     wt_mvm_free(mv);
-    teardown(&f);
 }
 END_TEST
 
@@ -272,8 +281,7 @@ static int stop_after(void *user)
 }
 START_TEST(test_stop_between_blocks)
 {
-    fixture f;
-    setup(&f, 0, 0, NULL);
+    fixture f = F;
     wt_mvm_options opt;
     wt_mvm_options_default(&opt);
     opt.block = 8; /* several blocks on the test system */
@@ -285,7 +293,6 @@ START_TEST(test_stop_between_blocks)
     ck_assert_ptr_null(mv);
     ck_assert_int_eq(calls, 2);
     ck_assert_msg(strstr(wt_error_message(f.ctx), "after 16 of"), "message: %s", wt_error_message(f.ctx));
-    teardown(&f);
 }
 END_TEST
 
@@ -364,12 +371,20 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_r_matches_pcg3_split);
     tcase_add_test(tc, test_r_matches_cg9);
     tcase_add_test(tc, test_r_matches_full_prior);
-    tcase_add_test(tc, test_ra_matches);
-    tcase_add_test(tc, test_orderings);
-    tcase_add_test(tc, test_budget_refuses);
-    tcase_add_test(tc, test_stop_between_blocks);
     tcase_add_test(tc, test_pcg3_layer_mismatch_refused);
     suite_add_tcase(s, tc);
+    TCase *tm = tcase_create("pcg3_matrix");
+    tcase_set_timeout(tm, 300);
+    tcase_add_checked_fixture(tm, pcg3_matrix_setup, pcg3_matrix_teardown);
+    tcase_add_test(tm, test_ra_matches);
+    tcase_add_test(tm, test_orderings);
+    suite_add_tcase(s, tm);
+    TCase *tp = tcase_create("pcg3");
+    tcase_set_timeout(tp, 300);
+    tcase_add_checked_fixture(tp, pcg3_setup, pcg3_teardown);
+    tcase_add_test(tp, test_budget_refuses);
+    tcase_add_test(tp, test_stop_between_blocks);
+    suite_add_tcase(s, tp);
     return s;
 }
 
