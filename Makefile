@@ -51,7 +51,7 @@ PCFILE    := $(BUILD)/wavetomo.pc
 # The public headers: the whole promise of the shared library (docs/c-api.md)
 PUBLIC_H  := $(sort $(wildcard include/wavetomo/*.h))
 
-.PHONY: all deps test test-run demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
+.PHONY: all deps test test-run test-unit test-system demo bench debug debug-test clean regress-commands regress-commands-update check-deps fuzz fuzz-deps \
         install uninstall docs check-python-package
 all: deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB)
@@ -253,11 +253,31 @@ test:
 
 test-run: deps check-deps
 	@$(MAKE) --no-print-directory $(BIN)/wavetomo $(SHLIB) $(TEST_BIN)
-	@d=$$(mktemp -d /tmp/wt-install.XXXXXX) && \
-	$(MAKE) --no-print-directory -s install DESTDIR=$$d PREFIX=/usr/local > $$d.log 2>&1 || { cat $$d.log; rm -rf $$d $$d.log; exit 1; }; \
-	rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
-	    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(TEST_BIN) tests/test_python.sh tests/test_tour.sh; rc=$$?; \
-	    rm -rf $$d; exit $$rc
+	$(call run_installed,$(UNIT_BIN) $(SYSTEM_BIN) $(SYSTEM_SH))
+
+# Unit suites test one module through its interface (a few end with the command that reads the module's file);
+# system suites run the closed loop, the executable, the install or the documentation's commands end to end
+# (docs/testing.md). `make test` runs both, the units first; these two run one kind each.
+SYSTEM_SUITES := adapt badinput badinput_process bench budget cli docs docs_figures install loop mpi record regress \
+                 rtc sensing
+SYSTEM_BIN    := $(SYSTEM_SUITES:%=$(BUILD)/tests/test_%)
+UNIT_BIN      := $(filter-out $(SYSTEM_BIN),$(TEST_BIN))
+SYSTEM_SH     := tests/test_python.sh tests/test_tour.sh
+test-unit: deps
+	@$(MAKE) --no-print-directory $(JOBS) $(BIN)/wavetomo $(UNIT_BIN)
+	@BUILD=$(BUILD) BIN=$(BIN) bash tests/run.sh $(UNIT_BIN)
+test-system: deps check-deps
+	@$(MAKE) --no-print-directory $(JOBS) $(BIN)/wavetomo $(SHLIB) $(SYSTEM_BIN)
+	$(call run_installed,$(SYSTEM_BIN) $(SYSTEM_SH))
+
+# tests/run.sh on the suites $(1), with `make install` done into a temporary DESTDIR for test_install
+define run_installed
+@d=$$(mktemp -d /tmp/wt-install.XXXXXX) && \
+$(MAKE) --no-print-directory -s install DESTDIR=$$d PREFIX=/usr/local > $$d.log 2>&1 || { cat $$d.log; rm -rf $$d $$d.log; exit 1; }; \
+rm -f $$d.log; BUILD=$(BUILD) BIN=$(BIN) WT_INSTALL_DESTDIR=$$d WT_INSTALL_PREFIX=/usr/local \
+    WT_INSTALL_CFLAGS="$(filter -fsanitize=%,$(OPT))" bash tests/run.sh $(1); rc=$$?; \
+    rm -rf $$d; exit $$rc
+endef
 
 # The Python package installed as the README says (the files of a fresh clone, pip offline into a new
 # virtual environment with the system's site packages), then its pytest suite against this build: make test's
