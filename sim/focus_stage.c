@@ -3,8 +3,6 @@
 
 #include <math.h>
 
-#include "../core/model/sensing.h"
-
 struct wt_focus_stage {
     wt_context *ctx;
     const wt_system *sys;
@@ -12,12 +10,14 @@ struct wt_focus_stage {
     long from_frame;
     double focus;           /* c [1/m], common to the LGS */
     double *tilt;           /* t_m: 2 per sensor of sys (zero for sensors without a stage) */
-    double *xbar;           /* r̄ (2 per sensor) and 1 / (2 Σ|r_k − r̄|²) (per sensor; 0: no stage) */
-    double *inv_norm;
+    double *xbar;           /* r̄: 2 per sensor */
+    double *inv_norm;       /* 1 / (2 Σ_k |r_k − r̄|²) per sensor; 0: no stage */
     double *cx;             /* subaperture centres of every staged sensor, laid out as its slopes ([x…, y…]) */
-    double altitude;        /* H of the staged LGS (the mean, for the report) */
-    double dh_sum, tilt_sq;
-    long frames, tilt_terms;
+    double altitude;        /* H of the staged LGS (their mean, for the report) */
+    double sum_focus, *sum_tilt; /* the measurements since the last move, and their count */
+    long measured;
+    double dh_sum, tilt_sq; /* the statistics from from_frame on */
+    long frames, tilt_terms, moves;
 };
 
 int wt_focus_stage_alloc(wt_context *ctx, const wt_system *sys, double gain, long from_frame, wt_focus_stage **out)
@@ -32,6 +32,7 @@ int wt_focus_stage_alloc(wt_context *ctx, const wt_system *sys, double gain, lon
     WT_ALLOC(ctx, fs, 1, "LGS focus stage");
     fs->ctx = ctx, fs->sys = sys, fs->gain = gain, fs->from_frame = from_frame;
     WT_ALLOC(ctx, fs->tilt, 2 * (size_t)sys->nsensors, "LGS focus stage tilts");
+    WT_ALLOC(ctx, fs->sum_tilt, 2 * (size_t)sys->nsensors, "LGS focus stage sums");
     WT_ALLOC(ctx, fs->xbar, 2 * (size_t)sys->nsensors, "LGS focus stage centres");
     WT_ALLOC(ctx, fs->inv_norm, (size_t)sys->nsensors, "LGS focus stage norms");
     WT_ALLOC(ctx, fs->cx, (size_t)sys->nslopes, "subaperture centres");
@@ -60,15 +61,15 @@ fail:
     return st;
 }
 
-void wt_focus_stage_terms(const wt_focus_stage *fs, int i, double *tx, double *ty, double *focus)
+void wt_focus_stage_terms(const wt_focus_stage *fs, int i, double stage[3])
 {
     const int on = fs && fs->inv_norm[i] > 0.0;
-    *tx = on ? fs->tilt[2 * i] : 0.0;
-    *ty = on ? fs->tilt[2 * i + 1] : 0.0;
-    *focus = on ? fs->focus : 0.0;
+    stage[0] = on ? fs->tilt[2 * i] : 0.0;
+    stage[1] = on ? fs->tilt[2 * i + 1] : 0.0;
+    stage[2] = on ? fs->focus : 0.0;
 }
 
-void wt_focus_stage_update(wt_focus_stage *fs, long t, const double *slopes)
+void wt_focus_stage_measure(wt_focus_stage *fs, long t, const double *slopes)
 {
     const wt_system *sys = fs->sys;
     double c = 0.0;
@@ -84,15 +85,26 @@ void wt_focus_stage_update(wt_focus_stage *fs, long t, const double *slopes)
             ax += sx[k], ay += sy[k];
         }
         c += f * fs->inv_norm[i], n++;
-        fs->tilt[2 * i] -= fs->gain * ax / s->nsub;
-        fs->tilt[2 * i + 1] -= fs->gain * ay / s->nsub;
+        fs->sum_tilt[2 * i] += ax / s->nsub, fs->sum_tilt[2 * i + 1] += ay / s->nsub;
         if (t >= fs->from_frame) {
             fs->tilt_sq += fs->tilt[2 * i] * fs->tilt[2 * i] + fs->tilt[2 * i + 1] * fs->tilt[2 * i + 1];
             fs->tilt_terms++;
         }
     }
-    fs->focus -= fs->gain * c / n;
+    fs->sum_focus += c / n;
+    fs->measured++;
     if (t >= fs->from_frame) fs->dh_sum += 2.0 * fs->altitude * fs->altitude * fs->focus, fs->frames++;
+}
+
+void wt_focus_stage_move(wt_focus_stage *fs)
+{
+    if (fs->measured < 1) return;
+    const double g = fs->gain / (double)fs->measured;
+    fs->focus -= g * fs->sum_focus;
+    for (int i = 0; i < 2 * fs->sys->nsensors; i++) fs->tilt[i] -= g * fs->sum_tilt[i], fs->sum_tilt[i] = 0.0;
+    fs->sum_focus = 0.0;
+    fs->measured = 0;
+    fs->moves++;
 }
 
 wt_focus_stage_stats wt_focus_stage_get_stats(const wt_focus_stage *fs)
@@ -101,17 +113,15 @@ wt_focus_stage_stats wt_focus_stage_get_stats(const wt_focus_stage *fs)
     return (wt_focus_stage_stats){.dh_now = h2 * fs->focus,
                                   .dh_mean = fs->frames ? fs->dh_sum / fs->frames : 0.0,
                                   .tilt_rms = fs->tilt_terms ? sqrt(fs->tilt_sq / fs->tilt_terms) : 0.0,
-                                  .frames_averaged = fs->frames};
+                                  .frames_averaged = fs->frames,
+                                  .moves = fs->moves};
 }
 
 void wt_focus_stage_free(wt_focus_stage *fs)
 {
     if (!fs) return;
-    /* the sensors are the system's: leave them without a stage for the next loop on it (compare, budget) */
-    if (fs->inv_norm)
-        for (int i = 0; i < fs->sys->nsensors; i++)
-            if (fs->inv_norm[i] > 0.0) wt_sensing_set_stage(fs->sys->sensors[i].diffr, 0.0, 0.0, 0.0);
     wt_free(fs->ctx, fs->tilt);
+    wt_free(fs->ctx, fs->sum_tilt);
     wt_free(fs->ctx, fs->xbar);
     wt_free(fs->ctx, fs->inv_norm);
     wt_free(fs->ctx, fs->cx);

@@ -369,11 +369,6 @@ static void sense(wt_loop *lp, int i, long t, const double *o)
             jx = lp->par.lgs_tt_jitter * wt_rng_normal(&rng);
             jy = lp->par.lgs_tt_jitter * wt_rng_normal(&rng);
         }
-        if (lp->stage) { /* the focus stage and the tip-tilt centring (closed loop) */
-            double sx, sy, focus;
-            wt_focus_stage_terms(lp->stage, i, &sx, &sy, &focus);
-            wt_sensing_set_stage(s->diffr, sx, sy, focus);
-        }
         wt_sensing_sample(s->diffr, &lp->fine, o, jx, jy);
         return;
     }
@@ -555,7 +550,7 @@ int wt_loop_step(wt_loop *lp)
     }
     /* the sodium layer: the truth's spots of this frame's profile, the reference rebuilt when it is time */
     if (lp->sodium) {
-        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec);
+        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec, lp->stage);
         if (e < 0) return e;
     }
     /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
@@ -625,7 +620,7 @@ int wt_loop_step(wt_loop *lp)
         lp->times.evaluation += (t2 - t1) * c_eval / csum;
     }
     if ((st = sense_diffractive(lp, t, sys->nsensors)) < 0) return st;
-    if (lp->stage) wt_focus_stage_update(lp->stage, t, lp->s); /* (the stage moves from the next frame on) */
+    if (lp->stage) wt_focus_stage_measure(lp->stage, t, lp->s); /* (it moves at the truth's next rebuild) */
     lp->times.sensors += wt_time_now() - t2;
     t2 = wt_time_now();
 

@@ -139,7 +139,7 @@ int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out);
 /* The sodium layer's drive (NULL when the profile is fixed and the reference static). */
 const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp);
 /* The LGS focus stage (NULL without lgs_focus_stage_gain or a diffractive LGS). */
-const struct wt_focus_stage *wt_loop_focus_stage(const wt_loop *lp);
+const wt_focus_stage *wt_loop_focus_stage(const wt_loop *lp);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);

@@ -454,6 +454,10 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, kf, ps->set[kf], loc, sizeof loc),
                                    "key 'lgs.wfs.focus_stage' = true needs 'recon.lgs_focus_removal' = true: the stage "
                                    "takes the LGS focus out of the slopes, so the focus must come from the NGS");
+    if (cfg->lgs_focus_stage && !cfg->sodium_sequence[0])
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kf, ps->set[kf], loc, sizeof loc),
+                                   "key 'lgs.wfs.focus_stage' = true needs 'lgs.sodium_sequence': the stage moves when "
+                                   "the truth's spot tables are rebuilt from the sequence (lgs.sodium_sequence_update_s)");
     if (ps->set[kg] && !cfg->lgs_focus_stage)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, kg, ps->set[kg], loc, sizeof loc),
                                    "key 'lgs.wfs.focus_stage_gain' is given but 'lgs.wfs.focus_stage' is not true: "

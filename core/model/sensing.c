@@ -273,7 +273,6 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
     const int np = ws->np;
     const double dx = ws->side / np;
     const int64_t nx = fine->nx;
-    const int stage = ws->stage[0] != 0.0 || ws->stage[1] != 0.0 || ws->stage[2] != 0.0; /* (none: today's bits) */
     for (int k = 0; k < ws->nsub; k++) {
         const float *a = ws->amp + (size_t)k * np * np;
         float *o = ws->opd + (size_t)k * np * np;
@@ -290,17 +289,10 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
                 locate(fine, x, y, &iu, &iv, &fu, &fv); /* inside: checked by wt_sensing_fine_mask */
                 const double *p = fine_opd + iu + nx * iv;
                 const double v = (1.0 - fv) * ((1.0 - fu) * p[0] + fu * p[1]) + fv * ((1.0 - fu) * p[nx] + fu * p[nx + 1]);
-                double w = v + tx * x + ty * y;
-                if (stage) w += ws->stage[0] * x + ws->stage[1] * y + ws->stage[2] * (x * x + y * y);
-                o[i + np * j] = (float)w;
+                o[i + np * j] = (float)(v + tx * x + ty * y);
             }
         }
     }
-}
-
-void wt_sensing_set_stage(wt_sensing *ws, double tx, double ty, double c)
-{
-    ws->stage[0] = tx, ws->stage[1] = ty, ws->stage[2] = c;
 }
 
 /* The elongation's unit vector of subaperture k: from the launch position (LGS), else x */
@@ -338,20 +330,6 @@ static void gain_accumulate(wt_sensing *ws, const double *slopes)
             }
         if (!(wx > 0 && wy > 0)) continue;
         gx /= wx * dx, gy /= wy * dx;
-        if (ws->stage[2] != 0.0 || ws->stage[0] != 0.0 || ws->stage[1] != 0.0) {
-            /* the stage's part of the differences above, exactly: a tilt t gives t dx per pair, c (x² + y²) gives
-             * c ((x + dx)² − x²) = c dx (2x + dx) along x (y alike), each weighed as the OPD's pairs */
-            double sx = 0, sy = 0;
-            for (int j = 0; j < np; j++)
-                for (int i = 0; i < np; i++) {
-                    const int p = i + np * j;
-                    const double x = ws->xc[k] + (i + 0.5 - 0.5 * np) * dx, y = ws->yc[k] + (j + 0.5 - 0.5 * np) * dx;
-                    if (i + 1 < np) sx += (double)a[p] * a[p + 1] * (2.0 * x + dx);
-                    if (j + 1 < np) sy += (double)a[p] * a[p + np] * (2.0 * y + dx);
-                }
-            gx -= ws->stage[0] + ws->stage[2] * sx / wx;
-            gy -= ws->stage[1] + ws->stage[2] * sy / wy;
-        }
         double ex, ey;
         direction(ws, k, &ex, &ey);
         const double sx = slopes[k], sy = slopes[nsub + k];

@@ -78,8 +78,6 @@ typedef struct wt_sensing {
     double launch_x, launch_y; /* LGS launch position [m] (the elongation's direction) */
     double gain_sum[5];        /* in-loop gain sums since the last reset: Σ s∥g∥, Σ g∥², Σ s⊥g⊥, Σ g⊥², frames */
     int gain_on;               /* 1 once reset: the frames after it are counted (none before: no cost) */
-    double stage[3];           /* the focus stage's OPD t_x x + t_y y + c (x² + y²) (sim/focus_stage.h) added to
-                                  the samples, {t_x, t_y, c} [rad, rad, 1/m]; all zero: none */
     float *opd;                /* [nsub n_p²] per-frame OPD on the samples [m] */
     float *img;                /* [nsub Ns²] per-frame images */
     /* what a reference rebuilt in the loop needs (wt_sensing_set_reference) and what undoes it (restore) */
@@ -112,11 +110,6 @@ int wt_sensing_fine_mask(const wt_sensing *ws, const wt_grid *fine, uint8_t *mas
 /* The OPD on the samples from the fine-grid map fine_opd (valid at the points of wt_sensing_fine_mask), plus
  * the tilt (tx, ty) [rad] (an OPD tx·x + ty·y: the spots move by (tx, ty)). Serial, allocates nothing. */
 void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_opd, double tx, double ty);
-/* The sensor's own focus stage and tip-tilt centring from the next wt_sensing_sample on: the OPD tx·x + ty·y +
- * c (x² + y²), x and y from the pupil centre [m], added to the samples (it moves the spots) and left out of the
- * in-loop gain's true slopes (it is the sensor's optics compensating the sodium layer's position, which the
- * slopes do not see either: what the gain measures is the response to the turbulence). */
-void wt_sensing_set_stage(wt_sensing *ws, double tx, double ty, double c);
 /* Images of the sampled OPD, with noise when `noise` (subaperture s from WT_SPOT_STREAM(base_stream, s) of
  * seed), through the centroider: slopes[2 nsub] [rad] ([s_x…, s_y…]). Outside parallel regions only. */
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
@@ -145,6 +138,9 @@ int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64
 /* The truth's sodium profile (an LGS): the spot tables rebuilt (wt_spot_set_sodium), the images from now on of
  * na; the reference, centroider and covariance stay. Outside parallel regions only. */
 int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na);
+/* The same seen through the sensor's focus stage and centring {tx, ty, c} (core/optics/spot.h
+ * wt_spot_set_sodium_staged; sim/focus_stage.h); na NULL: the set-up profile. wt_sensing_restore leaves no stage. */
+int wt_sensing_set_sodium_staged(wt_sensing *ws, const wt_sodium *na, const double stage[3]);
 /* A new reference: the centroider rebuilt from i0, dix, diy (nsub Ns² each; copied), with the set-up's parameters
  * and calibration (analytic or Monte Carlo: the same draws and seed), so the covariance cov (the reconstructor's C_E,
  * which follows once its noise weights are rebuilt: wt_reconstructor_refresh_noise), nea_median, mean_var, trunc,
