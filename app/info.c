@@ -7,6 +7,7 @@
 #include "cli/cli.h"
 #include "compare/report_spots.h"
 #include "core/model/sensing.h"
+#include "core/optics/sodium.h"
 #include "core/la/half.h"
 #include "core/model/fitting.h"
 #include "core/model/system.h"
@@ -19,7 +20,8 @@
 
 static void help(void)
 {
-    printf("usage: wavetomo info [--config] CONFIG [--set key=value]... [--no-nnz] [--threads N] [--spots DIR [--sensor NAME]]\n"
+    printf("usage: wavetomo info [--config] CONFIG [--set key=value]... [--no-nnz] [--threads N]\n"
+           "                     [--spots DIR [--sensor NAME] [--time T]]\n"
            "       wavetomo info --keys\n"
            "\n"
            "Prints the derived sizes of the system described by CONFIG: valid subapertures and slopes\n"
@@ -36,6 +38,10 @@ static void help(void)
            "                subaperture; spots.md, what they show with the median NEA and worst truncation.\n"
            "                A system without a diffractive sensor is refused (lgs.wfs.model = \"diffractive\")\n"
            "  --sensor NAME the sensor --spots draws (LGS1, NGS2, ...)\n"
+           "  --time T      --spots of an LGS at night time T [s] of the truth's sodium sequence (lgs.sodium_sequence):\n"
+           "                the spots the truth renders then, and the gain and false slope (its reading of a spot\n"
+           "                that holds still) of the centroider built on the set-up's reference, i.e. what a static\n"
+           "                reference does with the layer of time T; run it at two times to see the change\n"
            "  --no-nnz      skip the (few-second) symbolic count of the non-zeros of Ã\n"
            "  --set k=v     override a configuration key (repeatable)\n"
            "  --dry-run     print the estimated peak memory and run time of info itself; stop\n"
@@ -217,9 +223,32 @@ static void print_variant(wt_cli *cli, const wt_system *sys, const wt_recon_vari
     wt_tomography_free(t);
 }
 
+/* --time T: the sensor's tables set to the sequence's profile at night time T (the truth then) */
+static int spots_at_time(wt_cli *cli, wt_system *sys, int index, double t)
+{
+    const wt_sensor *s = &sys->sensors[index];
+    const wt_config *cfg = sys->cfg;
+    if (s->kind != WT_SENSOR_LGS || !cfg->sodium_sequence[0])
+        return WT_ERROR(cli->ctx, WT_ERR_CONFIG, "%s: --time %g draws an LGS at a night time of the truth's sodium "
+                        "sequence, and %s; give lgs.sodium_sequence (e.g. --set 'lgs.sodium_sequence=\"../sodium/"
+                        "drift-1km-10min.txt\"') and an LGS (--sensor LGS1)",
+                        cfg->path, t, s->kind != WT_SENSOR_LGS ? "the sensor drawn is an NGS" : "there is none");
+    wt_sodium_seq *seq = NULL;
+    wt_sodium *na = NULL;
+    char what[128];
+    snprintf(what, sizeof what, "--time %g", t);
+    int st = wt_sodium_seq_read(cli->ctx, cfg->sodium_sequence, &seq);
+    if (st >= 0) st = wt_sodium_seq_check_covers(cli->ctx, seq, t, t, what);
+    if (st >= 0) st = wt_sodium_seq_profile(cli->ctx, seq, t, &na);
+    if (st >= 0) st = wt_sensing_set_sodium(s->diffr, na);
+    wt_sodium_free(na);
+    wt_sodium_seq_free(seq);
+    return st;
+}
+
 typedef struct {
     int count_nnz, keys;
-    const char *spots, *sensor; /* --spots DIR, --sensor NAME */
+    const char *spots, *sensor, *time; /* --spots DIR, --sensor NAME, --time T */
 } info_args;
 
 static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
@@ -228,10 +257,11 @@ static int info_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     info_args *a = user;
     if (!strcmp(argv[*i], "--keys")) a->keys = 1;
     else if (!strcmp(argv[*i], "--no-nnz")) a->count_nnz = 0;
-    else if (!strcmp(argv[*i], "--spots") || !strcmp(argv[*i], "--sensor")) {
+    else if (!strcmp(argv[*i], "--spots") || !strcmp(argv[*i], "--sensor") || !strcmp(argv[*i], "--time")) {
         const char *v = wt_cli_value(cli, argc, argv, i);
         if (!v) return -1;
         if (!strcmp(argv[*i - 1], "--spots")) a->spots = v;
+        else if (!strcmp(argv[*i - 1], "--time")) a->time = v;
         else a->sensor = v;
     }
     else return 0; /* CONFIG (positional or --config) is the common options' */
@@ -242,7 +272,7 @@ int wt_cmd_info(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo info", help)) return 1;
-    info_args args = {1, 0, NULL, NULL};
+    info_args args = {1, 0, NULL, NULL, NULL};
     int rc = wt_cli_parse(&cli, argc, argv, info_option, &args);
     if (rc >= 0 || args.keys) {
         if (args.keys && rc < 0) {
@@ -256,10 +286,16 @@ int wt_cmd_info(int argc, char **argv)
     int count_nnz = args.count_nnz, spots_sensor = -1;
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
-    if (args.sensor && !args.spots) {
-        rc = wt_cli_usage_error(&cli, "--sensor names the sensor --spots draws; give --spots DIR");
+    if ((args.sensor || args.time) && !args.spots) {
+        rc = wt_cli_usage_error(&cli, args.sensor ? "--sensor names the sensor --spots draws; give --spots DIR"
+                                                  : "--time is the night time --spots draws; give --spots DIR");
         wt_cli_done(&cli);
         return rc;
+    }
+    double night_s = 0.0;
+    if (args.time && wt_cli_double(&cli, "--time", args.time, -1e9, 1e9, &night_s) < 0) {
+        wt_cli_done(&cli);
+        return 2;
     }
     int st = wt_cli_read_config(&cli, NULL, &cfg);
     if (st < 0) goto out;
@@ -271,6 +307,7 @@ int wt_cmd_info(int argc, char **argv)
     if (args.spots && ((st = wt_spots_pick(cli.ctx, sys, args.sensor, &spots_sensor)) < 0 ||
                        (st = wt_spots_check_outputs(&cli, sys, spots_sensor, args.spots, NULL)) < 0))
         goto out;
+    if (args.time && (st = spots_at_time(&cli, sys, spots_sensor, night_s)) < 0) goto out;
 
     printf("system: %s\n", cfg->path);
     printf("telescope: D = %g m, obstruction %g; Shack-Hartmann sampling %dx%d, d = %g m\n", cfg->diameter,
@@ -311,7 +348,8 @@ int wt_cmd_info(int argc, char **argv)
         for (int i = 0; i < argc; i++) /* argv[0] is the subcommand */
             snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " %s", argv[i]);
         const double t0 = wt_time_now();
-        if ((st = wt_spots_write(&cli, sys, spots_sensor, args.spots, cmd)) < 0) goto out;
+        const wt_spots_when when = {.night_s = night_s, .sequence = cfg->sodium_sequence};
+        if ((st = wt_spots_write(&cli, sys, spots_sensor, args.spots, cmd, args.time ? &when : NULL)) < 0) goto out;
         const char *nm = sys->sensors[spots_sensor].name;
         printf("%s pictures: %s/spots_%s.png, %s/gain_%s.png, %s/spots.md (%.1f s)\n", nm, args.spots, nm, args.spots,
                nm, args.spots, wt_time_now() - t0);

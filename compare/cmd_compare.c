@@ -480,7 +480,7 @@ static int compare_main(wt_mpi *mp, int argc, char **argv)
         if (a.nv) /* the pictures are of the first sweep value's system */
             snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " --set '%s=%s'", a.key, a.values[0]);
         snprintf(cmd + strlen(cmd), sizeof cmd - strlen(cmd), " --spots %s", a.out);
-        if ((st = wt_spots_write(&cli, first_sys, spots, a.out, cmd)) < 0) goto fail;
+        if ((st = wt_spots_write(&cli, first_sys, spots, a.out, cmd, NULL)) < 0) goto fail;
         snprintf(a.spots, sizeof a.spots, "%s", first_sys->sensors[spots].name);
     }
     if ((st = wt_compare_write_all(&cli, &a, &plan, first, first_sys, R, &X, argc, argv)) < 0) goto fail;

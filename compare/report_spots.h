@@ -26,8 +26,18 @@ int wt_spots_pick(wt_context *ctx, const struct wt_system *sys, const char *name
  * dir/spots.md is ours). dir need not exist. */
 int wt_spots_check_outputs(wt_cli *cli, const struct wt_system *sys, int index, const char *dir, const char *owner);
 
+/* The sensor at a night time of the truth's sodium sequence (lgs.sodium_sequence), its tables already set to that
+ * time's profile (wt_sensing_set_sodium): the pictures then show the spots the truth renders then, and the gain and
+ * false slope of the centroider built on the set-up's reference (a static reference) on them. */
+typedef struct wt_spots_when {
+    double night_s;       /* [s] */
+    const char *sequence; /* the file, for the captions */
+} wt_spots_when;
+
 /* Write the three files into dir (created with its parents), each atomically (temporary + rename). command:
- * the line spots.md quotes (NULL: `wavetomo info CONFIG --spots DIR`). Prints nothing. */
-int wt_spots_write(wt_cli *cli, const struct wt_system *sys, int index, const char *dir, const char *command);
+ * the line spots.md quotes (NULL: `wavetomo info CONFIG --spots DIR`); when: NULL for the set-up's profile and
+ * reference. Prints nothing. */
+int wt_spots_write(wt_cli *cli, const struct wt_system *sys, int index, const char *dir, const char *command,
+                   const wt_spots_when *when);
 
 #endif

@@ -236,6 +236,12 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
         if (st < 0) return WT_ERROR(a->ctx, st, "frame %ld: the profile estimate from the last %ld frames: %s", t,
                                     a->par.every, wt_error_message(a->ctx));
         if (!a->par.cumulative) wt_learn_reset(a->L); /* the next estimate: the next frames only */
+        {   /* its uncertainty counts the screens the frames saw, at the grid's wind (core/model/learn.h) */
+            double speed[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];
+            const int n = a->est->nalt < a->na ? a->est->nalt : a->na;
+            for (int k = 0; k < n; k++) speed[k] = hypot(a->vx[k], a->vy[k]);
+            wt_learn_estimate_count_screens(a->est, a->sys->diameter, a->par.frame_dt, n, a->est->fraction, speed);
+        }
         const wt_learn_estimate *e = a->est;
         /* the memory: c = f r0^(−5/3) per altitude averaged over the estimates (the maps are linear in it) */
         const double w = a->nup == 0 || a->par.memory <= 1.0 ? 1.0 : 1.0 / a->par.memory;
@@ -397,7 +403,9 @@ int wt_adapt_write(const wt_adapt *a, wt_h5_writer *w, const char *group)
     } while (0)
     COL("night_s", night, "s", "night time of each estimate (after its last frame)");
     COL("r0", r0, "m", "estimated r0 at 500 nm");
-    COL("r0_sigma", r0_sigma, "m", "the estimate's uncertainty: spread of the batches' estimates / sqrt(batches)");
+    COL("r0_sigma", r0_sigma, "m", "the estimate's uncertainty: spread of the batches' estimates / sqrt(batches), times "
+                                   "sqrt(max(1, tau / batch)) for the screens the frames saw (tau = D sum f / v at the "
+                                   "learning grid's wind; core/model/learn.h)");
     COL("r0_raw", r0_raw, "m", "this estimate alone (r0 is after the memory's average, recon.atmosphere.learn_memory)");
     COL("fit_s", fit_s, "s", "wall time of the fit");
     COL("model_s", model_s, "s", "pcg3/cg9: wall time of the reconstructor's new model (priors, model error, noise)");

@@ -12,6 +12,7 @@
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
 #include "sim/loop.h"
+#include "sim/focus_stage.h"
 #include "core/model/estimate.h"
 #include "sim/record.h"
 #include "sim/psf.h"
@@ -90,6 +91,28 @@ static int inloop_gain(wt_h5_writer *w, const wt_system *sys, int print)
     if (print)
         printf("  LGS centroider in-loop gain (measured / true slope, %ld frames, mean of %d LGS): along the "
                "elongation %.3f, across %.3f\n", frames, n, mean[0] / n, mean[1] / n);
+    return st;
+}
+
+/* The LGS focus stage (sim/focus_stage.h): the sodium altitude change it compensates and the centring, written
+ * (w) or printed (w NULL) */
+static int focus_stage(wt_h5_writer *w, const wt_focus_stage *fs)
+{
+    if (!fs) return WT_OK;
+    const wt_focus_stage_stats s = wt_focus_stage_get_stats(fs);
+    if (!w) {
+        printf("  LGS focus stage: follows a sodium altitude change of %.0f m (last frame), %.0f m on average over %ld "
+               "frames; tip-tilt centring %.3f arcsec rms\n", s.dh_now, s.dh_mean, s.frames_averaged,
+               s.tilt_rms / WT_ARCSEC);
+        return WT_OK;
+    }
+    int st = wt_h5_write_double(w, "sensing/lgs_focus_stage_dh_m", s.dh_mean, "m",
+                                "lgs.wfs.focus_stage: the LGS focus stage's position as the sodium centroid's altitude "
+                                "change it compensates, 2 H^2 c, averaged over the averaged frames");
+    if (st >= 0)
+        st = wt_h5_write_double(w, "sensing/lgs_focus_stage_tilt_rms", s.tilt_rms, "rad",
+                                "lgs.wfs.focus_stage: rms over the LGS and the averaged frames of the tip-tilt "
+                                "centring's offset");
     return st;
 }
 
@@ -343,6 +366,7 @@ int wt_cmd_sim(int argc, char **argv)
     if ((st = wt_sim_record_write(rec, w, lp, cfg->settle_frames)) < 0) goto fail;
     if ((st = wt_cli_write_layout(w, sys)) < 0) goto fail;
     if ((st = inloop_gain(w, sys, 0)) < 0) goto fail;
+    if ((st = focus_stage(w, wt_loop_focus_stage(lp))) < 0) goto fail;
     if (dump && (st = wt_sim_write_dump(cli.ctx, w, lp, sys->neval)) < 0) goto fail;
     if (psf && ((st = wt_psf_write(psf, w, "psf")) < 0 ||
                 (st = wt_h5_write_double(w, "timing/psf", tpsf / done * 1e3, "ms",
@@ -395,6 +419,7 @@ int wt_cmd_sim(int argc, char **argv)
            tm.reconstruction / done * 1e3, tm.fitting / done * 1e3, tm.control / done * 1e3,
            tm.evaluation / done * 1e3, setup);
     inloop_gain(NULL, sys, 1);
+    focus_stage(NULL, wt_loop_focus_stage(lp));
     if (wt_loop_sodium(lp)) {
         const wt_sodium_drive_stats ds = wt_sodium_drive_get_stats(wt_loop_sodium(lp));
         printf("  sodium: truth's LGS spot tables rebuilt %ld times (%.3f s each); LGS reference %s, rebuilt %ld times "

@@ -13,6 +13,7 @@
 #include "../core/op/projection.h"
 #include "../core/op/pupil.h"
 #include "atmosphere.h"
+#include "focus_stage.h"
 #include "wfs.h"
 
 #define NOISE_STREAM_BASE (1ULL << 32)
@@ -56,6 +57,7 @@ struct wt_loop {
     double *s_dm;                 /* true_polc: the truth sensors' slopes of dm_opd (nslopes) */
     wt_adapt *adapt;              /* the closed loop learns its atmosphere (par.learn.every > 0), else NULL */
     wt_sodium_drive *sodium;      /* the sodium sequence / the loop's LGS reference (NULL: fixed, static) */
+    wt_focus_stage *stage;        /* the LGS WFS focus stage and tip-tilt centring (NULL: none) */
 };
 
 static double los_altitude(const wt_loop *lp, int i) { return i < lp->sys->nsensors ? lp->sys->sensors[i].altitude : 0.0; }
@@ -280,6 +282,8 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         sp.first_frame = opt->first_frame;
         WT_TRY(wt_sodium_drive_alloc(ctx, sys, &sp, &lp->sodium));
     }
+    if (par->lgs_focus_stage_gain > 0.0 && opt->open_loop == WT_LOOP_CLOSED)
+        WT_TRY(wt_focus_stage_alloc(ctx, sys, par->lgs_focus_stage_gain, par->settle_frames, &lp->stage));
     if (opt->perfect_fit > 0) {
         WT_TRY(wt_fitting_alloc(ctx, sys, 0, NULL, NULL, &par->perfect_fit, &lp->fit));
         WT_ALLOC(ctx, lp->maps, (size_t)sys->neval * wt_grid_size(wt_fitting_sample_grid(lp->fit)), "fitting maps");
@@ -298,6 +302,7 @@ void wt_loop_free(wt_loop *lp)
     wt_atmosphere_free(lp->atm);
     wt_night_free(lp->night);
     wt_sodium_drive_free(lp->sodium);
+    wt_focus_stage_free(lp->stage);
     if (lp->wfs)
         for (int m = 0; m < lp->sys->nsensors; m++) wt_wfs_free(lp->wfs[m]);
     if (lp->dmask)
@@ -545,7 +550,7 @@ int wt_loop_step(wt_loop *lp)
     }
     /* the sodium layer: the truth's spots of this frame's profile, the reference rebuilt when it is time */
     if (lp->sodium) {
-        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec);
+        const int e = wt_sodium_drive_frame(lp->sodium, lp->t, lp->opt.recon == WT_RECON_NONE ? NULL : lp->rec, lp->stage);
         if (e < 0) return e;
     }
     /* the diffractive sensors' in-loop gains count the frames the Strehl averages */
@@ -615,6 +620,7 @@ int wt_loop_step(wt_loop *lp)
         lp->times.evaluation += (t2 - t1) * c_eval / csum;
     }
     if ((st = sense_diffractive(lp, t, sys->nsensors)) < 0) return st;
+    if (lp->stage) wt_focus_stage_measure(lp->stage, t, lp->s); /* (it moves at the truth's next rebuild) */
     lp->times.sensors += wt_time_now() - t2;
     t2 = wt_time_now();
 
@@ -672,6 +678,7 @@ const double *wt_loop_residual(const wt_loop *lp, int j)
 }
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp) { return lp->atm; }
 const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp) { return lp->sodium; }
+const wt_focus_stage *wt_loop_focus_stage(const wt_loop *lp) { return lp->stage; }
 
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out)
 {

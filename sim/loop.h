@@ -99,6 +99,8 @@ typedef struct wt_loop_params {
                                       * frame_time 1 / rate */
     wt_sodium_drive_params sodium;   /* the truth's sodium sequence and the LGS reference in the loop
                                       * (sim/sodium_drive.h); none and static: nothing runs */
+    double lgs_focus_stage_gain;     /* > 0: the diffractive LGS's focus stage and tip-tilt centring with this
+                                      * integrator gain (sim/focus_stage.h; closed loop only); 0: none */
 } wt_loop_params;
 
 /* Builds the atmosphere, truth sensors, reconstructor and control from par. sys must outlive it. */
@@ -136,6 +138,8 @@ const double *wt_loop_residual(const wt_loop *lp, int j);
 int wt_loop_truth_state(const wt_loop *lp, wt_night_sample *out);
 /* The sodium layer's drive (NULL when the profile is fixed and the reference static). */
 const wt_sodium_drive *wt_loop_sodium(const wt_loop *lp);
+/* The LGS focus stage (NULL without lgs_focus_stage_gain or a diffractive LGS). */
+const wt_focus_stage *wt_loop_focus_stage(const wt_loop *lp);
 /* The atmosphere (screens, for dumps). */
 const struct wt_atmosphere *wt_loop_atmosphere(const wt_loop *lp);
 wt_reconstructor *wt_loop_reconstructor(wt_loop *lp);

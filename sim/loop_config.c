@@ -53,6 +53,7 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                            .origin = "keys atmosphere.night.start_s, atmosphere.night.compression, "
                                                      "loop.frames and loop.rate_hz"};
     par->lgs_tt_jitter = cfg->lgs_tt_jitter;
+    par->lgs_focus_stage_gain = cfg->lgs_focus_stage ? cfg->lgs_focus_stage_gain : 0.0;
     par->eval_wavelength = cfg->eval_wavelength;
     par->settle_frames = cfg->settle_frames;
     wt_reconstructor_params_from_config(cfg, opt->recon, opt->iterations, &par->recon);

@@ -6,6 +6,7 @@
 
 #include "../core/model/sensing.h"
 #include "../core/optics/sodium.h"
+#include "focus_stage.h"
 #include "night.h"
 
 struct wt_sodium_drive {
@@ -89,7 +90,7 @@ fail:
     return st;
 }
 
-int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec)
+int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec, wt_focus_stage *stage)
 {
     const wt_system *sys = d->sys;
     const long j = frame - d->par.first_frame;
@@ -98,10 +99,14 @@ int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec)
         const double t0 = wt_time_now();
         const double t = wt_night_clock(d->par.start, d->par.frame_time, d->par.compression, frame);
         if ((st = wt_sodium_seq_at(d->seq, t, d->na)) < 0) return st;
-        for (int m = 0; m < sys->nsensors; m++)
+        if (stage && j > 0) wt_focus_stage_move(stage);
+        for (int m = 0; m < sys->nsensors; m++) {
+            double sg[3];
+            wt_focus_stage_terms(stage, m, sg);
             if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
-                (st = wt_sensing_set_sodium(sys->sensors[m].diffr, d->na)) < 0)
+                (st = wt_sensing_set_sodium_staged(sys->sensors[m].diffr, d->na, sg)) < 0)
                 return st;
+        }
         d->stats.truth_rebuilds++;
         d->stats.truth_seconds += wt_time_now() - t0;
     }

@@ -5,7 +5,8 @@
  * Frame j (night time t_j = start + j Δt c, the clock of sim/night.h, with or without a night):
  *  - truth: every `sequence_update` of night time (counted in frames, ⌊update / (Δt c)⌉, from the run's first
  *    frame; 0: every frame) the LGS spot tables are rebuilt from the sequence's profile at t_j, and held until
- *    the next rebuild (wt_sensing_set_sodium);
+ *    the next rebuild (wt_sensing_set_sodium), seen through the LGS focus stage when there is one (it moves at those
+ *    rebuilds from the second on: sim/focus_stage.h);
  *  - reference `static`: the set-up's, never rebuilt (the default: nothing here runs, today's bits);
  *    `oracle`: every `reference_update` of night time from the first frame on (after the truth's rebuild of that
  *    frame), I0 and its derivatives of the spot model's current profile — what the truth renders — with the
@@ -24,6 +25,7 @@
 
 #include "../core/model/reconstructor.h"
 #include "../core/model/system.h"
+#include "focus_stage.h"
 
 enum { WT_REFERENCE_STATIC = 0, WT_REFERENCE_ORACLE = 1, WT_REFERENCE_PIXELS = 2 };
 
@@ -54,9 +56,10 @@ typedef struct wt_sodium_drive_stats {
  * diffractive LGS. */
 int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium_drive_params *par,
                           wt_sodium_drive **out);
-/* The frame's rebuilds (before its sensors); rec: the loop's reconstructor (its C_E follows an oracle), or NULL.
- * Outside parallel regions. */
-int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec);
+/* The frame's rebuilds (before its sensors); rec: the loop's reconstructor (its C_E follows an oracle), or NULL;
+ * stage: the LGS focus stage (sim/focus_stage.h), moved at each rebuild of the truth's tables after the first and
+ * built into them, or NULL. Outside parallel regions. */
+int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec, wt_focus_stage *stage);
 wt_sodium_drive_stats wt_sodium_drive_get_stats(const wt_sodium_drive *d);
 /* Leaves the system's sensors at their set-up profile and reference. */
 void wt_sodium_drive_free(wt_sodium_drive *d);

@@ -426,14 +426,28 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
     char loc[1100], oth[1100];
     const int kq = wt_config_priv_find_key("lgs.sodium_sequence"), ku = wt_config_priv_find_key("lgs.sodium_sequence_update_s");
     const int kr = wt_config_priv_find_key("lgs.wfs.reference"), kt = wt_config_priv_find_key("lgs.wfs.reference_update_s");
+    const int kf = wt_config_priv_find_key("lgs.wfs.focus_stage"), kg = wt_config_priv_find_key("lgs.wfs.focus_stage_gain");
     const int diffr = cfg->nlgs > 0 && cfg->lgs_wfs.model == WT_WFS_DIFFRACTIVE;
-    const int keys[3] = {kq, kr, kt};
-    for (int i = 0; i < 3; i++)
+    const int keys[5] = {kq, kr, kt, kf, kg};
+    for (int i = 0; i < 5; i++)
         if (ps->set[keys[i]] && !diffr)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, keys[i], ps->set[keys[i]], loc, sizeof loc),
                                        "key '%s' is for diffractive LGS sensors (lgs.wfs.model = \"diffractive\", "
                                        "lgs.count > 0): the geometric sensors have no spots and no reference",
                                        wt_config_priv_keys[keys[i]].path);
+    /* the stage takes each LGS's focus and tip-tilt out of what it measures: the tomography must not need them */
+    if (cfg->lgs_focus_stage && !cfg->lgs_focus_removal)
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kf, ps->set[kf], loc, sizeof loc),
+                                   "key 'lgs.wfs.focus_stage' = true needs 'recon.lgs_focus_removal' = true: the stage "
+                                   "takes the LGS focus out of the slopes, so the focus must come from the NGS");
+    if (cfg->lgs_focus_stage && !cfg->sodium_sequence[0])
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kf, ps->set[kf], loc, sizeof loc),
+                                   "key 'lgs.wfs.focus_stage' = true needs 'lgs.sodium_sequence': the stage moves when "
+                                   "the truth's spot tables are rebuilt from the sequence (lgs.sodium_sequence_update_s)");
+    if (ps->set[kg] && !cfg->lgs_focus_stage)
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kg, ps->set[kg], loc, sizeof loc),
+                                   "key 'lgs.wfs.focus_stage_gain' is given but 'lgs.wfs.focus_stage' is not true: "
+                                   "there is no stage to drive");
     if (ps->set[ku] && !cfg->sodium_sequence[0])
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, ku, ps->set[ku], loc, sizeof loc),
                                    "key 'lgs.sodium_sequence_update_s' is given without 'lgs.sodium_sequence': there is "

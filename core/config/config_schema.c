@@ -296,6 +296,17 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      0, 0, NULL, 60.0,
      "lgs.wfs.reference = oracle or pixels: night time between two rebuilds of the reference (oracle: at least one "
      "frame's night time, pixels: at least two) (optional, default 60)"},
+    {"lgs.wfs.focus_stage", K_BOOL, F_OPT, 0, 1, "", 1, CF(lgs_focus_stage), NOCOUNT, 0, 0, NULL, 0,
+     "diffractive LGS with lgs.sodium_sequence and recon.lgs_focus_removal = true: each LGS wavefront sensor has a "
+     "focus stage that follows the focus common to the LGS's measured slopes, and each LGS's spots are centred on "
+     "their mean tip-tilt (the launch telescope's steering mirror); both move the source as the sensor sees it, at "
+     "each rebuild of the truth's spot tables (lgs.sodium_sequence_update_s), from the mean of the frames since the "
+     "last (sim/focus_stage.h): a change of the sodium centroid's altitude then leaves the spots on the matched "
+     "filter's reference instead of 1-2 pixels off it at 42 m (closed loop only) (optional, default false)"},
+    {"lgs.wfs.focus_stage_gain", K_FLOAT, F_OPT | F_LO_OPEN, 0.0, 1.0, "", 1, CF(lgs_focus_stage_gain), NOCOUNT, 0, 0,
+     NULL, 0.5,
+     "lgs.wfs.focus_stage = true: the gain of the focus stage's and the centring's integrators, per move (optional, "
+     "default 0.5)"},
 
     KF("ngs.radius_arcsec", GE0(MAXFIELD), "arcsec", ARCSEC, ngs_radius, "radius of the NGS asterism"),
     KFL("ngs.azimuths_deg", ANYANGLE, "deg", DEG, ngs_azimuth, nngs, 0, WT_MAX_GS, "azimuth of each NGS"),

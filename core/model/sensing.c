@@ -428,3 +428,45 @@ fail:
     wt_free(ctx, diy);
     return st;
 }
+
+int wt_sensing_response_now(const wt_sensing *ws, double lx, double ly, float *img, double *offset_par, double *g_par,
+                            double *g_perp, double *trunc)
+{
+    wt_context *ctx = ws->ctx;
+    const int nsub = ws->nsub, ns = ws->ns;
+    const size_t npix = (size_t)nsub * ns * ns;
+    const double eps = 0.01 * ws->pixel; /* the MF is linear in the image (any ε); a CoG nearly so at 1 % */
+    float *im = NULL, *dix = NULL, *diy = NULL, *tmp = NULL;
+    double *s = NULL;
+    int st = WT_OK;
+    WT_ALLOC(ctx, im, npix, "spot image");
+    WT_ALLOC(ctx, dix, npix, "spot derivatives");
+    WT_ALLOC(ctx, diy, npix, "spot derivatives");
+    WT_ALLOC(ctx, tmp, npix, "spot image");
+    WT_ALLOC(ctx, s, 6 * (size_t)nsub, "slopes");
+    const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
+    WT_TRY(wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, im, dix, diy));
+    wt_centroid_apply(ws->cen, im, s);
+    for (int a = 0; a < 2; a++) {
+        const float *d = a ? diy : dix;
+        for (size_t q = 0; q < npix; q++) tmp[q] = im[q] + (float)eps * d[q];
+        wt_centroid_apply(ws->cen, tmp, s + (size_t)(2 + 2 * a) * nsub);
+    }
+    for (int k = 0; k < nsub; k++) {
+        const double *s0 = s, *sx = s + 2 * (size_t)nsub, *sy = s + 4 * (size_t)nsub;
+        const double g[4] = {(sx[k] - s0[k]) / eps, (sy[k] - s0[k]) / eps, (sx[nsub + k] - s0[nsub + k]) / eps,
+                             (sy[nsub + k] - s0[nsub + k]) / eps};
+        const double dx = ws->xc[k] - lx, dy = ws->yc[k] - ly, r = hypot(dx, dy);
+        const int dir = ws->lgs && r > 1e-9;
+        double par, perp;
+        resolve_gain(g, dir ? dx / r : 0.0, dir ? dy / r : 0.0, dir, &par, &perp);
+        if (g_par) g_par[k] = par;
+        if (g_perp) g_perp[k] = perp;
+        if (offset_par) offset_par[k] = dir ? (dx * s0[k] + dy * s0[nsub + k]) / r : s0[k];
+    }
+    if (trunc) wt_spot_truncation(ws->spot, im, trunc);
+    if (img) memcpy(img, im, npix * sizeof *img);
+fail:
+    wt_free(ctx, im), wt_free(ctx, dix), wt_free(ctx, diy), wt_free(ctx, tmp), wt_free(ctx, s);
+    return st;
+}

@@ -138,6 +138,9 @@ int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64
 /* The truth's sodium profile (an LGS): the spot tables rebuilt (wt_spot_set_sodium), the images from now on of
  * na; the reference, centroider and covariance stay. Outside parallel regions only. */
 int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na);
+/* The same seen through the sensor's focus stage and centring {tx, ty, c} (core/optics/spot.h
+ * wt_spot_set_sodium_staged; sim/focus_stage.h); na NULL: the set-up profile. wt_sensing_restore leaves no stage. */
+int wt_sensing_set_sodium_staged(wt_sensing *ws, const wt_sodium *na, const double stage[3]);
 /* A new reference: the centroider rebuilt from i0, dix, diy (nsub Ns² each; copied), with the set-up's parameters
  * and calibration (analytic or Monte Carlo: the same draws and seed), so the covariance cov (the reconstructor's C_E,
  * which follows once its noise weights are rebuilt: wt_reconstructor_refresh_noise), nea_median, mean_var, trunc,
@@ -199,5 +202,14 @@ size_t wt_sensing_memory(const wt_sensing *ws);
  * model's derivative images: allocates nsub·Ns² floats twice and a temporary centroider, ~two image
  * computations). Either output may be NULL. */
 int wt_sensing_gain_along(const wt_sensing *ws, int cog, double lx, double ly, double *g_par, double *g_perp);
+/* The spot of the current tables (after wt_sensing_set_sodium: the truth's profile now) as the configured
+ * centroider, built on its own reference, reads it: img (nsub·Ns², NULL: not wanted) the noise-free mean image
+ * with the reference's seeing; offset_par[k] = e_kᵀ s(img) the slope it measures on that image along the
+ * elongation (its false signal: 0 on its own reference) [rad]; g_par, g_perp its gain on that image's tilt,
+ * g = (s(img + ε ∂img/∂θ) − s(img))/ε (ε = 1 % of a pixel), resolved as wt_sensing_gain_along, after its gain
+ * correction when it applies one (so 1 on its own reference); trunc[k] the flux outside the field. Any output
+ * NULL: not wanted. Allocates ~5 nsub·Ns² floats. */
+int wt_sensing_response_now(const wt_sensing *ws, double lx, double ly, float *img, double *offset_par, double *g_par,
+                            double *g_perp, double *trunc);
 
 #endif

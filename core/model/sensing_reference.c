@@ -40,14 +40,16 @@ int wt_sensing__nea_stats(int nsub, const double *cov, double *nea, double *medi
     return -1;
 }
 
-int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na)
+int wt_sensing_set_sodium_staged(wt_sensing *ws, const wt_sodium *na, const double stage[3])
 {
     if (!ws->lgs) return WT_ERROR(ws->ctx, WT_ERR_INVALID, "diffractive sensor: a sodium profile for an NGS");
-    const int st = wt_spot_set_sodium(ws->spot, na);
+    const int st = wt_spot_set_sodium_staged(ws->spot, na ? na : ws->sodium0, stage);
     if (st < 0) return st;
     ws->sodium_changed = 1;
     return WT_OK;
 }
+
+int wt_sensing_set_sodium(wt_sensing *ws, const wt_sodium *na) { return wt_sensing_set_sodium_staged(ws, na, NULL); }
 
 int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, const float *diy)
 {

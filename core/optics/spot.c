@@ -163,8 +163,8 @@ static void gauss_tab_fill(gauss_tab *g)
  * source point, for the subaperture at (xc, yc). The line is cut into points no further apart than half
  * the Gaussian's σ (then the comb's ripple after the Gaussian is below e^{-2π²·4} ≈ 1e-34) or a quarter
  * cell; each point deposits its Gaussian cell masses (separable, from the table). */
-static void source_cells(const wt_spot *s, const wt_sodium *na, const gauss_tab *G, double xc, double yc, int o0,
-                         int LS, double *S, double *gx, double *gy)
+static void source_cells(const wt_spot *s, const wt_sodium *na, const double *stage, const gauss_tab *G, double xc,
+                         double yc, int o0, int LS, double *S, double *gx, double *gy)
 {
     const double c = s->par.pixel / s->k, sg = G->sg;
     const int reach = G->reach, nt = G->nt;
@@ -194,6 +194,7 @@ static void source_cells(const wt_spot *s, const wt_sodium *na, const gauss_tab 
                 double t = (j + 0.5) / m, h = h0 + t * (h1 - h0);
                 w = (f0 + t * (f1 - f0)) * (h1 - h0) / m / mass; /* midpoint rule: exact mass of a linear piece */
                 bx = ux * (1.0 / h - 1.0 / H) / c, by = uy * (1.0 / h - 1.0 / H) / c;
+                if (stage) bx += (2.0 * stage[2] * xc + stage[0]) / c, by += (2.0 * stage[2] * yc + stage[1]) / c;
             }
             if (w == 0) continue;
             /* local indices of the point in S */
@@ -246,7 +247,7 @@ static void kernel_table(const wt_spot *s, const double *S, int LS, double *B, f
 
 /* K for the source of profile na (NULL: a point, or the NGS's Gaussian), every subaperture; the subapertures are
  * independent, so the tables are the same for any thread count. */
-static int build_tables(wt_spot *s, const wt_sodium *na)
+static int build_tables(wt_spot *s, const wt_sodium *na, const double *stage)
 {
     wt_context *ctx = s->ctx;
     int st = WT_OK;
@@ -271,7 +272,7 @@ static int build_tables(wt_spot *s, const wt_sodium *na)
         for (int is = 0; is < s->nsub; is++) {
             const int t = wt_thread_id();
             double *St = S + (size_t)LS * LS * t, *Bt = B + (size_t)LK * LS * t, *gt = g + 2 * (size_t)G.nt * t;
-            source_cells(s, na, &G, s->xc[is], s->yc[is], o_min - h, LS, St, gt, gt + G.nt);
+            source_cells(s, na, stage, &G, s->xc[is], s->yc[is], o_min - h, LS, St, gt, gt + G.nt);
             kernel_table(s, St, LS, Bt, s->K + (size_t)is * k * k * Lp * Lp);
         }
     }
@@ -280,14 +281,19 @@ fail:
     return st;
 }
 
-int wt_spot_set_sodium(wt_spot *s, const wt_sodium *na)
+int wt_spot_set_sodium_staged(wt_spot *s, const wt_sodium *na, const double stage[3])
 {
     if (!s->lgs) return WT_ERROR(s->ctx, WT_ERR_INVALID, "spot: a sodium profile for a sensor built without one (an NGS)");
     if (!na) return WT_ERROR(s->ctx, WT_ERR_INVALID, "spot: NULL sodium profile");
+    if (stage && !(isfinite(stage[0]) && isfinite(stage[1]) && isfinite(stage[2])))
+        return WT_ERROR(s->ctx, WT_ERR_INVALID, "spot: focus stage (%g, %g, %g) not finite", stage[0], stage[1], stage[2]);
     const int st = wt_sodium_check_covers(s->ctx, na, s->par.lgs_altitude, "spot: the new sodium profile");
     if (st < 0) return st;
-    return build_tables(s, na);
+    const int on = stage && (stage[0] != 0.0 || stage[1] != 0.0 || stage[2] != 0.0);
+    return build_tables(s, na, on ? stage : NULL);
 }
+
+int wt_spot_set_sodium(wt_spot *s, const wt_sodium *na) { return wt_spot_set_sodium_staged(s, na, NULL); }
 
 int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const double *xc, const double *yc,
                   const float *amp, const double *lit, wt_spot **out)
@@ -397,7 +403,7 @@ int wt_spot_alloc(wt_context *ctx, const wt_spot_params *par, int nsub, const do
         WT_ALLOC(ctx, s->xc, nsub, "spot subaperture centres");
         WT_ALLOC(ctx, s->yc, nsub, "spot subaperture centres");
         if (nsub) memcpy(s->xc, xc, (size_t)nsub * sizeof *xc), memcpy(s->yc, yc, (size_t)nsub * sizeof *yc);
-        WT_TRY(build_tables(s, par->sodium));
+        WT_TRY(build_tables(s, par->sodium, NULL));
     }
 
     WT_ALLOC(ctx, s->ws, s->nthreads, "spot workspaces");

@@ -106,6 +106,11 @@ void wt_spot_free(wt_spot *s);
  * it are of the new profile. Refused (WT_ERR_INVALID): an NGS spot, a profile that does not contain the LGS
  * altitude. Allocates its scratch (threads × ~(3 k Lp)² doubles). Outside parallel regions only. */
 int wt_spot_set_sodium(wt_spot *s, const wt_sodium *na);
+/* The same with the sensor's focus stage and centring (sim/focus_stage.h): every point of the source of the
+ * subaperture at r moved by 2 c r + (tx, ty) [rad] (c [1/m], r from the pupil centre) — a WFS re-conjugated and
+ * steered so, exactly (it moves the source as seen by the sensor, not the wavefront, so no FFT field limits it).
+ * stage NULL or all zero: wt_spot_set_sodium's tables, bit for bit. */
+int wt_spot_set_sodium_staged(wt_spot *s, const wt_sodium *na, const double stage[3]);
 
 /* Noise-free images of every subaperture for the OPD [nsub·n_p²] (m, float or double), into
  * img [nsub·Ns²]. Allocates nothing. */
