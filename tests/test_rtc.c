@@ -173,14 +173,15 @@ END_TEST
  * (r = R s + (R Â) a_t, rounded differently in float32) within 1e-4 of the commands' norm: a float32
  * GEMV of ~2000 terms rounds at ~1e-6 relative, accumulated over 8 frames of an integrator of gain < 1;
  * a missing or mis-signed POLC term is an O(1) difference. Cases 4–7 again with the scale-dependent gain
- * (loop.gain_levels, one law for both: runtime/control.h), 6–7 with a delay of 1 frame. */
+ * (loop.gain_levels, one law for both: runtime/control.h), 8–11 with it and a delay of 1 frame: every
+ * reconstructor under both gain laws, and delays 1 and 2. */
 START_TEST(test_polc_equals_loop)
 {
     const int k = _i % 4; /* 0 pcg3, 1 cg9, 2 MVM via s_ol, 3 MVM via s */
     wt_context *ctx = tu_context();
     const char *set[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2",
                          "loop.gain_levels=[0.6, 0.5, 0.4, 0.3]", "loop.delay_frames=1"};
-    const int nset = _i < 4 ? 3 : _i < 6 ? 4 : 5;
+    const int nset = 3 + _i / 4; /* 3: scalar gain, delay 2; 4: gain levels, delay 2; 5: gain levels, delay 1 */
     wt_config *cfg;
     wt_system *sys;
     wt_loop *lp;
@@ -780,7 +781,7 @@ Suite *make_suite(void)
     tcase_add_unchecked_fixture(tc, files_setup, files_teardown);
     tcase_add_test(tc, test_version);
     tcase_add_loop_test(tc, test_equals_run, 0, 3);
-    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 8);
+    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 12);
     tcase_add_loop_test(tc, test_no_allocation_per_frame, 0, 2);
     tcase_add_test(tc, test_reset_and_raw);
     tcase_add_test(tc, test_instances_in_threads);
