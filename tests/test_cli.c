@@ -478,6 +478,26 @@ START_TEST(test_info_spots)
     ck_assert_int_ne(access(out, F_OK), 0);
     ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --sensor LGS1"), 2);
     ck_assert_int_eq(run("info --help"), 0);
+    /* --time T: the sequence's spots then (spots.md says so); refused without a sequence, outside it, not a number,
+     * or without --spots */
+    const char *seq = "--set 'lgs.sodium_sequence=\"../sodium/drift-1km-10min.txt\"'";
+    snprintf(out, sizeof out, "%s/at600", dir);
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz %s --spots %s --time 600", seq, out), 0);
+    snprintf(p, sizeof p, "%s/spots.md", out);
+    f = fopen(p, "r");
+    ck_assert_ptr_nonnull(f);
+    n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    ck_assert(strstr(text, "At night time 600.0 s") && strstr(text, "false signal"));
+    snprintf(out, sizeof out, "%s/attime", dir);
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s --time 50", out), 1);
+    ck_assert(stderr_has("lgs.sodium_sequence"));
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz %s --spots %s --time 5000", seq, out), 1);
+    ck_assert(stderr_has("--time 5000") && stderr_has("drift-1km-10min.txt"));
+    ck_assert_int_ne(access(out, F_OK), 0);
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz %s --spots %s --time 6x", seq, out), 2);
+    ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --time 60"), 2);
 
     /* compare on the diffractive demo writes and links the pictures */
     snprintf(out, sizeof out, "%s/cmp", dir);
