@@ -361,7 +361,13 @@ int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_st
     if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
     if (ws->gain_on) gain_accumulate(ws, slopes);
-    if (ws->pix_acc) wt_sensing_pixels_add(ws, ws->img, slopes);
+    if (ws->pix_acc) {
+        /* re-centred on the set-up filter's slopes, not the loop's (sensing.h pix_cen0) */
+        const double t0 = wt_time_now();
+        wt_centroid_apply(ws->pix_cen0, ws->img, ws->pix_s0);
+        ws->pix_seconds += wt_time_now() - t0;
+        wt_sensing_pixels_add(ws, ws->img, ws->pix_s0);
+    }
     return WT_OK;
 }
 
@@ -379,7 +385,9 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;
     size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
     b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
-    if (ws->pix_acc) b += nsub * (3 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float); /* E² = (Ns + 8)², the anchor */
+    if (ws->pix_acc) /* E² = (Ns + 8)², the anchor; the set-up filter and its slopes */
+        b += nsub * (3 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float) + wt_centroid_memory(ws->pix_cen0) +
+             2 * nsub * sizeof(double);
     return b;
 }
 

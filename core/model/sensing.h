@@ -92,6 +92,9 @@ typedef struct wt_sensing {
                                   before interpolation (core/optics/image_shift.h: T_u I on E = Ns + 2 margins) */
     double *pix_tmp;           /* [threads (wt_image_shift_work(Ns) + Ns²)] scratch of the shifts */
     float *pix_anchor;         /* [2 nsub Ns²] the set-up reference's derivatives less those of its pixels' spline */
+    wt_centroid *pix_cen0;     /* the set-up reference's centroider: the frames are re-centred on its slopes, a zero
+                                  that stays put (docs/design.md "The reference from the loop's own pixels") */
+    double *pix_s0;            /* [2 nsub] its slopes of the current frame */
     long pix_frames;           /* frames in pix_acc */
     double pix_seconds;        /* wall time of the accumulation since wt_sensing_pixels_start */
 } wt_sensing;
@@ -157,7 +160,9 @@ int wt_sensing__nea_stats(int nsub, const double *cov, double *nea, double *medi
 int wt_sensing_rebuild_reference(wt_sensing *ws);
 /* The reference from the loop's own pixels (lgs.wfs.reference = pixels; docs/design.md "The reference from the loop's
  * own pixels"). After wt_sensing_pixels_start every wt_sensing_detect adds each subaperture's image (noisy, as the
- * detector reads it) re-centred by the slope it measured — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
+ * detector reads it) re-centred by the slope the set-up reference's matched filter measures on it (a fixed zero: each
+ * mean keeps part of the slopes it was re-centred on, and with the filter in force that part would compound from
+ * rebuild to rebuild) — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
  * (core/optics/image_shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
  * n frames accumulated: I0 = max(mean, 0) per pixel (the expected image is ≥ 0, and the matched filter's variance
  * I0 + B + σe² must stay positive with neither background nor read noise), and its derivatives

@@ -126,6 +126,7 @@ int wt_sensing_pixels_start(wt_sensing *ws)
     wt_sensing_pixels_stop(ws);
     const size_t E2 = (size_t)wt_image_shift_side(ws->ns) * wt_image_shift_side(ws->ns);
     WT_ALLOC(ctx, ws->pix_acc, (size_t)ws->nsub * E2, "pixel reference accumulator");
+    WT_ALLOC(ctx, ws->pix_s0, 2 * (size_t)ws->nsub, "pixel reference slopes");
     WT_ALLOC(ctx, ws->pix_tmp, ((size_t)wt_image_shift_work(ws->ns) + n2) * (nth > 0 ? nth : 1), "pixel reference scratch");
     memset(ws->pix_acc, 0, (size_t)ws->nsub * E2 * sizeof *ws->pix_acc);
     ws->pix_frames = 0;
@@ -144,6 +145,10 @@ int wt_sensing_pixels_start(wt_sensing *ws)
             goto fail;
         }
         ws->sodium_changed = 0;
+        if ((st = wt_centroid_alloc(ctx, &ws->cpar, ws->nsub, ws->ns, i0, dx, dy, &ws->pix_cen0)) < 0) {
+            wt_free(ctx, i0);
+            goto fail;
+        }
         const int nsub = ws->nsub, ns = ws->ns;
         const double p = ws->pixel;
 #pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
@@ -167,7 +172,9 @@ void wt_sensing_pixels_stop(wt_sensing *ws)
     wt_free(ws->ctx, ws->pix_acc);
     wt_free(ws->ctx, ws->pix_tmp);
     wt_free(ws->ctx, ws->pix_anchor);
-    ws->pix_acc = NULL, ws->pix_tmp = NULL, ws->pix_anchor = NULL;
+    wt_free(ws->ctx, ws->pix_s0);
+    wt_centroid_free(ws->pix_cen0);
+    ws->pix_acc = NULL, ws->pix_tmp = NULL, ws->pix_anchor = NULL, ws->pix_s0 = NULL, ws->pix_cen0 = NULL;
     ws->pix_frames = 0;
 }
 
