@@ -385,8 +385,8 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     const size_t nsub = (size_t)ws->nsub, n2 = (size_t)ws->np * ws->np, s2 = (size_t)ws->ns * ws->ns;
     size_t b = sizeof *ws + wt_spot_memory(ws->spot) + wt_centroid_memory(ws->cen);
     b += nsub * (2 * sizeof(double) + 2 * n2 * sizeof(float) + 2 * s2 * sizeof(float) + 4 * sizeof(double));
-    if (ws->pix_acc) /* E² = (Ns + 8)², the anchor; the set-up filter and its slopes */
-        b += nsub * (3 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float) + wt_centroid_memory(ws->pix_cen0) +
+    if (ws->pix_acc) /* E² = (Ns + 8)², the anchor and set-up image; the set-up filter and its slopes */
+        b += nsub * (4 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float) + wt_centroid_memory(ws->pix_cen0) +
              2 * nsub * sizeof(double);
     return b;
 }

@@ -91,7 +91,8 @@ typedef struct wt_sensing {
     float *pix_acc;            /* [nsub E²] Σ of every frame's image since the last rebuild, re-centred by its slopes
                                   before interpolation (core/optics/image_shift.h: T_u I on E = Ns + 2 margins) */
     double *pix_tmp;           /* [threads (wt_image_shift_work(Ns) + Ns²)] scratch of the shifts */
-    float *pix_anchor;         /* [2 nsub Ns²] the set-up reference's derivatives less those of its pixels' spline */
+    float *pix_anchor;         /* [3 nsub Ns²] the set-up reference's derivatives less those of its pixels' spline
+                                  (x, y), and its image */
     wt_centroid *pix_cen0;     /* the set-up reference's centroider: the frames are re-centred on its slopes, a zero
                                   that stays put (docs/design.md "The reference from the loop's own pixels") */
     double *pix_s0;            /* [2 nsub] its slopes of the current frame */
@@ -164,8 +165,11 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
  * mean keeps part of the slopes it was re-centred on, and with the filter in force that part would compound from
  * rebuild to rebuild) — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
  * (core/optics/image_shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
- * n frames accumulated: I0 = max(mean, 0) per pixel (the expected image is ≥ 0, and the matched filter's variance
- * I0 + B + σe² must stay positive with neither background nor read noise), and its derivatives
+ * n frames accumulated: per pixel the set-up image plus the change Δ = mean − I0_set-up shrunk by its noise,
+ * Δ (1 − σ²/Δ²)₊ with σ² = (max(mean, 0) + B + σe²)/n (a change the noise could have made is taken for none: the
+ * derivatives below would otherwise carry the mean's noise, and a filter on noisy derivatives reads low), then
+ * max(·, 0) (the expected image is ≥ 0, and the matched filter's variance I0 + B + σe² must stay positive with
+ * neither background nor read noise), and its derivatives
  *   ∂I0/∂θ = [S(I0) + ∂I0_set-up/∂θ − S(I0_set-up)],  S(I) = the derivative images of I's spline (shift.h) / p:
  * the derivatives of the mean image, anchored on the set-up reference's. Why anchored: the LGS spots are undersampled
  * (~1.2″ on 1.1″ pixels), and no interpolation of pixel values gives the pixel-integrated spot's derivative — S alone

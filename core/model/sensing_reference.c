@@ -135,7 +135,7 @@ int wt_sensing_pixels_start(wt_sensing *ws)
     {
         const size_t npix = (size_t)ws->nsub * n2, wk = (size_t)wt_image_shift_work(ws->ns) + n2;
         float *i0 = NULL, *dx = NULL, *dy = NULL;
-        WT_ALLOC(ctx, ws->pix_anchor, 2 * npix, "pixel reference anchor");
+        WT_ALLOC(ctx, ws->pix_anchor, 3 * npix, "pixel reference anchor");
         dx = ws->pix_anchor, dy = ws->pix_anchor + npix;
         WT_ALLOC(ctx, i0, npix, "set-up reference");
         const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
@@ -159,6 +159,7 @@ int wt_sensing_pixels_start(wt_sensing *ws)
             for (size_t q = 0; q < n2; q++)
                 dx[n2 * k + q] = (float)(dx[n2 * k + q] - sx[q] / p), dy[n2 * k + q] = (float)(dy[n2 * k + q] - sy[q] / p);
         }
+        memcpy(ws->pix_anchor + 2 * npix, i0, npix * sizeof *i0);
         wt_free(ctx, i0);
     }
     return WT_OK;
@@ -207,6 +208,7 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
     const size_t n2 = (size_t)ns * ns, npix = (size_t)nsub * n2, E2 = (size_t)wt_image_shift_side(ns) * wt_image_shift_side(ns);
     const size_t wk = (size_t)wt_image_shift_work(ns) + n2;
     const double inv_n = 1.0 / (double)ws->pix_frames, inv_p = 1.0 / ws->pixel;
+    const double v0 = ws->cpar.background + ws->cpar.read_noise * ws->cpar.read_noise; /* a pixel's variance less I */
     int st = WT_OK;
     float *i0 = NULL, *dix = NULL, *diy = NULL;
     WT_ALLOC(ctx, i0, npix, "reference images");
@@ -218,7 +220,16 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
         double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
         /* the mean, ≥ 0, then the derivatives of that */
         wt_image_shift_mean(ns, ws->pix_acc + E2 * k, inv_n, a, w);
-        for (size_t q = 0; q < n2; q++) a[q] = a[q] > 0.0f ? a[q] : 0.0f;
+        /* the change from the set-up image, shrunk by its noise (positive-part James–Stein per pixel: Δ (1 − σ²/Δ²)₊,
+         * σ² = (mean + B + σe²)/n the variance of an n-frame mean): a change the noise could have made is taken
+         * for none, so the derivatives are not the noise's (an unchanged spot gives the set-up reference back); then
+         * ≥ 0 */
+        const float *is = ws->pix_anchor + 2 * npix + n2 * k;
+        for (size_t q = 0; q < n2; q++) {
+            const double d = (double)a[q] - is[q], v = ((a[q] > 0.0f ? a[q] : 0.0) + v0) * inv_n;
+            const double f = d * d > v ? 1.0 - v / (d * d) : 0.0, m = is[q] + f * d;
+            a[q] = m > 0.0 ? (float)m : 0.0f;
+        }
         wt_image_shift_derivative(ns, a, dx, dy, w);
         const float *ax = ws->pix_anchor + n2 * k, *ay = ws->pix_anchor + npix + n2 * k;
         for (size_t q = 0; q < n2; q++) dx[q] = (float)(dx[q] * inv_p + ax[q]), dy[q] = (float)(dy[q] * inv_p + ay[q]);
