@@ -129,10 +129,10 @@ START_TEST(test_noise_free_is_setup)
 }
 END_TEST
 
-/* the log-log slope of the rebuilt I0's rms error on the frame count, frames re-centred on their true slopes (zero) or
- * on the slopes the set-up's matched filter measures on them */
-static double error_slope(rig *r, int measured, double err[3])
+/* the log-log slope of the rebuilt I0's rms error on the frame count, frames re-centred on their true slopes (zero) */
+static double error_slope(rig *r, double err[3])
 {
+    const double SCALE = 10.0; /* the frames: the set-up spot with 10× its flux */
     wt_sensing *ws = r->ws;
     const size_t npix = (size_t)ws->nsub * ws->ns * ws->ns;
     float *i0 = malloc(npix * sizeof *i0), *img = malloc(npix * sizeof *img);
@@ -144,15 +144,20 @@ static double error_slope(rig *r, int measured, double err[3])
     for (int c = 0; c < 3; c++) {
         ck_assert_int_eq(wt_sensing_pixels_start(ws), WT_OK);
         for (int f = 0; f < nf[c]; f++) {
-            memcpy(img, i0, npix * sizeof *img);
+            for (size_t q = 0; q < npix; q++) img[q] = (float)SCALE * i0[q]; /* a change the rebuild must keep */
             ck_assert_int_eq(wt_spot_noise(ws->spot, 7, stream++, img), WT_OK);
-            if (measured) wt_centroid_apply(ws->cen, img, sl);
             wt_sensing_pixels_add(ws, img, sl);
         }
         ck_assert_msg(wt_sensing_pixels_reference(ws) == WT_OK, "%s", wt_error_message(r->ctx));
+        /* over the pixels whose change is > 30 σ of the fewest frames' mean: there the shrinkage keeps it (its bias
+         * k²σ²/Δ < 0.3 σ adds < 5 % to the error at 16 frames, less after) and what is left is the mean's noise */
         double e = 0.0;
-        for (size_t q = 0; q < npix; q++) e += pow(ws->i0[q] - i0[q], 2);
-        lx[c] = log(nf[c]), ly[c] = 0.5 * log(e / npix), err[c] = sqrt(e / npix);
+        size_t cnt = 0;
+        const double v0 = ws->cpar.background + ws->cpar.read_noise * ws->cpar.read_noise;
+        for (size_t q = 0; q < npix; q++)
+            if ((SCALE - 1.0) * i0[q] > 30.0 * sqrt((SCALE * i0[q] + v0) / nf[0])) e += pow(ws->i0[q] - SCALE * i0[q], 2), cnt++;
+        ck_assert_uint_gt(cnt, 100);
+        lx[c] = log(nf[c]), ly[c] = 0.5 * log(e / cnt), err[c] = sqrt(e / cnt);
         ck_assert_int_eq(wt_sensing_restore(ws), WT_OK); /* the set-up's reference for the next count */
     }
     const double mx = (lx[0] + lx[1] + lx[2]) / 3, my = (ly[0] + ly[1] + ly[2]) / 3;
@@ -162,48 +167,42 @@ static double error_slope(rig *r, int measured, double err[3])
     return sxy / sxx;
 }
 
-/* Noisy frames of the set-up spot (Poisson + read noise, the detector's draws): the rebuilt I0's rms error over the
- * sensor's pixels falls as n^(-1/2), fitted over n = 16, 64, 256 (each from its own frames). The rebuild keeps of the
- * change from the set-up image what the noise could not have made (Δ (1 − σ²/Δ²)₊ per pixel): a rule homogeneous in
- * Δ and σ, so on pure noise its error is a fixed fraction of σ ∝ n^(-1/2) too (measured ~0.55 of the unshrunk mean's).
- * Statistics: each error is a mean of ~2·10⁴ squared pixel errors, ~1 % on the squared error, ~0.004 on the fitted
- * slope. Re-centred on the true slopes (zero): within 0.03 of −1/2; a sum not divided by n, or frames dropped, gives 0
- * or +1/2. Re-centred on the slopes the set-up filter measures on each frame (the loop's case), each frame is aligned on
- * its own noise; measured slope −0.441, rms 0.304, 0.162, 0.089 e⁻ against −0.484, 0.342, 0.178, 0.090 e⁻ on the true
- * slopes: the alignment adds no error at any n (asserted: each within 5 % above the true slopes' error) and the error
- * still falls (slope below −0.4). */
+/* Noisy frames of a changed spot (the set-up spot with 10× its flux, Poisson + read noise: the detector's draws),
+ * re-centred by their true slopes (zero): over the pixels where the change is > 30 σ of a 16-frame mean (so kept
+ * by the rebuild's shrinkage, whose bias k²σ²/Δ < 0.3 σ adds < 5 % there), the rebuilt I0's rms error falls as
+ * n^(-1/2), fitted over n = 16, 64, 256 (each from its own frames): within 0.03 of −1/2 (measured −0.4925; each
+ * error a mean over a few hundred squared pixel errors, ~0.01 on the fitted slope). A sum not divided by n, or frames
+ * dropped, gives 0 or +1/2; a change shrunk away gives 0. (On an unchanged spot the rebuild returns the set-up image
+ * but for the rare pixel whose noise passes 3 σ: test_noise_free_is_setup and the loop's gains, docs/results.md.) */
 START_TEST(test_noisy_error_falls_as_sqrt)
 {
     rig r;
     rig_open(&r);
-    double e0[3], e1[3];
-    const double s0 = error_slope(&r, 0, e0), s1 = error_slope(&r, 1, e1);
-    ck_assert_msg(fabs(s0 + 0.5) < 0.03, "true slopes: error ~ n^%.4f (rms %g, %g, %g e-)", s0, e0[0], e0[1], e0[2]);
-    ck_assert_msg(s1 < -0.4, "measured slopes: error ~ n^%.4f (rms %g, %g, %g e-)", s1, e1[0], e1[1], e1[2]);
-    for (int c = 0; c < 3; c++)
-        ck_assert_msg(e1[c] < 1.05 * e0[c], "count %d: re-centred on measured slopes rms %g e-, on true %g", c, e1[c], e0[c]);
+    double e0[3];
+    const double s0 = error_slope(&r, e0);
+    ck_assert_msg(fabs(s0 + 0.5) < 0.03, "error ~ n^%.4f (rms %g, %g, %g e-)", s0, e0[0], e0[1], e0[2]);
     rig_close(&r);
 }
 END_TEST
 
 /* A slope that persists is not learned away. The frames are noisy images of the spot (the set-up reference without
- * seeing, so the frames are its spot) held at a static tilt θ per subaperture and axis (±0.15″ from a fixed pattern: a
- * static aberration, or a residual the loop cannot correct), m rebuilds of n = 8 frames each through
+ * seeing, so the frames are its spot) held at a static tilt θ per subaperture and axis (±0.3″ from a fixed pattern: a
+ * static aberration, or a residual the loop cannot correct), m rebuilds of n = 32 frames each through
  * wt_sensing_detect. The last filter's zero z (where it reads 0: −s/g on the flat spot, g from a further tilt δ) as a
  * fraction of θ, Σ zθ / Σ θ², is what the reference absorbed. A spline shift of these undersampled spots moves them,
- * as the matched filter reads it, by only κ ≈ 0.65 of the shift (docs/design.md), so each mean keeps ~(1 − κ) of the
- * slope it was re-centred on. Re-centred on the set-up filter's slopes (the code), that is the same fraction after 2
- * or 8 rebuilds (measured 0.31, 0.30; 0.34, 0.34 without noise); re-centred on the filter in force, as on the loop's own
- * slopes, each rebuild keeps that fraction of what the last one left, and it compounds: 0.50 after 2, 0.81 after 8,
- * the sensor going blind to a slope that is there. Asserted: the code's fraction moves by less than 0.1 from 2 to 8
- * rebuilds (the noise of one 8-frame period, ~0.05 on each), the filter-in-force emulation's grows by more than 0.2
+ * as the matched filter reads it, by only κ ≈ 0.65 of the shift (docs/design.md), so each mean keeps part of the
+ * slope it was re-centred on, as far as the rebuild's shrinkage lets that change through. Re-centred on the set-up
+ * filter's slopes (the code), that part is the same after 2 or 8 rebuilds (measured 0.185, 0.188); re-centred on the
+ * filter in force, as on the loop's own slopes, each rebuild keeps a part of what the last one left, and it
+ * compounds: 0.32 after 2, 0.53 after 8, the sensor going blind to a slope that is there. Asserted: the code's part
+ * moves by less than 0.05 from 2 to 8 rebuilds (noise ~0.01), the filter-in-force emulation's grows by more than 0.1
  * (the test's power). */
 static double absorbed(rig *r, int in_force, int NREB)
 {
-    enum { NFR = 8 };
+    enum { NFR = 32 };
     wt_sensing *ws = r->ws;
     const int nsub = ws->nsub, np = ws->np, np2 = np * np;
-    const double ds = ws->side / np, t0 = 0.15 / 206265.0, delta = 2.0e-7;
+    const double ds = ws->side / np, t0 = 0.3 / 206265.0, delta = 2.0e-7;
     double *sl = calloc(2 * (size_t)nsub, sizeof *sl), *sd = calloc(2 * (size_t)nsub, sizeof *sd);
     double *th = malloc(2 * (size_t)nsub * sizeof *th);
     for (int q = 0; q < 2 * nsub; q++) th[q] = ((q * 7919u) % 13u) % 2 ? t0 : -t0;
@@ -262,9 +261,9 @@ START_TEST(test_persistent_slope_stays_read)
     rig r;
     rig_open_with(&r, 1, set);
     const double f2 = absorbed(&r, 0, 2), f8 = absorbed(&r, 0, 8), i2 = absorbed(&r, 1, 2), i8 = absorbed(&r, 1, 8);
-    ck_assert_msg(fabs(f8 - f2) < 0.1, "re-centred on the set-up filter: %.3f of a static slope absorbed after 2 rebuilds, "
+    ck_assert_msg(fabs(f8 - f2) < 0.05, "re-centred on the set-up filter: %.3f of a static slope absorbed after 2 rebuilds, "
                   "%.3f after 8", f2, f8);
-    ck_assert_msg(i8 - i2 > 0.2, "re-centred on the filter in force: %.3f after 2, %.3f after 8 (the test lost its power)", i2,
+    ck_assert_msg(i8 - i2 > 0.1, "re-centred on the filter in force: %.3f after 2, %.3f after 8 (the test lost its power)", i2,
                   i8);
     rig_close(&r);
 }

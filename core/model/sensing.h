@@ -166,8 +166,9 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
  * rebuild to rebuild) — shifted by (−s_x, −s_y) / p pixels, cubic B-spline
  * (core/optics/image_shift.h) — to an accumulator. wt_sensing_pixels_reference then makes the reference of the mean of the
  * n frames accumulated: per pixel the set-up image plus the change Δ = mean − I0_set-up shrunk by its noise,
- * Δ (1 − σ²/Δ²)₊ with σ² = (max(mean, 0) + B + σe²)/n (a change the noise could have made is taken for none: the
- * derivatives below would otherwise carry the mean's noise, and a filter on noisy derivatives reads low), then
+ * Δ (1 − k²σ²/Δ²)₊ with σ² = (max(mean, 0) + B + σe²)/n and k = WT_SENSING_PIXELS_SHRINK (a change the noise could
+ * have made is taken for none: the derivatives below would otherwise carry the mean's noise, and a filter on noisy
+ * derivatives reads low), then
  * max(·, 0) (the expected image is ≥ 0, and the matched filter's variance I0 + B + σe² must stay positive with
  * neither background nor read noise), and its derivatives
  *   ∂I0/∂θ = [S(I0) + ∂I0_set-up/∂θ − S(I0_set-up)],  S(I) = the derivative images of I's spline (shift.h) / p:
@@ -186,6 +187,11 @@ int wt_sensing_rebuild_reference(wt_sensing *ws);
  * noise whose matched-filter slope is ~NEA/√n per subaperture, held until the next rebuild (a static error the
  * loop does not average): one frame would put a whole frame's noise there; two is the least that halves it. */
 #define WT_SENSING_PIXELS_MIN_FRAMES 2
+/* k of the shrinkage above, in standard deviations of the n-frame mean: a pure-noise change passes |Δ| > kσ 0.3 % of
+ * the time at k = 3 (32 % at k = 1, where it kept ~0.55 of the noise). Chosen by measurement (docs/results.md §70): of
+ * k = 1, 2, 3 on the demo's fixed profile, drift and sporadic layer (2 seeds each) 3 is the best mean on each, and on
+ * the E-ELT the in-loop gain along the elongation goes 0.75 (k = 1) → 1.03 (k = 2) on the drift. */
+#define WT_SENSING_PIXELS_SHRINK 3.0
 int wt_sensing_pixels_start(wt_sensing *ws);
 int wt_sensing_pixels_reference(wt_sensing *ws);
 /* Stops the accumulation and frees it (restore does it too). */

@@ -209,6 +209,7 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
     const size_t wk = (size_t)wt_image_shift_work(ns) + n2;
     const double inv_n = 1.0 / (double)ws->pix_frames, inv_p = 1.0 / ws->pixel;
     const double v0 = ws->cpar.background + ws->cpar.read_noise * ws->cpar.read_noise; /* a pixel's variance less I */
+    const double k2 = WT_SENSING_PIXELS_SHRINK * WT_SENSING_PIXELS_SHRINK;
     int st = WT_OK;
     float *i0 = NULL, *dix = NULL, *diy = NULL;
     WT_ALLOC(ctx, i0, npix, "reference images");
@@ -220,13 +221,13 @@ int wt_sensing_pixels_reference(wt_sensing *ws)
         double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
         /* the mean, ≥ 0, then the derivatives of that */
         wt_image_shift_mean(ns, ws->pix_acc + E2 * k, inv_n, a, w);
-        /* the change from the set-up image, shrunk by its noise (positive-part James–Stein per pixel: Δ (1 − σ²/Δ²)₊,
+        /* the change from the set-up image, shrunk by its noise (positive-part James–Stein per pixel: Δ (1 − k²σ²/Δ²)₊,
          * σ² = (mean + B + σe²)/n the variance of an n-frame mean): a change the noise could have made is taken
          * for none, so the derivatives are not the noise's (an unchanged spot gives the set-up reference back); then
          * ≥ 0 */
         const float *is = ws->pix_anchor + 2 * npix + n2 * k;
         for (size_t q = 0; q < n2; q++) {
-            const double d = (double)a[q] - is[q], v = ((a[q] > 0.0f ? a[q] : 0.0) + v0) * inv_n;
+            const double d = (double)a[q] - is[q], v = k2 * ((a[q] > 0.0f ? a[q] : 0.0) + v0) * inv_n;
             const double f = d * d > v ? 1.0 - v / (d * d) : 0.0, m = is[q] + f * d;
             a[q] = m > 0.0 ? (float)m : 0.0f;
         }
