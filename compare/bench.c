@@ -13,11 +13,13 @@
 #include "../core/la/half.h"
 #include "../core/model/fitting.h"
 #include "../core/model/precond.h"
+#include "../core/model/profile.h"
 #include "../core/model/sensing.h"
 #include "../core/optics/centroid.h"
 #include "../core/optics/sodium.h"
 #include "../core/optics/spot.h"
 #include "../core/model/tomography.h"
+#include "../core/op/shift.h"
 #include "../core/solve/mvm.h"
 #include "../core/solve/pcg.h"
 
@@ -104,6 +106,62 @@ static int time_fitting(wt_context *ctx, const wt_system *sys, wt_tomography *t,
     return st;
 }
 
+/* recon.predict's shift of t's layers (the reconstructor's make_shift: the model's wind compressed onto them as its
+ * Cn², times the lead; tp's profile is the model's, cfg->model, under the oracle as with a given profile) on the estimate c's layers; at least 200 repetitions (a call is well under a frame) */
+static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, const wt_reconstructor_params *par,
+                      const double *c, wt_bench_tomography *out)
+{
+    const int L = wt_tomography_nlayers(t);
+    const wt_tomography_params *tp = &par->tomography;
+    const double lead = par->predict_lead > 0.0 ? par->predict_lead : (double)sys->cfg->delay / sys->cfg->rate;
+    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], sx[WT_MAX_LAYERS], sy[WT_MAX_LAYERS];
+    const wt_grid *g[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++)
+        alt[l] = wt_tomography_layer_altitude(t, l), g[l] = wt_tomography_layer_grid(t, l),
+        off[l] = wt_tomography_layer_offset(t, l);
+    /* the model's wind as wt_reconstructor_params_from_config reads it under recon.predict */
+    const wt_config *cfg = sys->cfg;
+    double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+    for (int k = 0; k < cfg->model.nlayers; k++)
+        vx[k] = cfg->model.wind_speed[k] * cos(cfg->model.wind_direction[k]),
+        vy[k] = cfg->model.wind_speed[k] * sin(cfg->model.wind_direction[k]);
+    wt_profile_compress(tp->natm, tp->atm_altitude, tp->atm_fraction, vx, vy, L, alt, frac, sx, sy);
+    for (int l = 0; l < L; l++) sx[l] *= lead, sy[l] *= lead;
+    wt_shift *sh = NULL;
+    int st = wt_shift_alloc(ctx, L, g, off, sx, sy, &sh);
+    if (st < 0) return st;
+    out->shift_moving = wt_shift_nmoving(sh);
+    const int64_t n = wt_tomography_nunknowns(t);
+    const int reps = 200;
+    double *phi = malloc((size_t)n * sizeof *phi), *pred = malloc((size_t)n * sizeof *pred),
+           *times = malloc(reps * sizeof *times);
+    if (!phi || !pred || !times) st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for the shift's layers");
+    if (st >= 0 && out->shift_moving) {
+        wt_tomography_layers(t, c, phi);
+        wt_shift_apply_to(sh, phi, pred); /* warm caches and pages */
+        for (int r = 0; r < reps; r++) {
+            const double a = wt_time_now();
+            wt_shift_apply_to(sh, phi, pred);
+            times[r] = wt_time_now() - a;
+        }
+        out->shift = wt_bench_summarise(times, reps);
+        /* a moving n × n layer: four passes of n/2 complex transforms of length n (5 n log2 n each) and two of n²/2
+         * complex products */
+        for (int l = 0; l < L; l++) {
+            const double m = (double)g[l]->nx * g[l]->nx;
+            if (sx[l] == 0.0 && sy[l] == 0.0) continue;
+            out->shift_flops += 10.0 * m * log2(g[l]->nx) + 6.0 * m;
+            out->shift_bytes += 16.0 * m;
+        }
+    }
+    free(phi);
+    free(pred);
+    free(times);
+    wt_shift_free(sh);
+    return st;
+}
+
 int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reconstructor_params *par,
                             const char *name, int reps, wt_bench_tomography *out)
 {
@@ -171,6 +229,8 @@ int wt_bench_tomography_run(wt_context *ctx, const wt_system *sys, const wt_reco
     for (int r = 0; r < reps; r++) wt_tomography_solve_continue(t, P, s, c, par->iterations, 0.0, NULL, NULL);
     wt_tomography_profile_stop(t, out->stage);
     out->prof_frames = reps;
+
+    if ((st = time_shift(ctx, sys, t, par, c, out)) < 0) goto out;
 
     if (par->fit_iterations > 0) {
         if ((st = time_fitting(ctx, sys, t, par, c, reps, times, &out->fitting)) < 0) goto out;

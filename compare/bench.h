@@ -46,6 +46,11 @@ typedef struct wt_bench_tomography {
     wt_tomography_stage stage[WT_TOMO_NSTAGES];
     int has_fitting;          /* cg9: the fitting was timed */
     wt_bench_stats fitting;   /* par->fit_iterations CG iterations of the fitting */
+    /* recon.predict's shift (core/op/shift.h) of the variant's layers by the model's wind over the lead (the
+     * configured one, else the loop's delay), whether or not CONFIG predicts; median of at least 200 */
+    int shift_moving;         /* layers that move (0: no wind, not timed) */
+    double shift_flops, shift_bytes; /* per call: the transforms and ramps; the layers read and written once */
+    wt_bench_stats shift;
 } wt_bench_tomography;
 
 /* Times the variant described by par (name "pcg3" or "cg9" labels its operators) reps times on seeded

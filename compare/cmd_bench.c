@@ -26,7 +26,8 @@ static void help(void)
            "\n"
            "Times, on CONFIG (default data/presets/eelt-mcao.cfg): one application of the normal operator M\n"
            "for pcg3 and cg9, one PCG iteration, and a whole pcg3 frame (right-hand side + the configured\n"
-           "iterations), plus the cg9 fitting operator. Reports medians and the 10th, 90th and 99th percentiles of\n"
+           "iterations), plus the cg9 fitting operator, and recon.predict's shift of the layers (core/op/shift.h) by the\n"
+           "model's wind over the loop's delay with its share of the frame. Reports medians and the 10th, 90th and 99th percentiles of\n"
            "--reps runs (default 50), the flops and bytes per call, and the rates they imply, next to the\n"
            "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
            "operand traffic; the working sets (~10 MB for the E-ELT pcg3) live in cache, so the implied GB/s can\n"
@@ -118,6 +119,12 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
         printf("  real-time goal: a %d-iteration pcg3 frame in 2 ms (500 Hz): measured %.2f ms = %.1fx the budget "
                "(p99 %.2f ms over %d frames)\n",
                par.iterations, b.frame.med * 1e3, b.frame.med / 2e-3, b.frame.p99 * 1e3, reps);
+    if (b.shift_moving) {
+        snprintf(label, sizeof label, "%s: shift (recon.predict, %d layers)", name, b.shift_moving);
+        report(label, b.shift, b.shift_flops, b.shift_bytes);
+        printf("  the prediction's shift is %.1f %% of the frame's median above (target <= 5 %%; median of 200 calls, "
+               "the layers on the context's threads)\n", 100.0 * b.shift.med / b.frame.med);
+    }
     char what[64];
     snprintf(what, sizeof what, "a %s frame", name);
     report_profile(what, b.stage, b.prof_frames);

@@ -1,7 +1,8 @@
 /* tests/test_shift.c: the layers moved by their wind (core/op/shift.h): a band-limited periodic field moved
  * by a sub-sample shift equals the field evaluated at the translated points (the method is exact for it, so
- * to rounding); two shifts compose; a zero shift leaves the layer's bits; a shift of a quarter of the grid
- * or a non-finite one is refused naming the layer. */
+ * to rounding); two shifts compose; a zero shift leaves the layer's bits; out of place gives the in-place bits
+ * and copies a layer that does not move; the bits do not depend on the thread count; a shift of a quarter of the
+ * grid or a non-finite one is refused naming the layer. */
 #include "testutil.h"
 
 #include "core/op/shift.h"
@@ -66,6 +67,41 @@ START_TEST(t_band_limited_exact)
 }
 END_TEST
 
+/* out of place (the reconstructor's phi → pred) against in place, on 1 and on 2 threads: the same bits; the
+ * input untouched; the layer that does not move copied; layers of three sizes, the largest not first */
+START_TEST(t_out_of_place_and_threads)
+{
+    wt_grid g1 = {.nx = 16, .ny = 16, .dx = 1.0}, g2 = {.nx = 64, .ny = 64, .dx = 0.5}, g3 = {.nx = 32, .ny = 32, .dx = 0.5};
+    const wt_grid *g[4] = {&g1, &g2, &g3, &g2};
+    const int64_t off[4] = {0, 256, 256 + 4096, 256 + 4096 + 1024};
+    const int64_t N = off[3] + 4096;
+    const double sx[4] = {0.3, -1.7, 0.0, 2.2}, sy[4] = {-0.45, 0.9, 0.0, -3.1};
+    double *in = malloc(N * sizeof *in), *keep = malloc(N * sizeof *keep), *a = malloc(N * sizeof *a),
+           *b = malloc(N * sizeof *b);
+    tu_randn(in, N, 11);
+    memcpy(keep, in, N * sizeof *in);
+    for (int threads = 1; threads <= 2; threads++) {
+        wt_context *ctx = tu_context();
+        wt_context_set_threads(ctx, threads);
+        wt_shift *s = NULL;
+        ck_assert_int_eq(wt_shift_alloc(ctx, 4, g, off, sx, sy, &s), WT_OK);
+        ck_assert_int_eq(wt_shift_nmoving(s), 3);
+        for (int64_t i = 0; i < N; i++) b[i] = NAN;
+        wt_shift_apply_to(s, in, b);
+        ck_assert_int_eq(memcmp(in, keep, N * sizeof *in), 0);
+        ck_assert_int_eq(memcmp(b + off[2], in + off[2], 1024 * sizeof *b), 0);
+        if (threads == 1) {
+            memcpy(a, in, N * sizeof *a);
+            wt_shift_apply(s, a);
+        }
+        ck_assert_msg(!memcmp(a, b, N * sizeof *a), "%d threads: out of place differs from in place on 1", threads);
+        wt_shift_free(s);
+        wt_context_free(ctx);
+    }
+    free(in), free(keep), free(a), free(b);
+}
+END_TEST
+
 START_TEST(t_refusals)
 {
     wt_context *ctx = tu_context();
@@ -90,6 +126,7 @@ Suite *make_suite(void)
     Suite *s = suite_create("shift");
     TCase *tc = tcase_create("core");
     tcase_add_test(tc, t_band_limited_exact);
+    tcase_add_test(tc, t_out_of_place_and_threads);
     tcase_add_test(tc, t_refusals);
     suite_add_tcase(s, tc);
     return s;

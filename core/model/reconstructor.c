@@ -297,9 +297,8 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
     const double *phi = r->phi;
-    if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers) */
-        memcpy(r->pred, r->phi, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->pred);
-        wt_shift_apply(r->shift, r->pred);
+    if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers; the layers fill the vector) */
+        wt_shift_apply_to(r->shift, r->phi, r->pred);
         phi = r->pred;
     }
     r->t_tomo = wt_time_now() - t0;

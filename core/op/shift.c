@@ -1,4 +1,20 @@
-/* core/op/shift.c: layers moved by a Fourier phase ramp (shift.h). */
+/* core/op/shift.c: layers moved by a Fourier phase ramp (shift.h).
+ *
+ * The shift is separable, S = S_y S_x, each factor a 1-D ramp along its axis (the 2-D ramp of shift.h is their
+ * product, Nyquist rows and columns included). Each factor is a real operator (its ramp is Hermitian:
+ * conj m(k) = m(−k), real at Nyquist), so it maps a + i b to S a + i S b: two real rows (or columns) go through
+ * one complex transform of length n. Complex 1-D transforms are what FFTW's codelets do well without
+ * measured plans (FFTW_ESTIMATE picks slow real-to-complex algorithms at n = 128, where a measured plan is ~1.5x
+ * faster; its complex ones are within a few % of measured), so the shift needs no wisdom and no planning
+ * time, and its bits do not depend on a measurement.
+ *
+ * Per layer (n × n, h = n/2), on one thread, with two scratch arrays of that thread:
+ *   x pass: R[r] = row r + i row r+h (r < h); R ← IDFT_x(m_x · DFT_x(R)); its real and imaginary parts, the rows
+ *           shifted along x, are stored as the y pass wants them: Z[y][c] = u[y][c] + i u[y][c+h] (c < h);
+ *   y pass: Z ← IDFT_y(m_y · DFT_y(Z)) down the columns; out[y][c] = Re Z[y][c], out[y][c+h] = Im Z[y][c].
+ * Z's rows are h + 1 complex long: at a power-of-two stride the column transforms' accesses fall in a few cache
+ * sets. The layers run on the context's threads, one layer each, the largest first; a layer's arithmetic is the
+ * same on any thread, so its bits do not depend on the thread count. */
 #include "shift.h"
 
 #include <fftw3.h>
@@ -13,31 +29,50 @@ static int omp_in_parallel(void) { return 0; }
 typedef struct {
     int n;
     int64_t offset;
-    fftw_complex *ramp; /* n × (n/2 + 1): e^{−2πi k·s/(nδ)} / n² (the c2r's scale folded in) */
-    fftw_plan r2c, c2r;
+    fftw_complex *mx, *my; /* n each: the x and y ramps over k = 0..n−1 (k > n/2 is k − n), 1/n folded in; NULL:
+                            * the layer does not move */
+    fftw_plan rf, rb;      /* x pass: h transforms of length n, contiguous rows of R, in place */
+    fftw_plan cf, cb;      /* y pass: h transforms of length n down the columns of Z (stride h + 1), in place */
 } layer;
 
 struct wt_shift {
     wt_context *ctx;
     int L, nthreads;
     layer *lay;
-    double *work;       /* per thread: the largest n² */
-    fftw_complex *spec; /* per thread: the largest n (n/2 + 1) */
-    size_t nwork, nspec;
+    int *order;        /* the layers, largest first (the schedule hands them out in this order) */
+    fftw_complex *rbuf; /* per thread: R, the largest h × n */
+    fftw_complex *zbuf; /* per thread: Z, the largest n × (h + 1) */
+    size_t nr, nz;
 };
 
 void wt_shift_free(wt_shift *s)
 {
     if (!s) return;
     for (int l = 0; l < s->L && s->lay; l++) {
-        if (s->lay[l].r2c) fftw_destroy_plan(s->lay[l].r2c);
-        if (s->lay[l].c2r) fftw_destroy_plan(s->lay[l].c2r);
-        fftw_free(s->lay[l].ramp);
+        layer *y = &s->lay[l];
+        if (y->rf) fftw_destroy_plan(y->rf);
+        if (y->rb) fftw_destroy_plan(y->rb);
+        if (y->cf) fftw_destroy_plan(y->cf);
+        if (y->cb) fftw_destroy_plan(y->cb);
+        fftw_free(y->mx);
+        fftw_free(y->my);
     }
     wt_free(s->ctx, s->lay);
-    fftw_free(s->work);
-    fftw_free(s->spec);
+    wt_free(s->ctx, s->order);
+    fftw_free(s->rbuf);
+    fftw_free(s->zbuf);
     wt_free(s->ctx, s);
+}
+
+/* e^{−i a k} / n over the DFT's k = 0..n−1 (frequency k − n above n/2); at Nyquist its real part (the mean of
+ * ±n/2, which a real field's spectrum cannot tell apart) */
+static void ramp(int n, double a, fftw_complex *m)
+{
+    for (int k = 0; k < n; k++) {
+        const int f = k <= n / 2 ? k : k - n;
+        m[k][0] = cos(a * f) / n;
+        m[k][1] = k == n / 2 ? 0.0 : -sin(a * f) / n;
+    }
 }
 
 int wt_shift_alloc(wt_context *ctx, int L, const wt_grid *const *g, const int64_t *offset, const double *sx,
@@ -63,42 +98,43 @@ int wt_shift_alloc(wt_context *ctx, int L, const wt_grid *const *g, const int64_
     s->ctx = ctx;
     s->L = L;
     WT_ALLOC(ctx, s->lay, L, "shift layers");
-    /* the layers run on the context's threads, one layer each: a work pair per thread (the plans are
-     * executed on any thread's arrays with FFTW's new-array functions; fftw_alloc aligns them alike) */
+    WT_ALLOC(ctx, s->order, L, "shift layer order");
+    /* the plans are executed on any thread's scratch with FFTW's new-array functions: fftw_alloc aligns every
+     * thread's part alike (whole complex numbers apart) */
     s->nthreads = wt_context_threads(ctx) > 1 ? wt_context_threads(ctx) : 1;
-    s->nwork = (size_t)nmax * nmax, s->nspec = (size_t)nmax * (nmax / 2 + 1);
-    s->work = fftw_alloc_real(s->nwork * s->nthreads);
-    s->spec = fftw_alloc_complex(s->nspec * s->nthreads);
-    if (!s->work || !s->spec) {
+    s->nr = (size_t)(nmax / 2) * nmax, s->nz = (size_t)nmax * (nmax / 2 + 1);
+    s->rbuf = fftw_alloc_complex(s->nr * s->nthreads);
+    s->zbuf = fftw_alloc_complex(s->nz * s->nthreads);
+    if (!s->rbuf || !s->zbuf) {
         st = WT_ERROR(ctx, WT_ERR_NOMEM, "shift: out of memory for the %d x %d work arrays", nmax, nmax);
         goto fail;
     }
     for (int l = 0; l < L; l++) {
         layer *y = &s->lay[l];
-        const int n = g[l]->nx, nh = n / 2 + 1;
+        const int n = g[l]->nx, h = n / 2;
         y->n = n;
         y->offset = offset[l];
+        /* largest first, ties in layer order (an insertion into the sorted prefix) */
+        int k = l;
+        while (k > 0 && s->lay[s->order[k - 1]].n < n) s->order[k] = s->order[k - 1], k--;
+        s->order[k] = l;
         if (sx[l] == 0.0 && sy[l] == 0.0) continue;
-        y->ramp = fftw_alloc_complex((size_t)n * nh);
-        y->r2c = fftw_plan_dft_r2c_2d(n, n, s->work, s->spec, FFTW_ESTIMATE);
-        y->c2r = fftw_plan_dft_c2r_2d(n, n, s->spec, s->work, FFTW_ESTIMATE);
-        if (!y->ramp || !y->r2c || !y->c2r) {
-            st = WT_ERROR(ctx, WT_ERR_LIBRARY, "shift: FFTW plans or ramp for layer %d (%d x %d) failed", l + 1, n, n);
+        y->mx = fftw_alloc_complex(n);
+        y->my = fftw_alloc_complex(n);
+        const int len[1] = {n};
+        y->rf = fftw_plan_many_dft(1, len, h, s->rbuf, NULL, 1, n, s->rbuf, NULL, 1, n, FFTW_FORWARD, FFTW_ESTIMATE);
+        y->rb = fftw_plan_many_dft(1, len, h, s->rbuf, NULL, 1, n, s->rbuf, NULL, 1, n, FFTW_BACKWARD, FFTW_ESTIMATE);
+        y->cf = fftw_plan_many_dft(1, len, h, s->zbuf, NULL, h + 1, 1, s->zbuf, NULL, h + 1, 1, FFTW_FORWARD,
+                                   FFTW_ESTIMATE);
+        y->cb = fftw_plan_many_dft(1, len, h, s->zbuf, NULL, h + 1, 1, s->zbuf, NULL, h + 1, 1, FFTW_BACKWARD,
+                                   FFTW_ESTIMATE);
+        if (!y->mx || !y->my || !y->rf || !y->rb || !y->cf || !y->cb) {
+            st = WT_ERROR(ctx, WT_ERR_LIBRARY, "shift: FFTW plans or ramps for layer %d (%d x %d) failed", l + 1, n, n);
             goto fail;
         }
-        /* row-major n × n: the r2c's last (contiguous) index is x, the first y; frequencies k ∈ (−n/2, n/2] */
-        const double ax = 2.0 * M_PI * sx[l] / (n * g[l]->dx), ay = 2.0 * M_PI * sy[l] / (n * g[l]->dx);
-        for (int iy = 0; iy < n; iy++) {
-            const int ky = iy <= n / 2 ? iy : iy - n;
-            /* along an axis at its Nyquist frequency the ramp is its real part (the mean of ±n/2, which a
-             * real field's spectrum cannot tell apart) */
-            const double fyr = cos(ay * ky), fyi = iy == n / 2 ? 0.0 : -sin(ay * ky);
-            for (int ix = 0; ix < nh; ix++) {
-                const double fxr = cos(ax * ix), fxi = ix == n / 2 ? 0.0 : -sin(ax * ix);
-                y->ramp[(size_t)iy * nh + ix][0] = (fxr * fyr - fxi * fyi) / ((double)n * n);
-                y->ramp[(size_t)iy * nh + ix][1] = (fxr * fyi + fxi * fyr) / ((double)n * n);
-            }
-        }
+        /* row-major n × n: x is the contiguous index */
+        ramp(n, 2.0 * M_PI * sx[l] / (n * g[l]->dx), y->mx);
+        ramp(n, 2.0 * M_PI * sy[l] / (n * g[l]->dx), y->my);
     }
     *out = s;
     return WT_OK;
@@ -107,33 +143,71 @@ fail:
     return st;
 }
 
-void wt_shift_apply(wt_shift *s, double *phi)
+static inline void cmul(fftw_complex z, const fftw_complex m)
+{
+    const double a = z[0], b = z[1];
+    z[0] = a * m[0] - b * m[1];
+    z[1] = a * m[1] + b * m[0];
+}
+
+/* One moving layer, in → out (the same array or apart), with one thread's scratch R and Z */
+static void shift_layer(const layer *y, const double *in, double *out, fftw_complex *R, fftw_complex *Z)
+{
+    const int n = y->n, h = n / 2, zs = h + 1;
+    for (int r = 0; r < h; r++) {
+        const double *a = in + (size_t)r * n, *b = in + (size_t)(r + h) * n;
+        fftw_complex *z = R + (size_t)r * n;
+        for (int x = 0; x < n; x++) z[x][0] = a[x], z[x][1] = b[x];
+    }
+    fftw_execute_dft(y->rf, R, R);
+    for (int r = 0; r < h; r++) {
+        fftw_complex *z = R + (size_t)r * n;
+        for (int k = 0; k < n; k++) cmul(z[k], y->mx[k]);
+    }
+    fftw_execute_dft(y->rb, R, R);
+    for (int r = 0; r < h; r++) {
+        const fftw_complex *w = R + (size_t)r * n;
+        fftw_complex *za = Z + (size_t)r * zs, *zb = Z + (size_t)(r + h) * zs;
+        for (int c = 0; c < h; c++) {
+            za[c][0] = w[c][0], za[c][1] = w[c + h][0];
+            zb[c][0] = w[c][1], zb[c][1] = w[c + h][1];
+        }
+    }
+    fftw_execute_dft(y->cf, Z, Z);
+    for (int k = 0; k < n; k++) {
+        fftw_complex *z = Z + (size_t)k * zs;
+        for (int c = 0; c < h; c++) cmul(z[c], y->my[k]);
+    }
+    fftw_execute_dft(y->cb, Z, Z);
+    for (int r = 0; r < n; r++) {
+        const fftw_complex *z = Z + (size_t)r * zs;
+        double *o = out + (size_t)r * n;
+        for (int c = 0; c < h; c++) o[c] = z[c][0], o[c + h] = z[c][1];
+    }
+}
+
+void wt_shift_apply_to(wt_shift *s, const double *in, double *out)
 {
     const int moving = wt_shift_nmoving(s);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads) if (s->nthreads > 1 && moving > 1 && !omp_in_parallel())
-    for (int l = 0; l < s->L; l++) {
-        const layer *y = &s->lay[l];
-        if (!y->ramp) continue;
-        const int t = wt_thread_id();
-        double *w = s->work + s->nwork * t;
-        fftw_complex *sp = s->spec + s->nspec * t;
-        const size_t n2 = (size_t)y->n * y->n, nc = (size_t)y->n * (y->n / 2 + 1);
-        double *p = phi + y->offset;
-        memcpy(w, p, n2 * sizeof *p);
-        fftw_execute_dft_r2c(y->r2c, w, sp);
-        for (size_t q = 0; q < nc; q++) {
-            const double a = sp[q][0], b = sp[q][1], c = y->ramp[q][0], d = y->ramp[q][1];
-            sp[q][0] = a * c - b * d;
-            sp[q][1] = a * d + b * c;
+    for (int i = 0; i < s->L; i++) {
+        const layer *y = &s->lay[s->order[i]];
+        const double *p = in + y->offset;
+        double *q = out + y->offset;
+        if (!y->mx) {
+            if (q != p) memcpy(q, p, (size_t)y->n * y->n * sizeof *q);
+            continue;
         }
-        fftw_execute_dft_c2r(y->c2r, sp, w);
-        memcpy(p, w, n2 * sizeof *p);
+        const int t = wt_thread_id();
+        shift_layer(y, p, q, s->rbuf + s->nr * t, s->zbuf + s->nz * t);
     }
 }
+
+void wt_shift_apply(wt_shift *s, double *phi) { wt_shift_apply_to(s, phi, phi); }
 
 int wt_shift_nmoving(const wt_shift *s)
 {
     int m = 0;
-    for (int l = 0; l < s->L; l++) m += s->lay[l].ramp != NULL;
+    for (int l = 0; l < s->L; l++) m += s->lay[l].mx != NULL;
     return m;
 }
