@@ -545,7 +545,8 @@ static int write_text(wt_cli *cli, const wt_compare_cases *a, const wt_config *c
             if (run_plot(a, cfg->frames))
                 fprintf(f, "\n\nEvery case over the run, one colour per method and one line style per value of %s: the "
                            "field WFE's rms over a trailing window of %d frames (for a model that changes during the "
-                           "run: a learned atmosphere, a night)%s.\n\n![residual WFE over the run](wfe_over_run.png)",
+                           "run: a learned atmosphere, a night, a sodium layer in time)%s.\n\n"
+                           "![residual WFE over the run](wfe_over_run.png)",
                         a->key, run_window(cfg->frames), a->ns > 1 ? " (first seed)" : "");
             if (run_plot(a, cfg->frames) && oracle_value(a) >= 0)
                 fprintf(f, "\n\nThe same curves minus each method's oracle (the truth compressed onto its layers): what "
@@ -623,7 +624,8 @@ static int extra_plots(wt_cli *cli, const wt_compare_cases *a, const wt_system *
         snprintf(title, sizeof title, "over the run, by %s", dot ? dot + 1 : a->key);
         const wt_night_config *night = &sys->cfg->night;
         wt_plot_run_axis axis = {0.0, 1.0 / sys->cfg->rate, "time [s]"};
-        if (night->source != WT_NIGHT_CFG_NONE) /* a night is read in night time: frames stand for longer */
+        /* a night, or a sodium layer in time, is read in night time: frames stand for longer */
+        if (night->source != WT_NIGHT_CFG_NONE || sys->cfg->sodium_sequence[0])
             axis = (wt_plot_run_axis){night->start / 60.0, night->compression / sys->cfg->rate / 60.0, "night time [min]"};
         st = wt_plot_wfe_run(cli->ctx, path, title, nm, (const char *const *)a->methods, nv, vals, F, y,
                              sys->cfg->settle_frames, run_window(F), &axis, -1);
