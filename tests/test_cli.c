@@ -53,6 +53,19 @@ static long file_size(const char *d, const char *name)
     return stat(p, &sb) == 0 ? (long)sb.st_size : -1;
 }
 
+/* The text of d/name into buf (at most size − 1 bytes, terminated); 0 when it cannot be opened. */
+static int read_text(const char *d, const char *name, char *buf, size_t size)
+{
+    char p[256];
+    snprintf(p, sizeof p, "%s/%s", d, name);
+    FILE *f = fopen(p, "r");
+    if (!f) return 0;
+    const size_t n = fread(buf, 1, size - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    return 1;
+}
+
 static int is_png(const char *d, const char *name)
 {
     char p[256];
@@ -443,7 +456,7 @@ END_TEST
 
 START_TEST(test_info_spots)
 {
-    char out[128], p[256];
+    char out[128];
     snprintf(out, sizeof out, "%s/spots/nested", dir); /* created like mkdir -p */
     ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s", out), 0);
     /* the demo's 16 x 16 cells of 10 px: 4 screen px per detector px, no insets (wt_plot_spots_page) */
@@ -453,13 +466,8 @@ START_TEST(test_info_spots)
     ck_assert_msg(file_size(out, "spots_LGS1.png") > 20000, "spots_LGS1.png is (nearly) empty");
     png_size(out, "gain_LGS1.png", &w, &h);
     ck_assert_msg(w == 1500 && h == 720, "gain_LGS1.png is %u x %u", w, h);
-    snprintf(p, sizeof p, "%s/spots.md", out);
-    FILE *f = fopen(p, "r");
-    ck_assert_ptr_nonnull(f);
     char text[8192] = {0};
-    size_t n = fread(text, 1, sizeof text - 1, f);
-    fclose(f);
-    text[n] = 0;
+    ck_assert(read_text(out, "spots.md", text, sizeof text));
     ck_assert(!strncmp(text, "# wavetomo spot images: LGS1", 28));
     ck_assert(strstr(text, "median NEA") && strstr(text, "worst truncation") && strstr(text, "spots_LGS1.png"));
     /* again into the same directory: ours, replaced; another sensor by name */
@@ -483,12 +491,7 @@ START_TEST(test_info_spots)
     const char *seq = "--set 'lgs.sodium_sequence=\"../sodium/drift-1km-10min.txt\"'";
     snprintf(out, sizeof out, "%s/at600", dir);
     ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz %s --spots %s --time 600", seq, out), 0);
-    snprintf(p, sizeof p, "%s/spots.md", out);
-    f = fopen(p, "r");
-    ck_assert_ptr_nonnull(f);
-    n = fread(text, 1, sizeof text - 1, f);
-    fclose(f);
-    text[n] = 0;
+    ck_assert(read_text(out, "spots.md", text, sizeof text));
     ck_assert(strstr(text, "At night time 600.0 s") && strstr(text, "false signal"));
     snprintf(out, sizeof out, "%s/attime", dir);
     ck_assert_int_eq(run("info data/presets/demo-diffractive.cfg --no-nnz --spots %s --time 50", out), 1);
@@ -506,12 +509,7 @@ START_TEST(test_info_spots)
                      0);
     ck_assert(is_png(out, "spots_LGS1.png") && is_png(out, "gain_LGS1.png"));
     ck_assert(file_size(out, "spots.md") > 500);
-    snprintf(p, sizeof p, "%s/report.md", out);
-    f = fopen(p, "r");
-    ck_assert_ptr_nonnull(f);
-    n = fread(text, 1, sizeof text - 1, f);
-    fclose(f);
-    text[n] = 0;
+    ck_assert(read_text(out, "report.md", text, sizeof text));
     ck_assert(strstr(text, "(spots_LGS1.png)") && strstr(text, "(gain_LGS1.png)"));
     /* without a sweep the table has no sweep column (it would hold nothing), and one method has no difference map */
     ck_assert_msg(strstr(text, "| method | LE Strehl on-axis") && strstr(text, "| pcg3 | 0.") && !strstr(text, "| – |"),

@@ -197,23 +197,28 @@ END_TEST
  * compounds: 0.32 after 2, 0.53 after 8, the sensor going blind to a slope that is there. Asserted: the code's part
  * moves by less than 0.05 from 2 to 8 rebuilds (noise ~0.01), the filter-in-force emulation's grows by more than 0.1
  * (the test's power). */
+/* ws->opd of a tilt (th[k] + ax, th[nsub + k] + ay) [rad] on every subaperture k */
+static void set_tilt(wt_sensing *ws, const double *th, double ax, double ay)
+{
+    const int nsub = ws->nsub, np = ws->np;
+    const double ds = ws->side / np;
+    for (int k = 0; k < nsub; k++)
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++)
+                ws->opd[(size_t)k * np * np + i + (size_t)np * j] =
+                    (float)(ds * ((th[k] + ax) * (i - 0.5 * (np - 1)) + (th[nsub + k] + ay) * (j - 0.5 * (np - 1))));
+}
+
 static double absorbed(rig *r, int in_force, int NREB)
 {
     enum { NFR = 32 };
     wt_sensing *ws = r->ws;
-    const int nsub = ws->nsub, np = ws->np, np2 = np * np;
-    const double ds = ws->side / np, t0 = 0.3 / 206265.0, delta = 2.0e-7;
+    const int nsub = ws->nsub;
+    const double t0 = 0.3 / 206265.0, delta = 2.0e-7;
     double *sl = calloc(2 * (size_t)nsub, sizeof *sl), *sd = calloc(2 * (size_t)nsub, sizeof *sd);
     double *th = malloc(2 * (size_t)nsub * sizeof *th);
     for (int q = 0; q < 2 * nsub; q++) th[q] = ((q * 7919u) % 13u) % 2 ? t0 : -t0;
-    /* the OPD of tilt (θx + ax, θy + ay) on every subaperture */
-#define TILT(ax, ay)                                                                                       \
-    for (int k = 0; k < nsub; k++)                                                                         \
-        for (int j = 0; j < np; j++)                                                                       \
-            for (int i = 0; i < np; i++)                                                                   \
-                ws->opd[(size_t)k * np2 + i + (size_t)np * j] =                                           \
-                    (float)(ds * ((th[k] + (ax)) * (i - 0.5 * (np - 1)) + (th[nsub + k] + (ay)) * (j - 0.5 * (np - 1))))
-    TILT(0.0, 0.0);
+    set_tilt(ws, th, 0.0, 0.0);
     ck_assert_int_eq(wt_sensing_pixels_start(ws), WT_OK);
     uint64_t stream = 0;
     for (int m = 0; m < NREB; m++) {
@@ -235,11 +240,11 @@ static double absorbed(rig *r, int in_force, int NREB)
     double *keep = malloc(2 * (size_t)nsub * sizeof *keep);
     memcpy(keep, th, 2 * (size_t)nsub * sizeof *th);
     memset(th, 0, 2 * (size_t)nsub * sizeof *th);
-    TILT(0.0, 0.0);
+    set_tilt(ws, th, 0.0, 0.0);
     ck_assert_int_eq(wt_sensing_detect(ws, 0, 0, 0, sl), WT_OK);
     double num = 0.0, den = 0.0;
     for (int axis = 0; axis < 2; axis++) {
-        TILT(axis == 0 ? delta : 0.0, axis == 1 ? delta : 0.0);
+        set_tilt(ws, th, axis == 0 ? delta : 0.0, axis == 1 ? delta : 0.0);
         ck_assert_int_eq(wt_sensing_detect(ws, 0, 0, 0, sd), WT_OK);
         for (int k = 0; k < nsub; k++) {
             const int q = axis * nsub + k;
@@ -248,7 +253,6 @@ static double absorbed(rig *r, int in_force, int NREB)
             num += -sl[q] / g * keep[q], den += keep[q] * keep[q];
         }
     }
-#undef TILT
     ws->pix_acc = acc;
     ck_assert_int_eq(wt_sensing_restore(ws), WT_OK);
     free(sl), free(sd), free(th), free(keep);

@@ -1,8 +1,10 @@
 /* core/model/sensing_reference.c: the diffractive sensor when the sodium layer changes (sensing.h, SPEC §12 "The
  * sodium layer changes too"): the truth's spot tables of a new profile, a reference rebuilt in the loop (the
  * oracle's from the spot model, the one of the loop's own pixels, any other from given images), and the way back to
- * the set-up's state. The pixels' reference: I0 = max(Σ_f J_f / n, 0), J_f frame f's image shifted by −s_f / p
- * (shift.h: cubic B-spline, accumulated as T_u I_f and interpolated once), ∂I0/∂θ = ∂I0/∂u / p. */
+ * the set-up's state. The pixels' reference: with M = Σ_f J_f / n, J_f frame f's image shifted by −s_f / p (s_f the
+ * set-up filter's slopes of it; shift.h: cubic B-spline, accumulated as T_u I_f and interpolated once), Δ = M − I0_s
+ * (I0_s the set-up image) and σ² = (max(M, 0) + B + σe²)/n per pixel, I0 = max(I0_s + Δ (1 − k²σ²/Δ²)₊, 0), and
+ * ∂I0/∂θ = S(I0)/p + ∂I0_s/∂θ − S(I0_s)/p (sensing.h). */
 #include "sensing.h"
 
 #include <math.h>
