@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "../core/io/h5.h"
+#include "../core/model/profile.h"
 #include "../core/model/reconstructor.h"
 #include "../core/op/noise.h"
 #include "../sim/loop.h"
@@ -116,6 +117,46 @@ double wt_budget_servo_band_limited(const wt_config *cfg)
                 double kx = -kc + (ix + 0.5) * h, ky = -kc + (iy + 0.5) * h, f = fabs(kx * vx + ky * vy);
                 double e = f > 0.0 ? rejection(cfg->gain, cfg->rate, cfg->delay, fmin(f, 0.5 * cfg->rate)) : 0.0;
                 sl += pow(kx * kx + ky * ky + k0, -11.0 / 6.0) * e * e;
+            }
+        s += cfg->layer_fraction[l] * a * sl * h * h;
+    }
+    return rad2_to_nm(cfg, s);
+}
+
+double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_variant_config *var)
+{
+    enum { N = 400 }; /* as wt_budget_servo_band_limited */
+    const int n = cfg->nlayers, L = var ? var->nlayers : 0;
+    const double r0 = r0_at(cfg), a = 0.0229 * pow(r0, -5.0 / 3.0), k0 = 1.0 / (cfg->L0 * cfg->L0), g = cfg->gain;
+    const double tau = (cfg->predict_lead_frames > 0.0 ? cfg->predict_lead_frames : (double)cfg->delay) / cfg->rate;
+    double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS], rf[WT_MAX_LAYERS], rvx[WT_MAX_LAYERS], rvy[WT_MAX_LAYERS];
+    for (int l = 0; l < n; l++)
+        vx[l] = cfg->wind_speed[l] * cos(cfg->wind_direction[l]), vy[l] = cfg->wind_speed[l] * sin(cfg->wind_direction[l]);
+    if (var) wt_profile_compress(n, cfg->layer_altitude, cfg->layer_fraction, vx, vy, L, var->altitudes, rf, rvx, rvy);
+    double s = 0.0;
+    for (int l = 0; l < n; l++) {
+        int k = 0;
+        for (int q = 1; q < cfg->ndms; q++)
+            if (fabs(cfg->dm_altitude[q] - cfg->layer_altitude[l]) < fabs(cfg->dm_altitude[k] - cfg->layer_altitude[l])) k = q;
+        /* the reconstruction layers this one is split onto, and their winds: P(κ) = Σ_j w_j exp(2πi κ·v̄_j τ) */
+        int j = 0, nj = 1;
+        double wj[2] = {1.0, 0.0}, ux[2] = {vx[l], 0.0}, uy[2] = {vy[l], 0.0};
+        if (var) {
+            double w;
+            wt_profile_bin_altitude(L, var->altitudes, cfg->layer_altitude[l], &j, &w);
+            wj[0] = 1.0 - w, wj[1] = w, ux[0] = rvx[j], uy[0] = rvy[j], nj = w > 0.0 ? 2 : 1;
+            if (nj == 2) ux[1] = rvx[j + 1], uy[1] = rvy[j + 1];
+        }
+        const double kc = 0.5 / cfg->dm_pitch[k], h = 2.0 * kc / N;
+        double sl = 0.0;
+        for (int iy = 0; iy < N; iy++)
+            for (int ix = 0; ix < N; ix++) {
+                const double kx = -kc + (ix + 0.5) * h, ky = -kc + (iy + 0.5) * h;
+                const double complex z = cexp(2.0 * M_PI * I * (kx * vx[l] + ky * vy[l]) / cfg->rate);
+                double complex P = 0.0;
+                for (int q = 0; q < nj; q++) P += wj[q] * cexp(2.0 * M_PI * I * (kx * ux[q] + ky * uy[q]) * tau);
+                const double complex zd = cpow(z, cfg->delay), e = 1.0 - g * P / (zd - zd / z + g);
+                sl += pow(kx * kx + ky * ky + k0, -11.0 / 6.0) * creal(e * conj(e));
             }
         s += cfg->layer_fraction[l] * a * sl * h * h;
     }
@@ -378,6 +419,11 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
             if (k != WT_BUDGET_FITTING) r->analytic_hi[k] = r->analytic[k];
         r->fitting_ground = wt_budget_fitting_analytic(cfg, 0.23, 1);
         r->servo_band = servo_band;
+        r->servo_band_predicted = r->servo_band_own_winds = NAN;
+        if (cfg->predict && (recon[m] == WT_RECON_PCG3 || recon[m] == WT_RECON_CG9)) {
+            r->servo_band_predicted = wt_budget_servo_band_predicted(cfg, recon[m] == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9);
+            r->servo_band_own_winds = wt_budget_servo_band_predicted(cfg, NULL);
+        }
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +
                     signed_square(r->term[WT_BUDGET_SERVO]) + (isfinite(r->term[WT_BUDGET_POLC]) ? signed_square(r->term[WT_BUDGET_POLC]) : 0.0) +
                     signed_square(r->term[WT_BUDGET_NOISE_OL]) * gain_n;
@@ -465,6 +511,15 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
             cfg->r0 * pow(cfg->eval_wavelength / 500e-9, 1.2), cfg->eval_wavelength * 1e9, r0->fitting_ground,
             wt_budget_greenwood(cfg), wt_budget_f3db(cfg->gain, cfg->rate, cfg->delay), cfg->gain, cfg->rate,
             cfg->delay, r0->servo_band, r0->run[WT_BUDGET_RUN_NOISE].frames, cfg->noise ? "per method" : "noise off: none");
+    for (int m = 0; m < nmethods; m++)
+        if (isfinite(res[m].servo_band_predicted))
+            fprintf(f, "With recon.predict, %s: the band-limited lag (the same analytic form) with each of its layers moved by "
+                       "the Cn²-weighted wind of the truth's layers it holds is %.1f nm, were each atmospheric layer moved by "
+                       "its own wind %.1f nm: the compression's part, which no shift of the reconstruction layers removes, "
+                       "%.1f nm in quadrature (of the %.1f nm without prediction).\n\n",
+                    methods[m], res[m].servo_band_predicted, res[m].servo_band_own_winds,
+                    sqrt(fmax(res[m].servo_band_predicted * res[m].servo_band_predicted -
+                              res[m].servo_band_own_winds * res[m].servo_band_own_winds, 0.0)), r0->servo_band);
     fprintf(f, "Runs (field WFE / tip-tilt / rim part, nm; frames averaged):\n\n| run |");
     for (int m = 0; m < nmethods; m++) fprintf(f, " %s |", methods[m]);
     fprintf(f, "\n|---|");
@@ -508,6 +563,10 @@ int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *
         }
         snprintf(name, sizeof name, "%s/servo", methods[m]);
         if (st >= 0) st = wt_h5_attr_write_double(w, name, "analytic_band_limited_nm", r->servo_band);
+        if (st >= 0 && isfinite(r->servo_band_predicted))
+            st = wt_h5_attr_write_double(w, name, "analytic_band_limited_predicted_nm", r->servo_band_predicted);
+        if (st >= 0 && isfinite(r->servo_band_own_winds))
+            st = wt_h5_attr_write_double(w, name, "analytic_band_limited_own_winds_nm", r->servo_band_own_winds);
         for (int k = 0; k < WT_BUDGET_NRUNS && st >= 0; k++) {
             const wt_budget_run *u = &r->run[k];
             if (k == WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT && !isfinite(r->term[WT_BUDGET_SERVO_NO_PREDICT])) continue;

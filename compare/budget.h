@@ -18,9 +18,11 @@
  *                no exact POLC run: their servo is σ²_CL,nf − σ²_OL,nf and polc is NaN
  *   with recon.predict (the reconstructed layers moved by their wind over the delay), the instantaneous runs
  *   without it (no delay to predict over: an open loop that predicted would add the shift as an error), and
- *   servo        as above, the closed loop with prediction: the lag that prediction leaves (the integrator's
- *                averaging, the wind of the compressed layers that is not each atmospheric layer's, and any
- *                evolution that is not frozen flow — none in this simulator's atmosphere)
+ *   servo        as above, the closed loop with prediction: the lag that prediction leaves (the wind of the
+ *                compressed layers that is not each atmospheric layer's, the integrator's response to a predicted
+ *                input, the reconstruction's own error moved with the layers, and any evolution that is not
+ *                frozen flow — none in this simulator's atmosphere); the first two analytic, band-limited:
+ *                wt_budget_servo_band_predicted
  *   servo_no_predict  σ²_CL,nf,S,np − σ²_OL,nf: the same exact-POLC closed loop without prediction (the servo
  *                term of the budget without recon.predict, to the bit)
  *   servo_predicted   servo_no_predict² − servo²: the lag prediction removed (NaN both without recon.predict
@@ -98,6 +100,9 @@ typedef struct wt_budget_result {
     double analytic_hi[WT_BUDGET_NTERMS]; /* upper end of a range (fitting: κ = 0.28), else = analytic */
     double fitting_ground;              /* ground-DM-only analytic fitting, κ = 0.23 [nm] */
     double servo_band;                  /* band-limited servo estimate (wt_budget_servo_band_limited) [nm] */
+    double servo_band_predicted;        /* with recon.predict (pcg3, cg9; else NaN): the same with the method's layers
+                                           moved by their compressed winds (wt_budget_servo_band_predicted) [nm] */
+    double servo_band_own_winds;        /* … and with each atmospheric layer moved by its own wind [nm] */
     double sum;                         /* the closure's quadrature sum [nm] */
     double closure;                     /* sum / total − 1 */
 } wt_budget_result;
@@ -155,6 +160,17 @@ double wt_budget_servo_analytic(const wt_config *cfg);
  * rad² per (cycles/m)²), E the rejection above: Greenwood's formula counts the lag of all frequencies,
  * most of which no DM corrects (they are in the fitting term). */
 double wt_budget_servo_band_limited(const wt_config *cfg);
+/* The same lag when the reconstruction is predicted over the lead τ (recon.predict_lead_frames, else the delay d):
+ * layer ℓ, split onto the reconstruction layers j of var with the weights w_ℓj of the oracle's compression
+ * (core/model/profile.h), is moved by P_ℓ(κ) = Σ_j w_ℓj exp(2πi κ·v̄_j τ), v̄_j the Cn²-weighted wind the layer j
+ * holds, and its rejection becomes E = 1 − g P / (z^d − z^(d−1) + g), z = exp(2πi κ·v_ℓ / f_s) (P = 1: the rejection
+ * above; P = z^d, the layer's own wind over the delay, leaves the integrator's averaging only). var NULL: each
+ * atmospheric layer moved by its own wind. The difference in quadrature between the two is the part of the lag the
+ * compressed layers cannot express, whatever shift they are given (issue 36 item 3; SPEC §12): on the E-ELT's 9
+ * layers onto PCG-3's 3, over a pure delay of 4–6 ms, a shift by the Cn²-weighted mean wind leaves 0.490 of the lag
+ * variance and the best linear predictor of each layer alone (the Cn²-weighted mean of its components' phasors)
+ * 0.488 (docs/results.md §73). */
+double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_variant_config *var);
 /* Σ_k h_k²: the variance gain of white measurement noise through the loop's integrator with delay d
  * (impulse response h of a_{t+d} = a_{t+d−1} + g (n_t − a_t)); g/(2−g) for d = 1 (= wt_noise_loop_gain). */
 double wt_budget_noise_gain(double gain, int delay);

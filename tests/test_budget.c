@@ -190,6 +190,35 @@ START_TEST(test_analytic)
 }
 END_TEST
 
+/* The band-limited lag with prediction (wt_budget_servo_band_predicted) in three cases with a closed form: two
+ * layers of equal Cn² at 0 and 1 km moving in opposite directions (10 m/s towards 0° and 180°), (a) held by one
+ * reconstruction layer: its Cn²-weighted wind is 0, the shift nothing, P = 1, so the lag is the one without prediction
+ * (wt_budget_servo_band_limited, a real-valued |E|²: to 1e-9, the two sums' rounding); (b) held by reconstruction
+ * layers at their own altitudes: each moved by its own wind, the same as var = NULL to rounding; (c) the lag each
+ * own wind leaves is the integrator's averaging only, |E|² → ω²(1 − g d)²/g² against ω²/g² without prediction at
+ * low temporal frequency ω: (1 − 0.4·2)² = 0.04 of the variance, and no more than 0.2 of it over the DM's band
+ * (measured 0.041; the band's highest ω = 2π 10 / 500 = 0.13 rad keeps the expansion within a few %). */
+START_TEST(test_servo_band_predicted)
+{
+    wt_context *ctx = tu_context();
+    const char *set[] = {"atmosphere.altitudes_m=[0.0, 1000.0]", "atmosphere.cn2_fractions=[0.5, 0.5]",
+                         "atmosphere.wind_speed_mps=[10.0, 10.0]", "atmosphere.wind_direction_deg=[0.0, 180.0]",
+                         "recon.cg9.layer_altitudes_m=[0.0, 1000.0]", "recon.cg9.layer_spacing_m=[0.5, 0.5]",
+                         "recon.cg9.layer_size=[32, 32]", "recon.predict=true"};
+    wt_config *cfg;
+    ck_assert_msg(wt_config_read(ctx, DEMO, 8, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    wt_recon_variant_config one = {.nlayers = 1, .altitudes = {0.0}};
+    const double none = wt_budget_servo_band_limited(cfg), held = wt_budget_servo_band_predicted(cfg, &one);
+    ck_assert_rel(held, none, 1e-9, 0.0);
+    const double own = wt_budget_servo_band_predicted(cfg, NULL), own9 = wt_budget_servo_band_predicted(cfg, &cfg->cg9);
+    ck_assert_rel(own9, own, 1e-12, 0.0);
+    ck_assert_msg(own * own < 0.2 * none * none && own * own > 0.03 * none * none,
+                  "own winds leave %.3f of the lag variance (0.04 expected at low frequency)", own * own / (none * none));
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 Suite *make_suite(void);
 Suite *make_suite(void)
 {
@@ -197,6 +226,7 @@ Suite *make_suite(void)
     TCase *tc = tcase_create("budget");
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, test_analytic);
+    tcase_add_test(tc, test_servo_band_predicted);
     tcase_add_test(tc, test_fitting_single_layer);
     tcase_add_test(tc, test_noise_off);
     tcase_add_test(tc, test_terms_add_up);
