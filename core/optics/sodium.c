@@ -2,6 +2,8 @@
  * text file or built as a Gaussian layer, and its exact piecewise-linear moments (mass, centroid, FWHM). */
 #include "sodium.h"
 
+#include "../base/numbers.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -73,53 +75,36 @@ int wt_sodium_from_table(wt_context *ctx, int n, const double *alt, const double
     return make(ctx, n, alt, dens, out);
 }
 
+#define PROFILE_EXPECTED "(a sodium profile: \"altitude_m density\" per line)"
+
 int wt_sodium_read(wt_context *ctx, const char *path, wt_sodium **out)
 {
     *out = NULL;
     FILE *f = fopen(path, "r");
     if (!f) return WT_ERROR(ctx, WT_ERR_IO, "sodium profile %s: cannot open: %s", path, strerror(errno));
+    static const char *const names[] = {"altitude [m]", "density"};
     int st = WT_OK, n = 0, cap = 0, lineno = 0;
-    double *alt = NULL, *dens = NULL;
+    double *alt = NULL, *dens = NULL, *v = NULL;
     int *lines = NULL;
-    char buf[1024];
-    while (fgets(buf, sizeof buf, f)) {
+    long vcap = 0;
+    char *buf = NULL;
+    size_t bcap = 0;
+    while (getline(&buf, &bcap, f) >= 0) {
         lineno++;
-        if (!strchr(buf, '\n') && !feof(f)) {
-            st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium profile %s:%d: line longer than %zu characters", path,
-                          lineno, sizeof buf - 2);
+        const wt_numbers_where w = {path, lineno, 1, names, 2, PROFILE_EXPECTED, WT_ERR_INVALID};
+        const long nf = wt_read_numbers(ctx, buf, &w, &v, &vcap);
+        if (nf < 0) {
+            st = (int)nf;
             goto fail;
         }
-        char *hash = strchr(buf, '#');
-        if (hash) *hash = '\0';
-        char *p = buf, *end;
-        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
-        if (!*p) continue;
-        double v[2];
-        for (int k = 0; k < 2; k++) {
-            errno = 0;
-            v[k] = strtod(p, &end);
-            if (end == p || errno == ERANGE || !isfinite(v[k]) ||
-                (*end && *end != ' ' && *end != '\t' && *end != '\r' && *end != '\n')) {
-                st = WT_ERROR(ctx, WT_ERR_INVALID,
-                              "sodium profile %s:%d: field %d is not a finite number (expected \"altitude_m "
-                              "density\")",
-                              path, lineno, k + 1);
-                goto fail;
-            }
-            p = end;
-            while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
-            if (k == 0 && !*p) {
-                st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium profile %s:%d: one field; expected \"altitude_m density\"",
-                              path, lineno);
-                goto fail;
-            }
-        }
-        if (*p) {
-            st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium profile %s:%d: more than two fields", path, lineno);
+        if (nf == 0) continue;
+        if (nf != 2) {
+            st = WT_ERROR(ctx, WT_ERR_INVALID, "sodium profile %s:%d: %s; expected \"altitude_m density\"", path, lineno,
+                          nf == 1 ? "one field" : "more than two fields");
             goto fail;
         }
         if (n == cap) {
-            int nc = cap ? 2 * cap : 64;
+            const int nc = cap ? 2 * cap : 64;
             double *a2 = wt_malloc(ctx, (size_t)nc, sizeof *a2), *d2 = wt_malloc(ctx, (size_t)nc, sizeof *d2);
             int *l2 = wt_malloc(ctx, (size_t)nc, sizeof *l2);
             if (!a2 || !d2 || !l2) {
@@ -150,6 +135,8 @@ int wt_sodium_read(wt_context *ctx, const char *path, wt_sodium **out)
     WT_TRY(make(ctx, n, alt, dens, out));
 fail:
     fclose(f);
+    free(buf); /* getline's buffer comes from malloc */
+    wt_free(ctx, v);
     wt_free(ctx, alt), wt_free(ctx, dens), wt_free(ctx, lines);
     return st;
 }
