@@ -51,15 +51,22 @@ void wt_budget_options_default(wt_budget_options *o, uint64_t seed)
 static double r0_at(const wt_config *cfg) { return cfg->r0 * pow(cfg->eval_wavelength / 500e-9, 1.2); }
 static double rad2_to_nm(const wt_config *cfg, double rad2) { return sqrt(rad2) * cfg->eval_wavelength / (2.0 * M_PI) * 1e9; }
 
+/* the DM nearest in altitude to h (the one that corrects a layer there; the first of two equally near) */
+static int nearest_dm(const wt_config *cfg, double h)
+{
+    int k = 0;
+    for (int q = 1; q < cfg->ndms; q++)
+        if (fabs(cfg->dm_altitude[q] - h) < fabs(cfg->dm_altitude[k] - h)) k = q;
+    return k;
+}
+
 double wt_budget_fitting_analytic(const wt_config *cfg, double kappa, int ground_only)
 {
     const double r0 = r0_at(cfg);
     if (ground_only) return rad2_to_nm(cfg, kappa * pow(cfg->dm_pitch[0] / r0, 5.0 / 3.0));
     double s = 0.0;
     for (int l = 0; l < cfg->nlayers; l++) {
-        int k = 0; /* the DM nearest in altitude corrects the layer */
-        for (int q = 1; q < cfg->ndms; q++)
-            if (fabs(cfg->dm_altitude[q] - cfg->layer_altitude[l]) < fabs(cfg->dm_altitude[k] - cfg->layer_altitude[l])) k = q;
+        const int k = nearest_dm(cfg, cfg->layer_altitude[l]); /* the DM nearest in altitude corrects the layer */
         s += cfg->layer_fraction[l] * pow(cfg->dm_pitch[k] / r0, 5.0 / 3.0);
     }
     return rad2_to_nm(cfg, kappa * s);
@@ -106,9 +113,7 @@ double wt_budget_servo_band_limited(const wt_config *cfg)
     const double r0 = r0_at(cfg), a = 0.0229 * pow(r0, -5.0 / 3.0), k0 = 1.0 / (cfg->L0 * cfg->L0);
     double s = 0.0;
     for (int l = 0; l < cfg->nlayers; l++) {
-        int k = 0;
-        for (int q = 1; q < cfg->ndms; q++)
-            if (fabs(cfg->dm_altitude[q] - cfg->layer_altitude[l]) < fabs(cfg->dm_altitude[k] - cfg->layer_altitude[l])) k = q;
+        const int k = nearest_dm(cfg, cfg->layer_altitude[l]);
         const double kc = 0.5 / cfg->dm_pitch[k], h = 2.0 * kc / N;
         const double vx = cfg->wind_speed[l] * cos(cfg->wind_direction[l]), vy = cfg->wind_speed[l] * sin(cfg->wind_direction[l]);
         double sl = 0.0;
@@ -135,9 +140,7 @@ double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_varia
     if (var) wt_profile_compress(n, cfg->layer_altitude, cfg->layer_fraction, vx, vy, L, var->altitudes, rf, rvx, rvy);
     double s = 0.0;
     for (int l = 0; l < n; l++) {
-        int k = 0;
-        for (int q = 1; q < cfg->ndms; q++)
-            if (fabs(cfg->dm_altitude[q] - cfg->layer_altitude[l]) < fabs(cfg->dm_altitude[k] - cfg->layer_altitude[l])) k = q;
+        const int k = nearest_dm(cfg, cfg->layer_altitude[l]);
         /* the reconstruction layers this one is split onto, and their winds: P(κ) = Σ_j w_j exp(2πi κ·v̄_j τ) */
         int j = 0, nj = 1;
         double wj[2] = {1.0, 0.0}, ux[2] = {vx[l], 0.0}, uy[2] = {vy[l], 0.0};
@@ -346,6 +349,8 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
             if (sys->sensors[i].diffr) olmode = WT_LOOP_OPEN_POLC;
     }
     const double gain_n = wt_budget_noise_gain(cfg->gain, cfg->delay), servo_band = wt_budget_servo_band_limited(cfg);
+    /* with prediction, the lag each atmospheric layer's own wind leaves: the same for every method */
+    const double servo_own = cfg->predict ? wt_budget_servo_band_predicted(cfg, NULL) : NAN;
     for (int m = 0; m < nmethods; m++) {
         wt_budget_result *r = &res[m];
         memset(r, 0, sizeof *r);
@@ -422,7 +427,7 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->servo_band_predicted = r->servo_band_own_winds = NAN;
         if (cfg->predict && (recon[m] == WT_RECON_PCG3 || recon[m] == WT_RECON_CG9)) {
             r->servo_band_predicted = wt_budget_servo_band_predicted(cfg, recon[m] == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9);
-            r->servo_band_own_winds = wt_budget_servo_band_predicted(cfg, NULL);
+            r->servo_band_own_winds = servo_own;
         }
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +
                     signed_square(r->term[WT_BUDGET_SERVO]) + (isfinite(r->term[WT_BUDGET_POLC]) ? signed_square(r->term[WT_BUDGET_POLC]) : 0.0) +
