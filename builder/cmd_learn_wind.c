@@ -42,8 +42,8 @@ void wt_learn_wind_print(const wt_learn_wind *wd, const wt_config *use, const wt
 {
     printf("  wind: lags");
     for (int q = 0; q < wd->nlag; q++) printf(" %d", wd->lag[q]);
-    printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, %d layer(s) dropped (past 60 m/s), fit %.2f s\n",
-           1e3 * wd->dt, wd->residual, wd->iterations, wd->dropped, fit_s);
+    printf(" frames of %.3g ms, relative misfit %.3f, %d iterations, %d layer(s) dropped (past 60 m/s), %d split off (a peak's strong bins with their own wind), fit %.2f s\n",
+           1e3 * wd->dt, wd->residual, wd->iterations, wd->dropped, wd->split, fit_s);
     /* the truth binned onto the grid the same way (each truth layer split between its two nearest altitudes) */
     double tvx[WT_MAX_LAYERS], tvy[WT_MAX_LAYERS], gf[WT_LEARN_MAX_ALT], gvx[WT_LEARN_MAX_ALT], gvy[WT_LEARN_MAX_ALT];
     truth_vectors(tcfg, tvx, tvy);

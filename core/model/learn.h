@@ -33,15 +33,17 @@
  * for every ordered pair (i, j) (a lag breaks the symmetry) from a ring of the last k_max frames' spectra. Under
  * frozen flow (screen(x − v t), sim/atmosphere.h) a layer at h moving with v is, k frames later, the same
  * screen moved by v k Δt, so that it adds c_h R_ij^c(δ; h, s = v k Δt) to that map: the response of the
- * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: a layer l is a local maximum of the profile fit's c_h
- * and the bins nearest to it (they share its wind: the grid is finer than the pairs' altitude resolution); with v_l
- * and an amplitude a_l per layer (1 when the lagged maps hold the profile's Cn²),
- *   minimise Σ_{k,i,j,c,δ} w(δ) (C − Σ_l a_l Σ_{h∈l} c_h R(δ; h, v_l k Δt))²,  w = P(δ)/P(0) as for the profile,
- * by Levenberg–Marquardt (derivatives in s analytic), the lags entered one by one from the shortest (its shifts
- * are under a subaperture, so v = 0 is a good start; each longer lag refines the last one's v). Layers holding
- * ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled, not reported. A layer whose
- * wind runs past 60 m/s is not in the lagged maps where its altitude says (Cn² the profile put at the wrong
- * altitude): it is dropped, the others refitted, and it is reported as not fitted.
+ * displacement δ d (1 − h/H) + (θ_j − θ_i) h − s. The fit: the lag-k map less the lag-0 map of the same frames
+ * (the realisation's broad error cancels to first order in s), a layer l a local maximum of the profile fit's c_h
+ * and the bins nearest to it sharing its wind, then each bin of a layer holding ≥ 2 % of the Cn² with its own wind
+ * where that lowers the misfit (bins closer than the pairs' altitude resolution are parted by their motion); with
+ * v_l and an amplitude a_l per layer (1 when the lagged maps hold the profile's Cn²),
+ *   minimise Σ_{k,i,j,c,δ} w(δ) (C_k − C_0 − Σ_l a_l Σ_{h∈l} c_h (R(δ; h, v_l k Δt) − R(δ; h, 0)))²,
+ * w = P(δ)/P(0) as for the profile, by Levenberg–Marquardt (derivatives in s analytic), the lags entered one by
+ * one from the shortest (its shifts are under a subaperture, so v = 0 is a good start; each longer lag refines the
+ * last one's v). Layers holding ≥ min_fraction of the Cn² are reported; those between 2 % and that are modelled,
+ * not reported. A layer whose wind runs past 60 m/s is not in the lagged maps where its altitude says (Cn² the
+ * profile put at the wrong altitude): it is dropped, the others refitted, and it is reported as not fitted.
  *
  * Threads: _add allocates nothing and is not thread-safe on one object; the response maps use the OpenMP team.
  */
@@ -206,6 +208,7 @@ typedef struct wt_learn_wind {
     double residual;                     /* weighted rms misfit / weighted rms of the lagged maps, all frames [-] */
     int iterations;                      /* Levenberg–Marquardt iterations, all frames */
     int dropped;                         /* layers dropped: their wind ran past 60 m/s (then reported as not fitted) */
+    int split;                           /* layers added by giving a peak's strong bins their own wind (0: none) */
     int nbatch;                          /* batches fitted for the spread (0: one batch, no spread) */
     double batch_vx[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT], batch_vy[WT_LEARN_MAX_BATCH][WT_LEARN_MAX_ALT]; /* [m/s] */
 } wt_learn_wind;

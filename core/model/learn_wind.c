@@ -8,19 +8,25 @@
  *
  * R the response of a unit layer at the displacement δ d (1 − h/H) + (θ_j − θ_i) h − s (learn_response.c), c_h the
  * profile fit's, a_l an amplitude per layer (1 when the lagged maps hold the profile fit's Cn²: it frees the wind
- * from that fit's errors, e.g. a layer it under-estimates). The unknowns p = (a_1 … a_L, v_1x, v_1y, …), one a
- * and v per layer (a peak of c_h and the bins around it, sharing them), minimise
+ * from that fit's errors, e.g. a layer it under-estimates). What is fitted is the lag-k map less the lag-0 map of
+ * the same frames, D_k = C(δ; k) − C(δ; 0), against Σ_l a_l Σ_h c_h (R(δ; h, s_l) − R(δ; h, 0)): ε is mostly the
+ * realisation of the large scales, broad in δ and, under frozen flow, the lag-0 error moved by s, so that the
+ * difference cancels it to first order in s and keeps what v moves (load_maps). δ = 0 of the auto pairs is left
+ * out (the lag-0 map holds the noise's variance there). The unknowns p = (a_1 … a_L, v_1x, v_1y, …) minimise
  *
- *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (C − model)²,   w = P(δ)/P(0),
+ *   Φ(p) = Σ_{k,i,j,c,δ ∈ U} w(δ) (D_k − model)²,   w = P(δ)/P(0),
  *
  * by Levenberg–Marquardt on the normal equations (JᵀWJ + λ diag) Δp = JᵀW r; ∂R/∂s analytic (of the tabulated
  * D, through the same linear tip-tilt removal). The layers are fitted jointly: they overlap in every map (their
  * peaks sit (θ_j − θ_i) Δh apart, about a subaperture per km), so one at a time would let the strongest absorb its
- * neighbours. With two layers or more, each starts from a coarse polar search of v (the others held, its best
- * amplitude in closed form), strongest first. The lags then enter one by one from the shortest, each stage
- * starting from the last's v: a stage's new shifts are within a subaperture or so of their final value, where the
- * model is close to linear in v. A layer whose v runs past WIND_PLAUSIBLE is dropped and the others refitted.
- * The uncertainty: each batch fitted from the all-frames solution; the spread of its v over √B.
+ * neighbours. First a layer is a peak of c_h and the bins around it, sharing one v; then each bin of a peak with
+ * ≥ WIND_SPLIT_MIN of the Cn² gets its own (split_peaks: layers closer than the altitude resolution are parted by
+ * their relative motion), kept when it lowers Φ. With two layers or more, a layer starts from a coarse polar
+ * search of v (the others held, its best amplitude in closed form), strongest first. The lags then enter one by
+ * one from the shortest, each stage starting from the last's v: a stage's new shifts are within a subaperture or
+ * so of their final value, where the model is close to linear in v. A layer whose v runs past WIND_PLAUSIBLE is
+ * dropped and the others refitted. The uncertainty: each batch fitted from the all-frames solution; the spread of
+ * its v over √B.
  */
 #include "learn_private.h"
 #include "core/model/profile.h"
@@ -45,7 +51,8 @@
                                 lags: one minimum per layer within the grid's reach, and half the cost of 3) */
 #define WIND_PLAUSIBLE 60.0  /* a layer whose fit runs faster [m/s] is not in the lagged maps where its altitude
                                 says (e.g. Cn² the profile put at the wrong altitude): it is dropped, the others refitted */
-#define WIND_MAX_LAYERS 20   /* layers in the model (peaks of c_h) */
+#define WIND_MAX_LAYERS 20   /* layers in the model (peaks of c_h, or their strong bins after a split) */
+#define WIND_SPLIT_MIN 0.02  /* a bin of a peak with this much of the Cn² may get its own wind (split_peaks) */
 #define WIND_MODEL_MIN 0.02  /* a peak with less of the Cn² is left out of the model: its wind would be noise, and
                                 one above it is modelled (with its own wind) even when too weak to report, so that
                                 its moving structure is not taken up by the layers reported */
@@ -64,11 +71,16 @@ typedef struct {
     int nth;
     wt_learn__rws *ws[WT_LEARN_MAX_THREADS];
     double *rb;                  /* [nth][nb][3][S²] response maps of a block and their ∂/∂s_x, ∂/∂s_y */
-    double *data;                /* [nlag][nlgs][nlgs][2][nu] the maps being fitted */
+    double *data;                /* [nlag][nlgs][nlgs][2][nu] the maps being fitted: lag k's less lag 0's */
+    double *zero;                /* [nlgs][nlgs][2][nu] the lag-0 maps of the same frames */
+    double *r0m;                 /* [nslot][2][nb][nu] each bin's response at s = 0 (the lag-0 map's model) */
+    int u0;                      /* the index of δ = 0 in the used offsets (left out of the auto pairs) */
     double *blk;                 /* [nblock][(3 nl)² + 3 nl + 2] each block's normal equations, cost, norm */
     double *oth;                 /* [nblock][nu] the model of the other layers (the search) */
     double lpf[WIND_MAX_LAYERS]; /* each layer's Cn² fraction (the search's order) */
     int off[WIND_MAX_LAYERS];    /* 1: dropped (its wind ran past WIND_PLAUSIBLE): out of the model */
+    int srch[WIND_MAX_LAYERS];   /* 1: its start is searched (fit_layers) */
+    double bf[WT_LEARN_MAX_ALT]; /* the bins' Cn² fractions */
 } wfit;
 
 
@@ -107,14 +119,15 @@ static void normal_eq(wfit *F, int nq, const double *p, double *A, double *g, do
             int f = F->uoff[u], dx = f % N, dy = f / N;
             dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
             const int o = (dx + L->n - 1) + S * (dy + L->n - 1);
+            if (sl == 0 && u == F->u0) continue; /* the lag-0 auto maps hold the noise's variance there */
             double model = 0;
             for (int x = 0; x < np; x++) J[x] = 0;
             for (int bi = 0; bi < F->nb; bi++) {
                 const double *r = rb + (size_t)bi * 3 * S2 + o, cb = F->bc[bi];
                 const int l = F->bl[bi];
                 if (F->off[l]) continue;
-                /* ∂/∂a_l = Σ_b c_b R_b, ∂/∂v_l = a_l Σ_b c_b k Δt ∂R_b/∂s */
-                J[l] += cb * r[0];
+                /* ∂/∂a_l = Σ_b c_b (R_b(s) − R_b(0)), ∂/∂v_l = a_l Σ_b c_b k Δt ∂R_b/∂s */
+                J[l] += cb * (r[0] - F->r0m[(((size_t)sl * 2 + c) * F->nb + bi) * F->nu + u]);
                 const double fac = p[l] * cb * k * F->dt;
                 J[nl + 2 * l] += fac * r[S2], J[nl + 2 * l + 1] += fac * r[2 * S2];
             }
@@ -221,7 +234,8 @@ static void search_layer(wfit *F, int nq, double *p, int l)
             for (int u = 0; u < F->nu; u++) {
                 int f = F->uoff[u], dx = f % N, dy = f / N;
                 dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
-                o[u] += p[lb] * F->bc[bi] * r[(dx + L->n - 1) + S * (dy + L->n - 1)];
+                o[u] += p[lb] * F->bc[bi] * (r[(dx + L->n - 1) + S * (dy + L->n - 1)] -
+                                             F->r0m[(((size_t)sl * 2 + c) * F->nb + bi) * F->nu + u]);
             }
         }
     }
@@ -252,9 +266,13 @@ static void search_layer(wfit *F, int nq, double *p, int l)
             out[0] = out[1] = out[2] = 0;
             const double *o = F->oth + (size_t)b * F->nu;
             for (int u = 0; u < F->nu; u++) {
+                if (sl == 0 && u == F->u0) continue;
                 int f = F->uoff[u], dx = f % N, dy = f / N;
                 dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
-                const double Ju = J[(dx + L->n - 1) + S * (dy + L->n - 1)], w = F->uw[u];
+                double Ju = J[(dx + L->n - 1) + S * (dy + L->n - 1)];
+                const double w = F->uw[u];
+                for (int bi = 0; bi < F->nb; bi++)
+                    if (F->bl[bi] == l) Ju -= F->bc[bi] * F->r0m[(((size_t)sl * 2 + c) * F->nb + bi) * F->nu + u];
                 for (int a = 0; a < npair; a++) {
                     const double r0 = F->data[((((size_t)q * nlgs + pi[a]) * nlgs + pj[a]) * 2 + c) * F->nu + u] - o[u];
                     out[0] += w * Ju * r0, out[1] += w * Ju * Ju, out[2] += w * r0 * r0;
@@ -269,18 +287,117 @@ static void search_layer(wfit *F, int nq, double *p, int l)
     p[l] = ba, p[nl + 2 * l] = bvx, p[nl + 2 * l + 1] = bvy;
 }
 
-/* The lagged maps of batch b (−1: all) at the used offsets into F->data */
+/* The layers' fit from p (a, v; updated in place): the searched layers' starts, strongest first (the others at
+ * their last values), the lags one by one from the shortest (each stage from the last's a, v), then the implausible
+ * layers out, one at a time from the fastest, the others refitted over all lags from their v. Returns the
+ * iterations; *dropped counts the layers dropped. */
+static int fit_layers(wfit *F, double *p, double *cost, double *norm, double *work, int *dropped)
+{
+    const wt_learn *L = F->L;
+    const int nl = F->nl, nqs = L->nlag < WIND_SEARCH_LAGS ? L->nlag : WIND_SEARCH_LAGS;
+    int order[WIND_MAX_LAYERS], it = 0;
+    for (int l = 0; l < nl; l++) order[l] = l;
+    for (int x = 1; x < nl; x++)
+        for (int y = x; y > 0 && F->lpf[order[y]] > F->lpf[order[y - 1]]; y--) {
+            int t = order[y];
+            order[y] = order[y - 1], order[y - 1] = t;
+        }
+    /* one layer alone has one minimum within the first lag's reach of v = 0 (tests/test_learn.c): no search */
+    for (int x = 0; nl > 1 && x < nl; x++)
+        if (F->srch[order[x]] && !F->off[order[x]]) search_layer(F, nqs, p, order[x]);
+    for (int q = 0; q < L->nlag; q++) it += lm(F, q + 1, p, WIND_ITERS, cost, norm, work);
+    for (;;) {
+        int worst = -1;
+        double vmax = WIND_PLAUSIBLE;
+        for (int l = 0; l < nl; l++)
+            if (!F->off[l] && hypot(p[nl + 2 * l], p[nl + 2 * l + 1]) > vmax)
+                vmax = hypot(p[nl + 2 * l], p[nl + 2 * l + 1]), worst = l;
+        if (worst < 0) break;
+        F->off[worst] = 1, p[worst] = 0, p[nl + 2 * worst] = p[nl + 2 * worst + 1] = 0;
+        (*dropped)++;
+        it += lm(F, L->nlag, p, WIND_ITERS, cost, norm, work);
+    }
+    return it;
+}
+
+/* The split model S of the per-peak fit (F, p): in each layer of F (not dropped) with two or more bins holding
+ * ≥ WIND_SPLIT_MIN of the Cn² each, each such bin becomes a layer of its own and the weaker bins join the nearest
+ * in altitude. Below the pairs' altitude resolution two layers' responses differ by less than the noise in every
+ * unlagged map, but not in the lagged ones when they move differently: their shifts v k Δt part them (the E-ELT
+ * truth's 562 m and 1125 m layers move at 9 m/s towards 120° and 160°, the ground's at 15 m/s towards 0°). Where the
+ * bins do share one wind, S's minimum is the per-peak one (the same v for every bin). S's start ps: every layer
+ * its parent's a and v, the split ones searched. Returns S's layers (F->nl: nothing to split). */
+static int split_peaks(const wfit *F, const double *p, wfit *S, double *ps)
+{
+    const int nl = F->nl;
+    int parent[WIND_MAX_LAYERS], ns = 0;
+    *S = *F;
+    for (int l = 0; l < nl; l++) {
+        int strong[WT_LEARN_MAX_ALT], nst = 0;
+        for (int b = 0; b < F->nb; b++)
+            if (!F->off[l] && F->bl[b] == l && F->bf[b] >= WIND_SPLIT_MIN) strong[nst++] = b;
+        if (ns + (nst < 2 ? 1 : nst) > WIND_MAX_LAYERS) return nl;
+        if (nst < 2) {
+            for (int b = 0; b < F->nb; b++)
+                if (F->bl[b] == l) S->bl[b] = ns;
+            S->lpf[ns] = F->lpf[l], S->off[ns] = F->off[l], S->srch[ns] = 0, parent[ns++] = l;
+            continue;
+        }
+        const int first = ns;
+        for (int k = 0; k < nst; k++) S->lpf[ns] = 0, S->off[ns] = 0, S->srch[ns] = 1, parent[ns++] = l;
+        for (int b = 0; b < F->nb; b++) {
+            if (F->bl[b] != l) continue;
+            int kb = 0;
+            for (int k = 1; k < nst; k++)
+                if (fabs(F->bh[b] - F->bh[strong[k]]) < fabs(F->bh[b] - F->bh[strong[kb]])) kb = k;
+            S->bl[b] = first + kb, S->lpf[first + kb] += F->bf[b];
+        }
+    }
+    if (ns == nl) return nl;
+    S->nl = ns;
+    for (int m = 0; m < ns; m++) {
+        const int l = parent[m];
+        ps[m] = p[l], ps[ns + 2 * m] = p[nl + 2 * l], ps[ns + 2 * m + 1] = p[nl + 2 * l + 1];
+    }
+    return ns;
+}
+
+/* The lagged maps of batch b (−1: all) less the same frames' lag-0 maps, at the used offsets, into F->data. Why
+ * the difference: the maps' error is mostly the realisation of the large scales (a layer crosses the pupil a few
+ * times in a run), broad in δ and, under frozen flow, the same in the lag-k map moved by the shift s; C_k − C_0 keeps
+ * the layers' s-dependent part, −s·∇R near the peaks, and cancels that error to first order in s (a fit of C_k alone
+ * let a wrong v fit the broad error better than the right one fits the peak). */
 static int load_maps(wfit *F, int batch, double *buf, int nth)
 {
     const wt_learn *L = F->L;
-    const int nlgs = L->nlgs, nf = L->nf, NN = L->N * L->N, ntask = L->nlag * nlgs * nlgs * 2;
+    const int nlgs = L->nlgs, nf = L->nf, NN = L->N * L->N, ntask = L->nlag * nlgs * nlgs * 2, nz = nlgs * nlgs * 2;
+    const int b0 = batch < 0 ? 0 : batch, b1 = batch < 0 ? L->nbatch - 1 : batch;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
-    for (int t = 0; t < ntask; t++) {
-        const int q = t / (nlgs * nlgs * 2), tid = wt_thread_id();
+    for (int t = 0; t < nz; t++) {
+        /* (i, j, c) from the unordered pair's spectrum: C_ij(δ) = C_ji(−δ), the conjugate spectrum */
+        const int i = t / (nlgs * 2), j = (t / 2) % nlgs, c = t % 2, tid = wt_thread_id(), lo = i < j ? i : j,
+                  hi = i < j ? j : i, pr = lo * nlgs - lo * (lo - 1) / 2 + (hi - lo);
+        const double sg = i > j ? -1.0 : 1.0;
         double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
         int64_t K = 0;
         memset(sp, 0, (size_t)2 * nf * sizeof *sp);
-        for (int b = batch < 0 ? 0 : batch; b <= (batch < 0 ? L->nbatch - 1 : batch); b++) {
+        for (int b = b0; b <= b1; b++) {
+            const double *s = L->spec + (((size_t)b * L->npairs + pr) * WT_LEARN_NCOMP + c) * nf * 2;
+            for (int k = 0; k < nf; k++) sp[2 * k] += s[2 * k], sp[2 * k + 1] += sg * s[2 * k + 1];
+            K += L->bframes[b];
+        }
+        fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
+        for (int u = 0; u < F->nu; u++)
+            F->zero[(size_t)t * F->nu + u] = corr[F->uoff[u]] / ((double)NN * (double)K * L->pairs[F->uoff[u]]);
+    }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+    for (int t = 0; t < ntask; t++) {
+        const int q = t / nz, tid = wt_thread_id();
+        double *sp = wt_align64(buf + (size_t)tid * (2 * nf + NN + 16)), *corr = wt_align64(sp + 2 * nf);
+        const double *z = F->zero + (size_t)(t % nz) * F->nu;
+        int64_t K = 0;
+        memset(sp, 0, (size_t)2 * nf * sizeof *sp);
+        for (int b = b0; b <= b1; b++) {
             /* t enumerates (q, i, j, c) in lspec's order within a batch */
             const double *s = L->lspec + ((size_t)b * L->nlag * nlgs * nlgs * 2 + t) * nf * 2;
             for (int k = 0; k < 2 * nf; k++) sp[k] += s[k];
@@ -288,9 +405,30 @@ static int load_maps(wfit *F, int batch, double *buf, int nth)
         }
         fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
         for (int u = 0; u < F->nu; u++)
-            F->data[(size_t)t * F->nu + u] = corr[F->uoff[u]] / ((double)NN * (double)K * L->pairs[F->uoff[u]]);
+            F->data[(size_t)t * F->nu + u] = corr[F->uoff[u]] / ((double)NN * (double)K * L->pairs[F->uoff[u]]) - z[u];
     }
     return WT_OK;
+}
+
+/* Each bin's response at s = 0 for every slot and component, at the used offsets, into F->r0m */
+static void zero_responses(wfit *F)
+{
+    const wt_learn *L = F->L;
+    const int nlgs = L->nlgs, nslot = 1 + nlgs * (nlgs - 1), S = 2 * L->n - 1, S2 = S * S, N = L->N;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(F->nth)
+    for (int t = 0; t < nslot * 2 * F->nb; t++) {
+        const int sl = t / (2 * F->nb), c = (t / F->nb) % 2, bi = t % F->nb, tid = wt_thread_id();
+        int i = 0, j = 0;
+        if (sl > 0) i = (sl - 1) / (nlgs - 1), j = (sl - 1) % (nlgs - 1), j = j >= i ? j + 1 : j;
+        double *r = F->rb + (size_t)tid * F->nb * 3 * S2, *out = F->r0m + (size_t)t * F->nu;
+        wt_learn__resp_eval(L, F->ws[tid], L->theta_x[j] - L->theta_x[i], L->theta_y[j] - L->theta_y[i], F->bh[bi],
+                            0.0, 0.0, c, c, r);
+        for (int u = 0; u < F->nu; u++) {
+            int f = F->uoff[u], dx = f % N, dy = f / N;
+            dx = dx >= L->n ? dx - N : dx, dy = dy >= L->n ? dy - N : dy;
+            out[u] = r[(dx + L->n - 1) + S * (dy + L->n - 1)];
+        }
+    }
 }
 
 static double wrap_pi(double a) { return a - 2 * M_PI * floor((a + M_PI) / (2 * M_PI)); }
@@ -353,26 +491,28 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     for (int a = 0; a < na; a++)
         if (owner[a] >= 0 && lay_of_peak[owner[a]] >= 0) {
             F.bh[F.nb] = est->altitude[a], F.bc[F.nb] = est->cn2[a], F.bl[F.nb] = lay_of_peak[owner[a]];
-            F.ba[F.nb++] = a, w->fitted[a] = pf[owner[a]] >= min_fraction;
+            F.bf[F.nb] = est->fraction[a], F.ba[F.nb++] = a, w->fitted[a] = pf[owner[a]] >= min_fraction;
         }
     int nfit = 0;
     for (int a = 0; a < na; a++) nfit += w->fitted[a];
     if (nfit == 0)
         return WT_ERROR(ctx, WT_ERR_INVALID, "learn: no layer holds %g of the Cn²: no layer to find the wind of",
                         min_fraction);
-    const int nl = F.nl, np = 3 * nl, nslot = 1 + nlgs * (nlgs - 1);
+    const int nslot = 1 + nlgs * (nlgs - 1), npmax = 3 * WIND_MAX_LAYERS;
+    for (int l = 0; l < F.nl; l++) F.srch[l] = 1;
     F.nth = 1;
 #ifdef _OPENMP
     F.nth = omp_get_max_threads();
 #endif
     if (F.nth > WT_LEARN_MAX_THREADS) F.nth = WT_LEARN_MAX_THREADS;
-    double *buf = NULL, *work = NULL, *p = NULL, *pb = NULL;
+    double *buf = NULL, *work = NULL, *p = NULL, *pb = NULL, *ps = NULL;
     /* the used offsets: the profile fit's (every offset counts here: noise is white, so a lag carries none) */
     WT_ALLOC(ctx, F.uoff, S2, "the used offsets");
     WT_ALLOC(ctx, F.uw, S2, "the offsets' weights");
     for (int o = 0; o < S2; o++) {
         int dx = o % S - (n - 1), dy = o / S - (n - 1), f = (dx + N) % N + N * ((dy + N) % N);
         if (L->pairs[f] < WT_LEARN_MIN_PAIRS * L->pairs[0]) continue;
+        if (f == 0) F.u0 = F.nu;
         F.uoff[F.nu] = f, F.uw[F.nu++] = L->pairs[f] / L->pairs[0];
     }
     double thmax = 0, hmax = 0;
@@ -385,39 +525,37 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
         if ((st = wt_learn__rws_alloc(L, est->L0, wt_learn__rmax(L, thmax, hmax, smax), &F.ws[k])) < 0) goto fail;
     WT_ALLOC(ctx, F.rb, (size_t)F.nth * F.nb * 3 * S2, "the wind's response maps");
     WT_ALLOC(ctx, F.data, (size_t)L->nlag * nlgs * nlgs * 2 * F.nu, "the lagged maps");
-    WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (np * np + np + 3), "the blocks' normal equations");
+    WT_ALLOC(ctx, F.zero, (size_t)nlgs * nlgs * 2 * F.nu, "the lag-0 maps");
+    WT_ALLOC(ctx, F.r0m, (size_t)nslot * 2 * F.nb * F.nu, "the responses at no shift");
+    /* the blocks, the work space and the parameters for the most layers a split may make */
+    WT_ALLOC(ctx, F.blk, (size_t)L->nlag * nslot * 2 * (npmax * npmax + npmax + 3), "the blocks' normal equations");
     WT_ALLOC(ctx, F.oth, (size_t)L->nlag * nslot * 2 * F.nu, "the other layers' model");
     WT_ALLOC(ctx, buf, (size_t)F.nth * (2 * L->nf + N * N + 16), "the inverse FFT work arrays");
-    WT_ALLOC(ctx, work, (size_t)3 * np * np + 6 * np + np * np, "the Levenberg-Marquardt work space");
-    WT_ALLOC(ctx, p, np, "the wind parameters");
-    WT_ALLOC(ctx, pb, np, "a batch's wind parameters");
-    /* all frames: the lags one by one from the shortest, each stage from the last's a, v (a from 1, v from 0) */
+    WT_ALLOC(ctx, work, (size_t)4 * npmax * npmax + 6 * npmax, "the Levenberg-Marquardt work space");
+    WT_ALLOC(ctx, p, npmax, "the wind parameters");
+    WT_ALLOC(ctx, pb, npmax, "a batch's wind parameters");
+    WT_ALLOC(ctx, ps, npmax, "the split fit's parameters");
+    /* all frames: one wind per peak, then each strong bin of a peak its own (split_peaks) */
     if ((st = load_maps(&F, -1, buf, F.nth)) < 0) goto fail;
+    zero_responses(&F);
     double cost = 0, norm = 0;
-    for (int l = 0; l < nl; l++) p[l] = 1.0;
-    /* each layer's start from the search, strongest first (the others at their last values), then the stages */
-    const int nqs = L->nlag < WIND_SEARCH_LAGS ? L->nlag : WIND_SEARCH_LAGS;
-    int order[WIND_MAX_LAYERS];
-    for (int l = 0; l < nl; l++) order[l] = l;
-    for (int x = 1; x < nl; x++)
-        for (int y = x; y > 0 && F.lpf[order[y]] > F.lpf[order[y - 1]]; y--) {
-            int t = order[y];
-            order[y] = order[y - 1], order[y - 1] = t;
+    for (int l = 0; l < F.nl; l++) p[l] = 1.0;
+    w->iterations += fit_layers(&F, p, &cost, &norm, work, &w->dropped);
+    wfit Sp;
+    if (split_peaks(&F, p, &Sp, ps) > F.nl) {
+        double cs = 0, ns = 0;
+        int drs = 0;
+        w->iterations += fit_layers(&Sp, ps, &cs, &ns, work, &drs);
+        /* a superset of the per-peak model: kept when its minimum is the lower (a split whose search led to a local
+         * minimum above the per-peak fit explains the maps no better) */
+        if (cs < cost) {
+            w->split = Sp.nl - F.nl, w->dropped += drs;
+            F = Sp, cost = cs, norm = ns;
+            double *t = p;
+            p = ps, ps = t;
         }
-    /* one layer alone has one minimum within the first lag's reach of v = 0 (tests/test_learn.c): no search */
-    for (int x = 0; nl > 1 && x < nl; x++) search_layer(&F, nqs, p, order[x]);
-    for (int q = 0; q < L->nlag; q++) w->iterations += lm(&F, q + 1, p, WIND_ITERS, &cost, &norm, work);
-    /* the implausible layers out, one at a time from the fastest, the others refitted over all lags from their v */
-    for (;;) {
-        int worst = -1;
-        double vmax = WIND_PLAUSIBLE;
-        for (int l = 0; l < nl; l++)
-            if (!F.off[l] && hypot(p[nl + 2 * l], p[nl + 2 * l + 1]) > vmax) vmax = hypot(p[nl + 2 * l], p[nl + 2 * l + 1]), worst = l;
-        if (worst < 0) break;
-        F.off[worst] = 1, p[worst] = 0, p[nl + 2 * worst] = p[nl + 2 * worst + 1] = 0;
-        w->dropped++;
-        w->iterations += lm(&F, L->nlag, p, WIND_ITERS, &cost, &norm, work);
     }
+    const int nl = F.nl, np = 3 * nl;
     w->residual = norm > 0 ? sqrt(cost / norm) : 0.0;
     for (int b = 0; b < F.nb; b++) {
         const int a = F.ba[b], l = F.bl[b];
@@ -461,7 +599,8 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
 fail:
     for (int k = 0; k < F.nth; k++) wt_learn__rws_free(L, F.ws[k]);
     wt_free(ctx, F.oth), wt_free(ctx, F.uoff), wt_free(ctx, F.uw), wt_free(ctx, F.rb), wt_free(ctx, F.data), wt_free(ctx, F.blk);
-    wt_free(ctx, buf), wt_free(ctx, work), wt_free(ctx, p), wt_free(ctx, pb);
+    wt_free(ctx, F.zero), wt_free(ctx, F.r0m);
+    wt_free(ctx, buf), wt_free(ctx, work), wt_free(ctx, p), wt_free(ctx, pb), wt_free(ctx, ps);
     return st;
 }
 
