@@ -65,25 +65,6 @@ static int build_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     return 1;
 }
 
-typedef struct {
-    wt_progress pr;
-    char phase[32];
-    int quiet;
-} build_progress;
-
-static void on_progress(void *user, const char *phase, int64_t done, int64_t total)
-{
-    build_progress *bp = user;
-    if (strcmp(bp->phase, phase) != 0) {
-        if (bp->phase[0]) wt_progress_end(&bp->pr);
-        snprintf(bp->phase, sizeof bp->phase, "%s", phase);
-        wt_progress_start(&bp->pr, bp->phase, "steps", (long)total);
-        if (bp->quiet) bp->pr.enabled = 0;
-    }
-    bp->pr.total = (long)total;
-    wt_progress_update(&bp->pr, (long)done, NULL);
-}
-
 /* MPI: rank 0 receives the rows of R and RÂ of the blocks the other ranks solved (each rank sends its own in
  * increasing order, so the messages match in order); the others send theirs. In fp16/bf16 storage the rows
  * are 16-bit with one scale each, packed row by row (core/la/half.h), so a rank's rows are the serial ones. */
@@ -172,8 +153,8 @@ static int build_main(wt_mpi *mp, int argc, char **argv)
     wt_mvm_options o;
     wt_mvm_options_default(&o);
     o.memory_budget = cli.max_memory > 0 ? cli.max_memory : 0.9 * wt_memory_available();
-    build_progress bp = {.phase = "", .quiet = cli.quiet};
-    o.progress = on_progress;
+    wt_progress_phases bp = {.quiet = cli.quiet};
+    o.progress = wt_progress_phase;
     o.progress_user = &bp;
     o.part_index = mp->rank, o.part_count = mp->size;
     if (!cli.quiet)
@@ -185,7 +166,7 @@ static int build_main(wt_mpi *mp, int argc, char **argv)
         fprintf(stderr, "wavetomo build: %d MPI ranks x %d threads, blocks of %d columns dealt round-robin\n", mp->size,
                 wt_context_threads(cli.ctx), o.block);
     st = wt_mvm_build_variant(cli.ctx, sys, cfg, args.recon, &o, &m);
-    if (bp.phase[0]) wt_progress_end(&bp.pr);
+    wt_progress_phases_end(&bp);
     /* every rank learns whether all built before any waits for another's rows */
     bad = st < 0;
     if (wt_mpi_max_int(mp, &bad) < 0) bad = 1;

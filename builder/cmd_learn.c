@@ -408,7 +408,11 @@ int wt_cmd_learn(int argc, char **argv)
     if (args.nlag > 0) {
         if (!cli.quiet) fprintf(stderr, "%s: fitting the wind to %d lags ...\n", cli.prog, args.nlag);
         const double tw = wt_time_now();
-        if ((st = wt_learn_wind_fit(L, e, dt, args.wind_min, &res->wind)) < 0) goto fail_e;
+        wt_progress_phases pp = {.quiet = cli.quiet};
+        wt_learn_set_progress(L, wt_progress_phase, &pp);
+        st = wt_learn_wind_fit(L, e, dt, args.wind_min, &res->wind);
+        wt_progress_phases_end(&pp);
+        if (st < 0) goto fail_e;
         wt_learn_wind_print(&res->wind, use, tcfg, wt_time_now() - tw);
     }
     /* EST.h5 */

@@ -514,3 +514,21 @@ void wt_progress_end(wt_progress *p)
     if (p->enabled != 1) return;
     fprintf(stderr, "\n");
 }
+
+void wt_progress_phase(void *user, const char *phase, int64_t done, int64_t total)
+{
+    wt_progress_phases *pp = user;
+    if (strcmp(pp->phase, phase) != 0) {
+        if (pp->phase[0]) wt_progress_end(&pp->pr);
+        snprintf(pp->phase, sizeof pp->phase, "%s", phase);
+        wt_progress_start(&pp->pr, pp->phase, "steps", (long)total);
+        if (pp->quiet) pp->pr.enabled = 0;
+    }
+    pp->pr.total = (long)total;
+    wt_progress_update(&pp->pr, (long)done, NULL);
+}
+
+void wt_progress_phases_end(wt_progress_phases *pp)
+{
+    if (pp->phase[0]) wt_progress_end(&pp->pr);
+}

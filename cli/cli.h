@@ -100,6 +100,16 @@ void wt_progress_start(wt_progress *p, const char *label, const char *unit, long
 /* extra: optional text appended to the line (e.g. running Strehl), may be NULL */
 void wt_progress_update(wt_progress *p, long done, const char *extra);
 void wt_progress_end(wt_progress *p);
+/* Progress through a library's named phases (the callbacks of builder/mvm_build.h and core/model/learn.h: phase,
+ * steps done, of total): a new phase ends the last one's line. Start with {.quiet = cli.quiet}; pass the object as
+ * the callback's user. */
+typedef struct wt_progress_phases {
+    wt_progress pr;
+    char phase[48];
+    int quiet;
+} wt_progress_phases;
+void wt_progress_phase(void *user, const char *phase, int64_t done, int64_t total);
+void wt_progress_phases_end(wt_progress_phases *pp);
 
 
 

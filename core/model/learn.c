@@ -199,6 +199,11 @@ fail:
 
 int64_t wt_learn_frames(const wt_learn *L) { return L->frames; }
 
+void wt_learn_set_progress(wt_learn *L, wt_learn_progress_fn fn, void *user)
+{
+    L->progress = fn, L->progress_user = user;
+}
+
 void wt_learn_reset(wt_learn *L)
 {
     memset(L->spec, 0, (size_t)L->nbatch * L->npairs * WT_LEARN_NCOMP * L->nf * 2 * sizeof(double));

@@ -98,6 +98,10 @@ int64_t wt_learn_frames(const wt_learn *L);    /* frames added */
 /* Forget every frame added (the spectra, batch counts and, with lags, the ring of recent frames); the geometry and
  * plans stay, so that a loop can estimate from its last T seconds only. Allocates nothing. */
 void wt_learn_reset(wt_learn *L);
+/* A report of the long fits' progress (the wind's: minutes at E-ELT size): fn(user, phase, steps done, of total),
+ * called from the fitting thread after each step; NULL: none (the default). */
+typedef void (*wt_learn_progress_fn)(void *user, const char *phase, int64_t done, int64_t total);
+void wt_learn_set_progress(wt_learn *L, wt_learn_progress_fn fn, void *user);
 int wt_learn_npairs(const wt_learn *L);        /* nlgs (nlgs + 1) / 2; pair p = (i, j), i ≤ j, i-major order */
 void wt_learn_pair(const wt_learn *L, int p, int *i, int *j);
 int wt_learn_map_side(const wt_learn *L);      /* 2n − 1: maps are (2n − 1)² offsets, δ = (−(n−1) … n−1)² */

@@ -36,6 +36,8 @@ struct wt_learn {
     double *ring;            /* [kmax + 1][2 nlgs][nf][2] the last frames' spectra, frame t at slot t mod (kmax + 1) */
     double *lspec;           /* [nbatch][nlag][nlgs (i)][nlgs (j)][2 (x x, y y)][nf][2] lagged cross-spectra */
     int64_t *lframes;        /* [nbatch][nlag] frame pairs accumulated */
+    wt_learn_progress_fn progress; /* NULL: none */
+    void *progress_user;
 };
 
 /* The response maps of one (altitude grid, L0) restricted to the offsets the fit uses, and their Gram matrix

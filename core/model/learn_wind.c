@@ -291,11 +291,13 @@ static void search_layer(wfit *F, int nq, double *p, int l)
  * their last values), the lags one by one from the shortest (each stage from the last's a, v), then the implausible
  * layers out, one at a time from the fastest, the others refitted over all lags from their v. Returns the
  * iterations; *dropped counts the layers dropped. */
-static int fit_layers(wfit *F, double *p, double *cost, double *norm, double *work, int *dropped)
+static int fit_layers(wfit *F, const char *phase, double *p, double *cost, double *norm, double *work, int *dropped)
 {
     const wt_learn *L = F->L;
     const int nl = F->nl, nqs = L->nlag < WIND_SEARCH_LAGS ? L->nlag : WIND_SEARCH_LAGS;
-    int order[WIND_MAX_LAYERS], it = 0;
+    int order[WIND_MAX_LAYERS], it = 0, nsearch = 0, step = 0;
+    for (int l = 0; nl > 1 && l < nl; l++) nsearch += F->srch[l] && !F->off[l];
+    const int64_t total = nsearch + L->nlag;
     for (int l = 0; l < nl; l++) order[l] = l;
     for (int x = 1; x < nl; x++)
         for (int y = x; y > 0 && F->lpf[order[y]] > F->lpf[order[y - 1]]; y--) {
@@ -304,8 +306,14 @@ static int fit_layers(wfit *F, double *p, double *cost, double *norm, double *wo
         }
     /* one layer alone has one minimum within the first lag's reach of v = 0 (tests/test_learn.c): no search */
     for (int x = 0; nl > 1 && x < nl; x++)
-        if (F->srch[order[x]] && !F->off[order[x]]) search_layer(F, nqs, p, order[x]);
-    for (int q = 0; q < L->nlag; q++) it += lm(F, q + 1, p, WIND_ITERS, cost, norm, work);
+        if (F->srch[order[x]] && !F->off[order[x]]) {
+            search_layer(F, nqs, p, order[x]);
+            if (L->progress) L->progress(L->progress_user, phase, ++step, total);
+        }
+    for (int q = 0; q < L->nlag; q++) {
+        it += lm(F, q + 1, p, WIND_ITERS, cost, norm, work);
+        if (L->progress) L->progress(L->progress_user, phase, ++step, total);
+    }
     for (;;) {
         int worst = -1;
         double vmax = WIND_PLAUSIBLE;
@@ -540,12 +548,12 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
     zero_responses(&F);
     double cost = 0, norm = 0;
     for (int l = 0; l < F.nl; l++) p[l] = 1.0;
-    w->iterations += fit_layers(&F, p, &cost, &norm, work, &w->dropped);
+    w->iterations += fit_layers(&F, "wind: one per peak", p, &cost, &norm, work, &w->dropped);
     wfit Sp;
     if (split_peaks(&F, p, &Sp, ps) > F.nl) {
         double cs = 0, ns = 0;
         int drs = 0;
-        w->iterations += fit_layers(&Sp, ps, &cs, &ns, work, &drs);
+        w->iterations += fit_layers(&Sp, "wind: bins split", ps, &cs, &ns, work, &drs);
         /* a superset of the per-peak model: kept when its minimum is the lower (a split whose search led to a local
          * minimum above the per-peak fit explains the maps no better) */
         if (cs < cost) {
@@ -580,6 +588,7 @@ int wt_learn_wind_fit(const wt_learn *L, const wt_learn_estimate *est, double dt
             memcpy(pb, p, (size_t)np * sizeof *p);
             double cb, nbn;
             lm(&F, L->nlag, pb, WIND_BATCH_ITERS, &cb, &nbn, work);
+            if (L->progress) L->progress(L->progress_user, "wind: batches", r + 1, nb);
             for (int b = 0; b < F.nb; b++) {
                 const int a = F.ba[b], l = F.bl[b];
                 if (!w->fitted[a]) continue;
