@@ -528,6 +528,24 @@ static void simulate_flow(wt_context *ctx, const geom *G, double h, double speed
     simulate_layers(ctx, G, 1, &h, &one, &speed, &dir, r0, L0, F, dt, seed, s);
 }
 
+/* The K frames s (G's LGS) accumulated with lags {1, 3, 8} in 4 batches, the profile fitted on the default grid
+ * (alt, *na) and the wind (frame time dt) fitted: the estimate into e, the wind into w; returns the accumulator. */
+static wt_learn *fit_wind(wt_context *ctx, const geom *G, const double *s, int K, double L0, double dt, double *alt,
+                          int *na, wt_learn_estimate *e, wt_learn_wind *w, const char *name)
+{
+    const int ns = geom_nsub(G), lags[3] = {1, 3, 8};
+    wt_learn *L = NULL;
+    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G->g, 4, K / 4, 3, lags, &L), WT_OK);
+    for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G->nlgs * 2 * ns), WT_OK);
+    *na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+    ck_assert_int_eq(wt_learn_fit(L, *na, alt, L0, e), WT_OK);
+    const double t0 = wt_time_now();
+    ck_assert_int_eq(wt_learn_wind_fit(L, e, dt, WT_LEARN_WIND_MIN_FRACTION, w), WT_OK);
+    fprintf(stderr, "%s: the wind fit took %.2f s, %d split off, residual %.3f\n", name, wt_time_now() - t0, w->split,
+            w->residual);
+    return L;
+}
+
 /* A single frozen-flow layer (demo geometry, 4 LGS at 45″) has its wind found: at 3 km, 10 m/s towards 30°, and at
  * 8 km, 15 m/s towards 200° (a second direction, both components negative). Frame time 10 ms, lags 1, 3, 8
  * frames (shifts 0.1–1.2 m against d = 0.5 m), 600 frames (two screens of 300: a lag pair across the seam is of two
@@ -540,7 +558,7 @@ START_TEST(test_wind)
     wt_context *ctx = tu_context();
     geom G;
     geom_make(&G, 16, 4, 45.0);
-    const int ns = geom_nsub(&G), per = 300, K = 2 * per, lags[3] = {1, 3, 8};
+    const int ns = geom_nsub(&G), per = 300, K = 2 * per;
     const double r0 = 0.15, L0 = 25.0, dt = 0.01;
     const double hs[2] = {3000.0, 8000.0}, vs[2] = {10.0, 15.0}, ds[2] = {30.0, 200.0};
     double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
@@ -549,17 +567,11 @@ START_TEST(test_wind)
         for (int sd = 0; sd < 2; sd++)
             simulate_flow(ctx, &G, hs[c], vs[c], dir, r0, L0, per, dt, (uint64_t)(700 + 10 * c + sd),
                           s + (size_t)sd * per * G.nlgs * 2 * ns);
-        wt_learn *L = NULL;
-        ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 4, K / 4, 3, lags, &L), WT_OK);
-        for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
         double alt[WT_LEARN_MAX_ALT];
-        const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+        int na;
         wt_learn_estimate e;
-        ck_assert_int_eq(wt_learn_fit(L, na, alt, L0, &e), WT_OK);
         wt_learn_wind w;
-        const double t0 = wt_time_now();
-        ck_assert_int_eq(wt_learn_wind_fit(L, &e, dt, WT_LEARN_WIND_MIN_FRACTION, &w), WT_OK);
-        fprintf(stderr, "test_wind: the wind fit took %.2f s\n", wt_time_now() - t0);
+        wt_learn *L = fit_wind(ctx, &G, s, K, L0, dt, alt, &na, &e, &w, "test_wind");
         int best = 0;
         for (int a = 0; a < na; a++) {
             if (e.fraction[a] > e.fraction[best]) best = a;
@@ -598,24 +610,17 @@ START_TEST(test_wind_split)
     wt_context *ctx = tu_context();
     geom G;
     geom_make(&G, 16, 4, 45.0);
-    const int ns = geom_nsub(&G), per = 300, K = 2 * per, lags[3] = {1, 3, 8};
+    const int ns = geom_nsub(&G), per = 300, K = 2 * per;
     const double r0 = 0.15, L0 = 25.0, dt = 0.01;
     const double hs[2] = {0.0, 500.0}, fr[2] = {0.7, 0.3}, vs[2] = {8.0, 8.0}, ds[2] = {0.0, 120.0 * M_PI / 180};
     double *s = malloc(sizeof(double) * (size_t)K * G.nlgs * 2 * ns);
     for (int sd = 0; sd < 2; sd++)
         simulate_layers(ctx, &G, 2, hs, fr, vs, ds, r0, L0, per, dt, (uint64_t)(740 + sd), s + (size_t)sd * per * G.nlgs * 2 * ns);
-    wt_learn *L = NULL;
-    ck_assert_int_eq(wt_learn_alloc_lagged(ctx, &G.g, 4, K / 4, 3, lags, &L), WT_OK);
-    for (int t = 0; t < K; t++) ck_assert_int_eq(wt_learn_add(L, s + (size_t)t * G.nlgs * 2 * ns), WT_OK);
     double alt[WT_LEARN_MAX_ALT];
-    const int na = wt_learn_default_grid(90e3, WT_LEARN_MAX_ALT, alt);
+    int na;
     wt_learn_estimate e;
-    ck_assert_int_eq(wt_learn_fit(L, na, alt, L0, &e), WT_OK);
     wt_learn_wind w;
-    const double t0 = wt_time_now();
-    ck_assert_int_eq(wt_learn_wind_fit(L, &e, dt, WT_LEARN_WIND_MIN_FRACTION, &w), WT_OK);
-    fprintf(stderr, "test_wind_split: the wind fit took %.2f s, %d split off, residual %.3f\n", wt_time_now() - t0,
-            w.split, w.residual);
+    wt_learn *L = fit_wind(ctx, &G, s, K, L0, dt, alt, &na, &e, &w, "test_wind_split");
     for (int a = 0; a < na; a++)
         if (w.fitted[a] || e.fraction[a] > 0.01)
             fprintf(stderr, "test_wind_split: %5.2f km  %.3f  fitted %d  %5.2f m/s towards %6.1f° ± %.1f°, v ± (%.2f, %.2f), "
