@@ -130,7 +130,12 @@ int wt_learn_wind_write(wt_h5_writer *w, const wt_learn_wind *wd, const wt_confi
         (st = wt_h5_write_double(w, "estimate/wind/frame_time_s", wd->dt, "s", "frame time (1 / loop.rate_hz of the "
                                  "telemetry)")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/wind/residual", wd->residual, "", "weighted rms misfit of the wind fit "
-                                 "over the weighted rms of the lagged maps")) < 0)
+                                 "over the weighted rms of the lagged maps")) < 0 ||
+        (st = wt_h5_write_int64(w, "estimate/wind/layers_dropped", wd->dropped, "", "layers left out of the fit: "
+                                "their wind ran past 60 m/s (their altitudes not fitted)")) < 0 ||
+        (st = wt_h5_write_int64(w, "estimate/wind/layers_split", wd->split, "", "layers added by giving each bin of "
+                                "a peak that holds >= 2 % of the Cn2 its own wind (sub-resolution layers parted by "
+                                "their motion)")) < 0)
         return st;
     if ((st = write_layers(w, "estimate/pcg3", wd, tcfg, use->pcg3.nlayers, use->pcg3.altitudes,
                            "pcg3's layers (the estimate)")) < 0 ||
