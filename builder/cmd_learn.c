@@ -49,8 +49,10 @@ static void help(void)
            "               aperture D at recon.atmosphere's wind: until then batches see the same turbulence);\n"
            "               each batch needs at least %d frames\n"
            "  --png F      a bar chart of the estimated against the true profile on cg9's layers\n"
-           "  --wind       also the wind of each layer holding >= 5 %% of the Cn2 (minutes on the demo: the lagged\n"
-           "               maps' fit evaluates the response maps at many shifts)\n"
+           "  --wind       also the wind of each layer holding >= 5 %% of the Cn2 (a minute on the demo, about an hour\n"
+           "               at E-ELT size: the lagged maps' fit evaluates the response maps at many shifts)\n"
+           "  --wind-png F a bar chart of the wind on the truth's layers (implies --wind): estimated and true speed,\n"
+           "               the vector error, each layer's direction error\n"
            "  --lags K,..  the lags [frames] of the wind's time-lagged maps (implies --wind; default: k, 2k, 4k, 8k,\n"
            "               16k with k the frames in which %.0f m/s moves one subaperture, at loop.rate_hz)\n"
            "  --wind-threshold F  the Cn2 fraction a layer needs for its wind to be fitted (default %.2f)\n"
@@ -67,7 +69,7 @@ static void help(void)
 }
 
 typedef struct {
-    const char *tel, *out, *png;
+    const char *tel, *out, *png, *wind_png;
     long frames, batches;
     int bench, wind;
     int nlag, lags[WT_LEARN_MAX_LAG];
@@ -149,9 +151,10 @@ static int learn_option(wt_cli *cli, int argc, char **argv, int *i, void *user)
     learn_args *a = user;
     const char *o = argv[*i];
     const char **str = !strcmp(o, "--telemetry") ? &a->tel : !strcmp(o, "--out") ? &a->out
-                       : !strcmp(o, "--png") ? &a->png : NULL;
+                       : !strcmp(o, "--png") ? &a->png : !strcmp(o, "--wind-png") ? &a->wind_png : NULL;
     if (str) {
         if (!(*str = wt_cli_value(cli, argc, argv, i))) return -1;
+        if (str == &a->wind_png) a->wind = 1;
     } else if (!strcmp(o, "--bench")) {
         a->bench = 1;
     } else if (!strcmp(o, "--wind")) {
@@ -262,7 +265,7 @@ int wt_cmd_learn(int argc, char **argv)
 {
     wt_cli cli;
     if (wt_cli_init(&cli, "wavetomo learn", help)) return 1;
-    learn_args args = {NULL, NULL, NULL, 0, LEARN_DEFAULT_BATCHES, 0, 0, 0, {0}, WT_LEARN_WIND_MIN_FRACTION};
+    learn_args args = {.batches = LEARN_DEFAULT_BATCHES, .wind_min = WT_LEARN_WIND_MIN_FRACTION};
     int rc = wt_cli_parse(&cli, argc, argv, learn_option, &args);
     if (rc >= 0) {
         wt_cli_done(&cli);
@@ -475,6 +478,10 @@ int wt_cmd_learn(int argc, char **argv)
                                        NULL)) < 0)
             goto fail_e;
         printf("  plot: %s\n", args.png);
+    }
+    if (args.wind_png) {
+        if ((st = wt_learn_wind_plot(cli.ctx, args.wind_png, &res->wind, tcfg)) < 0) goto fail_e;
+        printf("  wind plot: %s\n", args.wind_png);
     }
     free(e);
     goto cleanup;

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "cli/plot.h"
 #include "core/model/profile.h"
 
 #define DEG (180.0 / M_PI)
@@ -151,4 +152,27 @@ int wt_learn_wind_write(wt_h5_writer *w, const wt_learn_wind *wd, const wt_confi
                            "the truth's layers")) < 0)
         return st;
     return WT_OK;
+}
+
+int wt_learn_wind_plot(wt_context *ctx, const char *path, const wt_learn_wind *wd, const wt_config *t)
+{
+    const int nl = t->nlayers;
+    double f[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS], tvx[WT_MAX_LAYERS], tvy[WT_MAX_LAYERS];
+    double v[3 * WT_MAX_LAYERS];
+    char labels[WT_MAX_LAYERS][48], title[200];
+    const char *groups[WT_MAX_LAYERS], *series[3] = {"estimate", "truth", "error"};
+    wt_learn_wind_compress(wd, nl, t->layer_altitude, f, vx, vy, NULL, NULL);
+    truth_vectors(t, tvx, tvy);
+    int met = 0, due = 0;
+    for (int l = 0; l < nl; l++) {
+        const double err = hypot(vx[l] - tvx[l], vy[l] - tvy[l]);
+        const double dd = fmod(dir_of(vx[l], vy[l]) - dir_of(tvx[l], tvy[l]) + 3 * M_PI, 2 * M_PI) - M_PI;
+        /* the label: altitude, the truth's Cn² share, the direction error */
+        snprintf(labels[l], sizeof labels[l], "%.2g km %+.0f deg", t->layer_altitude[l] / 1e3, dd * DEG);
+        groups[l] = labels[l];
+        v[3 * l] = hypot(vx[l], vy[l]), v[3 * l + 1] = t->wind_speed[l], v[3 * l + 2] = err;
+        if (t->layer_fraction[l] >= WT_LEARN_WIND_MIN_FRACTION) due++, met += err <= 1.0 && fabs(dd) * DEG <= 10.0;
+    }
+    snprintf(title, sizeof title, "wind: %d/%d layers (>= 5%% Cn2) within 1 m/s, 10 deg", met, due);
+    return wt_plot_grouped_bars(ctx, path, title, "m/s", nl, groups, 3, series, v, NULL);
 }

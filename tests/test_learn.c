@@ -787,8 +787,19 @@ START_TEST(test_command)
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 2,1", dir, dir), 2);
     /* the wind of the strongest layer only (--wind-threshold 0.3: one layer, no search), two short lags: the chain
      * and the file; the accuracy is test_wind's */
-    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3", dir, dir), 0);
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3 "
+                         "--wind-png %s/w.png", dir, dir, dir), 0);
     ck_assert(file_has("stdout.txt", "r0 (500 nm)"));
+    ck_assert(file_has("stdout.txt", "wind plot:"));
+    {
+        char path[512], sig[8] = {0};
+        snprintf(path, sizeof path, "%s/w.png", dir);
+        FILE *f = fopen(path, "rb");
+        ck_assert_ptr_nonnull(f);
+        ck_assert_int_eq(fread(sig, 1, 8, f), 8);
+        fclose(f);
+        ck_assert(!memcmp(sig, "\x89PNG\r\n\x1a\n", 8));
+    }
     ck_assert(file_has("stdout.txt", "compressed onto cg9's layers"));
     ck_assert(file_has("stdout.txt", "wind on pcg3's layers"));
     wt_context *ctx = tu_context();
