@@ -549,9 +549,9 @@ static wt_learn *fit_wind(wt_context *ctx, const geom *G, const double *s, int K
 /* A single frozen-flow layer (demo geometry, 4 LGS at 45″) has its wind found: at 3 km, 10 m/s towards 30°, and at
  * 8 km, 15 m/s towards 200° (a second direction, both components negative). Frame time 10 ms, lags 1, 3, 8
  * frames (shifts 0.1–1.2 m against d = 0.5 m), 600 frames (two screens of 300: a lag pair across the seam is of two
- * independent screens, zero mean, so it adds noise and no bias). The error expected: the batches' spread ~0.1–0.2
- * m/s (the screen is 64 m, the layer crosses it ~once, so the frames hold few independent samples of the large
- * scales); 0.5 m/s is the task's figure and ~3σ. The strongest bin is checked (the profile fit may give a
+ * independent screens, zero mean, so it adds noise and no bias). The error expected: the batches' spread ~0.15–0.3
+ * m/s per component (the screen is 64 m, the layer crosses it ~once, so the frames hold few independent samples of
+ * the large scales); 0.5 m/s is the task's figure and ~2–3σ (the errors are ~0.1 m/s). The strongest bin is checked (the profile fit may give a
  * neighbouring bin ≥ 5 % too, and fits its own wind). */
 START_TEST(test_wind)
 {
