@@ -785,6 +785,10 @@ START_TEST(test_command)
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 70", dir, dir), 1);
     ck_assert(file_has("stderr.txt", "too few for the wind's longest lag of 70 frames"));
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 2,1", dir, dir), 2);
+    /* --wind-png without its file, and into a directory that does not exist: refused, nothing written */
+    ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --wind-png", dir, dir), 2);
+    ck_assert_int_ne(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3 "
+                         "--wind-png %s/no/such/dir/w.png", dir, dir, dir), 0);
     /* the wind of the strongest layer only (--wind-threshold 0.3: one layer, no search), two short lags: the chain
      * and the file; the accuracy is test_wind's */
     ck_assert_int_eq(run("learn --telemetry %s/tel.h5 --out %s/e.h5 --quiet --lags 1,2 --wind-threshold 0.3 "
