@@ -125,7 +125,8 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 
 # Suites of driver-level modules link those objects too (cli/plot.c is not in the library: PLplot
 # is only for the report driver).
-$(BUILD)/tests/test_plot: $(BUILD)/cli/plot.o $(BUILD)/cli/plot_maps.o $(BUILD)/cli/plot_pupil.o $(BUILD)/cli/plot_psf.o
+$(BUILD)/tests/test_plot: $(BUILD)/cli/plot.o $(BUILD)/cli/plot_maps.o $(BUILD)/cli/plot_pupil.o $(BUILD)/cli/plot_psf.o \
+    $(BUILD)/cli/plot_series.o
 
 $(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
 	@mkdir -p $(dir $@)

@@ -77,6 +77,21 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
                     int nvalues, const char *const *values, long nframes, const double *wfe, int settle, int window,
                     const wt_plot_run_axis *axis, int ref);
 
+/* cli/plot_series.c: estimates over time against the truth, in npanels (1..4) stacked panels sharing the x axis
+ * (xlabel under the last): in each, series s (1..8, names[s], one colour and marker in every panel) as markers at
+ * (x[s][i], y[s][i]) joined by a thin line, with error bars ± e[s][i] (e or e[s] NULL, or a value ≤ 0: none), and
+ * the truth as a thick black line through (tx[i], ty[i]) (nt < 2: none). Non-finite points are skipped; a panel
+ * without any finite value is an empty frame; at least one finite point overall. */
+typedef struct wt_plot_series_panel {
+    const char *ylabel;
+    const int *n;                                  /* [nseries] points of each series in this panel (0: none) */
+    const double *const *x, *const *y, *const *e; /* [nseries] arrays of n[s] values */
+    int nt;                                        /* the truth's points */
+    const double *tx, *ty;
+} wt_plot_series_panel;
+int wt_plot_series(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nseries,
+                   const char *const *names, int npanels, const wt_plot_series_panel *panels);
+
 /* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`) ---------------------- */
 
 /* Where the subapertures are: the valid subapertures' centres and side, the annulus outline, the launch. */

@@ -45,6 +45,7 @@ int wt_compare_check_outputs(wt_cli *cli, const wt_compare_cases *a)
     snprintf(path, sizeof path, "%s/time_per_frame.png", a->out);
     if ((st = wt_cli_check_text_output(cli, path, "\x89PNG", owner)) < 0) return st;
     if ((st = wt_compare_check_map_outputs(cli, a, owner)) < 0) return st;
+    if ((st = wt_compare_check_learned_outputs(cli, a, owner)) < 0) return st;
     for (int m = 0; m < a->nm; m++)
         for (int v = 0; v < nv; v++) {
             snprintf(path, sizeof path, "%s/psf_%s_%d.png", a->out, a->methods[m], v);
@@ -444,7 +445,7 @@ static void write_differences(FILE *f, const wt_compare_cases *a, const wt_compa
 }
 
 static int write_text(wt_cli *cli, const wt_compare_cases *a, const wt_config *cfg, const wt_compare_result *R,
-                      const wt_compare_summary *S, int missing, int argc, char **argv)
+                      const wt_compare_summary *S, const wt_compare_extra *X, int missing, int argc, char **argv)
 {
     char path[2200], tmp[2300];
     int nv = cols(a);
@@ -552,6 +553,7 @@ static int write_text(wt_cli *cli, const wt_compare_cases *a, const wt_config *c
                 fprintf(f, "\n\nThe same curves minus each method's oracle (the truth compressed onto its layers): what "
                            "each model of the atmosphere costs, over the run.\n\n![each model against the oracle]"
                            "(wfe_minus_oracle.png)");
+            wt_compare_learned_markdown(f, cli->ctx, a, cfg, R, X);
             int psfs = 0;
             for (int c = 0; c < a->nm * nv; c++) psfs += S[c].mean.done && S[c].mean.psf_frames > 0;
             if (psfs) {
@@ -712,6 +714,7 @@ static int make_plots(wt_cli *cli, const wt_compare_cases *a, const wt_system *s
     for (int i = 0; i < g; i++) coords[i] = (i - 0.5 * (g - 1)) * sys->cfg->eval_spacing / WT_ARCSEC;
     if ((st = wt_compare_maps(cli, a, sys, S, coords)) < 0) return st;
     if ((st = extra_plots(cli, a, sys, R, S, X, coords)) < 0) return st;
+    if ((st = wt_compare_learned_plots(cli, a, sys->cfg, R, X)) < 0) return st;
     if (missing) return WT_OK;
     double times[WT_COMPARE_MAXM * NP];
     const char *names[NP];
@@ -733,7 +736,7 @@ int wt_compare_write_all(wt_cli *cli, const wt_compare_cases *a, const wt_compar
     for (int c = 0; c < nmv; c++) wt_compare_summarise(R + (size_t)c * a->ns, a->ns, &S[c]);
     for (int c = 0; c < nmv * a->ns; c++) missing += !R[c].done;
     if ((st = write_results(cli, a, plan, cfg, sys, R, S, X, argc, argv)) >= 0 &&
-        (st = write_text(cli, a, cfg, R, S, missing, argc, argv)) >= 0)
+        (st = write_text(cli, a, cfg, R, S, X, missing, argc, argv)) >= 0)
         st = make_plots(cli, a, sys, R, S, X, missing);
     free(S);
     return st;

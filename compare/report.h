@@ -50,6 +50,14 @@ int wt_compare_check_map_outputs(wt_cli *cli, const wt_compare_cases *a, const c
 void wt_compare_maps_markdown(FILE *f, const wt_compare_cases *a, const wt_compare_summary *S, int differences);
 int wt_compare_maps(wt_cli *cli, const wt_compare_cases *a, const wt_system *sys, const wt_compare_summary *S,
                 const double *coords);
+/* compare/report_learned.c: the learned atmosphere (the cases whose loop estimated it: sim/adapt.h records).
+ * check: its files learned_V.png (owner: results.h5); markdown: its section in report.md (a table of the estimates'
+ * r0 and θ0 errors against the truth, the links), nothing without a record; plots: draw them. */
+int wt_compare_check_learned_outputs(wt_cli *cli, const wt_compare_cases *a, const char *owner);
+void wt_compare_learned_markdown(FILE *f, wt_context *ctx, const wt_compare_cases *a, const wt_config *cfg,
+                                 const wt_compare_result *R, const wt_compare_extra *X);
+int wt_compare_learned_plots(wt_cli *cli, const wt_compare_cases *a, const wt_config *cfg, const wt_compare_result *R,
+                             const wt_compare_extra *X);
 /* results.h5, summary.csv, report.md and the figures from the per-seed results R; with several seeds the
  * tables and curves show the mean ± standard error over the seeds and the paired differences between the
  * methods (compare/compare.h), results.h5 keeps every seed's values; cases not done are marked missing. */

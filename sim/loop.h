@@ -110,6 +110,9 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
 /* sim/loop_config.c, the configuration side of the loop: par from cfg and opt, and
  * wt_loop_alloc_params with the parameters of sys's configuration (sys and its config must outlive it). */
 void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par);
+/* The truth's night as the configuration asks for it (atmosphere.night.*; source WT_NIGHT_NONE without one): the
+ * part of wt_loop_params_from_config that the compare report reads too (its pointers into cfg). */
+void wt_loop_night_params(const wt_config *cfg, wt_night_params *p);
 int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out);
 void wt_loop_free(wt_loop *lp);
 

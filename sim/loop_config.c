@@ -10,6 +10,22 @@
 #include "../core/model/params.h"
 
 
+void wt_loop_night_params(const wt_config *cfg, wt_night_params *p)
+{
+    const wt_night_config *nc = &cfg->night; /* the night's reference is the configured atmosphere */
+    *p = (wt_night_params){.source = nc->source == WT_NIGHT_CFG_FILE     ? WT_NIGHT_FILE
+                                     : nc->source == WT_NIGHT_CFG_RANDOM ? WT_NIGHT_RANDOM
+                                                                         : WT_NIGHT_NONE,
+                           .nlayers = cfg->nlayers, .r0 = cfg->r0, .fraction = cfg->layer_fraction,
+                           .wind_speed = cfg->wind_speed, .wind_direction = cfg->wind_direction,
+                           .frame_time = 1.0 / cfg->rate, .start = nc->start, .compression = nc->compression,
+                           .frames = cfg->frames,
+                           .origin = "keys atmosphere.night.*, loop.frames and loop.rate_hz",
+                           .file = nc->file, .seed = nc->seed, .correlation_time = nc->correlation_time,
+                           .step = nc->step, .r0_rms = nc->r0_rms, .fraction_rms = nc->fraction_rms,
+                           .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
+}
+
 void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt, wt_loop_params *par)
 {
     memset(par, 0, sizeof *par);
@@ -30,18 +46,8 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                              .wind_direction = cfg->wind_direction,
                                              .r0 = cfg->r0,
                                              .L0 = cfg->L0};
-    const wt_night_config *nc = &cfg->night; /* the night's reference is the configured atmosphere */
-    par->night = (wt_night_params){.source = nc->source == WT_NIGHT_CFG_FILE     ? WT_NIGHT_FILE
-                                             : nc->source == WT_NIGHT_CFG_RANDOM ? WT_NIGHT_RANDOM
-                                                                                 : WT_NIGHT_NONE,
-                                   .nlayers = cfg->nlayers, .r0 = cfg->r0, .fraction = cfg->layer_fraction,
-                                   .wind_speed = cfg->wind_speed, .wind_direction = cfg->wind_direction,
-                                   .frame_time = 1.0 / cfg->rate, .start = nc->start, .compression = nc->compression,
-                                   .frames = cfg->frames,
-                                   .origin = "keys atmosphere.night.*, loop.frames and loop.rate_hz",
-                                   .file = nc->file, .seed = nc->seed, .correlation_time = nc->correlation_time,
-                                   .step = nc->step, .r0_rms = nc->r0_rms, .fraction_rms = nc->fraction_rms,
-                                   .wind_speed_rms = nc->wind_speed_rms, .wind_direction_rms = nc->wind_direction_rms};
+    wt_loop_night_params(cfg, &par->night);
+    const wt_night_config *nc = &cfg->night;
     par->sodium = (wt_sodium_drive_params){.sequence = cfg->sodium_sequence,
                                            .sequence_update = cfg->sodium_sequence_update,
                                            .reference = cfg->lgs_reference == 2   ? WT_REFERENCE_PIXELS

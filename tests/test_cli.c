@@ -189,6 +189,63 @@ START_TEST(test_did_you_mean)
 }
 END_TEST
 
+/* θ0 of r0 [m] over n layers at h [m] with fractions f, up to the constant 0.314 / arcsec (the ratio is tested) */
+static double theta0_shape(double r0, int n, const double *h, const double *f)
+{
+    double s = 0.0;
+    for (int k = 0; k < n; k++) s += f[k] * pow(h[k], 5.0 / 3.0);
+    return r0 / pow(s, 3.0 / 5.0);
+}
+
+START_TEST(test_compare_learned_report)
+{
+    /* issue 35: a sweep over the model's source draws the run, each model against the oracle and the learned
+     * atmosphere (learned_1.png; the oracle estimates nothing: no learned_0.png); the report's table states the
+     * estimate of results.h5 against the configured truth (demo.cfg: r0 and its five layers), to its print rounding */
+    char out[128];
+    snprintf(out, sizeof out, "%s/learned", dir);
+    ck_assert_int_eq(run("compare --config data/presets/demo-learned.cfg --recon pcg3 --frames 220 --sweep "
+                         "'recon.atmosphere.source=\"oracle\",\"learned\"' --out %s --quiet", out), 0);
+    const char *pngs[] = {"wfe_over_run.png", "wfe_minus_oracle.png", "learned_1.png"};
+    for (int i = 0; i < 3; i++) ck_assert_msg(is_png(out, pngs[i]) && file_size(out, pngs[i]) > 2000, "%s", pngs[i]);
+    ck_assert_int_lt(file_size(out, "learned_0.png"), 0);
+    static char text[200000];
+    ck_assert(read_text(out, "report.md", text, sizeof text));
+    ck_assert_ptr_nonnull(strstr(text, "## The learned atmosphere"));
+    ck_assert_ptr_nonnull(strstr(text, "(learned_1.png)"));
+    const char *row = strstr(text, "| pcg3 | \"learned\" | 1 |");
+    ck_assert_msg(row, "no table row of pcg3's one estimate");
+    double er = NAN, et = NAN;
+    ck_assert_int_eq(sscanf(row, "| pcg3 | \"learned\" | 1 | %lf %% / %*f %% | %lf %%", &er, &et), 2);
+
+    wt_context *ctx = tu_context();
+    wt_config *cfg = NULL;
+    ck_assert_msg(wt_config_read(ctx, "data/presets/demo.cfg", 0, NULL, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    wt_h5_reader *r;
+    char p[256];
+    snprintf(p, sizeof p, "%s/results.h5", out);
+    ck_assert_msg(wt_h5_open(ctx, p, &r) == WT_OK, "%s", wt_error_message(ctx));
+    int rank = 0;
+    int64_t dims[WT_H5_MAX_RANK] = {0}, one[1] = {1};
+    ck_assert_int_eq(wt_h5_dims(r, "learned/pcg3_1/seed0/altitude", &rank, dims), WT_OK);
+    const int na = (int)dims[0];
+    ck_assert(rank == 1 && na > 2 && na <= 64);
+    double r0, alt[64], frac[64];
+    int64_t d2[2] = {1, na};
+    ck_assert_int_eq(wt_h5_read(r, "learned/pcg3_1/seed0/r0", WT_H5_F64, 1, one, NULL, &r0, 1), WT_OK);
+    ck_assert_int_eq(wt_h5_read(r, "learned/pcg3_1/seed0/altitude", WT_H5_F64, 1, dims, NULL, alt, (size_t)na), WT_OK);
+    ck_assert_int_eq(wt_h5_read(r, "learned/pcg3_1/seed0/fraction", WT_H5_F64, 2, d2, NULL, frac, (size_t)na), WT_OK);
+    wt_h5_close(r);
+    const double want_r = 100.0 * (r0 / cfg->r0 - 1.0),
+                 want_t = 100.0 * (theta0_shape(r0, na, alt, frac) /
+                                   theta0_shape(cfg->r0, cfg->nlayers, cfg->layer_altitude, cfg->layer_fraction) - 1.0);
+    ck_assert_msg(fabs(er - want_r) <= 0.051 && fabs(et - want_t) <= 0.051, "table r0 %+.1f %%, θ0 %+.1f %%; results.h5 "
+                  "against the truth %+.3f %%, %+.3f %%", er, et, want_r, want_t);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(test_compare_writes_the_report)
 {
     /* issue #4: compare on the demo preset writes every file of the report; the plots are non-empty PNGs */
@@ -526,6 +583,7 @@ Suite *make_suite(void)
     tcase_add_checked_fixture(tc, setup, teardown);
     tcase_set_timeout(tc, 300);
     tcase_add_test(tc, test_compare_writes_the_report);
+    tcase_add_test(tc, test_compare_learned_report);
     tcase_add_test(tc, test_build_run_chain_and_refusals);
     tcase_add_test(tc, test_run_rejects_bad_frames);
     tcase_add_test(tc, test_did_you_mean);

@@ -269,6 +269,46 @@ START_TEST(test_run_minus_reference)
 }
 END_TEST
 
+/* Estimates against the truth (the compare report's learned atmosphere): two panels of 720 px, the data reach the
+ * picture, and what cannot be drawn is refused with nothing left behind. */
+START_TEST(test_series_against_truth)
+{
+    enum { NS = 2, NU = 6, NT = 50 };
+    wt_context *ctx = tu_context();
+    char *dir = make_dir(), a[256], b[256], c[256];
+    snprintf(a, sizeof a, "%s/a.png", dir);
+    snprintf(b, sizeof b, "%s/b.png", dir);
+    snprintf(c, sizeof c, "%s/c.png", dir);
+    static const char *const names[NS] = {"pcg3", "mvm"};
+    double x[NS][NU], r[NS][NU], e[NS][NU], th[NS][NU], tx[NT], tr[NT], tt[NT];
+    for (int s = 0; s < NS; s++)
+        for (int i = 0; i < NU; i++)
+            x[s][i] = 4.0 * (i + 1), r[s][i] = 0.12 - 0.003 * i + 0.002 * s, e[s][i] = 0.01, th[s][i] = 1.8 + 0.05 * i;
+    for (int i = 0; i < NT; i++) tx[i] = 30.0 * i / (NT - 1), tr[i] = 0.129 - 0.001 * tx[i], tt[i] = 2.15;
+    const int n[NS] = {NU, NU};
+    const double *px[NS] = {x[0], x[1]}, *pr[NS] = {r[0], r[1]}, *pe[NS] = {e[0], e[1]}, *pt[NS] = {th[0], th[1]};
+    wt_plot_series_panel p[2] = {{.ylabel = "r0 [m]", .n = n, .x = px, .y = pr, .e = pe, .nt = NT, .tx = tx, .ty = tr},
+                                 {.ylabel = "θ0 [arcsec]", .n = n, .x = px, .y = pt, .nt = NT, .tx = tx, .ty = tt}};
+    ck_assert_msg(wt_plot_series(ctx, a, "learned", "night time [min]", NS, names, 2, p) == WT_OK, "%s",
+                  wt_error_message(ctx));
+    assert_png(a, 900, 720);
+    th[1][3] = 2.4; /* one estimate of the second series, bottom panel */
+    ck_assert_int_eq(wt_plot_series(ctx, b, "learned", "night time [min]", NS, names, 2, p), WT_OK);
+    ck_assert_msg(!same_bytes(a, b), "one estimate changed and the picture did not");
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", 0, names, 2, p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 5, p), WT_ERR_INVALID);
+    const int none[NS] = {0, 0};
+    wt_plot_series_panel q[1] = {{.ylabel = "r0", .n = none, .x = px, .y = pr, .nt = NT, .tx = tx, .ty = tr}};
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 1, q), WT_ERR_INVALID); /* no estimate at all */
+    q[0].n = n, q[0].tx = NULL;
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 1, q), WT_ERR_INVALID); /* a truth without its x */
+    ck_assert(access(c, F_OK) != 0);
+    ck_assert_int_eq(count_entries(dir, "tmp"), 0);
+    remove_dir(dir);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* The data reach the picture: different values give different bytes (a plot that ignored its inputs,
  * or drew them outside the window, would not change). */
 START_TEST(test_data_change_the_image)
@@ -628,6 +668,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_map_writes_png);
     tcase_add_test(tc, test_stars_and_difference_map);
     tcase_add_test(tc, test_run_minus_reference);
+    tcase_add_test(tc, test_series_against_truth);
     tcase_add_test(tc, test_bars_write_png);
     tcase_add_test(tc, test_data_change_the_image);
     tcase_add_test(tc, test_missing_directory_refused);
