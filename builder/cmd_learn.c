@@ -402,6 +402,8 @@ int wt_cmd_learn(int argc, char **argv)
            1e3 * tadd / (double)F, tfit);
     printf("  r0 (500 nm)  %.4f ± %.4f m   truth %.4f m (%+.1f %%); L0 %.1f m (fixed, recon.atmosphere)\n", e->r0,
            e->r0_sigma, tcfg->r0, 100 * (e->r0 / tcfg->r0 - 1), e->L0);
+    printf("  r0 of the whole fit's total Cn2 %.4f m (%+.1f %%; r0 above is scaled on the neighbouring subapertures)\n",
+           e->r0_total, 100 * (e->r0_total / tcfg->r0 - 1));
     printf("  uncertainties: the %d batches' spread / sqrt(batches) x %.2f: the frames saw %.2f renewals of the screens "
            "(each layer moving the aperture's %.1f m at recon.atmosphere's wind)\n", e->nbatch, e->sigma_factor,
            e->screens, sys->diameter);
@@ -424,10 +426,14 @@ int wt_cmd_learn(int argc, char **argv)
     {
         int64_t d1[1] = {na};
         if ((st = wt_h5_write(w, "estimate/cn2_r0", WT_H5_F64, WT_H5_F64, 1, d1, e->cn2, "m^-5/3",
-                              "fitted c_h = f_h r0^(-5/3) at 500 nm (the non-negative least-squares unknowns)")) < 0)
+                              "c_h = f_h r0^(-5/3) at 500 nm: the non-negative least-squares fit, the lowest altitude taking the "
+                              "difference between the total of the autos' small offsets and the fit's")) < 0)
             goto fail_e;
     }
-    if ((st = wt_h5_write_double(w, "estimate/r0_m", e->r0, "m", "Fried parameter at 500 nm, (sum c_h)^(-3/5)")) < 0 ||
+    if ((st = wt_h5_write_double(w, "estimate/r0_m", e->r0, "m", "Fried parameter at 500 nm, (sum c_h)^(-3/5): the "
+                                 "total that fits the autos within 2 subapertures, each map less its mean there")) < 0 ||
+        (st = wt_h5_write_double(w, "estimate/r0_total_m", e->r0_total, "m", "r0 of the non-negative fit's own total "
+                                 "(every offset: it follows the large scales' realisation)")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/r0_sigma_m", e->r0_sigma, "m",
                                  "uncertainty of r0: spread of the batch estimates / sqrt(batches) x sigma_factor")) < 0 ||
         (st = wt_h5_write_double(w, "estimate/sigma_factor", e->sigma_factor, "",

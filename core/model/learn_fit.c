@@ -20,6 +20,7 @@
 
 #include <fftw3.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #ifdef _OPENMP
@@ -130,12 +131,88 @@ void wt_learn_model_free(wt_learn_model *M)
     wt_free(ctx, M);
 }
 
+/* the autos' offsets that r0 is scaled on (small_scale): the 24 within two subapertures, each map less its mean over
+ * them. Measured on the demo (5 seeds) and the 9-layer E-ELT truth (2 seeds, 500 and 2000 frames), docs/results.md
+ * §77: the rms error of r0 8.7 % / 3.8 % with the whole fit's total, 2.9 % / 0.6 % here; without the mean's removal
+ * 5.6 % / 2.1 % at one subaperture and more at two or four (the large scales' realisation again); at one
+ * subaperture, centred, 2.3 % / 1.7 % with a +1.6 % bias at E-ELT size (the simulation renders the phase at 4
+ * points a subaperture: the smallest scales are its weakest) */
+#define WT_LEARN_R0_RADIUS 2
+#define WT_LEARN_R0_CENTRED 1
+static int small_offset(const wt_learn *L, int f)
+{
+    int dx = f % L->N, dy = f / L->N;
+    dx = dx >= L->n ? dx - L->N : dx, dy = dy >= L->n ? dy - L->N : dy;
+    return abs(dx) <= WT_LEARN_R0_RADIUS && abs(dy) <= WT_LEARN_R0_RADIUS;
+}
+
 /* whether term (component c, used offset u) enters the fit: δ = 0 holds the autos' noise (SPEC §12: white, at
  * δ = 0 only; x and y correlated there by the elongation), and every term of the statistic holds an auto's δ = 0 */
 static int term_used(const wt_learn_model *M, int c, int u)
 {
     (void)c;
     return u != M->u0;
+}
+
+/* The scale of right-hand side r's profile shape f = x / Σ x (x its fit) that best fits the autos at the small
+ * offsets U, 0 < max(|δx|, |δy|) ≤ WT_LEARN_R0_RADIUS, each map and its model less their (weighted) mean over U:
+ *   s = Σ w d̃ r̃ / Σ w r̃²,   r = Σ_a f_a R_a (the auto's response), d the autos' maps, ̃ : less the mean over U
+ * (qs: Σ_U w R_a d, then Σ_U w d, per map and right-hand side). This is the total Cn² (r0 = s^(−3/5)) that the
+ * slopes' covariance over a few subapertures says. The whole fit's total also follows the large scales, which a few
+ * seconds of a slow layer sample about once (docs/results.md §58: r0 off by the realisation, its sign with the
+ * seed); slopes are mostly small scales (their spectrum κ² Φ falls as κ^(−5/3)), sampled many times a frame, and
+ * what the large ones add is nearly constant over U: the mean's removal cancels it (and the tip-tilt removal's
+ * −σ²/n of the noise). The shape comes from the whole fit; the small offsets hardly depend on it (every altitude's
+ * slopes look alike at a subaperture's scale) nor on L0. */
+static double small_scale(const wt_learn *L, const wt_learn_model *M, const double *qs, int nrhs, int ntask, int r,
+                          const double *x)
+{
+    const int m = M->nalt, nu = M->nu;
+    double tot = 0, num = 0, den = 0, sw[WT_LEARN_NCOMP] = {0}, swr[WT_LEARN_NCOMP] = {0};
+    for (int a = 0; a < m; a++) tot += x[a];
+    if (!(tot > 0)) return 0.0;
+    for (int c = 0; c < WT_LEARN_NCOMP; c++) {
+        const double *R = M->R + (size_t)c * nu * m; /* slot 0: every auto pair's */
+        double srr = 0;
+        for (int u = 0; u < nu; u++) {
+            if (!term_used(M, c, u) || !small_offset(L, M->uoff[u])) continue;
+            double ru = 0;
+            for (int a = 0; a < m; a++) ru += R[(size_t)u * m + a] * x[a] / tot;
+            srr += M->uw[u] * ru * ru, swr[c] += M->uw[u] * ru, sw[c] += M->uw[u];
+        }
+        den += L->nlgs * (WT_LEARN_R0_CENTRED && sw[c] > 0 ? srr - swr[c] * swr[c] / sw[c] : srr);
+    }
+    for (int t = 0; t < ntask; t++) {
+        const double *qt = qs + ((size_t)t * nrhs + r) * (m + 1);
+        const int c = t % WT_LEARN_NCOMP;
+        for (int a = 0; a < m; a++) num += qt[a] * x[a] / tot;
+        if (WT_LEARN_R0_CENTRED && sw[c] > 0) num -= qt[m] * swr[c] / sw[c];
+    }
+    return den > 0 ? num / den : 0.0;
+}
+
+/* The profile of right-hand side r (its fit x) with its total from the small offsets: c = x except at the lowest
+ * altitude, which takes the difference s − Σ x (all of c scaled when that would make it negative), s = small_scale
+ * of c's shape (twice: the shape moves with s, s hardly with the shape). Why the lowest: the pairs' differences
+ * measure the Cn² at altitude free of the ground's sampling error (the file's header), the autos alone the rest;
+ * where the whole fit's total and the small scales disagree, it is the slow low layers' large scales that the
+ * frames sampled badly. Returns s (0: none). */
+static double place_total(const wt_learn *L, const wt_learn_model *M, const double *qs, int nrhs, int ntask, int r,
+                          const double *x, double *c)
+{
+    const int m = M->nalt;
+    double s = 0;
+    memcpy(c, x, (size_t)m * sizeof *c);
+    for (int it = 0; it < 2; it++) {
+        s = small_scale(L, M, qs, nrhs, ntask, r, c);
+        if (!(s > 0)) return 0.0;
+        double tot = 0;
+        for (int a = 0; a < m; a++) tot += c[a];
+        if (c[0] + (s - tot) >= 0) c[0] += s - tot;
+        else
+            for (int a = 0; a < m; a++) c[a] *= s / tot;
+    }
+    return s;
 }
 
 int wt_learn_model_alloc(const wt_learn *L, int nalt, const double *alt, double L0, wt_learn_model **out)
@@ -272,11 +349,12 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
     }
     int nth = team();
     if (nth > ntask) nth = ntask;
-    double *G = NULL, *q = NULL, *qt = NULL, *work = NULL, *x = NULL, *dn = NULL, *buf = NULL;
+    double *G = NULL, *q = NULL, *qt = NULL, *work = NULL, *x = NULL, *dn = NULL, *buf = NULL, *qs = NULL;
     int *iwork = NULL;
     WT_ALLOC(ctx, G, (size_t)m * m, "the normal matrix");
     WT_ALLOC(ctx, q, (size_t)m * nrhs, "the normal right-hand sides");
     WT_ALLOC(ctx, qt, (size_t)ntask * (m + 1) * nrhs, "the right-hand sides of each map");
+    WT_ALLOC(ctx, qs, (size_t)ntask * (m + 1) * nrhs, "the autos' small offsets' right-hand sides");
     WT_ALLOC(ctx, x, (size_t)m * nrhs, "the fitted profiles");
     WT_ALLOC(ctx, dn, nrhs, "the data norms");
     WT_ALLOC(ctx, work, (size_t)m * (2 * m + 3), "the NNLS work space");
@@ -307,6 +385,7 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
             }
             fftw_execute_dft_c2r((fftw_plan)L->c2r, (fftw_complex *)sp, corr);
             double *qr = qt + ((size_t)t * nrhs + r) * (m + 1); /* q_a then the data norm */
+            double *qsr = qs + ((size_t)t * nrhs + r) * (m + 1); /* Σ w R_a d over the window, then Σ w d */
             const double sc = 1.0 / ((double)NN * (double)K * L->pairs[0]);
             for (int u = 0; u < nu; u++) {
                 if (!term_used(M, c, u)) continue;
@@ -314,6 +393,10 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
                 const double wv = corr[M->uoff[u]] * sc, v = wv / M->uw[u], *Ru = R + (size_t)u * m;
                 qr[m] += wv * v;
                 for (int a = 0; a < m; a++) qr[a] += Ru[a] * wv;
+                if (i == j && small_offset(L, M->uoff[u])) {
+                    for (int a = 0; a < m; a++) qsr[a] += Ru[a] * wv;
+                    qsr[m] += wv;
+                }
             }
         }
     }
@@ -357,19 +440,28 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
     for (int a = 0; a < m; a++) {
         est->altitude[a] = alt[a], est->cn2[a] = x[a], est->fraction[a] = x[a] / tot;
     }
-    est->r0 = pow(tot, -3.0 / 5.0);
+    /* r0: the profile's shape from the whole fit, its scale from the autos' smallest offsets (small_scale) */
+    est->r0_total = pow(tot, -3.0 / 5.0);
+    double cb[WT_LEARN_MAX_ALT];
+    const double sc0 = place_total(L, M, qs, nrhs, ntask, 0, x, est->cn2);
+    if (!(sc0 > 0)) {
+        st = WT_ERROR(ctx, WT_ERR_NUMERIC, "learn: the slopes' covariance over neighbouring subapertures is not positive "
+                      "(%g of the fitted profile's): are these open-loop slopes?", sc0);
+        goto fail;
+    }
+    est->r0 = pow(sc0, -3.0 / 5.0);
+    for (int a = 0; a < m; a++) est->fraction[a] = est->cn2[a] / sc0;
     if (nb >= 2) {
         /* the spread of the batch estimates, over √B: the standard error of their mean */
         double s0 = 0, s1 = 0;
         double fs[WT_LEARN_MAX_ALT] = {0}, fs2[WT_LEARN_MAX_ALT] = {0};
         for (int r = 1; r <= nb; r++) {
-            double t = 0;
-            for (int a = 0; a < m; a++) t += x[a + (size_t)m * r];
-            double r0b = t > 0 ? pow(t, -3.0 / 5.0) : 0.0;
+            const double sr = place_total(L, M, qs, nrhs, ntask, r, x + (size_t)m * r, cb);
+            double r0b = sr > 0 ? pow(sr, -3.0 / 5.0) : 0.0;
             s0 += r0b, s1 += r0b * r0b;
             est->batch_r0[r - 1] = r0b;
             for (int a = 0; a < m; a++) {
-                double f = t > 0 ? x[a + (size_t)m * r] / t : 0.0;
+                double f = sr > 0 ? cb[a] / sr : 0.0;
                 est->batch_fraction[r - 1][a] = f;
                 fs[a] += f, fs2[a] += f * f;
             }
@@ -379,7 +471,7 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
     }
 fail:
     wt_free(ctx, G), wt_free(ctx, q), wt_free(ctx, qt), wt_free(ctx, x), wt_free(ctx, dn), wt_free(ctx, buf);
-    wt_free(ctx, work), wt_free(ctx, iwork);
+    wt_free(ctx, work), wt_free(ctx, iwork), wt_free(ctx, qs);
     return st;
 }
 
