@@ -80,7 +80,8 @@ int wt_plot_wfe_run(wt_context *ctx, const char *path, const char *title, int nm
 /* cli/plot_series.c: estimates over time against the truth, in npanels (1..4) stacked panels sharing the x axis
  * (xlabel under the last): in each, series s (1..8, names[s], one colour and marker in every panel) as markers at
  * (x[s][i], y[s][i]) joined by a thin line, with error bars ± e[s][i] (e or e[s] NULL, or a value ≤ 0: none), and
- * the truth as a thick black line through (tx[i], ty[i]) (nt < 2: none). Non-finite points are skipped; a panel
+ * the truth as a thick black line through (tx[i], ty[i]) (nt < 2: none), optionally each series' own reference
+ * dashed in its colour (nr[s] < 2: none; the legend names it `refname`). Non-finite points are skipped; a panel
  * without any finite value is an empty frame; at least one finite point overall. */
 typedef struct wt_plot_series_panel {
     const char *ylabel;
@@ -88,9 +89,12 @@ typedef struct wt_plot_series_panel {
     const double *const *x, *const *y, *const *e; /* [nseries] arrays of n[s] values */
     int nt;                                        /* the truth's points */
     const double *tx, *ty;
+    const int *nr;                                 /* NULL, or [nseries] points of each series' own reference, drawn
+                                                      dashed in its colour (e.g. the truth as that method can hold it) */
+    const double *const *rx, *const *ry;
 } wt_plot_series_panel;
 int wt_plot_series(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nseries,
-                   const char *const *names, int npanels, const wt_plot_series_panel *panels);
+                   const char *const *names, const char *refname, int npanels, const wt_plot_series_panel *panels);
 
 /* ---- pupil pictures of one Shack–Hartmann sensor (`wavetomo info --spots`) ---------------------- */
 

@@ -40,6 +40,9 @@ static int check(wt_context *ctx, const char *path, int nseries, const char *con
                 return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': panel %d, series '%s': %d points without arrays",
                                 wt_plot_pname(path), k + 1, names[s] ? names[s] : "?", p[k].n[s]);
             for (int i = 0; i < p[k].n[s]; i++) any += isfinite(p[k].x[s][i]) && isfinite(p[k].y[s][i]);
+            if (p[k].nr && p[k].nr[s] > 0 && (!p[k].rx || !p[k].ry || !p[k].rx[s] || !p[k].ry[s]))
+                return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': panel %d, series '%s': a reference of %d points without "
+                                "arrays", wt_plot_pname(path), k + 1, names[s] ? names[s] : "?", p[k].nr[s]);
         }
     }
     if (!any) return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': no finite estimate to draw", wt_plot_pname(path));
@@ -47,7 +50,7 @@ static int check(wt_context *ctx, const char *path, int nseries, const char *con
 }
 
 int wt_plot_series(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nseries,
-                   const char *const *names, int npanels, const wt_plot_series_panel *p)
+                   const char *const *names, const char *refname, int npanels, const wt_plot_series_panel *p)
 {
     int st = check(ctx, path, nseries, names, npanels, p);
     if (st < 0) return st;
@@ -64,6 +67,9 @@ int wt_plot_series(wt_context *ctx, const char *path, const char *title, const c
             }
         for (int i = 0; i < p[k].nt; i++)
             if (isfinite(p[k].ty[i])) widen(p[k].tx[i], &xlo, &xhi), widen(p[k].ty[i], &ylo[k], &yhi[k]);
+        for (int s = 0; p[k].nr && s < nseries; s++)
+            for (int i = 0; i < p[k].nr[s]; i++)
+                if (isfinite(p[k].ry[s][i])) widen(p[k].rx[s][i], &xlo, &xhi), widen(p[k].ry[s][i], &ylo[k], &yhi[k]);
         if (!(yhi[k] >= ylo[k])) ylo[k] = 0.0, yhi[k] = 1.0; /* a panel with nothing finite: an empty frame */
         const double pad = yhi[k] > ylo[k] ? 0.08 * (yhi[k] - ylo[k]) : 0.1 * fmax(fabs(yhi[k]), 1e-30);
         ylo[k] -= pad, yhi[k] += pad;
@@ -78,12 +84,14 @@ int wt_plot_series(wt_context *ctx, const char *path, const char *title, const c
     char tb[LABEL_MAX], yb[LABEL_MAX];
     for (int k = 0; k < npanels; k++) {
         const double y1 = top - k * (h + gap), y0 = y1 - h;
-        plvpor(0.12, 0.70, y0, y1);
+        plschr(0.0, 1.0);
+        plvpor(0.14, 0.70, y0, y1);
         plwind(xlo, xhi, ylo[k], yhi[k]);
         const int last = k == npanels - 1;
+        plsyax(6, 0); /* r0's 0.13 m as it is, not 1.3 with a ×10⁻¹ above the panel */
         wt_plot_axes(last ? "bcnstg" : "bcstg", "bcnstgv", "g", "g");
         plcol0(C_FG);
-        plmtex("l", 4.6, 0.5, 0.5, wt_plot_escape(yb, sizeof yb, p[k].ylabel ? p[k].ylabel : ""));
+        plmtex("l", 5.4, 0.5, 0.5, wt_plot_escape(yb, sizeof yb, p[k].ylabel ? p[k].ylabel : ""));
         if (last) plmtex("b", 3.0, 0.5, 0.5, wt_plot_escape(yb, sizeof yb, xlabel ? xlabel : ""));
         if (k == 0) {
             plschr(0.0, 1.25); /* from the panel's left edge: a long title runs over the legend's column, not off the page */
@@ -96,6 +104,16 @@ int wt_plot_series(wt_context *ctx, const char *path, const char *title, const c
             for (int i = 0; i + 1 < p[k].nt; i++)
                 if (isfinite(p[k].ty[i]) && isfinite(p[k].ty[i + 1]))
                     pljoin(p[k].tx[i], p[k].ty[i], p[k].tx[i + 1], p[k].ty[i + 1]);
+            plwidth(1.0);
+        }
+        for (int s = 0; p[k].nr && s < nseries; s++) { /* each series' reference: dashed in its colour */
+            plcol0(C_PAL + s % N_PAL);
+            pllsty(2);
+            plwidth(1.6);
+            for (int i = 0; i + 1 < p[k].nr[s]; i++)
+                if (isfinite(p[k].ry[s][i]) && isfinite(p[k].ry[s][i + 1]))
+                    pljoin(p[k].rx[s][i], p[k].ry[s][i], p[k].rx[s][i + 1], p[k].ry[s][i + 1]);
+            pllsty(1);
             plwidth(1.0);
         }
         for (int s = 0; s < nseries; s++) {
@@ -119,13 +137,16 @@ int wt_plot_series(wt_context *ctx, const char *path, const char *title, const c
             plwidth(1.0);
         }
         if (k == 0) { /* the legend beside the top panel: the series, then the truth */
-            PLINT opt[MAX_SERIES_S + 1], tcol[MAX_SERIES_S + 1], lcol[MAX_SERIES_S + 1], lsty[MAX_SERIES_S + 1];
-            PLINT bcol[MAX_SERIES_S + 1], bpat[MAX_SERIES_S + 1], scol[MAX_SERIES_S + 1], snum[MAX_SERIES_S + 1];
-            PLFLT lwid[MAX_SERIES_S + 1], bscale[MAX_SERIES_S + 1], bwid[MAX_SERIES_S + 1], sscale[MAX_SERIES_S + 1];
-            const char *text[MAX_SERIES_S + 1], *sym[MAX_SERIES_S + 1];
-            char buf[MAX_SERIES_S + 1][LABEL_MAX];
-            int nl = 0, truth = 0;
-            for (int q = 0; q < npanels; q++) truth |= p[q].nt >= 2;
+            enum { NLEG = MAX_SERIES_S + 2 };
+            PLINT opt[NLEG], tcol[NLEG], lcol[NLEG], lsty[NLEG], bcol[NLEG], bpat[NLEG], scol[NLEG], snum[NLEG];
+            PLFLT lwid[NLEG], bscale[NLEG], bwid[NLEG], sscale[NLEG];
+            const char *text[NLEG], *sym[NLEG];
+            char buf[NLEG][LABEL_MAX];
+            int nl = 0, truth = 0, refs = 0;
+            for (int q = 0; q < npanels; q++) {
+                truth |= p[q].nt >= 2;
+                for (int s = 0; p[q].nr && s < nseries; s++) refs |= p[q].nr[s] >= 2;
+            }
             for (int s = 0; s < nseries; s++, nl++) {
                 text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], names[s] ? names[s] : "");
                 opt[nl] = PL_LEGEND_LINE | PL_LEGEND_SYMBOL, lcol[nl] = scol[nl] = C_PAL + s % N_PAL, lwid[nl] = 1.2;
@@ -136,8 +157,14 @@ int wt_plot_series(wt_context *ctx, const char *path, const char *title, const c
                 sym[nl] = "", snum[nl] = 0, sscale[nl] = 1.0;
                 nl++;
             }
-            for (int i = 0; i < nl; i++)
-                tcol[i] = C_FG, lsty[i] = 1, bcol[i] = C_MISSING, bpat[i] = 0, bscale[i] = 0.8, bwid[i] = 1.0;
+            for (int i = 0; i < nl; i++) lsty[i] = 1;
+            if (refs) {
+                text[nl] = wt_plot_escape(buf[nl], sizeof buf[nl], refname ? refname : "reference");
+                opt[nl] = PL_LEGEND_LINE, lcol[nl] = scol[nl] = C_FG, lwid[nl] = 1.6, lsty[nl] = 2;
+                sym[nl] = "", snum[nl] = 0, sscale[nl] = 1.0;
+                nl++;
+            }
+            for (int i = 0; i < nl; i++) tcol[i] = C_FG, bcol[i] = C_MISSING, bpat[i] = 0, bscale[i] = 0.8, bwid[i] = 1.0;
             PLFLT lw, lh;
             pllegend(&lw, &lh, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
                      PL_POSITION_OUTSIDE | PL_POSITION_RIGHT | PL_POSITION_VIEWPORT, 0.03, 0.0, 0.10,

@@ -310,6 +310,11 @@ int wt_adapt_follows_truth(const wt_adapt *a) { return a->par.follow_truth; }
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a) { return a->up; }
 double wt_adapt_accumulate_seconds(const wt_adapt *a) { return a->tacc; }
 double wt_adapt_wind_seconds(const wt_adapt *a) { return a->wind ? wt_wind_align_seconds(a->wind) : 0.0; }
+int wt_adapt_wind_layers(const wt_adapt *a, const double **alt)
+{
+    if (alt) *alt = a->wind_alt;
+    return a->nwl;
+}
 double wt_adapt_build_seconds(const wt_adapt *a) { return a->tbuild; }
 double wt_adapt_model_setup_seconds(const wt_adapt *a) { return a->model_setup; }
 

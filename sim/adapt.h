@@ -113,6 +113,9 @@ int wt_adapt_follows_truth(const wt_adapt *a); /* 1: the oracle following a nigh
 const wt_adapt_update *wt_adapt_updates(const wt_adapt *a);
 double wt_adapt_accumulate_seconds(const wt_adapt *a); /* summed wall time of the accumulation [s] */
 double wt_adapt_wind_seconds(const wt_adapt *a);       /* learn_wind: the layers' part of it [s] (0 without) */
+/* learn_wind: the reconstruction layers whose winds the updates hold (wt_adapt_update.wind_*), their altitudes [m]
+ * into *alt (the object's); 0 without learn_wind. */
+int wt_adapt_wind_layers(const wt_adapt *a, const double **alt);
 double wt_adapt_build_seconds(const wt_adapt *a);      /* summed wall time of the MVM builds [s] */
 double wt_adapt_model_setup_seconds(const wt_adapt *a); /* the learning grid's response maps, at alloc [s] */
 /* The updates into w under the group `group` ("learned" in sim's file; one row per update: frame, night time, r0 and its

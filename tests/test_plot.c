@@ -289,19 +289,31 @@ START_TEST(test_series_against_truth)
     const double *px[NS] = {x[0], x[1]}, *pr[NS] = {r[0], r[1]}, *pe[NS] = {e[0], e[1]}, *pt[NS] = {th[0], th[1]};
     wt_plot_series_panel p[2] = {{.ylabel = "r0 [m]", .n = n, .x = px, .y = pr, .e = pe, .nt = NT, .tx = tx, .ty = tr},
                                  {.ylabel = "θ0 [arcsec]", .n = n, .x = px, .y = pt, .nt = NT, .tx = tx, .ty = tt}};
-    ck_assert_msg(wt_plot_series(ctx, a, "learned", "night time [min]", NS, names, 2, p) == WT_OK, "%s",
+    ck_assert_msg(wt_plot_series(ctx, a, "learned", "night time [min]", NS, names, NULL, 2, p) == WT_OK, "%s",
                   wt_error_message(ctx));
     assert_png(a, 900, 720);
     th[1][3] = 2.4; /* one estimate of the second series, bottom panel */
-    ck_assert_int_eq(wt_plot_series(ctx, b, "learned", "night time [min]", NS, names, 2, p), WT_OK);
+    ck_assert_int_eq(wt_plot_series(ctx, b, "learned", "night time [min]", NS, names, NULL, 2, p), WT_OK);
     ck_assert_msg(!same_bytes(a, b), "one estimate changed and the picture did not");
-    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", 0, names, 2, p), WT_ERR_INVALID);
-    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 5, p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", 0, names, NULL, 2, p), WT_ERR_INVALID);
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, NULL, 5, p), WT_ERR_INVALID);
     const int none[NS] = {0, 0};
     wt_plot_series_panel q[1] = {{.ylabel = "r0", .n = none, .x = px, .y = pr, .nt = NT, .tx = tx, .ty = tr}};
-    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 1, q), WT_ERR_INVALID); /* no estimate at all */
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, NULL, 1, q), WT_ERR_INVALID); /* no estimate at all */
     q[0].n = n, q[0].tx = NULL;
-    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, 1, q), WT_ERR_INVALID); /* a truth without its x */
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, NULL, 1, q), WT_ERR_INVALID); /* a truth without its x */
+    q[0].tx = tx;
+    const int nr[NS] = {NT, NT};
+    const double *rx[NS] = {tx, tx}, *ry[NS] = {tt, NULL};
+    q[0].nr = nr, q[0].rx = rx, q[0].ry = ry;
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, "oracle", 1, q), WT_ERR_INVALID); /* a reference without y */
+    ry[1] = tr; /* each series' own reference, dashed: drawn, and it reaches the picture */
+    ck_assert_int_eq(wt_plot_series(ctx, c, "t", "x", NS, names, "oracle", 1, q), WT_OK);
+    ck_assert_int_eq(wt_plot_series(ctx, b, "t", "x", NS, names, "oracle", 1, q), WT_OK);
+    ry[1] = tt;
+    ck_assert_int_eq(wt_plot_series(ctx, b, "t", "x", NS, names, "oracle", 1, q), WT_OK);
+    ck_assert_msg(!same_bytes(b, c), "a reference line changed and the picture did not");
+    remove(c);
     ck_assert(access(c, F_OK) != 0);
     ck_assert_int_eq(count_entries(dir, "tmp"), 0);
     remove_dir(dir);
