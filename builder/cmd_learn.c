@@ -39,7 +39,9 @@ static void help(void)
            "`wavetomo sim --telemetry` (SPEC 12): the slope cross-covariance maps of every LGS pair (tip-tilt\n"
            "removed, by FFT), fitted by non-negative least squares with the cone-beam response maps of unit von\n"
            "Karman layers on an altitude grid (0, 0.5 km, then every 1 km to 20 km) at the configuration's\n"
-           "recon.atmosphere L0. The truth is never read by the estimate.\n"
+           "recon.atmosphere L0. r0 is the total that fits each LGS's own map within two subapertures (each\n"
+           "map less its mean there: the large scales, which a few seconds sample badly, cancel); the Cn2 at\n"
+           "altitude is the fit's, the lowest altitude takes the rest. The truth is never read by the estimate.\n"
            "  --config F   the system (default: the configuration stored in the telemetry); refused when its LGS\n"
            "               geometry is not the telemetry's\n"
            "  --frames N   use the first N frames (default: all)\n"
@@ -402,7 +404,7 @@ int wt_cmd_learn(int argc, char **argv)
            1e3 * tadd / (double)F, tfit);
     printf("  r0 (500 nm)  %.4f ± %.4f m   truth %.4f m (%+.1f %%); L0 %.1f m (fixed, recon.atmosphere)\n", e->r0,
            e->r0_sigma, tcfg->r0, 100 * (e->r0 / tcfg->r0 - 1), e->L0);
-    printf("  r0 of the whole fit's total Cn2 %.4f m (%+.1f %%; r0 above is scaled on the neighbouring subapertures)\n",
+    printf("  r0 of the whole fit's total Cn2 %.4f m (%+.1f %%; r0 above is scaled on the autos within two subapertures)\n",
            e->r0_total, 100 * (e->r0_total / tcfg->r0 - 1));
     printf("  uncertainties: the %d batches' spread / sqrt(batches) x %.2f: the frames saw %.2f renewals of the screens "
            "(each layer moving the aperture's %.1f m at recon.atmosphere's wind)\n", e->nbatch, e->sigma_factor,

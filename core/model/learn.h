@@ -147,7 +147,7 @@ typedef struct wt_learn_estimate {
     double fraction_sigma[WT_LEARN_MAX_ALT]; /* spread of the batches' f_h / √B [-] (0 with one batch) */
     double r0, r0_sigma;                 /* [m] at 500 nm, and its uncertainty as above */
     double r0_total;                     /* [m] r0 of the whole fit's total Cn² (every offset; r0 is scaled on the
-                                            autos' neighbouring subapertures: learn_fit.c small_scale) */
+                                            autos within two subapertures: learn_fit.c small_scale) */
     double L0;                           /* the outer scale used [m] */
     int64_t frames;                      /* frames used */
     int nbatch;                          /* batches with frames */

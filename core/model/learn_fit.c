@@ -445,7 +445,7 @@ int wt_learn_fit_model(const wt_learn *L, const wt_learn_model *M, wt_learn_esti
     double cb[WT_LEARN_MAX_ALT];
     const double sc0 = place_total(L, M, qs, nrhs, ntask, 0, x, est->cn2);
     if (!(sc0 > 0)) {
-        st = WT_ERROR(ctx, WT_ERR_NUMERIC, "learn: the slopes' covariance over neighbouring subapertures is not positive "
+        st = WT_ERROR(ctx, WT_ERR_NUMERIC, "learn: the slopes' covariance within two subapertures is not positive "
                       "(%g of the fitted profile's): are these open-loop slopes?", sc0);
         goto fail;
     }
