@@ -128,15 +128,22 @@ static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, c
         vy[k] = cfg->model.wind_speed[k] * sin(cfg->model.wind_direction[k]);
     wt_profile_compress(tp->natm, tp->atm_altitude, tp->atm_fraction, vx, vy, L, alt, frac, sx, sy);
     for (int l = 0; l < L; l++) sx[l] *= lead, sy[l] *= lead;
-    wt_shift *sh = NULL;
+    /* a frame's shift of the state for the integrator on the layers */
+    double fx[WT_MAX_LAYERS], fy[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++) fx[l] = sx[l] / (lead * cfg->rate), fy[l] = sy[l] / (lead * cfg->rate);
+    wt_shift *sh = NULL, *sh1 = NULL;
     int st = wt_shift_alloc(ctx, L, g, off, sx, sy, &sh);
-    if (st < 0) return st;
+    if (st >= 0) st = wt_shift_alloc(ctx, L, g, off, fx, fy, &sh1);
+    if (st < 0) {
+        wt_shift_free(sh);
+        return st;
+    }
     out->shift_moving = wt_shift_nmoving(sh);
     const int64_t n = wt_tomography_nunknowns(t);
     const int reps = 200;
     double *phi = malloc((size_t)n * sizeof *phi), *pred = malloc((size_t)n * sizeof *pred),
-           *times = malloc(reps * sizeof *times);
-    if (!phi || !pred || !times) st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for the shift's layers");
+           *times = malloc(reps * sizeof *times), *z = malloc(3 * (size_t)n * sizeof *z);
+    if (!phi || !pred || !times || !z) st = WT_ERROR(ctx, WT_ERR_NOMEM, "bench: out of memory for the shift's layers");
     if (st >= 0 && out->shift_moving) {
         wt_tomography_layers(t, c, phi);
         wt_shift_apply_to(sh, phi, pred); /* warm caches and pages */
@@ -146,6 +153,14 @@ static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, c
             times[r] = wt_time_now() - a;
         }
         out->shift = wt_bench_summarise(times, reps);
+        for (int64_t k = 0; k < 3 * n; k++) z[k] = 0.5 * phi[k % n];
+        for (int r = 0; r < reps; r++) {
+            const double a = wt_time_now();
+            wt_shift_integrate(sh, sh1, par->integrator_gain > 0.0 ? par->integrator_gain : cfg->gain, phi, z,
+                               z + n, z + 2 * n, pred, n);
+            times[r] = wt_time_now() - a;
+        }
+        out->integrate = wt_bench_summarise(times, reps);
         /* a moving n × n layer: four passes of n/2 complex transforms of length n (5 n log2 n each) and two of n²/2
          * complex products */
         for (int l = 0; l < L; l++) {
@@ -154,11 +169,16 @@ static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, c
             out->shift_flops += 10.0 * m * log2(g[l]->nx) + 6.0 * m;
             out->shift_bytes += 16.0 * m;
         }
+        /* two shifts, the innovation (1 flop a point) and the update (2); read φ, z_t, z_(t+d−1), write z_(t+d) and e */
+        out->integrate_flops = 2.0 * out->shift_flops + 3.0 * (double)n;
+        out->integrate_bytes = 2.0 * out->shift_bytes + 8.0 * 6.0 * (double)n;
     }
     free(phi);
     free(pred);
     free(times);
+    free(z);
     wt_shift_free(sh);
+    wt_shift_free(sh1);
     return st;
 }
 

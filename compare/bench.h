@@ -51,6 +51,10 @@ typedef struct wt_bench_tomography {
     int shift_moving;         /* layers that move (0: no wind, not timed) */
     double shift_flops, shift_bytes; /* per call: the transforms and ramps; the layers read and written once */
     wt_bench_stats shift;
+    /* recon.predict_integrator = "layers": one frame of the integrator on the layers (wt_shift_integrate: the lead's
+     * shift of the innovation and a frame's shift of the state), median of at least 200 */
+    double integrate_flops, integrate_bytes;
+    wt_bench_stats integrate;
 } wt_bench_tomography;
 
 /* Times the variant described by par (name "pcg3" or "cg9" labels its operators) reps times on seeded

@@ -134,6 +134,7 @@ double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_varia
     const int n = cfg->nlayers, L = var ? var->nlayers : 0;
     const double r0 = r0_at(cfg), a = 0.0229 * pow(r0, -5.0 / 3.0), k0 = 1.0 / (cfg->L0 * cfg->L0), g = cfg->gain;
     const double tau = (cfg->predict_lead_frames > 0.0 ? cfg->predict_lead_frames : (double)cfg->delay) / cfg->rate;
+    const int layers = cfg->predict_integrator == 1; /* the integrator on the layers (reconstructor.h) */
     double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS], rf[WT_MAX_LAYERS], rvx[WT_MAX_LAYERS], rvy[WT_MAX_LAYERS];
     for (int l = 0; l < n; l++)
         vx[l] = cfg->wind_speed[l] * cos(cfg->wind_direction[l]), vy[l] = cfg->wind_speed[l] * sin(cfg->wind_direction[l]);
@@ -156,9 +157,18 @@ double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_varia
             for (int ix = 0; ix < N; ix++) {
                 const double kx = -kc + (ix + 0.5) * h, ky = -kc + (iy + 0.5) * h;
                 const double complex z = cexp(2.0 * M_PI * I * (kx * vx[l] + ky * vy[l]) / cfg->rate);
-                double complex P = 0.0;
-                for (int q = 0; q < nj; q++) P += wj[q] * cexp(2.0 * M_PI * I * (kx * ux[q] + ky * uy[q]) * tau);
-                const double complex zd = cpow(z, cfg->delay), e = 1.0 - g * P / (zd - zd / z + g);
+                const double complex zd = cpow(z, cfg->delay);
+                double complex P = 0.0, c = 0.0;
+                for (int q = 0; q < nj; q++) {
+                    const double complex Pq = cexp(2.0 * M_PI * I * (kx * ux[q] + ky * uy[q]) * tau);
+                    P += wj[q] * Pq;
+                    if (layers) { /* the state moves by U_q a frame: c_q = g P_q / (z^d − U_q z^(d−1) + g P_q) */
+                        const double complex U = cexp(2.0 * M_PI * I * (kx * ux[q] + ky * uy[q]) / cfg->rate);
+                        c += wj[q] * g * Pq / (zd - U * zd / z + g * Pq);
+                    }
+                }
+                if (!layers) c = g * P / (zd - zd / z + g);
+                const double complex e = 1.0 - c;
                 sl += pow(kx * kx + ky * ky + k0, -11.0 / 6.0) * creal(e * conj(e));
             }
         s += cfg->layer_fraction[l] * a * sl * h * h;

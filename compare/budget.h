@@ -169,7 +169,10 @@ double wt_budget_servo_band_limited(const wt_config *cfg);
  * compressed layers cannot express, whatever shift they are given (issue 36 item 3; SPEC §12): on the E-ELT's 9
  * layers onto PCG-3's 3, over a pure delay of 4–6 ms, a shift by the Cn²-weighted mean wind leaves 0.490 of the lag
  * variance and the best linear predictor of each layer alone (the Cn²-weighted mean of its components' phasors)
- * 0.488 (docs/results.md §73). */
+ * 0.488 (docs/results.md §73). With recon.predict_integrator = "layers" (the integrator on the layers, each moved
+ * by its wind U_j = exp(2πi κ·v̄_j / f_s) a frame) the rejection is E = 1 − Σ_j w_ℓj g P_j / (z^d − U_j z^(d−1) + g P_j),
+ * P_j = exp(2πi κ·v̄_j τ): 0 for a layer moved by its own wind (U = z, τ = d / f_s), whatever g; what is left is the
+ * integrator's lag on the motion relative to the reconstruction layer's. */
 double wt_budget_servo_band_predicted(const wt_config *cfg, const wt_recon_variant_config *var);
 /* Σ_k h_k²: the variance gain of white measurement noise through the loop's integrator with delay d
  * (impulse response h of a_{t+d} = a_{t+d−1} + g (n_t − a_t)); g/(2−g) for d = 1 (= wt_noise_loop_gain). */

@@ -124,6 +124,10 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
         report(label, b.shift, b.shift_flops, b.shift_bytes);
         printf("  the prediction's shift is %.1f %% of the frame's median above (target <= 5 %%; median of 200 calls, "
                "the layers on the context's threads)\n", 100.0 * b.shift.med / b.frame.med);
+        snprintf(label, sizeof label, "%s: integrator on the layers (recon.predict_integrator)", name);
+        report(label, b.integrate, b.integrate_flops, b.integrate_bytes);
+        printf("  a frame of the integrator on the layers (the shift above and a frame's shift of its state) is %.1f %% of "
+               "the frame (in place of the shift's)\n", 100.0 * b.integrate.med / b.frame.med);
     }
     char what[64];
     snprintf(what, sizeof what, "a %s frame", name);

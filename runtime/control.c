@@ -9,6 +9,7 @@ struct wt_control {
     int64_t nact;
     int delay;
     double gain;
+    int direct;              /* a_{t+d} = r_t */
     long t;                  /* frames stepped */
     double **ring;           /* delay + 1 command vectors: a_t at slot t mod (delay + 1) */
     wt_scale_gain *sg;       /* G (else NULL) */
@@ -23,6 +24,7 @@ wt_control_params wt_control_params_from_config(const wt_config *cfg)
     memset(&p, 0, sizeof p);
     p.delay = cfg->delay;
     p.gain = cfg->gain;
+    p.direct = cfg->predict && cfg->predict_integrator == 1; /* (as wt_reconstructor_params_from_config) */
     if (cfg->ngain_levels > 0) {
         p.scale_gain.nbands = cfg->ngain_levels;
         memcpy(p.scale_gain.gain, cfg->gain_levels, (size_t)cfg->ngain_levels * sizeof *cfg->gain_levels);
@@ -40,11 +42,15 @@ int wt_control_alloc(wt_context *ctx, const wt_system *sys, const wt_control_par
     if (par->delay < 1 || !(par->gain >= 0.0 && par->gain <= 1.0))
         return WT_ERROR(ctx, WT_ERR_INVALID, "control: delay %d and gain %g; expected a delay >= 1 frame and a gain in "
                         "[0, 1] (loop.delay, loop.gain)", par->delay, par->gain);
+    if (par->scale_gain.nbands > 0 && par->direct)
+        return WT_ERROR(ctx, WT_ERR_INVALID, "control: a gain per scale of the commands with the integrator on the "
+                        "layers (loop.gain_levels with recon.predict_integrator = \"layers\")");
     WT_ALLOC(ctx, c, 1, "control law");
     c->ctx = ctx;
     c->nact = sys->nact;
     c->delay = par->delay;
     c->gain = par->gain;
+    c->direct = par->direct;
     if (par->scale_gain.nbands > 0) {
         WT_TRY(wt_scale_gain_alloc(ctx, sys->dm, &par->scale_gain, &c->sg));
         WT_ALLOC(ctx, c->gerr, sys->nact, "scale-dependent gain");
@@ -80,6 +86,8 @@ const double *wt_control_step(wt_control *c, const double *r, const double *a_t)
     double *next = c->ring[(c->t + c->delay) % D1];
     if (!r) {
         memset(next, 0, (size_t)c->nact * sizeof *next);
+    } else if (c->direct) {
+        memcpy(next, r, (size_t)c->nact * sizeof *next);
     } else if (c->sg) {
         /* G = g I (all gains equal) adds (1 g) e_k to prev_k: the single gain's bits */
         for (int64_t k = 0; k < c->nact; k++) c->gerr[k] = r[k] - a_t[k];

@@ -3,7 +3,8 @@
  *
  *   a_{t+d} = a_{t+d−1} + g (r_t − a_t)                                       (loop.gain), or
  *   a_{t+d} = a_{t+d−1} + G (r_t − a_t),   G = Σ_j g_j Π_j per band of the commands   (loop.gain_levels,
- *                                                                               core/op/scale_gain.h),
+ *                                                                               core/op/scale_gain.h), or
+ *   a_{t+d} = r_t   when the reconstructor runs the integrator on its layers (recon.predict_integrator = "layers"),
  *
  * r_t the reconstruction of frame t (from s_ol = s + Â a_t), a_t the commands applied during frame t, d the loop's
  * delay in frames: a queue of the last d + 1 command vectors, a_t at slot t mod (d + 1), all 0 at the start.
@@ -21,6 +22,8 @@ typedef struct wt_control_params {
     int delay;                       /* d ≥ 1 [frames] */
     double gain;                     /* g in (0, 1] */
     wt_scale_gain_params scale_gain; /* nbands > 0: G in place of g; 0: the single gain */
+    int direct;                      /* 1: a_{t+d} = r_t, the reconstructor's result applied as it is (it runs the
+                                      * integrator itself: recon.predict_integrator = "layers", reconstructor.h) */
 } wt_control_params;
 
 /* The law of a configuration: loop.delay, loop.gain, loop.gain_levels and loop.gain_basis. */

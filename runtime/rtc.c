@@ -282,7 +282,7 @@ void wt_rtc_reset(wt_rtc *rtc)
 {
     if (!rtc) return;
     wt_control_reset(rtc->ctl);
-    if (rtc->rec) wt_reconstructor_reset(rtc->rec);
+    if (rtc->rec) wt_reconstructor_reset(rtc->rec), wt_reconstructor_reset_integrator(rtc->rec);
     rtc->frames = 0;
     rtc->frame_time = 0.0;
 }

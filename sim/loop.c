@@ -241,7 +241,8 @@ int wt_loop_alloc_params(wt_context *ctx, const wt_system *sys, const wt_loop_op
         WT_TRY(wt_reconstructor_alloc(ctx, sys, opt->recon, &par->recon, &lp->rec));
     }
     {
-        const wt_control_params cp = {.delay = par->delay, .gain = par->gain, .scale_gain = par->scale_gain};
+        const wt_control_params cp = {.delay = par->delay, .gain = par->gain, .scale_gain = par->scale_gain,
+                                      .direct = lp->rec && wt_reconstructor_integrates(lp->rec)};
         WT_TRY(wt_control_alloc(ctx, sys, &cp, &lp->ctl));
     }
     WT_ALLOC(ctx, lp->s, sys->nslopes, "slopes");

@@ -64,6 +64,8 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
     par->settle_frames = cfg->settle_frames;
     wt_reconstructor_params_from_config(cfg, opt->recon, opt->iterations, &par->recon);
     if (opt->no_predict) par->recon.predict_lead = 0.0;
+    /* the layers' integrator is the closed loop's law; the open loops apply each frame's own reconstruction */
+    if (opt->no_predict || opt->open_loop) par->recon.integrator_gain = 0.0;
     par->perfect_fit = wt_fitting_params_from_variant(&cfg->cg9);
     const wt_model_atmosphere_config *m = &cfg->model;
     const int follow = m->source == WT_MODEL_ORACLE && nc->source != WT_NIGHT_CFG_NONE; /* the oracle in a night */

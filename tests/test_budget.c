@@ -190,14 +190,16 @@ START_TEST(test_analytic)
 }
 END_TEST
 
-/* The band-limited lag with prediction (wt_budget_servo_band_predicted) in three cases with a closed form: two
+/* The band-limited lag with prediction (wt_budget_servo_band_predicted) in five cases with a closed form: two
  * layers of equal Cn² at 0 and 1 km moving in opposite directions (10 m/s towards 0° and 180°), (a) held by one
  * reconstruction layer: its Cn²-weighted wind is 0, the shift nothing, P = 1, so the lag is the one without prediction
  * (wt_budget_servo_band_limited, a real-valued |E|²: to 1e-9, the two sums' rounding); (b) held by reconstruction
  * layers at their own altitudes: each moved by its own wind, the same as var = NULL to rounding; (c) the lag each
  * own wind leaves is the integrator's averaging only, |E|² → ω²(1 − g d)²/g² against ω²/g² without prediction at
  * low temporal frequency ω: (1 − 0.4·2)² = 0.04 of the variance, and no more than 0.2 of it over the DM's band
- * (measured 0.041; the band's highest ω = 2π 10 / 500 = 0.13 rad keeps the expansion within a few %). */
+ * (measured 0.041; the band's highest ω = 2π 10 / 500 = 0.13 rad keeps the expansion within a few %); with the
+ * integrator on the layers (recon.predict_integrator = "layers"), (d) each layer's own wind leaves nothing and (e) the
+ * one layer that does not move leaves the lag without prediction. */
 START_TEST(test_servo_band_predicted)
 {
     wt_context *ctx = tu_context();
@@ -214,6 +216,13 @@ START_TEST(test_servo_band_predicted)
     ck_assert_rel(own9, own, 1e-12, 0.0);
     ck_assert_msg(own * own < 0.2 * none * none && own * own > 0.03 * none * none,
                   "own winds leave %.3f of the lag variance (0.04 expected at low frequency)", own * own / (none * none));
+    /* the integrator on the layers: each layer moved by its own wind every frame leaves no lag at all (E = 1 − g z^d /
+     * (z^d − z z^(d−1) + g z^d) = 0 to rounding); one layer holding both, with their mean wind 0, does not move:
+     * E = 1 − g / (z^d − z^(d−1) + g), the lag without prediction */
+    cfg->predict_integrator = 1;
+    const double lown = wt_budget_servo_band_predicted(cfg, NULL), lheld = wt_budget_servo_band_predicted(cfg, &one);
+    ck_assert_msg(lown < 1e-6 * none, "the layers' integrator with each layer's own wind leaves %g nm (none %g)", lown, none);
+    ck_assert_rel(lheld, none, 1e-9, 0.0);
     wt_config_free(ctx, cfg);
     wt_context_free(ctx);
 }

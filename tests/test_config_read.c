@@ -217,6 +217,8 @@ START_TEST(test_overrides)
         {"loop.gain_basis=\"haar\"", "key 'loop.gain_basis': value \"haar\" is not accepted", "\"bilinear\", \"daubechies\""},
         {"loop.gain_basis=\"daubechies\"", "key 'loop.gain_basis' is given without 'loop.gain_levels'", ""},
         {"sim.psf_interval_frames=2000000", "--set sim.psf_interval_frames=2000000: key 'sim.psf_interval_frames': value 2000000 is out of range", "[0, 1000000]"},
+        {"recon.predict_integrator=\"state\"", "key 'recon.predict_integrator': value \"state\" is not accepted",
+         "\"commands\", \"layers\""},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         wt_config *x = (wt_config *)1;
@@ -226,6 +228,13 @@ START_TEST(test_overrides)
         const char *m = wt_error_message(ctx);
         ck_assert_msg(strstr(m, bad[i].want1) && strstr(m, bad[i].want2), "%s: message \"%s\"", bad[i].ov, m);
     }
+    /* the integrator on the layers has one gain: not with a gain per scale of the commands */
+    const char *both[] = {"loop.gain_levels=[0.6, 0.4]", "recon.predict_integrator=\"layers\""};
+    wt_config *x = (wt_config *)1;
+    ck_assert_int_eq(wt_config_parse(ctx, VALID, NAME, 2, both, &x), WT_ERR_CONFIG);
+    ck_assert_ptr_null(x);
+    ck_assert_msg(strstr(wt_error_message(ctx), "key 'recon.predict_integrator' = \"layers\"") &&
+                      strstr(wt_error_message(ctx), "loop.gain_levels"), "%s", wt_error_message(ctx));
     wt_context_free(ctx);
 }
 END_TEST

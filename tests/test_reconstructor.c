@@ -6,6 +6,7 @@
 #include "core/la/sparse.h"
 #include "core/model/reconstructor.h"
 #include "core/model/params.h"
+#include "runtime/control.h"
 #include "testutil.h"
 
 typedef struct {
@@ -250,6 +251,78 @@ START_TEST(test_predict)
 }
 END_TEST
 
+/* recon.predict_integrator = "layers" (the loop's integrator on the layers, reconstructor.h) against the control's
+ * integrator on the commands, frame by frame over 8 frames of random slopes (the commands a_{t+2} each queues), delay 2, gain 0.4: with every wind zero
+ * the two laws are one (z_{t+d} = z_{t+d−1} + g (φ_t − z_t) and a = F z, F linear: pcg3's command map, cg9's
+ * Cholesky fitting), so the commands agree to rounding (1e-12 relative: a few roundings of each product); with the
+ * demo's wind they differ (the state moves by the wind every frame, by 2–8 cm of the 0.5–1 m grids: ≥ 1e-3). */
+static void run_law(const char *const *set, int nset, int kind, int K, double *out, int64_t *na_out, int *integrates)
+{
+    fixture f;
+    setup(&f, nset, (const char **)set);
+    const int64_t ns = f.sys->nslopes, na = f.sys->nact;
+    wt_reconstructor *r;
+    wt_reconstructor_params rp;
+    wt_reconstructor_params_from_config(f.cfg, kind, -1, &rp);
+    ck_assert_msg(wt_reconstructor_alloc(f.ctx, f.sys, kind, &rp, &r) == WT_OK, "%s", wt_error_message(f.ctx));
+    wt_control *c;
+    const wt_control_params cp = wt_control_params_from_config(f.cfg);
+    ck_assert_int_eq(wt_control_alloc(f.ctx, f.sys, &cp, &c), WT_OK);
+    *integrates = wt_reconstructor_integrates(r);
+    ck_assert_int_eq(cp.direct, *integrates);
+    double *s = malloc(ns * sizeof *s), *rec = malloc(na * sizeof *rec);
+    for (int t = 0; t < K; t++) {
+        tu_randn(s, ns, 40 + t);
+        for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+        ck_assert_int_ge(wt_reconstructor_apply(r, s, rec), WT_OK);
+        const double *next = wt_control_step(c, rec, wt_control_applied(c));
+        memcpy(out + (size_t)t * na, next, na * sizeof *out);
+    }
+    *na_out = na;
+    free(s), free(rec);
+    wt_control_free(c);
+    wt_reconstructor_free(r);
+    teardown(&f);
+}
+
+START_TEST(test_predict_integrator)
+{
+    const int K = 8;
+    for (int kind = WT_RECON_PCG3; kind <= WT_RECON_CG9; kind++) {
+        double *a0 = malloc((size_t)K * 20000 * sizeof *a0), *a1 = malloc((size_t)K * 20000 * sizeof *a1);
+        int64_t na;
+        int i0, i1;
+        const char *cmd0[] = {"recon.predict=true", "recon.cg9.fit_solver=\"cholesky\"",
+                              "atmosphere.wind_speed_mps=[0.0, 0.0, 0.0, 0.0, 0.0]"};
+        const char *lay0[] = {"recon.predict=true", "recon.cg9.fit_solver=\"cholesky\"",
+                              "atmosphere.wind_speed_mps=[0.0, 0.0, 0.0, 0.0, 0.0]", "recon.predict_integrator=\"layers\""};
+        run_law(cmd0, 3, kind, K, a0, &na, &i0);
+        ck_assert_int_le(na, 20000);
+        run_law(lay0, 4, kind, K, a1, &na, &i1);
+        ck_assert(!i0 && i1);
+        for (int t = 0; t < K; t++) {
+            const double *x = a0 + (size_t)t * na, *y = a1 + (size_t)t * na;
+            ck_assert_msg(tu_rel_diff(y, x, na) < 1e-12, "%s, frame %d: the laws differ by %g with no wind",
+                          wt_reconstructor_name(kind), t, tu_rel_diff(y, x, na));
+        }
+        const char *lay[] = {"recon.predict=true", "recon.cg9.fit_solver=\"cholesky\"", "recon.predict_integrator=\"layers\""};
+        const char *cmd[] = {"recon.predict=true", "recon.cg9.fit_solver=\"cholesky\""};
+        run_law(cmd, 2, kind, K, a0, &na, &i0);
+        run_law(lay, 3, kind, K, a1, &na, &i1);
+        const double *x = a0 + (size_t)(K - 1) * na, *y = a1 + (size_t)(K - 1) * na;
+        ck_assert_msg(tu_rel_diff(y, x, na) > 1e-3, "%s: the layers' integrator moved nothing (%g)",
+                      wt_reconstructor_name(kind), tu_rel_diff(y, x, na));
+        /* without recon.predict the key changes nothing: the commands' law, bit for bit */
+        const char *off[] = {"recon.cg9.fit_solver=\"cholesky\"", "recon.predict_integrator=\"layers\""};
+        const char *off0[] = {"recon.cg9.fit_solver=\"cholesky\""};
+        run_law(off0, 1, kind, K, a0, &na, &i0);
+        run_law(off, 2, kind, K, a1, &na, &i1);
+        ck_assert(!i1 && !memcmp(a0, a1, (size_t)K * na * sizeof *a0));
+        free(a0), free(a1);
+    }
+}
+END_TEST
+
 Suite *make_suite(void)
 {
     Suite *s = suite_create("reconstructor");
@@ -261,6 +334,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_mvm_and_none);
     tcase_add_test(tc, test_pcg3_command_map_split);
     tcase_add_test(tc, test_predict);
+    tcase_add_test(tc, test_predict_integrator);
     suite_add_tcase(s, tc);
     return s;
 }

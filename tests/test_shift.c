@@ -102,6 +102,55 @@ START_TEST(t_out_of_place_and_threads)
 }
 END_TEST
 
+/* The integrator on moving layers (wt_shift_integrate) under frozen flow: a band-limited layer moving by v a frame
+ * (φ_t = f(x − v t)), the law started from z = 0 with delay d = 2 and gain g = 0.4. Its error ε_t = z_t − φ_t obeys,
+ * mode by mode (the shifts are unitary and commute), ε_t = u^t η_t with η_{t+2} = η_{t+1} − g η_t: roots of
+ * x² − x + g, |x| = √g = 0.63, so after 70 frames the state is φ_{t+d} to ~0.63^70 ≈ 1e-14 (times the roots'
+ * polynomial factor: tolerance 1e-10 of the field). The integrator on the commands (no S_1: z_{t+d} = z_{t+d−1} +
+ * g (S_d φ_t − z_t)) keeps a lag instead: its error stays, here > 1 % of the field, which the test also checks so
+ * that it can tell the two laws apart. */
+START_TEST(t_integrate_frozen_flow)
+{
+    wt_context *ctx = tu_context();
+    const int n = 32, d = 2, T = 70;
+    const double dx = 0.5, L = n * dx, g = 0.4, vx = 0.23, vy = -0.11; /* [m per frame] */
+    wt_grid g1 = {.nx = n, .ny = n, .dx = dx};
+    const wt_grid *gg[1] = {&g1};
+    const int64_t off[1] = {0}, N = (int64_t)n * n;
+    const double lx = d * vx, ly = d * vy;
+    wt_shift *lead = NULL, *one = NULL;
+    ck_assert_int_eq(wt_shift_alloc(ctx, 1, gg, off, &lx, &ly, &lead), WT_OK);
+    ck_assert_int_eq(wt_shift_alloc(ctx, 1, gg, off, &vx, &vy, &one), WT_OK);
+    double *z[3], *c[3], *phi = malloc(N * sizeof *phi), *e = malloc(N * sizeof *e), *truth = malloc(N * sizeof *truth);
+    for (int k = 0; k < 3; k++) z[k] = calloc(N, sizeof *z[k]), c[k] = calloc(N, sizeof *c[k]);
+    double fmaxv = 0.0, err = 0.0, errc = 0.0;
+    for (int t = 0; t < T; t++) {
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) phi[ix + n * iy] = field(ix * dx - vx * t, iy * dx - vy * t, L);
+        wt_shift_integrate(lead, one, g, phi, z[t % 3], z[(t + 1) % 3], z[(t + 2) % 3], e, N);
+        /* the commands' law, in the layers: z_{t+d} = z_{t+d−1} + g (S_d φ_t − z_t) */
+        wt_shift_apply_to(lead, phi, e);
+        for (int64_t k = 0; k < N; k++) c[(t + 2) % 3][k] = c[(t + 1) % 3][k] + g * (e[k] - c[t % 3][k]);
+        if (t < T - 1) continue;
+        err = errc = 0.0;
+        for (int iy = 0; iy < n; iy++)
+            for (int ix = 0; ix < n; ix++) {
+                const double f = field(ix * dx - vx * (t + d), iy * dx - vy * (t + d), L);
+                fmaxv = fmax(fmaxv, fabs(f));
+                err = fmax(err, fabs(z[(t + 2) % 3][ix + n * iy] - f));
+                errc = fmax(errc, fabs(c[(t + 2) % 3][ix + n * iy] - f));
+            }
+    }
+    ck_assert_msg(err < 1e-10 * fmaxv, "the layers' integrator is %g from the layer d frames later (field %g)", err, fmaxv);
+    ck_assert_msg(errc > 1e-2 * fmaxv, "the commands' integrator kept up (%g): the test cannot tell the laws apart", errc);
+    for (int k = 0; k < 3; k++) free(z[k]), free(c[k]);
+    free(phi), free(e), free(truth);
+    wt_shift_free(lead);
+    wt_shift_free(one);
+    wt_context_free(ctx);
+}
+END_TEST
+
 START_TEST(t_refusals)
 {
     wt_context *ctx = tu_context();
@@ -127,6 +176,7 @@ Suite *make_suite(void)
     TCase *tc = tcase_create("core");
     tcase_add_test(tc, t_band_limited_exact);
     tcase_add_test(tc, t_out_of_place_and_threads);
+    tcase_add_test(tc, t_integrate_frozen_flow);
     tcase_add_test(tc, t_refusals);
     suite_add_tcase(s, tc);
     return s;

@@ -258,6 +258,7 @@ typedef struct wt_config {
     int warm_start;
     int predict;                     /* recon.predict: the layers moved by their wind over the loop's delay */
     double predict_lead_frames;      /* recon.predict_lead_frames: the lead in frames; 0: the loop's delay */
+    int predict_integrator;          /* recon.predict_integrator: 0 on the commands, 1 on the layers (moved every frame) */
     wt_model_atmosphere_config model; /* the reconstructors' atmosphere (recon.atmosphere), not the truth's above */
     wt_recon_variant_config pcg3;    /* layers at the DM altitudes, no fitting */
     wt_recon_variant_config cg9;     /* layers at the atmosphere altitudes, fitting over the evaluation directions */

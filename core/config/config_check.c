@@ -247,6 +247,12 @@ int wt_config_priv_check_consistency(pstate *ps, wt_config *cfg)
         (st = resolve_file_sha256(ps, "recon.fft_wisdom_sha256", 1, cfg->fft_wisdom, cfg->fft_wisdom_sha256)) < 0)
         return st;
     if ((st = check_gain_levels(ps, cfg)) < 0) return st;
+    if (cfg->predict_integrator == 1 && cfg->ngain_levels > 0) {
+        const int ki = wt_config_priv_find_key("recon.predict_integrator");
+        return FAIL(ps, ki, ps->set[ki], "key 'recon.predict_integrator' = \"layers\" runs the integrator on the layers "
+                    "with the single gain loop.gain; it cannot take 'loop.gain_levels' (a gain per scale of the DM "
+                    "commands): leave one of the two out");
+    }
 
     for (int t = 0; t < 2; t++) {
         const char *pre = t ? "ngs.wfs" : "lgs.wfs";

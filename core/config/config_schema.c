@@ -430,6 +430,14 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "delay from the measurement to the commands' application. The integrator's memory adds a lag of about "
      "(1 - g) / g frames at gain g (the mean age of its average of the reconstructions), which a longer lead can "
      "predict too (SPEC §12)"},
+    {"recon.predict_integrator", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(predict_integrator), NOCOUNT, 0, 0,
+     "commands|layers", 0,
+     "recon.predict (pcg3, cg9): where the loop's integrator runs. commands = on the DM commands, a_{t+d} = "
+     "a_{t+d-1} + g (r_t - a_t), r_t made from the layers moved over the lead; its average of the last ~1/g "
+     "reconstructions lags by ~(1 - g)/g frames more. layers = on the reconstructed layers, z_{t+d} = S_1 z_{t+d-1} "
+     "+ g S_d (phi_t - z_t) with S_k each layer moved by its wind over k frames (S_d over the lead), the commands "
+     "fitted from z_{t+d}: under frozen flow the state moves with the layers, so the average adds no lag "
+     "(SPEC §12); without recon.predict both are the same law; not with loop.gain_levels (optional, default commands)"},
     {"recon.sensor_model", K_ENUM, F_DEFAULT, 0, 0, "", 1, CF(lit_sensor_model), NOCOUNT, 0, 0, "fried|lit", 1,
      "reconstructor's Shack-Hartmann model: fried = the paper's corner differences, lit = average gradient "
      "over the illuminated part of each subaperture, as the simulated sensors measure (optional, default lit)"},

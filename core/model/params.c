@@ -70,5 +70,7 @@ void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int ite
             par->atm_vx[k] = cfg->model.wind_speed[k] * cos(cfg->model.wind_direction[k]);
             par->atm_vy[k] = cfg->model.wind_speed[k] * sin(cfg->model.wind_direction[k]);
         }
+        if (cfg->predict_integrator == 1)
+            par->integrator_gain = cfg->gain, par->integrator_delay = cfg->delay, par->frame_s = 1.0 / cfg->rate;
     }
 }

@@ -35,13 +35,20 @@ struct wt_reconstructor {
     wt_pcg_result last;
     wt_precond_params precond; /* to rebuild the preconditioner for a new model */
     double predict_lead;     /* [s] */
+    /* recon.predict_integrator = "layers" (lgain > 0): the loop's integrator on the layers, z_{t+d} = S_1 z_{t+d-1} +
+     * g S_d (phi_t - z_t), the commands fitted from z_{t+d}; z_t at slot t mod (d + 1) (reconstructor.h) */
+    double lgain, frame_s;
+    int ldelay;
+    long lt;                 /* frames applied since the start (or wt_reconstructor_reset_integrator) */
+    double **zr;             /* [ldelay + 1][n] the states */
+    wt_shift *shift1;        /* the layers moved by their wind over one frame */
     int natm;                /* the current atmosphere model (SPEC §12): r0, profile, wind */
     double r0, atm_alt[WT_MAX_LAYERS], atm_frac[WT_MAX_LAYERS], atm_vx[WT_MAX_LAYERS], atm_vy[WT_MAX_LAYERS];
     double t_model, t_precond; /* the last wt_reconstructor_set_model's parts [s] */
 };
 
-/* The shift of each layer by its wind (the model's compressed as its Cn², SPEC §12) over the prediction lead */
-static int make_shift(wt_reconstructor *r, wt_shift **out)
+/* The shift of each layer by its wind (the model's compressed as its Cn², SPEC §12) over `lead` seconds */
+static int make_shift_lead(wt_reconstructor *r, double lead, wt_shift **out)
 {
     const int L = wt_tomography_nlayers(r->tomo);
     double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
@@ -52,8 +59,22 @@ static int make_shift(wt_reconstructor *r, wt_shift **out)
         off[l] = wt_tomography_layer_offset(r->tomo, l);
     wt_profile_compress(r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, L, alt, frac, vx, vy);
     if (r->layer_wind) memcpy(vx, r->lvx, sizeof vx), memcpy(vy, r->lvy, sizeof vy);
-    for (int l = 0; l < L; l++) vx[l] *= r->predict_lead, vy[l] *= r->predict_lead;
+    for (int l = 0; l < L; l++) vx[l] *= lead, vy[l] *= lead;
     return wt_shift_alloc(r->ctx, L, g, off, vx, vy, out);
+}
+
+/* The prediction's shifts for the current wind: over the lead, and over one frame for the layers' integrator. Both
+ * or neither (on failure *sh and *sh1 are NULL). */
+static int make_shifts(wt_reconstructor *r, wt_shift **sh, wt_shift **sh1)
+{
+    *sh = *sh1 = NULL;
+    int st = make_shift_lead(r, r->predict_lead, sh);
+    if (st >= 0 && r->lgain > 0.0) st = make_shift_lead(r, r->frame_s, sh1);
+    if (st < 0) {
+        wt_shift_free(*sh);
+        *sh = NULL;
+    }
+    return st;
 }
 
 /* Layer l's value at (x, y) as bilinear weights on its grid points, times `weight`, into column col of
@@ -200,8 +221,17 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
             r->atm_alt[k] = tp->atm_altitude[k], r->atm_frac[k] = tp->atm_fraction[k], r->atm_vx[k] = par->atm_vx[k],
             r->atm_vy[k] = par->atm_vy[k];
     }
+    if (par->predict_lead > 0.0 && par->integrator_gain > 0.0) {
+        if (!(par->integrator_gain <= 1.0 && par->integrator_delay >= 1 && par->frame_s > 0.0))
+            WT_TRY(WT_ERROR(ctx, WT_ERR_INVALID, "reconstructor %s: the layers' integrator with gain %g, delay %d and frame time "
+                    "%g s; expected a gain in (0, 1], a delay >= 1 frame and a positive frame time",
+                    wt_reconstructor_name(kind), par->integrator_gain, par->integrator_delay, par->frame_s));
+        r->lgain = par->integrator_gain, r->ldelay = par->integrator_delay, r->frame_s = par->frame_s;
+        WT_ALLOC(ctx, r->zr, r->ldelay + 1, "the layers' integrator");
+        for (int k = 0; k <= r->ldelay; k++) WT_ALLOC(ctx, r->zr[k], n, "the layers' integrator");
+    }
     if (par->predict_lead > 0.0) {
-        WT_TRY(make_shift(r, &r->shift));
+        WT_TRY(make_shifts(r, &r->shift, &r->shift1));
         WT_ALLOC(ctx, r->pred, n, "predicted layers");
     }
     if (kind == WT_RECON_PCG3) {
@@ -249,6 +279,10 @@ void wt_reconstructor_free(wt_reconstructor *r)
     wt_tomography_free(r->tomo);
     wt_fitting_free(r->fit);
     wt_shift_free(r->shift);
+    wt_shift_free(r->shift1);
+    if (r->zr)
+        for (int k = 0; k <= r->ldelay; k++) wt_free(r->ctx, r->zr[k]);
+    wt_free(r->ctx, r->zr);
     wt_free(r->ctx, r->c);
     wt_free(r->ctx, r->phi);
     wt_free(r->ctx, r->pred);
@@ -297,7 +331,15 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
     const double *phi = r->phi;
-    if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers; the layers fill the vector) */
+    if (r->zr) { /* the integrator on the layers: z_{t+d} = S_1 z_{t+d-1} + g S_d (phi_t - z_t) */
+        const int D1 = r->ldelay + 1;
+        const int64_t n = wt_tomography_nunknowns(r->tomo);
+        const double *zt = r->zr[r->lt % D1], *zp = r->zr[(r->lt + r->ldelay - 1) % D1];
+        double *zn = r->zr[(r->lt + r->ldelay) % D1];
+        wt_shift_integrate(r->shift, r->shift1, r->lgain, r->phi, zt, zp, zn, r->pred, n);
+        r->lt++;
+        phi = zn;
+    } else if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers; the layers fill the vector) */
         wt_shift_apply_to(r->shift, r->phi, r->pred);
         phi = r->pred;
     }
@@ -348,7 +390,7 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     if (st < 0) return st;
     const double t1 = wt_time_now();
     wt_precond *pre = NULL;
-    wt_shift *sh = NULL;
+    wt_shift *sh = NULL, *sh1 = NULL;
     const int keep_n = r->natm;
     const double keep_r0 = r->r0;
     double keep[4][WT_MAX_LAYERS];
@@ -368,12 +410,13 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
                       "prediction needs the wind of every layer", wt_reconstructor_name(r->kind), natm, keep_n);
     /* the preconditioner: updated in place from its parts (wt_precond_update: no apply of M) when it kept them, else
      * rebuilt; the shift first, so that a failure of either leaves the old preconditioner untouched */
-    if (st >= 0 && r->predict_lead > 0.0) st = make_shift(r, &sh);
+    if (st >= 0 && r->predict_lead > 0.0) st = make_shifts(r, &sh, &sh1);
     const int in_place = wt_precond_updatable(r->pre);
     if (st >= 0) st = in_place ? wt_precond_update(r->pre) : wt_precond_alloc(r->ctx, r->tomo, &r->precond, &pre);
     if (st < 0) { /* back to the old model, whole */
         wt_precond_free(pre);
         wt_shift_free(sh);
+        wt_shift_free(sh1);
         r->natm = keep_n;
         r->r0 = keep_r0;
         memcpy(r->atm_alt, keep[0], sizeof keep[0]);
@@ -390,7 +433,8 @@ int wt_reconstructor_set_model(wt_reconstructor *r, double r0, int natm, const d
     }
     if (sh) {
         wt_shift_free(r->shift);
-        r->shift = sh;
+        wt_shift_free(r->shift1);
+        r->shift = sh, r->shift1 = sh1;
     }
     /* the warm start stays (the layers change slowly with the model); the solve restarts from M c */
     r->t_model = t1 - t0;
@@ -447,8 +491,8 @@ int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const
     r->layer_wind = vx && vy;
     for (int l = 0; l < L && r->layer_wind; l++) r->lvx[l] = vx[l], r->lvy[l] = vy[l];
     if (!(r->predict_lead > 0.0)) return WT_OK;
-    wt_shift *sh = NULL;
-    const int st = make_shift(r, &sh);
+    wt_shift *sh = NULL, *sh1 = NULL;
+    const int st = make_shifts(r, &sh, &sh1);
     if (st < 0) { /* the old winds, whole */
         r->layer_wind = keep;
         memcpy(r->lvx, kx, sizeof kx);
@@ -456,6 +500,16 @@ int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const
         return st;
     }
     wt_shift_free(r->shift);
-    r->shift = sh;
+    wt_shift_free(r->shift1);
+    r->shift = sh, r->shift1 = sh1;
     return WT_OK;
 }
+
+void wt_reconstructor_reset_integrator(wt_reconstructor *r)
+{
+    if (!r->zr) return;
+    for (int k = 0; k <= r->ldelay; k++) memset(r->zr[k], 0, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->zr[k]);
+    r->lt = 0;
+}
+
+int wt_reconstructor_integrates(const wt_reconstructor *r) { return r->zr != NULL; }

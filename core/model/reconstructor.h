@@ -41,6 +41,14 @@ typedef struct wt_reconstructor_params {
     wt_fitting_params fitting;              /* cg9: ε and the sampling of the fitting */
     double predict_lead;                    /* the layers moved by their wind over this time [s]; 0: not */
     double atm_vx[WT_MAX_LAYERS], atm_vy[WT_MAX_LAYERS]; /* the model's wind per layer of tomography.atm_* [m/s] */
+    /* with predict_lead > 0, integrator_gain > 0 (recon.predict_integrator = "layers"): the loop's integrator runs on
+     * the layers, z_{t+d} = S_1 z_{t+d-1} + g S_d (phi_t - z_t), S_τ each layer moved by its wind over τ frames
+     * (S_d over predict_lead), z_t the state whose commands are applied during frame t; apply returns the commands
+     * of z_{t+d}, which the control applies as they are (wt_control_params.direct). Under frozen flow with the right
+     * wind the state keeps up with the layers, so the integrator's averaging (1/g frames) adds no lag. */
+    double integrator_gain;                 /* g in (0, 1]; 0: the integrator is the control's, on the commands */
+    int integrator_delay;                   /* d ≥ 1 [frames] */
+    double frame_s;                         /* a frame [s]: S_1 */
 } wt_reconstructor_params;
 
 /* kind WT_RECON_NONE, PCG3 or CG9 (par is not read for NONE except warm_start, and may then be NULL). */
@@ -58,7 +66,8 @@ void wt_reconstructor_free(wt_reconstructor *r);
 struct wt_sparse;
 int wt_reconstructor_command_map(wt_context *ctx, const wt_tomography *t, struct wt_sparse **out);
 
-/* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). */
+/* a = R s_ol: a has sys->nact entries (overwritten). Not thread-safe per object (warm-start state). With the
+ * layers' integrator (wt_reconstructor_integrates) a is the commands of frame t + d instead, and each call is a frame. */
 int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a);
 /* Wall time [s] of the last apply's tomography and fitting parts; the last (P)CG result. */
 void wt_reconstructor_last_times(const wt_reconstructor *r, double *tomography, double *fitting);
@@ -98,5 +107,10 @@ void wt_reconstructor_layer_wind(const wt_reconstructor *r, double *vx, double *
 int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const double *vy);
 /* Forget the warm-start state (the next apply starts from zero). */
 void wt_reconstructor_reset(wt_reconstructor *r);
+/* 1 when apply runs the loop's integrator on the layers (wt_reconstructor_params.integrator_gain): its result is the
+ * commands of frame t + d, to be applied as they are. */
+int wt_reconstructor_integrates(const wt_reconstructor *r);
+/* The layers' integrator back to its start: every state 0, as the control's queue of commands (no-op without it). */
+void wt_reconstructor_reset_integrator(wt_reconstructor *r);
 
 #endif

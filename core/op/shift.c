@@ -205,6 +205,15 @@ void wt_shift_apply_to(wt_shift *s, const double *in, double *out)
 
 void wt_shift_apply(wt_shift *s, double *phi) { wt_shift_apply_to(s, phi, phi); }
 
+void wt_shift_integrate(wt_shift *lead, wt_shift *one, double g, const double *phi, const double *zt, const double *zp,
+                        double *zn, double *e, int64_t n)
+{
+    for (int64_t k = 0; k < n; k++) e[k] = phi[k] - zt[k];
+    wt_shift_apply(lead, e);
+    wt_shift_apply_to(one, zp, zn);
+    for (int64_t k = 0; k < n; k++) zn[k] += g * e[k];
+}
+
 int wt_shift_nmoving(const wt_shift *s)
 {
     int m = 0;

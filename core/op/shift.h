@@ -28,6 +28,15 @@ void wt_shift_apply(wt_shift *s, double *phi);
 /* out ← in with every layer shifted (the layers' ranges of out; a layer that does not move is copied). in and
  * out may be the same array, else they must not overlap. The same bits as wt_shift_apply. Allocates nothing. */
 void wt_shift_apply_to(wt_shift *s, const double *in, double *out);
+/* One frame of the loop's integrator on moving layers (recon.predict_integrator = "layers"), over n values:
+ *   zn ← S_1 zp + g S_d (phi − zt),
+ * S_d = lead (the layers moved over the loop's delay d), S_1 = one (over a frame), phi the frame's estimate, zt the
+ * state whose commands are applied during it, zp the latest state (frame t + d − 1), zn the next (t + d). Under
+ * frozen flow with the layers' own wind (phi_t = S_t phi_0), once zt = phi_t the state stays on the layers: zn =
+ * phi_{t+d}, whatever g, so the integrator's average adds no lag; an error decays as (1 − g) per frame, moving with
+ * the layers. e: n values of scratch; zn must not overlap the others. Allocates nothing. */
+void wt_shift_integrate(wt_shift *lead, wt_shift *one, double g, const double *phi, const double *zt, const double *zp,
+                        double *zn, double *e, int64_t n);
 /* Layers that move (a zero shift costs nothing). */
 int wt_shift_nmoving(const wt_shift *s);
 
