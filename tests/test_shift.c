@@ -68,7 +68,8 @@ START_TEST(t_band_limited_exact)
 END_TEST
 
 /* out of place (the reconstructor's phi → pred) against in place, on 1 and on 2 threads: the same bits; the
- * input untouched; the layer that does not move copied; layers of three sizes, the largest not first */
+ * input untouched; the layer that does not move copied; layers of three sizes, the largest not first; the integrator's
+ * two shifts in one schedule (wt_shift_integrate) against the two calls */
 START_TEST(t_out_of_place_and_threads)
 {
     wt_grid g1 = {.nx = 16, .ny = 16, .dx = 1.0}, g2 = {.nx = 64, .ny = 64, .dx = 0.5}, g3 = {.nx = 32, .ny = 32, .dx = 0.5};
@@ -95,6 +96,21 @@ START_TEST(t_out_of_place_and_threads)
             wt_shift_apply(s, a);
         }
         ck_assert_msg(!memcmp(a, b, N * sizeof *a), "%d threads: out of place differs from in place on 1", threads);
+        /* wt_shift_integrate's one schedule of both shifts: the bits of the two calls in sequence, on 1 and 2 threads */
+        const double hx[4] = {0.1, -0.6, 0.0, 0.7}, hy[4] = {-0.2, 0.3, 0.0, -1.0}, gain = 0.3;
+        wt_shift *h = NULL;
+        ck_assert_int_eq(wt_shift_alloc(ctx, 4, g, off, hx, hy, &h), WT_OK);
+        double *zt = malloc(N * sizeof *zt), *zp = malloc(N * sizeof *zp), *zn = malloc(N * sizeof *zn),
+               *e = malloc(N * sizeof *e), *ref = malloc(N * sizeof *ref), *e2 = malloc(N * sizeof *e2);
+        tu_randn(zt, N, 12), tu_randn(zp, N, 13);
+        for (int64_t i = 0; i < N; i++) e2[i] = in[i] - zt[i];
+        wt_shift_apply(s, e2);
+        wt_shift_apply_to(h, zp, ref);
+        for (int64_t i = 0; i < N; i++) ref[i] += gain * e2[i];
+        wt_shift_integrate(s, h, gain, in, zt, zp, zn, e, N);
+        ck_assert_msg(!memcmp(zn, ref, N * sizeof *zn), "%d threads: the integrator's one schedule changed the bits", threads);
+        free(zt), free(zp), free(zn), free(e), free(ref), free(e2);
+        wt_shift_free(h);
         wt_shift_free(s);
         wt_context_free(ctx);
     }
