@@ -528,11 +528,11 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
             cfg->delay, r0->servo_band, r0->run[WT_BUDGET_RUN_NOISE].frames, cfg->noise ? "per method" : "noise off: none");
     for (int m = 0; m < nmethods; m++)
         if (isfinite(res[m].servo_band_predicted))
-            fprintf(f, "With recon.predict, %s: the band-limited lag (the same analytic form) with each of its layers moved by "
-                       "the Cn²-weighted wind of the truth's layers it holds is %.1f nm, were each atmospheric layer moved by "
-                       "its own wind %.1f nm: the compression's part, which no shift of the reconstruction layers removes, "
-                       "%.1f nm in quadrature (of the %.1f nm without prediction).\n\n",
-                    methods[m], res[m].servo_band_predicted, res[m].servo_band_own_winds,
+            fprintf(f, "With recon.predict (the integrator on the %s), %s: the band-limited lag (the same analytic form) with "
+                       "each of its layers moved by the Cn²-weighted wind of the truth's layers it holds is %.1f nm, were each "
+                       "atmospheric layer moved by its own wind %.1f nm: the compression's part, which no shift of the "
+                       "reconstruction layers removes, %.1f nm in quadrature (of the %.1f nm without prediction).\n\n",
+                    cfg->predict_integrator == 1 ? "layers" : "commands", methods[m], res[m].servo_band_predicted, res[m].servo_band_own_winds,
                     sqrt(fmax(res[m].servo_band_predicted * res[m].servo_band_predicted -
                               res[m].servo_band_own_winds * res[m].servo_band_own_winds, 0.0)), r0->servo_band);
     fprintf(f, "Runs (field WFE / tip-tilt / rim part, nm; frames averaged):\n\n| run |");
