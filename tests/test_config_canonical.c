@@ -334,7 +334,7 @@ START_TEST(test_reference)
         const char *u = strrchr(path, '_');
         if (u && strcmp(u, "_e") && strcmp(u, "_fractions") && !strstr(path, "warm_start") && !strstr(path, "_size") &&
             !strstr(path, "_order") && !strstr(path, "_levels") && !strstr(path, "_frames") && !strstr(path, "_fraction") &&
-            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "subgrid_error") && !strstr(path, "focus_removal") && !strstr(path, "_precision") && !strstr(path, "noise_average") && !strstr(path, "_solver") && !strstr(path, "_kernels") &&
+            !strstr(path, "_iterations") && !strstr(path, "_regularization") && !strstr(path, "_subaperture") && !strstr(path, "_rings") && !strstr(path, "_aliasing") && !strstr(path, "_model") && !strstr(path, "lit_noise") && !strstr(path, "model_error") && !strstr(path, "subgrid_error") && !strstr(path, "focus_removal") && !strstr(path, "_precision") && !strstr(path, "noise_average") && !strstr(path, "_solver") && !strstr(path, "_kernels") && !strstr(path, "_integrator") &&
             /* the diffractive sensor's keys without a unit (counts, switches, seeds, ratios) */
             !strstr(path, "apply_gain") && !strstr(path, "tcog_threshold_") && !strstr(path, "_pixels") &&
             !strstr(path, "_samples") && !strstr(path, "cells_per_pixel") && !strstr(path, "calibration") &&
