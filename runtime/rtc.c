@@ -114,7 +114,8 @@ static int state_alloc(wt_context *ctx, rtc_plan *p, wt_rtc **out)
         WT_ALLOC(ctx, rtc->ia_phase, wt_interaction_phase_size(p->ia), "interaction workspace");
     }
     {
-        const wt_control_params cp = wt_control_params_from_config(p->sys->cfg);
+        wt_control_params cp = wt_control_params_from_config(p->sys->cfg);
+        cp.direct = rtc->rec && wt_reconstructor_integrates(rtc->rec); /* (an MVM applies R s_ol through the integrator) */
         WT_TRY(wt_control_alloc(ctx, p->sys, &cp, &rtc->ctl));
     }
     WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");

@@ -174,14 +174,20 @@ END_TEST
  * GEMV of ~2000 terms rounds at ~1e-6 relative, accumulated over 8 frames of an integrator of gain < 1;
  * a missing or mis-signed POLC term is an O(1) difference. Cases 4–7 again with the scale-dependent gain
  * (loop.gain_levels, one law for both: runtime/control.h), 8–11 with it and a delay of 1 frame: every
- * reconstructor under both gain laws, and delays 1 and 2. */
+ * reconstructor under both gain laws, and delays 1 and 2; 12–13 pcg3 and cg9 predicting with the integrator on their
+ * layers (recon.predict_integrator = "layers"). */
 START_TEST(test_polc_equals_loop)
 {
     const int k = _i % 4; /* 0 pcg3, 1 cg9, 2 MVM via s_ol, 3 MVM via s */
     wt_context *ctx = tu_context();
-    const char *set[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2",
-                         "loop.gain_levels=[0.6, 0.5, 0.4, 0.3]", "loop.delay_frames=1"};
-    const int nset = 3 + _i / 4; /* 3: scalar gain, delay 2; 4: gain levels, delay 2; 5: gain levels, delay 1 */
+    const char *set0[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2",
+                          "loop.gain_levels=[0.6, 0.5, 0.4, 0.3]", "loop.delay_frames=1"};
+    /* cases 12, 13: pcg3 and cg9 with prediction and the integrator on their layers (the control applies what the
+     * reconstructor returns; one module for both) */
+    const char *set1[] = {"loop.frames=8", "sim.seed=5", "evaluation.settle_frames=2", "recon.predict=true",
+                          "recon.predict_integrator=\"layers\""};
+    const char **set = _i >= 12 ? set1 : set0;
+    const int nset = _i >= 12 ? 5 : 3 + _i / 4; /* 3: scalar gain, delay 2; 4: gain levels, delay 2; 5: gain levels, delay 1 */
     wt_config *cfg;
     wt_system *sys;
     wt_loop *lp;
@@ -781,7 +787,7 @@ Suite *make_suite(void)
     tcase_add_unchecked_fixture(tc, files_setup, files_teardown);
     tcase_add_test(tc, test_version);
     tcase_add_loop_test(tc, test_equals_run, 0, 3);
-    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 12);
+    tcase_add_loop_test(tc, test_polc_equals_loop, 0, 14);
     tcase_add_loop_test(tc, test_no_allocation_per_frame, 0, 2);
     tcase_add_test(tc, test_reset_and_raw);
     tcase_add_test(tc, test_instances_in_threads);
