@@ -24,7 +24,6 @@ wt_control_params wt_control_params_from_config(const wt_config *cfg)
     memset(&p, 0, sizeof p);
     p.delay = cfg->delay;
     p.gain = cfg->gain;
-    p.direct = cfg->predict && cfg->predict_integrator == 1; /* (as wt_reconstructor_params_from_config) */
     if (cfg->ngain_levels > 0) {
         p.scale_gain.nbands = cfg->ngain_levels;
         memcpy(p.scale_gain.gain, cfg->gain_levels, (size_t)cfg->ngain_levels * sizeof *cfg->gain_levels);

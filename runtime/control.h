@@ -23,10 +23,12 @@ typedef struct wt_control_params {
     double gain;                     /* g in (0, 1] */
     wt_scale_gain_params scale_gain; /* nbands > 0: G in place of g; 0: the single gain */
     int direct;                      /* 1: a_{t+d} = r_t, the reconstructor's result applied as it is (it runs the
-                                      * integrator itself: recon.predict_integrator = "layers", reconstructor.h) */
+                                      * integrator itself: recon.predict_integrator = "layers", reconstructor.h).
+                                      * Set by the holder of the reconstructor from wt_reconstructor_integrates
+                                      * (sim/loop.c, runtime/rtc.c): the reconstructor is the one place that decides */
 } wt_control_params;
 
-/* The law of a configuration: loop.delay, loop.gain, loop.gain_levels and loop.gain_basis. */
+/* The law of a configuration: loop.delay, loop.gain, loop.gain_levels and loop.gain_basis (direct 0). */
 wt_control_params wt_control_params_from_config(const wt_config *cfg);
 
 /* For the actuators and DMs of sys (not owned: must outlive the object). WT_ERR_INVALID for a delay < 1 or a gain

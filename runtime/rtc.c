@@ -115,7 +115,7 @@ static int state_alloc(wt_context *ctx, rtc_plan *p, wt_rtc **out)
     }
     {
         wt_control_params cp = wt_control_params_from_config(p->sys->cfg);
-        cp.direct = rtc->rec && wt_reconstructor_integrates(rtc->rec); /* (an MVM applies R s_ol through the integrator) */
+        cp.direct = rtc->rec && wt_reconstructor_integrates(rtc->rec);
         WT_TRY(wt_control_alloc(ctx, p->sys, &cp, &rtc->ctl));
     }
     WT_ALLOC(ctx, rtc->s, rtc->ns, "slopes");
