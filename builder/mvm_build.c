@@ -10,6 +10,7 @@
 
 #include "../core/op/noise.h"
 #include "../core/op/projection.h"
+#include "../core/op/shift.h"
 #include "../core/model/fitting.h"
 #include "../core/model/interaction.h"
 #include "../core/model/params.h"
@@ -227,6 +228,8 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
                     x[cmap->rowind[k]] = cmap->val[k];
                     touched[layer_of(t, cmap->rowind[k])] = 1;
                 }
+                /* prediction: the weights on the layers moved back (S_dᵀ, below), each moving layer then dense */
+                if (opt.predict_adjoint) continue;
                 for (int l = 0; l < L; l++)
                     if (touched[l]) {
                         int64_t off = wt_tomography_layer_offset(t, l);
@@ -239,6 +242,20 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
                     for (int64_t k = Afit->colptr[p]; k < Afit->colptr[p + 1]; k++) s += Afit->val[k] * f[Afit->rowind[k]];
                     x[p] = s;
                 }
+                if (opt.predict_adjoint) continue;
+                for (int l = 0; l < L; l++) {
+                    int64_t off = wt_tomography_layer_offset(t, l);
+                    wt_wavelet_forward(wt_tomography_wavelet(t, l), x + off, x + off, wk);
+                }
+            }
+        }
+        /* prediction: Eᵀ ← S_dᵀ Eᵀ on the layers' values, a column at a time (the shift runs its layers on the threads,
+         * with its own per-thread scratch), then every layer to its coefficients */
+        if (opt.predict_adjoint) {
+            for (int c = 0; c < cb; c++) wt_shift_apply(opt.predict_adjoint, X + (size_t)n * c);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+            for (int c = 0; c < cb; c++) {
+                double *x = X + (size_t)n * c, *wk = work + (size_t)wt_mvm_priv_thread() * ws;
                 for (int l = 0; l < L; l++) {
                     int64_t off = wt_tomography_layer_offset(t, l);
                     wt_wavelet_forward(wt_tomography_wavelet(t, l), x + off, x + off, wk);
@@ -338,10 +355,23 @@ static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *c
         }
     }
     wt_tomography *t = NULL;
+    wt_shift *adj = NULL;
     *out = NULL;
+    if (cfg->predict && natm > 0)
+        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.predict' = true: an MVM rebuilt from a learned profile has no "
+                        "wind to predict with (the loop's learned wind is pcg3's and cg9's); build it without prediction",
+                        cfg->path);
     int st = wt_tomography_alloc(ctx, sys, &var, name, &tp, &t);
     if (st < 0) return st;
-    st = wt_mvm_build(ctx, t, &opt, out);
+    if (cfg->predict) { /* the shift that pcg3 and cg9 make under recon.predict (core/model/params.c), moved back */
+        wt_reconstructor_params rp;
+        wt_reconstructor_params_from_config(cfg, cg9 ? WT_RECON_CG9 : WT_RECON_PCG3, -1, &rp);
+        st = wt_predict_shift_alloc(ctx, t, rp.tomography.natm, rp.tomography.atm_altitude, rp.tomography.atm_fraction,
+                                    rp.atm_vx, rp.atm_vy, -rp.predict_lead, &adj);
+        opt.predict_adjoint = adj;
+    }
+    if (st >= 0) st = wt_mvm_build(ctx, t, &opt, out);
+    wt_shift_free(adj);
     wt_tomography_free(t);
     /* built in float32 (the solves' output); stored and applied in the configured precision */
     if (st >= 0 && (st = wt_mvm_set_precision(*out, cfg->mvm_precision)) < 0) {

@@ -65,6 +65,10 @@ typedef struct wt_mvm_options {
                                    b % part_count == part_index, the other rows stay zero; every part does
                                    the same assembly and factorisation, so a block's rows are bit for bit
                                    those of a whole build (`mpirun wavetomo build`: one part per rank) */
+    /* recon.predict: S_dᵀ, the adjoint of the layers' shift over the lead (wt_predict_shift_alloc with −lead), on the
+     * tomography's layers. R = E S_d M⁻¹ Ãᵀ Ĉ⁻¹: the commands of the layers moved by their wind, as pcg3 and cg9 make
+     * them; each command's layer weights Eᵀ e_i go through S_dᵀ (every layer that moves becomes dense). NULL: none. */
+    struct wt_shift *predict_adjoint;
     wt_mvm_progress_fn progress; /* NULL: none */
     void *progress_user;
     /* Polled between solve blocks (seconds apart at E-ELT size, where the solve is most of a build of minutes):

@@ -51,8 +51,8 @@ typedef struct wt_bench_tomography {
     int shift_moving;         /* layers that move (0: no wind, not timed) */
     double shift_flops, shift_bytes; /* per call: the transforms and ramps; the layers read and written once */
     wt_bench_stats shift;
-    /* recon.predict_integrator = "layers": one frame of the integrator on the layers (wt_shift_integrate: the lead's
-     * shift of the innovation and a frame's shift of the state), median of at least 200 */
+    /* recon.predict_integrator = "layers": one frame of the integrator on the layers (wt_shift_integrator_step: the
+     * estimate to its spectra, the update, the new state back), median of at least 200 */
     double integrate_flops, integrate_bytes;
     wt_bench_stats integrate;
 } wt_bench_tomography;

@@ -28,10 +28,10 @@ static void help(void)
            "for pcg3 and cg9, one PCG iteration, and a whole pcg3 frame (right-hand side + the configured\n"
            "iterations), plus the cg9 fitting operator, and recon.predict's shift of the layers (core/op/shift.h) by the\n"
            "model's wind over the loop's delay with its share of the frame, and a frame of the integrator on the layers\n"
-           "(recon.predict_integrator = \"layers\": two such shifts). Reports medians and the 10th, 90th and 99th percentiles of\n"
-           "--reps runs (default 50), the flops and bytes per call, and the rates they imply, next to the\n"
-           "machine's memory bandwidth (triad) and DGEMM rate measured in the same run. The byte counts are\n"
-           "operand traffic; the working sets (~10 MB for the E-ELT pcg3) live in cache, so the implied GB/s can\n"
+           "(recon.predict_integrator = \"layers\": its state kept as the layers' spectra, one shift's transforms).\n"
+           "Reports medians and the 10th, 90th and 99th percentiles of --reps runs (default 50), the flops and bytes\n"
+           "per call, and the rates they imply, next to the machine's memory bandwidth (triad) and DGEMM rate\n"
+           "measured in the same run. The byte counts are operand traffic; the working sets (~10 MB for the E-ELT pcg3) live in cache, so the implied GB/s can\n"
            "exceed the DRAM triad figure. Each variant's frame is then run again with its stages timed (where a\n"
            "frame goes: inverse DWT, forward, adjoint by sensor and by layer, preconditioner, the rest), with the\n"
            "least and most busy thread's time inside each stage. Then a learned atmosphere model taken by pcg3 and\n"
@@ -127,7 +127,7 @@ static int bench_variant(wt_cli *cli, const wt_system *sys, int kind, int reps)
                "the layers on the context's threads)\n", 100.0 * b.shift.med / b.frame.med);
         snprintf(label, sizeof label, "%s: integrator on the layers (recon.predict_integrator)", name);
         report(label, b.integrate, b.integrate_flops, b.integrate_bytes);
-        printf("  a frame of the integrator on the layers (the shift above and a frame's shift of its state) is %.1f %% of "
+        printf("  a frame of the integrator on the layers (the estimate to its spectra, the update, the state back) is %.1f %% of "
                "the frame (in place of the shift's)\n", 100.0 * b.integrate.med / b.frame.med);
     }
     char what[64];

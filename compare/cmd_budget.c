@@ -10,6 +10,7 @@
 #include "cli/plot.h"
 #include "core/io/h5.h"
 #include "core/solve/mvm.h"
+#include "core/model/params.h"
 #include "core/model/reconstructor.h"
 #include "compare/budget.h"
 #include "core/model/estimate.h"
@@ -163,6 +164,8 @@ int wt_cmd_budget(int argc, char **argv)
     for (int m = 0; m < a.nm; m++) {
         double build;
         kinds[m] = wt_reconstructor_kind(a.methods[m]);
+        /* (before a build of minutes: the budget's runs without prediction cannot use a predictive matrix) */
+        if ((st = wt_reconstructor_check_mvm_predict(cli.ctx, cfg, kinds[m], 1)) < 0) goto fail;
         if (kinds[m] == WT_RECON_MVM && (st = wt_build_mvm_cached(&cli, a.out, cfg, sys, argc, argv, &mvm[m], &build)) < 0)
             goto fail;
     }

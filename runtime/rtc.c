@@ -147,11 +147,10 @@ int wt_rtc_open_system(wt_context *ctx, const wt_system *sys, int kind, const ch
     if ((kind == WT_RECON_MVM) != (matrix != NULL))
         return WT_ERROR(ctx, WT_ERR_INVALID, "wt_rtc_open: %s", matrix ? "a matrix file is for the MVM only"
                                                                        : "the MVM needs its matrix file");
-    if (kind == WT_RECON_MVM && sys->cfg->predict) /* (as the simulator's loop refuses it) */
-        return WT_ERROR(ctx, WT_ERR_CONFIG,
-                        "%s: key 'recon.predict' = true: the MVM's control matrix has no predictor (pcg3 and cg9 move "
-                        "their layers by the wind; an MVM would need R rebuilt with the shift inside it)",
-                        sys->cfg->path);
+    { /* (as the simulator's loop: the matrix holds the predictor, the commands' integrator runs on it) */
+        const int e = wt_reconstructor_check_mvm_predict(ctx, sys->cfg, kind, 0);
+        if (e < 0) return e;
+    }
     WT_ALLOC(ctx, p, 1, "per-frame reconstructor's plan");
     p->refs = 1; /* this function's, released below: the state holds the plan from then on */
     p->ctx = ctx;

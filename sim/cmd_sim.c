@@ -14,6 +14,7 @@
 #include "sim/loop.h"
 #include "sim/focus_stage.h"
 #include "core/model/estimate.h"
+#include "core/model/params.h"
 #include "sim/record.h"
 #include "sim/psf.h"
 #include "core/model/sensing.h"
@@ -290,6 +291,8 @@ int wt_cmd_sim(int argc, char **argv)
         }
         if ((st = wt_cli_check_output(&cli, tel, bytes, args.matrix, NULL)) < 0) goto fail;
     }
+    /* (what the MVM cannot do under recon.predict, before the matrix is read: the loop refuses it too) */
+    if ((st = wt_reconstructor_check_mvm_predict(cli.ctx, cfg, kind, 0)) < 0) goto fail;
     if (kind == WT_RECON_MVM && (st = wt_mvm_read(cli.ctx, args.matrix, cfg, sys->nact, sys->nslopes, &mvm, NULL)) < 0) goto fail;
     wt_loop_options o = {.recon = kind, .mvm = mvm, .iterations = iters, .seed = cfg->seed, .noise = cfg->noise};
     /* a learning MVM loop rebuilds its matrix (the variant it was built for) from each estimate */

@@ -102,11 +102,8 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
 
 int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out)
 {
-    if (opt->recon == WT_RECON_MVM && sys->cfg->predict)
-        return WT_ERROR(ctx, WT_ERR_CONFIG,
-                        "%s: key 'recon.predict' = true: the MVM's control matrix has no predictor (pcg3 and cg9 move "
-                        "their layers by the wind; an MVM would need R rebuilt with the shift inside it)",
-                        sys->cfg->path);
+    const int st = wt_reconstructor_check_mvm_predict(ctx, sys->cfg, opt->recon, opt->no_predict);
+    if (st < 0) return st;
     wt_loop_params par;
     wt_loop_params_from_config(sys->cfg, opt, &par);
     return wt_loop_alloc_params(ctx, sys, opt, &par, out);

@@ -109,10 +109,8 @@ static inline wt_mvm_normal *normal(fixture *f)
 /* pcg3 commands computed independently of the builder: at each active actuator's position the layer at
  * the DM's altitude, plus the layers between this DM and its neighbours weighted by the hat function of
  * altitude (1 at this DM, 0 at the next), all read by bilinear interpolation (points at x0 + i δ). */
-static inline void pcg3_commands(fixture *f, const double *c, double *a)
+static inline void pcg3_commands_of_layers(fixture *f, const double *phi, double *a)
 {
-    double *phi = malloc(f->n * sizeof *phi);
-    wt_tomography_layers(f->t, c, phi);
     const wt_dm *dm = f->sys->dm;
     int64_t q = 0;
     for (int k = 0; k < dm->ndms; k++) {
@@ -147,6 +145,13 @@ static inline void pcg3_commands(fixture *f, const double *c, double *a)
             }
     }
     ck_assert_int_eq(q, f->na);
+}
+
+static inline void pcg3_commands(fixture *f, const double *c, double *a)
+{
+    double *phi = malloc(f->n * sizeof *phi);
+    wt_tomography_layers(f->t, c, phi);
+    pcg3_commands_of_layers(f, phi, a);
     free(phi);
 }
 

@@ -325,10 +325,15 @@ START_TEST(test_build_run_chain_and_refusals)
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s/M3.h5 --out %s/r3.h5", dir, dir), 0);
     ck_assert(stderr_has("built for another system"));
     ck_assert(stderr_has("recon.alpha = 3.0 in the matrix, 1.0 in data/presets/demo.cfg"));
-    /* prediction is the matrix-free reconstructors' (the matrix would need the shift inside R): refused, named */
-    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s --set recon.predict=true --frames 12 "
-                         "--out %s/rp.h5", mat, dir), 1);
-    ck_assert(stderr_has("key 'recon.predict' = true: the MVM's control matrix has no predictor"));
+    /* a matrix built without prediction is another system for a predicting loop (the shift is inside a predictive R) */
+    ck_assert_int_ne(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s --set recon.predict=true --frames 12 "
+                         "--out %s/rp.h5", mat, dir), 0);
+    ck_assert(stderr_has("built for another system"));
+    ck_assert(stderr_has("atmosphere.wind_speed_mps = not set in the matrix")); /* the wind is a predictive R's */
+    /* and the integrator on the layers is the matrix-free reconstructors': refused for the MVM, named */
+    ck_assert_int_eq(run("sim --config data/presets/demo.cfg --recon mvm --matrix %s --set recon.predict=true --set "
+                         "'recon.predict_integrator=\"layers\"' --frames 12 --out %s/rp.h5", mat, dir), 1);
+    ck_assert(stderr_has("key 'recon.predict_integrator' = \"layers\": the MVM has no layers"));
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --set recon.predict=maybe --out %s/rq.h5", dir), 0);
     ck_assert(stderr_has("recon.predict"));
     ck_assert_int_ne(run("sim --config data/presets/demo.cfg --set recon.predict=true --set recon.predict_lead_frames=-1.0 "

@@ -88,7 +88,7 @@ START_TEST(test_round_trip_and_refusals)
                   wt_error_message(ctx));
     ck_assert_ptr_null(m);
     wt_config_free(ctx, other);
-    /* ... but not an error of the wind, which no matrix holds (the MVM refuses prediction) */
+    /* ... but not an error of the wind, which only a predictive matrix holds (recon.predict: test_mvm_predict.c) */
     const char *winderr[] = {"recon.atmosphere.error_wind_speed_scale=1.5", "recon.atmosphere.error_wind_direction_deg=20.0"};
     ck_assert_int_eq(wt_config_read(ctx, "data/presets/demo.cfg", 2, winderr, &other), WT_OK);
     ck_assert_msg(wt_mvm_read(ctx, path, other, sys->nact, sys->nslopes, &m, NULL) == WT_OK, "%s", wt_error_message(ctx));

@@ -484,22 +484,26 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
 {
     /* the night changes the truth only: the reconstructors' matrices never see it (SPEC §12) */
     if (!strncmp(path, "atmosphere.night.", 17)) return 0;
-    /* the model's numbers make the matrix, not how they were specified; only recon.predict reads the wind, and the
-     * MVM refuses it (so neither the wind nor its error recon.atmosphere.error_wind_* is in its identity); nor do
-     * the learning's keys (the loop's matrices are rebuilt from each estimate) */
-    if (!strcmp(path, "recon.atmosphere.source") || !strncmp(path, "recon.atmosphere.wind_", 22) ||
-        !strncmp(path, "recon.atmosphere.error_wind_", 28) ||
+    /* the model's numbers make the matrix, not how they were specified; only recon.predict reads the wind: with it the
+     * model's wind (the truth's under the oracle) and its error are in the identity of a predictive MVM, without it
+     * they are not; nor are the learning's keys (the loop's matrices are rebuilt from each estimate) */
+    const int kp = wt_config_priv_find_key("recon.predict");
+    const int predict = kp >= 0 && ps->set[kp] && config_setting_get_bool(ps->set[kp]);
+    const int ks = wt_config_priv_find_key("recon.atmosphere.source");
+    const char *src = ps->set[ks] ? config_setting_get_string(ps->set[ks]) : NULL;
+    const int oracle = !src || !strcmp(src, "oracle");
+    if (!strncmp(path, "recon.atmosphere.wind_", 22) || !strncmp(path, "recon.atmosphere.error_wind_", 28))
+        return predict;
+    if (!strncmp(path, "atmosphere.wind_", 16)) return predict && oracle;
+    if (!strcmp(path, "recon.atmosphere.source") ||
         !strcmp(path, "recon.atmosphere.update_s") || !strcmp(path, "recon.atmosphere.mvm_latency_s") ||
         !strcmp(path, "recon.atmosphere.learn_window") || !strcmp(path, "recon.atmosphere.learn_memory") ||
         !strcmp(path, "recon.atmosphere.learn_grid") ||
         !strcmp(path, "recon.atmosphere.learn_wind") ||
-        !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile") ||
-        !strncmp(path, "atmosphere.wind_", 16))
+        !strcmp(path, "recon.atmosphere.profile") || !strcmp(path, "atmosphere.profile"))
         return 0;
     if (!strncmp(path, "recon.atmosphere.", 17)) return 1;
     if (strncmp(path, "atmosphere.", 11)) return -1;
     /* the truth's r0, L0 and profile make the matrix only as the oracle's model */
-    const int ks = wt_config_priv_find_key("recon.atmosphere.source");
-    const char *src = ps->set[ks] ? config_setting_get_string(ps->set[ks]) : NULL;
-    return !src || !strcmp(src, "oracle");
+    return oracle;
 }

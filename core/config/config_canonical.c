@@ -24,6 +24,14 @@ static int affects_matrix(const pstate *ps, const char *path)
 {
     const int model = wt_config_priv_model_affects_matrix(ps, path);
     if (model >= 0) return model;
+    /* recon.predict puts the layers' shift over the lead, delay_frames (or predict_lead_frames) / rate_hz, into R */
+    {
+        const int kp = wt_config_priv_find_key("recon.predict");
+        const int predict = kp >= 0 && ps->set[kp] && config_setting_get_bool(ps->set[kp]);
+        if (!strcmp(path, "recon.predict") || !strcmp(path, "recon.predict_lead_frames") || !strcmp(path, "loop.rate_hz"))
+            return predict;
+        if (predict && !strcmp(path, "loop.delay_frames")) return 1;
+    }
     if (!strcmp(path, "loop.gain") || !strcmp(path, "loop.delay_frames")) {
         int on = 0;
         for (int k = 0; k < WT_CONFIG_PRIV_NKEYS; k++)

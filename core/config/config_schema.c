@@ -422,8 +422,9 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
     {"recon.predict", K_BOOL, F_DEFAULT, 0, 1, "", 1, CF(predict), NOCOUNT, 0, 0, NULL, 0,
      "pcg3 and cg9: move each reconstructed layer by its wind (the reconstructor's atmosphere, recon.atmosphere, "
      "compressed onto the variant's layers) over the loop's delay, loop.delay_frames / loop.rate_hz, before the "
-     "fitting (cg9) or the commands (pcg3): frozen flow predicted over the delay (SPEC §12); refused for the MVM "
-     "(optional, default false)"},
+     "fitting (cg9) or the commands (pcg3): frozen flow predicted over the delay (SPEC §12); an MVM built with it holds "
+     "the same shift inside R (its identity then holds the lead and the model's wind: `wavetomo build` again for "
+     "another wind) (optional, default false)"},
     {"recon.predict_lead_frames", K_FLOAT, F_DEFAULT, 0.0, 100.0, "frames", 1, CF(predict_lead_frames), NOCOUNT, 0, 0,
      NULL, 0.0,
      "recon.predict: the time the layers are moved over, in frames; 0 (the default) = loop.delay_frames, the "
@@ -493,7 +494,7 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "learned: the wind that recon.predict moves each reconstruction layer by: start = the start model's (the given "
      "wind keys, compressed onto the layers), aligned = measured on the reconstructor's own layer estimates, the shift "
      "that best aligns each layer at t and t + k frames (SPEC §12; core/model/wind_align.h), taken at every update "
-     "(a layer without a clear estimate keeps its wind); pcg3 and cg9 only (the MVM does not predict) (optional, "
+     "(a layer without a clear estimate keeps its wind); pcg3 and cg9 only (an MVM holds the configured wind in R) (optional, "
      "default start, refused with another source)"},
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
@@ -549,12 +550,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "(default 5000)"},
     {"recon.atmosphere.error_wind_speed_scale", K_FLOAT, F_OPT, 0.0, 100.0, "", 1, CF(model.error_wind_speed_scale),
      NOCOUNT, 0, 0, NULL, 1.0,
-     "a model error: every model layer's wind speed times this; only recon.predict reads the wind, so it is not "
-     "in an MVM's identity (the MVM refuses prediction) (default 1: no error)"},
+     "a model error: every model layer's wind speed times this; only recon.predict reads the wind, so it is in an "
+     "MVM's identity with recon.predict only (default 1: no error)"},
     {"recon.atmosphere.error_wind_direction_deg", K_FLOAT, F_OPT, -360.0, 360.0, "deg", DEG,
      CF(model.error_wind_direction), NOCOUNT, 0, 0, NULL, 0.0,
-     "a model error: added to every model layer's wind direction (a rotation from +x towards +y); not in an MVM's "
-     "identity, as error_wind_speed_scale (default 0: no error)"},
+     "a model error: added to every model layer's wind direction (a rotation from +x towards +y); in an MVM's "
+     "identity with recon.predict only, as error_wind_speed_scale (default 0: no error)"},
     VARIANT("recon.pcg3", pcg3, PCG3_SPACING, PCG3_COVER, WT_PRIOR_DEFAULT_PCG3_TEXT,
             "dm.altitudes_m: a layer at each DM", 4, "4", 2, "jacobi_ngs"),
     VARIANT("recon.cg9", cg9, CG9_SPACING, "", WT_PRIOR_DEFAULT_CG9_TEXT,

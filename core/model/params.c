@@ -74,3 +74,20 @@ void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int ite
             par->integrator_gain = cfg->gain, par->integrator_delay = cfg->delay, par->frame_s = 1.0 / cfg->rate;
     }
 }
+
+int wt_reconstructor_check_mvm_predict(wt_context *ctx, const wt_config *cfg, int recon, int no_predict)
+{
+    if (recon != WT_RECON_MVM || !cfg->predict) return WT_OK;
+    const char *why = NULL;
+    if (cfg->predict_integrator == 1)
+        why = "key 'recon.predict_integrator' = \"layers\": the MVM has no layers to run the integrator on (use "
+              "\"commands\")";
+    else if (cfg->model.source == WT_MODEL_LEARNED)
+        why = "key 'recon.atmosphere.source' = \"learned\": the MVM's predictor holds the configured wind, and the "
+              "loop's learned wind is pcg3's and cg9's";
+    else if (no_predict)
+        why = "a run without prediction (the budget's instantaneous and no-prediction runs) would apply a matrix with "
+              "the predictor inside it; budget the MVM without recon.predict";
+    if (!why) return WT_OK;
+    return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.predict' = true with the MVM: %s", cfg->path, why);
+}

@@ -36,31 +36,45 @@ struct wt_reconstructor {
     wt_precond_params precond; /* to rebuild the preconditioner for a new model */
     double predict_lead;     /* [s] */
     /* recon.predict_integrator = "layers" (lgain > 0): the loop's integrator on the layers, z_{t+d} = S_1 z_{t+d-1} +
-     * g S_d (phi_t - z_t), the commands fitted from z_{t+d}; z_t at slot t mod (d + 1) (reconstructor.h) */
+     * g S_d (phi_t - z_t), the commands fitted from z_{t+d} (reconstructor.h); the states are the layers' spectra */
     double lgain, frame_s;
     int ldelay;
-    long lt;                 /* frames applied since the start (or wt_reconstructor_reset_integrator) */
-    double **zr;             /* [ldelay + 1][n] the states */
+    wt_shift_integrator *integ; /* its state (the layers' spectra, shift.h) */
     wt_shift *shift1;        /* the layers moved by their wind over one frame */
     int natm;                /* the current atmosphere model (SPEC §12): r0, profile, wind */
     double r0, atm_alt[WT_MAX_LAYERS], atm_frac[WT_MAX_LAYERS], atm_vx[WT_MAX_LAYERS], atm_vy[WT_MAX_LAYERS];
     double t_model, t_precond; /* the last wt_reconstructor_set_model's parts [s] */
 };
 
-/* The shift of each layer by its wind (the model's compressed as its Cn², SPEC §12) over `lead` seconds */
-static int make_shift_lead(wt_reconstructor *r, double lead, wt_shift **out)
+int wt_predict_shift_alloc(wt_context *ctx, const wt_tomography *t, int natm, const double *alt, const double *frac,
+                           const double *vx, const double *vy, double lead, wt_shift **out)
 {
-    const int L = wt_tomography_nlayers(r->tomo);
-    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
+    const int L = wt_tomography_nlayers(t);
+    double lalt[WT_MAX_LAYERS], lfrac[WT_MAX_LAYERS], sx[WT_MAX_LAYERS], sy[WT_MAX_LAYERS];
     const wt_grid *g[WT_MAX_LAYERS];
     int64_t off[WT_MAX_LAYERS];
     for (int l = 0; l < L; l++)
-        alt[l] = wt_tomography_layer_altitude(r->tomo, l), g[l] = wt_tomography_layer_grid(r->tomo, l),
-        off[l] = wt_tomography_layer_offset(r->tomo, l);
-    wt_profile_compress(r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, L, alt, frac, vx, vy);
-    if (r->layer_wind) memcpy(vx, r->lvx, sizeof vx), memcpy(vy, r->lvy, sizeof vy);
-    for (int l = 0; l < L; l++) vx[l] *= lead, vy[l] *= lead;
-    return wt_shift_alloc(r->ctx, L, g, off, vx, vy, out);
+        lalt[l] = wt_tomography_layer_altitude(t, l), g[l] = wt_tomography_layer_grid(t, l),
+        off[l] = wt_tomography_layer_offset(t, l);
+    wt_profile_compress(natm, alt, frac, vx, vy, L, lalt, lfrac, sx, sy);
+    for (int l = 0; l < L; l++) sx[l] *= lead, sy[l] *= lead;
+    return wt_shift_alloc(ctx, L, g, off, sx, sy, out);
+}
+
+/* The shift of each layer by its wind (the model's compressed as its Cn², SPEC §12, or the layers' own) over `lead`
+ * seconds */
+static int make_shift_lead(wt_reconstructor *r, double lead, wt_shift **out)
+{
+    if (!r->layer_wind)
+        return wt_predict_shift_alloc(r->ctx, r->tomo, r->natm, r->atm_alt, r->atm_frac, r->atm_vx, r->atm_vy, lead, out);
+    const int L = wt_tomography_nlayers(r->tomo);
+    double sx[WT_MAX_LAYERS], sy[WT_MAX_LAYERS];
+    const wt_grid *g[WT_MAX_LAYERS];
+    int64_t off[WT_MAX_LAYERS];
+    for (int l = 0; l < L; l++)
+        g[l] = wt_tomography_layer_grid(r->tomo, l), off[l] = wt_tomography_layer_offset(r->tomo, l),
+        sx[l] = r->lvx[l] * lead, sy[l] = r->lvy[l] * lead;
+    return wt_shift_alloc(r->ctx, L, g, off, sx, sy, out);
 }
 
 /* The prediction's shifts for the current wind: over the lead, and over one frame for the layers' integrator. Both
@@ -227,8 +241,13 @@ int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, cons
                     "%g s; expected a gain in (0, 1], a delay >= 1 frame and a positive frame time",
                     wt_reconstructor_name(kind), par->integrator_gain, par->integrator_delay, par->frame_s));
         r->lgain = par->integrator_gain, r->ldelay = par->integrator_delay, r->frame_s = par->frame_s;
-        WT_ALLOC(ctx, r->zr, r->ldelay + 1, "the layers' integrator");
-        for (int k = 0; k <= r->ldelay; k++) WT_ALLOC(ctx, r->zr[k], n, "the layers' integrator");
+        {
+            const int L = wt_tomography_nlayers(r->tomo);
+            const wt_grid *g[WT_MAX_LAYERS];
+            int64_t off[WT_MAX_LAYERS];
+            for (int l = 0; l < L; l++) g[l] = wt_tomography_layer_grid(r->tomo, l), off[l] = wt_tomography_layer_offset(r->tomo, l);
+            WT_TRY(wt_shift_integrator_alloc(ctx, L, g, off, r->ldelay, &r->integ));
+        }
     }
     if (par->predict_lead > 0.0) {
         WT_TRY(make_shifts(r, &r->shift, &r->shift1));
@@ -280,9 +299,7 @@ void wt_reconstructor_free(wt_reconstructor *r)
     wt_fitting_free(r->fit);
     wt_shift_free(r->shift);
     wt_shift_free(r->shift1);
-    if (r->zr)
-        for (int k = 0; k <= r->ldelay; k++) wt_free(r->ctx, r->zr[k]);
-    wt_free(r->ctx, r->zr);
+    wt_shift_integrator_free(r->integ);
     wt_free(r->ctx, r->c);
     wt_free(r->ctx, r->phi);
     wt_free(r->ctx, r->pred);
@@ -331,14 +348,9 @@ int wt_reconstructor_apply(wt_reconstructor *r, const double *s_ol, double *a)
     if (st < 0) return st;
     wt_tomography_layers(r->tomo, r->c, r->phi);
     const double *phi = r->phi;
-    if (r->zr) { /* the integrator on the layers: z_{t+d} = S_1 z_{t+d-1} + g S_d (phi_t - z_t) */
-        const int D1 = r->ldelay + 1;
-        const int64_t n = wt_tomography_nunknowns(r->tomo);
-        const double *zt = r->zr[r->lt % D1], *zp = r->zr[(r->lt + r->ldelay - 1) % D1];
-        double *zn = r->zr[(r->lt + r->ldelay) % D1];
-        wt_shift_integrate(r->shift, r->shift1, r->lgain, r->phi, zt, zp, zn, r->pred, n);
-        r->lt++;
-        phi = zn;
+    if (r->integ) { /* the integrator on the layers: z_{t+d} = S_1 z_{t+d-1} + g S_d (phi_t - z_t) */
+        if ((st = wt_shift_integrator_step(r->integ, r->shift, r->shift1, r->lgain, r->phi, r->pred)) < 0) return st;
+        phi = r->pred;
     } else if (r->shift) { /* (the estimate itself stays for wt_reconstructor_layers; the layers fill the vector) */
         wt_shift_apply_to(r->shift, r->phi, r->pred);
         phi = r->pred;
@@ -507,9 +519,7 @@ int wt_reconstructor_set_layer_wind(wt_reconstructor *r, const double *vx, const
 
 void wt_reconstructor_reset_integrator(wt_reconstructor *r)
 {
-    if (!r->zr) return;
-    for (int k = 0; k <= r->ldelay; k++) memset(r->zr[k], 0, (size_t)wt_tomography_nunknowns(r->tomo) * sizeof *r->zr[k]);
-    r->lt = 0;
+    if (r->integ) wt_shift_integrator_reset(r->integ);
 }
 
-int wt_reconstructor_integrates(const wt_reconstructor *r) { return r->zr != NULL; }
+int wt_reconstructor_integrates(const wt_reconstructor *r) { return r->integ != NULL; }

@@ -51,6 +51,15 @@ typedef struct wt_reconstructor_params {
     double frame_s;                         /* a frame [s]: S_1 */
 } wt_reconstructor_params;
 
+/* recon.predict's shift of t's layers (core/op/shift.h): the model's wind (natm layers at alt [m] with Cn² fractions frac
+ * and wind vx, vy [m/s]) compressed onto t's layers as their Cn² (wt_profile_compress), over `lead` seconds; a negative
+ * lead moves them back, the adjoint of the positive one (the builder's predictive MVM, R = E S_d M⁻¹ Ãᵀ Ĉ⁻¹, applies
+ * S_dᵀ to each command's layer weights). The reconstructors' own prediction is this shift (with the layers' winds of
+ * wt_reconstructor_set_layer_wind when set). */
+typedef struct wt_shift wt_shift;
+int wt_predict_shift_alloc(wt_context *ctx, const wt_tomography *t, int natm, const double *alt, const double *frac,
+                           const double *vx, const double *vy, double lead, wt_shift **out);
+
 /* kind WT_RECON_NONE, PCG3 or CG9 (par is not read for NONE except warm_start, and may then be NULL). */
 int wt_reconstructor_alloc(wt_context *ctx, const wt_system *sys, int kind, const wt_reconstructor_params *par,
                            wt_reconstructor **out);

@@ -28,15 +28,30 @@ void wt_shift_apply(wt_shift *s, double *phi);
 /* out ← in with every layer shifted (the layers' ranges of out; a layer that does not move is copied). in and
  * out may be the same array, else they must not overlap. The same bits as wt_shift_apply. Allocates nothing. */
 void wt_shift_apply_to(wt_shift *s, const double *in, double *out);
-/* One frame of the loop's integrator on moving layers (recon.predict_integrator = "layers"), over n values:
- *   zn ← S_1 zp + g S_d (phi − zt),
- * S_d = lead (the layers moved over the loop's delay d), S_1 = one (over a frame), phi the frame's estimate, zt the
- * state whose commands are applied during it, zp the latest state (frame t + d − 1), zn the next (t + d). Under
- * frozen flow with the layers' own wind (phi_t = S_t phi_0), once zt = phi_t the state stays on the layers: zn =
- * phi_{t+d}, whatever g, so the integrator's average adds no lag; an error decays as (1 − g) per frame, moving with
- * the layers. e: n values of scratch; zn must not overlap the others. Allocates nothing. */
-void wt_shift_integrate(wt_shift *lead, wt_shift *one, double g, const double *phi, const double *zt, const double *zp,
-                        double *zn, double *e, int64_t n);
+/* The loop's integrator on moving layers (recon.predict_integrator = "layers"), one frame:
+ *   z_{t+d} = S_1 z_{t+d−1} + g S_d (φ_t − z_t),
+ * S_d the layers moved over the loop's delay d (a shift `lead`), S_1 over a frame (`one`), φ_t the frame's estimate,
+ * z_t the state whose commands are applied during frame t. Under frozen flow with the layers' own wind (φ_t = S_t φ_0),
+ * once z_t = φ_t the state stays on the layers, z_{t+d} = φ_{t+d} whatever g, so the integrator's average adds no
+ * lag; an error decays as (1 − g) per frame, moving with the layers.
+ * The state is kept as the layers' spectra, Ẑ = DFT(z) on each periodic grid, where both shifts are diagonal (the
+ * ramps of wt_shift_alloc: m_S(k) = m_x(k_x) m_y(k_y), their real parts at Nyquist):
+ *   Ẑ_{t+d}(k) = m_1(k) Ẑ_{t+d−1}(k) + g m_d(k) (Φ̂_t(k) − Ẑ_t(k)),
+ * so a frame costs one transform of φ_t and one back for z_{t+d} — one shift's work, where the two shifts in space
+ * cost two. The same operators as wt_shift_apply_to's (equal to rounding); the state does not depend on the winds, so
+ * new shifts (a new wind) apply from the next frame on. A layer's arithmetic does not depend on the thread count. */
+typedef struct wt_shift_integrator wt_shift_integrator;
+/* L layers on the square even grids g[l] from offset[l] (the shifts' layout), delay d ≥ 1 frames; the state zero.
+ * Plans FFTW_ESTIMATE. Allocates (d + 2)·n(n/2 + 1) complex numbers and n²/2 more per layer. */
+int wt_shift_integrator_alloc(wt_context *ctx, int L, const wt_grid *const *g, const int64_t *offset, int delay,
+                              wt_shift_integrator **out);
+void wt_shift_integrator_free(wt_shift_integrator *it);
+/* The state back to zero, the frame count to 0. */
+void wt_shift_integrator_reset(wt_shift_integrator *it);
+/* One frame: zn ← z_{t+d} (the layers' range of zn, all n values of the layers' vector) from phi = φ_t, then t ← t + 1.
+ * lead and one: shifts of the integrator's layers (WT_ERR_INVALID otherwise, nothing changed). Allocates nothing. */
+int wt_shift_integrator_step(wt_shift_integrator *it, const wt_shift *lead, const wt_shift *one, double g,
+                             const double *phi, double *zn);
 /* Layers that move (a zero shift costs nothing). */
 int wt_shift_nmoving(const wt_shift *s);
 
