@@ -128,7 +128,7 @@ $(MAN): $(BIN)/wavetomo cli/man.sh
 $(BUILD)/tests/test_plot: $(BUILD)/cli/plot.o $(BUILD)/cli/plot_maps.o $(BUILD)/cli/plot_pupil.o $(BUILD)/cli/plot_psf.o \
     $(BUILD)/cli/plot_series.o
 
-$(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h $(LIB)
+$(BUILD)/tests/%: tests/%.c tests/testutil.h tests/testmodel.h tests/frozen_flow.h tests/tomography_fixture.h tests/config_fixture.h tests/precond_fixture.h tests/mvm_fixture.h $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  CC/LD   $@")
 	$(Q)$(CC) $(CFLAGS) $(PKG_CFLAGS) $(shell pkg-config --cflags check) -o $@ $< $(filter %.o,$^) $(LIB) \

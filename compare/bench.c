@@ -114,26 +114,20 @@ static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, c
     const int L = wt_tomography_nlayers(t);
     const wt_tomography_params *tp = &par->tomography;
     const double lead = par->predict_lead > 0.0 ? par->predict_lead : (double)sys->cfg->delay / sys->cfg->rate;
-    double alt[WT_MAX_LAYERS], frac[WT_MAX_LAYERS], sx[WT_MAX_LAYERS], sy[WT_MAX_LAYERS];
     const wt_grid *g[WT_MAX_LAYERS];
     int64_t off[WT_MAX_LAYERS];
-    for (int l = 0; l < L; l++)
-        alt[l] = wt_tomography_layer_altitude(t, l), g[l] = wt_tomography_layer_grid(t, l),
-        off[l] = wt_tomography_layer_offset(t, l);
+    for (int l = 0; l < L; l++) g[l] = wt_tomography_layer_grid(t, l), off[l] = wt_tomography_layer_offset(t, l);
     /* the model's wind as wt_reconstructor_params_from_config reads it under recon.predict */
     const wt_config *cfg = sys->cfg;
     double vx[WT_MAX_LAYERS], vy[WT_MAX_LAYERS];
     for (int k = 0; k < cfg->model.nlayers; k++)
         vx[k] = cfg->model.wind_speed[k] * cos(cfg->model.wind_direction[k]),
         vy[k] = cfg->model.wind_speed[k] * sin(cfg->model.wind_direction[k]);
-    wt_profile_compress(tp->natm, tp->atm_altitude, tp->atm_fraction, vx, vy, L, alt, frac, sx, sy);
-    for (int l = 0; l < L; l++) sx[l] *= lead, sy[l] *= lead;
-    /* a frame's shift of the state for the integrator on the layers */
-    double fx[WT_MAX_LAYERS], fy[WT_MAX_LAYERS];
-    for (int l = 0; l < L; l++) fx[l] = sx[l] / (lead * cfg->rate), fy[l] = sy[l] / (lead * cfg->rate);
+    /* over the lead, and a frame's shift of the state for the integrator on the layers */
     wt_shift *sh = NULL, *sh1 = NULL;
-    int st = wt_shift_alloc(ctx, L, g, off, sx, sy, &sh);
-    if (st >= 0) st = wt_shift_alloc(ctx, L, g, off, fx, fy, &sh1);
+    int st = wt_predict_shift_alloc(ctx, t, tp->natm, tp->atm_altitude, tp->atm_fraction, vx, vy, lead, &sh);
+    if (st >= 0)
+        st = wt_predict_shift_alloc(ctx, t, tp->natm, tp->atm_altitude, tp->atm_fraction, vx, vy, 1.0 / cfg->rate, &sh1);
     if (st < 0) {
         wt_shift_free(sh);
         return st;
@@ -173,7 +167,7 @@ static int time_shift(wt_context *ctx, const wt_system *sys, wt_tomography *t, c
              * for the two factors and the update; φ and z_(t+d) once, the spectra Ẑ_t, Ẑ_(t+d−1) read, Ẑ_(t+d) written */
             out->integrate_flops += 10.0 * m * log2(g[l]->nx) + 20.0 * m;
             out->integrate_bytes += 40.0 * m;
-            if (sx[l] == 0.0 && sy[l] == 0.0) continue;
+            if (!wt_shift_layer_moves(sh, l)) continue;
             out->shift_flops += 10.0 * m * log2(g[l]->nx) + 6.0 * m;
             out->shift_bytes += 16.0 * m;
         }

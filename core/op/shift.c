@@ -421,7 +421,11 @@ int wt_shift_integrator_step(wt_shift_integrator *it, const wt_shift *lead, cons
         if (lead->lay[l].n != it->lay[l].n || one->lay[l].n != it->lay[l].n || lead->lay[l].offset != it->lay[l].offset ||
             one->lay[l].offset != it->lay[l].offset)
             return WT_ERROR(it->ctx, WT_ERR_INVALID, "shift: layer %d of the shifts is not the integrator's", l + 1);
-    const int D1 = it->D + 1, L = it->L, nt = it->nthreads, T = PARTS * L;
+    /* a team for layers of at least ~2¹³ points in all (E-ELT's PCG-3: 2.5·10⁴): below that, waking it costs more than
+     * the work (the demo's 3 × 32² points); the bits are the same either way */
+    size_t pts = 0;
+    for (int l = 0; l < it->L; l++) pts += (size_t)it->lay[l].n * it->lay[l].n;
+    const int D1 = it->D + 1, L = it->L, nt = pts >= 8192 ? it->nthreads : 1, T = PARTS * L;
     const fftw_complex *St = it->ring[it->t % D1], *Sp = it->ring[(it->t + it->D - 1) % D1];
     fftw_complex *Sn = it->ring[(it->t + it->D) % D1];
     /* three passes, each over every layer's parts (the largest layers first): rows, columns, rows */
@@ -447,6 +451,8 @@ int wt_shift_integrator_step(wt_shift_integrator *it, const wt_shift *lead, cons
     it->t++;
     return WT_OK;
 }
+
+int wt_shift_layer_moves(const wt_shift *s, int l) { return l >= 0 && l < s->L && s->lay[l].mx != NULL; }
 
 int wt_shift_nmoving(const wt_shift *s)
 {

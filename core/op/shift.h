@@ -52,7 +52,8 @@ void wt_shift_integrator_reset(wt_shift_integrator *it);
  * lead and one: shifts of the integrator's layers (WT_ERR_INVALID otherwise, nothing changed). Allocates nothing. */
 int wt_shift_integrator_step(wt_shift_integrator *it, const wt_shift *lead, const wt_shift *one, double g,
                              const double *phi, double *zn);
-/* Layers that move (a zero shift costs nothing). */
+/* Layers that move (a zero shift costs nothing); whether layer l does. */
 int wt_shift_nmoving(const wt_shift *s);
+int wt_shift_layer_moves(const wt_shift *s, int l);
 
 #endif
