@@ -201,8 +201,11 @@ static void shift_layer(const layer *y, const double *in, double *out, fftw_comp
 
 void wt_shift_apply_to(wt_shift *s, const double *in, double *out)
 {
-    const int moving = wt_shift_nmoving(s);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads) if (s->nthreads > 1 && moving > 1 && !omp_in_parallel())
+    /* (a team only for ~2¹³ moving points or more, as the integrator's: the same bits either way) */
+    size_t pts = 0;
+    for (int l = 0; l < s->L; l++) pts += s->lay[l].mx ? (size_t)s->lay[l].n * s->lay[l].n : 0;
+    const int moving = wt_shift_nmoving(s), team = s->nthreads > 1 && moving > 1 && pts >= 8192;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads) if (team && !omp_in_parallel())
     for (int i = 0; i < s->L; i++) {
         const layer *y = &s->lay[s->order[i]];
         const double *p = in + y->offset;
