@@ -294,6 +294,15 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
                          const double *field, const double *on_err, const double *field_err, int log_x)
 {
+    return wt_plot_strehl_sweep_named(ctx, path, title, xlabel, nmethods, methods, nvalues, x, NULL, on_axis, field, on_err,
+                                      field_err, log_x);
+}
+
+int wt_plot_strehl_sweep_named(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
+                               const char *const *methods, int nvalues, const double *x, const char *const *names,
+                               const double *on_axis, const double *field, const double *on_err, const double *field_err,
+                               int log_x)
+{
     if (nmethods < 1 || nmethods > MAX_SERIES || nvalues < 1 || nvalues > MAX_VALUES)
         return WT_ERROR(ctx, WT_ERR_INVALID, "plot '%s': Strehl sweep of %d methods x %d values; expected 1..%d x 1..%d",
                         wt_plot_pname(path), nmethods, nvalues, MAX_SERIES, MAX_VALUES);
@@ -330,12 +339,22 @@ int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, c
 
     plvpor(0.10, 0.68, 0.14, 0.90);
     plwind(xmin, xmax, 0.0, ymax);
-    wt_plot_axes(log_x ? "bcnstl" : "bcnst", "bcnstv", log_x ? "gl" : "g", "g");
+    wt_plot_axes(names ? "bc" : log_x ? "bcnstl" : "bcnst", "bcnstv", names ? "" : log_x ? "gl" : "g", "g");
+    for (int k = 0; names && k < nvalues; k++) { /* the values' own names under their points */
+        char lab[LABEL_MAX];
+        plmtex("b", 1.6, (px[k] - xmin) / (xmax - xmin), 0.5, wt_plot_escape(lab, sizeof lab, names[k] ? names[k] : "?"));
+    }
     /* a second line of the x label (after a newline), smaller: the key under its meaning */
     char first[LABEL_MAX], second[LABEL_MAX];
     const char *nl = strchr(xlabel, '\n');
     snprintf(first, sizeof first, "%.*s", nl ? (int)(nl - xlabel) : (int)strlen(xlabel), xlabel);
-    wt_plot_labels(first, "LE Strehl", title);
+    wt_plot_labels(first, "LE Strehl", "");
+    { /* the title centred on the page, not on the axes (the legend takes the right third): a long one fits */
+        char tb[LABEL_MAX];
+        plschr(0.0, 1.35);
+        plmtex("t", 1.6, (0.5 - 0.10) / (0.68 - 0.10), 0.5, wt_plot_escape(tb, sizeof tb, title));
+        plschr(0.0, 1.15);
+    }
     if (nl) {
         plschr(0.0, 0.95);
         plmtex("b", 5.2, 0.5, 0.5, wt_plot_escape(second, sizeof second, nl + 1));

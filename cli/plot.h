@@ -14,6 +14,12 @@
 int wt_plot_strehl_sweep(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
                          const char *const *methods, int nvalues, const double *x, const double *on_axis,
                          const double *field, const double *on_err, const double *field_err, int log_x);
+/* The same with the values named (names[nvalues], e.g. a categorical sweep's "false", "learned": each under its
+ * point, at its x, and no numbers on the x axis); names NULL: wt_plot_strehl_sweep. */
+int wt_plot_strehl_sweep_named(wt_context *ctx, const char *path, const char *title, const char *xlabel, int nmethods,
+                               const char *const *methods, int nvalues, const double *x, const char *const *names,
+                               const double *on_axis, const double *field, const double *on_err, const double *field_err,
+                               int log_x);
 
 /* The guide stars drawn on the field maps: directions [arcsec] (x right, y up), LGS a star, NGS a triangle, with
  * a legend; the map's window widens to hold them. A NULL wt_plot_stars draws none. */

@@ -703,11 +703,21 @@ static int make_plots(wt_cli *cli, const wt_compare_cases *a, const wt_system *s
         axis_label(xlabel, sizeof xlabel, a->key);
         snprintf(path, sizeof path, "%s/strehl_vs_sweep.png", a->out);
         int logx = numeric && positive && x[nv - 1] / x[0] > 20.0;
-        if ((st = wt_plot_strehl_sweep(cli->ctx, path,
-                                       a->ns > 1 ? "LE Strehl ± SE over seeds (on-axis solid, field dashed)"
-                                                 : "LE Strehl (on-axis solid, field average dashed)",
-                                       xlabel, nm, (const char *const *)a->methods, nv, x, on, fi,
-                                       a->ns > 1 ? on_se : NULL, a->ns > 1 ? fi_se : NULL, logx)) < 0)
+        /* a sweep of words (false/true, "learned"/"given"): each value named under its point, its quotes dropped */
+        char vnames[WT_COMPARE_MAXV][64];
+        const char *vn[WT_COMPARE_MAXV];
+        for (int v = 0; v < nv && !numeric; v++) {
+            const char *s = a->values[v];
+            const size_t len = strlen(s);
+            if (len >= 2 && s[0] == '"' && s[len - 1] == '"') snprintf(vnames[v], sizeof vnames[v], "%.*s", (int)len - 2, s + 1);
+            else snprintf(vnames[v], sizeof vnames[v], "%s", s);
+            vn[v] = vnames[v];
+        }
+        if ((st = wt_plot_strehl_sweep_named(cli->ctx, path,
+                                             a->ns > 1 ? "LE Strehl ± SE over seeds (on-axis solid, field dashed)"
+                                                       : "LE Strehl (on-axis solid, field average dashed)",
+                                             xlabel, nm, (const char *const *)a->methods, nv, x, numeric ? NULL : vn, on,
+                                             fi, a->ns > 1 ? on_se : NULL, a->ns > 1 ? fi_se : NULL, logx)) < 0)
             return st;
     }
     double coords[16];

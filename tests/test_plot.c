@@ -168,6 +168,13 @@ START_TEST(test_sweep_writes_png)
     snprintf(path, sizeof path, "%s/sweep_lin.png", dir);
     ck_assert_int_eq(wt_plot_strehl_sweep(ctx, path, "t", "iterations", 3, methods, 5, alpha, on, fa, NULL, NULL, 0), WT_OK);
     assert_png(path, 900, 650);
+    /* a sweep of words: each value named under its point (and a NULL name drawn as "?", not a crash) */
+    const double at[5] = {1, 2, 3, 4, 5};
+    const char *names[5] = {"static", "oracle", "pixels", NULL, "#x"};
+    snprintf(path, sizeof path, "%s/sweep_named.png", dir);
+    ck_assert_int_eq(wt_plot_strehl_sweep_named(ctx, path, "t", "lgs.wfs.reference", 3, methods, 5, at, names, on, fa, NULL,
+                                                NULL, 0), WT_OK);
+    assert_png(path, 900, 650);
     remove_dir(dir);
     wt_context_free(ctx);
 }
