@@ -20,6 +20,7 @@
 #include "builder/cmd_build.h"
 #include "builder/mvm_build.h"
 #include "compare/cmd_compare.h"
+#include "core/model/params.h"
 #include "compare/report.h"
 #include "compare/report_spots.h"
 #include "core/io/h5.h"
@@ -262,6 +263,8 @@ static int run_cases(wt_cli *cli, const wt_compare_cases *a, int m, int v, const
     for (int s = 0; s < a->ns && st >= 0 && !wt_interrupt_pending(); s++) {
         int c = wt_compare_case(a, m, v, s);
         if (owner[c] != rank) continue;
+        /* (what the MVM cannot do under recon.predict: refused before a build of minutes, as the loop would after it) */
+        if (kind == WT_RECON_MVM && !mvm && (st = wt_reconstructor_check_mvm_predict(cli->ctx, cfg, kind, 0)) < 0) break;
         if (kind == WT_RECON_MVM && !mvm && (st = wt_build_mvm_cached(cli, a->out, cfg, sys, argc, argv, &mvm, &build)) < 0) {
             if (st == WT_ERR_INTERRUPTED && wt_interrupt_pending()) st = WT_OK; /* said once, with the cases kept */
             break;
