@@ -201,6 +201,14 @@ START_TEST(t_refusals)
     ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "layer 1"));
     const wt_grid *go[1] = {&godd};
     ck_assert_int_eq(wt_shift_alloc(ctx, 1, go, off, zero, zero, &s), WT_ERR_INVALID);
+    /* the integrator: an odd grid, a delay below one frame */
+    wt_shift_integrator *it = NULL;
+    ck_assert_int_eq(wt_shift_integrator_alloc(ctx, 1, go, off, 2, &it), WT_ERR_INVALID);
+    ck_assert_ptr_null(it);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "layer 1"));
+    ck_assert_int_eq(wt_shift_integrator_alloc(ctx, 2, g, off, 0, &it), WT_ERR_INVALID);
+    ck_assert_ptr_null(it);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "delay 0"));
     wt_context_free(ctx);
 }
 END_TEST

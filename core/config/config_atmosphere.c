@@ -480,6 +480,12 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
     return WT_OK;
 }
 
+int wt_config_priv_predicting(const wt_config_priv_state *ps)
+{
+    const int kp = wt_config_priv_find_key("recon.predict");
+    return kp >= 0 && ps->set[kp] && config_setting_get_bool(ps->set[kp]);
+}
+
 int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const char *path)
 {
     /* the night changes the truth only: the reconstructors' matrices never see it (SPEC §12) */
@@ -487,8 +493,7 @@ int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const ch
     /* the model's numbers make the matrix, not how they were specified; only recon.predict reads the wind: with it the
      * model's wind (the truth's under the oracle) and its error are in the identity of a predictive MVM, without it
      * they are not; nor are the learning's keys (the loop's matrices are rebuilt from each estimate) */
-    const int kp = wt_config_priv_find_key("recon.predict");
-    const int predict = kp >= 0 && ps->set[kp] && config_setting_get_bool(ps->set[kp]);
+    const int predict = wt_config_priv_predicting(ps);
     const int ks = wt_config_priv_find_key("recon.atmosphere.source");
     const char *src = ps->set[ks] ? config_setting_get_string(ps->set[ks]) : NULL;
     const int oracle = !src || !strcmp(src, "oracle");

@@ -26,8 +26,7 @@ static int affects_matrix(const pstate *ps, const char *path)
     if (model >= 0) return model;
     /* recon.predict puts the layers' shift over the lead, delay_frames (or predict_lead_frames) / rate_hz, into R */
     {
-        const int kp = wt_config_priv_find_key("recon.predict");
-        const int predict = kp >= 0 && ps->set[kp] && config_setting_get_bool(ps->set[kp]);
+        const int predict = wt_config_priv_predicting(ps);
         if (!strcmp(path, "recon.predict") || !strcmp(path, "recon.predict_lead_frames") || !strcmp(path, "loop.rate_hz"))
             return predict;
         if (predict && !strcmp(path, "loop.delay_frames")) return 1;

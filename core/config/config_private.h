@@ -130,6 +130,8 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg);
  * is not one of the atmosphere's (the caller decides). The matrix is made from the model: the truth's profile
  * counts only through the oracle. */
 int wt_config_priv_model_affects_matrix(const wt_config_priv_state *ps, const char *path);
+/* 1 when recon.predict is set true: the predictor is then in the matrix (its lead, the model's wind) */
+int wt_config_priv_predicting(const wt_config_priv_state *ps);
 
 /* ---------------------------------------------------------------- config_derived.c */
 
