@@ -305,6 +305,7 @@ int wt_mvm_build(wt_context *ctx, wt_tomography *t, const wt_mvm_options *opt_in
     stats.t_total = wt_time_now() - t0;
     stats.cholmod_peak = wt_mvm_priv_normal_cholmod_peak(nm);
     mv->stats = stats;
+    mv->predictive = opt.predict_adjoint != NULL;
     *out = mv;
     mv = NULL;
 fail:
@@ -323,11 +324,11 @@ fail:
     return st;
 }
 
-/* The matrix of variant `name` of cfg, with the model's r0 and profile replaced when natm > 0 (a sampled one
+/* The matrix of variant `name` of cfg, with the model's r0, profile and wind replaced when natm > 0 (a sampled one
  * compressed as hats onto the variant's layers first). */
 static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                        const wt_mvm_options *opt_in, double r0, int natm, const double *alt, const double *frac,
-                       int sampled, wt_mvm **out)
+                       const double *vx, const double *vy, int sampled, wt_mvm **out)
 {
     const double t0 = wt_time_now();
     const int cg9 = !strcmp(name, "cg9");
@@ -338,36 +339,40 @@ static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *c
     opt.commands = cg9 ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
     opt.fit_regularization = var.fit_regularization;
     opt.fit_sampling = var.fit_sampling;
+    *out = NULL;
     wt_tomography_params tp;
     wt_tomography_params_from_config(cfg, &tp);
+    wt_reconstructor_params rp; /* the predictor's lead, and the configuration's wind */
+    wt_reconstructor_params_from_config(cfg, cg9 ? WT_RECON_CG9 : WT_RECON_PCG3, -1, &rp);
+    double wvx[WT_MAX_LAYERS], wvy[WT_MAX_LAYERS];
+    for (int k = 0; k < rp.tomography.natm; k++) wvx[k] = rp.atm_vx[k], wvy[k] = rp.atm_vy[k];
     if (natm > 0) {
         if (natm > WT_MAX_LAYERS)
             return WT_ERROR(ctx, WT_ERR_INVALID, "MVM build: a model of %d layers (at most %d)", natm, WT_MAX_LAYERS);
+        if (cfg->predict && (!vx || !vy))
+            return WT_ERROR(ctx, WT_ERR_INVALID, "MVM build: key 'recon.predict' = true and a model without its wind");
         tp.r0 = r0;
         if (sampled) { /* the profile at the layers' own altitudes: the tomography's point compression keeps it */
             tp.natm = var.nlayers;
             for (int l = 0; l < var.nlayers; l++) tp.atm_altitude[l] = var.altitudes[l];
-            wt_profile_compress_hats(natm, alt, frac, NULL, NULL, var.nlayers, var.altitudes, tp.atm_fraction, NULL,
-                                     NULL);
+            wt_profile_compress_hats(natm, alt, frac, vx, vy, var.nlayers, var.altitudes, tp.atm_fraction,
+                                     vx ? wvx : NULL, vy ? wvy : NULL);
         } else {
             tp.natm = natm;
-            for (int k = 0; k < natm; k++) tp.atm_altitude[k] = alt[k], tp.atm_fraction[k] = frac[k];
+            for (int k = 0; k < natm; k++) {
+                tp.atm_altitude[k] = alt[k], tp.atm_fraction[k] = frac[k];
+                if (vx && vy) wvx[k] = vx[k], wvy[k] = vy[k];
+            }
         }
     }
     wt_tomography *t = NULL;
     wt_shift *adj = NULL;
-    *out = NULL;
-    if (cfg->predict && natm > 0)
-        return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.predict' = true: an MVM rebuilt from a learned profile has no "
-                        "wind to predict with (the loop's learned wind is pcg3's and cg9's); build it without prediction",
-                        cfg->path);
     int st = wt_tomography_alloc(ctx, sys, &var, name, &tp, &t);
     if (st < 0) return st;
-    if (cfg->predict) { /* the shift that pcg3 and cg9 make under recon.predict (core/model/params.c), moved back */
-        wt_reconstructor_params rp;
-        wt_reconstructor_params_from_config(cfg, cg9 ? WT_RECON_CG9 : WT_RECON_PCG3, -1, &rp);
-        st = wt_predict_shift_alloc(ctx, t, rp.tomography.natm, rp.tomography.atm_altitude, rp.tomography.atm_fraction,
-                                    rp.atm_vx, rp.atm_vy, -rp.predict_lead, &adj);
+    /* the shift that pcg3 and cg9 make under recon.predict (core/model/reconstructor.c), moved back: the model's
+     * profile and wind compressed onto the layers, over the configured lead */
+    if (cfg->predict) {
+        st = wt_predict_shift_alloc(ctx, t, tp.natm, tp.atm_altitude, tp.atm_fraction, wvx, wvy, -rp.predict_lead, &adj);
         opt.predict_adjoint = adj;
     }
     if (st >= 0) st = wt_mvm_build(ctx, t, &opt, out);
@@ -385,13 +390,13 @@ static int build_model(wt_context *ctx, const wt_system *sys, const wt_config *c
 int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config *cfg, const char *name,
                          const wt_mvm_options *opt_in, wt_mvm **out)
 {
-    return build_model(ctx, sys, cfg, name, opt_in, 0.0, 0, NULL, NULL, 0, out);
+    return build_model(ctx, sys, cfg, name, opt_in, 0.0, 0, NULL, NULL, NULL, NULL, 0, out);
 }
 
-int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
-                         wt_mvm **out)
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, const double *vx,
+                         const double *vy, int sampled, wt_mvm **out)
 {
     const wt_mvm_rebuilder *rb = user;
     if (natm < 1) return WT_ERROR(rb->ctx, WT_ERR_INVALID, "MVM rebuild: a model without layers");
-    return build_model(rb->ctx, rb->sys, rb->sys->cfg, rb->variant, rb->opt, r0, natm, alt, frac, sampled, out);
+    return build_model(rb->ctx, rb->sys, rb->sys->cfg, rb->variant, rb->opt, r0, natm, alt, frac, vx, vy, sampled, out);
 }

@@ -126,14 +126,16 @@ int wt_mvm_build_variant(wt_context *ctx, const wt_system *sys, const wt_config 
  * MVM loop: sim cannot call this module): the variant's tomography with the model's r0 and natm-layer profile
  * (alt [m], frac) in place of the configuration's — when `sampled` (an estimate on a grid), its hats compressed onto
  * the variant's layers as PCG-3 and CG-9 take it (wt_profile_compress_hats) — the rest as wt_mvm_build_variant with
- * sys->cfg. user: a wt_mvm_rebuilder. */
+ * sys->cfg. Under recon.predict the predictor inside R moves each layer by the model's wind (vx, vy [m/s] per
+ * altitude, compressed with the profile as PCG-3's and CG-9's set_model does: the same shift), over the
+ * configuration's lead; vx, vy may be NULL only without prediction. user: a wt_mvm_rebuilder. */
 typedef struct wt_mvm_rebuilder {
     wt_context *ctx;
     const wt_system *sys;          /* its configuration is the rest of the model */
     const char *variant;           /* "pcg3" or "cg9": the variant of the matrix the loop starts with */
     const wt_mvm_options *opt;     /* NULL: defaults */
 } wt_mvm_rebuilder;
-int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
-                         wt_mvm **out);
+int wt_mvm_rebuild_model(void *user, double r0, int natm, const double *alt, const double *frac, const double *vx,
+                         const double *vy, int sampled, wt_mvm **out);
 
 #endif

@@ -12,6 +12,7 @@
 #include "../core/model/profile.h"
 #include "../core/model/reconstructor.h"
 #include "../core/op/noise.h"
+#include "../core/solve/mvm.h"
 #include "../sim/loop.h"
 
 const char *const wt_budget_term_names[WT_BUDGET_NTERMS] = {
@@ -332,7 +333,8 @@ static double quad_diff(double a, double b)
 static double signed_square(double x) { return x * fabs(x); }
 
 int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_options *opt, int nmethods,
-                      const int *recon, const struct wt_mvm *const *mvm, wt_budget_result *res)
+                      const int *recon, const struct wt_mvm *const *mvm, const struct wt_mvm *const *mvm_plain,
+                      wt_budget_result *res)
 {
     const wt_config *cfg = sys->cfg;
     int st = WT_OK;
@@ -385,6 +387,12 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
             /* the instantaneous runs apply the frame's own reconstruction: nothing to predict (a shift there
              * would be an error of its own); the closed loops predict as configured, one exact-POLC run not */
             lo.no_predict = plan[k].no_predict;
+            if (lo.no_predict && cfg->predict && recon[m] == WT_RECON_MVM) { /* the matrix without the predictor */
+                if (!mvm_plain || !mvm_plain[m])
+                    return WT_ERROR(ctx, WT_ERR_INVALID, "budget: %s with recon.predict needs its control matrix without "
+                                    "the predictor for the runs that do not predict", name);
+                lo.mvm = mvm_plain[m];
+            }
             /* the pure-noise run keeps the flat open loop: without turbulence the sensors see a flat
              * wavefront either way. The pseudo-open loop carries its state from frame 0. */
             const int pseudo = plan[k].open && plan[k].turb && olmode == WT_LOOP_OPEN_POLC;
@@ -435,8 +443,10 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->fitting_ground = wt_budget_fitting_analytic(cfg, 0.23, 1);
         r->servo_band = servo_band;
         r->servo_band_predicted = r->servo_band_own_winds = NAN;
-        if (cfg->predict && (recon[m] == WT_RECON_PCG3 || recon[m] == WT_RECON_CG9)) {
-            r->servo_band_predicted = wt_budget_servo_band_predicted(cfg, recon[m] == WT_RECON_PCG3 ? &cfg->pcg3 : &cfg->cg9);
+        if (cfg->predict && recon[m] != WT_RECON_NONE) { /* (an MVM's layers are its variant's) */
+            const int cg9 = recon[m] == WT_RECON_CG9 ||
+                            (recon[m] == WT_RECON_MVM && mvm && mvm[m] && mvm[m]->commands == WT_MVM_FITTING);
+            r->servo_band_predicted = wt_budget_servo_band_predicted(cfg, cg9 ? &cfg->cg9 : &cfg->pcg3);
             r->servo_band_own_winds = servo_own;
         }
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +

@@ -131,9 +131,12 @@ void wt_budget_options_default(wt_budget_options *o, uint64_t seed);
 
 /* The budget of nmethods reconstructors (recon[m]; mvm[m] the control matrix for WT_RECON_MVM, else
  * NULL) on sys (its config: frames, settle, noise, gain, delay). res[m] filled; the fitting run is
- * shared. sys->cfg->noise = 0: the noisy runs are the noise-free ones (noise terms 0). */
+ * shared. sys->cfg->noise = 0: the noisy runs are the noise-free ones (noise terms 0). With recon.predict an
+ * MVM needs two matrices: mvm[m] with the predictor (the closed loops that predict) and mvm_plain[m] without
+ * it (the instantaneous runs and the closed loop without prediction); mvm_plain may be NULL otherwise. */
 int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_options *opt, int nmethods,
-                      const int *recon, const struct wt_mvm *const *mvm, wt_budget_result *res);
+                      const int *recon, const struct wt_mvm *const *mvm, const struct wt_mvm *const *mvm_plain,
+                      wt_budget_result *res);
 /* Runs the budget will make for nmethods methods (for progress). */
 int wt_budget_nruns(const wt_system *sys, int nmethods);
 

@@ -37,7 +37,8 @@ static void help(void)
            "their difference is the part no shift of the method's layers removes.\n"
            "\n"
            "  --recon LIST   comma-separated, from cg9, pcg3, mvm (default cg9); mvm is built or read from\n"
-           "                 DIR/cache/ as `wavetomo compare` does\n"
+           "                 DIR/cache/ as `wavetomo compare` does (with recon.predict two matrices: with the\n"
+           "                 predictor, and without it for the runs that do not predict)\n"
            "  --frames N     frames per closed-loop run (loop.frames)   --seed S   random seed (sim.seed)\n"
            "  --open-loop M  the instantaneous runs: flat (the sensors see the turbulence, DMs flat) or polc\n"
            "                 (they see it minus the previous frame's reconstruction: a diffractive sensor's\n"
@@ -134,6 +135,7 @@ static int estimate(wt_cli *cli, const budget_args *a, const wt_config *cfg)
         if (kind != WT_RECON_MVM) continue;
         wt_estimate_resources(cfg, &(wt_estimate_request){WT_TASK_BUILD, WT_RECON_PCG3, 0, 0}, &e);
         wt_estimate_add(&total, &e);
+        if (cfg->predict) wt_estimate_add(&total, &e); /* and its matrix without the predictor */
     }
     return wt_cli_resources(cli, &total);
 }
@@ -146,7 +148,8 @@ int wt_cmd_budget(int argc, char **argv)
     a.methods[0] = a.list;
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
-    wt_mvm *mvm[MAXM] = {NULL};
+    wt_mvm *mvm[MAXM] = {NULL}, *plain[MAXM] = {NULL};
+    wt_config *cfg_plain = NULL; /* recon.predict with an MVM: the configuration of its matrix without the predictor */
     wt_budget_result R[MAXM];
     int kinds[MAXM], st;
     int rc = wt_cli_parse(&cli, argc, argv, option, &a);
@@ -164,17 +167,32 @@ int wt_cmd_budget(int argc, char **argv)
     for (int m = 0; m < a.nm; m++) {
         double build;
         kinds[m] = wt_reconstructor_kind(a.methods[m]);
-        /* (before a build of minutes: the budget's runs without prediction cannot use a predictive matrix) */
-        if ((st = wt_reconstructor_check_mvm_predict(cli.ctx, cfg, kinds[m], 1)) < 0) goto fail;
-        if (kinds[m] == WT_RECON_MVM && (st = wt_build_mvm_cached(&cli, a.out, cfg, sys, argc, argv, &mvm[m], &build)) < 0)
-            goto fail;
+        /* (before a build of minutes: what the MVM cannot do under prediction) */
+        if ((st = wt_reconstructor_check_mvm_predict(cli.ctx, cfg, kinds[m], 0)) < 0) goto fail;
+        if (kinds[m] != WT_RECON_MVM) continue;
+        if ((st = wt_build_mvm_cached(&cli, a.out, cfg, sys, argc, argv, &mvm[m], &build)) < 0) goto fail;
+        if (!cfg->predict) continue;
+        /* the budget's instantaneous runs and its closed loop without prediction apply the matrix without the
+         * predictor: the same system with recon.predict = false (its own identity, cached beside) */
+        if (!cfg_plain) {
+            if (cli.nset >= WT_CLI_MAX_SET) {
+                st = WT_ERROR(cli.ctx, WT_ERR_INVALID, "too many --set overrides (at most %d with an MVM under "
+                              "recon.predict)", WT_CLI_MAX_SET - 1);
+                goto fail;
+            }
+            cli.set[cli.nset++] = "recon.predict=false";
+            st = wt_cli_read_config(&cli, NULL, &cfg_plain);
+            cli.nset--;
+            if (st < 0) goto fail;
+        }
+        if ((st = wt_build_mvm_cached(&cli, a.out, cfg_plain, sys, argc, argv, &plain[m], &build)) < 0) goto fail;
     }
     wt_budget_options o;
     wt_budget_options_default(&o, cfg->seed);
     o.progress = progress;
     o.user = &a;
     o.open_loop = a.open_loop;
-    if ((st = wt_budget_compute(cli.ctx, sys, &o, a.nm, kinds, (const wt_mvm *const *)mvm, R)) < 0) goto fail;
+    if ((st = wt_budget_compute(cli.ctx, sys, &o, a.nm, kinds, (const wt_mvm *const *)mvm, (const wt_mvm *const *)plain, R)) < 0) goto fail;
     if ((st = write_h5(&cli, &a, cfg, R, argc, argv)) < 0) goto fail;
     snprintf(path, sizeof path, "%s/report.md", a.out);
     if ((st = wt_budget_write_report(cli.ctx, path, cfg, a.nm, (const char *const *)a.methods, R, argc, argv)) < 0) goto fail;
@@ -197,7 +215,8 @@ int wt_cmd_budget(int argc, char **argv)
 fail:
     rc = wt_cli_fail(&cli, st);
 cleanup:
-    for (int m = 0; m < a.nm; m++) wt_mvm_free(mvm[m]);
+    for (int m = 0; m < a.nm; m++) wt_mvm_free(mvm[m]), wt_mvm_free(plain[m]);
+    wt_config_free(cli.ctx, cfg_plain);
     wt_system_free(sys);
     wt_config_free(cli.ctx, cfg);
 done:

@@ -139,8 +139,8 @@ static int start_build(wt_adapt *a, int u, double start)
     wt_adapt_update *p = &a->up[u];
     const double t0 = wt_time_now();
     struct wt_mvm *m = NULL;
-    const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction,
-                                  !a->par.follow_truth, &m);
+    const int st = a->rebuild(a->rebuild_user, p->r0, p->nalt, p->altitude, p->fraction, p->vx, p->vy,
+                              !a->par.follow_truth, &m);
     if (st < 0) return st;
     p->build_s = wt_time_now() - t0;
     a->tbuild += p->build_s;
@@ -256,6 +256,7 @@ int wt_adapt_frame(wt_adapt *a, long t, const double *s_ol, const wt_night_sampl
         if (a->wind && (st = wind_update(a, rec, u)) < 0)
             return WT_ERROR(a->ctx, st, "frame %ld: the layers' wind: %s", t, wt_error_message(a->ctx));
     }
+    for (int k = 0; k < u->nalt; k++) u->vx[k] = a->vx[k], u->vy[k] = a->vy[k];
     const int idx = a->nup++;
     if (a->kind != WT_RECON_MVM) {
         /* an estimate samples a continuous profile on its grid: its hats compressed onto the layers

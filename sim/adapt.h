@@ -14,7 +14,8 @@
  *              meanwhile. One build at a time, as on one build machine: an estimate made while a build runs
  *              waits and is built when that one is done (a newer one replaces a waiting one).
  * The wind of the model (prediction): each learned altitude takes the wind of the start model's layer nearest in
- * altitude (the lagged maps' fit, wt_learn_wind_fit, takes minutes on the demo); with learn_wind (pcg3, cg9) the
+ * altitude (the oracle: the truth's of that frame; the MVM's rebuild puts it in its predictor, so a new wind is a
+ * new matrix, after its latency) (the lagged maps' fit, wt_learn_wind_fit, takes minutes on the demo); with learn_wind (pcg3, cg9) the
  * reconstruction layers' own winds are measured on their estimates (core/model/wind_align.h: every
  * WT_ADAPT_WIND_STRIDE-th frame's layers, before any prediction shift) and set at each update
  * (wt_reconstructor_set_layer_wind): a layer's estimate holds what the layer absorbs, so its measured wind is already
@@ -34,11 +35,12 @@
 
 struct wt_mvm;
 
-/* Build a control matrix for the model (r0 [m], natm layers at alt [m] with fractions frac): *out owned by the
- * caller of the callback afterwards (wt_mvm_free). sampled: the profile is an estimate that samples a continuous
- * one on a grid (compressed as hats onto the matrix's layers, core/model/profile.h), not layers (the oracle's). */
-typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double *alt, const double *frac, int sampled,
-                                   struct wt_mvm **out);
+/* Build a control matrix for the model (r0 [m], natm layers at alt [m] with fractions frac and wind vx, vy [m/s]:
+ * the predictor's under recon.predict): *out owned by the caller of the callback afterwards (wt_mvm_free). sampled:
+ * the profile is an estimate that samples a continuous one on a grid (compressed as hats onto the matrix's layers,
+ * core/model/profile.h), not layers (the oracle's). */
+typedef int (*wt_adapt_rebuild_fn)(void *user, double r0, int natm, const double *alt, const double *frac,
+                                   const double *vx, const double *vy, int sampled, struct wt_mvm **out);
 
 typedef struct wt_adapt_params {
     long every;               /* frames between estimates (≥ WT_ADAPT_MIN_FRAMES) */
@@ -79,6 +81,7 @@ typedef struct wt_adapt_update {
     double r0_raw;            /* this estimate alone [m] */
     int nalt;
     double altitude[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], fraction[WT_MAX_LAYERS + WT_LEARN_MAX_ALT];
+    double vx[WT_MAX_LAYERS + WT_LEARN_MAX_ALT], vy[WT_MAX_LAYERS + WT_LEARN_MAX_ALT]; /* the model's wind there [m/s] */
     double fit_s;             /* wall time of the fit [s] */
     double model_s, precond_s; /* pcg3/cg9: wall time of the new model, of the preconditioner [s] */
     double build_s;           /* mvm: wall time of the matrix's build [s] (0 while waiting) */

@@ -8,6 +8,7 @@
 
 #include "../runtime/control.h"
 #include "../core/model/params.h"
+#include "../core/solve/mvm.h"
 
 
 void wt_loop_night_params(const wt_config *cfg, wt_night_params *p)
@@ -102,8 +103,16 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
 
 int wt_loop_alloc(wt_context *ctx, const wt_system *sys, const wt_loop_options *opt, wt_loop **out)
 {
-    const int st = wt_reconstructor_check_mvm_predict(ctx, sys->cfg, opt->recon, opt->no_predict);
+    const int st = wt_reconstructor_check_mvm_predict(ctx, sys->cfg, opt->recon, opt->mvm ? 0 : opt->no_predict);
     if (st < 0) return st;
+    if (opt->recon == WT_RECON_MVM && opt->mvm) { /* the matrix's predictor is the run's: held in R, or not */
+        const int predicts = sys->cfg->predict && !opt->no_predict;
+        if (opt->mvm->predictive != predicts)
+            return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.predict' = %s: this %s with a control matrix %s the "
+                            "layers' prediction (build the MVM %s recon.predict)", sys->cfg->path,
+                            sys->cfg->predict ? "true" : "false", predicts ? "run predicts" : "run must not predict",
+                            opt->mvm->predictive ? "that holds" : "without", predicts ? "with" : "without");
+    }
     wt_loop_params par;
     wt_loop_params_from_config(sys->cfg, opt, &par);
     return wt_loop_alloc_params(ctx, sys, opt, &par, out);

@@ -168,9 +168,9 @@ START_TEST(t_mvm_rebuild_hats)
     double hats[WT_MAX_LAYERS];
     wt_profile_compress_hats(n, grid, frac, NULL, NULL, L, r.cfg->pcg3.altitudes, hats, NULL, NULL);
     wt_mvm *m[3] = {NULL, NULL, NULL};
-    ck_assert_msg(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, 1, &m[0]) == WT_OK, "%s", wt_error_message(r.ctx));
-    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, L, r.cfg->pcg3.altitudes, hats, 0, &m[1]), WT_OK);
-    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, 0, &m[2]), WT_OK);
+    ck_assert_msg(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, NULL, NULL, 1, &m[0]) == WT_OK, "%s", wt_error_message(r.ctx));
+    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, L, r.cfg->pcg3.altitudes, hats, NULL, NULL, 0, &m[1]), WT_OK);
+    ck_assert_int_eq(wt_mvm_rebuild_model(&r.rb, 0.15, n, grid, frac, NULL, NULL, 0, &m[2]), WT_OK);
     const int64_t ns = m[0]->nslopes, na = m[0]->nact;
     float *s = malloc((size_t)ns * sizeof *s), *y[3];
     for (int64_t j = 0; j < ns; j++) s[j] = (float)sin(0.37 * (double)j + 0.1);

@@ -1,7 +1,9 @@
 /* tests/test_budget.c: the error budget (compare/budget.h) on demo-scale systems: the fitting term of a
  * single ground layer against κ (p/r0)^(5/3), the terms non-negative and adding up in quadrature to the
  * total, no noise term without noise, the same numbers for the same seed, and the analytic pieces. */
+#include "builder/mvm_build.h"
 #include "core/model/reconstructor.h"
+#include "core/solve/mvm.h"
 #include "core/model/system.h"
 #include "compare/budget.h"
 #include "testutil.h"
@@ -10,7 +12,8 @@
 
 /* The system of `path` at 3 x 3 directions, pcg3, with the given overrides and the instantaneous runs'
  * form (0: automatic) and warm-up frames before the settle period; returns the budget. */
-static wt_budget_result budget_of(const char *path, int open_loop, int warmup, int nset, const char *const *set_extra)
+static wt_budget_result budget_run(const char *path, int kind, int open_loop, int warmup, int nset,
+                                   const char *const *set_extra, int drop_plain)
 {
     wt_context *ctx = tu_context();
     const char *set[32] = {"evaluation.grid=3", "loop.frames=18", "evaluation.settle_frames=10"};
@@ -25,13 +28,38 @@ static wt_budget_result budget_of(const char *path, int open_loop, int warmup, i
     o.warmup = warmup;
     o.noise_draws = 4;
     o.open_loop = open_loop;
-    int kind = WT_RECON_PCG3;
+    wt_mvm *mvm = NULL, *plain = NULL; /* the MVM: with recon.predict, its matrix without the predictor too */
+    if (kind == WT_RECON_MVM) {
+        ck_assert_msg(wt_mvm_build_variant(ctx, sys, cfg, "pcg3", NULL, &mvm) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_int_eq(mvm->predictive, cfg->predict);
+        if (cfg->predict && !drop_plain) {
+            wt_config *cp;
+            set[n++] = "recon.predict=false";
+            ck_assert_msg(wt_config_read(ctx, path, n, set, &cp) == WT_OK, "%s", wt_error_message(ctx));
+            ck_assert_int_eq(wt_mvm_build_variant(ctx, sys, cp, "pcg3", NULL, &plain), WT_OK);
+            ck_assert_int_eq(plain->predictive, 0);
+            wt_config_free(ctx, cp);
+        }
+    }
     wt_budget_result r;
-    ck_assert_msg(wt_budget_compute(ctx, sys, &o, 1, &kind, NULL, &r) == WT_OK, "%s", wt_error_message(ctx));
+    const int st = wt_budget_compute(ctx, sys, &o, 1, &kind, (const wt_mvm *const *)&mvm, (const wt_mvm *const *)&plain, &r);
+    if (drop_plain) { /* refused, naming what is missing */
+        ck_assert_int_eq(st, WT_ERR_INVALID);
+        ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "without the predictor"));
+        r.recon = -1;
+    } else
+        ck_assert_msg(st == WT_OK, "%s", wt_error_message(ctx));
+    wt_mvm_free(mvm);
+    wt_mvm_free(plain);
     wt_system_free(sys);
     wt_config_free(ctx, cfg);
     wt_context_free(ctx);
     return r;
+}
+
+static wt_budget_result budget_of(const char *path, int open_loop, int warmup, int nset, const char *const *set_extra)
+{
+    return budget_run(path, WT_RECON_PCG3, open_loop, warmup, nset, set_extra, 0);
 }
 
 static wt_budget_result budget(int nset, const char *const *set_extra) { return budget_of(DEMO, 0, 4, nset, set_extra); }
@@ -166,6 +194,29 @@ START_TEST(test_prediction_split)
 }
 END_TEST
 
+/* The same split for the MVM (recon.predict: its predictor inside R, compare/budget.h): the runs that do not predict
+ * apply the matrix without the predictor, so they are the budget without prediction's to the bit (its instantaneous
+ * run, its exact-POLC closed loop, its servo term), while the predicting closed loop differs; the split's identity
+ * holds. Without the matrix that does not predict the budget is refused, naming it. */
+START_TEST(test_prediction_split_mvm)
+{
+    const char *off[] = {"loop.rate_hz=200.0", "sim.noise=false"};
+    const char *on[] = {"loop.rate_hz=200.0", "sim.noise=false", "recon.predict=true"};
+    const wt_budget_result r0 = budget_run(DEMO, WT_RECON_MVM, 0, 4, 2, off, 0),
+                           r1 = budget_run(DEMO, WT_RECON_MVM, 0, 4, 3, on, 0);
+    const wt_budget_run *R0 = r0.run, *R1 = r1.run;
+    ck_assert(R1[WT_BUDGET_RUN_OL_NF].wfe == R0[WT_BUDGET_RUN_OL_NF].wfe);
+    ck_assert(R1[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].wfe == R0[WT_BUDGET_RUN_CL_NF_POLC].wfe);
+    ck_assert(r1.term[WT_BUDGET_SERVO_NO_PREDICT] == r0.term[WT_BUDGET_SERVO]);
+    ck_assert(R1[WT_BUDGET_RUN_CL_NF_POLC].wfe != R0[WT_BUDGET_RUN_CL_NF_POLC].wfe); /* it did predict */
+    const double s = r1.term[WT_BUDGET_SERVO], n = r1.term[WT_BUDGET_SERVO_NO_PREDICT], p = r1.term[WT_BUDGET_SERVO_PREDICTED];
+    ck_assert_msg(fabs(p * fabs(p) - (n * fabs(n) - s * fabs(s))) <= 1e-9 * pow(r1.term[WT_BUDGET_TOTAL], 2),
+                  "predicted %g, no prediction %g, servo %g nm", p, n, s);
+    ck_assert(isfinite(r1.servo_band_predicted)); /* the analytic lag of the MVM's (PCG-3's) layers */
+    ck_assert_int_eq(budget_run(DEMO, WT_RECON_MVM, 0, 4, 3, on, 1).recon, -1);
+}
+END_TEST
+
 /* The analytic pieces against closed forms. */
 START_TEST(test_analytic)
 {
@@ -240,6 +291,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_noise_off);
     tcase_add_test(tc, test_terms_add_up);
     tcase_add_test(tc, test_prediction_split);
+    tcase_add_test(tc, test_prediction_split_mvm);
     tcase_add_test(tc, test_polc_open_loop);
     suite_add_tcase(s, tc);
     return s;

@@ -4,6 +4,8 @@
  * slopes; and its identity holds the predictor (the wind and the lead), which a matrix without prediction does not. */
 #include "mvm_fixture.h"
 
+#include "builder/mvm_build.h"
+#include "core/model/profile.h"
 #include "core/model/reconstructor.h"
 #include "core/op/shift.h"
 #include "core/io/h5.h"
@@ -129,6 +131,70 @@ START_TEST(test_predictive_mvm_equals_converged_pcg3)
 }
 END_TEST
 
+/* A learning loop's MVM (sim/adapt.h): rebuilt from an estimate on a grid of altitudes with its wind, it equals the
+ * predictive PCG-3 that takes the same estimate (wt_reconstructor_set_model with the hats and winds compressed onto
+ * its layers, as the loop hands it over) run to convergence, 1e-5 as above. The same rebuild with the wind reversed
+ * is far from it (> 1e-3): the rebuild's predictor holds the estimate's wind, not the configuration's. Without a wind
+ * the rebuild of a predictive matrix is refused. */
+START_TEST(test_rebuilt_predictive_mvm_equals_converged_pcg3)
+{
+    wt_context *ctx = tu_context();
+    const char *set[] = {"recon.predict=true", "recon.warm_start=false", "recon.pcg3.tolerance=1e-11",
+                         "recon.prior=\"paper\""};
+    wt_config *cfg = NULL;
+    wt_system *sys = NULL;
+    ck_assert_msg(wt_config_read(ctx, DEMO, 4, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+    enum { NG = 8 };
+    const double grid[NG] = {0.0, 1000.0, 2000.0, 3000.0, 5000.0, 8000.0, 12000.0, 16000.0};
+    const double frac[NG] = {0.40, 0.20, 0.05, 0.05, 0.10, 0.05, 0.10, 0.05};
+    double vx[NG], vy[NG], rx[NG], ry[NG];
+    for (int k = 0; k < NG; k++) { /* 6–34 m/s, none along the configuration's directions */
+        const double v = 6.0 + 4.0 * k, d = 0.4 + 0.7 * k;
+        vx[k] = v * cos(d), vy[k] = v * sin(d), rx[k] = -vx[k], ry[k] = -vy[k];
+    }
+    wt_mvm_rebuilder rb = {ctx, sys, "pcg3", NULL};
+    wt_mvm *m = NULL, *mr = NULL;
+    ck_assert_int_eq(wt_mvm_rebuild_model(&rb, 0.15, NG, grid, frac, NULL, NULL, 1, &m), WT_ERR_INVALID);
+    ck_assert_ptr_nonnull(strstr(wt_error_message(ctx), "recon.predict"));
+    ck_assert_msg(wt_mvm_rebuild_model(&rb, 0.15, NG, grid, frac, vx, vy, 1, &m) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_mvm_rebuild_model(&rb, 0.15, NG, grid, frac, rx, ry, 1, &mr), WT_OK);
+    wt_reconstructor *rm = NULL, *rmr = NULL, *rp = NULL;
+    ck_assert_int_eq(wt_reconstructor_alloc_mvm(ctx, sys, m, &rm), WT_OK);
+    ck_assert_int_eq(wt_reconstructor_alloc_mvm(ctx, sys, mr, &rmr), WT_OK);
+    wt_reconstructor_params par;
+    wt_reconstructor_params_from_config(cfg, WT_RECON_PCG3, 3000, &par);
+    ck_assert_msg(wt_reconstructor_alloc(ctx, sys, WT_RECON_PCG3, &par, &rp) == WT_OK, "%s", wt_error_message(ctx));
+    const int L = cfg->pcg3.nlayers;
+    double rf[WT_MAX_LAYERS], rvx[WT_MAX_LAYERS], rvy[WT_MAX_LAYERS];
+    wt_profile_compress_hats(NG, grid, frac, vx, vy, L, cfg->pcg3.altitudes, rf, rvx, rvy);
+    ck_assert_msg(wt_reconstructor_set_model(rp, 0.15, L, cfg->pcg3.altitudes, rf, rvx, rvy) == WT_OK, "%s",
+                  wt_error_message(ctx));
+    const int64_t ns = sys->nslopes, na = sys->nact;
+    double *s = malloc(ns * sizeof *s), *am = malloc(na * sizeof *am), *ar = malloc(na * sizeof *ar),
+           *ap = malloc(na * sizeof *ap);
+    tu_randn(s, ns, 10);
+    for (int64_t i = 0; i < ns; i++) s[i] *= 1e-6;
+    ck_assert_int_eq(wt_reconstructor_apply(rm, s, am), WT_OK);
+    ck_assert_int_eq(wt_reconstructor_apply(rmr, s, ar), WT_OK);
+    ck_assert_int_eq(wt_reconstructor_apply(rp, s, ap), WT_OK);
+    ck_assert_double_gt(tu_norm(ap, na), 0.0);
+    ck_assert_msg(tu_rel_diff(am, ap, na) <= 1e-5, "the rebuilt predictive MVM is %g from the converged pcg3 of its model",
+                  tu_rel_diff(am, ap, na));
+    ck_assert_msg(tu_rel_diff(ar, ap, na) > 1e-3, "the reversed wind moved the rebuilt MVM by %g only",
+                  tu_rel_diff(ar, ap, na));
+    free(s), free(am), free(ar), free(ap);
+    wt_reconstructor_free(rm);
+    wt_reconstructor_free(rmr);
+    wt_reconstructor_free(rp);
+    wt_mvm_free(m);
+    wt_mvm_free(mr);
+    wt_system_free(sys);
+    wt_config_free(ctx, cfg);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* The identity: recon.predict, its lead and the model's wind (and its error) change a predictive matrix's hash; without
  * prediction none of them is in it, so today's matrices keep theirs. A learned model, the layers' integrator and a run
  * that must not predict are refused for the MVM, naming the key. */
@@ -162,14 +228,21 @@ START_TEST(test_predictive_identity)
         for (int j = 2; j < k; j++) ck_assert_msg(strcmp(hash[j], hash[k]), "settings %d and %d: the same hash", j, k);
     }
     const char *bad[][2] = {{"recon.predict=true", "recon.predict_integrator=\"layers\""},
-                            {"recon.predict=true", "loop.gain=0.4"}};
-    const char *key[] = {"recon.predict_integrator", "recon.atmosphere.source"};
+                            {"recon.predict=true", "recon.atmosphere.learn_wind=\"aligned\""}};
+    const char *key[] = {"recon.predict_integrator", "recon.atmosphere.learn_wind"};
     const char *file[] = {DEMO, "data/presets/demo-learned.cfg"};
     for (int k = 0; k < 2; k++) {
         wt_config *cfg = NULL;
         ck_assert_msg(wt_config_read(ctx, file[k], 2, bad[k], &cfg) == WT_OK, "%s", wt_error_message(ctx));
         ck_assert_int_eq(wt_reconstructor_check_mvm_predict(ctx, cfg, WT_RECON_MVM, 0), WT_ERR_CONFIG);
         ck_assert_msg(strstr(wt_error_message(ctx), key[k]), "%s", wt_error_message(ctx));
+        wt_config_free(ctx, cfg);
+    }
+    {   /* a learned model whose wind is the start model's: the rebuilds hold it (test above) */
+        const char *ok[] = {"recon.predict=true"};
+        wt_config *cfg = NULL;
+        ck_assert_msg(wt_config_read(ctx, "data/presets/demo-learned.cfg", 1, ok, &cfg) == WT_OK, "%s", wt_error_message(ctx));
+        ck_assert_msg(wt_reconstructor_check_mvm_predict(ctx, cfg, WT_RECON_MVM, 0) == WT_OK, "%s", wt_error_message(ctx));
         wt_config_free(ctx, cfg);
     }
     wt_context_free(ctx);
@@ -184,6 +257,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_predictive_r_pcg3);
     tcase_add_test(tc, test_predictive_r_cg9);
     tcase_add_test(tc, test_predictive_mvm_equals_converged_pcg3);
+    tcase_add_test(tc, test_rebuilt_predictive_mvm_equals_converged_pcg3);
     tcase_add_test(tc, test_predictive_identity);
     suite_add_tcase(s, tc);
     return s;

@@ -494,8 +494,8 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      "learned: the wind that recon.predict moves each reconstruction layer by: start = the start model's (the given "
      "wind keys, compressed onto the layers), aligned = measured on the reconstructor's own layer estimates, the shift "
      "that best aligns each layer at t and t + k frames (SPEC §12; core/model/wind_align.h), taken at every update "
-     "(a layer without a clear estimate keeps its wind); pcg3 and cg9 only (an MVM holds the configured wind in R) (optional, "
-     "default start, refused with another source)"},
+     "(a layer without a clear estimate keeps its wind); pcg3 and cg9 only (an MVM forms no layer estimates: its "
+     "rebuilds take the start model's wind) (optional, default start, refused with another source)"},
     {"recon.atmosphere.mvm_latency_s", K_FLOAT, F_OPT, -1.0, 1e6, "s", 1, CF(model.mvm_latency_s), NOCOUNT, 0, 0, NULL, -1.0,
          "learned, mvm: night time from an estimate to its control matrix in the loop (the old one is applied "
          "meanwhile; one build at a time); -1: the build's measured wall time on this machine, e.g. a faster build "

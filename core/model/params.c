@@ -82,9 +82,10 @@ int wt_reconstructor_check_mvm_predict(wt_context *ctx, const wt_config *cfg, in
     if (cfg->predict_integrator == 1)
         why = "key 'recon.predict_integrator' = \"layers\": the MVM has no layers to run the integrator on (use "
               "\"commands\")";
-    else if (cfg->model.source == WT_MODEL_LEARNED)
-        why = "key 'recon.atmosphere.source' = \"learned\": the MVM's predictor holds the configured wind, and the "
-              "loop's learned wind is pcg3's and cg9's";
+    else if (cfg->model.source == WT_MODEL_LEARNED && cfg->model.learn_wind)
+        why = "key 'recon.atmosphere.learn_wind' = \"aligned\": the wind is measured on the reconstruction layers' "
+              "estimates, which the MVM does not form (its rebuilds take the start model's wind, learn_wind = "
+              "\"start\")";
     else if (no_predict)
         why = "a run without prediction (the budget's instantaneous and no-prediction runs) would apply a matrix with "
               "the predictor inside it; budget the MVM without recon.predict";

@@ -140,6 +140,7 @@ int wt_mvm_read(wt_context *ctx, const char *path, const wt_config *cfg, int64_t
     wt_mvm_file_system fs = file_system(cfg);
     if ((st = wt_mvm_file_read(ctx, path, &fs, nact, nslopes, &d, variant)) < 0) goto fail;
     m->commands = !strcmp(variant, "cg9") ? WT_MVM_FITTING : WT_MVM_LAYER_VALUES;
+    m->predictive = cfg->predict != 0;
     if (variant_out) memcpy(variant_out, variant, sizeof variant);
     *out = m;
     return WT_OK;

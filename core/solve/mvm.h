@@ -51,6 +51,9 @@ typedef struct wt_mvm {
     uint16_t *Rh, *RAh;        /* fp16/bf16: the same matrices as 16-bit floats of R_ij / c_i; else NULL */
     float *Rc, *RAc;           /* fp16/bf16: the row scales c_i (nact each); else NULL */
     int nthreads;              /* threads of the 16-bit apply (the fp32 one uses OpenBLAS's) */
+    int predictive;            /* 1: R moves the layers by their wind over the loop's lead (recon.predict: the
+                                * builder's predict_adjoint; a file read under a predicting configuration, whose
+                                * identity holds the predictor); a run that must not predict refuses it */
     wt_mvm_stats stats;
 } wt_mvm;
 
