@@ -415,9 +415,13 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         r->term[WT_BUDGET_NOISE_OL] = quad_diff(R[WT_BUDGET_RUN_OL].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
         r->term[WT_BUDGET_NOISE_CL] = quad_diff(R[WT_BUDGET_RUN_CL].wfe, R[WT_BUDGET_RUN_CL_NF].wfe);
         r->term[WT_BUDGET_SERVO_NO_PREDICT] = r->term[WT_BUDGET_SERVO_PREDICTED] = NAN;
+        r->servo_tiptilt_no_predict = NAN;
         if (exact_polc(sys)) {
             r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+            r->servo_tiptilt = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC].tiptilt, R[WT_BUDGET_RUN_OL_NF].tiptilt);
             if (cfg->predict) {
+                r->servo_tiptilt_no_predict = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].tiptilt,
+                                                        R[WT_BUDGET_RUN_OL_NF].tiptilt);
                 r->term[WT_BUDGET_SERVO_NO_PREDICT] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].wfe,
                                                                 R[WT_BUDGET_RUN_OL_NF].wfe);
                 r->term[WT_BUDGET_SERVO_PREDICTED] = quad_diff(R[WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT].wfe,
@@ -426,6 +430,7 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
             r->term[WT_BUDGET_POLC] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_CL_NF_POLC].wfe);
         } else {
             r->term[WT_BUDGET_SERVO] = quad_diff(R[WT_BUDGET_RUN_CL_NF].wfe, R[WT_BUDGET_RUN_OL_NF].wfe);
+            r->servo_tiptilt = quad_diff(R[WT_BUDGET_RUN_CL_NF].tiptilt, R[WT_BUDGET_RUN_OL_NF].tiptilt);
             r->term[WT_BUDGET_POLC] = NAN;
         }
         r->term[WT_BUDGET_TIPTILT] = R[WT_BUDGET_RUN_CL].tiptilt * 1e9;
@@ -545,6 +550,18 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
                     cfg->predict_integrator == 1 ? "layers" : "commands", methods[m], res[m].servo_band_predicted, res[m].servo_band_own_winds,
                     sqrt(fmax(res[m].servo_band_predicted * res[m].servo_band_predicted -
                               res[m].servo_band_own_winds * res[m].servo_band_own_winds, 0.0)), r0->servo_band);
+    for (int m = 0; m < nmethods; m++) { /* the lag of the NGS-measured modes apart from the rest */
+        const wt_budget_result *r = &res[m];
+        const double s = r->term[WT_BUDGET_SERVO], tt = r->servo_tiptilt;
+        fprintf(f, "%s: the servo term's tip-tilt part (the same runs' tip-tilt in quadrature) %.1f nm, the rest %.1f nm",
+                methods[m], tt, copysign(sqrt(fabs(s * fabs(s) - tt * fabs(tt))), s * fabs(s) - tt * fabs(tt)));
+        if (isfinite(r->servo_tiptilt_no_predict)) {
+            const double n = r->term[WT_BUDGET_SERVO_NO_PREDICT], tn = r->servo_tiptilt_no_predict;
+            fprintf(f, "; without prediction %.1f and %.1f nm", tn,
+                    copysign(sqrt(fabs(n * fabs(n) - tn * fabs(tn))), n * fabs(n) - tn * fabs(tn)));
+        }
+        fprintf(f, ".\n\n");
+    }
     fprintf(f, "Runs (field WFE / tip-tilt / rim part, nm; frames averaged):\n\n| run |");
     for (int m = 0; m < nmethods; m++) fprintf(f, " %s |", methods[m]);
     fprintf(f, "\n|---|");
@@ -592,6 +609,10 @@ int wt_budget_write_h5(struct wt_h5_writer *w, int nmethods, const char *const *
             st = wt_h5_attr_write_double(w, name, "analytic_band_limited_predicted_nm", r->servo_band_predicted);
         if (st >= 0 && isfinite(r->servo_band_own_winds))
             st = wt_h5_attr_write_double(w, name, "analytic_band_limited_own_winds_nm", r->servo_band_own_winds);
+        if (st >= 0) st = wt_h5_attr_write_double(w, name, "tiptilt_part_nm", r->servo_tiptilt);
+        snprintf(name, sizeof name, "%s/servo_no_predict", methods[m]);
+        if (st >= 0 && isfinite(r->servo_tiptilt_no_predict))
+            st = wt_h5_attr_write_double(w, name, "tiptilt_part_nm", r->servo_tiptilt_no_predict);
         for (int k = 0; k < WT_BUDGET_NRUNS && st >= 0; k++) {
             const wt_budget_run *u = &r->run[k];
             if (k == WT_BUDGET_RUN_CL_NF_POLC_NO_PREDICT && !isfinite(r->term[WT_BUDGET_SERVO_NO_PREDICT])) continue;

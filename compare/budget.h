@@ -103,6 +103,8 @@ typedef struct wt_budget_result {
     double servo_band_predicted;        /* with recon.predict (pcg3, cg9; else NaN): the same with the method's layers
                                            moved by their compressed winds (wt_budget_servo_band_predicted) [nm] */
     double servo_band_own_winds;        /* … and with each atmospheric layer moved by its own wind [nm] */
+    double servo_tiptilt;               /* the servo term's tip-tilt part: the same runs' tip-tilt in quadrature [nm] */
+    double servo_tiptilt_no_predict;    /* … of servo_no_predict (recon.predict only, else NaN) [nm] */
     double sum;                         /* the closure's quadrature sum [nm] */
     double closure;                     /* sum / total − 1 */
 } wt_budget_result;

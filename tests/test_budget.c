@@ -191,6 +191,9 @@ START_TEST(test_prediction_split)
     const wt_budget_result r2 = budget(4, still);
     ck_assert(r2.term[WT_BUDGET_SERVO] == r2.term[WT_BUDGET_SERVO_NO_PREDICT]);
     ck_assert(r2.term[WT_BUDGET_SERVO_PREDICTED] == 0.0);
+    /* the servo's tip-tilt part: of the same runs, so without wind the two splits are one; none without prediction */
+    ck_assert(isfinite(r2.servo_tiptilt) && r2.servo_tiptilt == r2.servo_tiptilt_no_predict);
+    ck_assert(r1.servo_tiptilt_no_predict == r0.servo_tiptilt && isnan(r0.servo_tiptilt_no_predict));
 }
 END_TEST
 
