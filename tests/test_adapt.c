@@ -267,6 +267,7 @@ START_TEST(t_compare_keeps_record)
     wt_h5_close(h);
     remove(path);
     wt_adapt_free(ser.learned);
+    wt_free(r.ctx, ser.psf); /* (sim.psf_interval_frames defaults to 10: the run keeps PSFs) */
     free(wfe);
     close_run(&r);
 }
