@@ -87,8 +87,8 @@ int wt_reconstructor_check_mvm_predict(wt_context *ctx, const wt_config *cfg, in
               "estimates, which the MVM does not form (its rebuilds take the start model's wind, learn_wind = "
               "\"start\")";
     else if (no_predict)
-        why = "a run without prediction (the budget's instantaneous and no-prediction runs) would apply a matrix with "
-              "the predictor inside it; budget the MVM without recon.predict";
+        why = "a run without prediction would apply a matrix with the predictor inside it (the budget gives such "
+              "runs the same system's matrix built without recon.predict)";
     if (!why) return WT_OK;
     return WT_ERROR(ctx, WT_ERR_CONFIG, "%s: key 'recon.predict' = true with the MVM: %s", cfg->path, why);
 }

@@ -22,10 +22,12 @@ wt_precond_params wt_precond_params_from_variant(const wt_recon_variant_config *
  * overrides the variant's (P)CG iteration count. par->variant points into cfg (which must outlive the
  * reconstructor's allocation). */
 void wt_reconstructor_params_from_config(const wt_config *cfg, int kind, int iterations, wt_reconstructor_params *par);
-/* The MVM under recon.predict: its matrix holds the predictor (builder/mvm_build.h: the configured wind over the lead),
+/* The MVM under recon.predict: its matrix holds the predictor (builder/mvm_build.h: the model's wind over the lead),
  * so the commands' integrator runs on it as on any MVM. Refused (WT_ERR_CONFIG, naming the key) with the layers'
- * integrator, a learned model, or a run that must not predict (no_predict: the budget's instantaneous runs). WT_OK
- * for any other reconstructor or case. The loop (sim/loop_config.c) and the C API (runtime/rtc.c) refuse alike. */
+ * integrator, the wind aligned on the layers' estimates (learn_wind = "aligned": the MVM forms none), or a run that
+ * must not predict when no matrix is at hand to say whether it holds a predictor (no_predict; with a matrix the loop
+ * checks wt_mvm.predictive). WT_OK for any other reconstructor or case. The loop (sim/loop_config.c), the commands
+ * before their builds and the C API (runtime/rtc.c) refuse alike. */
 int wt_reconstructor_check_mvm_predict(wt_context *ctx, const wt_config *cfg, int kind, int no_predict);
 
 #endif
