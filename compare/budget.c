@@ -323,14 +323,14 @@ int wt_budget_nruns(const wt_system *sys, int nmethods)
     return 1 + nmethods * ((sys->cfg->noise ? 5 : 2) + exact_polc(sys) * (sys->cfg->predict ? 2 : 1));
 }
 
-/* sign(a − b) √|a − b| of two rms values [m] → nm */
-static double quad_diff(double a, double b)
-{
-    double d = a * a - b * b;
-    return copysign(sqrt(fabs(d)), d) * 1e9;
-}
-
 static double signed_square(double x) { return x * fabs(x); }
+static double signed_root(double x) { return copysign(sqrt(fabs(x)), x); }
+
+/* sign(a − b) √|a² − b²| of two rms values [m] → nm */
+static double quad_diff(double a, double b) { return signed_root(a * a - b * b) * 1e9; }
+
+/* the part of a signed quadrature term a [nm] that is not its signed part b: a² − b², signed */
+static double quad_rest(double a, double b) { return signed_root(signed_square(a) - signed_square(b)); }
 
 int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_options *opt, int nmethods,
                       const int *recon, const struct wt_mvm *const *mvm, const struct wt_mvm *const *mvm_plain,
@@ -457,7 +457,7 @@ int wt_budget_compute(wt_context *ctx, const wt_system *sys, const wt_budget_opt
         double s2 = signed_square(r->term[WT_BUDGET_FITTING]) + signed_square(r->term[WT_BUDGET_TOMOGRAPHY]) +
                     signed_square(r->term[WT_BUDGET_SERVO]) + (isfinite(r->term[WT_BUDGET_POLC]) ? signed_square(r->term[WT_BUDGET_POLC]) : 0.0) +
                     signed_square(r->term[WT_BUDGET_NOISE_OL]) * gain_n;
-        r->sum = copysign(sqrt(fabs(s2)), s2);
+        r->sum = signed_root(s2);
         r->closure = r->term[WT_BUDGET_TOTAL] > 0.0 ? r->sum / r->term[WT_BUDGET_TOTAL] - 1.0 : 0.0;
     }
     return WT_OK;
@@ -554,11 +554,10 @@ int wt_budget_write_report(wt_context *ctx, const char *path, const wt_config *c
         const wt_budget_result *r = &res[m];
         const double s = r->term[WT_BUDGET_SERVO], tt = r->servo_tiptilt;
         fprintf(f, "%s: the servo term's tip-tilt part (the same runs' tip-tilt in quadrature) %.1f nm, the rest %.1f nm",
-                methods[m], tt, copysign(sqrt(fabs(s * fabs(s) - tt * fabs(tt))), s * fabs(s) - tt * fabs(tt)));
+                methods[m], tt, quad_rest(s, tt));
         if (isfinite(r->servo_tiptilt_no_predict)) {
             const double n = r->term[WT_BUDGET_SERVO_NO_PREDICT], tn = r->servo_tiptilt_no_predict;
-            fprintf(f, "; without prediction %.1f and %.1f nm", tn,
-                    copysign(sqrt(fabs(n * fabs(n) - tn * fabs(tn))), n * fabs(n) - tn * fabs(tn)));
+            fprintf(f, "; without prediction %.1f and %.1f nm", tn, quad_rest(n, tn));
         }
         fprintf(f, ".\n\n");
     }

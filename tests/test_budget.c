@@ -6,6 +6,7 @@
 #include "core/solve/mvm.h"
 #include "core/model/system.h"
 #include "compare/budget.h"
+#include "sim/loop.h"
 #include "testutil.h"
 
 #define DEMO "data/presets/demo.cfg"
@@ -220,6 +221,40 @@ START_TEST(test_prediction_split_mvm)
 }
 END_TEST
 
+/* A loop takes an MVM only when the matrix's predictor is the run's (sim/loop.h): a predictive matrix is refused by a
+ * run that must not predict and by a configuration without recon.predict, a matrix without the predictor by a run
+ * that predicts; each names the key. */
+START_TEST(test_loop_refuses_foreign_predictor)
+{
+    wt_context *ctx = tu_context();
+    const char *on[] = {"recon.predict=true", "recon.prior=\"paper\""}, *off[] = {"recon.prior=\"paper\""};
+    wt_config *cp, *cn;
+    wt_system *sp, *sn;
+    ck_assert_msg(wt_config_read(ctx, DEMO, 2, on, &cp) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_config_read(ctx, DEMO, 1, off, &cn), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, cp, &sp), WT_OK);
+    ck_assert_int_eq(wt_system_alloc(ctx, cn, &sn), WT_OK);
+    wt_mvm *mp = NULL, *mn = NULL;
+    ck_assert_msg(wt_mvm_build_variant(ctx, sp, cp, "pcg3", NULL, &mp) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_int_eq(wt_mvm_build_variant(ctx, sn, cn, "pcg3", NULL, &mn), WT_OK);
+    ck_assert(mp->predictive && !mn->predictive);
+    struct { const wt_system *sys; wt_mvm *m; int no_predict, ok; } c[] = {
+        {sp, mp, 0, 1}, {sp, mp, 1, 0}, {sp, mn, 1, 1}, {sp, mn, 0, 0}, {sn, mp, 0, 0}, {sn, mn, 0, 1}};
+    for (int k = 0; k < 6; k++) {
+        wt_loop_options o = {.recon = WT_RECON_MVM, .mvm = c[k].m, .iterations = -1, .seed = 1, .no_predict = c[k].no_predict};
+        wt_loop *lp = NULL;
+        const int st = wt_loop_alloc(ctx, c[k].sys, &o, &lp);
+        ck_assert_msg(c[k].ok ? st == WT_OK : st == WT_ERR_CONFIG, "case %d: %d (%s)", k, st, wt_error_message(ctx));
+        if (!c[k].ok) ck_assert_msg(strstr(wt_error_message(ctx), "recon.predict"), "case %d: %s", k, wt_error_message(ctx));
+        wt_loop_free(lp);
+    }
+    wt_mvm_free(mp), wt_mvm_free(mn);
+    wt_system_free(sp), wt_system_free(sn);
+    wt_config_free(ctx, cp), wt_config_free(ctx, cn);
+    wt_context_free(ctx);
+}
+END_TEST
+
 /* The analytic pieces against closed forms. */
 START_TEST(test_analytic)
 {
@@ -295,6 +330,7 @@ Suite *make_suite(void)
     tcase_add_test(tc, test_terms_add_up);
     tcase_add_test(tc, test_prediction_split);
     tcase_add_test(tc, test_prediction_split_mvm);
+    tcase_add_test(tc, test_loop_refuses_foreign_predictor);
     tcase_add_test(tc, test_polc_open_loop);
     suite_add_tcase(s, tc);
     return s;

@@ -91,6 +91,16 @@ END_TEST
 START_TEST(test_predictive_r_cg9) { check_predictive(1); }
 END_TEST
 
+/* The demo predicting, with PCG-3 set to run to convergence (no warm start, relative residual 1e-11) on the paper's
+ * prior (a quick MVM build): the configuration of the two tests against the converged reconstructor */
+static void open_converging(wt_context *ctx, wt_config **cfg, wt_system **sys)
+{
+    const char *set[] = {"recon.predict=true", "recon.warm_start=false", "recon.pcg3.tolerance=1e-11",
+                         "recon.prior=\"paper\""};
+    ck_assert_msg(wt_config_read(ctx, DEMO, 4, set, cfg) == WT_OK, "%s", wt_error_message(ctx));
+    ck_assert_msg(wt_system_alloc(ctx, *cfg, sys) == WT_OK, "%s", wt_error_message(ctx));
+}
+
 /* Through the configuration, as `wavetomo build` and the loop make them: the MVM of recon.predict = true against the
  * PCG-3 reconstructor with recon.predict run to convergence (no warm start, 3000 iterations, relative residual 1e-11:
  * ~1e-7 in the solution on the demo, test_reconstructor.c) on the same slopes, 1e-5 (float32 R). The builder's
@@ -98,12 +108,9 @@ END_TEST
 START_TEST(test_predictive_mvm_equals_converged_pcg3)
 {
     wt_context *ctx = tu_context();
-    const char *set[] = {"recon.predict=true", "recon.warm_start=false", "recon.pcg3.tolerance=1e-11",
-                         "recon.prior=\"paper\""};
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
-    ck_assert_msg(wt_config_read(ctx, DEMO, 4, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
-    ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+    open_converging(ctx, &cfg, &sys);
     wt_mvm *m = NULL;
     ck_assert_msg(wt_mvm_build_variant(ctx, sys, cfg, "pcg3", NULL, &m) == WT_OK, "%s", wt_error_message(ctx));
     wt_reconstructor *rm = NULL, *rp = NULL;
@@ -139,12 +146,9 @@ END_TEST
 START_TEST(test_rebuilt_predictive_mvm_equals_converged_pcg3)
 {
     wt_context *ctx = tu_context();
-    const char *set[] = {"recon.predict=true", "recon.warm_start=false", "recon.pcg3.tolerance=1e-11",
-                         "recon.prior=\"paper\""};
     wt_config *cfg = NULL;
     wt_system *sys = NULL;
-    ck_assert_msg(wt_config_read(ctx, DEMO, 4, set, &cfg) == WT_OK, "%s", wt_error_message(ctx));
-    ck_assert_msg(wt_system_alloc(ctx, cfg, &sys) == WT_OK, "%s", wt_error_message(ctx));
+    open_converging(ctx, &cfg, &sys);
     enum { NG = 8 };
     const double grid[NG] = {0.0, 1000.0, 2000.0, 3000.0, 5000.0, 8000.0, 12000.0, 16000.0};
     const double frac[NG] = {0.40, 0.20, 0.05, 0.05, 0.10, 0.05, 0.10, 0.05};
