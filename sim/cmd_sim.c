@@ -69,13 +69,14 @@ typedef struct {
  * the LGS, printed, and per sensor in the result file. */
 static int inloop_gain(wt_h5_writer *w, const wt_system *sys, int print)
 {
-    double g[2][WT_MAX_GS], mean[2] = {0, 0};
-    int n = 0, st = WT_OK;
+    double g[2][WT_MAX_GS], e[2][WT_MAX_GS], mean[2] = {0, 0};
+    int n = 0, st = WT_OK, fitted = 0;
     long frames = 0;
     for (int i = 0; i < sys->nsensors; i++) {
         const wt_sensor *s = &sys->sensors[i];
         if (!s->diffr || s->kind != WT_SENSOR_LGS || n >= WT_MAX_GS) continue;
         wt_sensing_gain_in_loop(s->diffr, &g[0][n], &g[1][n], &frames);
+        e[0][n] = s->diffr->gain_est[0], e[1][n] = s->diffr->gain_est[1], fitted |= s->diffr->gain_fits > 0;
         mean[0] += g[0][n], mean[1] += g[1][n], n++;
     }
     if (!n || frames < 1) return WT_OK;
@@ -87,6 +88,15 @@ static int inloop_gain(wt_h5_writer *w, const wt_system *sys, int print)
                               "centroider whose reference is the spot it sees")) < 0 ||
             (st = wt_h5_write(w, "sensing/lgs_inloop_gain_across", WT_H5_F64, WT_H5_F64, 1, &dim, g[1], "",
                               "per LGS: the same across the elongation")) < 0)
+            return st;
+        if (fitted &&
+            ((st = wt_h5_write(w, "sensing/lgs_gain_estimate_along", WT_H5_F64, WT_H5_F64, 1, &dim, e[0], "",
+                               "lgs.wfs.gain_update_s: per LGS, the last estimate of the matched filter's gain from the "
+                               "loop's pixels (the spot model fitted to the period's mean image), along the "
+                               "elongation, mean of the subapertures, before its correction; the slopes were divided "
+                               "by it from then on")) < 0 ||
+             (st = wt_h5_write(w, "sensing/lgs_gain_estimate_across", WT_H5_F64, WT_H5_F64, 1, &dim, e[1], "",
+                               "per LGS: the same across the elongation")) < 0))
             return st;
     }
     if (print)
@@ -434,6 +444,12 @@ int wt_cmd_sim(int argc, char **argv)
         if (cfg->lgs_reference == 2)
             printf("  pixels: re-centred images accumulated %.2f ms per frame (sensors above: %.2f ms per frame, "
                    "accumulation included)\n", ds.accumulate_seconds / done * 1e3, tm.sensors / done * 1e3);
+        if (ds.gain_updates > 0)
+            printf("  matched filter's gain from the pixels: measured %ld times (%.3f s each with C_E), the last %.3f "
+                   "along / %.3f across the elongation (mean of the LGS), corrected from then on; images accumulated "
+                   "%.2f ms per frame\n",
+                   ds.gain_updates, ds.gain_seconds / ds.gain_updates, ds.gain_along, ds.gain_across,
+                   ds.gain_accumulate_seconds / done * 1e3);
     }
     print_learned(wt_loop_adapt(lp), done, tm.learning);
     if (psf) printf("  PSF images %.2f ms per frame (in the time per frame above)\n", tpsf / done * 1e3);

@@ -55,6 +55,7 @@ void wt_loop_params_from_config(const wt_config *cfg, const wt_loop_options *opt
                                                       : cfg->lgs_reference == 1 ? WT_REFERENCE_ORACLE
                                                                                 : WT_REFERENCE_STATIC,
                                            .reference_update = cfg->lgs_reference_update,
+                                           .gain_update = cfg->lgs_gain_update,
                                            .start = nc->start, .frame_time = 1.0 / cfg->rate,
                                            .compression = nc->compression, .frames = cfg->frames,
                                            .origin = "keys atmosphere.night.start_s, atmosphere.night.compression, "

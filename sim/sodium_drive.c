@@ -15,7 +15,7 @@ struct wt_sodium_drive {
     wt_sodium_drive_params par;
     wt_sodium_seq *seq;      /* NULL: the set-up profile throughout */
     wt_sodium *na;           /* the profile of the last truth rebuild (the sequence's altitudes) */
-    long seq_every, ref_every; /* cadences in frames */
+    long seq_every, ref_every, gain_every; /* cadences in frames (gain_every 0: no gain estimates) */
     wt_sodium_drive_stats stats;
 };
 
@@ -32,18 +32,20 @@ int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium
     *out = NULL;
     const int has_seq = par->sequence && par->sequence[0];
     for (int m = 0; m < sys->nsensors; m++) nlgs += sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS;
-    if (nlgs == 0 || (!has_seq && par->reference == WT_REFERENCE_STATIC)) return WT_OK;
+    if (nlgs == 0 || (!has_seq && par->reference == WT_REFERENCE_STATIC && !(par->gain_update > 0.0))) return WT_OK;
     if (par->reference != WT_REFERENCE_STATIC && par->reference != WT_REFERENCE_ORACLE &&
         par->reference != WT_REFERENCE_PIXELS)
         return WT_ERROR(ctx, WT_ERR_INVALID, "sodium drive: reference kind %d unknown", par->reference);
     const double frame_night = par->frame_time * par->compression;
     if (!(frame_night > 0.0) || par->frames <= par->first_frame ||
         (par->reference != WT_REFERENCE_STATIC && par->reference_update < frame_night * (1.0 - 1e-9)) ||
-        par->sequence_update < 0.0 || (par->sequence_update > 0.0 && par->sequence_update < frame_night * (1.0 - 1e-9)))
+        par->sequence_update < 0.0 || (par->sequence_update > 0.0 && par->sequence_update < frame_night * (1.0 - 1e-9)) ||
+        par->gain_update < 0.0 || (par->gain_update > 0.0 && par->gain_update < frame_night * (1.0 - 1e-9)))
         return WT_ERROR(ctx, WT_ERR_INVALID,
-                        "sodium drive: a frame of %g s of night, frames %ld to %ld, cadences %g s (sequence) and %g s "
-                        "(reference): each cadence must be at least a frame (%s)",
+                        "sodium drive: a frame of %g s of night, frames %ld to %ld, cadences %g s (sequence), %g s "
+                        "(reference) and %g s (gain): each cadence must be at least a frame (%s)",
                         frame_night, par->first_frame, par->frames, par->sequence_update, par->reference_update,
+                        par->gain_update,
                         par->origin ? par->origin : "");
     wt_sodium_drive *d = NULL;
     WT_ALLOC(ctx, d, 1, "sodium drive");
@@ -62,6 +64,21 @@ int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium
                       WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
         goto fail;
     }
+    d->gain_every = par->gain_update > 0.0 ? frames_of(par->gain_update, frame_night) : 0;
+    if (d->gain_every > 0 && d->gain_every < WT_SENSING_PIXELS_MIN_FRAMES) {
+        st = WT_ERROR(ctx, WT_ERR_CONFIG,
+                      "key 'lgs.wfs.gain_update_s' = %g s of night is %ld frame(s) of %g s: the matched filter's gain "
+                      "is measured on the mean image of one period's frames and needs at least %d; give at least %g s "
+                      "(%s)",
+                      par->gain_update, d->gain_every, frame_night, WT_SENSING_PIXELS_MIN_FRAMES,
+                      WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
+        goto fail;
+    }
+    if (d->gain_every > 0)
+        for (int m = 0; m < sys->nsensors; m++)
+            if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
+                (st = wt_sensing_gain_start(sys->sensors[m].diffr)) < 0)
+                goto fail;
     if (par->reference == WT_REFERENCE_PIXELS)
         for (int m = 0; m < sys->nsensors; m++)
             if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&
@@ -124,14 +141,37 @@ int wt_sodium_drive_frame(wt_sodium_drive *d, long frame, wt_reconstructor *rec,
         d->stats.reference_seconds += wt_time_now() - t0;
         d->stats.c_e_seconds += wt_time_now() - t1;
     }
+    if (d->gain_every > 0 && j > 0 && j % d->gain_every == 0) {
+        const double t0 = wt_time_now();
+        double sa = 0.0, sc = 0.0;
+        int n = 0;
+        for (int m = 0; m < sys->nsensors; m++) {
+            double a = 0.0, c = 0.0;
+            /* a loop that does not sense (the budget's runs of a perfect tomography) has no frames to measure */
+            if (!sys->sensors[m].diffr || sys->sensors[m].kind != WT_SENSOR_LGS || sys->sensors[m].diffr->gain_frames == 0)
+                continue;
+            if ((st = wt_sensing_gain_update(sys->sensors[m].diffr, &a, &c)) < 0)
+                return WT_ERROR(d->ctx, st, "%s, frame %ld: %s", sys->sensors[m].name, frame, wt_error_message(d->ctx));
+            sa += a, sc += c, n++;
+        }
+        if (n > 0) {
+            if (rec && (st = wt_reconstructor_refresh_noise(rec)) < 0) return st;
+            d->stats.gain_updates++;
+            d->stats.gain_seconds += wt_time_now() - t0;
+            d->stats.gain_along = sa / n, d->stats.gain_across = sc / n;
+        }
+    }
     return WT_OK;
 }
 
 wt_sodium_drive_stats wt_sodium_drive_get_stats(const wt_sodium_drive *d)
 {
     wt_sodium_drive_stats s = d->stats;
-    for (int m = 0; m < d->sys->nsensors; m++)
-        if (d->par.reference == WT_REFERENCE_PIXELS && d->sys->sensors[m].diffr) s.accumulate_seconds += d->sys->sensors[m].diffr->pix_seconds;
+    for (int m = 0; m < d->sys->nsensors; m++) {
+        const wt_sensing *ws = d->sys->sensors[m].diffr;
+        if (d->par.reference == WT_REFERENCE_PIXELS && ws) s.accumulate_seconds += ws->pix_seconds;
+        if (d->gain_every > 0 && ws) s.gain_accumulate_seconds += ws->gain_seconds;
+    }
     return s;
 }
 

@@ -17,6 +17,11 @@
  *    first full period on (frame j = k·n, n = the cadence in frames ≥ WT_SENSING_PIXELS_MIN_FRAMES), the reference
  *    of the mean of the n frames before (wt_sensing_pixels_reference), then the same C_E refresh. Until the first
  *    rebuild the set-up's reference runs.
+ * The matched filter's gain (`gain_update` > 0, any reference): every LGS frame's image is accumulated from the
+ * first frame on (wt_sensing_gain_start); every `gain_update` of night time from the first full period on (after the
+ * reference's rebuild of that frame, which drops the old correction), each LGS filter's in-loop gain is measured on
+ * the mean image of the frames before and its inverse applied to the slopes and C_E from then on
+ * (wt_sensing_gain_update, core/model/sensing.h), then the C_E refresh.
  * The sensors are the system's: the drive leaves them at the set-up's profile and reference when freed
  * (wt_sensing_restore), so several loops may run on one system (compare, budget).
  */
@@ -37,6 +42,8 @@ typedef struct wt_sodium_drive_params {
     int reference;           /* WT_REFERENCE_STATIC, _ORACLE or _PIXELS */
     double reference_update; /* oracle, pixels: night time between two rebuilds [s] (≥ one frame's; pixels: ≥
                                 WT_SENSING_PIXELS_MIN_FRAMES frames') */
+    double gain_update;      /* the matched filter's gain from the pixels: night time between two estimates [s]
+                                (≥ WT_SENSING_PIXELS_MIN_FRAMES frames'); 0: none */
     double start;            /* night time of frame 0 [s] */
     double frame_time;       /* Δt [s] */
     double compression;      /* c: night seconds per simulated second */
@@ -45,10 +52,15 @@ typedef struct wt_sodium_drive_params {
 } wt_sodium_drive_params;
 
 /* What it did: rebuilds of the truth's tables and of the reference, their wall times [s] (the reference's with its
- * C_E refresh, which is c_e_seconds of it); pixels: the frames' accumulation, accumulate_seconds over the LGS. */
+ * C_E refresh, which is c_e_seconds of it); pixels: the frames' accumulation, accumulate_seconds over the LGS; the
+ * matched filter's gain estimates. */
 typedef struct wt_sodium_drive_stats {
     long truth_rebuilds, reference_rebuilds;
     double truth_seconds, reference_seconds, c_e_seconds, accumulate_seconds;
+    long gain_updates;                 /* the matched filter's gain: estimates, */
+    double gain_seconds;               /* their wall time with C_E's refresh, */
+    double gain_accumulate_seconds;    /* the frames' accumulation over the LGS, */
+    double gain_along, gain_across;    /* the last estimate along / across the elongation, mean of the LGS */
 } wt_sodium_drive_stats;
 
 /* Reads the sequence and checks it: it covers the run's night times and every LGS altitude (WT_ERR_CONFIG naming

@@ -354,10 +354,10 @@ START_TEST(test_reference)
      * keys under the oracle (the demo's: its source is there), nor the learned model's six, nor
      * atmosphere.night.file for a stochastic night, nor the seven keys of a model error (recon.atmosphere.error_*)
      * without one, nor the four of the sodium layer in time (lgs.sodium_sequence*, lgs.wfs.reference*: diffractive
-     * LGS only), nor recon.lgs_focus_mode left out (the removal's mode, read only beside it), nor sim.psf_wavelengths_nm and
+     * LGS only) and the matched filter's gain from the pixels (lgs.wfs.gain_update_s, the same), nor recon.lgs_focus_mode left out (the removal's mode, read only beside it), nor sim.psf_wavelengths_nm and
      * sim.telemetry_maps_interval_frames when left out, nor the LGS focus stage's two (lgs.wfs.focus_stage*: diffractive
      * LGS with the removal only) */
-    ck_assert_int_eq(nkeys + 39, nlines);
+    ck_assert_int_eq(nkeys + 40, nlines);
     ck_assert_ptr_nonnull(strstr(buf, "\natmosphere.night.file "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.error_high_shift_m "));
     ck_assert_ptr_nonnull(strstr(buf, "\nrecon.atmosphere.source "));

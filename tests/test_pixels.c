@@ -12,9 +12,8 @@
 #include "core/optics/image_shift.h"
 #include "core/optics/spot.h"
 #include "sim/loop.h"
+#include "pixels_fixture.h"
 #include "testutil.h"
-
-#define DDEMO "data/presets/demo-diffractive.cfg"
 
 /* pixel (i) of a unit Gaussian of σ [pixels] centred at c, integrated over the pixel */
 static double gpix(int i, double c, double sg)
@@ -66,33 +65,7 @@ START_TEST(test_spline_shift)
 }
 END_TEST
 
-typedef struct {
-    wt_context *ctx;
-    wt_config *cfg;
-    wt_system *sys;
-    wt_sensing *ws; /* the first diffractive LGS */
-} rig;
-
-static void rig_open_with(rig *r, int nset, const char *const *set)
-{
-    r->ctx = tu_context();
-    wt_context_set_threads(r->ctx, 2);
-    ck_assert_msg(wt_config_read(r->ctx, DDEMO, nset, set, &r->cfg) == WT_OK, "%s", wt_error_message(r->ctx));
-    ck_assert_msg(wt_system_alloc(r->ctx, r->cfg, &r->sys) == WT_OK, "%s", wt_error_message(r->ctx));
-    r->ws = NULL;
-    for (int m = 0; m < r->sys->nsensors && !r->ws; m++)
-        if (r->sys->sensors[m].diffr && r->sys->sensors[m].kind == WT_SENSOR_LGS) r->ws = r->sys->sensors[m].diffr;
-    ck_assert_ptr_nonnull(r->ws);
-}
-
 static void rig_open(rig *r) { rig_open_with(r, 0, NULL); }
-
-static void rig_close(rig *r)
-{
-    wt_system_free(r->sys);
-    wt_config_free(r->ctx, r->cfg);
-    wt_context_free(r->ctx);
-}
 
 /* Frames equal to the set-up reference spot (no turbulence, an unchanging profile), their slopes zero (what the
  * matched filter reads on I0): the rebuilt reference's images and its covariance (the MF of the rebuilt derivatives,
@@ -197,18 +170,6 @@ END_TEST
  * compounds: 0.32 after 2, 0.53 after 8, the sensor going blind to a slope that is there. Asserted: the code's part
  * moves by less than 0.05 from 2 to 8 rebuilds (noise ~0.01), the filter-in-force emulation's grows by more than 0.1
  * (the test's power). */
-/* ws->opd of a tilt (th[k] + ax, th[nsub + k] + ay) [rad] on every subaperture k */
-static void set_tilt(wt_sensing *ws, const double *th, double ax, double ay)
-{
-    const int nsub = ws->nsub, np = ws->np;
-    const double ds = ws->side / np;
-    for (int k = 0; k < nsub; k++)
-        for (int j = 0; j < np; j++)
-            for (int i = 0; i < np; i++)
-                ws->opd[(size_t)k * np * np + i + (size_t)np * j] =
-                    (float)(ds * ((th[k] + ax) * (i - 0.5 * (np - 1)) + (th[nsub + k] + ay) * (j - 0.5 * (np - 1))));
-}
-
 static double absorbed(rig *r, int in_force, int NREB)
 {
     enum { NFR = 32 };

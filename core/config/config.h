@@ -192,6 +192,8 @@ typedef struct wt_config {
     double sodium_sequence_update;   /* night time between two rebuilds of the truth's spot tables [s]; 0: every frame */
     int lgs_reference;               /* diffractive LGS reference in the loop: 0 static (set-up), 1 oracle, 2 pixels */
     double lgs_reference_update;     /* oracle, pixels: night time between two rebuilds [s] */
+    double lgs_gain_update;          /* the matched filter's gain from the loop's pixels: night time between two
+                                        estimates [s]; 0: none */
     int lgs_focus_stage;             /* diffractive LGS: the WFS focus stage and tip-tilt centring (sim/focus_stage.h) */
     double lgs_focus_stage_gain;     /* its integrators' gain */
     wt_sensor_config lgs_wfs;

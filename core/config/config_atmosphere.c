@@ -427,9 +427,10 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
     const int kq = wt_config_priv_find_key("lgs.sodium_sequence"), ku = wt_config_priv_find_key("lgs.sodium_sequence_update_s");
     const int kr = wt_config_priv_find_key("lgs.wfs.reference"), kt = wt_config_priv_find_key("lgs.wfs.reference_update_s");
     const int kf = wt_config_priv_find_key("lgs.wfs.focus_stage"), kg = wt_config_priv_find_key("lgs.wfs.focus_stage_gain");
+    const int kn = wt_config_priv_find_key("lgs.wfs.gain_update_s");
     const int diffr = cfg->nlgs > 0 && cfg->lgs_wfs.model == WT_WFS_DIFFRACTIVE;
-    const int keys[5] = {kq, kr, kt, kf, kg};
-    for (int i = 0; i < 5; i++)
+    const int keys[6] = {kq, kr, kt, kf, kg, kn};
+    for (int i = 0; i < 6; i++)
         if (ps->set[keys[i]] && !diffr)
             return wt_config_priv_fail(ps, wt_config_priv_where(ps, keys[i], ps->set[keys[i]], loc, sizeof loc),
                                        "key '%s' is for diffractive LGS sensors (lgs.wfs.model = \"diffractive\", "
@@ -457,8 +458,25 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
                                    "key 'lgs.wfs.reference_update_s' is given but 'lgs.wfs.reference' is \"static\" "
                                    "(%s): a static reference is never rebuilt",
                                    ps->set[kr] ? wt_config_priv_where(ps, kr, ps->set[kr], oth, sizeof oth) : "its default");
+    if (cfg->lgs_gain_update > 0.0 && cfg->lgs_wfs.centroider != 2) /* WT_CENTROID_MF */
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kn, ps->set[kn], loc, sizeof loc),
+                                   "key 'lgs.wfs.gain_update_s' measures the matched filter's gain: it needs "
+                                   "'lgs.wfs.centroider' = \"mf\"");
+    /* the gain's fit models the spots with the set-up profile: a sequence's spots are another profile's */
+    if (cfg->lgs_gain_update > 0.0 && cfg->sodium_sequence[0])
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kn, ps->set[kn], loc, sizeof loc),
+                                   "key 'lgs.wfs.gain_update_s' fits the loop's spots with the set-up sodium profile "
+                                   "(lgs.sodium_profile), and 'lgs.sodium_sequence' changes the truth's profile: the "
+                                   "two do not go together (set lgs.wfs.gain_update_s = 0 for a sequence)");
     /* a cadence is counted in frames: one shorter than a frame would be a rebuild per frame under another name */
     const double frame_night = cfg->night.compression / cfg->rate;
+    if (cfg->lgs_gain_update > 0.0 && lround(cfg->lgs_gain_update / frame_night) < 2)
+        return wt_config_priv_fail(ps, wt_config_priv_where(ps, kn, ps->set[kn], loc, sizeof loc),
+                                   "key 'lgs.wfs.gain_update_s' = %g s of night is %ld frame(s) of %g s (1 / "
+                                   "loop.rate_hz x atmosphere.night.compression): the matched filter's gain is measured "
+                                   "on the mean image of one period's frames and needs at least 2; give at least %g s",
+                                   cfg->lgs_gain_update, lround(cfg->lgs_gain_update / frame_night), frame_night,
+                                   2.0 * frame_night);
     const struct { int k; double v; int on; } cad[2] = {{ku, cfg->sodium_sequence_update, cfg->sodium_sequence_update > 0.0},
                                                         {kt, cfg->lgs_reference_update, cfg->lgs_reference != 0}};
     for (int i = 0; i < 2; i++)

@@ -65,7 +65,8 @@ static int affects_matrix(const pstate *ps, const char *path)
     /* the sodium layer in time and the loop's reference: the truth and the loop only; the set-up reference (the
      * MVM's noise model) is lgs.sodium_profile's (SPEC §12 "The sodium layer changes too") */
     if (!strncmp(path, "lgs.sodium_sequence", 19) || !strcmp(path, "lgs.wfs.reference") ||
-        !strcmp(path, "lgs.wfs.reference_update_s") || !strncmp(path, "lgs.wfs.focus_stage", 19))
+        !strcmp(path, "lgs.wfs.reference_update_s") || !strncmp(path, "lgs.wfs.focus_stage", 19) ||
+        !strcmp(path, "lgs.wfs.gain_update_s"))
         return 0;
     /* the profile enters by its contents (lgs.sodium_profile_sha256) and by its name only when they could
      * not be hashed: the same bytes under another name give the same matrix, an edited file another */

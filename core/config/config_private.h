@@ -44,7 +44,7 @@ typedef struct wt_config_priv_key_spec {
 
 /* The keys in schema order (the order of the canonical text). The count is a constant because the parse
  * state keeps one slot per key; config_schema.c fails to compile when it and the table disagree. */
-enum { WT_CONFIG_PRIV_NKEYS = 175 };
+enum { WT_CONFIG_PRIV_NKEYS = 176 };
 extern const wt_config_priv_key_spec wt_config_priv_keys[];
 
 static inline int wt_config_priv_is_list(int t) { return t == K_FLOATS || t == K_INTS; }

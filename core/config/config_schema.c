@@ -296,6 +296,12 @@ const wt_config_priv_key_spec wt_config_priv_keys[] = {
      0, 0, NULL, 60.0,
      "lgs.wfs.reference = oracle or pixels: night time between two rebuilds of the reference (oracle: at least one "
      "frame's night time, pixels: at least two) (optional, default 60)"},
+    {"lgs.wfs.gain_update_s", K_FLOAT, F_OPT, 0.0, 1e7, "s", 1, CF(lgs_gain_update), NOCOUNT, 0, 0, NULL, 0.0,
+     "diffractive LGS with the matched filter (lgs.wfs.centroider = \"mf\"): night time between two measurements of "
+     "the filter's gain on the loop's own pixels — the response to the derivative of the mean image of the period's "
+     "frames, pooled in 8 classes by the distance from the launch, along and across the elongation — whose inverse "
+     "then corrects the slopes and the noise model (pcg3 / cg9 C_E; an MVM keeps its own); at least two frames' night "
+     "time; 0: none, the filter's gain is its reference's (optional, default 0)"},
     {"lgs.wfs.focus_stage", K_BOOL, F_OPT, 0, 1, "", 1, CF(lgs_focus_stage), NOCOUNT, 0, 0, NULL, 0,
      "diffractive LGS with lgs.sodium_sequence and recon.lgs_focus_removal = true: each LGS wavefront sensor has a "
      "focus stage that follows the focus common to the LGS's measured slopes, and each LGS's spots are centred on "

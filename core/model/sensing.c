@@ -231,6 +231,9 @@ void wt_sensing_free(wt_sensing *ws)
     wt_free(ctx, ws->opd);
     wt_free(ctx, ws->img);
     wt_sensing_pixels_stop(ws);
+    wt_sensing_gain_stop(ws);
+    wt_free(ctx, ws->gain_corr);
+    wt_free(ctx, ws->gain_cov0);
     wt_sodium_free(ws->sodium0);
     wt_free(ctx, ws);
 }
@@ -294,8 +297,7 @@ void wt_sensing_sample(wt_sensing *ws, const wt_grid *fine, const double *fine_o
     }
 }
 
-/* The elongation's unit vector of subaperture k: from the launch position (LGS), else x */
-static void direction(const wt_sensing *ws, int k, double *ex, double *ey)
+void wt_sensing__direction(const wt_sensing *ws, int k, double *ex, double *ey)
 {
     const double dx = ws->xc[k] - ws->launch_x, dy = ws->yc[k] - ws->launch_y, r = hypot(dx, dy);
     if (ws->lgs && r > 1e-9) *ex = dx / r, *ey = dy / r;
@@ -330,7 +332,7 @@ static void gain_accumulate(wt_sensing *ws, const double *slopes)
         if (!(wx > 0 && wy > 0)) continue;
         gx /= wx * dx, gy /= wy * dx;
         double ex, ey;
-        direction(ws, k, &ex, &ey);
+        wt_sensing__direction(ws, k, &ex, &ey);
         const double sx = slopes[k], sy = slopes[nsub + k];
         const double gp = ex * gx + ey * gy, sp = ex * sx + ey * sy, gq = -ey * gx + ex * gy, sq = -ey * sx + ex * sy;
         sum[0] += sp * gp, sum[1] += gp * gp, sum[2] += sq * gq, sum[3] += gq * gq;
@@ -353,13 +355,39 @@ void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across
     *frames = (long)g[4];
 }
 
+/* the frame's images to the gain's accumulator (wt_sensing_gain_start), as detected */
+static void gain_add(wt_sensing *ws)
+{
+    if (!ws->gain_acc) return;
+    const double t0 = wt_time_now();
+    const size_t n = (size_t)ws->nsub * ws->ns * ws->ns;
+    float *restrict acc = ws->gain_acc;
+    const float *restrict im = ws->img;
+#pragma omp parallel for schedule(static) num_threads(wt_context_threads(ws->ctx)) if (n > 65536 && !omp_in_parallel())
+    for (size_t q = 0; q < n; q++) acc[q] += im[q];
+    ws->gain_frames++;
+    ws->gain_seconds += wt_time_now() - t0;
+}
+
+void wt_sensing__gain_correct(const wt_sensing *ws, double *slopes)
+{
+    if (!ws->gain_corr) return;
+    const int nsub = ws->nsub;
+    for (int k = 0; k < nsub; k++) {
+        const double *h = ws->gain_corr + 4 * (size_t)k, sx = slopes[k], sy = slopes[nsub + k];
+        slopes[k] = h[0] * sx + h[1] * sy, slopes[nsub + k] = h[2] * sx + h[3] * sy;
+    }
+}
+
 int wt_sensing_detect(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes)
 {
     int st = wt_spot_image(ws->spot, ws->opd, ws->img);
     if (st < 0) return st;
     if (noise && (st = wt_spot_noise(ws->spot, seed, base_stream, ws->img)) < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
+    wt_sensing__gain_correct(ws, slopes);
     if (ws->gain_on) gain_accumulate(ws, slopes);
+    gain_add(ws);
     if (ws->pix_acc) {
         /* re-centred on the set-up filter's slopes, not the loop's (sensing.h pix_cen0) */
         const double t0 = wt_time_now();
@@ -376,6 +404,8 @@ int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64
     int st = noise ? wt_spot_noise(ws->spot, seed, base_stream, ws->img) : WT_OK;
     if (st < 0) return st;
     wt_centroid_apply(ws->cen, ws->img, slopes);
+    wt_sensing__gain_correct(ws, slopes);
+    gain_add(ws); /* the reference's spots: a gain estimate of them is the identity */
     return WT_OK;
 }
 
@@ -387,6 +417,8 @@ size_t wt_sensing_memory(const wt_sensing *ws)
     if (ws->pix_acc) /* E² = (Ns + 8)², the anchor and set-up image; the set-up filter and its slopes */
         b += nsub * (4 * s2 + 16 * (size_t)ws->ns + 64) * sizeof(float) + wt_centroid_memory(ws->pix_cen0) +
              2 * nsub * sizeof(double);
+    if (ws->gain_acc) b += 3 * nsub * s2 * sizeof(float); /* the sum and the anchor */
+    if (ws->gain_corr) b += 7 * nsub * sizeof(double);
     return b;
 }
 

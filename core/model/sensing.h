@@ -98,6 +98,15 @@ typedef struct wt_sensing {
     double *pix_s0;            /* [2 nsub] its slopes of the current frame */
     long pix_frames;           /* frames in pix_acc */
     double pix_seconds;        /* wall time of the accumulation since wt_sensing_pixels_start */
+    /* the matched filter's gain measured on the loop's own pixels (sensing_gain.c); gain_acc NULL: not accumulating */
+    float *gain_acc;           /* [nsub Ns²] Σ of every frame's image as detected since the last estimate */
+    long gain_frames;          /* frames in gain_acc */
+    double gain_seconds;       /* wall time of the accumulation since wt_sensing_gain_start */
+    double *gain_corr;         /* [4 nsub] the correction H_k applied to every slope (row-major); NULL: none */
+    double *gain_cov0;         /* [3 nsub] the covariance of the centroider in force before H (with gain_corr) */
+    double gain_est[2];        /* the last estimate's gain along / across the elongation (mean of subapertures) */
+    double gain_model[4];      /* the last fitted spot model: seeing strength α, blur {Σxx, Σxy, Σyy} [rad²] */
+    long gain_fits;            /* estimates made (the next fit starts from the last's model) */
 } wt_sensing;
 
 /* Build the sensor of `w` (cfg->lgs_wfs or cfg->ngs_wfs, with model diffractive) for geometry g: sodium
@@ -132,7 +141,8 @@ void wt_sensing_gain_in_loop(const wt_sensing *ws, double *along, double *across
 /* The same at the sensor's operating point: the reference I0 (the mean spot in the loop, with the seeing of
  * lgs.wfs.reference_seeing) instead of the image of the sampled OPD, with noise when `noise`. For the
  * reconstruction of pure noise: the centroider's noise where the loop holds it (the flat wavefront's spot is
- * narrower than the loop's and its noise smaller). Outside parallel regions only. */
+ * narrower than the loop's and its noise smaller). A gain correction in force applies, and the images count in the
+ * gain's accumulator as wt_sensing_detect's do (their estimate is the identity). Outside parallel regions only. */
 int wt_sensing_detect_reference(wt_sensing *ws, int noise, uint64_t seed, uint64_t base_stream, double *slopes);
 
 /* ---- the sodium layer in time and a reference that follows it (SPEC §12 "The sodium layer changes too") ----
@@ -199,6 +209,33 @@ void wt_sensing_pixels_stop(wt_sensing *ws);
 /* Adds images (nsub Ns², e.g. ws->img) re-centred by slopes [rad] ([s_x…, s_y…]) to the accumulator, one frame
  * (wt_sensing_detect's step; for the tests). Outside parallel regions only. */
 void wt_sensing_pixels_add(wt_sensing *ws, const float *images, const double *slopes);
+
+/* ---- the matched filter's gain from the loop's own pixels (lgs.wfs.gain_update_s; sensing_gain.c) ----
+ * A matched filter reads a spot that is not its reference with a gain g ≠ 1 (docs/design.md "The matched filter's gain
+ * from the loop's pixels"). For frames whose spots are the images I(t_f) of tilts t_f (Gaussian about a mean, noise
+ * independent of t), the least-squares slope of the filter's output s_f = R (I(t_f) − I0) on t_f is, by Stein's
+ * lemma, E[∂s/∂t] = R ∂M/∂θ, M = E[I(t)] the mean image of the frames as detected, not re-centred: the in-loop gain
+ * is the filter's response to the derivative of the frames' mean image, whatever the spots' width and jitter. With
+ * the derivative anchored on the set-up reference's as the pixels' reference is (∂M/∂θ = S(M)/p + ∂I0_s/∂θ −
+ * S(I0_s)/p, S the spline's derivative: exact when M = I0_s, so the set-up's spots give g = 1), the 2×2 gain of
+ * subaperture k is G_k = R_k ∂M_k/∂θ — linear in M, so the frames' noise leaves it unbiased. The estimates are
+ * pooled in WT_SENSING_GAIN_BINS classes of equal count by the subaperture's distance from the launch (the
+ * elongation, which decides the gain), along and across the elongation e_k, each subaperture weighted by the inverse
+ * of its noise variance: ḡ∥, ḡ⊥. The slopes are then corrected by H_k = e_k e_kᵀ / ḡ∥ + e⊥ e⊥ᵀ / ḡ⊥ and the
+ * covariance with them, H C Hᵀ (the reconstructor's C_E follows after wt_reconstructor_refresh_noise).
+ * start: the accumulation from the next wt_sensing_detect on (an LGS with the matched filter: WT_ERR_INVALID
+ * otherwise); update: the estimate of the frames since the last (≥ WT_SENSING_PIXELS_MIN_FRAMES; the old correction
+ * kept on refusal), applied from the next frame on, the accumulator restarted; *along, *across (NULL: not wanted) the
+ * estimate's ḡ∥, ḡ⊥ averaged over subapertures. A new reference (wt_sensing_set_reference) drops the correction: it
+ * was the old filter's. stop frees the accumulation; restore undoes the correction. */
+#define WT_SENSING_GAIN_BINS 8
+int wt_sensing_gain_start(wt_sensing *ws);
+int wt_sensing_gain_update(wt_sensing *ws, double *along, double *across);
+void wt_sensing_gain_stop(wt_sensing *ws);
+/* (sensing.c) H_k s_k for every subaperture, when a correction is in force; the elongation's unit vector of
+ * subaperture k (from the launch position for an LGS, else x) */
+void wt_sensing__gain_correct(const wt_sensing *ws, double *slopes);
+void wt_sensing__direction(const wt_sensing *ws, int k, double *ex, double *ey);
 
 /* Back to the set-up's profile and reference (each only when changed; bit for bit): a loop leaves the system as it
  * found it for the next (compare and budget run several loops on one system). */

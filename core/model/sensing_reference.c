@@ -90,6 +90,10 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
     ws->nea_median = median;
     ws->mean_var = mean_var;
     ws->reference_changed = 1;
+    /* a gain correction was the old filter's */
+    wt_free(ctx, ws->gain_corr);
+    wt_free(ctx, ws->gain_cov0);
+    ws->gain_corr = NULL, ws->gain_cov0 = NULL;
 fail:
     wt_centroid_free(cen);
     wt_free(ctx, cov);
@@ -119,6 +123,32 @@ fail:
     return st;
 }
 
+/* the set-up reference i0 and its derivatives, the spot tables set back to the set-up profile first (a loop's start) */
+static int setup_reference(wt_sensing *ws, float *i0, float *dx, float *dy)
+{
+    const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
+    int st = ws->sodium_changed ? wt_spot_set_sodium(ws->spot, ws->sodium0) : WT_OK;
+    if (st < 0 || (st = wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, i0, dx, dy)) < 0) return st;
+    ws->sodium_changed = 0;
+    return WT_OK;
+}
+
+/* dx, dy less the derivatives of i0's spline / p: the anchor of the pixels' derivatives; tmp: threads × (work + Ns²) */
+static void unspline(const wt_sensing *ws, const float *i0, float *dx, float *dy, double *tmp)
+{
+    const int nsub = ws->nsub, ns = ws->ns, nth = wt_context_threads(ws->ctx);
+    const size_t n2 = (size_t)ns * ns, wk = (size_t)wt_image_shift_work(ns) + n2;
+    const double p = ws->pixel;
+#pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
+    for (int k = 0; k < nsub; k++) {
+        double *w = tmp + wk * (size_t)wt_thread_id();
+        float *sx = (float *)(w + (size_t)wt_image_shift_work(ns)), *sy = sx + n2; /* the scratch's last n2 doubles */
+        wt_image_shift_derivative(ns, i0 + n2 * k, sx, sy, w);
+        for (size_t q = 0; q < n2; q++)
+            dx[n2 * k + q] = (float)(dx[n2 * k + q] - sx[q] / p), dy[n2 * k + q] = (float)(dy[n2 * k + q] - sy[q] / p);
+    }
+}
+
 int wt_sensing_pixels_start(wt_sensing *ws)
 {
     wt_context *ctx = ws->ctx;
@@ -135,32 +165,17 @@ int wt_sensing_pixels_start(wt_sensing *ws)
     ws->pix_seconds = 0.0;
     /* the anchor: the set-up reference's derivatives (the spot model's, of the set-up profile) less its spline's */
     {
-        const size_t npix = (size_t)ws->nsub * n2, wk = (size_t)wt_image_shift_work(ws->ns) + n2;
-        float *i0 = NULL, *dx = NULL, *dy = NULL;
+        const size_t npix = (size_t)ws->nsub * n2;
+        float *i0 = NULL;
         WT_ALLOC(ctx, ws->pix_anchor, 3 * npix, "pixel reference anchor");
-        dx = ws->pix_anchor, dy = ws->pix_anchor + npix;
         WT_ALLOC(ctx, i0, npix, "set-up reference");
-        const wt_spot_seeing see = {.r0 = ws->r0, .L0 = ws->L0, .grid = ws->seeing_grid};
-        if ((st = ws->sodium_changed ? wt_spot_set_sodium(ws->spot, ws->sodium0) : WT_OK) < 0 ||
-            (st = wt_spot_reference(ws->spot, 0.0, ws->seeing ? &see : NULL, i0, dx, dy)) < 0) {
+        float *dx = ws->pix_anchor, *dy = ws->pix_anchor + npix;
+        if ((st = setup_reference(ws, i0, dx, dy)) < 0 ||
+            (st = wt_centroid_alloc(ctx, &ws->cpar, ws->nsub, ws->ns, i0, dx, dy, &ws->pix_cen0)) < 0) {
             wt_free(ctx, i0);
             goto fail;
         }
-        ws->sodium_changed = 0;
-        if ((st = wt_centroid_alloc(ctx, &ws->cpar, ws->nsub, ws->ns, i0, dx, dy, &ws->pix_cen0)) < 0) {
-            wt_free(ctx, i0);
-            goto fail;
-        }
-        const int nsub = ws->nsub, ns = ws->ns;
-        const double p = ws->pixel;
-#pragma omp parallel for schedule(static, 64) num_threads(nth) if (nth > 1 && nsub > 64 && !omp_in_parallel())
-        for (int k = 0; k < nsub; k++) {
-            double *w = ws->pix_tmp + wk * (size_t)wt_thread_id();
-            float *sx = (float *)(w + (size_t)wt_image_shift_work(ns)), *sy = sx + n2; /* the scratch's last n2 doubles */
-            wt_image_shift_derivative(ns, i0 + n2 * k, sx, sy, w);
-            for (size_t q = 0; q < n2; q++)
-                dx[n2 * k + q] = (float)(dx[n2 * k + q] - sx[q] / p), dy[n2 * k + q] = (float)(dy[n2 * k + q] - sy[q] / p);
-        }
+        unspline(ws, i0, dx, dy, ws->pix_tmp);
         memcpy(ws->pix_anchor + 2 * npix, i0, npix * sizeof *i0);
         wt_free(ctx, i0);
     }
@@ -251,6 +266,7 @@ int wt_sensing_restore(wt_sensing *ws)
 {
     int st = WT_OK;
     wt_sensing_pixels_stop(ws);
+    wt_sensing_gain_stop(ws); /* a correction in force set reference_changed: the rebuild below drops it */
     if (ws->sodium_changed) {
         if ((st = wt_spot_set_sodium(ws->spot, ws->sodium0)) < 0) return st;
         ws->sodium_changed = 0;

@@ -74,6 +74,7 @@ void wt_spot_free(wt_spot *s)
     wt_free(ctx, s->xc);
     wt_free(ctx, s->yc);
     wt_free(ctx, s->rcells);
+    wt_free(ctx, s->dl);
     wt_free(ctx, s);
 }
 

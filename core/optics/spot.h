@@ -127,6 +127,10 @@ typedef struct wt_spot_seeing {
     double r0; /* Fried parameter at 500 nm [m] */
     double L0; /* outer scale [m] */
     double grid; /* the spacing of a simulation grid that renders the phase [m] (seeing.h); 0: none (the sky) */
+    double blur[3]; /* a Gaussian the spot is convolved with besides, its covariance {Σxx, Σxy, Σyy} [rad²] (a jitter:
+                       the OTF times exp(−2π² νᵀΣν), ν = u/λ the lag in cycles per radian); zeros: none */
+    double scale;   /* the structure function times this, the seeing's strength (r0 → r0 scale^(−3/5)); 0: 1 */
+    const unsigned char *only; /* [nsub] 0: that subaperture's images are left as they are (not made); NULL: all */
 } wt_spot_seeing;
 
 /* The noise-free reference I0 and its derivatives dI0/dθx, dI0/dθy [e-/rad] by central differences of a

@@ -67,6 +67,8 @@ struct wt_spot {
     int rc_valid, rc_see;
     double rc_dtheta;
     wt_spot_seeing rc_seeing;
+    double *dl;            /* the seeing's lag table of dl_key = {r0, L0, grid} (wt_spot_reference's last), or NULL */
+    double dl_key[3];
 };
 
 
