@@ -151,6 +151,11 @@ typedef struct wt_bench_sodium {
      * derivatives, matched filter, covariance); the start (the set-up reference's derivatives for the anchor) once */
     wt_bench_stats accumulate, pixels;
     double pixels_start, cpu_accumulate, cpu_pixels;
+    /* lgs.wfs.gain_update_s (sensing.h "wt_sensing_gain_*"), every LGS, on frames of the reference images: the
+     * first estimate (the spot model's fit from the reference, 4 Gauss–Newton iterations) and reps more (from the
+     * last estimate, 2 iterations: what the loop pays every gain_update_s, C_E's refresh not included) */
+    double gain_first, cpu_gain;
+    wt_bench_stats gain;
 } wt_bench_sodium;
 
 int wt_bench_sodium_run(wt_context *ctx, const wt_system *sys, int reps, wt_bench_sodium *out);

@@ -306,6 +306,13 @@ static int bench_sensing(wt_cli *cli, const wt_system *sys, int frames, double g
                na.nsensors, na.accumulate.med * 1e3, na.accumulate.p10 * 1e3, na.accumulate.p90 * 1e3,
                na.cpu_accumulate * 1e3, na.cpu_accumulate / threads * 1e3, threads, na.pixels.med, na.pixels.p10,
                na.pixels.p90, na.cpu_pixels, na.cpu_pixels / threads, threads, na.pixels_start);
+    if (na.nsensors && na.gain_first > 0.0)
+        printf("  the matched filter's gain from the loop's pixels (lgs.wfs.gain_update_s), %d LGS: an estimate (the spot "
+               "model fitted to the mean image, its derivatives through the filter) %.3f s [%.3f, %.3f] from the last "
+               "(CPU %.3f s: %.3f s on %d idle cores), the first, from the reference, %.2f s; C_E's refresh not "
+               "included\n",
+               na.nsensors, na.gain.med, na.gain.p10, na.gain.p90, na.cpu_gain, na.cpu_gain / threads, threads,
+               na.gain_first);
     if (!any) printf("  (no diffractive sensor in %s)\n", sys->cfg->path);
     if (geometric >= 0)
         printf("  geometric sensors of the closed loop above (all sensors, slopes + noise): %.1f ms per frame\n",
