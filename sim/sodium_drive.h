@@ -19,7 +19,7 @@
  *    rebuild the set-up's reference runs.
  * The matched filter's gain (`gain_update` > 0, any reference): every LGS frame's image is accumulated from the
  * first frame on (wt_sensing_gain_start); every `gain_update` of night time from the first full period on (after the
- * reference's rebuild of that frame, which drops the old correction), each LGS filter's in-loop gain is measured on
+ * reference's rebuild of that frame, which keeps the old correction), each LGS filter's in-loop gain is measured on
  * the mean image of the frames before and its inverse applied to the slopes and C_E from then on
  * (wt_sensing_gain_update, core/model/sensing.h), then the C_E refresh.
  * The sensors are the system's: the drive leaves them at the set-up's profile and reference when freed

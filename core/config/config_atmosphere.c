@@ -462,12 +462,15 @@ int wt_config_priv_check_sodium(wt_config_priv_state *ps, const wt_config *cfg)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, kn, ps->set[kn], loc, sizeof loc),
                                    "key 'lgs.wfs.gain_update_s' measures the matched filter's gain: it needs "
                                    "'lgs.wfs.centroider' = \"mf\"");
-    /* the gain's fit models the spots with the set-up profile: a sequence's spots are another profile's */
-    if (cfg->lgs_gain_update > 0.0 && cfg->sodium_sequence[0])
+    /* the gain's fit models the spots with the reference's profile, which the spot tables hold: the set-up's, or under
+     * a sequence the truth's current one, which only the oracle's reference knows */
+    if (cfg->lgs_gain_update > 0.0 && cfg->sodium_sequence[0] && cfg->lgs_reference != 1)
         return wt_config_priv_fail(ps, wt_config_priv_where(ps, kn, ps->set[kn], loc, sizeof loc),
-                                   "key 'lgs.wfs.gain_update_s' fits the loop's spots with the set-up sodium profile "
-                                   "(lgs.sodium_profile), and 'lgs.sodium_sequence' changes the truth's profile: the "
-                                   "two do not go together (set lgs.wfs.gain_update_s = 0 for a sequence)");
+                                   "key 'lgs.wfs.gain_update_s' fits the loop's spots with the reference's sodium "
+                                   "profile, and with 'lgs.sodium_sequence' only lgs.wfs.reference = \"oracle\" has "
+                                   "the profile the spots are made of (a %s reference's is not): use the oracle or "
+                                   "set lgs.wfs.gain_update_s = 0",
+                                   cfg->lgs_reference == 2 ? "pixels" : "static");
     /* a cadence is counted in frames: one shorter than a frame would be a rebuild per frame under another name */
     const double frame_night = cfg->night.compression / cfg->rate;
     if (cfg->lgs_gain_update > 0.0 && lround(cfg->lgs_gain_update / frame_night) < 2)

@@ -211,30 +211,28 @@ void wt_sensing_pixels_stop(wt_sensing *ws);
 void wt_sensing_pixels_add(wt_sensing *ws, const float *images, const double *slopes);
 
 /* ---- the matched filter's gain from the loop's own pixels (lgs.wfs.gain_update_s; sensing_gain.c) ----
- * A matched filter reads a spot that is not its reference with a gain g ≠ 1 (docs/design.md "The matched filter's gain
- * from the loop's pixels"). For frames whose spots are the images I(t_f) of tilts t_f (Gaussian about a mean, noise
- * independent of t), the least-squares slope of the filter's output s_f = R (I(t_f) − I0) on t_f is, by Stein's
- * lemma, E[∂s/∂t] = R ∂M/∂θ, M = E[I(t)] the mean image of the frames as detected, not re-centred: the in-loop gain
- * is the filter's response to the derivative of the frames' mean image, whatever the spots' width and jitter. With
- * the derivative anchored on the set-up reference's as the pixels' reference is (∂M/∂θ = S(M)/p + ∂I0_s/∂θ −
- * S(I0_s)/p, S the spline's derivative: exact when M = I0_s, so the set-up's spots give g = 1), the 2×2 gain of
- * subaperture k is G_k = R_k ∂M_k/∂θ — linear in M, so the frames' noise leaves it unbiased. The estimates are
- * pooled in WT_SENSING_GAIN_BINS classes of equal count by the subaperture's distance from the launch (the
- * elongation, which decides the gain), along and across the elongation e_k, each subaperture weighted by the inverse
- * of its noise variance: ḡ∥, ḡ⊥. The slopes are then corrected by H_k = e_k e_kᵀ / ḡ∥ + e⊥ e⊥ᵀ / ḡ⊥ and the
- * covariance with them, H C Hᵀ (the reconstructor's C_E follows after wt_reconstructor_refresh_noise).
- * start: the accumulation from the next wt_sensing_detect on (an LGS with the matched filter: WT_ERR_INVALID
- * otherwise); update: the estimate of the frames since the last (≥ WT_SENSING_PIXELS_MIN_FRAMES; the old correction
- * kept on refusal), applied from the next frame on, the accumulator restarted; *along, *across (NULL: not wanted) the
- * estimate's ḡ∥, ḡ⊥ averaged over subapertures. A new reference (wt_sensing_set_reference) drops the correction: it
- * was the old filter's. stop frees the accumulation; restore undoes the correction. */
-#define WT_SENSING_GAIN_BINS 8
+ * A matched filter reads a spot that is not its reference with a gain ≠ 1 (docs/design.md "The matched filter's gain
+ * from the loop's pixels"). For spots I(t_f) at Gaussian tilts t_f (noise independent of t) the regression of the
+ * filter's output on t is, by Stein's lemma, R ∂M/∂θ with M the frames' mean image as detected. M is fitted by the
+ * spot model (the tables' profile, the reference's seeing scaled in strength, a Gaussian jitter: one set per sensor,
+ * sensing_gain.c), and each subaperture's 2×2 gain G_k is the filter in force's response to the fitted model's
+ * derivatives; the slopes are then G_k⁻¹ s and the covariance G_k⁻¹ C G_k⁻ᵀ (the reconstructor's C_E follows after
+ * wt_reconstructor_refresh_noise).
+ * start: the accumulation of every wt_sensing_detect's (and detect_reference's) images from now on (an LGS with the
+ * matched filter: WT_ERR_INVALID otherwise); update: the estimate of the frames since the last (≥
+ * WT_SENSING_PIXELS_MIN_FRAMES; on refusal the old correction is kept), applied from the next frame on, the
+ * accumulator restarted; *along, *across (NULL: not wanted) the gain along and across the elongation, mean of the
+ * subapertures, before the correction. A new reference (wt_sensing_set_reference: the oracle's) keeps the correction,
+ * applied to its covariance, until the next estimate (the profile changes slowly, and the seeing's mismatch the
+ * correction holds is the same). stop frees the accumulation; restore undoes the correction. */
 int wt_sensing_gain_start(wt_sensing *ws);
 int wt_sensing_gain_update(wt_sensing *ws, double *along, double *across);
 void wt_sensing_gain_stop(wt_sensing *ws);
 /* (sensing.c) H_k s_k for every subaperture, when a correction is in force; the elongation's unit vector of
  * subaperture k (from the launch position for an LGS, else x) */
 void wt_sensing__gain_correct(const wt_sensing *ws, double *slopes);
+/* (sensing_gain.c) c = H c0 Hᵀ per subaperture, hk [4 nsub] row-major, c0 and c [3 nsub] ([xx | xy | yy]) */
+void wt_sensing__gain_cov(int nsub, const double *hk, const double *c0, double *c);
 void wt_sensing__direction(const wt_sensing *ws, int k, double *ex, double *ey);
 
 /* Back to the set-up's profile and reference (each only when changed; bit for bit): a loop leaves the system as it

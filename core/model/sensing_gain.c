@@ -6,7 +6,8 @@
  *   G = E[∂s/∂t] = R ∂M/∂θ,   M = E[I(t)] the frames' mean image as detected (not re-centred),
  * whatever the spots' width and jitter. The derivative of an undersampled mean image is not in its pixels (a spline's
  * of the demo's ~1.2″ spots on 1.1″ pixels catches 0.2–0.4 of a change of width), so M is fitted by the spot model:
- *   M_k ≈ I_k(α, Σ) = the set-up profile's spot with the seeing of r0 α^(−3/5) (the reference's seeing scaled by α
+ *   M_k ≈ I_k(α, Σ) = the spot of the tables' profile (the set-up's; under a sodium sequence the truth's current one,
+ *                     which the oracle's reference is made of: the configuration allows no other) with the seeing of r0 α^(−3/5) (the reference's seeing scaled by α
  *                     in D ∝ r0^(−5/3); α = 1: the reference) convolved with a Gaussian N(0, Σ) (jitter),
  * one (α, Σxx, Σxy, Σyy) per sensor (the atmosphere's residual and the loop's jitter are the sensor's, the
  * elongation each subaperture's and in the model), by Gauss–Newton on Σ_k,q (M − I)² / V, V = max(M, 0) + B + σe²
@@ -48,10 +49,6 @@ int wt_sensing_gain_start(wt_sensing *ws)
         return WT_ERROR(ctx, WT_ERR_INVALID,
                         "diffractive sensor: the gain from the loop's pixels is the matched filter's of an LGS "
                         "(lgs.wfs.centroider = \"mf\")");
-    if (ws->sodium_changed)
-        return WT_ERROR(ctx, WT_ERR_INVALID,
-                        "diffractive sensor: the gain from the loop's pixels fits the set-up profile's spots, and the "
-                        "truth's tables are another profile's");
     const size_t npix = (size_t)ws->nsub * ws->ns * ws->ns;
     int st = WT_OK;
     wt_sensing_gain_stop(ws);
@@ -164,6 +161,15 @@ fail:
     return st;
 }
 
+void wt_sensing__gain_cov(int nsub, const double *hk, const double *c0, double *c)
+{
+    for (int k = 0; k < nsub; k++) {
+        const double *h = hk + 4 * (size_t)k, a = c0[k], b = c0[nsub + k], d = c0[2 * nsub + k];
+        const double u0 = h[0] * a + h[1] * b, u1 = h[0] * b + h[1] * d, v0 = h[2] * a + h[3] * b, v1 = h[2] * b + h[3] * d;
+        c[k] = u0 * h[0] + u1 * h[1], c[nsub + k] = u0 * h[2] + u1 * h[3], c[2 * nsub + k] = v0 * h[2] + v1 * h[3];
+    }
+}
+
 int wt_sensing_gain_update(wt_sensing *ws, double *along, double *across)
 {
     wt_context *ctx = ws->ctx;
@@ -219,10 +225,8 @@ int wt_sensing_gain_update(wt_sensing *ws, double *along, double *across)
         mean[0] += gp / nsub, mean[1] += gq / nsub;
         double *h = hk + 4 * (size_t)k;
         h[0] = gyy / det, h[1] = -gxy / det, h[2] = -gyx / det, h[3] = gxx / det;
-        const double a = cov0[k], c = cov0[nsub + k], d = cov0[2 * nsub + k];
-        const double u0 = h[0] * a + h[1] * c, u1 = h[0] * c + h[1] * d, v0 = h[2] * a + h[3] * c, v1 = h[2] * c + h[3] * d;
-        cov[k] = u0 * h[0] + u1 * h[1], cov[nsub + k] = u0 * h[2] + u1 * h[3], cov[2 * nsub + k] = v0 * h[2] + v1 * h[3];
     }
+    wt_sensing__gain_cov(nsub, hk, cov0, cov);
     double median = 0.0, mean_var = 0.0;
     const int bad = wt_sensing__nea_stats(nsub, cov, nea, &median, &mean_var);
     if (bad >= 0) {

@@ -59,13 +59,19 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
     const int nsub = ws->nsub, ns = ws->ns;
     int st = WT_OK;
     wt_centroid *cen = NULL;
-    double *cov = NULL, *trunc = NULL, *nea = NULL;
+    double *cov = NULL, *trunc = NULL, *nea = NULL, *raw = NULL;
     WT_TRY(wt_centroid_alloc(ctx, &ws->cpar, nsub, ns, i0, dix, diy, &cen));
     WT_ALLOC(ctx, cov, 3 * (size_t)nsub, "noise covariance");
     WT_ALLOC(ctx, trunc, nsub, "truncations");
     WT_ALLOC(ctx, nea, nsub, "NEA");
     if (ws->calibration == 1) WT_TRY(wt_centroid_noise_mc(cen, i0, ws->calibration_draws, ws->calibration_seed, cov, NULL));
     else wt_centroid_noise_cov(cen, cov);
+    /* a gain correction in force stays (wt_sensing_gain_update), applied to the new filter's covariance */
+    if (ws->gain_corr) {
+        WT_ALLOC(ctx, raw, 3 * (size_t)nsub, "noise covariance");
+        memcpy(raw, cov, 3 * (size_t)nsub * sizeof *cov);
+        wt_sensing__gain_cov(nsub, ws->gain_corr, raw, cov);
+    }
     double mean_var = 0.0, median = 0.0;
     const int bad = wt_sensing__nea_stats(nsub, cov, nea, &median, &mean_var);
     if (bad >= 0) {
@@ -90,11 +96,9 @@ int wt_sensing_set_reference(wt_sensing *ws, const float *i0, const float *dix, 
     ws->nea_median = median;
     ws->mean_var = mean_var;
     ws->reference_changed = 1;
-    /* a gain correction was the old filter's */
-    wt_free(ctx, ws->gain_corr);
-    wt_free(ctx, ws->gain_cov0);
-    ws->gain_corr = NULL, ws->gain_cov0 = NULL;
+    if (raw) memcpy(ws->gain_cov0, raw, 3 * (size_t)nsub * sizeof *raw); /* the new filter's own */
 fail:
+    wt_free(ctx, raw);
     wt_centroid_free(cen);
     wt_free(ctx, cov);
     wt_free(ctx, trunc);
@@ -266,7 +270,11 @@ int wt_sensing_restore(wt_sensing *ws)
 {
     int st = WT_OK;
     wt_sensing_pixels_stop(ws);
-    wt_sensing_gain_stop(ws); /* a correction in force set reference_changed: the rebuild below drops it */
+    wt_sensing_gain_stop(ws);
+    /* a correction in force set reference_changed: dropped here, the set-up's filter is rebuilt below */
+    wt_free(ws->ctx, ws->gain_corr);
+    wt_free(ws->ctx, ws->gain_cov0);
+    ws->gain_corr = NULL, ws->gain_cov0 = NULL;
     if (ws->sodium_changed) {
         if ((st = wt_spot_set_sodium(ws->spot, ws->sodium0)) < 0) return st;
         ws->sodium_changed = 0;

@@ -24,7 +24,9 @@ int wt_spot_reference(wt_spot *s, double dtheta, const wt_spot_seeing *see, floa
                                 s->rc_seeing.scale == see->scale && !see->only));
     const int blur = see && (see->blur[0] != 0.0 || see->blur[1] != 0.0 || see->blur[2] != 0.0);
     /* keep them now: every image is made (a NULL output to a scratch image) */
-    const int keep = s->rcells && !reuse && !(see && see->only);
+    /* the kept cells are the plain reference's (the oracle's): a model with a blur or a strength, or a subset, is not */
+    const int keep = s->rcells && !reuse && !(see && (see->only || see->scale > 0.0 || see->blur[0] != 0.0 ||
+                                                      see->blur[1] != 0.0 || see->blur[2] != 0.0));
     const size_t M2 = (size_t)s->M * s->M;
     const int nth = s->nthreads, np = s->np, Ns = s->Ns, N = s->N;
     const size_t ns2 = (size_t)Ns * Ns, n2 = (size_t)np * np, N2 = (size_t)N * N;
