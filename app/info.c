@@ -342,6 +342,9 @@ int wt_cmd_info(int argc, char **argv)
                w->wavelength * 1e9, ws->nea_median / WT_ARCSEC * 1e3, 100.0 * ws->worst_trunc, ws->worst_sub,
                ws->xc[ws->worst_sub], ws->yc[ws->worst_sub], ws->setup_seconds);
     }
+    if (cfg->nlgs > 0 && cfg->lgs_gain_update > 0.0)
+        printf("LGS matched filters' gain measured on the loop's own pixels every %g s of night and divided out "
+               "(lgs.wfs.gain_update_s)\n", cfg->lgs_gain_update);
 
     if (args.spots) {
         char cmd[4096] = "wavetomo";
