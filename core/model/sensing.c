@@ -231,7 +231,7 @@ void wt_sensing_free(wt_sensing *ws)
     wt_free(ctx, ws->opd);
     wt_free(ctx, ws->img);
     wt_sensing_pixels_stop(ws);
-    wt_sensing_gain_stop(ws);
+    wt_free(ctx, ws->gain_acc); /* (sensing_gain.c calls this file, not the reverse) */
     wt_free(ctx, ws->gain_corr);
     wt_free(ctx, ws->gain_cov0);
     wt_sodium_free(ws->sodium0);

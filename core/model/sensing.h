@@ -231,7 +231,7 @@ void wt_sensing_gain_stop(wt_sensing *ws);
 /* (sensing.c) H_k s_k for every subaperture, when a correction is in force; the elongation's unit vector of
  * subaperture k (from the launch position for an LGS, else x) */
 void wt_sensing__gain_correct(const wt_sensing *ws, double *slopes);
-/* (sensing_gain.c) c = H c0 Hᵀ per subaperture, hk [4 nsub] row-major, c0 and c [3 nsub] ([xx | xy | yy]) */
+/* (sensing_reference.c) c = H c0 Hᵀ per subaperture, hk [4 nsub] row-major, c0 and c [3 nsub] ([xx | xy | yy]) */
 void wt_sensing__gain_cov(int nsub, const double *hk, const double *c0, double *c);
 void wt_sensing__direction(const wt_sensing *ws, int k, double *ex, double *ey);
 

@@ -161,15 +161,6 @@ fail:
     return st;
 }
 
-void wt_sensing__gain_cov(int nsub, const double *hk, const double *c0, double *c)
-{
-    for (int k = 0; k < nsub; k++) {
-        const double *h = hk + 4 * (size_t)k, a = c0[k], b = c0[nsub + k], d = c0[2 * nsub + k];
-        const double u0 = h[0] * a + h[1] * b, u1 = h[0] * b + h[1] * d, v0 = h[2] * a + h[3] * b, v1 = h[2] * b + h[3] * d;
-        c[k] = u0 * h[0] + u1 * h[1], c[nsub + k] = u0 * h[2] + u1 * h[3], c[2 * nsub + k] = v0 * h[2] + v1 * h[3];
-    }
-}
-
 int wt_sensing_gain_update(wt_sensing *ws, double *along, double *across)
 {
     wt_context *ctx = ws->ctx;

@@ -42,6 +42,15 @@ int wt_sensing__nea_stats(int nsub, const double *cov, double *nea, double *medi
     return -1;
 }
 
+void wt_sensing__gain_cov(int nsub, const double *hk, const double *c0, double *c)
+{
+    for (int k = 0; k < nsub; k++) {
+        const double *h = hk + 4 * (size_t)k, a = c0[k], b = c0[nsub + k], d = c0[2 * nsub + k];
+        const double u0 = h[0] * a + h[1] * b, u1 = h[0] * b + h[1] * d, v0 = h[2] * a + h[3] * b, v1 = h[2] * b + h[3] * d;
+        c[k] = u0 * h[0] + u1 * h[1], c[nsub + k] = u0 * h[2] + u1 * h[3], c[2 * nsub + k] = v0 * h[2] + v1 * h[3];
+    }
+}
+
 int wt_sensing_set_sodium_staged(wt_sensing *ws, const wt_sodium *na, const double stage[3])
 {
     if (!ws->lgs) return WT_ERROR(ws->ctx, WT_ERR_INVALID, "diffractive sensor: a sodium profile for an NGS");
@@ -270,7 +279,8 @@ int wt_sensing_restore(wt_sensing *ws)
 {
     int st = WT_OK;
     wt_sensing_pixels_stop(ws);
-    wt_sensing_gain_stop(ws);
+    wt_free(ws->ctx, ws->gain_acc); /* (wt_sensing_gain_stop; sensing_gain.c is above this file) */
+    ws->gain_acc = NULL, ws->gain_frames = 0;
     /* a correction in force set reference_changed: dropped here, the set-up's filter is rebuilt below */
     wt_free(ws->ctx, ws->gain_corr);
     wt_free(ws->ctx, ws->gain_cov0);
