@@ -6,9 +6,10 @@
  *   G = E[∂s/∂t] = R ∂M/∂θ,   M = E[I(t)] the frames' mean image as detected (not re-centred),
  * whatever the spots' width and jitter. The derivative of an undersampled mean image is not in its pixels (a spline's
  * of the demo's ~1.2″ spots on 1.1″ pixels catches 0.2–0.4 of a change of width), so M is fitted by the spot model:
- *   M_k ≈ I_k(α, Σ) = the spot of the tables' profile (the set-up's; under a sodium sequence the truth's current one,
- *                     which the oracle's reference is made of: the configuration allows no other) with the seeing of r0 α^(−3/5) (the reference's seeing scaled by α
- *                     in D ∝ r0^(−5/3); α = 1: the reference) convolved with a Gaussian N(0, Σ) (jitter),
+ *   M_k ≈ I_k(α, Σ) = the spot of the tables' profile with the seeing of r0 α^(−3/5) (the reference's seeing scaled
+ *                     by α in D ∝ r0^(−5/3); α = 1: the reference) convolved with a Gaussian N(0, Σ) (jitter),
+ * the tables' profile being the set-up's, or under a sodium sequence the truth's current one, which the oracle's
+ * reference is made of (the configuration allows no other reference then),
  * one (α, Σxx, Σxy, Σyy) per sensor (the atmosphere's residual and the loop's jitter are the sensor's, the
  * elongation each subaperture's and in the model), by Gauss–Newton on Σ_k,q (M − I)² / V, V = max(M, 0) + B + σe²
  * a frame's pixel variance, from the reference (α = 1, Σ = 0; α = 0 fixed for a reference without seeing), α ≥ 0 and
@@ -34,7 +35,8 @@
 /* a gain outside this range is no loop's: the frames were not the spots of this reference */
 #define GAIN_MIN 0.25
 #define GAIN_MAX 4.0
-/* Gauss–Newton: iterations (from the reference; from the last estimate), and the steps of the model's finite differences (α; Σ in pixels²) */
+/* Gauss–Newton: iterations (from the reference; from the last estimate), and the steps of the model's finite
+ * differences (α; Σ in pixels²) */
 #define FIT_ITERATIONS 4
 #define FIT_ITERATIONS_WARM 2
 #define STEP_ALPHA 0.05
