@@ -25,6 +25,18 @@ static long frames_of(double night_s, double frame_night)
     return n < 1 ? 1 : n;
 }
 
+/* a cadence of `every` frames for a mean of one period's frames: at least WT_SENSING_PIXELS_MIN_FRAMES */
+static int enough_frames(wt_context *ctx, const char *key, const char *what, double night_s, long every,
+                         double frame_night, const char *origin)
+{
+    if (every >= WT_SENSING_PIXELS_MIN_FRAMES) return WT_OK;
+    return WT_ERROR(ctx, WT_ERR_CONFIG,
+                    "key '%s' = %g s of night is %ld frame(s) of %g s: %s is made of the mean image of one period's "
+                    "frames and needs at least %d; give at least %g s (%s)",
+                    key, night_s, every, frame_night, what, WT_SENSING_PIXELS_MIN_FRAMES,
+                    WT_SENSING_PIXELS_MIN_FRAMES * frame_night, origin ? origin : "");
+}
+
 int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium_drive_params *par,
                           wt_sodium_drive **out)
 {
@@ -55,25 +67,14 @@ int wt_sodium_drive_alloc(wt_context *ctx, const wt_system *sys, const wt_sodium
     d->par.sequence = NULL; /* (not kept) */
     d->seq_every = par->sequence_update > 0.0 ? frames_of(par->sequence_update, frame_night) : 1;
     d->ref_every = frames_of(par->reference_update, frame_night);
-    if (par->reference == WT_REFERENCE_PIXELS && d->ref_every < WT_SENSING_PIXELS_MIN_FRAMES) {
-        st = WT_ERROR(ctx, WT_ERR_CONFIG,
-                      "key 'lgs.wfs.reference_update_s' = %g s of night is %ld frame(s) of %g s: the reference from the "
-                      "loop's pixels (lgs.wfs.reference = \"pixels\") is the mean of the frames of one period and needs "
-                      "at least %d; give at least %g s (%s)",
-                      par->reference_update, d->ref_every, frame_night, WT_SENSING_PIXELS_MIN_FRAMES,
-                      WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
-        goto fail;
-    }
     d->gain_every = par->gain_update > 0.0 ? frames_of(par->gain_update, frame_night) : 0;
-    if (d->gain_every > 0 && d->gain_every < WT_SENSING_PIXELS_MIN_FRAMES) {
-        st = WT_ERROR(ctx, WT_ERR_CONFIG,
-                      "key 'lgs.wfs.gain_update_s' = %g s of night is %ld frame(s) of %g s: the matched filter's gain "
-                      "is measured on the mean image of one period's frames and needs at least %d; give at least %g s "
-                      "(%s)",
-                      par->gain_update, d->gain_every, frame_night, WT_SENSING_PIXELS_MIN_FRAMES,
-                      WT_SENSING_PIXELS_MIN_FRAMES * frame_night, par->origin ? par->origin : "");
+    if ((par->reference == WT_REFERENCE_PIXELS &&
+         (st = enough_frames(ctx, "lgs.wfs.reference_update_s",
+                             "the reference from the loop's pixels (lgs.wfs.reference = \"pixels\")",
+                             par->reference_update, d->ref_every, frame_night, par->origin)) < 0) ||
+        (d->gain_every > 0 && (st = enough_frames(ctx, "lgs.wfs.gain_update_s", "the matched filter's gain",
+                                                  par->gain_update, d->gain_every, frame_night, par->origin)) < 0))
         goto fail;
-    }
     if (d->gain_every > 0)
         for (int m = 0; m < sys->nsensors; m++)
             if (sys->sensors[m].diffr && sys->sensors[m].kind == WT_SENSOR_LGS &&

@@ -137,7 +137,10 @@ static int fit(wt_sensing *ws, const float *m, int iterations, double p[4])
         }
         double A[16] = {0}, b[4] = {0};
         for (size_t q = 0; q < npix; q++) {
-            if (!only[q / n2]) continue;
+            if (!only[q / n2]) { /* the subaperture's pixels at once */
+                q += n2 - 1;
+                continue;
+            }
             const double w = 1.0 / ((m[q] > 0.0f ? m[q] : 0.0) + v0 + 1e-3), r = (double)m[q] - img[q];
             double J[4];
             for (int j = 0; j < npar; j++) J[j] = ((double)img[(size_t)(j + 1) * npix + q] - img[q]) / h[j];
